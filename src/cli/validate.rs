@@ -1,0 +1,113 @@
+use std::path::Path;
+
+use super::{CliError, design_error};
+use crate::study::{Shape, Study};
+
+pub fn exec(deck: &Path) -> Result<(), CliError> {
+    let study = Study::load(deck)?;
+    let mut filters = Vec::with_capacity(study.detectors.len());
+    for d in &study.detectors {
+        filters.push(d.params.design(&study.design_plant, study.dt_s).map_err(|e| design_error(deck, &d.name, e))?);
+    }
+    let p = &study.plant;
+    let ranks = p
+        .structural_ranks()
+        .ok_or_else(|| CliError::Internal("SVD of the controllability/observability matrix failed".into()))?;
+    let list = |v: &[String]| v.join(", ");
+    let nums = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(", ");
+
+    println!("{}: valid", deck.display());
+    println!(
+        "study       {} (seed {}, {} s at dt {} s = {} samples)",
+        study.name, study.seed, study.duration_s, study.dt_s, study.steps
+    );
+    println!("plant       {} states [{}]", p.n_states(), list(&p.state_names));
+    println!("            {} inputs [{}]", p.n_inputs(), list(&p.input_names));
+    println!("            {} outputs [{}]", p.n_outputs(), list(&p.output_names));
+    println!(
+        "            rank ctrb(A, B) = {} of {}, rank obsv(A, C) = {} of {}",
+        ranks.controllability_rank, ranks.states, ranks.observability_rank, ranks.states
+    );
+    let same = study.design_plant.A == p.A && study.design_plant.B == p.B;
+    println!(
+        "design      {}",
+        if same { "on the true plant" } else { "on a design model that differs from the true plant" }
+    );
+    if study.output_feedback.amax() > 0.0 {
+        println!("controller  u = r - G y, G =");
+        print!("{}", indent(&format!("{:.6}", study.output_feedback)));
+    } else {
+        println!("controller  none (open loop)");
+    }
+    for e in &study.excitations {
+        let shape = match e.shape {
+            Shape::Square { period_s } => format!("square, period {period_s} s"),
+            Shape::Sine { period_s } => format!("sine, period {period_s} s"),
+            Shape::Step => "step".to_string(),
+        };
+        println!("excitation  {}: {shape}, amplitude {}, from {} s", p.input_names[e.input], e.amplitude, e.start_s);
+    }
+    println!("noise       sensor sigma [{}]", nums(study.sensor_sigma.as_slice()));
+    if study.process_sigma_per_step.amax() > 0.0 {
+        println!("            process sigma per step [{}]", nums(study.process_sigma_per_step.as_slice()));
+    }
+    for (d, filter) in study.detectors.iter().zip(&filters) {
+        let params = &d.params;
+        println!(
+            "detector    {}: detection_filter, eigenvalues [{}] 1/s on {} fault directions",
+            d.name,
+            nums(&params.eigenvalues_per_s),
+            params.fault_directions.ncols()
+        );
+        println!("            thresholds [{}]", nums(params.thresholds.as_slice()));
+        println!(
+            "            isolation: mean residual {} s to {} s after the alarm",
+            params.isolation_delay_s,
+            params.isolation_delay_s + params.isolation_window_s
+        );
+        println!(
+            "            closed-loop eigenvalues [{}], eigenvector condition {:.3}",
+            filter
+                .continuous
+                .closed_loop_eigenvalues
+                .iter()
+                .map(|e| format!("{:.6}", e.re))
+                .collect::<Vec<_>>()
+                .join(", "),
+            filter.continuous.eigenvector_condition
+        );
+    }
+    let mc = &study.monte_carlo;
+    println!(
+        "monte carlo {} trials, fault-free fraction {}, sampler {:?}, target Pfa {}",
+        mc.trials, mc.fault_free_fraction, mc.sampler, mc.target_pfa
+    );
+    if !mc.faults.is_empty() {
+        let outs: Vec<&str> = mc.outputs.iter().map(|&j| p.output_names[j].as_str()).collect();
+        println!(
+            "            faults on [{}], onset {:?}, noise scale {:?}",
+            outs.join(", "),
+            mc.onset_s,
+            mc.noise_scale
+        );
+        for f in &mc.faults {
+            println!("            fault kind {}: size {:?}", f.kind.name(), f.size);
+        }
+    }
+    for pe in &mc.parameter_errors {
+        println!("            parameter error {} on the {:?} model: relative {:?}", pe.name, pe.model, pe.relative);
+    }
+    if study.faults.is_empty() && mc.faults.is_empty() {
+        println!("faults      none");
+    }
+    for f in &study.faults {
+        let size = f.mode.size();
+        let size = if size.is_nan() { String::new() } else { format!(" {size}") };
+        println!("fault       {} {}{} from {} s", p.output_names[f.channel], f.mode.name(), size, f.onset_s);
+    }
+    Ok(())
+}
+
+pub(super) fn indent(s: &str) -> String {
+    s.lines().filter(|l| !l.trim().is_empty()).map(|l| format!("            {l}\n")).collect()
+}

@@ -1,0 +1,281 @@
+//! Detection-filter gain design by eigenstructure assignment (method 000, `methods.md`).
+//!
+//! Given `(A, C)`, fault directions `F = [f_1 .. f_r]` (n x r) and distinct eigenvalues `lambda_i`,
+//! find `K` with `(A - K C) f_i = lambda_i f_i`. Then `K C F = A F - F Lambda`, and when `C F` has full
+//! column rank the minimum-norm solution is
+//!
+//! ```text
+//! K = (A F - F Lambda) (C F)^+
+//! ```
+//!
+//! Any `K + Z` with `Z C F = 0` also assigns the same pairs; the minimum-norm one is what the seed's
+//! printed gain matches (rows 1, 3, 4, 5, after its columns 4 and 5 are swapped back).
+//! Assumptions: real, distinct eigenvalues; `(A, C)` observable; `rank(C F) = r`. With `r < n` the other
+//! `n - r` closed-loop eigenvalues are whatever the minimum-norm gain leaves, so they are reported and
+//! checked for stability, not chosen.
+//!
+//! The same kernel designs the continuous-time gain (eigenvalues `lambda`, stable when `Re < 0`) and the
+//! discrete-time gain the simulated filter uses (on the ZOH `Ad`, eigenvalues `exp(lambda dt)`, stable
+//! when `|z| < 1`): both give error dynamics with the same eigenvectors and the same time constants.
+#![allow(non_snake_case)]
+
+use faer::Mat;
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+use crate::linalg::{self, to_faer};
+
+/// Why a gain cannot be designed. Kept as data: a Monte Carlo trial with a failed design is a row.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DesignError {
+    #[error("the pair (A, C) is not observable: rank of the observability matrix is {rank}, needs {states}")]
+    Unobservable { rank: usize, states: usize },
+    #[error("rank(C F) = {rank} but there are {directions} fault directions: their outputs cannot be told apart")]
+    FaultDirectionsNotSeparable { rank: usize, directions: usize },
+    #[error("eigenvalues {first} and {second} are not distinct: each fault direction needs its own eigenvalue")]
+    RepeatedEigenvalues { first: f64, second: f64 },
+    #[error("{what} did not converge (non-finite matrix entries?)")]
+    Decomposition { what: &'static str },
+    #[error("the assignment residual |(A - K C) F - F Lambda| / |A F| = {relative_residual:.3e} exceeds 1e-8")]
+    AssignmentFailed { relative_residual: f64 },
+    #[error("closed-loop eigenvalue {re:.6} {im:+.6}i is not stable ({domain})")]
+    Unstable { re: f64, im: f64, domain: &'static str },
+}
+
+/// Whether the eigenvalues are of a continuous-time (`Re < 0` stable) or discrete-time (`|z| < 1`) system.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Domain {
+    Continuous,
+    Discrete,
+}
+
+/// A closed-loop eigenvalue as a real pair (for JSON and tables).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Eigenvalue {
+    pub re: f64,
+    pub im: f64,
+}
+
+/// A designed gain with the evidence that it does what was asked.
+#[derive(Debug, Clone)]
+pub struct Assignment {
+    /// Observer gain (n x m).
+    pub K: DMatrix<f64>,
+    /// Eigenvalues of `A - K C`, from faer's non-symmetric eigensolver, sorted by real part, descending.
+    pub closed_loop_eigenvalues: Vec<Eigenvalue>,
+    /// 2-norm condition number of the eigenvector matrix of `A - K C` (large = eigenvalues sensitive to
+    /// model error, the robustness question the Monte Carlo study answers empirically).
+    pub eigenvector_condition: f64,
+    /// `|(A - K C) F - F Lambda|_F / |A F|_F`: how exactly the pairs were assigned.
+    pub relative_residual: f64,
+}
+
+/// Assigns eigenvalue `lambda[i]` to direction `F[:, i]` (see the module docs).
+///
+/// Panics only on inconsistent dimensions (a programmer error: decks are validated before this).
+#[track_caller]
+pub fn assign_eigenstructure(
+    A: &DMatrix<f64>,
+    C: &DMatrix<f64>,
+    F: &DMatrix<f64>,
+    lambda: &[f64],
+    domain: Domain,
+) -> Result<Assignment, DesignError> {
+    let n = A.nrows();
+    let r = F.ncols();
+    assert!(A.is_square() && C.ncols() == n && F.nrows() == n && lambda.len() == r, "dimension mismatch");
+
+    let obs_rank = linalg::rank(&linalg::observability_matrix(A, C))
+        .ok_or(DesignError::Decomposition { what: "SVD of the observability matrix" })?;
+    if obs_rank < n {
+        return Err(DesignError::Unobservable { rank: obs_rank, states: n });
+    }
+    let CF = C * F;
+    let cf_rank = linalg::rank(&CF).ok_or(DesignError::Decomposition { what: "SVD of C F" })?;
+    if cf_rank < r {
+        return Err(DesignError::FaultDirectionsNotSeparable { rank: cf_rank, directions: r });
+    }
+    for i in 0..r {
+        for j in i + 1..r {
+            let scale = lambda[i].abs().max(lambda[j].abs()).max(1.0);
+            if (lambda[i] - lambda[j]).abs() <= 1e-9 * scale {
+                return Err(DesignError::RepeatedEigenvalues { first: lambda[i], second: lambda[j] });
+            }
+        }
+    }
+
+    let Lambda = DMatrix::from_diagonal(&DVector::from_column_slice(lambda));
+    let AF = A * F;
+    let target = &AF - F * &Lambda;
+    let CF_pinv = linalg::pseudo_inverse(&CF).ok_or(DesignError::Decomposition { what: "SVD of C F" })?;
+    let K = &target * CF_pinv;
+
+    let closed = A - &K * C;
+    let relative_residual = (&closed * F - F * &Lambda).norm() / AF.norm().max(f64::MIN_POSITIVE);
+    if !(relative_residual <= 1e-8) {
+        return Err(DesignError::AssignmentFailed { relative_residual });
+    }
+
+    let (closed_loop_eigenvalues, eigenvector_condition) = eigen_report(&closed)?;
+    for ev in &closed_loop_eigenvalues {
+        let stable = match domain {
+            Domain::Continuous => ev.re < 0.0,
+            Domain::Discrete => ev.re.hypot(ev.im) < 1.0,
+        };
+        if !stable {
+            let domain = match domain {
+                Domain::Continuous => "continuous time needs Re < 0",
+                Domain::Discrete => "discrete time needs |z| < 1",
+            };
+            return Err(DesignError::Unstable { re: ev.re, im: ev.im, domain });
+        }
+    }
+    Ok(Assignment { K, closed_loop_eigenvalues, eigenvector_condition, relative_residual })
+}
+
+/// Eigenvalues (sorted by real part, descending) and the eigenvector matrix's condition number.
+pub fn eigen_report(M: &DMatrix<f64>) -> Result<(Vec<Eigenvalue>, f64), DesignError> {
+    let evd = to_faer(M).eigen().map_err(|_| DesignError::Decomposition { what: "eigendecomposition" })?;
+    let mut eigenvalues: Vec<Eigenvalue> =
+        evd.S().column_vector().iter().map(|z| Eigenvalue { re: z.re, im: z.im }).collect();
+    eigenvalues.sort_by(|a, b| b.re.total_cmp(&a.re).then(b.im.total_cmp(&a.im)));
+    let U = evd.U();
+    let V: Mat<faer::c64> = Mat::from_fn(U.nrows(), U.ncols(), |i, j| U[(i, j)]);
+    let sigma = V.singular_values().map_err(|_| DesignError::Decomposition { what: "SVD of the eigenvectors" })?;
+    let condition = match (sigma.first(), sigma.last()) {
+        (Some(&hi), Some(&lo)) if lo > 0.0 => hi / lo,
+        _ => f64::INFINITY,
+    };
+    Ok((eigenvalues, condition))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::linalg::observability_matrix;
+
+    /// Seed 000: longitudinal model at Mach 0.8, H = 50 m.
+    fn seed000() -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>) {
+        #[rustfmt::skip]
+        let A = DMatrix::from_row_slice(5, 5, &[
+            0.0, 0.0, 0.0, 0.0, 0.0,
+            0.0, 0.0, -1.5122, 1.0, 0.0,
+            0.0, -7.9101, -3.0241, 0.0, 0.0,
+            0.0, 0.0, 1.0, 0.0, 0.0,
+            0.0, -272.24, 0.0, 272.24, 0.0,
+        ]);
+        let B = DMatrix::from_row_slice(5, 2, &[0.0, 0.0, 0.0, -0.2779, 0.0, -26.3821, 0.0, 0.0, 0.0, 0.0]);
+        #[rustfmt::skip]
+        let C = DMatrix::from_row_slice(6, 5, &[
+            1.0, 0.0, 0.0, 0.0, 0.0,
+            0.0, 1.0, 0.0, 0.0, 0.0,
+            0.0, 0.0, 1.0, 0.0, 0.0,
+            0.0, 0.0, 0.0, 1.0, 0.0,
+            0.0, -1.0, 0.0, 1.0, 0.0,
+            0.0, 0.0, 0.0, 0.0, 1.0,
+        ]);
+        (A, B, C)
+    }
+
+    /// The gain printed in seed 000, as printed (rounded to 4 decimals).
+    #[rustfmt::skip]
+    fn seed000_printed_k() -> DMatrix<f64> {
+        DMatrix::from_row_slice(5, 6, &[
+            1.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+            0.0, 0.3252, 1.0, -0.1626, 0.1626, 0.0,
+            0.0, -5.2734, -0.0241, 2.6367, -2.6367, 0.0,
+            0.0, 1.3333, 1.0, 1.3333, 2.6667, 0.0,
+            0.0, -90.7467, 0.0, 181.4933, 90.7467, 5.0,
+        ])
+    }
+
+    #[test]
+    fn seed000_ranks_are_4_and_5() {
+        let (A, B, C) = seed000();
+        assert_eq!(linalg::rank(&linalg::controllability_matrix(&A, &B)), Some(4));
+        assert_eq!(linalg::rank(&observability_matrix(&A, &C)), Some(5));
+    }
+
+    #[test]
+    fn seed000_design_places_minus_one_to_minus_five_on_a_diagonal() {
+        let (A, _, C) = seed000();
+        let lambda = [-1.0, -2.0, -3.0, -4.0, -5.0];
+        let d = assign_eigenstructure(&A, &C, &DMatrix::identity(5, 5), &lambda, Domain::Continuous).unwrap();
+        let want = [-1.0, -2.0, -3.0, -4.0, -5.0];
+        for (ev, w) in d.closed_loop_eigenvalues.iter().zip(want) {
+            assert!((ev.re - w).abs() < 1e-9 && ev.im.abs() < 1e-9, "{ev:?} vs {w}");
+        }
+        let closed = &A - &d.K * &C;
+        let diag = DMatrix::from_diagonal(&DVector::from_column_slice(&lambda));
+        assert!((&closed - &diag).amax() < 1e-12, "A - K C is not diag(-1..-5):\n{closed}");
+        // Eigenvectors are the unit vectors: perfectly conditioned.
+        assert!((d.eigenvector_condition - 1.0).abs() < 1e-9);
+        // Minimum-norm values the seed's rows 3 and 5 print.
+        assert!((d.K[(2, 1)] - -5.2734).abs() < 5e-5 && (d.K[(4, 4)] - 181.4933).abs() < 5e-5);
+    }
+
+    #[test]
+    fn seed000_printed_gain_is_inconsistent_and_columns_4_5_are_swapped() {
+        let (A, _, C) = seed000();
+        let lambda = [-1.0, -2.0, -3.0, -4.0, -5.0];
+        let printed = seed000_printed_k();
+
+        // As printed, the closed loop is not diag(-1..-5): it even has an unstable eigenvalue near +2.467.
+        let (ev, _) = eigen_report(&(&A - &printed * &C)).unwrap();
+        assert!((ev[0].re - 2.4669).abs() < 1e-3 && ev[0].im.abs() < 1e-9, "{ev:?}");
+
+        let ours = assign_eigenstructure(&A, &C, &DMatrix::identity(5, 5), &lambda, Domain::Continuous).unwrap().K;
+        let mut swapped = printed.clone();
+        swapped.swap_columns(3, 4);
+        for row in [0, 2, 3, 4] {
+            let diff = (swapped.row(row) - ours.row(row)).amax();
+            assert!(diff < 1e-4, "row {} differs by {diff}", row + 1);
+        }
+        // Row 2 fails the design equation even after the swap: (A - K C) e_2 != -2 e_2.
+        let closed_row2 = A.row(1) - swapped.row(1) * &C;
+        assert!((closed_row2[(0, 1)] - -2.0).abs() > 1.0, "row 2 unexpectedly consistent: {closed_row2}");
+        assert!((swapped.row(1) - ours.row(1)).amax() > 1.0);
+    }
+
+    #[test]
+    fn discrete_design_places_exp_lambda_dt() {
+        let (A, B, C) = seed000();
+        let plant = crate::plant::LtiPlant {
+            state_names: vec![String::new(); 5],
+            input_names: vec![String::new(); 2],
+            output_names: vec![String::new(); 6],
+            D: DMatrix::zeros(6, 2),
+            A,
+            B,
+            C,
+        };
+        let dt = 0.01;
+        let d = plant.discretise(dt);
+        let lambda: Vec<f64> = [-1.0f64, -2.0, -3.0, -4.0, -5.0].iter().map(|l| (l * dt).exp()).collect();
+        let a = assign_eigenstructure(&d.Ad, &d.C, &DMatrix::identity(5, 5), &lambda, Domain::Discrete).unwrap();
+        for (ev, l) in a.closed_loop_eigenvalues.iter().zip(&lambda) {
+            assert!((ev.re - l).abs() < 1e-12, "{ev:?} vs {l}");
+        }
+    }
+
+    #[test]
+    fn infeasible_designs_are_errors_with_reasons() {
+        let (A, _, C) = seed000();
+        let lambda = [-1.0, -2.0, -3.0, -4.0, -5.0];
+        let I = DMatrix::identity(5, 5);
+        // Repeated eigenvalues.
+        let e = assign_eigenstructure(&A, &C, &I, &[-1.0, -2.0, -2.0, -4.0, -5.0], Domain::Continuous);
+        assert!(matches!(e, Err(DesignError::RepeatedEigenvalues { first: -2.0, second: -2.0 })));
+        // Altitude not measured and nothing feeds it back: unobservable.
+        let C_no_h = C.columns(0, 4).into_owned().insert_column(4, 0.0);
+        let e = assign_eigenstructure(&A, &C_no_h, &I, &lambda, Domain::Continuous);
+        assert!(matches!(e, Err(DesignError::Unobservable { rank: 4, states: 5 })), "{e:?}");
+        // Two fault directions that look the same at the outputs.
+        let F = DMatrix::from_row_slice(5, 2, &[1.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        let e = assign_eigenstructure(&A, &C, &F, &[-1.0, -2.0], Domain::Continuous);
+        assert!(matches!(e, Err(DesignError::FaultDirectionsNotSeparable { rank: 1, directions: 2 })));
+        // Eigenvalues assigned in the right half plane are assigned exactly, and refused as unstable.
+        let e = assign_eigenstructure(&A, &C, &I, &[1.0, -2.0, -3.0, -4.0, -5.0], Domain::Continuous);
+        assert!(matches!(e, Err(DesignError::Unstable { .. })), "{e:?}");
+    }
+}

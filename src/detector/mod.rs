@@ -1,0 +1,5 @@
+//! Fault detectors. Each steps one sample at a time; `sim` owns time, fault injection and alarms.
+
+pub mod detection_filter;
+
+pub use detection_filter::DetectionFilter;

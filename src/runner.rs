@@ -1,0 +1,366 @@
+//! The Monte Carlo runner: the only parallel code in fdimc.
+//!
+//! Trials are processed in chunks of [`CHUNK_TRIALS`] consecutive indices. A chunk runs in parallel on
+//! rayon, its results are collected in trial order and written as one complete Parquet part file
+//! (`parts/part-<first trial>.parquet`, temporary name then rename), so memory stays at one chunk
+//! whatever the trial count, and a killed run loses at most the chunk in flight. `--resume` skips the
+//! parts already on disk; the last step concatenates the parts in trial order into `trials.parquet`.
+//! Each trial's numbers depend only on (deck, seed, trial index), so any thread count, shard split or
+//! resume gives identical rows.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use polars::prelude::*;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::output::records::RecordBuilder;
+use crate::output::temporary_sibling;
+use crate::sim::Engine;
+use crate::study::Study;
+
+/// Trials per part file.
+pub const CHUNK_TRIALS: u64 = 4096;
+
+/// Errors of a run; `Invalid` ones are the user's to fix (exit 2), the rest are I/O or internal (exit 3).
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    #[error("{0}")]
+    Invalid(String),
+    #[error("{file}: {source}")]
+    Io { file: PathBuf, source: std::io::Error },
+    #[error("{file}: {source}")]
+    Polars { file: PathBuf, source: PolarsError },
+    #[error("{0}")]
+    Internal(String),
+}
+
+fn io(file: &Path) -> impl FnOnce(std::io::Error) -> RunError + '_ {
+    move |source| RunError::Io { file: file.into(), source }
+}
+
+fn pol(file: &Path) -> impl FnOnce(PolarsError) -> RunError + '_ {
+    move |source| RunError::Polars { file: file.into(), source }
+}
+
+/// Part `index` of `count` of a study's trials.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Shard {
+    pub index: u64,
+    pub count: u64,
+}
+
+impl Shard {
+    pub const WHOLE: Shard = Shard { index: 0, count: 1 };
+
+    /// Parses `I/N` (0 <= I < N).
+    pub fn parse(text: &str) -> Result<Shard, String> {
+        let (i, n) = text.split_once('/').ok_or_else(|| format!("{text:?}: expected I/N, e.g. 0/4"))?;
+        let index: u64 = i.trim().parse().map_err(|_| format!("{text:?}: I must be a whole number"))?;
+        let count: u64 = n.trim().parse().map_err(|_| format!("{text:?}: N must be a whole number"))?;
+        if count == 0 || index >= count {
+            return Err(format!("{text:?}: needs 0 <= I < N (shards are numbered from 0)"));
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// The half-open trial range of this shard among `trials`.
+    pub fn range(&self, trials: u64) -> (u64, u64) {
+        let at = |k: u64| ((k as u128 * trials as u128) / self.count as u128) as u64;
+        (at(self.index), at(self.index + 1))
+    }
+}
+
+/// Provenance of a results folder, and what `--resume` and `merge` check.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub fdimc_version: String,
+    pub study: String,
+    pub deck: String,
+    pub deck_sha256: String,
+    pub seed: u64,
+    /// Trials of the whole study (all shards).
+    pub trials: u64,
+    pub shard: Shard,
+    /// Trial range written here: `[first_trial, end_trial)`.
+    pub first_trial: u64,
+    pub end_trial: u64,
+    pub chunk_trials: u64,
+    pub detectors: Vec<String>,
+    /// Output names and, per detector, the deck's thresholds (for calibration reports).
+    pub outputs: Vec<String>,
+    pub deck_thresholds: Vec<Vec<f64>>,
+    pub target_pfa: f64,
+    pub command_line: Vec<String>,
+    pub complete: bool,
+    pub rows: u64,
+}
+
+impl Manifest {
+    pub fn read(dir: &Path) -> Result<Manifest, RunError> {
+        let path = dir.join("manifest.json");
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            RunError::Invalid(format!("{}: cannot read ({e}): not an fdimc results folder?", path.display()))
+        })?;
+        serde_json::from_str(&text)
+            .map_err(|e| RunError::Invalid(format!("{}: not a valid fdimc manifest: {e}", path.display())))
+    }
+
+    pub fn write(&self, dir: &Path) -> Result<(), RunError> {
+        let path = dir.join("manifest.json");
+        let text = serde_json::to_string_pretty(self).map_err(|e| RunError::Internal(e.to_string()))?;
+        write_atomically(&path, text.as_bytes())
+    }
+
+    /// Whether two manifests describe the same study run (deck, seed, trial count, chunking).
+    fn same_study(&self, other: &Manifest) -> bool {
+        self.deck_sha256 == other.deck_sha256
+            && self.seed == other.seed
+            && self.trials == other.trials
+            && self.chunk_trials == other.chunk_trials
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file and a rename.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), RunError> {
+    let tmp = temporary_sibling(path);
+    std::fs::write(&tmp, bytes).map_err(io(path))?;
+    std::fs::rename(&tmp, path).map_err(io(path))
+}
+
+/// SHA-256 of the deck's bytes, hex.
+pub fn deck_sha256(deck: &Path) -> Result<String, RunError> {
+    use sha2::{Digest, Sha256};
+    let bytes = std::fs::read(deck).map_err(io(deck))?;
+    Ok(Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// What `fdimc run` was asked.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    pub deck: PathBuf,
+    pub out_dir: PathBuf,
+    pub threads: Option<usize>,
+    pub shard: Shard,
+    pub resume: bool,
+    /// Replace an existing results folder.
+    pub force: bool,
+    pub progress: bool,
+    pub command_line: Vec<String>,
+}
+
+/// What a finished run reports.
+#[derive(Debug, Clone)]
+pub struct RunReport {
+    pub manifest: Manifest,
+    pub trials_run: u64,
+    pub trials_resumed: u64,
+    pub seconds: f64,
+}
+
+fn part_path(dir: &Path, first_trial: u64) -> PathBuf {
+    dir.join("parts").join(format!("part-{first_trial:020}.parquet"))
+}
+
+/// Runs the study's trials of `opts.shard` into `opts.out_dir` (see the module docs).
+pub fn run(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
+    let started = Instant::now();
+    let engine = Engine::new(study);
+    for (d, f) in study.detectors.iter().zip(engine.nominal_filters()) {
+        if let Err(e) = f {
+            if study.monte_carlo.parameter_errors.is_empty() {
+                return Err(RunError::Invalid(format!("{}: detector {}: {e}", opts.deck.display(), d.name)));
+            }
+        }
+    }
+    let trials = study.monte_carlo.trials;
+    let (first, end) = opts.shard.range(trials);
+    let manifest = Manifest {
+        fdimc_version: env!("CARGO_PKG_VERSION").into(),
+        study: study.name.clone(),
+        deck: opts.deck.display().to_string(),
+        deck_sha256: deck_sha256(&opts.deck)?,
+        seed: study.seed,
+        trials,
+        shard: opts.shard,
+        first_trial: first,
+        end_trial: end,
+        chunk_trials: CHUNK_TRIALS,
+        detectors: study.detectors.iter().map(|d| d.name.clone()).collect(),
+        outputs: study.plant.output_names.clone(),
+        deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
+        target_pfa: study.monte_carlo.target_pfa,
+        command_line: opts.command_line.clone(),
+        complete: false,
+        rows: 0,
+    };
+
+    let dir = &opts.out_dir;
+    let existing = dir.join("manifest.json").exists();
+    if existing && opts.resume {
+        let old = Manifest::read(dir)?;
+        if !old.same_study(&manifest) || old.shard != manifest.shard {
+            return Err(RunError::Invalid(format!(
+                "{}: holds a run of another deck, seed, trial count or shard (deck {}, seed {}, {} trials, shard {}/{}); \
+                 --resume continues only the same run: use another --out",
+                dir.display(),
+                old.deck,
+                old.seed,
+                old.trials,
+                old.shard.index,
+                old.shard.count
+            )));
+        }
+        if old.complete && dir.join("trials.parquet").exists() {
+            return Ok(RunReport { manifest: old, trials_run: 0, trials_resumed: end - first, seconds: 0.0 });
+        }
+    } else if existing && !opts.force {
+        return Err(RunError::Invalid(format!(
+            "{}: already holds a run; use --resume to continue it, --force to replace it, or another --out",
+            dir.display()
+        )));
+    } else if existing {
+        for name in ["trials.parquet", "thresholds.csv", "summary.csv", "summary.parquet", "comparison.csv"] {
+            let _ = std::fs::remove_file(dir.join(name));
+        }
+        let _ = std::fs::remove_dir_all(dir.join("parts"));
+    }
+    std::fs::create_dir_all(dir.join("parts")).map_err(io(dir))?;
+    manifest.write(dir)?;
+
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(opts.threads.unwrap_or(0))
+        .build()
+        .map_err(|e| RunError::Internal(format!("thread pool: {e}")))?;
+    let bar = if opts.progress { ProgressBar::new(end - first) } else { ProgressBar::hidden() };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {pos}/{len} trials [{elapsed_precise} < {eta_precise}] {per_sec}")
+            .expect("static template"),
+    );
+
+    let mut resumed = 0;
+    let mut run_count = 0;
+    let mut chunk_start = first;
+    while chunk_start < end {
+        let chunk_end = (chunk_start + CHUNK_TRIALS).min(end);
+        let path = part_path(dir, chunk_start);
+        if path.exists() && opts.resume {
+            resumed += chunk_end - chunk_start;
+        } else {
+            let results: Vec<_> = pool.install(|| {
+                (chunk_start..chunk_end)
+                    .into_par_iter()
+                    .map(|t| {
+                        let r = engine.run(t);
+                        bar.inc(1);
+                        r
+                    })
+                    .collect()
+            });
+            let mut builder = RecordBuilder::new(study, results.len() * study.detectors.len());
+            for r in &results {
+                builder.push(r);
+            }
+            let mut df = builder.finish().map_err(pol(&path))?;
+            write_parquet(&mut df, &path)?;
+            run_count += chunk_end - chunk_start;
+        }
+        chunk_start = chunk_end;
+    }
+    bar.finish_and_clear();
+
+    let rows = concatenate_parts(dir, first, end)?;
+    let manifest = Manifest { complete: true, rows, ..manifest };
+    manifest.write(dir)?;
+    Ok(RunReport { manifest, trials_run: run_count, trials_resumed: resumed, seconds: started.elapsed().as_secs_f64() })
+}
+
+/// Writes a complete Parquet file atomically.
+pub fn write_parquet(df: &mut DataFrame, path: &Path) -> Result<(), RunError> {
+    let tmp = temporary_sibling(path);
+    let file = File::create(&tmp).map_err(io(path))?;
+    ParquetWriter::new(file).finish(df).map_err(pol(path))?;
+    std::fs::rename(&tmp, path).map_err(io(path))
+}
+
+/// Reads a Parquet file, naming it in errors (a corrupt file is the user's input: exit 2).
+pub fn read_parquet(path: &Path) -> Result<DataFrame, RunError> {
+    let file = File::open(path).map_err(io(path))?;
+    ParquetReader::new(file).finish().map_err(|e| {
+        RunError::Invalid(format!("{}: not a readable Parquet file ({e}); re-run or remove it", path.display()))
+    })
+}
+
+/// Streams the part files of `[first, end)` in trial order into `trials.parquet`; returns its rows.
+fn concatenate_parts(dir: &Path, first: u64, end: u64) -> Result<u64, RunError> {
+    let out = dir.join("trials.parquet");
+    let parts: Vec<PathBuf> = (first..end).step_by(CHUNK_TRIALS as usize).map(|start| part_path(dir, start)).collect();
+    concatenate(&parts, &out)?;
+    let rows = parts_rows(&out)?;
+    std::fs::remove_dir_all(dir.join("parts")).map_err(io(dir))?;
+    Ok(rows)
+}
+
+fn parts_rows(path: &Path) -> Result<u64, RunError> {
+    let file = File::open(path).map_err(io(path))?;
+    let n = ParquetReader::new(file).num_rows().map_err(pol(path))?;
+    Ok(n as u64)
+}
+
+/// Concatenates Parquet files (same schema) in order into `out`, one input in memory at a time.
+pub fn concatenate(inputs: &[PathBuf], out: &Path) -> Result<(), RunError> {
+    let tmp = temporary_sibling(out);
+    let result = (|| {
+        let file = File::create(&tmp).map_err(io(out))?;
+        let mut writer = None;
+        for path in inputs {
+            let df = read_parquet(path)?;
+            let w = match &mut writer {
+                Some(w) => w,
+                None => writer.insert(
+                    ParquetWriter::new(file.try_clone().map_err(io(out))?).batched(df.schema()).map_err(pol(out))?,
+                ),
+            };
+            w.write_batch(&df)
+                .map_err(|e| RunError::Invalid(format!("{}: does not match the other parts ({e})", path.display())))?;
+        }
+        match writer {
+            Some(w) => {
+                w.finish().map_err(pol(out))?;
+            }
+            None => return Err(RunError::Internal("nothing to concatenate".into())),
+        }
+        std::fs::rename(&tmp, out).map_err(io(out))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_cover_the_trials_exactly_once() {
+        for trials in [1u64, 7, 4096, 10_001] {
+            for count in 1..6 {
+                let mut next = 0;
+                for index in 0..count {
+                    let (a, b) = Shard { index, count }.range(trials);
+                    assert_eq!(a, next);
+                    next = b;
+                }
+                assert_eq!(next, trials);
+            }
+        }
+        assert!(Shard::parse("3/2").is_err());
+        assert!(Shard::parse("1/0").is_err());
+        assert!(Shard::parse("x").is_err());
+        assert_eq!(Shard::parse("1/4"), Ok(Shard { index: 1, count: 4 }));
+    }
+}

@@ -1,0 +1,224 @@
+//! Trial scenarios: which fault (kind, output, size, onset), noise level and parameter errors trial i has.
+//!
+//! A trial's scenario is a function of (deck, seed, trial index) only. Listed factors (`values`, the
+//! fault kinds and the faulty outputs) form a full grid cycled over the trial index (mixed radix, fault
+//! kind fastest), so every combination gets its share. Continuous factors (`range`) are drawn by the
+//! deck's sampler, one dimension per factor: independent uniforms, a Latin hypercube over all
+//! `monte_carlo.trials` (stratum of trial i in dimension d = a seeded permutation of 0..N), or an
+//! Owen-scrambled Sobol sequence (sobol_burley; independent scrambles per block of 65,536 trials, since
+//! one sequence holds 2^16 points). Whether a trial is fault-free is the first draw of its scenario stream.
+
+use rand::RngExt;
+use rand::SeedableRng;
+use rand::rngs::ChaCha8Rng;
+
+use super::{Substream, trial_rng};
+use crate::fault::SensorFault;
+use crate::study::{Factor, FaultKind, ModelTarget, Sampler, SizeSpec, Study};
+
+/// Continuous-factor dimensions, fixed so a trial's draws do not depend on which factors are present.
+const DIM_ONSET: usize = 0;
+const DIM_SIZE: usize = 1;
+const DIM_NOISE: usize = 2;
+const DIM_PARAMETERS: usize = 3;
+
+/// One trial's scenario.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrialSpec {
+    pub trial: u64,
+    /// Faults of this trial (empty: fault-free).
+    pub faults: Vec<SensorFault>,
+    /// Kind of the (first) fault, "none" when fault-free.
+    pub kind: &'static str,
+    /// Faulty output index.
+    pub output: Option<usize>,
+    /// Fault size in the output's units (a factor for gain); NaN when the kind has none.
+    pub size: f64,
+    /// Group label of the size, in the unit the deck gives it (output units, or sensor sigmas).
+    pub size_bin: f64,
+    pub onset_s: f64,
+    pub noise_scale: f64,
+    pub noise_bin: f64,
+    /// Relative error of each `monte_carlo.parameter_error`, in deck order.
+    pub parameter_errors: Vec<f64>,
+    /// Largest |group label| of the parameter errors (0 without any).
+    pub parameter_error_bin: f64,
+}
+
+/// Draws trial scenarios for one study.
+pub struct ScenarioSampler<'a> {
+    study: &'a Study,
+    /// Latin-hypercube strata: `lhs[d][i]` for dimension d, trial i.
+    lhs: Vec<Vec<u32>>,
+}
+
+impl<'a> ScenarioSampler<'a> {
+    pub fn new(study: &'a Study) -> Self {
+        let mc = &study.monte_carlo;
+        let dims = DIM_PARAMETERS + mc.parameter_errors.len();
+        let lhs = if mc.sampler == Sampler::LatinHypercube {
+            let n = mc.trials as usize;
+            (0..dims)
+                .map(|d| {
+                    // Fisher-Yates with a stream of its own per dimension.
+                    let mut rng = ChaCha8Rng::seed_from_u64(study.seed ^ 0x4c48_535f_7065_726d);
+                    rng.set_stream(d as u64);
+                    let mut perm: Vec<u32> = (0..n as u32).collect();
+                    for i in (1..n).rev() {
+                        perm.swap(i, rng.random_range(0..=i));
+                    }
+                    perm
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        ScenarioSampler { study, lhs }
+    }
+
+    /// Uniform in [0, 1) for dimension `dim` of trial `trial`.
+    fn unit(&self, trial: u64, dim: usize, rng: &mut ChaCha8Rng) -> f64 {
+        let jitter: f64 = rng.random();
+        match self.study.monte_carlo.sampler {
+            Sampler::Random => jitter,
+            Sampler::LatinHypercube => {
+                let n = self.study.monte_carlo.trials as f64;
+                // Trials past monte_carlo.trials (a --trials override) wrap onto the design.
+                let stratum = self.lhs[dim][(trial % self.study.monte_carlo.trials) as usize] as f64;
+                (stratum + jitter) / n
+            }
+            Sampler::Sobol => {
+                let block = (trial >> 16) as u32;
+                let seed = (self.study.seed as u32) ^ (self.study.seed >> 32) as u32 ^ block.wrapping_mul(0x9e37_79b9);
+                sobol_burley::sample((trial & 0xffff) as u32, dim as u32, seed) as f64
+            }
+        }
+    }
+
+    /// The scenario of trial `trial`.
+    pub fn spec(&self, trial: u64) -> TrialSpec {
+        let s = self.study;
+        let mc = &s.monte_carlo;
+        let mut rng = trial_rng(s.seed, trial, Substream::Scenario);
+        let fault_free = rng.random::<f64>() < mc.fault_free_fraction;
+        let dims = DIM_PARAMETERS + mc.parameter_errors.len();
+        let units: Vec<f64> = (0..dims).map(|d| self.unit(trial, d, &mut rng)).collect();
+        let mut cell = trial;
+        let mut digit = |n: usize| -> usize {
+            let d = (cell % n as u64) as usize;
+            cell /= n as u64;
+            d
+        };
+
+        // Sampled population: kind and output first (the fastest grid digits).
+        let sampled = (!mc.faults.is_empty()).then(|| (digit(mc.faults.len()), mc.outputs[digit(mc.outputs.len())]));
+        let size_pick = sampled.map(|(k, output)| match &mc.faults[k].size {
+            SizeSpec::None => (f64::NAN, f64::NAN),
+            SizeSpec::Output(f) => draw(f, units[DIM_SIZE], &mut digit),
+            SizeSpec::SensorSigma(f) => {
+                let (v, bin) = draw(f, units[DIM_SIZE], &mut digit);
+                (v * s.sensor_sigma[output], bin)
+            }
+        });
+        let (onset, _) = draw(&mc.onset_s, units[DIM_ONSET], &mut digit);
+        let (noise_scale, noise_bin) = draw(&mc.noise_scale, units[DIM_NOISE], &mut digit);
+        let mut parameter_errors = Vec::with_capacity(mc.parameter_errors.len());
+        let mut parameter_error_bin = 0.0f64;
+        for (k, pe) in mc.parameter_errors.iter().enumerate() {
+            let (v, bin) = draw(&pe.relative, units[DIM_PARAMETERS + k], &mut digit);
+            parameter_errors.push(v);
+            parameter_error_bin = parameter_error_bin.max(bin.abs());
+        }
+
+        let mut spec = TrialSpec {
+            trial,
+            faults: Vec::new(),
+            kind: "none",
+            output: None,
+            size: f64::NAN,
+            size_bin: f64::NAN,
+            onset_s: f64::NAN,
+            noise_scale,
+            noise_bin,
+            parameter_errors,
+            parameter_error_bin,
+        };
+        if fault_free {
+            return spec;
+        }
+        match (sampled, size_pick) {
+            (Some((k, output)), Some((size, size_bin))) => {
+                let kind: FaultKind = mc.faults[k].kind;
+                spec.faults = vec![SensorFault { channel: output, onset_s: onset, mode: kind.mode(size) }];
+                spec.kind = kind.name();
+                spec.output = Some(output);
+                spec.size = size;
+                spec.size_bin = size_bin;
+                spec.onset_s = onset;
+            }
+            _ => {
+                if let Some(first) = s.faults.first() {
+                    spec.faults = s.faults.clone();
+                    spec.kind = first.mode.name();
+                    spec.output = Some(first.channel);
+                    spec.size = first.mode.size();
+                    spec.size_bin = first.mode.size();
+                    spec.onset_s = s.faults.iter().map(|f| f.onset_s).fold(f64::INFINITY, f64::min);
+                }
+            }
+        }
+        spec
+    }
+
+    /// Whether any parameter error perturbs `target`.
+    pub fn perturbs(&self, target: ModelTarget) -> bool {
+        self.study.monte_carlo.parameter_errors.iter().any(|p| p.model == target)
+    }
+}
+
+/// A factor's value and group label, from the unit draw `u` (ranges) or the next grid digit (lists).
+fn draw(f: &Factor, u: f64, digit: &mut impl FnMut(usize) -> usize) -> (f64, f64) {
+    match f {
+        Factor::Fixed(v) => (*v, *v),
+        Factor::Values(v) => {
+            let x = v[digit(v.len())];
+            (x, x)
+        }
+        Factor::Range { lo, hi, bins } => {
+            let width = hi - lo;
+            let bin = ((u * *bins as f64) as usize).min(bins - 1);
+            (lo + u * width, lo + (bin as f64 + 0.5) * width / *bins as f64)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn range_draw_and_bins() {
+        let f = Factor::Range { lo: 2.0, hi: 10.0, bins: 4 };
+        let mut no_digit = |_: usize| -> usize { unreachable!() };
+        assert_eq!(draw(&f, 0.0, &mut no_digit), (2.0, 3.0));
+        assert_eq!(draw(&f, 0.5, &mut no_digit), (6.0, 7.0));
+        assert_eq!(draw(&f, 0.999, &mut no_digit).1, 9.0);
+    }
+
+    #[test]
+    fn listed_values_cycle_with_the_grid() {
+        let f = Factor::Values(vec![1.0, 2.0, 3.0]);
+        let picks: Vec<f64> = (0..6u64)
+            .map(|i| {
+                let mut cell = i;
+                let mut digit = |n: usize| {
+                    let d = (cell % n as u64) as usize;
+                    cell /= n as u64;
+                    d
+                };
+                draw(&f, 0.0, &mut digit).0
+            })
+            .collect();
+        assert_eq!(picks, [1.0, 2.0, 3.0, 1.0, 2.0, 3.0]);
+    }
+}
