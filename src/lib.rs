@@ -12,6 +12,7 @@ pub mod fault;
 pub mod linalg;
 pub mod output;
 pub mod plant;
+pub mod regress;
 pub mod runner;
 pub mod sampling;
 pub mod sim;

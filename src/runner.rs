@@ -149,6 +149,8 @@ pub struct RunOptions {
     /// Replace an existing results folder.
     pub force: bool,
     pub progress: bool,
+    /// Stop after writing this many part files, as if interrupted (time-boxed or preemptible jobs).
+    pub stop_after_chunks: Option<u64>,
     pub command_line: Vec<String>,
 }
 
@@ -243,6 +245,7 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
 
     let mut resumed = 0;
     let mut run_count = 0;
+    let mut chunks_written = 0;
     let mut chunk_start = first;
     while chunk_start < end {
         let chunk_end = (chunk_start + CHUNK_TRIALS).min(end);
@@ -267,8 +270,18 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
             let mut df = builder.finish().map_err(pol(&path))?;
             write_parquet(&mut df, &path)?;
             run_count += chunk_end - chunk_start;
+            chunks_written += 1;
         }
         chunk_start = chunk_end;
+        if opts.stop_after_chunks.is_some_and(|n| chunks_written >= n) && chunk_start < end {
+            bar.finish_and_clear();
+            return Ok(RunReport {
+                manifest,
+                trials_run: run_count,
+                trials_resumed: resumed,
+                seconds: started.elapsed().as_secs_f64(),
+            });
+        }
     }
     bar.finish_and_clear();
 

@@ -179,3 +179,179 @@ fn bad_arguments_exit_2() {
     let out = fdimc(&["simulate", DECK]);
     assert_eq!(out.status.code(), Some(2), "clap: --out is required");
 }
+
+// ---------------------------------------------------------------------------------------------
+// Monte Carlo runs
+
+const CI_DECK: &str = "studies/ci_seed000.toml";
+
+fn ok(out: &Output) -> String {
+    assert_eq!(out.status.code(), Some(0), "stdout:\n{}\nstderr:\n{}", text(&out.stdout), text(&out.stderr));
+    text(&out.stdout)
+}
+
+fn read_frame(path: &Path) -> polars::prelude::DataFrame {
+    use polars::prelude::*;
+    ParquetReader::new(std::fs::File::open(path).unwrap()).finish().unwrap()
+}
+
+fn csv_frame(path: &Path) -> polars::prelude::DataFrame {
+    use polars::prelude::*;
+    CsvReadOptions::default()
+        .with_has_header(true)
+        .try_into_reader_with_file_path(Some(path.into()))
+        .unwrap()
+        .finish()
+        .unwrap()
+}
+
+#[test]
+fn every_bundled_deck_validates() {
+    for entry in std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("studies")).unwrap() {
+        let path = entry.unwrap().path();
+        let out = fdimc(&["validate", path.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(0), "{}: {}", path.display(), text(&out.stderr));
+    }
+}
+
+#[test]
+fn records_are_identical_for_any_threads_shards_and_resume() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = |n: &str| tmp.path().join(n);
+    let s = |p: PathBuf| p.to_str().unwrap().to_string();
+    // 5000 trials: two chunks (4096 + 904), so shards and resume cut through chunk boundaries.
+    let run = |extra: &[&str], out: &str| {
+        let mut args = vec!["run", CI_DECK, "--trials", "5000", "--out"];
+        let out = s(dir(out));
+        args.push(&out);
+        args.extend_from_slice(extra);
+        fdimc(&args)
+    };
+    ok(&run(&["--threads", "1"], "one"));
+    ok(&run(&["--threads", "2"], "two"));
+    ok(&run(&["--shard", "1/2"], "s1"));
+    ok(&run(&["--shard", "0/2", "--threads", "1"], "s0"));
+    ok(&fdimc(&["merge", &s(dir("s1")), &s(dir("s0")), "--out", &s(dir("merged"))]));
+    // Interrupted after its first part file, with a half-written part left by the "killed" writer.
+    let stopped = ok(&run(&["--stop-after", "1"], "resumed"));
+    assert!(stopped.contains("continue with the same command and --resume"), "{stopped}");
+    assert!(!dir("resumed").join("trials.parquet").exists());
+    std::fs::write(dir("resumed").join("parts").join(".part-00000000000000004096.parquet.tmp-1"), b"PAR1 garbage")
+        .unwrap();
+    let resumed = ok(&run(&["--resume"], "resumed"));
+    assert!(resumed.contains("(904 run, 4096 resumed)"), "{resumed}");
+
+    let reference = read_frame(&dir("one").join("trials.parquet"));
+    assert_eq!(reference.height(), 10_000, "one row per trial and detector");
+    for other in ["two", "merged", "resumed"] {
+        let df = read_frame(&dir(other).join("trials.parquet"));
+        assert!(reference.equals_missing(&df), "{other} differs from the 1-thread run");
+    }
+    // The summaries agree too.
+    let a = std::fs::read_to_string(dir("one").join("summary.csv")).unwrap();
+    assert_eq!(a, std::fs::read_to_string(dir("merged").join("summary.csv")).unwrap());
+}
+
+#[test]
+fn check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
+    let baseline = "results/baselines/ci_seed000.csv";
+    let out = fdimc(&["check", CI_DECK, "--baseline", baseline]);
+    let stdout = ok(&out);
+    assert!(stdout.contains(": 0 regression(s)") && !stdout.contains("REGRESSION"), "{stdout}");
+
+    // A baseline where every faulty trial was detected: the current detector now misses some.
+    use polars::prelude::*;
+    let tmp = tempfile::tempdir().unwrap();
+    let mut base = csv_frame(Path::new(env!("CARGO_MANIFEST_DIR")).join(baseline).as_path());
+    let designed = (base.column("trials").unwrap().as_materialized_series()
+        - base.column("design_failures").unwrap().as_materialized_series())
+    .unwrap();
+    let faulty = base.column("kind").unwrap().str().unwrap().not_equal("none");
+    let detected = designed.zip_with(&faulty, base.column("detected").unwrap().as_materialized_series()).unwrap();
+    base.with_column(detected.with_name("detected".into()).into_column()).unwrap();
+    let doctored = tmp.path().join("perfect.csv");
+    CsvWriter::new(std::fs::File::create(&doctored).unwrap()).finish(&mut base).unwrap();
+    let run_dir = tmp.path().join("run");
+    ok(&fdimc(&["run", CI_DECK, "--quiet", "--out", run_dir.to_str().unwrap()]));
+    let out = fdimc(&["check", run_dir.to_str().unwrap(), "--baseline", doctored.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stdout));
+    let stdout = text(&out.stdout);
+    assert!(stdout.contains("REGRESSION deck | seed | bias | alpha_rad | 1.0"), "{stdout}");
+    // Against the true baseline the same folder passes.
+    ok(&fdimc(&["check", run_dir.to_str().unwrap(), "--baseline", baseline]));
+}
+
+#[test]
+fn thresholds_calibrated_on_one_seed_validate_on_another() {
+    let tmp = tempfile::tempdir().unwrap();
+    let cal = tmp.path().join("cal");
+    let val = tmp.path().join("val");
+    ok(&fdimc(&["run", CI_DECK, "--quiet", "--out", cal.to_str().unwrap()]));
+    ok(&fdimc(&["run", CI_DECK, "--quiet", "--seed", "12", "--out", val.to_str().unwrap()]));
+    let cal_thr = cal.join("thresholds.csv");
+    let stdout = ok(&fdimc(&["summarize", val.to_str().unwrap(), "--thresholds", cal_thr.to_str().unwrap()]));
+    assert!(stdout.contains("thresholds from"), "{stdout}");
+    let t = csv_frame(&val.join("thresholds.csv"));
+    let out = t.column("output").unwrap().str().unwrap().clone();
+    let (lo, hi) =
+        (t.column("pfa_lo").unwrap().f64().unwrap().clone(), t.column("pfa_hi").unwrap().f64().unwrap().clone());
+    let n = t.column("calibration_trials").unwrap().i64().unwrap().clone();
+    let mut seen = 0;
+    for i in 0..t.height() {
+        if out.get(i) == Some("all") {
+            seen += 1;
+            // About 900 fresh fault-free trials; the 1 % target lies inside the achieved rate's interval.
+            assert!(n.get(i).unwrap() > 800);
+            assert!(
+                lo.get(i).unwrap() <= 0.01 && 0.01 <= hi.get(i).unwrap(),
+                "row {i}: [{:?}, {:?}]",
+                lo.get(i),
+                hi.get(i)
+            );
+        }
+    }
+    assert_eq!(seen, 2, "one whole-detector row per detector");
+}
+
+#[test]
+fn bad_run_input_exits_2_and_keeps_what_was_written() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("run");
+    let d = dir.to_str().unwrap();
+    let code = |args: &[&str]| {
+        let out = fdimc(args);
+        (out.status.code(), text(&out.stderr))
+    };
+    let (c, e) = code(&["run", CI_DECK, "--shard", "3/2", "--out", d]);
+    assert_eq!(c, Some(2), "{e}");
+    assert!(e.contains("needs 0 <= I < N"), "{e}");
+    assert_eq!(code(&["run", CI_DECK, "--threads", "0", "--out", d]).0, Some(2));
+    assert_eq!(code(&["run", CI_DECK, "--trials", "0", "--out", d]).0, Some(2));
+
+    ok(&fdimc(&["run", CI_DECK, "--quiet", "--trials", "500", "--out", d]));
+    let summary_before = std::fs::read(dir.join("summary.csv")).unwrap();
+    // Occupied folder without --resume or --force.
+    let (c, e) = code(&["run", CI_DECK, "--trials", "500", "--out", d]);
+    assert_eq!(c, Some(2), "{e}");
+    assert!(e.contains("already holds a run"), "{e}");
+    // --resume with another deck (or trial count).
+    let (c, e) = code(&["run", DECK, "--resume", "--out", d]);
+    assert_eq!(c, Some(2), "{e}");
+    assert!(e.contains("holds a run of another deck"), "{e}");
+    // A corrupt trials file: named, exit 2, the earlier summary untouched.
+    let trials = dir.join("trials.parquet");
+    let good = std::fs::read(&trials).unwrap();
+    std::fs::write(&trials, &good[..good.len() / 2]).unwrap();
+    let (c, e) = code(&["summarize", d]);
+    assert_eq!(c, Some(2), "{e}");
+    assert!(e.contains("trials.parquet"), "{e}");
+    assert_eq!(std::fs::read(dir.join("summary.csv")).unwrap(), summary_before);
+    // Not a results folder; a missing baseline.
+    let (c, e) = code(&["summarize", tmp.path().to_str().unwrap()]);
+    assert_eq!(c, Some(2), "{e}");
+    assert!(e.contains("manifest.json"), "{e}");
+    std::fs::write(&trials, &good).unwrap();
+    let (c, e) = code(&["check", d, "--baseline", "results/baselines/nope.csv"]);
+    assert_eq!(c, Some(2), "{e}");
+    assert!(e.contains("nope.csv"), "{e}");
+}

@@ -13,6 +13,7 @@ use crate::output::OutputError;
 use crate::study::DeckError;
 
 mod design;
+mod run;
 mod simulate;
 mod validate;
 
@@ -62,6 +63,80 @@ pub enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Run the Monte Carlo study: trials in parallel, records to DIR/trials.parquet, then thresholds
+    /// and summaries (thresholds.csv, summary.csv/.parquet, curves.csv, min_detectable.csv).
+    #[command(after_help = "Shards: run `--shard I/N` for I = 0..N-1 (e.g. as a SLURM array), then `fdimc merge`.\n\
+The same deck and seed give identical records for any --threads, shard split or --resume.")]
+    Run {
+        /// Study deck (TOML).
+        deck: PathBuf,
+        /// Number of trials (default: the deck's monte_carlo.trials).
+        #[arg(long)]
+        trials: Option<u64>,
+        /// Study seed (default: the deck's study.seed); another seed gives fresh trials.
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Worker threads (default: one per core).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Results folder (default: results/<study name>, or results/<study name>/shard-I-of-N).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Run only shard I of N (0-based), e.g. 0/4.
+        #[arg(long, value_name = "I/N")]
+        shard: Option<String>,
+        /// Continue an interrupted run in the same folder (same deck, seed, trials and shard).
+        #[arg(long)]
+        resume: bool,
+        /// Replace an existing run in the results folder.
+        #[arg(long, conflicts_with = "resume")]
+        force: bool,
+        /// No progress bar or report.
+        #[arg(long)]
+        quiet: bool,
+        /// Stop after writing N chunks of 4096 trials, as if interrupted; continue later with --resume.
+        #[arg(long, value_name = "N")]
+        stop_after: Option<u64>,
+    },
+    /// Recompute thresholds and summaries from DIR/trials.parquet, without simulating.
+    Summarize {
+        /// Results folder of a complete run.
+        dir: PathBuf,
+        /// Target false-alarm probability per trial (default: the deck's monte_carlo.target_pfa).
+        #[arg(long)]
+        target_pfa: Option<f64>,
+        /// Evaluate with the thresholds of another run (its thresholds.csv) instead of calibrating:
+        /// validates a calibration on fresh trials.
+        #[arg(long, value_name = "THRESHOLDS_CSV")]
+        thresholds: Option<PathBuf>,
+    },
+    /// Join the results folders of all shards of one run into one, then summarize.
+    Merge {
+        /// Shard results folders (any order).
+        #[arg(required = true)]
+        dirs: Vec<PathBuf>,
+        /// Merged results folder.
+        #[arg(long)]
+        out: PathBuf,
+        /// Replace an existing run in --out.
+        #[arg(long)]
+        force: bool,
+    },
+    /// Statistical regression check against a baseline summary; exit 1 on regression.
+    #[command(after_help = "Make a baseline: cp results/<study>/summary.csv results/baselines/<study>.csv")]
+    Check {
+        /// A deck (run now, in a scratch folder) or the results folder of a run.
+        target: PathBuf,
+        /// Baseline summary (summary.csv or summary.parquet of an earlier run).
+        #[arg(long)]
+        baseline: PathBuf,
+        /// Family-wise significance level (Bonferroni over all groups and rates).
+        #[arg(long, default_value_t = 0.01)]
+        alpha: f64,
+        /// Worker threads when running a deck.
+        #[arg(long)]
+        threads: Option<usize>,
+    },
 }
 
 /// An error the CLI reports, with its exit code.
@@ -98,6 +173,32 @@ pub fn run(cli: Cli) -> ExitCode {
         Command::Validate { deck } => validate::exec(&deck),
         Command::Design { deck, json } => design::exec(&deck, json),
         Command::Simulate { deck, trial, detector, out } => simulate::exec(&deck, trial, detector.as_deref(), &out),
+        Command::Run { deck, trials, seed, threads, out, shard, resume, force, quiet, stop_after } => {
+            run::exec_run(run::RunArgs {
+                deck: &deck,
+                trials,
+                seed,
+                threads,
+                out,
+                shard: shard.as_deref(),
+                resume,
+                force,
+                quiet,
+                stop_after,
+            })
+            .map(|_| ())
+        }
+        Command::Summarize { dir, target_pfa, thresholds } => {
+            run::exec_summarize(&dir, target_pfa, thresholds.as_deref())
+        }
+        Command::Merge { dirs, out, force } => run::exec_merge(&dirs, &out, force),
+        Command::Check { target, baseline, alpha, threads } => {
+            match run::exec_check(&target, &baseline, alpha, threads) {
+                Ok(true) => Ok(()),
+                Ok(false) => return ExitCode::from(1),
+                Err(e) => Err(e),
+            }
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -131,6 +131,24 @@ pub fn summarize(dir: &Path, calibration: &Calibration) -> Result<SummaryReport,
         )));
     }
     let mut warnings = Vec::new();
+    // A truncated or foreign file is bad input, not an internal error: check its footer first.
+    let rows_on_disk = std::fs::File::open(&trials_path)
+        .map_err(|e| RunError::Io { file: trials_path.clone(), source: e })
+        .and_then(|f| {
+            ParquetReader::new(f).num_rows().map_err(|e| {
+                RunError::Invalid(format!(
+                    "{}: not a readable Parquet file ({e}); re-run the study",
+                    trials_path.display()
+                ))
+            })
+        })?;
+    if rows_on_disk as u64 != manifest.rows {
+        return Err(RunError::Invalid(format!(
+            "{}: holds {rows_on_disk} rows, its manifest.json says {}: re-run the study",
+            trials_path.display(),
+            manifest.rows
+        )));
+    }
 
     // Pass 1: calibration data (small: keys and pre-onset maxima).
     let head = scan(&trials_path)?.slice(0, 1).collect().map_err(pol(&trials_path))?;

@@ -1,0 +1,290 @@
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+use super::CliError;
+use crate::runner::{self, Manifest, RunError, RunOptions, Shard};
+use crate::stats::{self, Calibration, SummaryReport};
+use crate::study::Study;
+
+impl From<RunError> for CliError {
+    fn from(e: RunError) -> Self {
+        match e {
+            RunError::Invalid(m) => CliError::Invalid(m),
+            other => CliError::Internal(other.to_string()),
+        }
+    }
+}
+
+pub struct RunArgs<'a> {
+    pub deck: &'a Path,
+    pub trials: Option<u64>,
+    pub seed: Option<u64>,
+    pub threads: Option<usize>,
+    pub out: Option<PathBuf>,
+    pub shard: Option<&'a str>,
+    pub resume: bool,
+    pub force: bool,
+    pub quiet: bool,
+    pub stop_after: Option<u64>,
+}
+
+/// Loads the deck with the command line's overrides applied.
+fn study_with_overrides(a: &RunArgs) -> Result<Study, CliError> {
+    let mut study = Study::load(a.deck)?;
+    if let Some(n) = a.trials {
+        if n == 0 || n > crate::sampling::MAX_TRIAL {
+            return Err(CliError::Invalid(format!("--trials {n}: allowed 1 to {}", crate::sampling::MAX_TRIAL)));
+        }
+        study.monte_carlo.trials = n;
+    }
+    if let Some(s) = a.seed {
+        study.seed = s;
+    }
+    Ok(study)
+}
+
+pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
+    let shard = match a.shard {
+        Some(s) => Shard::parse(s).map_err(|e| CliError::Invalid(format!("--shard {e}")))?,
+        None => Shard::WHOLE,
+    };
+    if a.threads == Some(0) {
+        return Err(CliError::Invalid("--threads 0: give at least 1 (or leave it out for one per core)".into()));
+    }
+    let study = study_with_overrides(&a)?;
+    let out_dir = a.out.clone().unwrap_or_else(|| {
+        let base = PathBuf::from("results").join(&study.name);
+        if shard == Shard::WHOLE { base } else { base.join(format!("shard-{}-of-{}", shard.index, shard.count)) }
+    });
+    let opts = RunOptions {
+        deck: a.deck.into(),
+        out_dir: out_dir.clone(),
+        threads: a.threads,
+        shard,
+        resume: a.resume,
+        force: a.force,
+        progress: !a.quiet && std::io::stderr().is_terminal(),
+        stop_after_chunks: a.stop_after,
+        command_line: std::env::args().collect(),
+    };
+    let report = runner::run(&study, &opts)?;
+    let m = &report.manifest;
+    if !a.quiet {
+        let n = m.end_trial - m.first_trial;
+        let rate = if report.seconds > 0.0 { report.trials_run as f64 / report.seconds } else { f64::NAN };
+        println!(
+            "{}: trials {}..{} of {} ({} run, {} resumed) x {} detector(s) in {:.1} s ({:.0} trials/s) -> {}",
+            m.study,
+            m.first_trial,
+            m.end_trial,
+            m.trials,
+            report.trials_run,
+            report.trials_resumed,
+            m.detectors.len(),
+            report.seconds,
+            rate,
+            out_dir.join("trials.parquet").display()
+        );
+        if n == 0 {
+            println!("  (this shard holds no trials)");
+        }
+    }
+    if !m.complete {
+        println!(
+            "  stopped after {} part file(s): continue with the same command and --resume",
+            a.stop_after.unwrap_or(0)
+        );
+        return Ok(out_dir);
+    }
+    if shard == Shard::WHOLE {
+        let summary = stats::summarize(&out_dir, &Calibration::Target(study.monte_carlo.target_pfa))?;
+        if !a.quiet {
+            print_summary(&out_dir, &summary)?;
+        }
+    } else if !a.quiet {
+        println!("  shard done: join the shards with `fdimc merge <shard dirs>... --out DIR` to get the summary");
+    }
+    Ok(out_dir)
+}
+
+pub fn exec_summarize(dir: &Path, target_pfa: Option<f64>, thresholds: Option<&Path>) -> Result<(), CliError> {
+    let manifest = Manifest::read(dir)?;
+    let calibration = match (target_pfa, thresholds) {
+        (Some(_), Some(_)) => return Err(CliError::Invalid("give --target-pfa or --thresholds, not both".into())),
+        (_, Some(f)) => Calibration::File(f.into()),
+        (Some(p), None) if p > 0.0 && p < 1.0 => Calibration::Target(p),
+        (Some(p), None) => return Err(CliError::Invalid(format!("--target-pfa {p}: allowed 0 < p < 1"))),
+        (None, None) => Calibration::Target(manifest.target_pfa),
+    };
+    let summary = stats::summarize(dir, &calibration)?;
+    print_summary(dir, &summary)
+}
+
+pub fn exec_merge(dirs: &[PathBuf], out: &Path, force: bool) -> Result<(), CliError> {
+    if dirs.is_empty() {
+        return Err(CliError::Invalid("name the shard folders to merge".into()));
+    }
+    let mut manifests = Vec::with_capacity(dirs.len());
+    for d in dirs {
+        let m = Manifest::read(d)?;
+        if !m.complete || !d.join("trials.parquet").exists() {
+            return Err(CliError::Invalid(format!(
+                "{}: shard not complete: finish it with `fdimc run ... --resume`",
+                d.display()
+            )));
+        }
+        manifests.push((d.clone(), m));
+    }
+    manifests.sort_by_key(|(_, m)| m.shard.index);
+    let first = &manifests[0].1;
+    let count = first.shard.count;
+    for (d, m) in &manifests {
+        if m.deck_sha256 != first.deck_sha256
+            || m.seed != first.seed
+            || m.trials != first.trials
+            || m.shard.count != count
+        {
+            return Err(CliError::Invalid(format!(
+                "{}: from another run (deck, seed, trial count or shard count differ from {})",
+                d.display(),
+                manifests[0].0.display()
+            )));
+        }
+    }
+    let indices: Vec<u64> = manifests.iter().map(|(_, m)| m.shard.index).collect();
+    if indices != (0..count).collect::<Vec<_>>() {
+        return Err(CliError::Invalid(format!("need shards 0..{count} exactly once each, got {indices:?}")));
+    }
+    if out.join("manifest.json").exists() && !force {
+        return Err(CliError::Invalid(format!(
+            "{}: already holds a run; use --force to replace it, or another --out",
+            out.display()
+        )));
+    }
+    std::fs::create_dir_all(out).map_err(|e| CliError::Internal(format!("{}: {e}", out.display())))?;
+    let inputs: Vec<PathBuf> =
+        manifests.iter().filter(|(_, m)| m.rows > 0).map(|(d, _)| d.join("trials.parquet")).collect();
+    runner::concatenate(&inputs, &out.join("trials.parquet"))?;
+    let rows = manifests.iter().map(|(_, m)| m.rows).sum();
+    let merged = Manifest {
+        shard: Shard::WHOLE,
+        first_trial: 0,
+        end_trial: first.trials,
+        rows,
+        complete: true,
+        command_line: std::env::args().collect(),
+        ..first.clone()
+    };
+    merged.write(out)?;
+    println!("merged {} shards: {} rows -> {}", manifests.len(), rows, out.join("trials.parquet").display());
+    let summary = stats::summarize(out, &Calibration::Target(merged.target_pfa))?;
+    print_summary(out, &summary)
+}
+
+pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<usize>) -> Result<bool, CliError> {
+    if !(alpha > 0.0 && alpha < 1.0) {
+        return Err(CliError::Invalid(format!("--alpha {alpha}: allowed 0 < alpha < 1")));
+    }
+    let base = stats::read_summary(baseline)?;
+    let (current, scratch) = if target.is_dir() {
+        (stats::read_summary(&target.join("summary.csv"))?, None)
+    } else {
+        let scratch = std::env::temp_dir().join(format!("fdimc-check-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&scratch);
+        let args = RunArgs {
+            deck: target,
+            trials: None,
+            seed: None,
+            threads,
+            out: Some(scratch.clone()),
+            shard: None,
+            resume: false,
+            force: true,
+            quiet: true,
+            stop_after: None,
+        };
+        let dir = exec_run(args)?;
+        (stats::read_summary(&dir.join("summary.csv"))?, Some(scratch))
+    };
+    let verdict = crate::regress::compare(&current, &base, alpha);
+    if let Some(s) = scratch {
+        let _ = std::fs::remove_dir_all(s);
+    }
+    let verdict = verdict?;
+    for r in &verdict.regressions {
+        println!("REGRESSION {r}");
+    }
+    for g in &verdict.only_in_baseline {
+        println!("warning: group only in the baseline: {g}");
+    }
+    for g in &verdict.only_in_current {
+        println!("warning: group not in the baseline: {g}");
+    }
+    println!(
+        "{}: {} groups compared, {} tests at family-wise alpha {alpha}: {} regression(s)",
+        baseline.display(),
+        verdict.compared_groups,
+        verdict.tests,
+        verdict.regressions.len()
+    );
+    Ok(verdict.regressions.is_empty())
+}
+
+fn print_summary(dir: &Path, s: &SummaryReport) -> Result<(), CliError> {
+    println!("  thresholds: {}", s.calibration_source);
+    for t in &s.thresholds {
+        let pfa =
+            if t.calibration_trials > 0 { t.whole_false_alarms as f64 / t.calibration_trials as f64 } else { f64::NAN };
+        println!(
+            "    {}: [{}] (Pfa achieved {:.4} on {} calibration trials)",
+            t.detector,
+            t.whole.iter().map(|v| format!("{v:.4}")).collect::<Vec<_>>().join(", "),
+            pfa,
+            t.calibration_trials
+        );
+    }
+    use polars::prelude::*;
+    let overall = s
+        .summary
+        .clone()
+        .lazy()
+        .filter(col("kind").neq(lit("none")))
+        .group_by_stable([col("thresholds"), col("detector"), col("kind")])
+        .agg([
+            (col("trials") - col("design_failures")).sum().alias("n"),
+            col("detected").sum().alias("detected"),
+            col("false_alarms").sum().alias("fa"),
+        ])
+        .sort(["thresholds", "detector", "kind"], Default::default())
+        .collect()
+        .map_err(|e| CliError::Internal(e.to_string()))?;
+    println!("  detection probability over all sizes (see summary.csv for groups):");
+    let g = |n: &str| {
+        overall.column(n).and_then(|c| c.cast(&DataType::String)).map_err(|e| CliError::Internal(e.to_string()))
+    };
+    let (set, det, kind, n, d) = (g("thresholds")?, g("detector")?, g("kind")?, g("n")?, g("detected")?);
+    let (set, det, kind, n, d) =
+        (set.str().unwrap(), det.str().unwrap(), kind.str().unwrap(), n.str().unwrap(), d.str().unwrap());
+    for i in 0..overall.height() {
+        let nn: f64 = n.get(i).unwrap_or("0").parse().unwrap_or(0.0);
+        let dd: f64 = d.get(i).unwrap_or("0").parse().unwrap_or(0.0);
+        println!(
+            "    {:<10} {:<12} {:<14} {:>6}/{:<6} = {:.3}",
+            set.get(i).unwrap_or(""),
+            det.get(i).unwrap_or(""),
+            kind.get(i).unwrap_or(""),
+            dd,
+            nn,
+            dd / nn.max(1.0)
+        );
+    }
+    for w in &s.warnings {
+        println!("  warning: {w}");
+    }
+    let mut files = vec!["thresholds.csv", "summary.csv", "summary.parquet", "curves.csv", "min_detectable.csv"];
+    if s.comparison.is_some() {
+        files.push("comparison.csv");
+    }
+    println!("  wrote {} in {}", files.join(", "), dir.display());
+    Ok(())
+}
