@@ -40,7 +40,11 @@ pub fn exec(deck: &Path, trial: u64, detector: Option<&str>, out: &Path) -> Resu
         println!("  noise scale         {}", spec.noise_scale);
     }
     for (pe, v) in study.monte_carlo.parameter_errors.iter().zip(&spec.parameter_errors) {
-        println!("  parameter error     {} {:+.2} %", pe.name, 100.0 * v);
+        if pe.absolute {
+            println!("  parameter error     {} {v:+}", pe.name);
+        } else {
+            println!("  parameter error     {} {:+.2} %", pe.name, 100.0 * v);
+        }
     }
     match outcome.false_alarm {
         Some((t, j)) => println!("  false alarm         {t:.3} s on {}", outputs[j]),

@@ -95,7 +95,8 @@ pub fn exec(deck: &Path) -> Result<(), CliError> {
         }
     }
     for pe in &mc.parameter_errors {
-        println!("            parameter error {} on the {:?} model: relative {:?}", pe.name, pe.model, pe.relative);
+        let how = if pe.absolute { "absolute" } else { "relative" };
+        println!("            parameter error {} on the {:?} model: {how} {:?}", pe.name, pe.model, pe.value);
     }
     if study.faults.is_empty() && mc.faults.is_empty() {
         println!("faults      none");

@@ -8,7 +8,7 @@
 //! | `size`, `size_bin` | fault size in the output's units (a factor for gain); its group label in the deck's unit |
 //! | `onset_s` | fault onset |
 //! | `noise_scale`, `noise_bin` | multiplier of every sensor sigma, and its group label |
-//! | `perr_<name>`, `param_error_bin` | relative parameter errors, and the largest |group label| |
+//! | `perr_<name>`, `param_error_bin` | parameter errors (relative or absolute, as the deck gives them), and the largest \|group label\| |
 //! | `design_error` | why the design failed for this trial's model (null: designed) |
 //! | `diverged_at_s` | time a residual became non-finite (null: never) |
 //! | `false_alarm_s`, `false_alarm_output` | first pre-onset alarm at the deck's thresholds |

@@ -125,7 +125,7 @@ impl<'a> ScenarioSampler<'a> {
         let mut parameter_errors = Vec::with_capacity(mc.parameter_errors.len());
         let mut parameter_error_bin = 0.0f64;
         for (k, pe) in mc.parameter_errors.iter().enumerate() {
-            let (v, bin) = draw(&pe.relative, units[DIM_PARAMETERS + k], &mut digit);
+            let (v, bin) = draw(&pe.value, units[DIM_PARAMETERS + k], &mut digit);
             parameter_errors.push(v);
             parameter_error_bin = parameter_error_bin.max(bin.abs());
         }

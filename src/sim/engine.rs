@@ -53,13 +53,17 @@ impl<'a> Engine<'a> {
     /// `base` with the trial's parameter errors on `target` applied.
     fn perturbed(&self, base: &LtiPlant, spec: &TrialSpec, target: ModelTarget) -> LtiPlant {
         let mut p = base.clone();
-        for (pe, rel) in self.study.monte_carlo.parameter_errors.iter().zip(&spec.parameter_errors) {
+        for (pe, &rel) in self.study.monte_carlo.parameter_errors.iter().zip(&spec.parameter_errors) {
             if pe.model != target {
                 continue;
             }
             let m = if pe.matrix_b { &mut p.B } else { &mut p.A };
             for &(r, c) in &pe.entries {
-                m[(r, c)] *= 1.0 + rel;
+                if pe.absolute {
+                    m[(r, c)] += rel;
+                } else {
+                    m[(r, c)] *= 1.0 + rel;
+                }
             }
         }
         p
@@ -104,5 +108,67 @@ impl<'a> Engine<'a> {
         let mut filter = [self.filters(&spec).swap_remove(detector)?];
         let outcome = run_trial(self.study, &self.truth(&spec), &spec, &mut filter, Some(trace)).remove(0);
         Ok((spec, outcome))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    const ROBUST: &str = include_str!("../../studies/seed000_robustness.toml");
+
+    fn study(extra: &str) -> Study {
+        Study::from_toml(&format!("{ROBUST}\n{extra}"), Path::new("robust.toml")).unwrap()
+    }
+
+    #[test]
+    fn parameter_errors_scale_or_shift_the_listed_entries_of_the_chosen_model() {
+        let s = study(
+            "[[monte_carlo.parameter_error]]\nname = \"speed\"\nmodel = \"plant\"\nmatrix = \"a\"\n\
+             entries = [[\"h_m\", \"theta_rad\"]]\nabsolute = 10.0\n",
+        );
+        let e = Engine::new(&s);
+        let spec = e.spec(0);
+        assert_eq!(spec.parameter_errors, vec![-0.2, -0.2, 10.0], "grid cell 0 of pitch_moment x elevator");
+        let design = e.perturbed(&s.design_plant, &spec, ModelTarget::Design);
+        assert_eq!(design.A[(2, 1)], -7.9101 * 0.8);
+        assert_eq!(design.A[(2, 2)], -3.0241 * 0.8);
+        assert_eq!(design.B[(2, 1)], -26.3821 * 0.8);
+        assert_eq!(design.A[(4, 3)], 272.24, "the absolute error is on the true plant only");
+        let truth = e.perturbed(&s.plant, &spec, ModelTarget::Plant);
+        assert_eq!(truth.A[(4, 3)], 282.24);
+        assert_eq!(truth.A[(2, 1)], -7.9101);
+        // The gains follow the design model: recomputed, still assigning -1..-5 on it.
+        let filters = e.filters(&spec);
+        let k = &filters[0].as_ref().unwrap().continuous.K;
+        assert!((k - &e.nominal_filters()[0].as_ref().unwrap().continuous.K).amax() > 1.0);
+        let closed = &design.A - k * &design.C;
+        assert!((closed[(2, 2)] + 3.0).abs() < 1e-9 && closed[(2, 1)].abs() < 1e-9);
+    }
+
+    #[test]
+    fn latin_hypercube_puts_one_trial_in_each_stratum() {
+        let mut s = study("");
+        s.monte_carlo.trials = 240;
+        let e = Engine::new(&s);
+        let specs: Vec<TrialSpec> = (0..240).map(|t| e.spec(t)).collect();
+        // Fault-free trials still draw their units; faulty ones carry the onset. Use all the faulty ones.
+        let mut strata: Vec<usize> = specs
+            .iter()
+            .filter(|sp| sp.onset_s.is_finite())
+            .map(|sp| ((sp.onset_s - 5.0) / 15.0 * 240.0) as usize)
+            .collect();
+        let faulty = strata.len();
+        strata.sort();
+        strata.dedup();
+        assert_eq!(strata.len(), faulty, "two faulty trials share an onset stratum");
+        let fault_free = 240 - faulty;
+        assert!((30..=70).contains(&fault_free), "{fault_free} fault-free of 240 at fraction 0.2");
+        // Kind is the fastest grid digit: each of the 4 kinds gets a quarter of the faulty trials.
+        for kind in ["bias", "gain", "stuck", "total_failure"] {
+            let n = specs.iter().filter(|sp| sp.kind == kind).count();
+            assert!((n as f64 - faulty as f64 / 4.0).abs() <= 12.0, "{kind}: {n}");
+        }
     }
 }

@@ -136,5 +136,6 @@ pub struct ParameterErrorSection {
     pub model: String,
     pub matrix: String,
     pub entries: Vec<(String, String)>,
-    pub relative: FactorSpec,
+    pub relative: Option<FactorSpec>,
+    pub absolute: Option<FactorSpec>,
 }

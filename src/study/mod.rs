@@ -202,14 +202,16 @@ pub enum ModelTarget {
     Design,
 }
 
-/// One uncertain physical coefficient: the listed entries of `A` or `B` scaled by `1 + relative`.
+/// One uncertain physical coefficient: the listed entries of `A` or `B` scaled by `1 + value`
+/// (relative) or shifted by `value` (absolute, in the entry's units).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParameterError {
     pub name: String,
     pub model: ModelTarget,
     pub matrix_b: bool,
     pub entries: Vec<(usize, usize)>,
-    pub relative: Factor,
+    pub absolute: bool,
+    pub value: Factor,
 }
 
 /// The Monte Carlo part of a study.
@@ -789,9 +791,21 @@ impl Validator<'_> {
                 let c = self.index_of(&f, col, col_names, col_list)?;
                 entries.push((r, c));
             }
-            let relative = self.factor(&field("relative"), Some(&pe.relative), Factor::Fixed(0.0))?;
-            self.factor_within(&field("relative"), &relative, |v| v > -1.0 && v < 10.0, "-1 < relative < 10")?;
-            parameter_errors.push(ParameterError { name: pe.name.clone(), model, matrix_b, entries, relative });
+            let (absolute, value) = match (&pe.relative, &pe.absolute) {
+                (Some(r), None) => {
+                    let v = self.factor(&field("relative"), Some(r), Factor::Fixed(0.0))?;
+                    self.factor_within(&field("relative"), &v, |x| x > -1.0 && x < 10.0, "-1 < relative < 10")?;
+                    (false, v)
+                }
+                (None, Some(a)) => (true, self.factor(&field("absolute"), Some(a), Factor::Fixed(0.0))?),
+                _ => {
+                    return Err(self.err(
+                        field("relative"),
+                        "give relative (a fraction: -0.1 = -10 %) or absolute (in the entries' units), one of them",
+                    ));
+                }
+            };
+            parameter_errors.push(ParameterError { name: pe.name.clone(), model, matrix_b, entries, absolute, value });
         }
 
         Ok(MonteCarlo {
