@@ -13,6 +13,7 @@ pub mod linalg;
 pub mod output;
 pub mod plant;
 pub mod regress;
+pub mod report;
 pub mod runner;
 pub mod sampling;
 pub mod sim;

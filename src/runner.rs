@@ -94,6 +94,9 @@ pub struct Manifest {
     pub outputs: Vec<String>,
     pub deck_thresholds: Vec<Vec<f64>>,
     pub target_pfa: f64,
+    /// Unit of each fault kind's size bins (for plot axes).
+    #[serde(default)]
+    pub fault_size_units: std::collections::BTreeMap<String, String>,
     pub command_line: Vec<String>,
     pub complete: bool,
     pub rows: u64,
@@ -195,6 +198,7 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
         outputs: study.plant.output_names.clone(),
         deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
         target_pfa: study.monte_carlo.target_pfa,
+        fault_size_units: fault_size_units(study),
         command_line: opts.command_line.clone(),
         complete: false,
         rows: 0,
@@ -289,6 +293,26 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
     let manifest = Manifest { complete: true, rows, ..manifest };
     manifest.write(dir)?;
     Ok(RunReport { manifest, trials_run: run_count, trials_resumed: resumed, seconds: started.elapsed().as_secs_f64() })
+}
+
+/// The unit of each fault kind's size, as the deck gives it.
+fn fault_size_units(study: &Study) -> std::collections::BTreeMap<String, String> {
+    use crate::study::{FaultKind, SizeSpec};
+    let mut units = std::collections::BTreeMap::new();
+    for f in &study.monte_carlo.faults {
+        let unit = match (&f.size, f.kind) {
+            (SizeSpec::SensorSigma(_), _) => "multiples of the sensor sigma",
+            (_, FaultKind::Gain) => "gain factor",
+            (SizeSpec::Output(_), _) => "output units",
+            (SizeSpec::None, _) => "none",
+        };
+        units.insert(f.kind.name().to_string(), unit.to_string());
+    }
+    for f in &study.faults {
+        let unit = if f.mode.name() == "gain" { "gain factor" } else { "output units" };
+        units.entry(f.mode.name().to_string()).or_insert_with(|| unit.to_string());
+    }
+    units
 }
 
 /// Writes a complete Parquet file atomically.

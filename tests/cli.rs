@@ -409,3 +409,69 @@ fn bad_run_input_exits_2_and_keeps_what_was_written() {
     assert_eq!(c, Some(2), "{e}");
     assert!(e.contains("nope.csv"), "{e}");
 }
+
+/// The texts of an SVG's `<text>` elements, trimmed.
+fn svg_texts(svg: &str) -> Vec<String> {
+    svg.split("<text")
+        .skip(1)
+        .filter_map(|t| Some(t[t.find('>')? + 1..t.find("</text>")?].trim().to_string()))
+        .collect()
+}
+
+#[test]
+fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("run");
+    let d = dir.to_str().unwrap();
+    ok(&fdimc(&["run", CI_DECK, "--quiet", "--trials", "1500", "--out", d]));
+    let stdout = ok(&fdimc(&["report", d, "--trials", "3,17"]));
+    assert!(stdout.contains("9 plots"), "{stdout}");
+    let report = dir.join("report");
+    let svg = |name: &str| std::fs::read_to_string(report.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    // Each plot names its series (legend entries) and axis titles with units.
+    let pd = svg("pd_size_seed_bias.svg");
+    for s in [
+        "alpha_rad",
+        "q_rad_s",
+        "Pd = 0.9",
+        "min q_rad_s",
+        "fault size (multiples of the sensor sigma)",
+        "detection probability Pd",
+    ] {
+        assert!(pd.contains(s), "pd_size_seed_bias.svg lacks {s:?}");
+    }
+    assert!(svg("pd_size_fast_bias.svg").contains("fast, bias"));
+    let roc = svg("roc.svg");
+    for s in ["seed calibrated: Pfa", "fast calibrated: Pfa", "false-alarm probability Pfa per trial"] {
+        assert!(roc.contains(s), "roc.svg lacks {s:?}");
+    }
+    let legend = svg_texts(&roc);
+    assert!(legend.iter().any(|t| t == "seed") && legend.iter().any(|t| t == "fast"), "{legend:?}");
+    let delay = svg("delay_seed.svg");
+    assert!(delay.contains("bias (") && delay.contains("stuck (") && delay.contains("delay after onset (s)"));
+    let confusion = svg("confusion_seed.svg");
+    let labels = svg_texts(&confusion);
+    for s in ["faulty output", "isolated output", "none", "alpha_rad", "q_rad_s", "h_m"] {
+        assert!(labels.iter().any(|t| t == s), "confusion_seed.svg lacks {s:?}: {labels:?}");
+    }
+    for trial in ["trace_trial3.svg", "trace_trial17.svg"] {
+        let t = svg(trial);
+        for s in ["r_q_rad_s", "deck threshold", "calibrated threshold", "t (s)"] {
+            assert!(t.contains(s), "{trial} lacks {s:?}");
+        }
+    }
+    // The page references only files that exist, all beside it, and loads nothing from the network.
+    let html = std::fs::read_to_string(report.join("report.html")).unwrap();
+    assert!(!html.contains("http://") && !html.contains("https://"));
+    let mut refs = 0;
+    for part in html.split("src=\"").skip(1) {
+        let name = &part[..part.find('"').unwrap()];
+        assert!(report.join(name).is_file(), "report.html references missing {name}");
+        refs += 1;
+    }
+    assert_eq!(refs, 9);
+    assert!(html.contains("ci_seed000") && html.contains("deck SHA-256"));
+    // A trial outside the run is refused.
+    let out = fdimc(&["report", d, "--trials", "1500"]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+}

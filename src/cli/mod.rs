@@ -122,6 +122,14 @@ The same deck and seed give identical records for any --threads, shard split or 
         #[arg(long)]
         force: bool,
     },
+    /// Plots (SVG) and a one-page HTML summary of a run, in DIR/report/.
+    Report {
+        /// Results folder of a complete run.
+        dir: PathBuf,
+        /// Trials whose residual traces to plot (re-simulated from the run's deck), e.g. 3,17.
+        #[arg(long, value_delimiter = ',')]
+        trials: Vec<u64>,
+    },
     /// Statistical regression check against a baseline summary; exit 1 on regression.
     #[command(after_help = "Make a baseline: cp results/<study>/summary.csv results/baselines/<study>.csv")]
     Check {
@@ -192,6 +200,7 @@ pub fn run(cli: Cli) -> ExitCode {
             run::exec_summarize(&dir, target_pfa, thresholds.as_deref())
         }
         Command::Merge { dirs, out, force } => run::exec_merge(&dirs, &out, force),
+        Command::Report { dir, trials } => run::exec_report(&dir, &trials),
         Command::Check { target, baseline, alpha, threads } => {
             match run::exec_check(&target, &baseline, alpha, threads) {
                 Ok(true) => Ok(()),

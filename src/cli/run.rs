@@ -288,3 +288,14 @@ fn print_summary(dir: &Path, s: &SummaryReport) -> Result<(), CliError> {
     println!("  wrote {} in {}", files.join(", "), dir.display());
     Ok(())
 }
+
+pub fn exec_report(dir: &Path, trials: &[u64]) -> Result<(), CliError> {
+    let report = crate::report::write_report(dir, trials)?;
+    for w in &report.warnings {
+        println!("warning: {w}");
+    }
+    if let Some(page) = report.files.last() {
+        println!("{} plots -> {}", report.files.len() - 1, page.display());
+    }
+    Ok(())
+}

@@ -67,6 +67,11 @@ pub struct SummaryReport {
     pub warnings: Vec<String>,
 }
 
+/// First time a first-passage profile exceeds `thr` (see `sim`): the alarm time at that threshold.
+pub fn alarm_time(profile_t_s: &[f64], profile_value: &[f64], thr: f64) -> Option<f64> {
+    profile_t_s.iter().zip(profile_value).find(|(_, v)| **v > thr).map(|(t, _)| *t)
+}
+
 /// The `k`-th order statistic such that at most `floor(p n)` values exceed it; `(threshold, exceedances)`.
 pub fn calibrate(values: &mut [f64], p: f64) -> (f64, u64) {
     if values.is_empty() {
@@ -94,16 +99,16 @@ impl Columns {
     }
 }
 
-fn str_col<'a>(df: &'a DataFrame, name: &str, file: &Path) -> Result<&'a StringChunked, RunError> {
+pub(crate) fn str_col<'a>(df: &'a DataFrame, name: &str, file: &Path) -> Result<&'a StringChunked, RunError> {
     df.column(name).and_then(|c| c.str()).map_err(pol(file))
 }
 
-fn f64_col<'a>(df: &'a DataFrame, name: &str, file: &Path) -> Result<&'a Float64Chunked, RunError> {
+pub(crate) fn f64_col<'a>(df: &'a DataFrame, name: &str, file: &Path) -> Result<&'a Float64Chunked, RunError> {
     df.column(name).and_then(|c| c.f64()).map_err(pol(file))
 }
 
 /// Reads lists of f64 as vectors, row by row.
-fn list_col(df: &DataFrame, name: &str, file: &Path) -> Result<Vec<Vec<f64>>, RunError> {
+pub(crate) fn list_col(df: &DataFrame, name: &str, file: &Path) -> Result<Vec<Vec<f64>>, RunError> {
     let lc = df.column(name).and_then(|c| c.list()).map_err(pol(file))?;
     let mut out = Vec::with_capacity(lc.len());
     for s in lc.amortized_iter() {
@@ -115,7 +120,7 @@ fn list_col(df: &DataFrame, name: &str, file: &Path) -> Result<Vec<Vec<f64>>, Ru
     Ok(out)
 }
 
-fn scan(path: &Path) -> Result<LazyFrame, RunError> {
+pub(crate) fn scan(path: &Path) -> Result<LazyFrame, RunError> {
     LazyFrame::scan_parquet(PlRefPath::try_from_path(path).map_err(pol(path))?, Default::default()).map_err(pol(path))
 }
 
@@ -451,7 +456,7 @@ fn evaluate_slice(
                 let th = &thresholds[d].whole;
                 let fa = (0..outputs.len()).any(|j| pre[j].get(i).unwrap_or(f64::NAN) > th[j]);
                 let alarm = (0..outputs.len())
-                    .filter_map(|j| fp_t[j][i].iter().zip(&fp_v[j][i]).find(|(_, v)| **v > th[j]).map(|(t, _)| *t))
+                    .filter_map(|j| alarm_time(&fp_t[j][i], &fp_v[j][i], th[j]))
                     .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))));
                 (fa, alarm.is_some(), alarm.map(|t| t - onset.get(i).unwrap_or(f64::NAN)), None)
             };
