@@ -431,10 +431,9 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
     // Each plot names its series (legend entries) and axis titles with units.
     let pd = svg("pd_size_seed_bias.svg");
     for s in [
-        "alpha_rad",
-        "q_rad_s",
+        "alpha_rad (Pd &gt;= 0.9 from 3.000)",
+        "q_rad_s (Pd &gt;= 0.9 from 1.000)",
         "Pd = 0.9",
-        "min q_rad_s",
         "fault size (multiples of the sensor sigma)",
         "detection probability Pd",
     ] {

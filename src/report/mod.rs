@@ -21,7 +21,7 @@ use polars::prelude::*;
 
 use crate::output::records::col;
 use crate::runner::{Manifest, RunError, write_atomically};
-use crate::stats::{self, alarm_time, f64_col, list_col, scan, str_col};
+use crate::stats::{self, alarm_time, f64_col, list_col, read_slice, str_col};
 
 /// What a report contains, for the CLI and tests.
 #[derive(Debug, Default)]
@@ -41,10 +41,6 @@ struct DetectorData {
     delays: BTreeMap<String, Vec<f64>>,
     /// Isolation counts: (faulty output, isolated output or "none") -> trials (deck thresholds, detected).
     confusion: BTreeMap<(String, String), u64>,
-}
-
-fn pol(file: &Path) -> impl FnOnce(PolarsError) -> RunError + '_ {
-    move |source| RunError::Polars { file: file.into(), source }
 }
 
 /// Writes the report of the run in `dir`; `trials` are traced (re-simulated from the deck).
@@ -200,10 +196,10 @@ fn gather(
     let mut data: BTreeMap<String, DetectorData> =
         m.detectors.iter().map(|d| (d.clone(), DetectorData::default())).collect();
     let whole: BTreeMap<&str, &Vec<f64>> = thresholds.iter().map(|t| (t.0.as_str(), &t.2)).collect();
-    let step = 131_072usize;
+    let step = 32_768usize;
     let mut offset = 0usize;
     while offset < m.rows as usize {
-        let df = scan(&path)?.slice(offset as i64, step as IdxSize).collect().map_err(pol(&path))?;
+        let df = read_slice(&path, offset, step, None)?;
         offset += step;
         let det = str_col(&df, col::DETECTOR, &path)?;
         let kind = str_col(&df, col::KIND, &path)?;

@@ -104,7 +104,12 @@ pub fn pd_against_size(
     let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
     root.fill(&WHITE).map_err(e)?;
     let mut chart = ChartBuilder::on(&root)
-        .caption(format!("Detection probability vs fault size: {detector}, {kind} (calibrated thresholds)"), (FONT, 20))
+        .caption(
+            format!(
+                "Detection probability vs fault size: {detector}, {kind} (calibrated thresholds; triangles: Pd >= 0.9)"
+            ),
+            (FONT, 18),
+        )
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(60)
@@ -127,21 +132,19 @@ pub fn pd_against_size(
         let mut band: Vec<(f64, f64)> = pts.iter().map(|p| (p.0, p.3)).collect();
         band.extend(pts.iter().rev().map(|p| (p.0, p.2)));
         chart.draw_series(std::iter::once(Polygon::new(band, c.mix(0.15)))).map_err(e)?;
+        let min = min_size(name);
+        let label = match min {
+            Some(m) => format!("{name} (Pd >= 0.9 from {m:.3})"),
+            None => format!("{name} (Pd < 0.9 at every size)"),
+        };
         chart
             .draw_series(LineSeries::new(pts.iter().map(|p| (p.0, p.1)), c.stroke_width(2)))
             .map_err(e)?
-            .label(name.as_str())
+            .label(label)
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
         chart.draw_series(pts.iter().map(|p| Circle::new((p.0, p.1), 3, c.filled()))).map_err(e)?;
-        if let Some(m) = min_size(name) {
+        if let Some(m) = min {
             chart.draw_series(std::iter::once(TriangleMarker::new((m, 0.9), 8, c.filled()))).map_err(e)?;
-            chart
-                .draw_series(std::iter::once(Text::new(
-                    format!("min {name}: {m:.3}"),
-                    (m, 0.9 - 0.05 * (i as f64 + 1.0)),
-                    (FONT, 12).into_font().color(&c),
-                )))
-                .map_err(e)?;
         }
     }
     chart

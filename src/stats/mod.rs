@@ -28,7 +28,7 @@ use crate::runner::{Manifest, RunError, read_parquet, write_parquet};
 use intervals::{Z95, mcnemar_exact, wilson};
 
 /// Rows read at a time when evaluating (a multiple of the detector count is taken).
-const EVAL_ROWS: usize = 131_072;
+const EVAL_ROWS: usize = 32_768;
 
 fn pol(file: &Path) -> impl FnOnce(PolarsError) -> RunError + '_ {
     move |source| RunError::Polars { file: file.into(), source }
@@ -120,8 +120,16 @@ pub(crate) fn list_col(df: &DataFrame, name: &str, file: &Path) -> Result<Vec<Ve
     Ok(out)
 }
 
-pub(crate) fn scan(path: &Path) -> Result<LazyFrame, RunError> {
-    LazyFrame::scan_parquet(PlRefPath::try_from_path(path).map_err(pol(path))?, Default::default()).map_err(pol(path))
+/// Reads rows `[offset, offset + len)` of a Parquet file (only the row groups they touch), optionally
+/// only some columns: memory stays at one slice whatever the file's size.
+pub(crate) fn read_slice(
+    path: &Path,
+    offset: usize,
+    len: usize,
+    columns: Option<Vec<String>>,
+) -> Result<DataFrame, RunError> {
+    let file = std::fs::File::open(path).map_err(|e| RunError::Io { file: path.into(), source: e })?;
+    ParquetReader::new(file).with_columns(columns).with_slice(Some((offset, len))).finish().map_err(pol(path))
 }
 
 /// Calibrates (or reads) thresholds, evaluates every trial, writes `thresholds.csv`, `summary.csv`,
@@ -156,16 +164,12 @@ pub fn summarize(dir: &Path, calibration: &Calibration) -> Result<SummaryReport,
     }
 
     // Pass 1: calibration data (small: keys and pre-onset maxima).
-    let head = scan(&trials_path)?.slice(0, 1).collect().map_err(pol(&trials_path))?;
+    let head = read_slice(&trials_path, 0, 1, None)?;
     let cols = Columns::from_frame(&head);
     let outputs = cols.outputs.clone();
-    let mut select = vec![
-        polars::prelude::col(col::DETECTOR),
-        polars::prelude::col(col::KIND),
-        polars::prelude::col(col::DESIGN_ERROR),
-    ];
-    select.extend(outputs.iter().map(|o| polars::prelude::col(col::pre_max(o))));
-    let cal = scan(&trials_path)?.select(select).collect().map_err(pol(&trials_path))?;
+    let mut select = vec![col::DETECTOR.to_string(), col::KIND.to_string(), col::DESIGN_ERROR.to_string()];
+    select.extend(outputs.iter().map(|o| col::pre_max(o)));
+    let cal = read_slice(&trials_path, 0, manifest.rows as usize, Some(select))?;
     let detectors = &manifest.detectors;
     let det = str_col(&cal, col::DETECTOR, &trials_path)?;
     let kind = str_col(&cal, col::KIND, &trials_path)?;
@@ -261,7 +265,7 @@ pub fn summarize(dir: &Path, calibration: &Calibration) -> Result<SummaryReport,
     let step = (EVAL_ROWS / detectors.len().max(1)).max(1) * detectors.len().max(1);
     let mut offset = 0;
     while offset < height {
-        let df = scan(&trials_path)?.slice(offset as i64, step as IdxSize).collect().map_err(pol(&trials_path))?;
+        let df = read_slice(&trials_path, offset, step, None)?;
         evaluate_slice(&df, &trials_path, &outputs, detectors, &thresholds, &mut ev, &mut pairs)?;
         offset += step;
     }
@@ -307,10 +311,12 @@ pub fn summarize(dir: &Path, calibration: &Calibration) -> Result<SummaryReport,
 /// Per-row evaluation results, in long form (one row per trial x detector x threshold set).
 #[derive(Default)]
 struct Evaluated {
+    /// Distinct strings of the key columns; the columns hold indices into it (millions of rows).
+    names: Vec<String>,
     thresholds: Vec<&'static str>,
-    detector: Vec<String>,
-    kind: Vec<String>,
-    output: Vec<Option<String>>,
+    detector: Vec<u32>,
+    kind: Vec<u32>,
+    output: Vec<Option<u32>>,
     size_bin: Vec<Option<f64>>,
     noise_bin: Vec<f64>,
     param_error_bin: Vec<f64>,
@@ -326,12 +332,28 @@ struct Evaluated {
 }
 
 impl Evaluated {
+    fn intern(&mut self, s: &str) -> u32 {
+        match self.names.iter().position(|n| n == s) {
+            Some(i) => i as u32,
+            None => {
+                self.names.push(s.to_string());
+                (self.names.len() - 1) as u32
+            }
+        }
+    }
+
     fn into_frame(self) -> PolarsResult<DataFrame> {
+        let names = &self.names;
+        let name = |i: &u32| names[*i as usize].as_str();
+        let strings = |name_: &str, v: &[u32]| Column::new(name_.into(), v.iter().map(name).collect::<Vec<&str>>());
         DataFrame::new_infer_height(vec![
             Column::new("thresholds".into(), self.thresholds),
-            Column::new(col::DETECTOR.into(), self.detector),
-            Column::new(col::KIND.into(), self.kind),
-            Column::new(col::OUTPUT.into(), self.output),
+            strings(col::DETECTOR, &self.detector),
+            strings(col::KIND, &self.kind),
+            Column::new(
+                col::OUTPUT.into(),
+                self.output.iter().map(|o| o.as_ref().map(name)).collect::<Vec<Option<&str>>>(),
+            ),
             Column::new(col::SIZE_BIN.into(), self.size_bin),
             Column::new(col::NOISE_BIN.into(), self.noise_bin),
             Column::new(col::PARAM_ERROR_BIN.into(), self.param_error_bin),
@@ -461,9 +483,11 @@ fn evaluate_slice(
                 (fa, alarm.is_some(), alarm.map(|t| t - onset.get(i).unwrap_or(f64::NAN)), None)
             };
             ev.thresholds.push(set);
-            ev.detector.push(d_name.to_string());
-            ev.kind.push(kind.get(i).unwrap_or_default().to_string());
-            ev.output.push(truth.map(str::to_string));
+            let (d_id, k_id) = (ev.intern(d_name), ev.intern(kind.get(i).unwrap_or_default()));
+            let o_id = truth.map(|t| ev.intern(t));
+            ev.detector.push(d_id);
+            ev.kind.push(k_id);
+            ev.output.push(o_id);
             ev.size_bin.push(size_bin.get(i));
             ev.noise_bin.push(noise_bin.get(i).unwrap_or(f64::NAN));
             ev.param_error_bin.push(perr_bin.get(i).unwrap_or(f64::NAN));
