@@ -609,48 +609,48 @@ fn aggregate(evaluated: &DataFrame, keys: &[&str]) -> PolarsResult<DataFrame> {
     Ok(df)
 }
 
-/// Smallest size bin with Pd >= 0.9 (point estimate, and with the Wilson lower bound >= 0.9), per
-/// (thresholds, detector, kind, output) of the curves.
+/// Smallest fault (by magnitude: |size|, or |factor - 1| for gain) whose size bin has Pd >= 0.9 (point
+/// estimate, and with the Wilson lower bound >= 0.9), per (thresholds, detector, kind, output).
 fn min_detectable(curves: &DataFrame) -> PolarsResult<DataFrame> {
     let s = |n: &str| curves.column(n).and_then(|c| c.str().cloned());
     let (set, det, kind, out) = (s("thresholds")?, s(col::DETECTOR)?, s(col::KIND)?, s(col::OUTPUT)?);
     let size = curves.column(col::SIZE_BIN)?.f64()?.clone();
     let pd = curves.column("pd")?.f64()?.clone();
     let lo = curves.column("pd_lo")?.f64()?.clone();
-    let mut rows: Vec<(String, String, String, String, Option<f64>, Option<f64>)> = Vec::new();
+    type Key = (String, String, String, String);
+    // Per key: (magnitude, size) of the smallest qualifying bin, point estimate and lower bound.
+    let mut rows: Vec<(Key, Option<(f64, f64)>, Option<(f64, f64)>)> = Vec::new();
     for i in 0..curves.height() {
         let (Some(k), Some(o), Some(sz)) = (kind.get(i), out.get(i), size.get(i)) else { continue };
         if k == col::NO_FAULT {
             continue;
         }
-        let key = (
-            set.get(i).unwrap_or_default().to_string(),
-            det.get(i).unwrap_or_default().to_string(),
-            k.to_string(),
-            o.to_string(),
-        );
-        let idx = match rows.iter().position(|r| (&r.0, &r.1, &r.2, &r.3) == (&key.0, &key.1, &key.2, &key.3)) {
+        let key: Key =
+            (set.get(i).unwrap_or_default().into(), det.get(i).unwrap_or_default().into(), k.into(), o.into());
+        let idx = match rows.iter().position(|r| r.0 == key) {
             Some(p) => p,
             None => {
-                rows.push((key.0, key.1, key.2, key.3, None, None));
+                rows.push((key, None, None));
                 rows.len() - 1
             }
         };
-        // Curves are sorted by size within a key; keep the first size reaching 0.9.
-        if pd.get(i).is_some_and(|p| p >= 0.9) && rows[idx].4.is_none() {
-            rows[idx].4 = Some(sz);
+        let magnitude = if k == "gain" { (sz - 1.0).abs() } else { sz.abs() };
+        let better = |cur: Option<(f64, f64)>| cur.is_none_or(|(m, _)| magnitude < m);
+        if pd.get(i).is_some_and(|p| p >= 0.9) && better(rows[idx].1) {
+            rows[idx].1 = Some((magnitude, sz));
         }
-        if lo.get(i).is_some_and(|p| p >= 0.9) && rows[idx].5.is_none() {
-            rows[idx].5 = Some(sz);
+        if lo.get(i).is_some_and(|p| p >= 0.9) && better(rows[idx].2) {
+            rows[idx].2 = Some((magnitude, sz));
         }
     }
+    let key = |f: fn(&Key) -> &String| rows.iter().map(|r| f(&r.0).clone()).collect::<Vec<_>>();
     DataFrame::new_infer_height(vec![
-        Column::new("thresholds".into(), rows.iter().map(|r| r.0.clone()).collect::<Vec<_>>()),
-        Column::new(col::DETECTOR.into(), rows.iter().map(|r| r.1.clone()).collect::<Vec<_>>()),
-        Column::new(col::KIND.into(), rows.iter().map(|r| r.2.clone()).collect::<Vec<_>>()),
-        Column::new(col::OUTPUT.into(), rows.iter().map(|r| r.3.clone()).collect::<Vec<_>>()),
-        Column::new("min_size_pd90".into(), rows.iter().map(|r| r.4).collect::<Vec<_>>()),
-        Column::new("min_size_pd90_lower_bound".into(), rows.iter().map(|r| r.5).collect::<Vec<_>>()),
+        Column::new("thresholds".into(), key(|k| &k.0)),
+        Column::new(col::DETECTOR.into(), key(|k| &k.1)),
+        Column::new(col::KIND.into(), key(|k| &k.2)),
+        Column::new(col::OUTPUT.into(), key(|k| &k.3)),
+        Column::new("min_size_pd90".into(), rows.iter().map(|r| r.1.map(|x| x.1)).collect::<Vec<_>>()),
+        Column::new("min_size_pd90_lower_bound".into(), rows.iter().map(|r| r.2.map(|x| x.1)).collect::<Vec<_>>()),
     ])
 }
 
@@ -765,6 +765,27 @@ pub fn read_summary(path: &Path) -> Result<DataFrame, RunError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn min_detectable_size_is_the_smallest_fault_magnitude_reaching_pd_90() {
+        let n = 6;
+        let curves = DataFrame::new_infer_height(vec![
+            Column::new("thresholds".into(), vec!["calibrated"; n]),
+            Column::new(col::DETECTOR.into(), vec!["d"; n]),
+            Column::new(col::KIND.into(), vec!["gain", "gain", "gain", "bias", "bias", "bias"]),
+            Column::new(col::OUTPUT.into(), vec!["q"; n]),
+            Column::new(col::SIZE_BIN.into(), vec![0.6, 0.8, 0.95, 1.0, 5.0, 9.0]),
+            Column::new("pd".into(), vec![1.0, 0.95, 0.3, 0.2, 0.95, 1.0]),
+            Column::new("pd_lo".into(), vec![0.97, 0.85, 0.2, 0.1, 0.91, 0.97]),
+        ])
+        .unwrap();
+        let m = min_detectable(&curves).unwrap();
+        let point: Vec<Option<f64>> = m.column("min_size_pd90").unwrap().f64().unwrap().iter().collect();
+        let lower: Vec<Option<f64>> = m.column("min_size_pd90_lower_bound").unwrap().f64().unwrap().iter().collect();
+        // Gain 0.8 is a smaller fault than 0.6; its lower bound misses 0.9, so the bound needs 0.6.
+        assert_eq!(point, [Some(0.8), Some(5.0)]);
+        assert_eq!(lower, [Some(0.6), Some(5.0)]);
+    }
 
     #[test]
     fn calibration_allows_floor_p_n_exceedances() {
