@@ -289,7 +289,16 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
     }
     bar.finish_and_clear();
 
-    let rows = concatenate_parts(dir, first, end)?;
+    let rows = if first == end {
+        // A shard with no trials (more shards than trials) still leaves a readable, empty table.
+        let path = dir.join("trials.parquet");
+        let mut empty = RecordBuilder::new(study, 0).finish().map_err(pol(&path))?;
+        write_parquet(&mut empty, &path)?;
+        std::fs::remove_dir_all(dir.join("parts")).map_err(io(dir))?;
+        0
+    } else {
+        concatenate_parts(dir, first, end)?
+    };
     let manifest = Manifest { complete: true, rows, ..manifest };
     manifest.write(dir)?;
     Ok(RunReport { manifest, trials_run: run_count, trials_resumed: resumed, seconds: started.elapsed().as_secs_f64() })

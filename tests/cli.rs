@@ -301,6 +301,26 @@ fn records_are_identical_for_any_threads_shards_and_resume() {
         let df = read_frame(&dir(other).join("trials.parquet"));
         assert!(reference.equals_missing(&df), "{other} differs from the 1-thread run");
     }
+    // More shards than trials: the empty shards still merge.
+    for i in 0..4 {
+        ok(&fdimc(&[
+            "run",
+            CI_DECK,
+            "--trials",
+            "3",
+            "--shard",
+            &format!("{i}/4"),
+            "--out",
+            &s(dir(&format!("tiny{i}"))),
+        ]));
+    }
+    let tiny: Vec<String> = (0..4).map(|i| s(dir(&format!("tiny{i}")))).collect();
+    let mut args = vec!["merge"];
+    args.extend(tiny.iter().map(String::as_str));
+    let merged_tiny = s(dir("tiny"));
+    args.extend(["--out", merged_tiny.as_str()]);
+    ok(&fdimc(&args));
+    assert_eq!(read_frame(&dir("tiny").join("trials.parquet")).height(), 6);
     // The summaries agree too.
     let a = std::fs::read_to_string(dir("one").join("summary.csv")).unwrap();
     assert_eq!(a, std::fs::read_to_string(dir("merged").join("summary.csv")).unwrap());
