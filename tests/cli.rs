@@ -218,6 +218,24 @@ fn bad_decks_exit_2_naming_file_and_field() {
 }
 
 #[test]
+fn a_closed_pipe_ends_quietly() {
+    use std::process::Stdio;
+    let child = Command::new(env!("CARGO_BIN_EXE_fdimc"))
+        .args(["design", DECK])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut child = child;
+    drop(child.stdout.take()); // the reader goes away before fdimc writes
+    let out = child.wait_with_output().unwrap();
+    let stderr = text(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_ne!(out.status.code(), Some(101), "a panic's exit code");
+}
+
+#[test]
 fn bad_arguments_exit_2() {
     let out = fdimc(&["validate", "studies/no_such_deck.toml"]);
     assert_eq!(out.status.code(), Some(2));
