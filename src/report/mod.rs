@@ -196,7 +196,7 @@ fn gather(
     let mut data: BTreeMap<String, DetectorData> =
         m.detectors.iter().map(|d| (d.clone(), DetectorData::default())).collect();
     let whole: BTreeMap<&str, &Vec<f64>> = thresholds.iter().map(|t| (t.0.as_str(), &t.2)).collect();
-    let step = 32_768usize;
+    let step = 8_192usize;
     let mut offset = 0usize;
     while offset < m.rows as usize {
         let df = read_slice(&path, offset, step, None)?;

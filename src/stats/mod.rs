@@ -28,7 +28,7 @@ use crate::runner::{Manifest, RunError, read_parquet, write_parquet};
 use intervals::{Z95, mcnemar_exact, wilson};
 
 /// Rows read at a time when evaluating (a multiple of the detector count is taken).
-const EVAL_ROWS: usize = 32_768;
+const EVAL_ROWS: usize = 8_192;
 
 fn pol(file: &Path) -> impl FnOnce(PolarsError) -> RunError + '_ {
     move |source| RunError::Polars { file: file.into(), source }
