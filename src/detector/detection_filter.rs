@@ -18,6 +18,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::design::{Assignment, DesignError, Domain, assign_eigenstructure};
+use crate::linalg::gemv;
 use crate::plant::LtiPlant;
 use crate::study::DetectionFilterParams;
 
@@ -91,12 +92,15 @@ impl DetectionFilter {
 
     /// Consumes sample k (`u(k)`, measured `y(k)`), returns the residual `gamma(k)`. No allocation.
     pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> &DVector<f64> {
-        self.residual.copy_from(y);
-        self.residual.gemv(-1.0, &self.C, &self.xhat, 1.0);
-        self.residual.gemv(-1.0, &self.D, u, 1.0);
-        self.next.gemv(1.0, &self.Ad, &self.xhat, 0.0);
-        self.next.gemv(1.0, &self.Bd, u, 1.0);
-        self.next.gemv(1.0, &self.discrete.K, &self.residual, 1.0);
+        let (u, xhat) = (u.as_slice(), self.xhat.as_slice());
+        let residual = self.residual.as_mut_slice();
+        residual.copy_from_slice(y.as_slice());
+        gemv(residual, -1.0, &self.C, xhat, 1.0);
+        gemv(residual, -1.0, &self.D, u, 1.0);
+        let next = self.next.as_mut_slice();
+        gemv(next, 1.0, &self.Ad, xhat, 0.0);
+        gemv(next, 1.0, &self.Bd, u, 1.0);
+        gemv(next, 1.0, &self.discrete.K, residual, 1.0);
         std::mem::swap(&mut self.xhat, &mut self.next);
         &self.residual
     }

@@ -26,6 +26,7 @@ use rand_distr::StandardNormal;
 
 use crate::detector::DetectionFilter;
 use crate::fault::ActiveFaults;
+use crate::linalg::gemv;
 use crate::plant::DiscreteLti;
 use crate::sampling::{Substream, TrialSpec, trial_rng};
 use crate::study::Study;
@@ -94,10 +95,11 @@ impl Tracker {
         }
     }
 
-    fn observe(&mut self, t: f64, after_onset: bool, residual: &DVector<f64>) {
+    fn observe(&mut self, t: f64, after_onset: bool, residual_vector: &DVector<f64>) {
         if self.out.diverged_at_s.is_some() {
             return;
         }
+        let residual = residual_vector.as_slice();
         if residual.iter().any(|r| !r.is_finite()) {
             self.out.diverged_at_s = Some(t);
             return;
@@ -134,7 +136,7 @@ impl Tracker {
         }
         if let Some((start, end)) = self.iso_window {
             if t >= start && t < end {
-                self.iso_sum += residual;
+                self.iso_sum += residual_vector;
                 self.iso_count += 1;
             }
         }
@@ -196,14 +198,14 @@ pub fn run_trial(
         for e in &s.excitations {
             r[e.input] += e.value(t);
         }
-        y.gemv(1.0, &p.C, &x, 0.0);
-        y.gemv(1.0, &p.D, &r, 1.0);
-        for (yj, sigma) in y.iter_mut().zip(sensor_sigma.iter()) {
+        gemv(y.as_mut_slice(), 1.0, &p.C, x.as_slice(), 0.0);
+        gemv(y.as_mut_slice(), 1.0, &p.D, r.as_slice(), 1.0);
+        for (yj, sigma) in y.as_mut_slice().iter_mut().zip(sensor_sigma.as_slice()) {
             *yj += sigma * sensor_rng.sample::<f64, _>(StandardNormal);
         }
         faults.apply(t, y.as_mut_slice());
         u.copy_from(&r);
-        u.gemv(-1.0, &s.output_feedback, &y, 1.0);
+        gemv(u.as_mut_slice(), -1.0, &s.output_feedback, y.as_slice(), 1.0);
 
         let after_onset = onset_s.is_some_and(|t0| t >= t0);
         for (i, (filter, tracker)) in filters.iter_mut().zip(trackers.iter_mut()).enumerate() {
@@ -221,10 +223,10 @@ pub fn run_trial(
             }
         }
 
-        x_next.gemv(1.0, &p.Ad, &x, 0.0);
-        x_next.gemv(1.0, &p.Bd, &u, 1.0);
+        gemv(x_next.as_mut_slice(), 1.0, &p.Ad, x.as_slice(), 0.0);
+        gemv(x_next.as_mut_slice(), 1.0, &p.Bd, u.as_slice(), 1.0);
         if has_process_noise {
-            for (xi, sigma) in x_next.iter_mut().zip(s.process_sigma_per_step.iter()) {
+            for (xi, sigma) in x_next.as_mut_slice().iter_mut().zip(s.process_sigma_per_step.as_slice()) {
                 *xi += sigma * process_rng.sample::<f64, _>(StandardNormal);
             }
         }
