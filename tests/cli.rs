@@ -488,7 +488,16 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
     assert!(delay.contains("bias (") && delay.contains("stuck (") && delay.contains("delay after onset (s)"));
     let confusion = svg("confusion_seed.svg");
     let labels = svg_texts(&confusion);
-    for s in ["faulty output", "isolated output", "none", "alpha_rad", "q_rad_s", "h_m"] {
+    for s in [
+        "faulty output",
+        "isolated output",
+        "none",
+        "alpha_rad",
+        "q_rad_s",
+        "h_m",
+        "correct isolation",
+        "other output, or none",
+    ] {
         assert!(labels.iter().any(|t| t == s), "confusion_seed.svg lacks {s:?}: {labels:?}");
     }
     for trial in ["trace_trial3.svg", "trace_trial17.svg"] {

@@ -289,8 +289,23 @@ pub fn confusion(
     let mut cols: Vec<String> = outputs.to_vec();
     cols.push("none".into());
     let (nr, nc) = (rows.len().max(1) as i32, cols.len() as i32);
-    let root = SVGBackend::new(file, (960, 120 + 70 * nr as u32)).into_drawing_area();
-    root.fill(&WHITE).map_err(e)?;
+    let figure = SVGBackend::new(file, (1160, 140 + 70 * nr as u32)).into_drawing_area();
+    figure.fill(&WHITE).map_err(e)?;
+    let (root, key) = figure.split_horizontally(960);
+    // Legend: what the colours and shades mean.
+    let (green, orange) = (RGBColor(0, 158, 115), RGBColor(213, 94, 0));
+    for (k, (fill, text)) in [
+        (green.mix(1.0), "correct isolation"),
+        (orange.mix(1.0), "other output, or none"),
+        (orange.mix(0.1), "shade: share of the row"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let y = 60 + 28 * k as i32;
+        key.draw(&Rectangle::new([(8, y), (26, y + 18)], ShapeStyle::from(fill).filled())).map_err(e)?;
+        key.draw(&Text::new(text, (34, y + 3), (FONT, 13))).map_err(e)?;
+    }
     let mut chart = ChartBuilder::on(&root)
         .caption(format!("Isolation confusion: {detector} (deck thresholds, signature direction)"), (FONT, 18))
         .margin(12)
@@ -320,7 +335,7 @@ pub fn confusion(
         for (c, named) in cols.iter().enumerate() {
             let n = counts.get(&((*truth).clone(), named.clone())).copied().unwrap_or(0);
             let frac = if total > 0 { n as f64 / total as f64 } else { 0.0 };
-            let fill = if *truth == named { RGBColor(0, 158, 115) } else { RGBColor(213, 94, 0) };
+            let fill = if *truth == named { green } else { orange };
             let c = c as i32;
             let cell = [
                 (SegmentValue::Exact(c), SegmentValue::Exact(r)),
@@ -331,7 +346,7 @@ pub fn confusion(
             chart.draw_series(std::iter::once(label)).map_err(e)?;
         }
     }
-    root.present().map_err(e)
+    figure.present().map_err(e)
 }
 
 /// Residuals of one trial, one panel per output: residual, +/- deck and calibrated thresholds,
