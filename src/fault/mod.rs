@@ -77,10 +77,6 @@ impl ActiveFaults {
         ActiveFaults { faults, held }
     }
 
-    pub fn faults(&self) -> &[SensorFault] {
-        &self.faults
-    }
-
     /// Earliest onset of any fault (`None` for a fault-free trial).
     pub fn first_onset_s(&self) -> Option<f64> {
         self.faults.iter().map(|f| f.onset_s).min_by(f64::total_cmp)

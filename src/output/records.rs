@@ -126,14 +126,6 @@ impl<'a> RecordBuilder<'a> {
         }
     }
 
-    pub fn len(&self) -> usize {
-        self.trial.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.trial.is_empty()
-    }
-
     /// Appends one row per detector configuration of `result`.
     pub fn push(&mut self, result: &TrialResult) {
         let s = self.study;
