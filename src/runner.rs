@@ -38,12 +38,23 @@ pub enum RunError {
     Internal(String),
 }
 
-fn io(file: &Path) -> impl FnOnce(std::io::Error) -> RunError + '_ {
+pub(crate) fn io(file: &Path) -> impl FnOnce(std::io::Error) -> RunError + '_ {
     move |source| RunError::Io { file: file.into(), source }
 }
 
-fn pol(file: &Path) -> impl FnOnce(PolarsError) -> RunError + '_ {
+pub(crate) fn pol(file: &Path) -> impl FnOnce(PolarsError) -> RunError + '_ {
     move |source| RunError::Polars { file: file.into(), source }
+}
+
+impl From<crate::output::OutputError> for RunError {
+    fn from(e: crate::output::OutputError) -> Self {
+        use crate::output::OutputError;
+        match e {
+            OutputError::UnknownFormat { .. } => RunError::Invalid(e.to_string()),
+            OutputError::Io { file, source } => RunError::Io { file, source },
+            OutputError::Polars { file, source } => RunError::Polars { file, source },
+        }
+    }
 }
 
 /// Part `index` of `count` of a study's trials.

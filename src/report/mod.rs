@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use polars::prelude::*;
 
 use crate::output::records::col;
-use crate::runner::{Manifest, RunError, write_atomically};
+use crate::runner::{Manifest, RunError, io, write_atomically};
 use crate::stats::{self, alarm_time, f64_col, list_col, read_slice, str_col};
 
 /// What a report contains, for the CLI and tests.
@@ -56,7 +56,7 @@ pub fn write_report(dir: &Path, trials: &[u64]) -> Result<Report, RunError> {
         }
     }
     let out = dir.join("report");
-    std::fs::create_dir_all(&out).map_err(|e| RunError::Io { file: out.clone(), source: e })?;
+    std::fs::create_dir_all(&out).map_err(io(&out))?;
     plots::register_font();
     let mut report = Report::default();
     let thresholds = stats::read_thresholds(&dir.join("thresholds.csv"))?;

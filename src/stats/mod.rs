@@ -24,15 +24,12 @@ use std::path::{Path, PathBuf};
 use polars::prelude::*;
 
 use crate::output::records::col;
-use crate::runner::{Manifest, RunError, read_parquet, write_parquet};
+use crate::output::write_table;
+use crate::runner::{Manifest, RunError, io, pol, read_parquet, write_parquet};
 use intervals::{Z95, mcnemar_exact, wilson};
 
 /// Rows read at a time when evaluating (a multiple of the detector count is taken).
 const EVAL_ROWS: usize = 8_192;
-
-fn pol(file: &Path) -> impl FnOnce(PolarsError) -> RunError + '_ {
-    move |source| RunError::Polars { file: file.into(), source }
-}
 
 /// Thresholds of one detector configuration.
 #[derive(Debug, Clone, PartialEq)]
@@ -128,7 +125,7 @@ pub(crate) fn read_slice(
     len: usize,
     columns: Option<Vec<String>>,
 ) -> Result<DataFrame, RunError> {
-    let file = std::fs::File::open(path).map_err(|e| RunError::Io { file: path.into(), source: e })?;
+    let file = std::fs::File::open(path).map_err(io(path))?;
     ParquetReader::new(file).with_columns(columns).with_slice(Some((offset, len))).finish().map_err(pol(path))
 }
 
@@ -145,16 +142,11 @@ pub fn summarize(dir: &Path, calibration: &Calibration) -> Result<SummaryReport,
     }
     let mut warnings = Vec::new();
     // A truncated or foreign file is bad input, not an internal error: check its footer first.
-    let rows_on_disk = std::fs::File::open(&trials_path)
-        .map_err(|e| RunError::Io { file: trials_path.clone(), source: e })
-        .and_then(|f| {
-            ParquetReader::new(f).num_rows().map_err(|e| {
-                RunError::Invalid(format!(
-                    "{}: not a readable Parquet file ({e}); re-run the study",
-                    trials_path.display()
-                ))
-            })
-        })?;
+    let rows_on_disk = std::fs::File::open(&trials_path).map_err(io(&trials_path)).and_then(|f| {
+        ParquetReader::new(f).num_rows().map_err(|e| {
+            RunError::Invalid(format!("{}: not a readable Parquet file ({e}); re-run the study", trials_path.display()))
+        })
+    })?;
     if rows_on_disk as u64 != manifest.rows {
         return Err(RunError::Invalid(format!(
             "{}: holds {rows_on_disk} rows, its manifest.json says {}: re-run the study",
@@ -278,15 +270,14 @@ pub fn summarize(dir: &Path, calibration: &Calibration) -> Result<SummaryReport,
     let mut curves = aggregate(&evaluated, &curve_keys).map_err(pol(&trials_path))?;
     let mut min_detectable = min_detectable(&curves).map_err(pol(&trials_path))?;
 
-    let io = |f: &str| dir.join(f);
-    crate::output::write_table(&mut summary, &io("summary.csv")).map_err(|e| RunError::Internal(e.to_string()))?;
-    write_parquet(&mut summary, &io("summary.parquet"))?;
-    crate::output::write_table(&mut curves, &io("curves.csv")).map_err(|e| RunError::Internal(e.to_string()))?;
-    crate::output::write_table(&mut min_detectable, &io("min_detectable.csv"))
-        .map_err(|e| RunError::Internal(e.to_string()))?;
+    let out = |f: &str| dir.join(f);
+    write_table(&mut summary, &out("summary.csv"))?;
+    write_parquet(&mut summary, &out("summary.parquet"))?;
+    write_table(&mut curves, &out("curves.csv"))?;
+    write_table(&mut min_detectable, &out("min_detectable.csv"))?;
     let comparison = if detectors.len() > 1 {
         let mut c = pairs.into_frame(detectors).map_err(pol(&trials_path))?;
-        crate::output::write_table(&mut c, &io("comparison.csv")).map_err(|e| RunError::Internal(e.to_string()))?;
+        write_table(&mut c, &out("comparison.csv"))?;
         Some(c)
     } else {
         None
@@ -660,6 +651,7 @@ fn write_thresholds(
     outputs: &[String],
     source: &str,
 ) -> Result<(), RunError> {
+    let path = dir.join("thresholds.csv");
     let mut detector = Vec::new();
     let mut output = Vec::new();
     let mut deck = Vec::new();
@@ -703,8 +695,8 @@ fn write_thresholds(
         Column::new("pfa_hi".into(), hi),
         Column::new("source".into(), vec![source; height]),
     ])
-    .map_err(|e| RunError::Internal(e.to_string()))?;
-    crate::output::write_table(&mut df, &dir.join("thresholds.csv")).map_err(|e| RunError::Internal(e.to_string()))
+    .map_err(pol(&path))?;
+    Ok(write_table(&mut df, &path)?)
 }
 
 /// Reads `thresholds.csv`: per detector, (per-output thresholds, whole-detector thresholds) in output order.
