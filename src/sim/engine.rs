@@ -89,11 +89,13 @@ impl<'a> Engine<'a> {
     /// Runs every detector configuration on trial `trial`.
     pub fn run(&self, trial: u64) -> TrialResult {
         let spec = self.spec(trial);
-        let designs = self.filters(&spec);
-        let mut ok: Vec<DetectionFilter> = designs.iter().filter_map(|d| d.as_ref().ok().cloned()).collect();
+        // Move the designed filters out (no second copy); keep each failed design's reason in its slot.
+        let mut ok = Vec::with_capacity(self.study.detectors.len());
+        let slots: Vec<Result<(), DesignError>> =
+            self.filters(&spec).into_iter().map(|d| d.map(|f| ok.push(f))).collect();
         let mut outcomes = run_trial(self.study, &self.truth(&spec), &spec, &mut ok, None).into_iter();
         let detectors =
-            designs.into_iter().map(|d| d.map(|_| outcomes.next().expect("one outcome per filter"))).collect();
+            slots.into_iter().map(|d| d.map(|()| outcomes.next().expect("one outcome per filter"))).collect();
         TrialResult { spec, detectors }
     }
 
