@@ -133,15 +133,7 @@ pub fn write_report(dir: &Path, trials: &[u64]) -> Result<Report, RunError> {
 
     // Warnings from the summary.
     let summary = crate::runner::read_parquet(&dir.join("summary.parquet"))?;
-    let sum_u64 =
-        |name: &str| summary.column(name).ok().and_then(|c| c.u64().ok()).and_then(|c| c.sum()).unwrap_or(0) / 2;
-    let (failures, diverged) = (sum_u64("design_failures"), sum_u64("diverged"));
-    if failures > 0 {
-        report.warnings.push(format!("{failures} trial x detector designs failed (design_error in trials.parquet)"));
-    }
-    if diverged > 0 {
-        report.warnings.push(format!("{diverged} trial x detector runs diverged (diverged_at_s in trials.parquet)"));
-    }
+    report.warnings.extend(stats::health_warnings(&summary));
     for d in &manifest.detectors {
         let n = data[d].z_fault_free.len();
         if (n as f64) * manifest.target_pfa < 1.0 {

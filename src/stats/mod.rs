@@ -64,6 +64,26 @@ pub struct SummaryReport {
     pub warnings: Vec<String>,
 }
 
+/// Warnings about failed designs and diverged filters, counted once per (trial, detector) from the
+/// summary's `deck` rows (every threshold set holds the same trials).
+pub fn health_warnings(summary: &DataFrame) -> Vec<String> {
+    let deck_sum = |name: &str| -> u64 {
+        let (Ok(set), Ok(values)) = (summary.column("thresholds"), summary.column(name)) else { return 0 };
+        let (Ok(set), Ok(values)) = (set.str(), values.u64()) else { return 0 };
+        (0..summary.height()).filter(|&i| set.get(i) == Some("deck")).filter_map(|i| values.get(i)).sum()
+    };
+    let mut warnings = Vec::new();
+    let failures = deck_sum("design_failures");
+    if failures > 0 {
+        warnings.push(format!("{failures} trial x detector designs failed (design_error in trials.parquet)"));
+    }
+    let diverged = deck_sum("diverged");
+    if diverged > 0 {
+        warnings.push(format!("{diverged} trial x detector runs diverged (diverged_at_s in trials.parquet)"));
+    }
+    warnings
+}
+
 /// First time a first-passage profile exceeds `thr` (see `sim`): the alarm time at that threshold.
 pub fn alarm_time(profile_t_s: &[f64], profile_value: &[f64], thr: f64) -> Option<f64> {
     profile_t_s.iter().zip(profile_value).find(|(_, v)| **v > thr).map(|(t, _)| *t)
@@ -282,20 +302,7 @@ pub fn summarize(dir: &Path, calibration: &Calibration) -> Result<SummaryReport,
     } else {
         None
     };
-    let failures: u64 =
-        summary.column("design_failures").ok().and_then(|c| c.u64().ok()).map(|c| c.sum().unwrap_or(0)).unwrap_or(0);
-    if failures > 0 {
-        warnings.push(format!(
-            "{} trial-detector evaluations had a failed design (design_error in trials.parquet)",
-            failures / 2
-        ));
-    }
-    let diverged: u64 =
-        summary.column("diverged").ok().and_then(|c| c.u64().ok()).map(|c| c.sum().unwrap_or(0)).unwrap_or(0);
-    if diverged > 0 {
-        warnings
-            .push(format!("{} trial-detector evaluations diverged (diverged_at_s in trials.parquet)", diverged / 2));
-    }
+    warnings.extend(health_warnings(&summary));
     Ok(SummaryReport { thresholds, calibration_source, summary, comparison, warnings })
 }
 
@@ -777,6 +784,17 @@ mod tests {
         // Gain 0.8 is a smaller fault than 0.6; its lower bound misses 0.9, so the bound needs 0.6.
         assert_eq!(point, [Some(0.8), Some(5.0)]);
         assert_eq!(lower, [Some(0.6), Some(5.0)]);
+    }
+
+    #[test]
+    fn health_warnings_count_each_trial_once() {
+        let summary = DataFrame::new_infer_height(vec![
+            Column::new("thresholds".into(), ["deck", "deck", "calibrated", "calibrated"]),
+            Column::new("design_failures".into(), [2u64, 1, 2, 1]),
+            Column::new("diverged".into(), [0u64, 0, 0, 0]),
+        ])
+        .unwrap();
+        assert_eq!(health_warnings(&summary), ["3 trial x detector designs failed (design_error in trials.parquet)"]);
     }
 
     #[test]
