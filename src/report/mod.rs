@@ -219,8 +219,7 @@ fn gather(
             }
             let z = (0..m.outputs.len()).map(|j| fp_v[j][i].last().copied().unwrap_or(0.0) / th[j]).fold(0.0, f64::max);
             dd.z_faulty.push(z);
-            let t_alarm =
-                (0..m.outputs.len()).filter_map(|j| alarm_time(&fp_t[j][i], &fp_v[j][i], th[j])).reduce(f64::min);
+            let t_alarm = alarm_time(&fp_t, &fp_v, i, th);
             if let (Some(t), Some(t0)) = (t_alarm, onset.get(i)) {
                 dd.delays.entry(k.to_string()).or_default().push(t - t0);
             }

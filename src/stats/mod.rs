@@ -84,9 +84,21 @@ pub fn health_warnings(summary: &DataFrame) -> Vec<String> {
     warnings
 }
 
-/// First time a first-passage profile exceeds `thr` (see `sim`): the alarm time at that threshold.
-pub fn alarm_time(profile_t_s: &[f64], profile_value: &[f64], thr: f64) -> Option<f64> {
-    profile_t_s.iter().zip(profile_value).find(|(_, v)| **v > thr).map(|(t, _)| *t)
+/// A detector's first post-onset alarm at per-output thresholds `thr`, from row `row` of the per-output
+/// first-passage profiles (see `sim`): for each output the first profile point above its threshold, then
+/// the earliest over outputs.
+pub fn alarm_time(
+    profile_t_s: &[Vec<Vec<f64>>],
+    profile_value: &[Vec<Vec<f64>>],
+    row: usize,
+    thr: &[f64],
+) -> Option<f64> {
+    (0..thr.len())
+        .filter_map(|j| {
+            let (t, v) = (&profile_t_s[j][row], &profile_value[j][row]);
+            t.iter().zip(v).find(|(_, v)| **v > thr[j]).map(|(t, _)| *t)
+        })
+        .reduce(f64::min)
 }
 
 /// The `k`-th order statistic such that at most `floor(p n)` values exceed it; `(threshold, exceedances)`.
@@ -475,9 +487,7 @@ fn evaluate_slice(
             } else {
                 let th = &thresholds[d].whole;
                 let fa = (0..outputs.len()).any(|j| pre[j].get(i).unwrap_or(f64::NAN) > th[j]);
-                let alarm = (0..outputs.len())
-                    .filter_map(|j| alarm_time(&fp_t[j][i], &fp_v[j][i], th[j]))
-                    .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))));
+                let alarm = alarm_time(&fp_t, &fp_v, i, th);
                 (fa, alarm.is_some(), alarm.map(|t| t - onset.get(i).unwrap_or(f64::NAN)), None)
             };
             ev.thresholds.push(set);
