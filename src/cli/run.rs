@@ -244,38 +244,32 @@ fn print_summary(dir: &Path, s: &SummaryReport) -> Result<(), CliError> {
         );
     }
     use polars::prelude::*;
+    let internal = |e: PolarsError| CliError::Internal(e.to_string());
     let overall = s
         .summary
         .clone()
         .lazy()
         .filter(col("kind").neq(lit("none")))
         .group_by_stable([col("thresholds"), col("detector"), col("kind")])
-        .agg([
-            (col("trials") - col("design_failures")).sum().alias("n"),
-            col("detected").sum().alias("detected"),
-            col("false_alarms").sum().alias("fa"),
-        ])
+        .agg([(col("trials") - col("design_failures")).sum().alias("n"), col("detected").sum().alias("detected")])
         .sort(["thresholds", "detector", "kind"], Default::default())
         .collect()
-        .map_err(|e| CliError::Internal(e.to_string()))?;
+        .map_err(internal)?;
     println!("  detection probability over all sizes (see summary.csv for groups):");
-    let g = |n: &str| {
-        overall.column(n).and_then(|c| c.cast(&DataType::String)).map_err(|e| CliError::Internal(e.to_string()))
-    };
-    let (set, det, kind, n, d) = (g("thresholds")?, g("detector")?, g("kind")?, g("n")?, g("detected")?);
-    let (set, det, kind, n, d) =
-        (set.str().unwrap(), det.str().unwrap(), kind.str().unwrap(), n.str().unwrap(), d.str().unwrap());
+    let text = |n: &str| overall.column(n).and_then(|c| c.str().cloned()).map_err(internal);
+    let count = |n: &str| overall.column(n).and_then(|c| c.u64().cloned()).map_err(internal);
+    let (set, det, kind, n, detected) =
+        (text("thresholds")?, text("detector")?, text("kind")?, count("n")?, count("detected")?);
     for i in 0..overall.height() {
-        let nn: f64 = n.get(i).unwrap_or("0").parse().unwrap_or(0.0);
-        let dd: f64 = d.get(i).unwrap_or("0").parse().unwrap_or(0.0);
+        let (n, k) = (n.get(i).unwrap_or(0), detected.get(i).unwrap_or(0));
         println!(
             "    {:<10} {:<12} {:<14} {:>6}/{:<6} = {:.3}",
             set.get(i).unwrap_or(""),
             det.get(i).unwrap_or(""),
             kind.get(i).unwrap_or(""),
-            dd,
-            nn,
-            dd / nn.max(1.0)
+            k,
+            n,
+            k as f64 / n.max(1) as f64
         );
     }
     for w in &s.warnings {
