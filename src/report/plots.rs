@@ -28,6 +28,22 @@ fn e<E: std::fmt::Debug>(err: E) -> String {
     format!("{err:?}")
 }
 
+/// The legend box every plot uses: its series' labels at `position`, in `size`-point text.
+fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    position: SeriesLabelPosition,
+    size: u32,
+) -> Result<(), String> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((FONT, size))
+        .draw()
+        .map_err(e)
+}
+
 fn color(i: usize) -> RGBColor {
     // Okabe-Ito: distinguishable, also for colour-blind readers.
     const C: [(u8, u8, u8); 8] = [
@@ -147,14 +163,7 @@ pub fn pd_against_size(
             chart.draw_series(std::iter::once(TriangleMarker::new((m, 0.9), 8, c.filled()))).map_err(e)?;
         }
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((FONT, 14))
-        .draw()
-        .map_err(e)?;
+    legend(&mut chart, SeriesLabelPosition::LowerRight, 14)?;
     root.present().map_err(e)
 }
 
@@ -205,14 +214,7 @@ pub fn roc(file: &Path, detectors: &[(String, Vec<f64>, Vec<f64>)]) -> Result<()
             )))
             .map_err(e)?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((FONT, 14))
-        .draw()
-        .map_err(e)?;
+    legend(&mut chart, SeriesLabelPosition::LowerRight, 14)?;
     root.present().map_err(e)
 }
 
@@ -267,14 +269,7 @@ pub fn delays(file: &Path, detector: &str, delays: &BTreeMap<String, Vec<f64>>) 
             .label(format!("{kind} ({n} detected)"))
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::UpperRight)
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font((FONT, 14))
-        .draw()
-        .map_err(e)?;
+    legend(&mut chart, SeriesLabelPosition::UpperRight, 14)?;
     root.present().map_err(e)
 }
 
@@ -418,14 +413,7 @@ pub fn trace(
                 .label("first alarm")
                 .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(3).stroke_width(2)));
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperLeft)
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .label_font((FONT, 11))
-            .draw()
-            .map_err(e)?;
+        legend(&mut chart, SeriesLabelPosition::UpperLeft, 11)?;
     }
     root.present().map_err(e)
 }
