@@ -20,6 +20,7 @@ use serde::{Deserialize, Serialize};
 use crate::output::records::RecordBuilder;
 use crate::output::temporary_sibling;
 use crate::sim::Engine;
+use crate::sim::kernel::LANES;
 use crate::study::Study;
 
 /// Trials per part file.
@@ -270,10 +271,12 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
         } else {
             let results: Vec<_> = pool.install(|| {
                 (chunk_start..chunk_end)
+                    .step_by(LANES)
+                    .collect::<Vec<u64>>()
                     .into_par_iter()
-                    .map(|t| {
-                        let r = engine.run(t);
-                        bar.inc(1);
+                    .flat_map_iter(|group| {
+                        let r = engine.run_lanes(group, (group + LANES as u64).min(chunk_end));
+                        bar.inc(r.len() as u64);
                         r
                     })
                     .collect()

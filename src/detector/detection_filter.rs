@@ -18,11 +18,10 @@
 use nalgebra::{DMatrix, DVector};
 
 use crate::design::{Assignment, DesignError, Domain, assign_eigenstructure};
-use crate::linalg::gemv;
 use crate::plant::LtiPlant;
 use crate::study::DetectionFilterParams;
 
-/// A designed detection filter with its state. If it exists, its gains exist and are stable.
+/// A designed detection filter (`sim::FilterStep` runs it). If it exists, its gains exist and are stable.
 #[derive(Debug, Clone)]
 pub struct DetectionFilter {
     pub Ad: DMatrix<f64>,
@@ -39,9 +38,6 @@ pub struct DetectionFilter {
     /// Isolation window after the first alarm: start delay and length (s).
     pub isolation_delay_s: f64,
     pub isolation_window_s: f64,
-    xhat: DVector<f64>,
-    next: DVector<f64>,
-    residual: DVector<f64>,
 }
 
 impl DetectionFilterParams {
@@ -72,39 +68,11 @@ impl DetectionFilterParams {
             thresholds: self.thresholds.clone(),
             isolation_delay_s: self.isolation_delay_s,
             isolation_window_s: self.isolation_window_s,
-            xhat: DVector::zeros(n),
-            next: DVector::zeros(n),
-            residual: DVector::zeros(m),
         })
     }
 }
 
 impl DetectionFilter {
-    /// Starts the filter from the estimate `x0`.
-    pub fn reset(&mut self, x0: &DVector<f64>) {
-        self.xhat.copy_from(x0);
-    }
-
-    /// The current prior estimate `xhat(k)` (before `step` consumes sample k).
-    pub fn estimate(&self) -> &DVector<f64> {
-        &self.xhat
-    }
-
-    /// Consumes sample k (`u(k)`, measured `y(k)`), returns the residual `gamma(k)`. No allocation.
-    pub fn step(&mut self, u: &DVector<f64>, y: &DVector<f64>) -> &DVector<f64> {
-        let (u, xhat) = (u.as_slice(), self.xhat.as_slice());
-        let residual = self.residual.as_mut_slice();
-        residual.copy_from_slice(y.as_slice());
-        gemv(residual, -1.0, &self.C, xhat, 1.0);
-        gemv(residual, -1.0, &self.D, u, 1.0);
-        let next = self.next.as_mut_slice();
-        gemv(next, 1.0, &self.Ad, xhat, 0.0);
-        gemv(next, 1.0, &self.Bd, u, 1.0);
-        gemv(next, 1.0, &self.discrete.K, residual, 1.0);
-        std::mem::swap(&mut self.xhat, &mut self.next);
-        &self.residual
-    }
-
     /// Output whose threshold-scaled residual is largest.
     pub fn isolate_by_max(&self, mean_residual: &DVector<f64>) -> usize {
         mean_residual.component_div(&self.thresholds).iamax()

@@ -85,22 +85,40 @@ impl ActiveFaults {
     /// Replaces healthy outputs `y` (in place) by what the faulty sensors report at time `t_s`.
     pub fn apply(&mut self, t_s: f64, y: &mut [f64]) {
         for (fault, held) in self.faults.iter().zip(self.held.iter_mut()) {
-            if t_s < fault.onset_s {
-                continue;
+            if t_s >= fault.onset_s {
+                y[fault.channel] = fault.reading(t_s, y[fault.channel], held);
             }
-            let y_in = y[fault.channel];
-            let dt = t_s - fault.onset_s;
-            y[fault.channel] = match fault.mode {
-                FaultMode::Stuck { value: Some(c) } => c,
-                FaultMode::Stuck { value: None } => *held.get_or_insert(y_in),
-                FaultMode::Gain { factor } => factor * y_in,
-                FaultMode::Bias { bias } => y_in + bias,
-                FaultMode::TotalFailure => 0.0,
-                FaultMode::Drift { rate_per_s } => y_in + rate_per_s * dt,
-                FaultMode::Oscillation { amplitude, frequency_hz } => {
-                    y_in + amplitude * (std::f64::consts::TAU * frequency_hz * dt).sin()
-                }
-            };
+        }
+    }
+
+    /// [`apply`](Self::apply) on lane `lane` of outputs stored lane-wise (`y[channel][lane]`).
+    #[inline]
+    pub fn apply_to_lane<const LANES: usize>(&mut self, t_s: f64, y: &mut [[f64; LANES]], lane: usize) {
+        for (fault, held) in self.faults.iter().zip(self.held.iter_mut()) {
+            if t_s >= fault.onset_s {
+                let v = &mut y[fault.channel][lane];
+                *v = fault.reading(t_s, *v, held);
+            }
+        }
+    }
+}
+
+impl SensorFault {
+    /// What the sensor reports at `t_s >= onset_s` when the healthy reading is `y_in`; `held` keeps a
+    /// held stuck value.
+    #[inline]
+    fn reading(&self, t_s: f64, y_in: f64, held: &mut Option<f64>) -> f64 {
+        let dt = t_s - self.onset_s;
+        match self.mode {
+            FaultMode::Stuck { value: Some(c) } => c,
+            FaultMode::Stuck { value: None } => *held.get_or_insert(y_in),
+            FaultMode::Gain { factor } => factor * y_in,
+            FaultMode::Bias { bias } => y_in + bias,
+            FaultMode::TotalFailure => 0.0,
+            FaultMode::Drift { rate_per_s } => y_in + rate_per_s * dt,
+            FaultMode::Oscillation { amplitude, frequency_hz } => {
+                y_in + amplitude * (std::f64::consts::TAU * frequency_hz * dt).sin()
+            }
         }
     }
 }

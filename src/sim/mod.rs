@@ -26,13 +26,15 @@ use rand_distr::StandardNormal;
 
 use crate::detector::DetectionFilter;
 use crate::fault::ActiveFaults;
-use crate::linalg::gemv;
-use crate::plant::DiscreteLti;
-use crate::sampling::{Substream, TrialSpec, trial_rng};
+use crate::sampling::{Substream, TrialSpec, noise_rng};
 use crate::study::Study;
 
 mod engine;
+pub mod kernel;
+mod lanes;
+pub mod normals;
 pub use engine::{Engine, TrialResult};
+pub use kernel::{FilterState, FilterStep, PlantState, PlantStep};
 
 /// Relative rise of the running maximum that adds a point to a first-passage profile.
 pub const PROFILE_RESOLUTION: f64 = 0.02;
@@ -95,11 +97,10 @@ impl Tracker {
         }
     }
 
-    fn observe(&mut self, t: f64, after_onset: bool, residual_vector: &DVector<f64>) {
+    fn observe(&mut self, t: f64, after_onset: bool, residual: &[f64]) {
         if self.out.diverged_at_s.is_some() {
             return;
         }
-        let residual = residual_vector.as_slice();
         if residual.iter().any(|r| !r.is_finite()) {
             self.out.diverged_at_s = Some(t);
             return;
@@ -136,7 +137,9 @@ impl Tracker {
         }
         if let Some((start, end)) = self.iso_window {
             if t >= start && t < end {
-                self.iso_sum += residual_vector;
+                for (sum, r) in self.iso_sum.iter_mut().zip(residual) {
+                    *sum += r;
+                }
                 self.iso_count += 1;
             }
         }
@@ -159,83 +162,78 @@ impl Tracker {
     }
 }
 
-/// Runs trial `spec` on the sampled true plant `truth` with every filter in `filters` (each reset to
-/// the study's initial state first). `trace`, if given, receives every sample of `filters[0]`.
+/// Runs trial `spec` on the sampled true plant `plant` with every filter in `filters` (a design and
+/// its products, started at the study's initial state): the general, one-trial path. `trace`, if
+/// given, receives every sample of `filters[0]`. [`lanes`] computes the same numbers for several
+/// trials at once.
 pub fn run_trial(
     study: &Study,
-    truth: &DiscreteLti,
+    plant: &PlantStep,
     spec: &TrialSpec,
-    filters: &mut [DetectionFilter],
+    filters: &[(&DetectionFilter, FilterStep)],
     mut trace: Option<&mut Trace>,
 ) -> Vec<DetectorOutcome> {
     let s = study;
-    let p = truth;
-    let (n, nu, ny) = (p.Ad.nrows(), p.Bd.ncols(), p.C.nrows());
-    let mut sensor_rng = trial_rng(s.seed, spec.trial, Substream::SensorNoise);
-    let mut process_rng = trial_rng(s.seed, spec.trial, Substream::ProcessNoise);
+    let (n, nu, ny) = (s.plant.n_states(), s.plant.n_inputs(), s.plant.n_outputs());
+    let mut sensor_rng = noise_rng(s.seed, spec.trial, Substream::SensorNoise);
+    let mut process_rng = noise_rng(s.seed, spec.trial, Substream::ProcessNoise);
     let has_process_noise = s.process_sigma_per_step.iter().any(|&v| v > 0.0);
     let sensor_sigma = &s.sensor_sigma * spec.noise_scale;
 
     let mut faults = ActiveFaults::new(spec.faults.clone());
     let onset_s = faults.first_onset_s();
-    let mut x = s.initial_state.clone();
-    let mut x_next = DVector::zeros(n);
-    let mut r = DVector::zeros(nu);
-    let mut u = DVector::zeros(nu);
-    let mut y = DVector::zeros(ny);
-    let mut trackers: Vec<Tracker> = filters
-        .iter_mut()
-        .map(|f| {
-            f.reset(&s.initial_state);
-            Tracker::new(f, ny)
-        })
-        .collect();
+    let x0 = s.initial_state.as_slice();
+    let mut plant_state = PlantState::new(x0, nu);
+    let mut y = vec![0.0; ny];
+    let mut states: Vec<FilterState<f64>> = filters.iter().map(|_| FilterState::new(x0, nu, ny)).collect();
+    let mut trackers: Vec<Tracker> = filters.iter().map(|(design, _)| Tracker::new(design, ny)).collect();
     let mut rec = trace.as_deref_mut().map(|t| TraceWriter::new(t, s, n));
 
     for k in 0..s.steps {
         let t = k as f64 * s.dt_s;
+        let r = plant_state.reference_mut();
         r.fill(0.0);
         for e in &s.excitations {
             r[e.input] += e.value(t);
         }
-        gemv(y.as_mut_slice(), 1.0, &p.C, x.as_slice(), 0.0);
-        gemv(y.as_mut_slice(), 1.0, &p.D, r.as_slice(), 1.0);
-        for (yj, sigma) in y.as_mut_slice().iter_mut().zip(sensor_sigma.as_slice()) {
+        plant.measure(&plant_state, &mut y);
+        for (yj, sigma) in y.iter_mut().zip(sensor_sigma.as_slice()) {
             *yj += sigma * sensor_rng.sample::<f64, _>(StandardNormal);
         }
-        faults.apply(t, y.as_mut_slice());
-        u.copy_from(&r);
-        gemv(u.as_mut_slice(), -1.0, &s.output_feedback, y.as_slice(), 1.0);
+        faults.apply(t, &mut y);
+        plant.close_loop(&mut plant_state, &y);
+        let u = plant_state.inputs();
 
         let after_onset = onset_s.is_some_and(|t0| t >= t0);
-        for (i, (filter, tracker)) in filters.iter_mut().zip(trackers.iter_mut()).enumerate() {
+        for (i, ((_, filter), (state, tracker))) in
+            filters.iter().zip(states.iter_mut().zip(trackers.iter_mut())).enumerate()
+        {
             if i == 0 {
                 if let Some(rec) = rec.as_mut() {
-                    rec.before_step(t, &u, &y, filter.estimate());
+                    rec.before_step(t, u, &y, state.estimate());
                 }
             }
-            let residual = filter.step(&u, &y);
-            tracker.observe(t, after_onset, residual);
+            filter.step(state, u, &y);
+            tracker.observe(t, after_onset, state.residual());
             if i == 0 {
                 if let Some(rec) = rec.as_mut() {
-                    rec.after_step(residual, &tracker.thresholds);
+                    rec.after_step(state.residual(), &tracker.thresholds);
                 }
             }
         }
 
-        gemv(x_next.as_mut_slice(), 1.0, &p.Ad, x.as_slice(), 0.0);
-        gemv(x_next.as_mut_slice(), 1.0, &p.Bd, u.as_slice(), 1.0);
-        if has_process_noise {
-            for (xi, sigma) in x_next.as_mut_slice().iter_mut().zip(s.process_sigma_per_step.as_slice()) {
-                *xi += sigma * process_rng.sample::<f64, _>(StandardNormal);
+        plant.advance(&mut plant_state, |x_next| {
+            if has_process_noise {
+                for (xi, sigma) in x_next.iter_mut().zip(s.process_sigma_per_step.as_slice()) {
+                    *xi += sigma * process_rng.sample::<f64, _>(StandardNormal);
+                }
             }
-        }
-        std::mem::swap(&mut x, &mut x_next);
+        });
     }
     if let Some(rec) = rec {
         rec.finish();
     }
-    trackers.into_iter().zip(filters.iter()).map(|(tr, f)| tr.finish(f)).collect()
+    trackers.into_iter().zip(filters).map(|(tr, (design, _))| tr.finish(design)).collect()
 }
 
 /// Collects trace columns: `t_s`, `u_<input>`, `y_<output>` (measured), `yhat_<output>`,
@@ -271,7 +269,7 @@ impl<'t> TraceWriter<'t> {
         }
     }
 
-    fn before_step(&mut self, t: f64, u: &DVector<f64>, y: &DVector<f64>, xhat: &DVector<f64>) {
+    fn before_step(&mut self, t: f64, u: &[f64], y: &[f64], xhat: &[f64]) {
         self.t.push(t);
         for (col, v) in self.u.iter_mut().zip(u.iter()) {
             col.push(*v);
@@ -282,10 +280,10 @@ impl<'t> TraceWriter<'t> {
         for (col, v) in self.xhat.iter_mut().zip(xhat.iter()) {
             col.push(*v);
         }
-        self.last_y.copy_from_slice(y.as_slice());
+        self.last_y.copy_from_slice(y);
     }
 
-    fn after_step(&mut self, residual: &DVector<f64>, thresholds: &DVector<f64>) {
+    fn after_step(&mut self, residual: &[f64], thresholds: &DVector<f64>) {
         for j in 0..residual.len() {
             self.r[j].push(residual[j]);
             self.yhat[j].push(self.last_y[j] - residual[j]);
