@@ -1,6 +1,7 @@
 //! Per-core cost of one bench-deck trial (`studies/bench_seed000.toml`: 30 s at 100 Hz, 5 states,
 //! 6 noisy outputs, one detection filter) on three loops:
-//! - `lane path`: what `fdimc run` does, 8 trials advanced together (records, alarms, profiles);
+//! - `lane path`: what `fdimc run` does, [`LANES`] trials advanced together (records, alarms,
+//!   profiles);
 //! - `general path`: the same kind of trials one at a time (the reference the lane path is tested
 //!   against);
 //! - `plain nalgebra`: the floor the speed issue quotes, a per-trial nalgebra loop doing only the
@@ -19,10 +20,12 @@ use rand::{RngExt, SeedableRng, rngs::Xoshiro256PlusPlus};
 use rand_distr::StandardNormal;
 
 use fdimc::sim::Engine;
+use fdimc::sim::kernel::LANES;
 use fdimc::study::Study;
 
-const ROUNDS: usize = 60;
-const TRIALS_PER_TURN: u64 = 8;
+const ROUNDS: usize = 480 / LANES;
+/// One lane group per turn.
+const TRIALS_PER_TURN: u64 = LANES as u64;
 
 fn main() {
     let study =

@@ -2,8 +2,9 @@
 //! (general) path and the lane path that advances [`LANES`] trials at once, so that both do the same
 //! floating-point operations in the same order and give bit-identical numbers.
 //!
-//! A product `y += M x` runs over a fixed [`Pattern`] of entries, row by row, each row accumulated in
-//! increasing column order: `acc = y_i; acc = m_ij x_j + acc; ...; y_i = acc`. The pattern holds a
+//! A product `out = base + M x` runs over a fixed [`Pattern`] of entries, row by row, each row
+//! accumulated in increasing column order: `acc = base_i; acc = m_ij x_j + acc; ...; out_i = acc`
+//! (`base` zero for `out = M x`). The pattern holds a
 //! matrix's nonzeros when the matrix is the same in every trial of the study, and every entry when
 //! parameter errors change it per trial: skipping the structural zeros halves the seed-000
 //! arithmetic, and fixing the pattern per study (not per trial) keeps both paths on the same operations.
@@ -144,17 +145,31 @@ impl<E: Element> Product<E> {
         Product { row_end, entries }
     }
 
-    /// `y += M v` (see the module docs for the operation order).
+    /// `out = M v` (accumulated from zero, see the module docs for the operation order).
     #[inline(always)]
-    pub fn mul_add(&self, y: &mut [E], v: &[E]) {
-        let mut start = 0;
-        for (yi, &end) in y.iter_mut().zip(&self.row_end) {
-            let mut acc = *yi;
-            for (j, m) in &self.entries[start..end] {
+    pub fn mul(&self, out: &mut [E], v: &[E]) {
+        self.accumulate(out, v, |_| E::ZERO);
+    }
+
+    /// `out = base + M v` (accumulated onto `base`).
+    #[inline(always)]
+    pub fn mul_add(&self, out: &mut [E], base: &[E], v: &[E]) {
+        self.accumulate(out, v, |i| base[i]);
+    }
+
+    /// Row i: `acc = start(i); acc = m_ij v_j + acc` over the row's entries; `out_i = acc`.
+    /// Starting from a value instead of copying it into `out` first saves a memset or memcpy call
+    /// per product.
+    #[inline(always)]
+    fn accumulate(&self, out: &mut [E], v: &[E], start: impl Fn(usize) -> E) {
+        let mut first = 0;
+        for (i, (out_i, &end)) in out.iter_mut().zip(&self.row_end).enumerate() {
+            let mut acc = start(i);
+            for (j, m) in &self.entries[first..end] {
                 E::mul_add(m, &v[*j], &mut acc);
             }
-            *yi = acc;
-            start = end;
+            *out_i = acc;
+            first = end;
         }
     }
 }
@@ -251,35 +266,34 @@ impl<E: Element> Plant<E> {
     /// The measured outputs before noise and faults: `y = C x + D r`.
     #[inline(always)]
     pub fn measure(&self, st: &PlantState<E>, y: &mut [E]) {
-        y.fill(E::ZERO);
-        self.measure.mul_add(y, &st.v[..self.n + self.nu]);
+        self.measure.mul(y, &st.v[..self.n + self.nu]);
     }
 
     /// Closes the loop on the measured (noisy, possibly faulty) outputs: `u = r - G y`.
     #[inline(always)]
     pub fn close_loop(&self, st: &mut PlantState<E>, y: &[E]) {
-        let (r, u) = st.v[self.n..].split_at_mut(self.nu);
-        u.copy_from_slice(r);
-        self.feedback.mul_add(u, y);
+        let (x_r, u) = st.v.split_at_mut(self.n + self.nu);
+        self.feedback.mul_add(u, &x_r[self.n..], y);
     }
 
     /// `x <- Ad x + Bd u + w`, `w` added to the new state by `process_noise`.
     #[inline(always)]
     pub fn advance(&self, st: &mut PlantState<E>, process_noise: impl FnOnce(&mut [E])) {
-        st.x_next.fill(E::ZERO);
-        self.advance.mul_add(&mut st.x_next, &st.v);
-        process_noise(&mut st.x_next);
-        st.v[..self.n].copy_from_slice(&st.x_next);
+        let x_next = &mut st.spare[..self.n];
+        self.advance.mul(x_next, &st.v);
+        process_noise(x_next);
+        // `r` and `u` of the spare vector are stale; every step sets them before reading them.
+        std::mem::swap(&mut st.v, &mut st.spare);
     }
 }
 
-/// The plant's stacked vector `[x; r; u]` and scratch for the next state.
+/// The plant's stacked vector `[x; r; u]`, and a spare one the next state is written into.
 #[derive(Debug, Clone)]
 pub struct PlantState<E> {
     n: usize,
     nu: usize,
     v: Vec<E>,
-    x_next: Vec<E>,
+    spare: Vec<E>,
 }
 
 impl<E: Element> PlantState<E> {
@@ -287,7 +301,7 @@ impl<E: Element> PlantState<E> {
         let n = x0.len();
         let mut v = vec![E::ZERO; n + 2 * nu];
         v[..n].copy_from_slice(x0);
-        PlantState { n, nu, v, x_next: vec![E::ZERO; n] }
+        PlantState { n, nu, spare: v.clone(), v }
     }
 
     /// The reference inputs `r`, set by the caller each step.
@@ -354,21 +368,21 @@ impl<E: Element> Filter<E> {
         let (n, nu) = (self.n, self.nu);
         st.z[n..n + nu].copy_from_slice(u);
         let (estimate_inputs, residual) = st.z.split_at_mut(n + nu);
-        residual.copy_from_slice(y);
-        self.residual.mul_add(residual, estimate_inputs);
-        st.next.fill(E::ZERO);
-        self.advance.mul_add(&mut st.next, &st.z);
-        st.z[..n].copy_from_slice(&st.next);
+        self.residual.mul_add(residual, y, estimate_inputs);
+        self.advance.mul(&mut st.spare[..n], &st.z);
+        // The spare vector's `u` and `gamma` are stale; every step sets them before reading them.
+        std::mem::swap(&mut st.z, &mut st.spare);
     }
 }
 
-/// A filter's stacked vector `[xhat; u; gamma]` and scratch for the next estimate.
+/// A filter's stacked vector `[xhat; u; gamma]`, and a spare one the next estimate is written into
+/// (after a step, the spare holds that step's `u` and `gamma`).
 #[derive(Debug, Clone)]
 pub struct FilterState<E> {
     n: usize,
     nu: usize,
     z: Vec<E>,
-    next: Vec<E>,
+    spare: Vec<E>,
 }
 
 impl<E: Element> FilterState<E> {
@@ -376,7 +390,7 @@ impl<E: Element> FilterState<E> {
         let n = x0.len();
         let mut z = vec![E::ZERO; n + nu + ny];
         z[..n].copy_from_slice(x0);
-        FilterState { n, nu, z, next: vec![E::ZERO; n] }
+        FilterState { n, nu, spare: z.clone(), z }
     }
 
     /// The prior estimate `xhat(k)` (before [`Filter::step`] consumes sample k).
@@ -386,7 +400,7 @@ impl<E: Element> FilterState<E> {
 
     /// The residual `gamma(k)` of the last step.
     pub fn residual(&self) -> &[E] {
-        &self.z[self.n + self.nu..]
+        &self.spare[self.n + self.nu..]
     }
 }
 
@@ -416,7 +430,7 @@ mod tests {
         assert_eq!(Pattern::full(6, 5).len(), 30);
         for pattern in [nz, Pattern::full(6, 5)] {
             let mut got = y0.clone();
-            product::<f64>(&pattern, &[Some(&m)], -1.0).mul_add(got.as_mut_slice(), x.as_slice());
+            product::<f64>(&pattern, &[Some(&m)], -1.0).mul_add(got.as_mut_slice(), y0.as_slice(), x.as_slice());
             assert!((got - &want).amax() < 1e-15);
         }
     }
@@ -427,17 +441,17 @@ mod tests {
         let (pa, pb) = (Pattern::nonzeros(&a), Pattern::full(6, 5));
         let (xa, xb): (Vec<f64>, Vec<f64>) =
             ((0..5).map(|j| (j as f64).sin()).collect(), (0..5).map(|j| (j as f64).cos()).collect());
-        let mut want = vec![0.25; 6];
-        product::<f64>(&pa, &[Some(&a)], 1.0).mul_add(&mut want, &xa);
-        product::<f64>(&pb, &[Some(&b)], -1.0).mul_add(&mut want, &xb);
+        let (mut after_a, mut want) = (vec![0.0; 6], vec![0.0; 6]);
+        product::<f64>(&pa, &[Some(&a)], 1.0).mul_add(&mut after_a, &[0.25; 6], &xa);
+        product::<f64>(&pb, &[Some(&b)], -1.0).mul_add(&mut want, &after_a, &xb);
         let blocks = [
             Block { offset: 0, pattern: &pa, sign: 1.0, matrix: |m: &(DMatrix<f64>, DMatrix<f64>)| &m.0 },
             Block { offset: 7, pattern: &pb, sign: -1.0, matrix: |m: &(DMatrix<f64>, DMatrix<f64>)| &m.1 },
         ];
         let stacked: Product<f64> = Product::new(6, &blocks, &[Some(&(a, b))]);
         let v: Vec<f64> = xa.iter().copied().chain([9.0, 9.0]).chain(xb.iter().copied()).collect();
-        let mut got = vec![0.25; 6];
-        stacked.mul_add(&mut got, &v);
+        let mut got = vec![0.0; 6];
+        stacked.mul_add(&mut got, &[0.25; 6], &v);
         assert_eq!(
             got.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
             want.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
@@ -453,12 +467,14 @@ mod tests {
         let lanes = product::<Lane>(&pattern, &models, 1.0);
         let xs: Vec<Vec<f64>> = (0..LANES).map(|l| (0..5).map(|j| ((l * 5 + j) as f64).sin()).collect()).collect();
         let x_lanes: Vec<Lane> = (0..5).map(|j| std::array::from_fn(|l| xs[l][j])).collect();
-        let mut y_lanes: Vec<Lane> = (0..6).map(|i| [0.1 * i as f64; LANES]).collect();
-        lanes.mul_add(&mut y_lanes, &x_lanes);
+        let base: Vec<Lane> = (0..6).map(|i| [0.1 * i as f64; LANES]).collect();
+        let mut y_lanes = vec![[0.0; LANES]; 6];
+        lanes.mul_add(&mut y_lanes, &base, &x_lanes);
         for l in 0..LANES {
             let mut y: Vec<f64> = (0..6).map(|i| 0.1 * i as f64).collect();
             if l != 3 {
-                product::<f64>(&pattern, &[Some(&mats[l])], 1.0).mul_add(&mut y, &xs[l]);
+                let base = y.clone();
+                product::<f64>(&pattern, &[Some(&mats[l])], 1.0).mul_add(&mut y, &base, &xs[l]);
             }
             for i in 0..6 {
                 assert_eq!(y_lanes[i][l].to_bits(), y[i].to_bits(), "lane {l} row {i}");

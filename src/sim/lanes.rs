@@ -84,6 +84,7 @@ fn run_lanes_in(
     let mut draws = vec![[0.0; LANES]; ny.max(n)];
     let sensor_sigma: Vec<Lane> =
         s.sensor_sigma.iter().map(|sigma| std::array::from_fn(|l| sigma * spec(l).noise_scale)).collect();
+    let process_sigma: Vec<Lane> = s.process_sigma_per_step.iter().map(|&sigma| [sigma; LANES]).collect();
     let mut faults: Vec<ActiveFaults> = (0..LANES).map(|l| ActiveFaults::new(spec(l).faults.clone())).collect();
     let onset_s: Lane = std::array::from_fn(|l| faults[l].first_onset_s().unwrap_or(f64::INFINITY));
 
@@ -107,11 +108,7 @@ fn run_lanes_in(
         }
         plant.measure(&plant_state, &mut y);
         sensor_normals.fill(&mut draws[..ny]);
-        for ((yj, sigma), e) in y.iter_mut().zip(&sensor_sigma).zip(&draws) {
-            for l in 0..LANES {
-                yj[l] += sigma[l] * e[l];
-            }
-        }
+        add_scaled(&mut y, &sensor_sigma, &draws);
         for (l, f) in faults.iter_mut().enumerate() {
             if t >= onset_s[l] {
                 f.apply_to_lane(t, &mut y, l);
@@ -127,15 +124,69 @@ fn run_lanes_in(
         plant.advance(&mut plant_state, |x_next| {
             if let Some(normals) = process_normals.as_mut() {
                 normals.fill(&mut draws[..n]);
-                for ((xi, &sigma), w) in x_next.iter_mut().zip(s.process_sigma_per_step.iter()).zip(&draws) {
-                    for l in 0..LANES {
-                        xi[l] += sigma * w[l];
-                    }
-                }
+                add_scaled(x_next, &process_sigma, &draws);
             }
         });
     }
     states.into_iter().map(|st| st.tracker.finish(specs.len())).collect()
+}
+
+// The lane-wise loops below copy each lane vector into a local, compute, then store it: with every
+// load before every store, the compiler needs no proof that the vectors do not overlap and packs
+// the eight lanes into two AVX2 registers (element by element through memory, they stayed scalar).
+// Flags are u64 per lane, the width of the f64 compares.
+
+/// `y += sigma * e`, lane by lane.
+#[inline(always)]
+fn add_scaled(y: &mut [Lane], sigma: &[Lane], e: &[Lane]) {
+    for ((yj, sigma), e) in y.iter_mut().zip(sigma).zip(e) {
+        let (mut v, sigma, e) = (*yj, *sigma, *e);
+        for l in 0..LANES {
+            v[l] += sigma[l] * e[l];
+        }
+        *yj = v;
+    }
+}
+
+/// `abs = |residual|`; per lane, 1 if any |residual| is not finite.
+#[inline(always)]
+fn abs_and_non_finite(residual: &[Lane], abs: &mut [Lane]) -> [u64; LANES] {
+    let mut non_finite = [0u64; LANES];
+    for (abs, r) in abs.iter_mut().zip(residual) {
+        let (r, mut a) = (*r, [0.0; LANES]);
+        for l in 0..LANES {
+            a[l] = r[l].abs();
+            non_finite[l] |= !(a[l] <= f64::MAX) as u64;
+        }
+        *abs = a;
+    }
+    non_finite
+}
+
+/// Updates the running maximum (and when it was reached) of every output; per lane, 1 if an
+/// |residual| passes an armed threshold or the next profile level.
+#[inline(always)]
+fn running_max_and_events(
+    t: f64,
+    abs: &[Lane],
+    max: &mut [Lane],
+    max_t: &mut [Lane],
+    armed: &[Lane],
+    next_kept: &[Lane],
+) -> [u64; LANES] {
+    let mut event = [0u64; LANES];
+    for ((((abs, max), max_t), armed), next_kept) in abs.iter().zip(max).zip(max_t).zip(armed).zip(next_kept) {
+        let (a, mut m, mut m_t, armed, next_kept) = (*abs, *max, *max_t, *armed, *next_kept);
+        for l in 0..LANES {
+            // All ones where the maximum rises: a bitwise select, which vectorises where `if` did not.
+            let rise = 0u64.wrapping_sub((a[l] > m[l]) as u64);
+            m[l] = f64::from_bits((a[l].to_bits() & rise) | (m[l].to_bits() & !rise));
+            m_t[l] = f64::from_bits((t.to_bits() & rise) | (m_t[l].to_bits() & !rise));
+            event[l] |= ((a[l] > armed[l]) | (a[l] > next_kept[l])) as u64;
+        }
+        (*max, *max_t) = (m, m_t);
+    }
+    event
 }
 
 /// [`super::Tracker`]'s bookkeeping for a group of lanes (see the module docs for the arrangement).
@@ -206,35 +257,18 @@ impl<'f> LaneTracker<'f> {
                 self.cross_onset(l);
             }
         }
-        let mut non_finite = [false; LANES];
-        for (abs, r) in self.abs.iter_mut().zip(residual) {
+        let non_finite = abs_and_non_finite(residual, &mut self.abs);
+        if non_finite.iter().any(|&b| b != 0) {
             for l in 0..LANES {
-                abs[l] = r[l].abs();
-                non_finite[l] |= !(abs[l] <= f64::MAX);
-            }
-        }
-        if non_finite.iter().any(|&b| b) {
-            for l in 0..LANES {
-                if non_finite[l] && self.live[l] {
+                if non_finite[l] != 0 && self.live[l] {
                     self.diverge(l, t);
                 }
             }
         }
-        let mut event = [false; LANES];
-        for j in 0..self.abs.len() {
-            let (abs, max, max_t) = (&self.abs[j], &mut self.max[j], &mut self.max_t[j]);
-            let (armed, next_kept) = (&self.armed[j], &self.next_kept[j]);
+        let event = running_max_and_events(t, &self.abs, &mut self.max, &mut self.max_t, &self.armed, &self.next_kept);
+        if event.iter().any(|&e| e != 0) {
             for l in 0..LANES {
-                let a = abs[l];
-                let rise = a > max[l];
-                max[l] = if rise { a } else { max[l] };
-                max_t[l] = if rise { t } else { max_t[l] };
-                event[l] |= (a > armed[l]) | (a > next_kept[l]);
-            }
-        }
-        if event.iter().any(|&e| e) {
-            for l in 0..LANES {
-                if event[l] {
+                if event[l] != 0 {
                     self.record(l, t);
                 }
             }

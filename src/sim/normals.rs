@@ -67,13 +67,14 @@ impl LaneNormals {
     fn fill_avx2(&mut self, out: &mut [Lane]) {
         use std::arch::x86_64::*;
 
-        // Lanes 0-3 and 4-7, one register per state word.
+        // Four lanes per register (lanes 0-3, 4-7, ...), one register per state word.
+        const QUARTETS: usize = LANES / 4;
         type Half = [__m256i; 4];
         let load = |w: &[u64; LANES], h: usize| -> __m256i {
-            // SAFETY: 4 in-bounds words (h is 0 or 1); unaligned load.
+            // SAFETY: 4 in-bounds words (h < LANES / 4); unaligned load.
             unsafe { _mm256_loadu_si256(w[4 * h..].as_ptr().cast()) }
         };
-        let mut halves: [Half; 2] = std::array::from_fn(|h| std::array::from_fn(|w| load(&self.state[w], h)));
+        let mut halves: [Half; QUARTETS] = std::array::from_fn(|h| std::array::from_fn(|w| load(&self.state[w], h)));
         let rotl23 = |x: __m256i| _mm256_or_si256(_mm256_slli_epi64::<23>(x), _mm256_srli_epi64::<41>(x));
         let rotl45 = |x: __m256i| _mm256_or_si256(_mm256_slli_epi64::<45>(x), _mm256_srli_epi64::<19>(x));
         let layer_mask = _mm256_set1_epi64x(0xff);
@@ -113,7 +114,7 @@ impl LaneNormals {
             }
             if rejected != 0 {
                 let mut state = [[0u64; LANES]; 4];
-                let store = |halves: &[Half; 2], state: &mut [[u64; LANES]; 4]| {
+                let store = |halves: &[Half; QUARTETS], state: &mut [[u64; LANES]; 4]| {
                     for (h, half) in halves.iter().enumerate() {
                         for (w, reg) in half.iter().enumerate() {
                             // SAFETY: 4 in-bounds words; unaligned store.
