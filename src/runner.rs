@@ -2,9 +2,11 @@
 //!
 //! Trials are processed in chunks of [`CHUNK_TRIALS`] consecutive indices. A chunk runs in parallel on
 //! rayon, its results are collected in trial order and written as one complete Parquet part file
-//! (`parts/part-<first trial>.parquet`, temporary name then rename), so memory stays at one chunk
-//! whatever the trial count, and a killed run loses at most the chunk in flight. `--resume` skips the
-//! parts already on disk; the last step concatenates the parts in trial order into `trials.parquet`.
+//! (`parts/part-<first trial>.parquet`, temporary name then rename), so memory stays at a few chunks
+//! whatever the trial count, and a killed run loses at most the chunks in flight. A writer thread
+//! encodes each chunk while the next one simulates, and appends its rows in trial order to
+//! `trials.parquet` (renamed into place when the last chunk is in, the parts then removed).
+//! `--resume` reads back the parts already on disk instead of simulating them.
 //! Each trial's numbers depend only on (deck, seed, trial index), so any thread count, shard split or
 //! resume gives identical rows.
 
@@ -19,8 +21,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::output::records::RecordBuilder;
 use crate::output::temporary_sibling;
-use crate::sim::Engine;
 use crate::sim::kernel::LANES;
+use crate::sim::{Engine, TrialResult};
 use crate::study::Study;
 
 /// Trials per part file.
@@ -259,40 +261,57 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
             .expect("static template"),
     );
 
-    let mut resumed = 0;
-    let mut run_count = 0;
-    let mut chunks_written = 0;
-    let mut chunk_start = first;
-    while chunk_start < end {
-        let chunk_end = (chunk_start + CHUNK_TRIALS).min(end);
-        let path = part_path(dir, chunk_start);
-        if path.exists() && opts.resume {
-            resumed += chunk_end - chunk_start;
-        } else {
-            let results: Vec<_> = pool.install(|| {
-                (chunk_start..chunk_end)
-                    .step_by(LANES)
-                    .collect::<Vec<u64>>()
-                    .into_par_iter()
-                    .flat_map_iter(|group| {
-                        let r = engine.run_lanes(group, (group + LANES as u64).min(chunk_end));
-                        bar.inc(r.len() as u64);
-                        r
-                    })
-                    .collect()
-            });
-            let mut builder = RecordBuilder::new(study, results.len() * study.detectors.len());
-            for r in &results {
-                builder.push(r);
+    // Simulation and output overlap: a writer thread encodes chunk k (its part file, then its rows
+    // appended to trials.parquet) while the pool simulates chunk k + 1. The channel holds one chunk,
+    // so memory stays at about three chunks.
+    let (mut resumed, mut run_count, mut chunks_written) = (0, 0, 0);
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Chunk>(1);
+    let outcome = std::thread::scope(|scope| -> Result<Option<u64>, RunError> {
+        let writer = scope.spawn(move || write_chunks(study, dir, rx));
+        let mut chunk_start = first;
+        let mut stopped_early = false;
+        while chunk_start < end {
+            let chunk_end = (chunk_start + CHUNK_TRIALS).min(end);
+            let path = part_path(dir, chunk_start);
+            let chunk = if path.exists() && opts.resume {
+                resumed += chunk_end - chunk_start;
+                Chunk::Resumed { path }
+            } else {
+                let results: Vec<TrialResult> = pool.install(|| {
+                    (chunk_start..chunk_end)
+                        .step_by(LANES)
+                        .collect::<Vec<u64>>()
+                        .into_par_iter()
+                        .flat_map_iter(|group| {
+                            let r = engine.run_lanes(group, (group + LANES as u64).min(chunk_end));
+                            bar.inc(r.len() as u64);
+                            r
+                        })
+                        .collect()
+                });
+                run_count += chunk_end - chunk_start;
+                chunks_written += 1;
+                Chunk::Fresh { path, results }
+            };
+            if tx.send(chunk).is_err() {
+                break; // The writer failed; its error is reported below.
             }
-            let mut df = builder.finish().map_err(pol(&path))?;
-            write_parquet(&mut df, &path)?;
-            run_count += chunk_end - chunk_start;
-            chunks_written += 1;
+            chunk_start = chunk_end;
+            if opts.stop_after_chunks.is_some_and(|n| chunks_written >= n) && chunk_start < end {
+                stopped_early = true;
+                break;
+            }
         }
-        chunk_start = chunk_end;
-        if opts.stop_after_chunks.is_some_and(|n| chunks_written >= n) && chunk_start < end {
-            bar.finish_and_clear();
+        if !stopped_early && first < end {
+            let _ = tx.send(Chunk::Complete);
+        }
+        drop(tx);
+        writer.join().map_err(|_| RunError::Internal("the trials writer panicked".into()))?
+    });
+    bar.finish_and_clear();
+    let rows = match outcome? {
+        Some(rows) => rows,
+        None if first < end => {
             return Ok(RunReport {
                 manifest,
                 trials_run: run_count,
@@ -300,18 +319,14 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
                 seconds: started.elapsed().as_secs_f64(),
             });
         }
-    }
-    bar.finish_and_clear();
-
-    let rows = if first == end {
-        // A shard with no trials (more shards than trials) still leaves a readable, empty table.
-        let path = dir.join("trials.parquet");
-        let mut empty = RecordBuilder::new(study, 0).finish().map_err(pol(&path))?;
-        write_parquet(&mut empty, &path)?;
-        std::fs::remove_dir_all(dir.join("parts")).map_err(io(dir))?;
-        0
-    } else {
-        concatenate_parts(dir, first, end)?
+        None => {
+            // A shard with no trials (more shards than trials) still leaves a readable, empty table.
+            let path = dir.join("trials.parquet");
+            let mut empty = RecordBuilder::new(study, 0).finish().map_err(pol(&path))?;
+            write_parquet(&mut empty, &path)?;
+            std::fs::remove_dir_all(dir.join("parts")).map_err(io(dir))?;
+            0
+        }
     };
     let manifest = Manifest { complete: true, rows, ..manifest };
     manifest.write(dir)?;
@@ -338,6 +353,64 @@ fn fault_size_units(study: &Study) -> std::collections::BTreeMap<String, String>
     units
 }
 
+/// What the writer thread receives, in trial order.
+enum Chunk {
+    /// Simulated now: write its part file, then append it.
+    Fresh { path: PathBuf, results: Vec<TrialResult> },
+    /// On disk from an interrupted run: append it.
+    Resumed { path: PathBuf },
+    /// Every chunk was sent: finish trials.parquet.
+    Complete,
+}
+
+/// The writer thread: part files for resuming, and their rows appended in order to trials.parquet
+/// (under a temporary name until [`Chunk::Complete`], then renamed, and the parts removed). Returns
+/// the rows of trials.parquet, or `None` if the run stopped before its last chunk.
+fn write_chunks(study: &Study, dir: &Path, chunks: std::sync::mpsc::Receiver<Chunk>) -> Result<Option<u64>, RunError> {
+    let out = dir.join("trials.parquet");
+    let tmp = temporary_sibling(&out);
+    let result = (|| {
+        let mut writer: Option<polars::io::parquet::write::BatchedWriter<File>> = None;
+        let mut rows = 0;
+        for chunk in chunks {
+            let df = match chunk {
+                Chunk::Fresh { path, results } => {
+                    let mut builder = RecordBuilder::new(study, results.len() * study.detectors.len());
+                    for r in &results {
+                        builder.push(r);
+                    }
+                    let mut df = builder.finish().map_err(pol(&path))?;
+                    write_parquet(&mut df, &path)?;
+                    df
+                }
+                Chunk::Resumed { path } => read_parquet(&path)?,
+                Chunk::Complete => {
+                    let w = writer.ok_or_else(|| RunError::Internal("no chunk before the end".into()))?;
+                    w.finish().map_err(pol(&out))?;
+                    std::fs::rename(&tmp, &out).map_err(io(&out))?;
+                    std::fs::remove_dir_all(dir.join("parts")).map_err(io(dir))?;
+                    return Ok(Some(rows));
+                }
+            };
+            let w = match &mut writer {
+                Some(w) => w,
+                None => writer.insert(
+                    ParquetWriter::new(File::create(&tmp).map_err(io(&out))?)
+                        .batched(df.schema())
+                        .map_err(pol(&out))?,
+                ),
+            };
+            w.write_batch(&df).map_err(pol(&out))?;
+            rows += df.height() as u64;
+        }
+        Ok(None)
+    })();
+    if !matches!(result, Ok(Some(_))) {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
 /// Writes a complete Parquet file atomically.
 pub fn write_parquet(df: &mut DataFrame, path: &Path) -> Result<(), RunError> {
     let tmp = temporary_sibling(path);
@@ -352,22 +425,6 @@ pub fn read_parquet(path: &Path) -> Result<DataFrame, RunError> {
     ParquetReader::new(file).finish().map_err(|e| {
         RunError::Invalid(format!("{}: not a readable Parquet file ({e}); re-run or remove it", path.display()))
     })
-}
-
-/// Streams the part files of `[first, end)` in trial order into `trials.parquet`; returns its rows.
-fn concatenate_parts(dir: &Path, first: u64, end: u64) -> Result<u64, RunError> {
-    let out = dir.join("trials.parquet");
-    let parts: Vec<PathBuf> = (first..end).step_by(CHUNK_TRIALS as usize).map(|start| part_path(dir, start)).collect();
-    concatenate(&parts, &out)?;
-    let rows = parts_rows(&out)?;
-    std::fs::remove_dir_all(dir.join("parts")).map_err(io(dir))?;
-    Ok(rows)
-}
-
-fn parts_rows(path: &Path) -> Result<u64, RunError> {
-    let file = File::open(path).map_err(io(path))?;
-    let n = ParquetReader::new(file).num_rows().map_err(pol(path))?;
-    Ok(n as u64)
 }
 
 /// Concatenates Parquet files (same schema) in order into `out`, one input in memory at a time.
