@@ -8,6 +8,7 @@
 pub mod cli;
 pub mod design;
 pub mod detector;
+pub mod estimation;
 pub mod fault;
 pub mod linalg;
 pub mod output;

@@ -1,0 +1,251 @@
+//! The Bayesian probability recursion of a multiple-model bank and its declare/clear rule
+//! (method 004; also usable by any bank of filters that report innovations).
+//!
+//! `p_i(k) = L_i(k) p_i(k-1) / sum_j L_j(k) p_j(k-1)`, with the likelihood `L_i` of filter i's
+//! innovation `gamma_i` (covariance `S_i`) in one of two forms:
+//! - [`LikelihoodForm::Gaussian`]: the m-variate normal density,
+//!   `exp(-gamma' S^-1 gamma / 2) / sqrt((2 pi)^m det S)`;
+//! - [`LikelihoodForm::EuclideanNorm`], the seed's fast form, which the seed names but does not write
+//!   out: the 1-D normal density of the norm, `exp(-|gamma|^2 / (2 s)) / sqrt(2 pi s)` with
+//!   `s = tr S` (the expected squared norm). It needs no inverse and no determinant: O(m) per filter.
+//!
+//! Computed in logarithms (the Gaussian exponent of a wrong model easily underflows), normalised, then
+//! floored: every probability below the floor (0.001 in the seed, which resets a probability that
+//! "reaches 0") is set to the floor and the others are scaled down so the sum stays exactly 1. A filter
+//! whose innovation covariance is singular gets likelihood 0 that step.
+#![allow(non_snake_case)]
+
+use nalgebra::{Const, DimMin, SMatrix};
+
+use super::stekf::Innovation;
+
+/// Which likelihood turns innovations into probabilities; see the module docs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LikelihoodForm {
+    Gaussian,
+    EuclideanNorm,
+}
+
+impl LikelihoodForm {
+    /// `ln L` of one innovation; `-inf` when `S` is singular or not positive.
+    pub fn log_likelihood<const M: usize>(self, innovation: &Innovation<M>) -> f64
+    where
+        Const<M>: DimMin<Const<M>, Output = Const<M>>,
+    {
+        let gamma = &innovation.gamma;
+        let ln_2pi = (2.0 * std::f64::consts::PI).ln();
+        match self {
+            LikelihoodForm::Gaussian => {
+                let (Some(S_inv), det) = (innovation.S_inverse.as_ref(), innovation.S.determinant()) else {
+                    return f64::NEG_INFINITY;
+                };
+                if !(det > 0.0) {
+                    return f64::NEG_INFINITY;
+                }
+                let quadratic = (gamma.transpose() * S_inv * gamma)[(0, 0)];
+                -0.5 * (quadratic + det.ln() + M as f64 * ln_2pi)
+            }
+            LikelihoodForm::EuclideanNorm => {
+                let s = innovation.S.trace();
+                if !(s > 0.0) {
+                    return f64::NEG_INFINITY;
+                }
+                -0.5 * (gamma.norm_squared() / s + s.ln() + ln_2pi)
+            }
+        }
+    }
+}
+
+/// The probabilities of K models (model 0: no fault) with the floor; see the module docs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelProbabilities<const K: usize> {
+    p: [f64; K],
+    floor: f64,
+    /// Steps on which at least one probability was raised to the floor.
+    pub floor_steps: u32,
+    /// Steps on which no model had a usable likelihood (probabilities kept).
+    pub skipped_steps: u32,
+}
+
+impl<const K: usize> ModelProbabilities<K> {
+    /// Starts from `prior` (must sum to 1, each at least `floor`).
+    pub fn new(prior: [f64; K], floor: f64) -> Self {
+        assert!((prior.iter().sum::<f64>() - 1.0).abs() < 1e-12 && prior.iter().all(|&p| p >= floor));
+        assert!(floor >= 0.0 && floor * K as f64 <= 1.0);
+        ModelProbabilities { p: prior, floor, floor_steps: 0, skipped_steps: 0 }
+    }
+
+    pub fn probabilities(&self) -> &[f64; K] {
+        &self.p
+    }
+
+    /// One Bayes step from the models' log-likelihoods.
+    pub fn update(&mut self, log_likelihood: &[f64; K]) {
+        let log_post: [f64; K] = std::array::from_fn(|i| self.p[i].ln() + log_likelihood[i]);
+        let max = log_post.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        if !max.is_finite() {
+            self.skipped_steps += 1;
+            return;
+        }
+        let unnormalised: [f64; K] = std::array::from_fn(|i| (log_post[i] - max).exp());
+        let total: f64 = unnormalised.iter().sum();
+        self.p = unnormalised.map(|u| u / total);
+        self.apply_floor();
+    }
+
+    /// Raises probabilities below the floor to it and scales the rest so the sum is 1.
+    fn apply_floor(&mut self) {
+        let low = self.p.map(|p| p < self.floor);
+        if !low.contains(&true) {
+            return;
+        }
+        self.floor_steps += 1;
+        let floored_mass = self.floor * low.iter().filter(|&&l| l).count() as f64;
+        let rest: f64 = self.p.iter().zip(&low).filter(|(_, l)| !**l).map(|(p, _)| p).sum();
+        let scale = (1.0 - floored_mass) / rest;
+        for (p, l) in self.p.iter_mut().zip(&low) {
+            *p = if *l { self.floor } else { *p * scale };
+        }
+    }
+
+    /// The probability-weighted estimate `sum_i p_i x_i` of the states the models share.
+    pub fn blend<const N: usize>(&self, estimates: &[SMatrix<f64, N, 1>; K]) -> SMatrix<f64, N, 1> {
+        estimates.iter().zip(&self.p).map(|(x, p)| x * *p).sum()
+    }
+}
+
+/// The seed's decision: model i (i >= 1) is declared faulty when its probability has stayed above
+/// `declare` (0.9) for `hold_steps` consecutive samples; the declaration is cleared when it falls
+/// below `clear` (0.05). Another model above `declare` for `hold_steps` replaces the declared one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DeclareClear {
+    pub declare: f64,
+    pub clear: f64,
+    pub hold_steps: u32,
+    declared: Option<usize>,
+    candidate: Option<(usize, u32)>,
+}
+
+/// What changed at a step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Decision {
+    /// Model `i >= 1` declared (a fault of the thing model i stands for).
+    Declared(usize),
+    /// The declared model `i` cleared.
+    Cleared(usize),
+}
+
+impl DeclareClear {
+    pub fn new(declare: f64, clear: f64, hold_steps: u32) -> Self {
+        assert!(0.0 < clear && clear < declare && declare < 1.0);
+        DeclareClear { declare, clear, hold_steps, declared: None, candidate: None }
+    }
+
+    pub fn declared(&self) -> Option<usize> {
+        self.declared
+    }
+
+    /// Feeds one step's probabilities (index 0: no fault); returns what changed, if anything.
+    pub fn observe(&mut self, p: &[f64]) -> Option<Decision> {
+        let mut cleared = None;
+        if let Some(i) = self.declared
+            && p[i] < self.clear
+        {
+            self.declared = None;
+            cleared = Some(Decision::Cleared(i));
+        }
+        let leader = (1..p.len()).find(|&i| p[i] > self.declare && Some(i) != self.declared);
+        self.candidate = match (leader, self.candidate) {
+            (Some(i), Some((j, n))) if i == j => Some((i, n + 1)),
+            (Some(i), _) => Some((i, 1)),
+            (None, _) => None,
+        };
+        match self.candidate {
+            Some((i, n)) if n >= self.hold_steps.max(1) => {
+                self.declared = Some(i);
+                self.candidate = None;
+                Some(Decision::Declared(i))
+            }
+            _ => cleared,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix2, Vector2};
+
+    fn innovation(gamma: Vector2<f64>, S: Matrix2<f64>) -> Innovation<2> {
+        Innovation { gamma, S, S_inverse: S.try_inverse() }
+    }
+
+    #[test]
+    fn gaussian_log_likelihood_is_the_bivariate_normal_density() {
+        let S = Matrix2::new(2.0, 0.5, 0.5, 1.0);
+        let gamma = Vector2::new(0.7, -0.4);
+        // Written out: det = 1.75, S^-1 = [1, -0.5; -0.5, 2] / 1.75.
+        let quadratic: f64 = (0.49 + 2.0 * 0.7 * 0.4 * 0.5 + 2.0 * 0.16) / 1.75;
+        let density = (-0.5 * quadratic).exp() / (2.0 * std::f64::consts::PI * 1.75f64.sqrt());
+        let got = LikelihoodForm::Gaussian.log_likelihood(&innovation(gamma, S));
+        assert!((got - density.ln()).abs() < 1e-12, "{got} vs {}", density.ln());
+        let euclid = LikelihoodForm::EuclideanNorm.log_likelihood(&innovation(gamma, S));
+        let s: f64 = 3.0;
+        let want = (-(0.49 + 0.16) / (2.0 * s)).exp() / (2.0 * std::f64::consts::PI * s).sqrt();
+        assert!((euclid - want.ln()).abs() < 1e-12);
+        let singular = innovation(gamma, Matrix2::new(1.0, 1.0, 1.0, 1.0));
+        assert_eq!(LikelihoodForm::Gaussian.log_likelihood(&singular), f64::NEG_INFINITY);
+    }
+
+    #[test]
+    fn bayes_step_normalises_and_the_floor_holds_the_losers() {
+        let mut probs = ModelProbabilities::new([0.5, 0.25, 0.25], 0.001);
+        // Likelihoods 1 : 2 : 4 -> posterior 0.5 : 0.5 : 1, normalised 0.25 : 0.25 : 0.5.
+        probs.update(&[0.0, 2f64.ln(), 4f64.ln()]);
+        let p = probs.probabilities();
+        assert!((p[0] - 0.25).abs() < 1e-15 && (p[1] - 0.25).abs() < 1e-15 && (p[2] - 0.5).abs() < 1e-15);
+        assert_eq!(probs.floor_steps, 0);
+        // A likelihood ratio of e^-800 would underflow to exactly 0 without logarithms and the floor.
+        probs.update(&[-800.0, -800.0, 0.0]);
+        let p = *probs.probabilities();
+        assert_eq!(p[0], 0.001);
+        assert_eq!(p[1], 0.001);
+        assert!((p[2] - 0.998).abs() < 1e-15);
+        assert!((p.iter().sum::<f64>() - 1.0).abs() < 1e-15);
+        assert_eq!(probs.floor_steps, 1);
+        // The floor lets a model come back: ten steps of e^5 likelihood ratio bring model 1 to the top.
+        for _ in 0..10 {
+            probs.update(&[0.0, 5.0, 0.0]);
+        }
+        assert!(probs.probabilities()[1] > 0.99);
+        // No usable likelihood: nothing changes.
+        let before = *probs.probabilities();
+        probs.update(&[f64::NEG_INFINITY; 3]);
+        assert_eq!(probs.probabilities(), &before);
+        assert_eq!(probs.skipped_steps, 1);
+    }
+
+    #[test]
+    fn declare_after_the_hold_and_clear_below_the_lower_level() {
+        let mut rule = DeclareClear::new(0.9, 0.05, 3);
+        let healthy = [0.99, 0.005, 0.005];
+        let faulty = [0.02, 0.96, 0.02];
+        let fading = [0.5, 0.3, 0.2];
+        let gone = [0.97, 0.02, 0.01];
+        assert_eq!(rule.observe(&healthy), None);
+        assert_eq!(rule.observe(&faulty), None);
+        assert_eq!(rule.observe(&faulty), None);
+        assert_eq!(rule.observe(&faulty), Some(Decision::Declared(1)));
+        assert_eq!(rule.observe(&fading), None, "0.3 is below 0.9 but above 0.05: still declared");
+        assert_eq!(rule.declared(), Some(1));
+        assert_eq!(rule.observe(&gone), Some(Decision::Cleared(1)));
+        assert_eq!(rule.declared(), None);
+        // An interrupted run above 0.9 restarts the hold.
+        rule.observe(&faulty);
+        rule.observe(&faulty);
+        rule.observe(&healthy);
+        rule.observe(&faulty);
+        assert_eq!(rule.observe(&faulty), None);
+        assert_eq!(rule.observe(&faulty), Some(Decision::Declared(1)));
+    }
+}
