@@ -5,6 +5,8 @@
 //! inputs held constant over each step.
 #![allow(non_snake_case)]
 
+pub mod uav;
+
 use nalgebra::DMatrix;
 
 use crate::linalg;
