@@ -50,6 +50,14 @@
 //!   aspect ratio ~4), `y_t = 0.46 / 4 = 0.115 m`, giving `C_l_delta_e_diff = 0.5 * 0.18994 / 2.8956 *
 //!   0.115 = 0.00377` (about 1/21 of `C_l_delta_a`). Sign: an upward tail lift on the left half rolls
 //!   right, so a positive (trailing-edge-down) left elevator rolls right, like the left aileron;
+//! - aileron common deflection `delta_a_sym = (delta_a_left + delta_a_right) / 2`: the book's ailerons
+//!   only ever move antisymmetrically, so it has no term for it, but with independent halves a left
+//!   aileron at -8 deg and a right aileron at +8 deg would otherwise be the same airframe to any
+//!   observer. Each half is a plain flap on its wing: lift `C_L_delta_a_sym delta_a_sym` with
+//!   `C_L_delta_a_sym = C_l_delta_a / (y_a / b) = 0.08 / 0.35 = 0.229` (the lift that, at the aileron's
+//!   spanwise centroid `y_a = 0.35 b`, gives the book's rolling derivative), and a nose-down pitching
+//!   moment `C_m_delta_a_sym = -0.25 C_L_delta_a_sym = -0.057` (a trailing-edge flap's lift acts about
+//!   a quarter chord behind the CG); the drag change is neglected;
 //! - rudder `delta_r` as the book: positive `delta_r` yaws nose left (`C_n_delta_r = -0.032 < 0`).
 //!
 //! The table's `C_L_delta_e = -0.36` and `C_Y_delta_r = -0.17` have signs that disagree with the
@@ -149,6 +157,10 @@ pub struct AerosondeParams {
     pub C_l_delta_r: f64,
     /// Rolling moment per rad of `(delta_e_left - delta_e_right) / 2` (not in the book; see module docs).
     pub C_l_delta_e_diff: f64,
+    /// Lift and pitching moment per rad of the ailerons' common deflection `(delta_a_left +
+    /// delta_a_right) / 2` (not in the book; see module docs).
+    pub C_L_delta_a_sym: f64,
+    pub C_m_delta_a_sym: f64,
     pub C_n_0: f64,
     pub C_n_beta: f64,
     pub C_n_p: f64,
@@ -157,6 +169,10 @@ pub struct AerosondeParams {
     pub C_n_delta_r: f64,
 }
 
+/// Spanwise centroid of an aileron as a fraction of the span, assumed for
+/// [`AerosondeParams::C_L_delta_a_sym`].
+pub const AILERON_CENTROID_SPAN_FRACTION: f64 = 0.35;
+
 /// Horizontal-tail arm (m) behind the CG assumed for [`AerosondeParams::C_l_delta_e_diff`].
 pub const TAIL_ARM_M: f64 = 1.0;
 /// Spanwise centroid (m) of one horizontal-tail half assumed for [`AerosondeParams::C_l_delta_e_diff`].
@@ -164,7 +180,7 @@ pub const TAIL_HALF_CENTROID_M: f64 = 0.115;
 
 impl Default for AerosondeParams {
     fn default() -> Self {
-        let (b_m, c_m, C_m_delta_e) = (2.8956, 0.18994, -0.5);
+        let (b_m, c_m, C_m_delta_e, C_l_delta_a) = (2.8956, 0.18994, -0.5, 0.08);
         Self {
             mass_kg: 13.5,
             Jx_kgm2: 0.8244,
@@ -208,9 +224,11 @@ impl Default for AerosondeParams {
             C_l_beta: -0.12,
             C_l_p: -0.26,
             C_l_r: 0.14,
-            C_l_delta_a: 0.08,
+            C_l_delta_a,
             C_l_delta_r: 0.105,
             C_l_delta_e_diff: C_m_delta_e.abs() * (c_m / b_m) * (TAIL_HALF_CENTROID_M / TAIL_ARM_M),
+            C_L_delta_a_sym: C_l_delta_a / AILERON_CENTROID_SPAN_FRACTION,
+            C_m_delta_a_sym: -0.25 * C_l_delta_a / AILERON_CENTROID_SPAN_FRACTION,
             C_n_0: 0.0,
             C_n_beta: 0.25,
             C_n_p: 0.022,
@@ -222,7 +240,7 @@ impl Default for AerosondeParams {
 }
 
 /// Coefficient names accepted by [`AerosondeParams::scaled`]: every coefficient that enters the model.
-pub const SCALABLE_COEFFICIENTS: [&str; 31] = [
+pub const SCALABLE_COEFFICIENTS: [&str; 33] = [
     "C_L_0",
     "C_L_alpha",
     "C_L_q",
@@ -247,6 +265,8 @@ pub const SCALABLE_COEFFICIENTS: [&str; 31] = [
     "C_l_delta_a",
     "C_l_delta_r",
     "C_l_delta_e_diff",
+    "C_L_delta_a_sym",
+    "C_m_delta_a_sym",
     "C_n_0",
     "C_n_beta",
     "C_n_p",
@@ -283,6 +303,8 @@ impl AerosondeParams {
             "C_l_delta_a" => &mut self.C_l_delta_a,
             "C_l_delta_r" => &mut self.C_l_delta_r,
             "C_l_delta_e_diff" => &mut self.C_l_delta_e_diff,
+            "C_L_delta_a_sym" => &mut self.C_L_delta_a_sym,
+            "C_m_delta_a_sym" => &mut self.C_m_delta_a_sym,
             "C_n_0" => &mut self.C_n_0,
             "C_n_beta" => &mut self.C_n_beta,
             "C_n_p" => &mut self.C_n_p,
@@ -335,6 +357,8 @@ impl AerosondeParams {
 pub struct EffectiveDeflections {
     /// `(left - right) / 2` of the ailerons.
     pub aileron_rad: f64,
+    /// `(left + right) / 2` of the ailerons.
+    pub aileron_sym_rad: f64,
     /// `(left + right) / 2` of the elevators.
     pub elevator_rad: f64,
     /// `(left - right) / 2` of the elevators.
@@ -347,6 +371,7 @@ pub fn effective_deflections(surfaces_rad: &[f64; 5]) -> EffectiveDeflections {
     let s = surfaces_rad;
     EffectiveDeflections {
         aileron_rad: 0.5 * (s[0] - s[1]),
+        aileron_sym_rad: 0.5 * (s[0] + s[1]),
         elevator_rad: 0.5 * (s[2] + s[3]),
         elevator_diff_rad: 0.5 * (s[2] - s[3]),
         rudder_rad: s[4],
@@ -402,13 +427,15 @@ fn aero_propulsion(
     let cx = -c_d * ca + c_l * sa;
     let cx_q = -p.C_D_q * ca + p.C_L_q * sa;
     let cx_de = -p.C_D_delta_e * ca + p.C_L_delta_e * sa;
+    let cx_as = p.C_L_delta_a_sym * sa;
     let cz = -c_d * sa - c_l * ca;
     let cz_q = -p.C_D_q * sa - p.C_L_q * ca;
     let cz_de = -p.C_D_delta_e * sa - p.C_L_delta_e * ca;
+    let cz_as = -p.C_L_delta_a_sym * ca;
     let qs = qbar * p.S_wing_m2;
     let slip = p.k_motor_mps * throttle;
     let thrust = 0.5 * p.rho_kgpm3 * p.S_prop_m2 * p.C_prop * (slip * slip - va * va);
-    let fx = qs * (cx + cx_q * q_hat + cx_de * d.elevator_rad) + thrust;
+    let fx = qs * (cx + cx_q * q_hat + cx_de * d.elevator_rad + cx_as * d.aileron_sym_rad) + thrust;
     let fy = qs
         * (p.C_Y_0
             + p.C_Y_beta * beta
@@ -416,7 +443,7 @@ fn aero_propulsion(
             + p.C_Y_r * r_hat
             + p.C_Y_delta_a * d.aileron_rad
             + p.C_Y_delta_r * d.rudder_rad);
-    let fz = qs * (cz + cz_q * q_hat + cz_de * d.elevator_rad);
+    let fz = qs * (cz + cz_q * q_hat + cz_de * d.elevator_rad + cz_as * d.aileron_sym_rad);
     let omega = p.k_Omega_radps * throttle;
     let l = qs
         * p.b_m
@@ -428,7 +455,13 @@ fn aero_propulsion(
             + p.C_l_delta_r * d.rudder_rad
             + p.C_l_delta_e_diff * d.elevator_diff_rad)
         - p.k_T_P * omega * omega;
-    let m = qs * p.c_m * (p.C_m_0 + p.C_m_alpha * alpha + p.C_m_q * q_hat + p.C_m_delta_e * d.elevator_rad);
+    let m = qs
+        * p.c_m
+        * (p.C_m_0
+            + p.C_m_alpha * alpha
+            + p.C_m_q * q_hat
+            + p.C_m_delta_e * d.elevator_rad
+            + p.C_m_delta_a_sym * d.aileron_sym_rad);
     let n = qs
         * p.b_m
         * (p.C_n_0
@@ -1114,7 +1147,9 @@ mod tests {
         let (ar, _) = delta(1);
         assert!(al[0] > 1.0, "left aileron rolls right: pdot {}", al[0]);
         assert!((al[0] + ar[0]).abs() < 1e-12 && (al[2] + ar[2]).abs() < 1e-12, "{al:?} {ar:?}");
-        assert!(al[1].abs() < 1e-12);
+        // Each half is also a flap on its wing: both pitch nose down alike, so a left aileron at +5 deg
+        // and a right one at -5 deg roll the same but pitch oppositely (distinguishable).
+        assert!(al[1] < -0.05 && (al[1] - ar[1]).abs() < 1e-12, "aileron pitch {} {}", al[1], ar[1]);
         let (el, fl) = delta(2);
         let (er, fr) = delta(3);
         assert!(el[1] < -0.5, "positive elevator pitches nose down: qdot {}", el[1]);
@@ -1126,8 +1161,8 @@ mod tests {
         assert!(ru[2] < -0.1, "positive rudder yaws nose left: rdot {}", ru[2]);
         // Mixing.
         let d = effective_deflections(&[0.1, 0.3, 0.2, -0.4, 0.05]);
-        let got = [d.aileron_rad, d.elevator_rad, d.elevator_diff_rad, d.rudder_rad];
-        for (g, w) in got.iter().zip([-0.1, -0.1, 0.3, 0.05]) {
+        let got = [d.aileron_rad, d.aileron_sym_rad, d.elevator_rad, d.elevator_diff_rad, d.rudder_rad];
+        for (g, w) in got.iter().zip([-0.1, 0.2, -0.1, 0.3, 0.05]) {
             assert!((g - w).abs() < 1e-15, "{got:?}");
         }
     }
