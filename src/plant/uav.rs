@@ -828,7 +828,7 @@ impl Default for AutopilotGains {
 }
 
 /// Autopilot setpoints.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Setpoints {
     pub va_mps: f64,
     pub altitude_m: f64,

@@ -3,6 +3,7 @@
 //! Every rejection names the file, the field (as a TOML path) and what is allowed.
 
 pub mod deck;
+pub mod surfaces;
 
 use std::path::{Path, PathBuf};
 
