@@ -287,6 +287,19 @@ fn every_bundled_deck_validates() {
 }
 
 #[test]
+fn a_surface_deck_validates_and_other_commands_refuse_it_by_name() {
+    let deck = "studies/seed004_surfaces.toml";
+    let out = fdimc(&["validate", deck]);
+    let stdout = ok(&out);
+    assert_eq!(stdout.lines().filter(|l| l.starts_with("fault ")).count(), 5, "{stdout}");
+    assert!(stdout.contains("fault       aileron_left: stuck at -15.0 deg, from 10 s to 40 s"), "{stdout}");
+    assert_eq!(stdout.lines().filter(|l| l.starts_with("bank ")).count(), 4, "{stdout}");
+    let out = fdimc(&["run", deck, "--out", "/nonexistent/never-written"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("studies/seed004_surfaces.toml: airframe: this is a control-surface deck"));
+}
+
+#[test]
 fn records_are_identical_for_any_threads_shards_and_resume() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = |n: &str| tmp.path().join(n);

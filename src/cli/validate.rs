@@ -1,10 +1,17 @@
 use std::path::Path;
 
 use super::{CliError, design_error};
-use crate::study::{Shape, Study};
+use crate::detector::stmmae::BankParams;
+use crate::plant::uav::SURFACE_NAMES;
+use crate::study::surfaces::{SurfaceFaultKind, SurfaceStudy, is_surface_deck};
+use crate::study::{DeckError, Shape, Study};
 
 pub fn exec(deck: &Path) -> Result<(), CliError> {
-    let study = Study::load(deck)?;
+    let text = std::fs::read_to_string(deck).map_err(|source| DeckError::Read { file: deck.into(), source })?;
+    if is_surface_deck(&text) {
+        return surfaces(&SurfaceStudy::from_toml(&text, deck)?);
+    }
+    let study = Study::from_toml(&text, deck)?;
     let mut filters = Vec::with_capacity(study.detectors.len());
     for d in &study.detectors {
         filters.push(d.params.design(&study.design_plant, study.dt_s).map_err(|e| design_error(deck, &d.name, e))?);
@@ -111,4 +118,52 @@ pub fn exec(deck: &Path) -> Result<(), CliError> {
 
 pub(super) fn indent(s: &str) -> String {
     s.lines().filter(|l| !l.trim().is_empty()).map(|l| format!("            {l}\n")).collect()
+}
+
+/// The resolved control-surface study (method 004).
+fn surfaces(study: &SurfaceStudy) -> Result<(), CliError> {
+    println!("{}: valid", study.path.display());
+    let samples = (study.duration_s / study.dt_s).round();
+    println!(
+        "study       {} (seed {}, {} s at dt {} s = {samples} samples)",
+        study.name, study.seed, study.duration_s, study.dt_s
+    );
+    println!(
+        "airframe    aerosonde trimmed at {} m/s, {} m; wind NED {:?} m/s",
+        study.trim_airspeed_mps, study.trim_altitude_m, study.wind_ned_mps
+    );
+    let n = &study.sensors;
+    println!(
+        "sensors     gyro variance {} rad^2/s^2, flow angles {} rad^2, airspeed {} m^2/s^2, attitude sigma {} rad",
+        n.gyro_variance_rad2_s2, n.flow_angle_variance_rad2, n.airspeed_variance_m2_s2, n.attitude_sigma_rad
+    );
+    for (from_s, sp) in &study.setpoints {
+        println!(
+            "setpoint    from {from_s} s: {} m/s, {} m, roll {:.1} deg",
+            sp.va_mps,
+            sp.altitude_m,
+            sp.roll_rad.to_degrees()
+        );
+    }
+    for f in &study.faults {
+        let what = match f.kind {
+            SurfaceFaultKind::Stuck { position_rad } => format!("stuck at {:.1} deg", position_rad.to_degrees()),
+            SurfaceFaultKind::Oscillation { low_rad, high_rad, period_s } => format!(
+                "square wave {:.1}..{:.1} deg, period {period_s} s",
+                low_rad.to_degrees(),
+                high_rad.to_degrees()
+            ),
+            SurfaceFaultKind::LossOfEffectiveness { effectiveness } => format!("effectiveness {effectiveness}"),
+        };
+        let until = f.end_s.map_or("the end".to_string(), |e| format!("{e} s"));
+        println!("fault       {}: {what}, from {} s to {until}", SURFACE_NAMES[f.surface], f.onset_s);
+    }
+    for (name, p) in &study.banks {
+        let BankParams { covariance, likelihood, .. } = p;
+        println!(
+            "bank        {name}: {covariance:?} covariance, {likelihood:?} likelihood, R_W {:?}/s, R_V {:?}, rho {}, beta {}",
+            p.process_variance_per_s, p.measurement_variance, p.rho, p.beta
+        );
+    }
+    Ok(())
 }

@@ -243,6 +243,13 @@ impl Study {
 
     /// Parses and validates deck text; `path` names it in messages.
     pub fn from_toml(text: &str, path: &Path) -> Result<Study, DeckError> {
+        if surfaces::is_surface_deck(text) {
+            return Err(DeckError::Invalid {
+                file: path.into(),
+                field: "airframe".into(),
+                message: "this is a control-surface deck (method 004): so far only `fdimc validate` reads it".into(),
+            });
+        }
         let deck: Deck = toml::from_str(text)
             .map_err(|e| DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() })?;
         Validator { file: path }.study(deck)
