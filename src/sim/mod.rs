@@ -33,6 +33,7 @@ mod engine;
 pub mod kernel;
 mod lanes;
 pub mod normals;
+pub mod surfaces;
 pub use engine::{Engine, TrialResult};
 pub use kernel::{FilterState, FilterStep, PlantState, PlantStep};
 
