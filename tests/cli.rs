@@ -287,13 +287,24 @@ fn every_bundled_deck_validates() {
 }
 
 #[test]
-fn a_surface_deck_validates_and_other_commands_refuse_it_by_name() {
+fn a_surface_deck_validates_simulates_and_run_refuses_it_by_name() {
     let deck = "studies/seed004_surfaces.toml";
     let out = fdimc(&["validate", deck]);
     let stdout = ok(&out);
     assert_eq!(stdout.lines().filter(|l| l.starts_with("fault ")).count(), 5, "{stdout}");
     assert!(stdout.contains("fault       aileron_left: stuck at -15.0 deg, from 10 s to 40 s"), "{stdout}");
     assert_eq!(stdout.lines().filter(|l| l.starts_with("bank ")).count(), 4, "{stdout}");
+    let dir = tempfile::tempdir().unwrap();
+    let trace = dir.path().join("trace.parquet");
+    let out = fdimc(&["simulate", deck, "--out", trace.to_str().unwrap()]);
+    let stdout = ok(&out);
+    assert!(stdout.contains("trial 0, 4 bank(s), 30000 samples"), "{stdout}");
+    let improved: Vec<_> = stdout.lines().filter(|l| l.trim_start().starts_with("improved_stmmae  ")).collect();
+    assert_eq!(improved.len(), 6, "five fault windows and the health line: {stdout}");
+    assert!(improved[0].contains("aileron_left") && improved[0].matches("aileron_left").count() == 2, "{stdout}");
+    let df = read_frame(&trace);
+    assert_eq!(df.height(), 30_000);
+    assert_eq!(df.width(), 1 + 10 + 2 + 10 + 4 * (6 + 5) + 4 * 5);
     let out = fdimc(&["run", deck, "--out", "/nonexistent/never-written"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("studies/seed004_surfaces.toml: airframe: this is a control-surface deck"));

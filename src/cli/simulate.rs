@@ -1,10 +1,15 @@
 use std::path::Path;
 
 use super::{CliError, design_error};
+use crate::detector::stmmae::MODELS;
 use crate::output::{TableFormat, trace_frame, write_table};
+use crate::plant::uav::{AerosondeParams, SURFACE_NAMES};
 use crate::sampling::MAX_TRIAL;
+use crate::sampling::{Substream, noise_rng};
+use crate::sim::surfaces::run_banks;
 use crate::sim::{Engine, Trace};
-use crate::study::Study;
+use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
+use crate::study::{DeckError, Study};
 
 pub fn exec(deck: &Path, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), CliError> {
     // Check the output name before simulating, so a typo costs nothing.
@@ -12,7 +17,11 @@ pub fn exec(deck: &Path, trial: u64, detector: Option<&str>, out: &Path) -> Resu
     if trial > MAX_TRIAL {
         return Err(CliError::Invalid(format!("--trial {trial}: allowed 0 to {MAX_TRIAL}")));
     }
-    let study = Study::load(deck)?;
+    let text = std::fs::read_to_string(deck).map_err(|source| DeckError::Read { file: deck.into(), source })?;
+    if is_surface_deck(&text) {
+        return surfaces(&SurfaceStudy::from_toml(&text, deck)?, trial, detector, out);
+    }
+    let study = Study::from_toml(&text, deck)?;
     let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
     let index = match detector {
         None => 0,
@@ -60,6 +69,95 @@ pub fn exec(deck: &Path, trial: u64, detector: Option<&str>, out: &Path) -> Resu
     println!("  isolated (direction) {}", name(outcome.isolated_by_direction));
     if let Some(t) = outcome.diverged_at_s {
         println!("  DIVERGED            residual non-finite at {t:.3} s");
+    }
+    Ok(())
+}
+
+/// One flight of a control-surface deck: every bank (or `--detector`'s) on the same samples; the trace
+/// holds the measurements, commands, true positions, and per bank the model probabilities and the
+/// declared surface.
+fn surfaces(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), CliError> {
+    let banks: Vec<_> = match detector {
+        None => study.banks.iter().collect(),
+        Some(name) => vec![study.banks.iter().find(|(n, _)| n == name).ok_or_else(|| {
+            let names: Vec<_> = study.banks.iter().map(|(n, _)| n.as_str()).collect();
+            CliError::Invalid(format!("--detector {name:?}: {} has banks {}", study.path.display(), names.join(", ")))
+        })?],
+    };
+    let params: Vec<_> = banks.iter().map(|(_, p)| p.clone()).collect();
+    let airframe = AerosondeParams::default();
+    let mut rng = noise_rng(study.seed, trial, Substream::SensorNoise);
+    let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
+    let mut bools: Vec<(String, Vec<bool>)> = Vec::new();
+    let mut push_f = |i: &mut usize, name: &dyn Fn() -> String, v: f64| {
+        if floats.len() <= *i {
+            floats.push((name(), Vec::new()));
+        }
+        floats[*i].1.push(v);
+        *i += 1;
+    };
+    let measured = ["p_rad_s", "q_rad_s", "r_rad_s", "alpha_rad", "beta_rad"];
+    let outcomes = run_banks(study, &airframe, &study.faults, &airframe, &params, &mut rng, |s, rows| {
+        let mut i = 0;
+        push_f(&mut i, &|| "t_s".into(), s.t_s);
+        for (j, m) in measured.iter().enumerate() {
+            push_f(&mut i, &|| format!("{m}_measured"), s.y[j]);
+            push_f(&mut i, &|| format!("{m}_true"), s.truth_y[j]);
+        }
+        push_f(&mut i, &|| "airspeed_measured_mps".into(), s.va_mps);
+        push_f(&mut i, &|| "altitude_m".into(), s.altitude_m);
+        for (j, name) in SURFACE_NAMES.iter().enumerate() {
+            push_f(&mut i, &|| format!("{name}_commanded_rad"), s.commanded_rad[j]);
+            push_f(&mut i, &|| format!("{name}_position_rad"), s.positions_rad[j]);
+        }
+        for ((bank, _), row) in banks.iter().zip(rows) {
+            for m in 0..MODELS {
+                let model = if m == 0 { "no_fault" } else { SURFACE_NAMES[m - 1] };
+                push_f(&mut i, &|| format!("{bank}_p_{model}"), row.probabilities[m]);
+            }
+            for (j, name) in SURFACE_NAMES.iter().enumerate() {
+                push_f(&mut i, &|| format!("{bank}_{name}_estimate_rad"), row.surface_estimates_rad[j]);
+            }
+        }
+        let mut b = 0;
+        for ((bank, _), row) in banks.iter().zip(rows) {
+            for (j, name) in SURFACE_NAMES.iter().enumerate() {
+                if bools.len() <= b {
+                    bools.push((format!("{bank}_declared_{name}"), Vec::new()));
+                }
+                bools[b].1.push(row.declared == Some(j));
+                b += 1;
+            }
+        }
+    });
+    let trace = Trace { float_columns: floats, bool_columns: bools };
+    let mut df = trace_frame(&trace).map_err(|e| CliError::Internal(e.to_string()))?;
+    write_table(&mut df, out)?;
+    let samples = df.height();
+    let outcomes = outcomes.map_err(|e| CliError::Invalid(format!("{}: trial {trial}: {e}", study.path.display())))?;
+    println!("{}: trial {trial}, {} bank(s), {samples} samples -> {}", study.name, banks.len(), out.display());
+    let secs = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+    println!(
+        "  {:<16} {:<15} {:>9} {:>8} {:>10} {:>9} {:>12}",
+        "bank", "fault", "onset_s", "delay_s", "isolated", "clear_s", "estimate_rms"
+    );
+    for ((bank, _), o) in banks.iter().zip(&outcomes) {
+        for w in &o.windows {
+            let isolated = w.first_declared.map_or("-", |j| SURFACE_NAMES[j]);
+            println!(
+                "  {bank:<16} {:<15} {:>9} {:>8} {isolated:>10} {:>9} {:>9.2} deg",
+                SURFACE_NAMES[w.surface],
+                w.onset_s,
+                secs(w.detection_delay_s),
+                secs(w.clearing_delay_s),
+                w.surface_estimate_rms_rad.to_degrees()
+            );
+        }
+        let h = o.health;
+        println!(
+            "  {bank:<16} false alarms {}, covariance asymmetric {} / not positive definite {} / non-finite {} steps",
+            o.false_alarms, h.asymmetric, h.not_positive_definite, h.non_finite
+        );
     }
     Ok(())
 }

@@ -247,7 +247,7 @@ impl Study {
             return Err(DeckError::Invalid {
                 file: path.into(),
                 field: "airframe".into(),
-                message: "this is a control-surface deck (method 004): so far only `fdimc validate` reads it".into(),
+                message: "this is a control-surface deck (method 004): so far only `fdimc validate` and `fdimc simulate` read it".into(),
             });
         }
         let deck: Deck = toml::from_str(text)
