@@ -1,7 +1,10 @@
 //! Baseline comparison: is any group's detection rate lower, or false-alarm rate higher, than the
 //! committed baseline's, beyond chance?
 //!
-//! Groups are matched on (thresholds, detector, kind, output, size_bin, noise_bin, param_error_bin).
+//! Groups are matched on the key columns the summaries have: (thresholds, detector, kind, output,
+//! size_bin, noise_bin, param_error_bin) for detection filters, (detector, kind, surface, size_bin,
+//! noise_bin, param_error_bin) for surface banks. Flights that did not run to the end (design failures,
+//! or `failed` surface flights) are left out of both rates.
 //! Each rate is tested one-sided with a pooled two-proportion z-test (continuity-corrected) at level
 //! `alpha / m`, m the number of tests (Bonferroni), so a study with hundreds of groups does not flag
 //! regressions by chance. Groups in only one of the two summaries are reported, not failed.
@@ -14,8 +17,19 @@ use crate::output::records::col;
 use crate::runner::RunError;
 use crate::stats::intervals::p_lower;
 
-const KEYS: [&str; 7] =
-    ["thresholds", col::DETECTOR, col::KIND, col::OUTPUT, col::SIZE_BIN, col::NOISE_BIN, col::PARAM_ERROR_BIN];
+const KEYS: [&str; 8] = [
+    "thresholds",
+    col::DETECTOR,
+    col::KIND,
+    col::OUTPUT,
+    crate::output::surfaces::col::SURFACE,
+    col::SIZE_BIN,
+    col::NOISE_BIN,
+    col::PARAM_ERROR_BIN,
+];
+
+/// Per summary kind, the column counting the groups' trials that did not run to the end.
+const FAILURE_COLUMNS: [&str; 2] = ["design_failures", "failed"];
 
 /// One group's counts.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -65,19 +79,22 @@ pub struct Verdict {
 }
 
 fn groups(df: &DataFrame) -> PolarsResult<HashMap<String, Counts>> {
+    let keys: Vec<&str> = KEYS.iter().copied().filter(|k| df.column(k).is_ok()).collect();
+    let failure_column = FAILURE_COLUMNS.iter().find(|k| df.column(k).is_ok()).copied().unwrap_or(FAILURE_COLUMNS[0]);
     let df = df
         .clone()
         .lazy()
-        .with_columns(KEYS.iter().map(|k| polars::prelude::col(*k).cast(DataType::String)).collect::<Vec<_>>())
+        .with_columns(keys.iter().map(|k| polars::prelude::col(*k).cast(DataType::String)).collect::<Vec<_>>())
         .collect()?;
     let key_cols: Vec<StringChunked> =
-        KEYS.iter().map(|k| df.column(k).and_then(|c| c.str().cloned())).collect::<PolarsResult<_>>()?;
+        keys.iter().map(|k| df.column(k).and_then(|c| c.str().cloned())).collect::<PolarsResult<_>>()?;
+    let kind_cols = df.column(col::KIND)?.str()?.clone();
     let u = |n: &str| -> PolarsResult<UInt64Chunked> { Ok(df.column(n)?.cast(&DataType::UInt64)?.u64()?.clone()) };
-    let (trials, failures, detected, fa) = (u("trials")?, u("design_failures")?, u("detected")?, u("false_alarms")?);
+    let (trials, failures, detected, fa) = (u("trials")?, u(failure_column)?, u("detected")?, u("false_alarms")?);
     let mut map = HashMap::with_capacity(df.height());
     for i in 0..df.height() {
         let key: Vec<&str> = key_cols.iter().map(|c| c.get(i).unwrap_or("")).collect();
-        let kind = key[2];
+        let kind = kind_cols.get(i).unwrap_or("");
         map.insert(
             key.join(" | "),
             Counts {

@@ -1,6 +1,6 @@
 //! The Monte Carlo runner: the only parallel code in fdimc.
 //!
-//! Trials are processed in chunks of [`CHUNK_TRIALS`] consecutive indices. A chunk runs in parallel on
+//! Trials are processed in chunks of consecutive indices ([`TrialSource::chunk_trials`]). A chunk runs in parallel on
 //! rayon, its results are collected in trial order and written as one complete Parquet part file
 //! (`parts/part-<first trial>.parquet`, temporary name then rename), so memory stays at a few chunks
 //! whatever the trial count, and a killed run loses at most the chunks in flight. A writer thread
@@ -9,6 +9,10 @@
 //! `--resume` reads back the parts already on disk instead of simulating them.
 //! Each trial's numbers depend only on (deck, seed, trial index), so any thread count, shard split or
 //! resume gives identical rows.
+//!
+//! The runner knows nothing of plants or detectors: a study hands it a [`TrialSource`] (simulate trials
+//! `first..end`, turn results into rows) and the study fields of its [`Manifest`]. The LTI studies of
+//! method 000 ([`run_study`]) and the control-surface studies of method 004 share it.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -25,7 +29,33 @@ use crate::sim::kernel::LANES;
 use crate::sim::{Engine, TrialResult};
 use crate::study::Study;
 
-/// Trials per part file.
+/// What the runner needs of a study.
+pub trait TrialSource: Sync {
+    type Result: Send;
+    /// Trials per part file: what a killed run can lose, so a few seconds to a minute of work.
+    fn chunk_trials(&self) -> u64 {
+        CHUNK_TRIALS
+    }
+    /// Consecutive trials one worker simulates together (the SIMD lane width for LTI studies).
+    fn group_trials(&self) -> u64;
+    /// The results of trials `first..end` (at most [`TrialSource::group_trials`]), in trial order.
+    fn simulate(&self, first: u64, end: u64) -> Vec<Self::Result>;
+    /// The trials.parquet rows of `results` (trial order); `&[]` gives the empty table with its schema.
+    fn frame(&self, results: &[Self::Result]) -> PolarsResult<DataFrame>;
+}
+
+/// Which kind of study a results folder holds; `summarize`, `merge` and `report` dispatch on it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StudyKind {
+    /// Method 000: an LTI plant and detection filters (`[plant]` decks).
+    #[default]
+    DetectionFilter,
+    /// Method 004: the UAV with control-surface faults and banks of filters (`[airframe]` decks).
+    SurfaceBank,
+}
+
+/// Trials per part file of LTI studies (a few seconds of work); a source may choose its own.
 pub const CHUNK_TRIALS: u64 = 4096;
 
 /// Errors of a run; `Invalid` ones are the user's to fix (exit 2), the rest are I/O or internal (exit 3).
@@ -92,6 +122,9 @@ impl Shard {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
     pub fdimc_version: String,
+    /// Absent in folders written before method 004: those are detection-filter runs.
+    #[serde(default)]
+    pub kind: StudyKind,
     pub study: String,
     pub deck: String,
     pub deck_sha256: String,
@@ -104,9 +137,11 @@ pub struct Manifest {
     pub end_trial: u64,
     pub chunk_trials: u64,
     pub detectors: Vec<String>,
-    /// Output names and, per detector, the deck's thresholds (for calibration reports).
+    /// The faulty components a study can name: output names (sensors) or surface names.
     pub outputs: Vec<String>,
+    /// Per detector, the deck's thresholds (detection filters; empty for banks).
     pub deck_thresholds: Vec<Vec<f64>>,
+    /// Calibration target of detection filters; 0 for banks, which declare by model probability.
     pub target_pfa: f64,
     /// Unit of each fault kind's size bins (for plot axes).
     #[serde(default)]
@@ -184,9 +219,9 @@ fn part_path(dir: &Path, first_trial: u64) -> PathBuf {
     dir.join("parts").join(format!("part-{first_trial:020}.parquet"))
 }
 
-/// Runs the study's trials of `opts.shard` into `opts.out_dir` (see the module docs).
-pub fn run(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
-    let started = Instant::now();
+/// Runs an LTI study (method 000) through [`run`]; a detector that cannot be designed on the nominal
+/// model is the deck's error (with parameter errors, per-trial design failures are rows instead).
+pub fn run_study(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
     let engine = Engine::new(study);
     for (d, f) in study.detectors.iter().zip(engine.nominal_filters()) {
         if let Err(e) = f {
@@ -195,27 +230,90 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
             }
         }
     }
-    let trials = study.monte_carlo.trials;
-    let (first, end) = opts.shard.range(trials);
     let manifest = Manifest {
-        fdimc_version: env!("CARGO_PKG_VERSION").into(),
+        kind: StudyKind::DetectionFilter,
         study: study.name.clone(),
-        deck: opts.deck.display().to_string(),
-        deck_sha256: deck_sha256(&opts.deck)?,
         seed: study.seed,
-        trials,
-        shard: opts.shard,
-        first_trial: first,
-        end_trial: end,
-        chunk_trials: CHUNK_TRIALS,
+        trials: study.monte_carlo.trials,
         detectors: study.detectors.iter().map(|d| d.name.clone()).collect(),
         outputs: study.plant.output_names.clone(),
         deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
         target_pfa: study.monte_carlo.target_pfa,
         fault_size_units: fault_size_units(study),
+        ..Manifest::unstarted()
+    };
+    run(&LtiTrials { study, engine }, manifest, opts)
+}
+
+/// Method 000's trials: 8 at a time in SIMD lanes.
+struct LtiTrials<'a> {
+    study: &'a Study,
+    engine: Engine<'a>,
+}
+
+impl TrialSource for LtiTrials<'_> {
+    type Result = TrialResult;
+    fn group_trials(&self) -> u64 {
+        LANES as u64
+    }
+    fn simulate(&self, first: u64, end: u64) -> Vec<TrialResult> {
+        self.engine.run_lanes(first, end)
+    }
+    fn frame(&self, results: &[TrialResult]) -> PolarsResult<DataFrame> {
+        let mut builder = RecordBuilder::new(self.study, results.len() * self.study.detectors.len());
+        for r in results {
+            builder.push(r);
+        }
+        builder.finish()
+    }
+}
+
+impl Manifest {
+    /// Every field a run fills in itself at its defaults; a study sets its own fields on top.
+    pub fn unstarted() -> Manifest {
+        Manifest {
+            fdimc_version: env!("CARGO_PKG_VERSION").into(),
+            kind: StudyKind::default(),
+            study: String::new(),
+            deck: String::new(),
+            deck_sha256: String::new(),
+            seed: 0,
+            trials: 0,
+            shard: Shard::WHOLE,
+            first_trial: 0,
+            end_trial: 0,
+            chunk_trials: CHUNK_TRIALS,
+            detectors: Vec::new(),
+            outputs: Vec::new(),
+            deck_thresholds: Vec::new(),
+            target_pfa: 0.0,
+            fault_size_units: Default::default(),
+            command_line: Vec::new(),
+            complete: false,
+            rows: 0,
+        }
+    }
+}
+
+/// Runs the trials of `opts.shard` of `study_manifest.trials` into `opts.out_dir` (see the module
+/// docs). `study_manifest` carries the study's own fields (kind, name, seed, trials, detectors,
+/// outputs, thresholds, units); the run fills in the deck, its hash, the shard and the progress.
+pub fn run<S: TrialSource>(source: &S, study_manifest: Manifest, opts: &RunOptions) -> Result<RunReport, RunError> {
+    let started = Instant::now();
+    let trials = study_manifest.trials;
+    let (first, end) = opts.shard.range(trials);
+    let manifest = Manifest {
+        fdimc_version: env!("CARGO_PKG_VERSION").into(),
+        deck: opts.deck.display().to_string(),
+        deck_sha256: deck_sha256(&opts.deck)?,
+        shard: opts.shard,
+        first_trial: first,
+        end_trial: end,
+        chunk_trials: source.chunk_trials(),
         command_line: opts.command_line.clone(),
         complete: false,
         rows: 0,
+        ..study_manifest
     };
 
     let dir = &opts.out_dir;
@@ -265,25 +363,26 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
     // appended to trials.parquet) while the pool simulates chunk k + 1. The channel holds one chunk,
     // so memory stays at about three chunks.
     let (mut resumed, mut run_count, mut chunks_written) = (0, 0, 0);
-    let (tx, rx) = std::sync::mpsc::sync_channel::<Chunk>(1);
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Chunk<S::Result>>(1);
     let outcome = std::thread::scope(|scope| -> Result<Option<u64>, RunError> {
-        let writer = scope.spawn(move || write_chunks(study, dir, rx));
+        let writer = scope.spawn(move || write_chunks(source, dir, rx));
         let mut chunk_start = first;
         let mut stopped_early = false;
         while chunk_start < end {
-            let chunk_end = (chunk_start + CHUNK_TRIALS).min(end);
+            let chunk_end = (chunk_start + manifest.chunk_trials).min(end);
             let path = part_path(dir, chunk_start);
             let chunk = if path.exists() && opts.resume {
                 resumed += chunk_end - chunk_start;
                 Chunk::Resumed { path }
             } else {
-                let results: Vec<TrialResult> = pool.install(|| {
+                let group = source.group_trials();
+                let results: Vec<S::Result> = pool.install(|| {
                     (chunk_start..chunk_end)
-                        .step_by(LANES)
+                        .step_by(group as usize)
                         .collect::<Vec<u64>>()
                         .into_par_iter()
-                        .flat_map_iter(|group| {
-                            let r = engine.run_lanes(group, (group + LANES as u64).min(chunk_end));
+                        .flat_map_iter(|first| {
+                            let r = source.simulate(first, (first + group).min(chunk_end));
                             bar.inc(r.len() as u64);
                             r
                         })
@@ -322,7 +421,7 @@ pub fn run(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
         None => {
             // A shard with no trials (more shards than trials) still leaves a readable, empty table.
             let path = dir.join("trials.parquet");
-            let mut empty = RecordBuilder::new(study, 0).finish().map_err(pol(&path))?;
+            let mut empty = source.frame(&[]).map_err(pol(&path))?;
             write_parquet(&mut empty, &path)?;
             std::fs::remove_dir_all(dir.join("parts")).map_err(io(dir))?;
             0
@@ -354,9 +453,9 @@ fn fault_size_units(study: &Study) -> std::collections::BTreeMap<String, String>
 }
 
 /// What the writer thread receives, in trial order.
-enum Chunk {
+enum Chunk<R> {
     /// Simulated now: write its part file, then append it.
-    Fresh { path: PathBuf, results: Vec<TrialResult> },
+    Fresh { path: PathBuf, results: Vec<R> },
     /// On disk from an interrupted run: append it.
     Resumed { path: PathBuf },
     /// Every chunk was sent: finish trials.parquet.
@@ -366,7 +465,11 @@ enum Chunk {
 /// The writer thread: part files for resuming, and their rows appended in order to trials.parquet
 /// (under a temporary name until [`Chunk::Complete`], then renamed, and the parts removed). Returns
 /// the rows of trials.parquet, or `None` if the run stopped before its last chunk.
-fn write_chunks(study: &Study, dir: &Path, chunks: std::sync::mpsc::Receiver<Chunk>) -> Result<Option<u64>, RunError> {
+fn write_chunks<S: TrialSource>(
+    source: &S,
+    dir: &Path,
+    chunks: std::sync::mpsc::Receiver<Chunk<S::Result>>,
+) -> Result<Option<u64>, RunError> {
     let out = dir.join("trials.parquet");
     let tmp = temporary_sibling(&out);
     let result = (|| {
@@ -375,11 +478,7 @@ fn write_chunks(study: &Study, dir: &Path, chunks: std::sync::mpsc::Receiver<Chu
         for chunk in chunks {
             let df = match chunk {
                 Chunk::Fresh { path, results } => {
-                    let mut builder = RecordBuilder::new(study, results.len() * study.detectors.len());
-                    for r in &results {
-                        builder.push(r);
-                    }
-                    let mut df = builder.finish().map_err(pol(&path))?;
+                    let mut df = source.frame(&results).map_err(pol(&path))?;
                     write_parquet(&mut df, &path)?;
                     df
                 }

@@ -45,23 +45,24 @@ pub struct TrialSpec {
     pub parameter_error_bin: f64,
 }
 
-/// Draws trial scenarios for one study.
-pub struct ScenarioSampler<'a> {
-    study: &'a Study,
+/// Uniform draws in [0, 1) per (trial, dimension) by the deck's sampler: independent uniforms, a Latin
+/// hypercube over `trials`, or Owen-scrambled Sobol points. Shared by every kind of study.
+pub struct UnitSampler {
+    sampler: Sampler,
+    trials: u64,
+    seed: u64,
     /// Latin-hypercube strata: `lhs[d][i]` for dimension d, trial i.
     lhs: Vec<Vec<u32>>,
 }
 
-impl<'a> ScenarioSampler<'a> {
-    pub fn new(study: &'a Study) -> Self {
-        let mc = &study.monte_carlo;
-        let dims = DIM_PARAMETERS + mc.parameter_errors.len();
-        let lhs = if mc.sampler == Sampler::LatinHypercube {
-            let n = mc.trials as usize;
+impl UnitSampler {
+    pub fn new(sampler: Sampler, trials: u64, seed: u64, dims: usize) -> Self {
+        let lhs = if sampler == Sampler::LatinHypercube {
+            let n = trials as usize;
             (0..dims)
                 .map(|d| {
                     // Fisher-Yates with a stream of its own per dimension.
-                    let mut rng = ChaCha8Rng::seed_from_u64(study.seed ^ 0x4c48_535f_7065_726d);
+                    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x4c48_535f_7065_726d);
                     rng.set_stream(d as u64);
                     let mut perm: Vec<u32> = (0..n as u32).collect();
                     for i in (1..n).rev() {
@@ -73,26 +74,57 @@ impl<'a> ScenarioSampler<'a> {
         } else {
             Vec::new()
         };
-        ScenarioSampler { study, lhs }
+        UnitSampler { sampler, trials, seed, lhs }
     }
 
-    /// Uniform in [0, 1) for dimension `dim` of trial `trial`.
-    fn unit(&self, trial: u64, dim: usize, rng: &mut ChaCha8Rng) -> f64 {
+    /// Uniform in [0, 1) for dimension `dim` of trial `trial`; `rng` is the trial's scenario stream
+    /// (one draw per call, whatever the sampler, so later draws do not depend on it).
+    pub fn unit(&self, trial: u64, dim: usize, rng: &mut ChaCha8Rng) -> f64 {
         let jitter: f64 = rng.random();
-        match self.study.monte_carlo.sampler {
+        match self.sampler {
             Sampler::Random => jitter,
             Sampler::LatinHypercube => {
-                let n = self.study.monte_carlo.trials as f64;
-                // Trials past monte_carlo.trials (a --trials override) wrap onto the design.
-                let stratum = self.lhs[dim][(trial % self.study.monte_carlo.trials) as usize] as f64;
+                let n = self.trials as f64;
+                // Trials past the design's count (a --trials override) wrap onto the design.
+                let stratum = self.lhs[dim][(trial % self.trials) as usize] as f64;
                 (stratum + jitter) / n
             }
             Sampler::Sobol => {
                 let block = (trial >> 16) as u32;
-                let seed = (self.study.seed as u32) ^ (self.study.seed >> 32) as u32 ^ block.wrapping_mul(0x9e37_79b9);
+                let seed = (self.seed as u32) ^ (self.seed >> 32) as u32 ^ block.wrapping_mul(0x9e37_79b9);
                 sobol_burley::sample((trial & 0xffff) as u32, dim as u32, seed) as f64
             }
         }
+    }
+}
+
+/// The listed-factor grid of one trial: mixed-radix digits of the trial index, taken in order.
+pub struct GridDigits(u64);
+
+impl GridDigits {
+    pub fn new(trial: u64) -> Self {
+        GridDigits(trial)
+    }
+
+    /// The next digit, in `0..n`.
+    pub fn next(&mut self, n: usize) -> usize {
+        let d = (self.0 % n as u64) as usize;
+        self.0 /= n as u64;
+        d
+    }
+}
+
+/// Draws trial scenarios for one study.
+pub struct ScenarioSampler<'a> {
+    study: &'a Study,
+    units: UnitSampler,
+}
+
+impl<'a> ScenarioSampler<'a> {
+    pub fn new(study: &'a Study) -> Self {
+        let mc = &study.monte_carlo;
+        let dims = DIM_PARAMETERS + mc.parameter_errors.len();
+        ScenarioSampler { study, units: UnitSampler::new(mc.sampler, mc.trials, study.seed, dims) }
     }
 
     /// The scenario of trial `trial`.
@@ -102,13 +134,9 @@ impl<'a> ScenarioSampler<'a> {
         let mut rng = trial_rng(s.seed, trial, Substream::Scenario);
         let fault_free = rng.random::<f64>() < mc.fault_free_fraction;
         let dims = DIM_PARAMETERS + mc.parameter_errors.len();
-        let units: Vec<f64> = (0..dims).map(|d| self.unit(trial, d, &mut rng)).collect();
-        let mut cell = trial;
-        let mut digit = |n: usize| -> usize {
-            let d = (cell % n as u64) as usize;
-            cell /= n as u64;
-            d
-        };
+        let units: Vec<f64> = (0..dims).map(|d| self.units.unit(trial, d, &mut rng)).collect();
+        let mut grid = GridDigits::new(trial);
+        let mut digit = |n: usize| grid.next(n);
 
         // Sampled population: kind and output first (the fastest grid digits).
         let sampled = (!mc.faults.is_empty()).then(|| (digit(mc.faults.len()), mc.outputs[digit(mc.outputs.len())]));
@@ -177,7 +205,7 @@ impl<'a> ScenarioSampler<'a> {
 }
 
 /// A factor's value and group label, from the unit draw `u` (ranges) or the next grid digit (lists).
-fn draw(f: &Factor, u: f64, digit: &mut impl FnMut(usize) -> usize) -> (f64, f64) {
+pub fn draw(f: &Factor, u: f64, digit: &mut impl FnMut(usize) -> usize) -> (f64, f64) {
     match f {
         Factor::Fixed(v) => (*v, *v),
         Factor::Values(v) => {
@@ -210,13 +238,8 @@ mod tests {
         let f = Factor::Values(vec![1.0, 2.0, 3.0]);
         let picks: Vec<f64> = (0..6u64)
             .map(|i| {
-                let mut cell = i;
-                let mut digit = |n: usize| {
-                    let d = (cell % n as u64) as usize;
-                    cell /= n as u64;
-                    d
-                };
-                draw(&f, 0.0, &mut digit).0
+                let mut grid = GridDigits::new(i);
+                draw(&f, 0.0, &mut |n| grid.next(n)).0
             })
             .collect();
         assert_eq!(picks, [1.0, 2.0, 3.0, 1.0, 2.0, 3.0]);

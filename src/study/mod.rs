@@ -247,7 +247,7 @@ impl Study {
             return Err(DeckError::Invalid {
                 file: path.into(),
                 field: "airframe".into(),
-                message: "this is a control-surface deck (method 004): so far only `fdimc validate` and `fdimc simulate` read it".into(),
+                message: "this is a control-surface deck (method 004); this command reads detection-filter ([plant]) decks only".into(),
             });
         }
         let deck: Deck = toml::from_str(text)
@@ -256,20 +256,21 @@ impl Study {
     }
 }
 
-struct Validator<'a> {
-    file: &'a Path,
+/// Checks deck values and names the file and field in every rejection; shared by every kind of deck.
+pub(crate) struct Validator<'a> {
+    pub(crate) file: &'a Path,
 }
 
 impl Validator<'_> {
-    fn err(&self, field: impl Into<String>, message: impl Into<String>) -> DeckError {
+    pub(crate) fn err(&self, field: impl Into<String>, message: impl Into<String>) -> DeckError {
         DeckError::Invalid { file: self.file.into(), field: field.into(), message: message.into() }
     }
 
-    fn finite(&self, field: &str, v: f64) -> Result<f64, DeckError> {
+    pub(crate) fn finite(&self, field: &str, v: f64) -> Result<f64, DeckError> {
         if v.is_finite() { Ok(v) } else { Err(self.err(field, format!("must be a finite number, got {v}"))) }
     }
 
-    fn positive(&self, field: &str, v: f64) -> Result<f64, DeckError> {
+    pub(crate) fn positive(&self, field: &str, v: f64) -> Result<f64, DeckError> {
         if v.is_finite() && v > 0.0 {
             Ok(v)
         } else {
@@ -567,7 +568,12 @@ impl Validator<'_> {
     }
 
     /// Reads a factor (see [`Factor`]); `None` gives `default`.
-    fn factor(&self, field: &str, spec: Option<&deck::FactorSpec>, default: Factor) -> Result<Factor, DeckError> {
+    pub(crate) fn factor(
+        &self,
+        field: &str,
+        spec: Option<&deck::FactorSpec>,
+        default: Factor,
+    ) -> Result<Factor, DeckError> {
         use toml::Value;
         let allowed = "allowed: a number, { range = [lo, hi], bins = k } or { values = [v1, v2, ...] }";
         let number = |field: &str, v: &Value| -> Result<f64, DeckError> {
@@ -627,7 +633,7 @@ impl Validator<'_> {
     }
 
     /// Checks every value a factor can take with `ok`, which describes what is allowed.
-    fn factor_within(
+    pub(crate) fn factor_within(
         &self,
         field: &str,
         factor: &Factor,
@@ -642,6 +648,58 @@ impl Validator<'_> {
         match values.into_iter().find(|&v| !ok(v)) {
             Some(bad) => Err(self.err(field, format!("{bad} is out of range; allowed {allowed}"))),
             None => Ok(()),
+        }
+    }
+
+    /// A trial count: 1 to [`crate::sampling::MAX_TRIAL`].
+    pub(crate) fn trials(&self, field: &str, n: u64) -> Result<u64, DeckError> {
+        if n == 0 || n > crate::sampling::MAX_TRIAL {
+            return Err(self.err(field, format!("allowed 1 to {}, got {n}", crate::sampling::MAX_TRIAL)));
+        }
+        Ok(n)
+    }
+
+    /// A fraction in [0, 1].
+    pub(crate) fn fraction(&self, field: &str, v: f64) -> Result<f64, DeckError> {
+        if !(0.0..=1.0).contains(&v) {
+            return Err(self.err(field, format!("allowed 0 to 1, got {v}")));
+        }
+        Ok(v)
+    }
+
+    /// The sampler of continuous factors (default random).
+    pub(crate) fn sampler(&self, field: &str, name: Option<&str>) -> Result<Sampler, DeckError> {
+        match name {
+            None | Some("random") => Ok(Sampler::Random),
+            Some("lhs") => Ok(Sampler::LatinHypercube),
+            Some("sobol") => Ok(Sampler::Sobol),
+            Some(other) => Err(self.err(field, format!("{other:?}: allowed \"random\", \"lhs\", \"sobol\""))),
+        }
+    }
+
+    /// A name that becomes a column (`perr_<name>`): letters, digits and '_', not among `earlier`.
+    pub(crate) fn column_name<'n>(
+        &self,
+        field: &str,
+        name: &str,
+        mut earlier: impl Iterator<Item = &'n str>,
+    ) -> Result<(), DeckError> {
+        if name.is_empty() || !name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+            return Err(self.err(field, format!("{name:?}: letters, digits and '_' (it names a column)")));
+        }
+        if earlier.any(|o| o == name) {
+            return Err(self.err(field, format!("{name:?} appears twice")));
+        }
+        Ok(())
+    }
+
+    /// Which model a parameter error perturbs.
+    pub(crate) fn model_target(&self, field: &str, name: &str) -> Result<ModelTarget, DeckError> {
+        match name {
+            "plant" => Ok(ModelTarget::Plant),
+            "design" => Ok(ModelTarget::Design),
+            other => Err(self
+                .err(field, format!("{other:?}: allowed \"plant\" (the truth) or \"design\" (the detector's model)"))),
         }
     }
 
@@ -664,24 +722,9 @@ impl Validator<'_> {
                 parameter_errors: Vec::new(),
             });
         };
-        if mc.trials == 0 || mc.trials > crate::sampling::MAX_TRIAL {
-            return Err(self
-                .err("monte_carlo.trials", format!("allowed 1 to {}, got {}", crate::sampling::MAX_TRIAL, mc.trials)));
-        }
-        let fraction = mc.fault_free_fraction;
-        if !(0.0..=1.0).contains(&fraction) {
-            return Err(self.err("monte_carlo.fault_free_fraction", format!("allowed 0 to 1, got {fraction}")));
-        }
-        let sampler = match mc.sampler.as_deref() {
-            None | Some("random") => Sampler::Random,
-            Some("lhs") => Sampler::LatinHypercube,
-            Some("sobol") => Sampler::Sobol,
-            Some(other) => {
-                return Err(
-                    self.err("monte_carlo.sampler", format!("{other:?}: allowed \"random\", \"lhs\", \"sobol\""))
-                );
-            }
-        };
+        self.trials("monte_carlo.trials", mc.trials)?;
+        let fraction = self.fraction("monte_carlo.fault_free_fraction", mc.fault_free_fraction)?;
+        let sampler = self.sampler("monte_carlo.sampler", mc.sampler.as_deref())?;
         let target_pfa = mc.target_pfa.unwrap_or(0.01);
         if !(target_pfa > 0.0 && target_pfa < 1.0) {
             return Err(self.err("monte_carlo.target_pfa", format!("allowed 0 < p < 1, got {target_pfa}")));
@@ -766,24 +809,8 @@ impl Validator<'_> {
         let mut parameter_errors = Vec::with_capacity(mc.parameter_error.len());
         for (i, pe) in mc.parameter_error.iter().enumerate() {
             let field = |name: &str| format!("monte_carlo.parameter_error[{i}].{name}");
-            if pe.name.is_empty() || !pe.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
-                return Err(
-                    self.err(field("name"), format!("{:?}: letters, digits and '_' (it names a column)", pe.name))
-                );
-            }
-            if mc.parameter_error[..i].iter().any(|o| o.name == pe.name) {
-                return Err(self.err(field("name"), format!("{:?} appears twice", pe.name)));
-            }
-            let model = match pe.model.as_str() {
-                "plant" => ModelTarget::Plant,
-                "design" => ModelTarget::Design,
-                other => {
-                    return Err(self.err(
-                        field("model"),
-                        format!("{other:?}: allowed \"plant\" (the truth) or \"design\" (the detector's model)"),
-                    ));
-                }
-            };
+            self.column_name(&field("name"), &pe.name, mc.parameter_error[..i].iter().map(|o| o.name.as_str()))?;
+            let model = self.model_target(&field("model"), &pe.model)?;
             let (matrix_b, col_names, col_list) = match pe.matrix.as_str() {
                 "a" => (false, &plant.state_names, "plant.states"),
                 "b" => (true, &plant.input_names, "plant.inputs"),
