@@ -94,7 +94,8 @@ The same deck and seed give identical records for any --threads, shard split or 
         /// No progress bar or report.
         #[arg(long)]
         quiet: bool,
-        /// Stop after writing N chunks of 4096 trials, as if interrupted; continue later with --resume.
+        /// Stop after writing N part files (4096 trials each for detection filters, 64 for surface banks), as
+        /// if interrupted; continue later with --resume.
         #[arg(long, value_name = "N")]
         stop_after: Option<u64>,
     },

@@ -2,9 +2,12 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 use super::CliError;
-use crate::runner::{self, Manifest, RunError, RunOptions, Shard};
+use crate::runner::{self, Manifest, RunError, RunOptions, Shard, StudyKind};
+use crate::sim::surfaces::SurfaceTrials;
+use crate::stats::surfaces::SurfaceSummary;
 use crate::stats::{self, Calibration, SummaryReport};
 use crate::study::Study;
+use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
 
 impl From<RunError> for CliError {
     fn from(e: RunError) -> Self {
@@ -28,19 +31,45 @@ pub struct RunArgs<'a> {
     pub stop_after: Option<u64>,
 }
 
-/// Loads the deck with the command line's overrides applied.
-fn study_with_overrides(a: &RunArgs) -> Result<Study, CliError> {
-    let mut study = Study::load(a.deck)?;
-    if let Some(n) = a.trials {
-        if n == 0 || n > crate::sampling::MAX_TRIAL {
-            return Err(CliError::Invalid(format!("--trials {n}: allowed 1 to {}", crate::sampling::MAX_TRIAL)));
+/// A deck of either kind, with the command line's overrides applied.
+enum Loaded {
+    Lti(Study),
+    Surfaces(SurfaceStudy),
+}
+
+impl Loaded {
+    fn load(a: &RunArgs) -> Result<Loaded, CliError> {
+        let text = std::fs::read_to_string(a.deck)
+            .map_err(|e| CliError::Invalid(format!("{}: cannot read the deck: {e}", a.deck.display())))?;
+        let mut loaded = if is_surface_deck(&text) {
+            Loaded::Surfaces(SurfaceStudy::from_toml(&text, a.deck)?)
+        } else {
+            Loaded::Lti(Study::from_toml(&text, a.deck)?)
+        };
+        if let Some(n) = a.trials {
+            if n == 0 || n > crate::sampling::MAX_TRIAL {
+                return Err(CliError::Invalid(format!("--trials {n}: allowed 1 to {}", crate::sampling::MAX_TRIAL)));
+            }
+            match &mut loaded {
+                Loaded::Lti(s) => s.monte_carlo.trials = n,
+                Loaded::Surfaces(s) => s.monte_carlo.trials = n,
+            }
         }
-        study.monte_carlo.trials = n;
+        if let Some(seed) = a.seed {
+            match &mut loaded {
+                Loaded::Lti(s) => s.seed = seed,
+                Loaded::Surfaces(s) => s.seed = seed,
+            }
+        }
+        Ok(loaded)
     }
-    if let Some(s) = a.seed {
-        study.seed = s;
+
+    fn name(&self) -> &str {
+        match self {
+            Loaded::Lti(s) => &s.name,
+            Loaded::Surfaces(s) => &s.name,
+        }
     }
-    Ok(study)
 }
 
 pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
@@ -51,9 +80,9 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
     if a.threads == Some(0) {
         return Err(CliError::Invalid("--threads 0: give at least 1 (or leave it out for one per core)".into()));
     }
-    let study = study_with_overrides(&a)?;
+    let study = Loaded::load(&a)?;
     let out_dir = a.out.clone().unwrap_or_else(|| {
-        let base = PathBuf::from("results").join(&study.name);
+        let base = PathBuf::from("results").join(study.name());
         if shard == Shard::WHOLE { base } else { base.join(format!("shard-{}-of-{}", shard.index, shard.count)) }
     });
     let opts = RunOptions {
@@ -67,7 +96,13 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         stop_after_chunks: a.stop_after,
         command_line: std::env::args().collect(),
     };
-    let report = runner::run(&study, &opts)?;
+    let report = match &study {
+        Loaded::Lti(study) => runner::run_study(study, &opts)?,
+        Loaded::Surfaces(study) => {
+            let trials = SurfaceTrials::new(study);
+            runner::run(&trials, trials.manifest(), &opts)?
+        }
+    };
     let m = &report.manifest;
     if !a.quiet {
         let n = m.end_trial - m.first_trial;
@@ -97,9 +132,9 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         return Ok(out_dir);
     }
     if shard == Shard::WHOLE {
-        let summary = stats::summarize(&out_dir, &Calibration::Target(study.monte_carlo.target_pfa))?;
+        let summary = summarize(&out_dir, m, None)?;
         if !a.quiet {
-            print_summary(&out_dir, &summary)?;
+            summary.print(&out_dir)?;
         }
     } else if !a.quiet {
         println!("  shard done: join the shards with `fdimc merge <shard dirs>... --out DIR` to get the summary");
@@ -107,17 +142,51 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
     Ok(out_dir)
 }
 
+/// The summaries of either kind of study.
+enum Summary {
+    Lti(SummaryReport),
+    Surfaces(SurfaceSummary),
+}
+
+impl Summary {
+    fn print(&self, dir: &Path) -> Result<(), CliError> {
+        match self {
+            Summary::Lti(s) => print_summary(dir, s),
+            Summary::Surfaces(s) => print_surface_summary(dir, s),
+        }
+    }
+}
+
+/// Writes the summaries of the run in `dir`; `calibration` (LTI studies only) defaults to the deck's
+/// target false-alarm probability.
+fn summarize(dir: &Path, manifest: &Manifest, calibration: Option<Calibration>) -> Result<Summary, CliError> {
+    Ok(match manifest.kind {
+        StudyKind::DetectionFilter => {
+            Summary::Lti(stats::summarize(dir, &calibration.unwrap_or(Calibration::Target(manifest.target_pfa)))?)
+        }
+        StudyKind::SurfaceBank => {
+            if calibration.is_some() {
+                return Err(CliError::Invalid(format!(
+                    "{}: a control-surface study declares by model probabilities (the deck's 0.9 / 0.05): \
+                     --target-pfa and --thresholds apply to detection-filter studies",
+                    dir.display()
+                )));
+            }
+            Summary::Surfaces(stats::surfaces::summarize(dir)?)
+        }
+    })
+}
+
 pub fn exec_summarize(dir: &Path, target_pfa: Option<f64>, thresholds: Option<&Path>) -> Result<(), CliError> {
     let manifest = Manifest::read(dir)?;
     let calibration = match (target_pfa, thresholds) {
         (Some(_), Some(_)) => return Err(CliError::Invalid("give --target-pfa or --thresholds, not both".into())),
-        (_, Some(f)) => Calibration::File(f.into()),
-        (Some(p), None) if p > 0.0 && p < 1.0 => Calibration::Target(p),
+        (_, Some(f)) => Some(Calibration::File(f.into())),
+        (Some(p), None) if p > 0.0 && p < 1.0 => Some(Calibration::Target(p)),
         (Some(p), None) => return Err(CliError::Invalid(format!("--target-pfa {p}: allowed 0 < p < 1"))),
-        (None, None) => Calibration::Target(manifest.target_pfa),
+        (None, None) => None,
     };
-    let summary = stats::summarize(dir, &calibration)?;
-    print_summary(dir, &summary)
+    summarize(dir, &manifest, calibration)?.print(dir)
 }
 
 pub fn exec_merge(dirs: &[PathBuf], out: &Path, force: bool) -> Result<(), CliError> {
@@ -177,8 +246,7 @@ pub fn exec_merge(dirs: &[PathBuf], out: &Path, force: bool) -> Result<(), CliEr
     };
     merged.write(out)?;
     println!("merged {} shards: {} rows -> {}", manifests.len(), rows, out.join("trials.parquet").display());
-    let summary = stats::summarize(out, &Calibration::Target(merged.target_pfa))?;
-    print_summary(out, &summary)
+    summarize(out, &merged, None)?.print(out)
 }
 
 pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<usize>) -> Result<bool, CliError> {
@@ -280,6 +348,65 @@ fn print_summary(dir: &Path, s: &SummaryReport) -> Result<(), CliError> {
         files.push("comparison.csv");
     }
     println!("  wrote {} in {}", files.join(", "), dir.display());
+    Ok(())
+}
+
+/// The per-variant table of a surface study (`variants.csv`), then warnings and the files written.
+fn print_surface_summary(dir: &Path, s: &SurfaceSummary) -> Result<(), CliError> {
+    use polars::prelude::*;
+    let v = &s.variants;
+    let internal = |e: PolarsError| CliError::Internal(e.to_string());
+    let f = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::Float64)).map_err(internal);
+    let u = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::UInt64)).map_err(internal);
+    let names = v.column("detector").and_then(|c| c.str().cloned()).map_err(internal)?;
+    let (pd, pd_lo, pd_hi) = (f("pd")?, f("pd_lo")?, f("pd_hi")?);
+    let (iso, iso_lo, iso_hi) = (f("isolation_accuracy")?, f("isolation_accuracy_lo")?, f("isolation_accuracy_hi")?);
+    let (d50, d90, c50) = (f("delay_p50_s")?, f("delay_p90_s")?, f("clearing_p50_s")?);
+    let (pfa, pfa_lo, pfa_hi) = (f("pfa")?, f("pfa_lo")?, f("pfa_hi")?);
+    let (windows, flights) = (u("fault_windows")?, u("flights")?);
+    let (asym, not_pd, non_finite) =
+        (u("flights_asymmetric")?, u("flights_not_positive_definite")?, u("flights_non_finite")?);
+    let g = |c: &Column, i: usize| c.f64().ok().and_then(|c| c.get(i)).unwrap_or(f64::NAN);
+    let n = |c: &Column, i: usize| c.u64().ok().and_then(|c| c.get(i)).unwrap_or(0);
+    println!("  per variant, paired over the same trials (see summary.csv for groups, comparison.csv for tests):");
+    println!(
+        "    {:<16} {:>7} {:<21} {:<21} {:>14} {:>10} {:>7} {:<21} {:>16}",
+        "variant",
+        "faults",
+        "Pd [95 % CI]",
+        "isolated [95 % CI]",
+        "delay p50/p90",
+        "clear p50",
+        "flights",
+        "Pfa [95 % CI]",
+        "asym/notPD/NaN"
+    );
+    for i in 0..v.height() {
+        println!(
+            "    {:<16} {:>7} {:.3} [{:.3}, {:.3}]   {:.3} [{:.3}, {:.3}]   {:>14} {:>10} {:>7} {:.3} [{:.3}, {:.3}]   {:>5}/{}/{}",
+            names.get(i).unwrap_or(""),
+            n(&windows, i),
+            g(&pd, i),
+            g(&pd_lo, i),
+            g(&pd_hi, i),
+            g(&iso, i),
+            g(&iso_lo, i),
+            g(&iso_hi, i),
+            format!("{:.2}/{:.2} s", g(&d50, i), g(&d90, i)),
+            format!("{:.2} s", g(&c50, i)),
+            n(&flights, i),
+            g(&pfa, i),
+            g(&pfa_lo, i),
+            g(&pfa_hi, i),
+            n(&asym, i),
+            n(&not_pd, i),
+            n(&non_finite, i),
+        );
+    }
+    for w in &s.warnings {
+        println!("  warning: {w}");
+    }
+    println!("  wrote summary.csv, summary.parquet, variants.csv, comparison.csv in {}", dir.display());
     Ok(())
 }
 

@@ -3,10 +3,11 @@ use std::path::Path;
 use super::{CliError, design_error};
 use crate::detector::stmmae::MODELS;
 use crate::output::{TableFormat, trace_frame, write_table};
-use crate::plant::uav::{AerosondeParams, SURFACE_NAMES};
+use crate::plant::uav::SURFACE_NAMES;
 use crate::sampling::MAX_TRIAL;
+use crate::sampling::surfaces::SurfaceScenarioSampler;
 use crate::sampling::{Substream, noise_rng};
-use crate::sim::surfaces::run_banks;
+use crate::sim::surfaces::{SurfaceTrial, run_banks};
 use crate::sim::{Engine, Trace};
 use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
 use crate::study::{DeckError, Study};
@@ -85,7 +86,10 @@ fn surfaces(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &Path
         })?],
     };
     let params: Vec<_> = banks.iter().map(|(_, p)| p.clone()).collect();
-    let airframe = AerosondeParams::default();
+    // The trial `fdimc run` flies under this index: its scenario, airframes, noise stream.
+    let sampler = SurfaceScenarioSampler::new(study);
+    let spec = sampler.spec(trial);
+    let setup = SurfaceTrial::new(&sampler, &spec);
     let mut rng = noise_rng(study.seed, trial, Substream::SensorNoise);
     let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
     let mut bools: Vec<(String, Vec<bool>)> = Vec::new();
@@ -97,7 +101,7 @@ fn surfaces(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &Path
         *i += 1;
     };
     let measured = ["p_rad_s", "q_rad_s", "r_rad_s", "alpha_rad", "beta_rad"];
-    let outcomes = run_banks(study, &airframe, &study.faults, &airframe, &params, &mut rng, |s, rows| {
+    let outcomes = run_banks(study, &setup, &params, &mut rng, |s, rows| {
         let mut i = 0;
         push_f(&mut i, &|| "t_s".into(), s.t_s);
         for (j, m) in measured.iter().enumerate() {
@@ -136,6 +140,15 @@ fn surfaces(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &Path
     let samples = df.height();
     let outcomes = outcomes.map_err(|e| CliError::Invalid(format!("{}: trial {trial}: {e}", study.path.display())))?;
     println!("{}: trial {trial}, {} bank(s), {samples} samples -> {}", study.name, banks.len(), out.display());
+    if spec.faults.is_empty() {
+        println!("  fault-free trial");
+    }
+    if spec.noise_scale != 1.0 {
+        println!("  noise scale {}", spec.noise_scale);
+    }
+    for (pe, v) in study.monte_carlo.parameter_errors.iter().zip(&spec.parameter_errors) {
+        println!("  parameter error {} {:+.2} % on the {:?} airframe", pe.name, 100.0 * v, pe.model);
+    }
     let secs = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
     println!(
         "  {:<16} {:<15} {:>9} {:>8} {:>10} {:>9} {:>12}",

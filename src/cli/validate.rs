@@ -2,8 +2,9 @@ use std::path::Path;
 
 use super::{CliError, design_error};
 use crate::detector::stmmae::BankParams;
+use crate::fault::actuator::ActuatorFaultKind;
 use crate::plant::uav::SURFACE_NAMES;
-use crate::study::surfaces::{SurfaceFaultKind, SurfaceStudy, is_surface_deck};
+use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
 use crate::study::{DeckError, Shape, Study};
 
 pub fn exec(deck: &Path) -> Result<(), CliError> {
@@ -147,13 +148,13 @@ fn surfaces(study: &SurfaceStudy) -> Result<(), CliError> {
     }
     for f in &study.faults {
         let what = match f.kind {
-            SurfaceFaultKind::Stuck { position_rad } => format!("stuck at {:.1} deg", position_rad.to_degrees()),
-            SurfaceFaultKind::Oscillation { low_rad, high_rad, period_s } => format!(
+            ActuatorFaultKind::Stuck { position_rad } => format!("stuck at {:.1} deg", position_rad.to_degrees()),
+            ActuatorFaultKind::Oscillation { low_rad, high_rad, period_s } => format!(
                 "square wave {:.1}..{:.1} deg, period {period_s} s",
                 low_rad.to_degrees(),
                 high_rad.to_degrees()
             ),
-            SurfaceFaultKind::LossOfEffectiveness { effectiveness } => format!("effectiveness {effectiveness}"),
+            ActuatorFaultKind::LossOfEffectiveness { effectiveness } => format!("effectiveness {effectiveness}"),
         };
         let until = f.end_s.map_or("the end".to_string(), |e| format!("{e} s"));
         println!("fault       {}: {what}, from {} s to {until}", SURFACE_NAMES[f.surface], f.onset_s);
@@ -163,6 +164,34 @@ fn surfaces(study: &SurfaceStudy) -> Result<(), CliError> {
         println!(
             "bank        {name}: {covariance:?} covariance, {likelihood:?} likelihood, R_W {:?}/s, R_V {:?}, rho {}, beta {}",
             p.process_variance_per_s, p.measurement_variance, p.rho, p.beta
+        );
+    }
+    let mc = &study.monte_carlo;
+    println!(
+        "monte carlo {} trials, fault-free fraction {}, sampler {:?}, noise scale {:?}",
+        mc.trials, mc.fault_free_fraction, mc.sampler, mc.noise_scale
+    );
+    if mc.faults.is_empty() {
+        println!("            every faulty trial flies the faults above");
+    } else {
+        let surfaces: Vec<&str> = mc.surfaces.iter().map(|&j| SURFACE_NAMES[j]).collect();
+        let lasting = mc.fault_duration_s.as_ref().map_or("to the end".to_string(), |d| format!("{d:?} s"));
+        println!(
+            "            one fault per faulty trial on [{}], onset {:?} s, lasting {lasting}",
+            surfaces.join(", "),
+            mc.onset_s
+        );
+        for f in &mc.faults {
+            println!("            fault kind {}: {f:?}", f.name());
+        }
+    }
+    for pe in &mc.parameter_errors {
+        println!(
+            "            parameter error {} on the {:?} airframe: [{}] scaled by 1 + {:?}",
+            pe.name,
+            pe.model,
+            pe.coefficients.join(", "),
+            pe.relative
         );
     }
     Ok(())

@@ -1,4 +1,5 @@
-//! Sensor fault models (`methods.md`, common fault modes), applied to the healthy sensor output.
+//! Sensor fault models (`methods.md`, common fault modes), applied to the healthy sensor output;
+//! actuator (control-surface) faults are in [`actuator`].
 //!
 //! With `y_in` the healthy (noisy) sensor output and `t0` the onset, for `t >= t0`:
 //!
@@ -13,6 +14,8 @@
 //!
 //! A held stuck value is the sensor's reading at the first sample at or after onset (noise included):
 //! a frozen sensor repeats what it last produced. Several faults on one channel apply in deck order.
+
+pub mod actuator;
 
 use serde::Serialize;
 

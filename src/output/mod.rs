@@ -10,6 +10,7 @@ use polars::prelude::*;
 use crate::sim::Trace;
 
 pub mod records;
+pub mod surfaces;
 
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {

@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use polars::prelude::*;
 
 use crate::output::records::col;
-use crate::runner::{Manifest, RunError, io, write_atomically};
+use crate::runner::{Manifest, RunError, StudyKind, io, write_atomically};
 use crate::stats::{self, alarm_time, f64_col, list_col, read_slice, str_col};
 
 /// What a report contains, for the CLI and tests.
@@ -46,6 +46,13 @@ struct DetectorData {
 /// Writes the report of the run in `dir`; `trials` are traced (re-simulated from the deck).
 pub fn write_report(dir: &Path, trials: &[u64]) -> Result<Report, RunError> {
     let manifest = Manifest::read(dir)?;
+    if manifest.kind != StudyKind::DetectionFilter {
+        return Err(RunError::Invalid(format!(
+            "{}: a control-surface study: its report is the tables summary.csv, variants.csv and comparison.csv; \
+             `fdimc report` draws detection-filter studies",
+            dir.display()
+        )));
+    }
     for f in ["summary.parquet", "thresholds.csv", "curves.csv", "min_detectable.csv"] {
         if !dir.join(f).exists() {
             return Err(RunError::Invalid(format!(

@@ -11,6 +11,7 @@
 
 pub mod noise;
 pub mod scenario;
+pub mod surfaces;
 
 pub use noise::NoiseRng;
 pub use scenario::{ScenarioSampler, TrialSpec};

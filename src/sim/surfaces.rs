@@ -12,12 +12,12 @@
 //! where the surfaces are), so even without a fault they see the actuator lag as model error.
 //!
 //! Scoring, per bank and fault window `[onset, end)` of surface s:
-//! - detection delay: from the onset to the first declaration of s before the window ends;
+//! - detection delay: from the onset to the first declaration (of any surface) before the window ends;
 //! - isolation: the first declaration in the window names s (a wrong surface first is a mis-isolation,
-//!   even if s is declared later);
+//!   even if s is declared later); isolation delay: from the onset to the first declaration of s;
 //! - clearing delay: from the end of the window to the first step at which s is no longer declared
-//!   (only when s was declared by then); a declaration that is still standing at the end of the trial
-//!   is "not cleared";
+//!   (only when s was declared in the window); a declaration that is still standing at the end of the
+//!   trial is "not cleared";
 //! - surface-estimate error: RMS of filter s's position estimate against the true position over the
 //!   second half of the window (after the filters have had time to converge).
 //!
@@ -31,17 +31,44 @@ use rand_distr::StandardNormal;
 use crate::detector::stmmae::{BankInput, BankParams, MODELS, SurfaceBank};
 use crate::estimation::bank::Decision;
 use crate::estimation::stekf::FilterHealth;
+use crate::fault::actuator::{ActuatorFault, effective_positions, faulty_commands};
 use crate::plant::uav::{
-    Actuators, AerosondeParams, Autopilot, AutopilotGains, ReducedInputs, SURFACES, Setpoints, air_data, step_rk4, trim,
+    Actuators, AerosondeParams, Autopilot, AutopilotGains, ReducedInputs, SURFACE_NAMES, SURFACES, Setpoints, air_data,
+    step_rk4, trim,
 };
-use crate::study::surfaces::{SurfaceFault, SurfaceFaultKind, SurfaceStudy};
+use crate::runner::{Manifest, StudyKind, TrialSource};
+use crate::sampling::surfaces::{SurfaceScenarioSampler, SurfaceTrialSpec};
+use crate::sampling::{Substream, noise_rng};
+use crate::study::surfaces::{SensorNoise, SurfaceStudy};
+
+/// Airspeeds (m/s, inclusive) inside the envelope; outside it a trial stops with its reason.
+pub const ENVELOPE_AIRSPEED_MPS: std::ops::RangeInclusive<f64> = 5.0..=80.0;
+/// Largest |angle of attack| (deg) inside the envelope.
+pub const ENVELOPE_MAX_ALPHA_DEG: f64 = 45.0;
+
+/// What one trial flies: the true airframe, the banks' model of it, the faults and the sensor noise.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceTrial {
+    pub truth: AerosondeParams,
+    pub design: AerosondeParams,
+    pub faults: Vec<ActuatorFault>,
+    pub noise: SensorNoise,
+}
+
+impl SurfaceTrial {
+    /// Trial `spec` of the study `sampler` draws for.
+    pub fn new(sampler: &SurfaceScenarioSampler, spec: &SurfaceTrialSpec) -> Self {
+        let (truth, design) = sampler.airframes(spec);
+        SurfaceTrial { truth, design, faults: spec.actuator_faults(), noise: sampler.noise(spec) }
+    }
+}
 
 /// A trial that could not be flown to the end: a row with the reason, never a panic.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum UavSimError {
     #[error("no trim: {0}")]
     Trim(String),
-    #[error("the airframe left the envelope at t = {t_s} s: {what}")]
+    #[error("the airframe left the envelope at t = {t_s:.2} s: {what}")]
     Envelope { t_s: f64, what: String },
 }
 
@@ -63,28 +90,22 @@ pub struct UavSample {
     pub altitude_m: f64,
 }
 
-impl SurfaceFault {
-    pub fn active(&self, t_s: f64) -> bool {
-        self.onset_s <= t_s && self.end_s.is_none_or(|end| t_s < end)
-    }
-}
-
-/// Flies `study`'s scenario on the true airframe `truth` with `faults`, handing each sample to
-/// `on_sample`; see the module docs for the order of a step.
+/// Flies `trial` (airframe, faults, noise) on `study`'s schedule, handing each sample to `on_sample`;
+/// see the module docs for the order of a step.
 pub fn simulate<R: rand::Rng + ?Sized>(
     study: &SurfaceStudy,
-    truth: &AerosondeParams,
-    faults: &[SurfaceFault],
+    trial: &SurfaceTrial,
     rng: &mut R,
     mut on_sample: impl FnMut(&UavSample),
 ) -> Result<(), UavSimError> {
+    let (truth, faults) = (&trial.truth, &trial.faults[..]);
     let (mut x, trim_surfaces, trim_throttle) =
         trim(truth, study.trim_airspeed_mps, study.trim_altitude_m).map_err(UavSimError::Trim)?;
     let wind = Vector3::from(study.wind_ned_mps);
     let mut actuators = Actuators::new(trim_surfaces);
     let mut autopilot = Autopilot::new(AutopilotGains::default(), trim_surfaces, trim_throttle);
     let level = Setpoints { va_mps: study.trim_airspeed_mps, altitude_m: study.trim_altitude_m, roll_rad: 0.0 };
-    let n = &study.sensors;
+    let n = &trial.noise;
     let sigma = [
         n.gyro_variance_rad2_s2.sqrt(),
         n.gyro_variance_rad2_s2.sqrt(),
@@ -98,20 +119,8 @@ pub fn simulate<R: rand::Rng + ?Sized>(
         let setpoint = study.setpoints.iter().rev().find(|(from, _)| *from <= t_s).map_or(level, |(_, sp)| *sp);
         let (va, alpha, beta) = air_data(&x, &wind);
         let (commanded_rad, throttle) = autopilot.command(&x, va, alpha, beta, &setpoint, study.dt_s);
-        let mut actuator_commands = commanded_rad;
-        let mut effectiveness = [1.0; SURFACES];
-        for f in faults.iter().filter(|f| f.active(t_s)) {
-            match f.kind {
-                SurfaceFaultKind::Stuck { position_rad } => actuator_commands[f.surface] = position_rad,
-                SurfaceFaultKind::Oscillation { low_rad, high_rad, period_s } => {
-                    let high = ((t_s - f.onset_s) / period_s).fract() < 0.5;
-                    actuator_commands[f.surface] = if high { high_rad } else { low_rad };
-                }
-                SurfaceFaultKind::LossOfEffectiveness { effectiveness: e } => effectiveness[f.surface] = e,
-            }
-        }
-        let positions_rad = actuators.step(&actuator_commands, study.dt_s);
-        let effective: [f64; SURFACES] = std::array::from_fn(|i| effectiveness[i] * positions_rad[i]);
+        let positions_rad = actuators.step(&faulty_commands(faults, t_s, &commanded_rad), study.dt_s);
+        let effective = effective_positions(faults, t_s, &positions_rad);
         let truth_y = SVector::<f64, 5>::new(x[9], x[10], x[11], alpha, beta);
         let mut draw = |s: f64| s * rng.sample::<f64, _>(StandardNormal);
         let y = SVector::<f64, 5>::from_fn(|j, _| truth_y[j] + draw(sigma[j]));
@@ -134,10 +143,10 @@ pub fn simulate<R: rand::Rng + ?Sized>(
         let (va, alpha, _) = air_data(&x, &wind);
         let what = if !x.iter().all(|v| v.is_finite()) {
             Some("the state is not finite".to_string())
-        } else if !(5.0..=80.0).contains(&va) {
-            Some(format!("airspeed {va:.1} m/s outside 5..80"))
-        } else if alpha.abs() > 45f64.to_radians() {
-            Some(format!("angle of attack {:.1} deg beyond 45", alpha.to_degrees()))
+        } else if !ENVELOPE_AIRSPEED_MPS.contains(&va) {
+            Some(format!("airspeed {va:.1} m/s outside {:?}", ENVELOPE_AIRSPEED_MPS))
+        } else if alpha.abs() > ENVELOPE_MAX_ALPHA_DEG.to_radians() {
+            Some(format!("angle of attack {:.1} deg beyond {ENVELOPE_MAX_ALPHA_DEG}", alpha.to_degrees()))
         } else if -x[2] < 0.0 {
             Some("altitude below 0".to_string())
         } else {
@@ -156,7 +165,10 @@ pub struct WindowOutcome {
     pub surface: usize,
     pub onset_s: f64,
     pub end_s: f64,
+    /// From the onset to the first declaration in the window, of any surface (fault detected).
     pub detection_delay_s: Option<f64>,
+    /// From the onset to the first declaration of the faulty surface in the window.
+    pub isolation_delay_s: Option<f64>,
     /// The first surface declared in the window, if any.
     pub first_declared: Option<usize>,
     pub clearing_delay_s: Option<f64>,
@@ -195,26 +207,25 @@ struct WindowScore {
     error_samples: u32,
 }
 
-/// Flies the scenario once (true airframe `truth`, faults `faults`) and runs every bank in `banks` on
-/// the same samples. `design` is the airframe the banks believe in. `on_sample` sees each sample with
-/// every bank's row (for traces; pass `|_, _| ()`).
-#[allow(clippy::too_many_arguments)]
+/// Flies `trial` once and runs every bank in `banks` on the same samples, on the trial's design
+/// airframe. `on_sample` sees each sample with every bank's row (for traces; pass `|_, _| ()`).
 pub fn run_banks<R: rand::Rng + ?Sized>(
     study: &SurfaceStudy,
-    truth: &AerosondeParams,
-    faults: &[SurfaceFault],
-    design: &AerosondeParams,
+    trial: &SurfaceTrial,
     banks: &[BankParams],
     rng: &mut R,
     mut on_sample: impl FnMut(&UavSample, &[BankTraceRow]),
 ) -> Result<Vec<BankOutcome>, UavSimError> {
-    let mut windows: Vec<_> = faults
+    let design = &trial.design;
+    let mut windows: Vec<_> = trial
+        .faults
         .iter()
         .map(|f| WindowOutcome {
             surface: f.surface,
             onset_s: f.onset_s,
             end_s: f.end_s.unwrap_or(study.duration_s),
             detection_delay_s: None,
+            isolation_delay_s: None,
             first_declared: None,
             clearing_delay_s: None,
             surface_estimate_rms_rad: f64::NAN,
@@ -229,7 +240,7 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
     let mut false_alarms = vec![(0u32, None::<f64>); banks.len()];
     let mut rows = Vec::with_capacity(banks.len());
 
-    simulate(study, truth, faults, rng, |sample| {
+    simulate(study, trial, rng, |sample| {
         if running.is_empty() {
             running = banks
                 .iter()
@@ -256,8 +267,9 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
                     Some(w) => {
                         let o = &mut w.outcome;
                         o.first_declared.get_or_insert(surface);
-                        if surface == o.surface && o.detection_delay_s.is_none() {
-                            o.detection_delay_s = Some(t - o.onset_s);
+                        o.detection_delay_s.get_or_insert(t - o.onset_s);
+                        if surface == o.surface && o.isolation_delay_s.is_none() {
+                            o.isolation_delay_s = Some(t - o.onset_s);
                         }
                     }
                     None => {
@@ -270,7 +282,7 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
             for w in scores[b].iter_mut() {
                 let o = &mut w.outcome;
                 if t >= o.end_s
-                    && o.detection_delay_s.is_some()
+                    && o.isolation_delay_s.is_some()
                     && o.clearing_delay_s.is_none()
                     && declared != Some(o.surface)
                 {
@@ -300,7 +312,12 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
             windows: scores
                 .into_iter()
                 .map(|w| WindowOutcome {
-                    surface_estimate_rms_rad: (w.square_error / w.error_samples.max(1) as f64).sqrt(),
+                    // No sample in the window's second half (the flight stopped first): no estimate error.
+                    surface_estimate_rms_rad: if w.error_samples > 0 {
+                        (w.square_error / w.error_samples as f64).sqrt()
+                    } else {
+                        f64::NAN
+                    },
                     ..w.outcome
                 })
                 .collect(),
@@ -312,14 +329,88 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
         .collect())
 }
 
+/// One trial's scenario and what each bank made of it, or why the flight stopped.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceTrialResult {
+    pub spec: SurfaceTrialSpec,
+    pub outcome: Result<Vec<BankOutcome>, UavSimError>,
+}
+
+/// The runner's view of a surface study: every bank of the deck on each trial's one flight.
+pub struct SurfaceTrials<'a> {
+    study: &'a SurfaceStudy,
+    sampler: SurfaceScenarioSampler<'a>,
+    banks: Vec<BankParams>,
+}
+
+impl<'a> SurfaceTrials<'a> {
+    pub fn new(study: &'a SurfaceStudy) -> Self {
+        let banks = study.banks.iter().map(|(_, p)| p.clone()).collect();
+        SurfaceTrials { study, sampler: SurfaceScenarioSampler::new(study), banks }
+    }
+
+    /// The study's fields of `manifest.json`.
+    pub fn manifest(&self) -> Manifest {
+        let s = self.study;
+        let units = [
+            ("stuck", "deg (the stuck position)"),
+            ("oscillation", "deg (the square wave's amplitude)"),
+            ("loss_of_effectiveness", "fraction of the deflection still acting"),
+        ];
+        Manifest {
+            kind: StudyKind::SurfaceBank,
+            study: s.name.clone(),
+            seed: s.seed,
+            trials: s.monte_carlo.trials,
+            detectors: s.banks.iter().map(|(n, _)| n.clone()).collect(),
+            outputs: SURFACE_NAMES.iter().map(|n| n.to_string()).collect(),
+            fault_size_units: units.iter().map(|(k, u)| (k.to_string(), u.to_string())).collect(),
+            ..Manifest::unstarted()
+        }
+    }
+
+    /// Trial `trial`: its scenario from the scenario stream, its sensor noise from the sensor stream.
+    pub fn run_trial(&self, trial: u64) -> SurfaceTrialResult {
+        let spec = self.sampler.spec(trial);
+        let setup = SurfaceTrial::new(&self.sampler, &spec);
+        let mut rng = noise_rng(self.study.seed, trial, Substream::SensorNoise);
+        let outcome = run_banks(self.study, &setup, &self.banks, &mut rng, |_, _| ());
+        SurfaceTrialResult { spec, outcome }
+    }
+}
+
+impl TrialSource for SurfaceTrials<'_> {
+    type Result = SurfaceTrialResult;
+    /// A flight costs 0.1-2 s, so 64 of them make a part file of seconds to a minute on 2 cores.
+    fn chunk_trials(&self) -> u64 {
+        64
+    }
+    fn group_trials(&self) -> u64 {
+        1
+    }
+    fn simulate(&self, first: u64, end: u64) -> Vec<SurfaceTrialResult> {
+        (first..end).map(|t| self.run_trial(t)).collect()
+    }
+    fn frame(&self, results: &[SurfaceTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {
+        crate::output::surfaces::frame(self.study, results)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sampling::{Substream, noise_rng};
     use std::path::Path;
 
     fn seed_study() -> SurfaceStudy {
         SurfaceStudy::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed004_surfaces.toml")).unwrap()
+    }
+
+    /// Trial 0 of the seed deck: its five faults, the seed's noise, the default airframe.
+    fn seed_trial(study: &SurfaceStudy) -> SurfaceTrial {
+        let trial = SurfaceTrial::new(&SurfaceScenarioSampler::new(study), &SurfaceScenarioSampler::new(study).spec(0));
+        assert_eq!((trial.faults.as_slice(), trial.noise), (study.faults.as_slice(), study.sensors));
+        assert_eq!((&trial.truth, &trial.design), (&AerosondeParams::default(), &AerosondeParams::default()));
+        trial
     }
 
     /// The seed's 300 s scenario (trial 0 of the seed deck, as `fdimc simulate` flies it), all four
@@ -330,11 +421,11 @@ mod tests {
     #[test]
     fn seed_scenario_isolates_four_of_five_faults_and_strong_tracking_clears_faster() {
         let study = seed_study();
-        let airframe = AerosondeParams::default();
+        let trial = seed_trial(&study);
         let banks: Vec<BankParams> = study.banks.iter().map(|(_, p)| p.clone()).collect();
         let mut rng = noise_rng(study.seed, 0, Substream::SensorNoise);
         let mut samples = 0;
-        let outcomes = run_banks(&study, &airframe, &study.faults, &airframe, &banks, &mut rng, |_, rows| {
+        let outcomes = run_banks(&study, &trial, &banks, &mut rng, |_, rows| {
             samples += 1;
             assert_eq!(rows.len(), 4);
         })
@@ -366,13 +457,13 @@ mod tests {
     #[test]
     fn unequal_fading_weights_make_the_original_form_diverge_and_not_the_improved() {
         let study = seed_study();
-        let airframe = AerosondeParams::default();
+        let trial = seed_trial(&study);
         let banks: Vec<BankParams> = study.banks[2..]
             .iter()
             .map(|(_, p)| BankParams { a: [1.0, 1.0, 1.0, 3.0, 3.0], a_surface: 3.0, ..p.clone() })
             .collect();
         let mut rng = noise_rng(study.seed, 0, Substream::SensorNoise);
-        let outcomes = run_banks(&study, &airframe, &study.faults, &airframe, &banks, &mut rng, |_, _| ()).unwrap();
+        let outcomes = run_banks(&study, &trial, &banks, &mut rng, |_, _| ()).unwrap();
         let (original, improved) = (&outcomes[0], &outcomes[1]);
         assert!(
             original.health.non_finite > 1000 && original.health.not_positive_definite > 1000,

@@ -18,6 +18,7 @@
 //! counts alarms before the onset (the whole trial when fault-free). Intervals are 95 % Wilson.
 
 pub mod intervals;
+pub mod surfaces;
 
 use std::path::{Path, PathBuf};
 

@@ -13,16 +13,31 @@
 //!                    | "loss_of_effectiveness" (effectiveness in [0, 1)), onset_s, optional end_s
 //! [[bank]]           name, covariance = "ekf" | "strong_tracking" | "symmetric_strong_tracking",
 //!                    likelihood = "gaussian" | "euclidean_norm", optional overrides of the seed's numbers
+//! [monte_carlo]      trials, fault_free_fraction, sampler, surfaces (default all), onset_s,
+//!                    fault_duration_s (default: to the end), noise_scale (factors, as the LTI decks')
+//! [[monte_carlo.fault]]            kind = "stuck" (position_deg) | "oscillation" (amplitude_deg,
+//!                    optional center_deg = 0, period_s = 2) | "loss_of_effectiveness" (effectiveness)
+//! [[monte_carlo.parameter_error]]  name, model = "plant" | "design", coefficients (names of
+//!                    `AerosondeParams` coefficients), relative (factor: each scaled by 1 + relative)
 //! ```
+//!
+//! Without `[[monte_carlo.fault]]` every faulty trial flies the deck's `[[surface_fault]]` scenario and
+//! trials differ in their noise (and parameter errors); with it, each faulty trial has one sampled fault
+//! on one of `monte_carlo.surfaces` and the fixed scenario is not used. A stuck position and an
+//! oscillation's centre are absolute deflections, as the seed gives them (its rudder stuck at -1 deg is 1
+//! deg from trim); the actuator's +/-25 deg travel limits every command.
 
 use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use super::DeckError;
+use super::deck::FactorSpec;
+use super::{DeckError, Factor, ModelTarget, Sampler, Validator};
 use crate::detector::stmmae::{BankParams, CovarianceForm};
 use crate::estimation::LikelihoodForm;
-use crate::plant::uav::{SURFACE_NAMES, Setpoints};
+use crate::fault::actuator::DEFAULT_SQUARE_WAVE_PERIOD_S;
+use crate::fault::actuator::{ActuatorFault, ActuatorFaultKind};
+use crate::plant::uav::{SCALABLE_COEFFICIENTS, SURFACE_NAMES, Setpoints};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -35,6 +50,44 @@ struct SurfaceDeck {
     #[serde(default)]
     surface_fault: Vec<SurfaceFaultSection>,
     bank: Vec<BankSection>,
+    monte_carlo: Option<MonteCarloSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MonteCarloSection {
+    trials: u64,
+    #[serde(default)]
+    fault_free_fraction: f64,
+    sampler: Option<String>,
+    surfaces: Option<Vec<String>>,
+    onset_s: Option<FactorSpec>,
+    fault_duration_s: Option<FactorSpec>,
+    noise_scale: Option<FactorSpec>,
+    #[serde(default)]
+    fault: Vec<MonteCarloFaultSection>,
+    #[serde(default)]
+    parameter_error: Vec<ParameterErrorSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MonteCarloFaultSection {
+    kind: String,
+    position_deg: Option<FactorSpec>,
+    amplitude_deg: Option<FactorSpec>,
+    center_deg: Option<f64>,
+    period_s: Option<f64>,
+    effectiveness: Option<FactorSpec>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ParameterErrorSection {
+    name: String,
+    model: String,
+    coefficients: Vec<String>,
+    relative: FactorSpec,
 }
 
 #[derive(Debug, Deserialize)]
@@ -103,22 +156,6 @@ struct BankSection {
     declare_hold_s: Option<f64>,
 }
 
-/// What a surface fault does from its onset to its end.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum SurfaceFaultKind {
-    Stuck { position_rad: f64 },
-    Oscillation { low_rad: f64, high_rad: f64, period_s: f64 },
-    LossOfEffectiveness { effectiveness: f64 },
-}
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SurfaceFault {
-    pub surface: usize,
-    pub kind: SurfaceFaultKind,
-    pub onset_s: f64,
-    pub end_s: Option<f64>,
-}
-
 /// Sensor noise of the truth simulation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SensorNoise {
@@ -126,6 +163,78 @@ pub struct SensorNoise {
     pub flow_angle_variance_rad2: f64,
     pub airspeed_variance_m2_s2: f64,
     pub attitude_sigma_rad: f64,
+}
+
+impl SensorNoise {
+    /// Every standard deviation times `factor` (variances times `factor^2`).
+    pub fn scaled(&self, factor: f64) -> SensorNoise {
+        let f2 = factor * factor;
+        SensorNoise {
+            gyro_variance_rad2_s2: self.gyro_variance_rad2_s2 * f2,
+            flow_angle_variance_rad2: self.flow_angle_variance_rad2 * f2,
+            airspeed_variance_m2_s2: self.airspeed_variance_m2_s2 * f2,
+            attitude_sigma_rad: self.attitude_sigma_rad * factor,
+        }
+    }
+}
+
+/// A sampled fault population of a surface Monte Carlo study; sizes in degrees (effectiveness: a
+/// fraction).
+#[derive(Debug, Clone, PartialEq)]
+pub enum SurfaceFaultSpec {
+    /// The surface driven to and held at `position_deg`.
+    Stuck { position_deg: Factor },
+    /// Square wave between `center_deg - amplitude_deg` and `center_deg + amplitude_deg`.
+    Oscillation { amplitude_deg: Factor, center_deg: f64, period_s: f64 },
+    /// Only `effectiveness` of the surface's deflection acts on the airframe.
+    LossOfEffectiveness { effectiveness: Factor },
+}
+
+impl SurfaceFaultSpec {
+    pub fn name(&self) -> &'static str {
+        match self {
+            SurfaceFaultSpec::Stuck { .. } => "stuck",
+            SurfaceFaultSpec::Oscillation { .. } => "oscillation",
+            SurfaceFaultSpec::LossOfEffectiveness { .. } => "loss_of_effectiveness",
+        }
+    }
+
+    /// The factor whose value is the fault's size.
+    pub fn size(&self) -> &Factor {
+        match self {
+            SurfaceFaultSpec::Stuck { position_deg } => position_deg,
+            SurfaceFaultSpec::Oscillation { amplitude_deg, .. } => amplitude_deg,
+            SurfaceFaultSpec::LossOfEffectiveness { effectiveness } => effectiveness,
+        }
+    }
+}
+
+/// Relative errors of airframe coefficients, on the truth or on the banks' model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CoefficientError {
+    pub name: String,
+    pub model: ModelTarget,
+    /// Names from [`SCALABLE_COEFFICIENTS`]; each is scaled by `1 + relative`.
+    pub coefficients: Vec<String>,
+    pub relative: Factor,
+}
+
+/// The Monte Carlo section of a surface study.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceMonteCarlo {
+    pub trials: u64,
+    pub fault_free_fraction: f64,
+    pub sampler: Sampler,
+    /// Surfaces a sampled fault may hit (indices into [`SURFACE_NAMES`]).
+    pub surfaces: Vec<usize>,
+    pub onset_s: Factor,
+    /// How long a sampled fault lasts; `None`: to the end of the trial.
+    pub fault_duration_s: Option<Factor>,
+    /// Factor on every sensor standard deviation.
+    pub noise_scale: Factor,
+    /// Sampled faults; empty: every faulty trial flies the deck's `[[surface_fault]]` scenario.
+    pub faults: Vec<SurfaceFaultSpec>,
+    pub parameter_errors: Vec<CoefficientError>,
 }
 
 /// A validated control-surface study.
@@ -141,8 +250,9 @@ pub struct SurfaceStudy {
     pub wind_ned_mps: [f64; 3],
     pub sensors: SensorNoise,
     pub setpoints: Vec<(f64, Setpoints)>,
-    pub faults: Vec<SurfaceFault>,
+    pub faults: Vec<ActuatorFault>,
     pub banks: Vec<(String, BankParams)>,
+    pub monte_carlo: SurfaceMonteCarlo,
 }
 
 /// Whether a TOML text is a control-surface deck (it has an `[airframe]` table).
@@ -293,7 +403,7 @@ impl SurfaceStudy {
             };
             let (kind, used): (_, &[&str]) = match f.kind.as_str() {
                 "stuck" => (
-                    SurfaceFaultKind::Stuck { position_rad: deflection("position_deg", f.position_deg)? },
+                    ActuatorFaultKind::Stuck { position_rad: deflection("position_deg", f.position_deg)? },
                     &["position_deg"],
                 ),
                 "oscillation" => {
@@ -304,7 +414,7 @@ impl SurfaceStudy {
                     }
                     let period_s = positive(&field("period_s"), need("period_s", f.period_s)?)?;
                     (
-                        SurfaceFaultKind::Oscillation { low_rad, high_rad, period_s },
+                        ActuatorFaultKind::Oscillation { low_rad, high_rad, period_s },
                         &["low_deg", "high_deg", "period_s"],
                     )
                 }
@@ -316,7 +426,7 @@ impl SurfaceStudy {
                             format!("must be within [0, 1) (1 is no fault), got {e}"),
                         ));
                     }
-                    (SurfaceFaultKind::LossOfEffectiveness { effectiveness: e }, &["effectiveness"])
+                    (ActuatorFaultKind::LossOfEffectiveness { effectiveness: e }, &["effectiveness"])
                 }
                 other => {
                     return Err(bad(
@@ -338,7 +448,7 @@ impl SurfaceStudy {
                     format!("does not apply to kind = {:?} (it takes {})", f.kind, used.join(", ")),
                 ));
             }
-            faults.push(SurfaceFault { surface, kind, onset_s, end_s: f.end_s });
+            faults.push(ActuatorFault { surface, kind, onset_s, end_s: f.end_s });
         }
         let mut windows: Vec<_> = faults.iter().map(|f| (f.onset_s, f.end_s.unwrap_or(duration_s))).collect();
         windows.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -431,6 +541,8 @@ impl SurfaceStudy {
             banks.push((b.name.clone(), p));
         }
 
+        let monte_carlo = monte_carlo(&Validator { file: path }, deck.monte_carlo.as_ref(), duration_s, &faults)?;
+
         Ok(SurfaceStudy {
             path: path.into(),
             name: s.name.clone(),
@@ -444,8 +556,179 @@ impl SurfaceStudy {
             setpoints,
             faults,
             banks,
+            monte_carlo,
         })
     }
+}
+
+/// Validates the `[monte_carlo]` section; without one, 1000 trials of the deck's scenario.
+fn monte_carlo(
+    v: &Validator,
+    mc: Option<&MonteCarloSection>,
+    duration_s: f64,
+    scenario: &[ActuatorFault],
+) -> Result<SurfaceMonteCarlo, DeckError> {
+    let Some(mc) = mc else {
+        return Ok(SurfaceMonteCarlo {
+            trials: 1000,
+            fault_free_fraction: 0.0,
+            sampler: Sampler::Random,
+            surfaces: (0..SURFACE_NAMES.len()).collect(),
+            onset_s: Factor::Fixed(0.0),
+            fault_duration_s: None,
+            noise_scale: Factor::Fixed(1.0),
+            faults: Vec::new(),
+            parameter_errors: Vec::new(),
+        });
+    };
+    let trials = v.trials("monte_carlo.trials", mc.trials)?;
+    let fault_free_fraction = v.fraction("monte_carlo.fault_free_fraction", mc.fault_free_fraction)?;
+    let sampler = v.sampler("monte_carlo.sampler", mc.sampler.as_deref())?;
+    let surfaces = match &mc.surfaces {
+        None => (0..SURFACE_NAMES.len()).collect(),
+        Some(names) if names.is_empty() => return Err(v.err("monte_carlo.surfaces", "name at least one surface")),
+        Some(names) => names
+            .iter()
+            .enumerate()
+            .map(|(k, n)| {
+                SURFACE_NAMES.iter().position(|s| s == n).ok_or_else(|| {
+                    v.err(format!("monte_carlo.surfaces[{k}]"), format!("{n:?}: allowed {}", SURFACE_NAMES.join(", ")))
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?,
+    };
+    let onset_s = v.factor("monte_carlo.onset_s", mc.onset_s.as_ref(), Factor::Fixed(duration_s / 3.0))?;
+    v.factor_within(
+        "monte_carlo.onset_s",
+        &onset_s,
+        |t| t >= 0.0 && t < duration_s,
+        &format!("0 <= onset_s < duration_s = {duration_s}"),
+    )?;
+    let fault_duration_s = match &mc.fault_duration_s {
+        None => None,
+        Some(spec) => {
+            let f = v.factor("monte_carlo.fault_duration_s", Some(spec), Factor::Fixed(0.0))?;
+            v.factor_within("monte_carlo.fault_duration_s", &f, |t| t > 0.0, "> 0 s")?;
+            Some(f)
+        }
+    };
+    let noise_scale = v.factor("monte_carlo.noise_scale", mc.noise_scale.as_ref(), Factor::Fixed(1.0))?;
+    v.factor_within("monte_carlo.noise_scale", &noise_scale, |x| x >= 0.0, ">= 0")?;
+
+    let mut faults = Vec::with_capacity(mc.fault.len());
+    for (i, f) in mc.fault.iter().enumerate() {
+        let field = |name: &str| format!("monte_carlo.fault[{i}].{name}");
+        let given = [
+            ("position_deg", f.position_deg.is_some()),
+            ("amplitude_deg", f.amplitude_deg.is_some()),
+            ("center_deg", f.center_deg.is_some()),
+            ("period_s", f.period_s.is_some()),
+            ("effectiveness", f.effectiveness.is_some()),
+        ];
+        let required = |name: &str, spec: Option<&FactorSpec>| match spec {
+            Some(spec) => v.factor(&field(name), Some(spec), Factor::Fixed(f64::NAN)),
+            None => Err(v.err(field(name), format!("required for kind {:?}", f.kind))),
+        };
+        let (spec, used): (_, &[&str]) = match f.kind.as_str() {
+            "stuck" => {
+                let position_deg = required("position_deg", f.position_deg.as_ref())?;
+                v.factor_within(
+                    &field("position_deg"),
+                    &position_deg,
+                    |x| x.abs() <= 25.0,
+                    "-25..25 deg (the actuator's travel)",
+                )?;
+                (SurfaceFaultSpec::Stuck { position_deg }, &["position_deg"])
+            }
+            "oscillation" => {
+                let amplitude_deg = required("amplitude_deg", f.amplitude_deg.as_ref())?;
+                v.factor_within(
+                    &field("amplitude_deg"),
+                    &amplitude_deg,
+                    |x| x > 0.0 && x <= 25.0,
+                    "0 < amplitude <= 25 deg",
+                )?;
+                let center_deg = v.finite(&field("center_deg"), f.center_deg.unwrap_or(0.0))?;
+                if center_deg.abs() > 25.0 {
+                    return Err(v.err(
+                        field("center_deg"),
+                        format!("allowed -25..25 deg (the actuator's travel), got {center_deg}"),
+                    ));
+                }
+                let period_s = v.positive(&field("period_s"), f.period_s.unwrap_or(DEFAULT_SQUARE_WAVE_PERIOD_S))?;
+                (
+                    SurfaceFaultSpec::Oscillation { amplitude_deg, center_deg, period_s },
+                    &["amplitude_deg", "center_deg", "period_s"],
+                )
+            }
+            "loss_of_effectiveness" => {
+                let effectiveness = required("effectiveness", f.effectiveness.as_ref())?;
+                v.factor_within(
+                    &field("effectiveness"),
+                    &effectiveness,
+                    |x| (0.0..1.0).contains(&x),
+                    "0 <= effectiveness < 1 (1 is no fault)",
+                )?;
+                (SurfaceFaultSpec::LossOfEffectiveness { effectiveness }, &["effectiveness"])
+            }
+            other => {
+                return Err(v.err(
+                    field("kind"),
+                    format!("{other:?}: allowed \"stuck\", \"oscillation\", \"loss_of_effectiveness\""),
+                ));
+            }
+        };
+        if let Some((name, _)) = given.iter().find(|(n, g)| *g && !used.contains(n)) {
+            return Err(
+                v.err(field(name), format!("does not apply to kind = {:?} (it takes {})", f.kind, used.join(", ")))
+            );
+        }
+        faults.push(spec);
+    }
+    if faults.is_empty() && scenario.is_empty() && fault_free_fraction < 1.0 {
+        return Err(v.err(
+            "monte_carlo.fault",
+            "faulty trials need a fault: add [[monte_carlo.fault]] or [[surface_fault]], or set fault_free_fraction = 1",
+        ));
+    }
+
+    let mut parameter_errors = Vec::with_capacity(mc.parameter_error.len());
+    for (i, pe) in mc.parameter_error.iter().enumerate() {
+        let field = |name: &str| format!("monte_carlo.parameter_error[{i}].{name}");
+        v.column_name(&field("name"), &pe.name, mc.parameter_error[..i].iter().map(|o| o.name.as_str()))?;
+        let model = v.model_target(&field("model"), &pe.model)?;
+        if pe.coefficients.is_empty() {
+            return Err(v.err(field("coefficients"), "name at least one coefficient"));
+        }
+        for (k, c) in pe.coefficients.iter().enumerate() {
+            if !SCALABLE_COEFFICIENTS.contains(&c.as_str()) {
+                return Err(v.err(
+                    field(&format!("coefficients[{k}]")),
+                    format!("{c:?}: allowed {}", SCALABLE_COEFFICIENTS.join(", ")),
+                ));
+            }
+        }
+        let relative = v.factor(&field("relative"), Some(&pe.relative), Factor::Fixed(0.0))?;
+        v.factor_within(&field("relative"), &relative, |x| x > -1.0 && x < 10.0, "-1 < relative < 10")?;
+        parameter_errors.push(CoefficientError {
+            name: pe.name.clone(),
+            model,
+            coefficients: pe.coefficients.clone(),
+            relative,
+        });
+    }
+
+    Ok(SurfaceMonteCarlo {
+        trials,
+        fault_free_fraction,
+        sampler,
+        surfaces,
+        onset_s,
+        fault_duration_s,
+        noise_scale,
+        faults,
+        parameter_errors,
+    })
 }
 
 #[cfg(test)]
@@ -461,24 +744,24 @@ mod tests {
         let study = SurfaceStudy::from_toml(&seed_deck(), Path::new("seed004_surfaces.toml")).unwrap();
         assert_eq!(study.duration_s, 300.0);
         let expected = [
-            (0, 10.0, 40.0, SurfaceFaultKind::Stuck { position_rad: (-15f64).to_radians() }),
+            (0, 10.0, 40.0, ActuatorFaultKind::Stuck { position_rad: (-15f64).to_radians() }),
             (
                 1,
                 70.0,
                 100.0,
-                SurfaceFaultKind::Oscillation {
+                ActuatorFaultKind::Oscillation {
                     low_rad: (-15f64).to_radians(),
                     high_rad: 15f64.to_radians(),
                     period_s: 2.0,
                 },
             ),
-            (4, 130.0, 160.0, SurfaceFaultKind::Stuck { position_rad: (-1f64).to_radians() }),
-            (2, 190.0, 220.0, SurfaceFaultKind::Stuck { position_rad: 10f64.to_radians() }),
+            (4, 130.0, 160.0, ActuatorFaultKind::Stuck { position_rad: (-1f64).to_radians() }),
+            (2, 190.0, 220.0, ActuatorFaultKind::Stuck { position_rad: 10f64.to_radians() }),
             (
                 3,
                 250.0,
                 280.0,
-                SurfaceFaultKind::Oscillation {
+                ActuatorFaultKind::Oscillation {
                     low_rad: 2f64.to_radians(),
                     high_rad: 6f64.to_radians(),
                     period_s: 2.0,
@@ -528,6 +811,63 @@ mod tests {
             ("duration_s = 300.0", "duration_s = nan", "study.duration_s: must be a positive number"),
             ("trim_airspeed_mps = 25.0", "trim_airspeed_mps = 25.0\nflaps = 1", "unknown field `flaps`"),
         ];
+        let mc =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/studies/seed004_monte_carlo.toml")).unwrap();
+        let mc_cases: &[(&str, &str, &str)] = &[
+            ("trials = 1200", "trials = 0", "monte_carlo.trials: allowed 1 to"),
+            ("sampler = \"lhs\"", "sampler = \"grid\"", "monte_carlo.sampler: \"grid\": allowed \"random\""),
+            (
+                "fault_free_fraction = 0.1",
+                "fault_free_fraction = 1.5",
+                "monte_carlo.fault_free_fraction: allowed 0 to 1",
+            ),
+            (
+                "onset_s = { range = [5.0, 15.0] }",
+                "onset_s = { range = [5.0, 45.0] }",
+                "monte_carlo.onset_s: 45 is out of range; allowed 0 <= onset_s < duration_s = 40",
+            ),
+            ("fault_duration_s = 15.0", "fault_duration_s = 0.0", "monte_carlo.fault_duration_s: 0 is out of range"),
+            (
+                "noise_scale = { values = [1.0, 2.0] }",
+                "noise_scale = { values = [1.0, -2.0] }",
+                "monte_carlo.noise_scale: -2 is out of range; allowed >= 0",
+            ),
+            (
+                "position_deg = { range = [-20.0, 20.0], bins = 4 }",
+                "position_deg = { range = [-30.0, 20.0], bins = 4 }",
+                "monte_carlo.fault[0].position_deg: -30 is out of range; allowed -25..25 deg",
+            ),
+            (
+                "position_deg = { range = [-20.0, 20.0], bins = 4 }",
+                "amplitude_deg = 3.0",
+                "monte_carlo.fault[0].position_deg: required for kind \"stuck\"",
+            ),
+            (
+                "amplitude_deg = { range = [2.0, 15.0], bins = 3 }",
+                "amplitude_deg = { range = [2.0, 15.0], bins = 3 }\neffectiveness = 0.5",
+                "monte_carlo.fault[1].effectiveness: does not apply to kind = \"oscillation\"",
+            ),
+            ("kind = \"oscillation\"", "kind = \"jammed\"", "monte_carlo.fault[1].kind: \"jammed\": allowed"),
+            ("model = \"design\"", "model = \"truth\"", "parameter_error[0].model: \"truth\": allowed \"plant\""),
+            (
+                "\"C_m_delta_e\"",
+                "\"C_m_elevator\"",
+                "parameter_error[0].coefficients[1]: \"C_m_elevator\": allowed C_L_0",
+            ),
+            (
+                "relative = { values = [-0.2, 0.0, 0.2] }",
+                "relative = { values = [-1.2, 0.0, 0.2] }",
+                "parameter_error[0].relative: -1.2 is out of range; allowed -1 < relative < 10",
+            ),
+            ("name = \"control_derivatives\"", "name = \"control derivatives\"", "it names a column"),
+            ("sampler = \"lhs\"", "sampler = \"lhs\"\nseed = 3", "unknown field `seed`"),
+        ];
+        for (from, to, want) in mc_cases {
+            assert!(mc.contains(from), "{from}");
+            let broken = mc.replacen(from, to, 1);
+            let err = SurfaceStudy::from_toml(&broken, Path::new("mc.toml")).unwrap_err().to_string();
+            assert!(err.starts_with("mc.toml: ") && err.contains(want), "{to}: {err}");
+        }
         for (from, to, want) in cases {
             let text = seed_deck();
             assert!(text.contains(from), "{from}");
