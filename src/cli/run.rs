@@ -362,28 +362,31 @@ fn print_surface_summary(dir: &Path, s: &SurfaceSummary) -> Result<(), CliError>
     let (pd, pd_lo, pd_hi) = (f("pd")?, f("pd_lo")?, f("pd_hi")?);
     let (iso, iso_lo, iso_hi) = (f("isolation_accuracy")?, f("isolation_accuracy_lo")?, f("isolation_accuracy_hi")?);
     let (d50, d90, c50) = (f("delay_p50_s")?, f("delay_p90_s")?, f("clearing_p50_s")?);
+    let relapse = f("post_fault_rate")?;
     let (pfa, pfa_lo, pfa_hi) = (f("pfa")?, f("pfa_lo")?, f("pfa_hi")?);
     let (windows, flights) = (u("fault_windows")?, u("flights")?);
     let (asym, not_pd, non_finite) =
         (u("flights_asymmetric")?, u("flights_not_positive_definite")?, u("flights_non_finite")?);
     let g = |c: &Column, i: usize| c.f64().ok().and_then(|c| c.get(i)).unwrap_or(f64::NAN);
     let n = |c: &Column, i: usize| c.u64().ok().and_then(|c| c.get(i)).unwrap_or(0);
-    println!("  per variant, paired over the same trials (see summary.csv for groups, comparison.csv for tests):");
+    println!("  per variant, paired over the same trials (see summary.csv for groups, comparison.csv for tests);");
+    println!("  relapse: share of faults after which a surface is declared again; Pfa: alarms before any fault:");
     println!(
-        "    {:<16} {:>7} {:<21} {:<21} {:>14} {:>10} {:>7} {:<21} {:>16}",
+        "    {:<16} {:>7} {:<21} {:<21} {:>14} {:>10} {:>8} {:>7} {:<21} {:>16}",
         "variant",
         "faults",
         "Pd [95 % CI]",
         "isolated [95 % CI]",
         "delay p50/p90",
         "clear p50",
+        "relapse",
         "flights",
         "Pfa [95 % CI]",
         "asym/notPD/NaN"
     );
     for i in 0..v.height() {
         println!(
-            "    {:<16} {:>7} {:.3} [{:.3}, {:.3}]   {:.3} [{:.3}, {:.3}]   {:>14} {:>10} {:>7} {:.3} [{:.3}, {:.3}]   {:>5}/{}/{}",
+            "    {:<16} {:>7} {:.3} [{:.3}, {:.3}]   {:.3} [{:.3}, {:.3}]   {:>14} {:>10} {:>8.3} {:>7} {:.3} [{:.3}, {:.3}]   {:>5}/{}/{}",
             names.get(i).unwrap_or(""),
             n(&windows, i),
             g(&pd, i),
@@ -394,6 +397,7 @@ fn print_surface_summary(dir: &Path, s: &SurfaceSummary) -> Result<(), CliError>
             g(&iso_hi, i),
             format!("{:.2}/{:.2} s", g(&d50, i), g(&d90, i)),
             format!("{:.2} s", g(&c50, i)),
+            g(&relapse, i),
             n(&flights, i),
             g(&pfa, i),
             g(&pfa_lo, i),

@@ -168,8 +168,8 @@ fn surfaces(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &Path
         }
         let h = o.health;
         println!(
-            "  {bank:<16} false alarms {}, covariance asymmetric {} / not positive definite {} / non-finite {} steps",
-            o.false_alarms, h.asymmetric, h.not_positive_definite, h.non_finite
+            "  {bank:<16} false alarms {}, post-fault declarations {}, covariance asymmetric {} / not positive definite {} / non-finite {} steps",
+            o.false_alarms, o.post_fault_declarations, h.asymmetric, h.not_positive_definite, h.non_finite
         );
     }
     Ok(())

@@ -3,7 +3,7 @@ use std::path::Path;
 use super::{CliError, design_error};
 use crate::detector::stmmae::BankParams;
 use crate::fault::actuator::ActuatorFaultKind;
-use crate::plant::uav::SURFACE_NAMES;
+use crate::plant::uav::{AerosondeParams, SURFACE_NAMES, trim};
 use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
 use crate::study::{DeckError, Shape, Study};
 
@@ -133,6 +133,12 @@ fn surfaces(study: &SurfaceStudy) -> Result<(), CliError> {
         "airframe    aerosonde trimmed at {} m/s, {} m; wind NED {:?} m/s",
         study.trim_airspeed_mps, study.trim_altitude_m, study.wind_ned_mps
     );
+    // Stuck positions and square-wave centres are absolute: the trim says how far from it they are.
+    let (_, surfaces, throttle) = trim(&AerosondeParams::default(), study.trim_airspeed_mps, study.trim_altitude_m)
+        .map_err(|e| CliError::Invalid(format!("{}: airframe: {e}", study.path.display())))?;
+    let trim_text: Vec<String> =
+        SURFACE_NAMES.iter().zip(surfaces).map(|(n, s)| format!("{n} {:.2}", s.to_degrees())).collect();
+    println!("trim        surfaces (deg) {}; throttle {throttle:.3}", trim_text.join(", "));
     let n = &study.sensors;
     println!(
         "sensors     gyro variance {} rad^2/s^2, flow angles {} rad^2, airspeed {} m^2/s^2, attitude sigma {} rad",

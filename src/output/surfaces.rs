@@ -16,7 +16,8 @@
 //! | `isolated`, `isolated_correctly`, `isolation_delay_s` | the first surface declared in the window (`none`), whether it is the faulty one; from the onset to the first declaration of the faulty surface |
 //! | `cleared`, `clearing_delay_s` | the faulty surface, once declared, was cleared after the window ended; from the end to the clearance |
 //! | `surface_estimate_rms_deg` | RMS error of the faulty surface's position estimate over the window's second half |
-//! | `false_alarms`, `first_false_alarm_s` | declarations while no fault was active (trial and bank) |
+//! | `false_alarms`, `first_false_alarm_s` | declarations while no fault was active and none had ended (trial and bank) |
+//! | `post_fault_declarations` | declarations while no fault was active after one had ended (relapses during the recovery) |
 //! | `singular_innovation_steps`, `asymmetric_steps`, `not_positive_definite_steps`, `non_finite_steps` | covariance health, filter-steps summed over the bank's six filters |
 //! | `floor_steps` | steps on which the probability floor was applied |
 
@@ -43,6 +44,7 @@ pub mod col {
     pub const SURFACE_ESTIMATE_RMS_DEG: &str = "surface_estimate_rms_deg";
     pub const FALSE_ALARMS: &str = "false_alarms";
     pub const FIRST_FALSE_ALARM_S: &str = "first_false_alarm_s";
+    pub const POST_FAULT_DECLARATIONS: &str = "post_fault_declarations";
     pub const SINGULAR_INNOVATION_STEPS: &str = "singular_innovation_steps";
     pub const ASYMMETRIC_STEPS: &str = "asymmetric_steps";
     pub const NOT_POSITIVE_DEFINITE_STEPS: &str = "not_positive_definite_steps";
@@ -91,6 +93,7 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
                     .push(scored.map(|s| s.surface_estimate_rms_rad.to_degrees()).filter(|v: &f64| v.is_finite()));
                 t.false_alarms.push(outcome.map(|o| o.false_alarms));
                 t.first_false_alarm_s.push(outcome.and_then(|o| o.first_false_alarm_s));
+                t.post_fault.push(outcome.map(|o| o.post_fault_declarations));
                 let h = outcome.map(|o| o.health);
                 t.singular.push(h.map(|h| h.singular_innovation));
                 t.asymmetric.push(h.map(|h| h.asymmetric));
@@ -129,6 +132,7 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
         Column::new(col::SURFACE_ESTIMATE_RMS_DEG.into(), t.estimate_rms_deg),
         Column::new(col::FALSE_ALARMS.into(), t.false_alarms),
         Column::new(col::FIRST_FALSE_ALARM_S.into(), t.first_false_alarm_s),
+        Column::new(col::POST_FAULT_DECLARATIONS.into(), t.post_fault),
         Column::new(col::SINGULAR_INNOVATION_STEPS.into(), t.singular),
         Column::new(col::ASYMMETRIC_STEPS.into(), t.asymmetric),
         Column::new(col::NOT_POSITIVE_DEFINITE_STEPS.into(), t.not_pd),
@@ -164,6 +168,7 @@ struct Columns {
     estimate_rms_deg: Vec<Option<f64>>,
     false_alarms: Vec<Option<u32>>,
     first_false_alarm_s: Vec<Option<f64>>,
+    post_fault: Vec<Option<u32>>,
     singular: Vec<Option<u32>>,
     asymmetric: Vec<Option<u32>>,
     not_pd: Vec<Option<u32>>,

@@ -21,8 +21,10 @@
 //! - surface-estimate error: RMS of filter s's position estimate against the true position over the
 //!   second half of the window (after the filters have had time to converge).
 //!
-//! A declaration made while no fault is active (before the first onset, between windows, after the
-//! last) is a false alarm.
+//! A declaration made while no fault is active is a false alarm before any fault has ended (before the
+//! first onset, or in a fault-free flight), and a post-fault declaration after one has (between windows,
+//! after the last): a bank relapsing while the airframe recovers is a different failure from one that
+//! alarms on a healthy airframe.
 
 use nalgebra::{SVector, Vector3};
 use rand::RngExt;
@@ -185,8 +187,13 @@ impl WindowOutcome {
 #[derive(Debug, Clone, PartialEq)]
 pub struct BankOutcome {
     pub windows: Vec<WindowOutcome>,
+    /// Declarations while no fault was active and none had yet ended (before the first onset, or in a
+    /// fault-free flight).
     pub false_alarms: u32,
     pub first_false_alarm_s: Option<f64>,
+    /// Declarations while no fault was active after a fault had ended (the bank relapsing during the
+    /// recovery): not false alarms in the usual sense, counted apart.
+    pub post_fault_declarations: u32,
     pub health: FilterHealth,
     pub floor_steps: u32,
 }
@@ -237,7 +244,7 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
         .iter()
         .map(|_| windows.iter().map(|&outcome| WindowScore { outcome, square_error: 0.0, error_samples: 0 }).collect())
         .collect();
-    let mut false_alarms = vec![(0u32, None::<f64>); banks.len()];
+    let mut false_alarms = vec![(0u32, None::<f64>, 0u32); banks.len()];
     let mut rows = Vec::with_capacity(banks.len());
 
     simulate(study, trial, rng, |sample| {
@@ -260,6 +267,7 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
         for (b, bank) in running.iter_mut().enumerate() {
             let step = bank.step(&sample.y, &input);
             let t = sample.t_s;
+            let after_a_fault = scores[b].iter().any(|w| t >= w.outcome.end_s);
             let window = scores[b].iter_mut().find(|w| w.outcome.onset_s <= t && t < w.outcome.end_s);
             if let Some(Decision::Declared(model)) = step.decision {
                 let surface = model - 1;
@@ -272,6 +280,7 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
                             o.isolation_delay_s = Some(t - o.onset_s);
                         }
                     }
+                    None if after_a_fault => false_alarms[b].2 += 1,
                     None => {
                         false_alarms[b].0 += 1;
                         false_alarms[b].1.get_or_insert(t);
@@ -308,7 +317,7 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
         .iter()
         .zip(scores)
         .zip(false_alarms)
-        .map(|((bank, scores), (false_alarms, first_false_alarm_s))| BankOutcome {
+        .map(|((bank, scores), (false_alarms, first_false_alarm_s, post_fault_declarations))| BankOutcome {
             windows: scores
                 .into_iter()
                 .map(|w| WindowOutcome {
@@ -323,6 +332,7 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
                 .collect(),
             false_alarms,
             first_false_alarm_s,
+            post_fault_declarations,
             health: bank.health(),
             floor_steps: bank.floor_steps(),
         })

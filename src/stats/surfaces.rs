@@ -8,8 +8,11 @@
 //!   declared in the window) and the false-alarm rate (trials with a declaration while no fault was
 //!   active) with 95 % Wilson intervals; correct isolation among the detected windows (the first
 //!   declaration names the faulty surface) with its interval; detection, isolation and clearing delay
-//!   percentiles; the clearing rate after the window ends; the median surface-estimate error; trials
-//!   whose covariances lost symmetry, positive definiteness or finiteness;
+//!   percentiles; the clearing rate after the window ends; the rate of post-fault declarations (a
+//!   surface declared after the fault ended, while the airframe recovers) with its interval; the median
+//!   surface-estimate error; trials whose covariances lost symmetry, positive definiteness or
+//!   finiteness. The false-alarm rate counts declarations before any fault (the whole flight when
+//!   fault-free), as the detection-filter summaries do;
 //! - `variants.csv`: the same per detector over all faults (window rates over the faulty windows,
 //!   trial rates once per trial), the table `fdimc run` prints;
 //! - `comparison.csv`: every pair of detectors on the same windows and trials: discordant detections,
@@ -83,6 +86,7 @@ fn windows(trials: &DataFrame) -> LazyFrame {
         flag(c(col::CLEARED)).alias("cleared_flag"),
         flag(c(col::CLEARED).is_not_null()).alias("clear_decided_flag"),
         flag(c(col::FALSE_ALARMS).gt(lit(0))).alias("false_alarm_flag"),
+        flag(c(col::POST_FAULT_DECLARATIONS).gt(lit(0))).alias("post_fault_flag"),
         flag(c(col::ASYMMETRIC_STEPS).gt(lit(0))).alias("asymmetric_flag"),
         flag(c(col::NOT_POSITIVE_DEFINITE_STEPS).gt(lit(0))).alias("not_pd_flag"),
         flag(c(col::NON_FINITE_STEPS).gt(lit(0))).alias("non_finite_flag"),
@@ -106,6 +110,7 @@ fn aggregate(rows: &LazyFrame, keys: &[&str]) -> PolarsResult<DataFrame> {
             sum("clear_decided_flag", "clear_decided"),
             sum("cleared_flag", "cleared"),
             sum("false_alarm_flag", "false_alarms"),
+            sum("post_fault_flag", "post_fault"),
             sum("asymmetric_flag", "asymmetric"),
             sum("not_pd_flag", "not_positive_definite"),
             sum("non_finite_flag", "non_finite"),
@@ -137,6 +142,7 @@ fn add_rates(df: &mut DataFrame) -> PolarsResult<()> {
     let (trials, failed, detected, isolated) =
         (get("trials")?, get("failed")?, get("detected")?, get("isolated_correctly")?);
     let (clear_decided, cleared, fa) = (get("clear_decided")?, get("cleared")?, get("false_alarms")?);
+    let post_fault = get("post_fault")?;
     let faulty = df.column("faulty")?.bool()?.clone();
     let faulty: Vec<bool> = (0..faulty.len()).map(|i| faulty.get(i).unwrap_or(false)).collect();
     let flown: Vec<u64> = trials.iter().zip(&failed).map(|(t, f)| t - f).collect();
@@ -159,6 +165,7 @@ fn add_rates(df: &mut DataFrame) -> PolarsResult<()> {
     add("pfa", &fa, &flown, &|_| true)?;
     add("isolation_accuracy", &isolated, &detected, &|i| faulty[i])?;
     add("clearing_rate", &cleared, &clear_decided, &|i| faulty[i])?;
+    add("post_fault_rate", &post_fault, &flown, &|i| faulty[i])?;
     df.drop_in_place("faulty")?;
     Ok(())
 }
@@ -201,6 +208,10 @@ fn variants(trials: &DataFrame) -> PolarsResult<DataFrame> {
             c("clearing_rate"),
             c("clearing_p50_s"),
             c("clearing_p90_s"),
+            c("post_fault"),
+            c("post_fault_rate"),
+            c("post_fault_rate_lo"),
+            c("post_fault_rate_hi"),
             c("estimate_rms_p50_deg"),
         ])
         .join(once.lazy(), [c(common::DETECTOR)], [c(common::DETECTOR)], JoinArgs::new(JoinType::Right))
@@ -433,7 +444,7 @@ mod tests {
     /// Two banks on five hand-made trials (a left aileron stuck at -15 deg from 5 s to 15 s, or none):
     /// trial 0: a isolates (0.5 s), b declares the rudder first (1.0 s); trial 1: a misses, b isolates
     /// (0.8 s); trial 2: fault-free, a false alarm by a; trial 3: the flight left the envelope; trial 4:
-    /// both isolate (0.4 s, 0.6 s).
+    /// both isolate (0.4 s, 0.6 s), and b declares twice more after the fault ended.
     fn hand_made() -> (SurfaceStudy, DataFrame) {
         let deck =
             std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/studies/seed004_surfaces.toml")).unwrap();
@@ -469,6 +480,7 @@ mod tests {
             windows: w.into_iter().collect(),
             false_alarms,
             first_false_alarm_s: (false_alarms > 0).then_some(2.0),
+            post_fault_declarations: 0,
             health: FilterHealth::default(),
             floor_steps: 0,
         };
@@ -496,7 +508,7 @@ mod tests {
                 spec: spec(4, true),
                 outcome: Ok(vec![
                     bank(Some(window(Some(0.4), Some(0), Some(0.3))), 0),
-                    bank(Some(window(Some(0.6), Some(0), Some(0.5))), 0),
+                    BankOutcome { post_fault_declarations: 2, ..bank(Some(window(Some(0.6), Some(0), Some(0.5))), 0) },
                 ]),
             },
         ];
@@ -527,6 +539,9 @@ mod tests {
         assert_eq!(u("detected"), [0, 2, 0, 3]);
         assert_eq!(u("isolated_correctly"), [0, 2, 0, 2]);
         assert_eq!(u("false_alarms"), [1, 0, 0, 0]);
+        assert_eq!(u("post_fault"), [0, 0, 0, 1]);
+        assert_eq!(f("post_fault_rate")[3], Some(1.0 / 3.0));
+        assert_eq!(f("post_fault_rate")[2], None, "no fault, nothing after one");
         assert_eq!(f("pd")[1], Some(2.0 / 3.0));
         assert_eq!(f("pd")[3], Some(1.0));
         assert_eq!(f("pd")[0], None, "no detection probability without a fault");
