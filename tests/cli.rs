@@ -486,6 +486,36 @@ fn check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
 }
 
 #[test]
+fn surface_check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
+    let baseline = "results/baselines/ci_seed004.csv";
+    let tmp = tempfile::tempdir().unwrap();
+    let run_dir = tmp.path().join("run");
+    ok(&fdimc(&["run", "studies/ci_seed004.toml", "--quiet", "--out", run_dir.to_str().unwrap()]));
+    let stdout = ok(&fdimc(&["check", run_dir.to_str().unwrap(), "--baseline", baseline]));
+    assert!(stdout.contains(": 0 regression(s)") && !stdout.contains("REGRESSION"), "{stdout}");
+
+    // A baseline in which every fault was detected, the 2 deg ones near trim too: they now are not.
+    use polars::prelude::*;
+    let mut base = csv_frame(Path::new(env!("CARGO_MANIFEST_DIR")).join(baseline).as_path());
+    let flown = (base.column("trials").unwrap().as_materialized_series()
+        - base.column("failed").unwrap().as_materialized_series())
+    .unwrap();
+    let faulty = base.column("kind").unwrap().str().unwrap().not_equal("none");
+    let detected = flown.zip_with(&faulty, base.column("detected").unwrap().as_materialized_series()).unwrap();
+    base.with_column(detected.with_name("detected".into()).into_column()).unwrap();
+    let doctored = tmp.path().join("perfect.csv");
+    CsvWriter::new(std::fs::File::create(&doctored).unwrap()).finish(&mut base).unwrap();
+    let out = fdimc(&["check", run_dir.to_str().unwrap(), "--baseline", doctored.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stdout));
+    let stdout = text(&out.stdout);
+    assert!(
+        stdout.contains("REGRESSION emmae | stuck | aileron_left | 2.0 | 1.0 | 0.0: detection probability"),
+        "{stdout}"
+    );
+    assert!(!stdout.contains("| -15.0 |"), "the large faults are detected as in the baseline: {stdout}");
+}
+
+#[test]
 fn thresholds_calibrated_on_one_seed_validate_on_another() {
     let tmp = tempfile::tempdir().unwrap();
     let cal = tmp.path().join("cal");
