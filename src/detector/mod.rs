@@ -1,6 +1,7 @@
 //! Fault detectors. Each steps one sample at a time; `sim` owns time, fault injection and alarms.
 
 pub mod detection_filter;
+pub mod dual_ukf;
 pub mod stmmae;
 
 pub use detection_filter::DetectionFilter;

@@ -8,6 +8,7 @@
 
 pub mod bank;
 pub mod stekf;
+pub mod ukf;
 
 pub use bank::{LikelihoodForm, ModelProbabilities};
 pub use stekf::{DiscreteModel, Fading, FilterHealth, Innovation, Stekf};

@@ -5,6 +5,7 @@
 //! inputs held constant over each step.
 #![allow(non_snake_case)]
 
+pub mod air_data;
 pub mod uav;
 
 use nalgebra::DMatrix;
