@@ -12,7 +12,8 @@
 //!
 //! The runner knows nothing of plants or detectors: a study hands it a [`TrialSource`] (simulate trials
 //! `first..end`, turn results into rows) and the study fields of its [`Manifest`]. The LTI studies of
-//! method 000 ([`run_study`]) and the control-surface studies of method 004 share it.
+//! method 000 ([`run_study`]), the air-data studies of method 002 and the control-surface studies of
+//! method 004 share it.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -53,6 +54,8 @@ pub enum StudyKind {
     DetectionFilter,
     /// Method 004: the UAV with control-surface faults and banks of filters (`[airframe]` decks).
     SurfaceBank,
+    /// Method 002: air-data sensor faults and the dual-model UKF (`[flight]` decks).
+    AirData,
 }
 
 /// Trials per part file of LTI studies (a few seconds of work); a source may choose its own.

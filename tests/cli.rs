@@ -330,6 +330,42 @@ fn small_surface_deck(dir: &Path) -> PathBuf {
     path
 }
 
+/// Runs `deck` with 1 and 2 threads, as two merged shards, and stopped after its first part file of
+/// `chunk` trials (a half-written part left behind) then resumed: every trials.parquet and `tables`
+/// identical. Returns the 1-thread run's folder and its stdout.
+fn assert_identical_runs(deck: &str, dir: &Path, trials: u64, chunk: u64, tables: &[&str]) -> (PathBuf, String) {
+    let path = |n: &str| dir.join(n);
+    let s = |p: PathBuf| p.to_str().unwrap().to_string();
+    let run = |extra: &[&str], out: &str| {
+        let out = s(path(out));
+        let mut args = vec!["run", deck, "--out", out.as_str()];
+        args.extend_from_slice(extra);
+        fdimc(&args)
+    };
+    let one = ok(&run(&["--threads", "1"], "one"));
+    assert!(one.contains(&format!("trials 0..{trials} of {trials} ({trials} run, 0 resumed)")), "{one}");
+    ok(&run(&["--threads", "2"], "two"));
+    ok(&run(&["--shard", "1/2"], "s1"));
+    ok(&run(&["--shard", "0/2", "--threads", "1"], "s0"));
+    ok(&fdimc(&["merge", &s(path("s1")), &s(path("s0")), "--out", &s(path("merged"))]));
+    let stopped = ok(&run(&["--stop-after", "1"], "resumed"));
+    assert!(stopped.contains("continue with the same command and --resume"), "{stopped}");
+    let stray = format!(".part-{chunk:020}.parquet.tmp-1");
+    std::fs::write(path("resumed").join("parts").join(stray), b"PAR1 junk").unwrap();
+    let resumed = ok(&run(&["--resume"], "resumed"));
+    assert!(resumed.contains(&format!("({} run, {chunk} resumed)", trials - chunk)), "{resumed}");
+    let reference = read_frame(&path("one").join("trials.parquet"));
+    for other in ["two", "merged", "resumed"] {
+        let df = read_frame(&path(other).join("trials.parquet"));
+        assert!(reference.equals_missing(&df), "{other} differs from the 1-thread run");
+    }
+    for table in tables {
+        let a = std::fs::read_to_string(path("one").join(table)).unwrap();
+        assert_eq!(a, std::fs::read_to_string(path("merged").join(table)).unwrap(), "{table}");
+    }
+    (path("one"), one)
+}
+
 #[test]
 fn surface_records_are_identical_for_any_threads_shards_and_resume() {
     let tmp = tempfile::tempdir().unwrap();
@@ -337,39 +373,15 @@ fn surface_records_are_identical_for_any_threads_shards_and_resume() {
     let deck = deck.to_str().unwrap();
     let dir = |n: &str| tmp.path().join(n);
     let s = |p: PathBuf| p.to_str().unwrap().to_string();
-    let run = |extra: &[&str], out: &str| {
-        let out = s(dir(out));
-        let mut args = vec!["run", deck, "--out", out.as_str()];
-        args.extend_from_slice(extra);
-        fdimc(&args)
-    };
-    let one = ok(&run(&["--threads", "1"], "one"));
-    assert!(one.contains("trials 0..130 of 130 (130 run, 0 resumed) x 4 detector(s)"), "{one}");
+    let tables = ["summary.csv", "detectors.csv", "comparison.csv"];
+    let (one_dir, one) = assert_identical_runs(deck, tmp.path(), 130, 64, &tables);
+    assert!(one.contains("x 4 detector(s)"), "{one}");
     for bank in ["emmae", "ekf_fast", "stmmae", "improved_stmmae"] {
         assert_eq!(one.lines().filter(|l| l.starts_with(&format!("    {bank} "))).count(), 1, "{one}");
     }
-    ok(&run(&["--threads", "2"], "two"));
-    ok(&run(&["--shard", "1/2"], "s1"));
-    ok(&run(&["--shard", "0/2", "--threads", "1"], "s0"));
-    ok(&fdimc(&["merge", &s(dir("s1")), &s(dir("s0")), "--out", &s(dir("merged"))]));
-    let stopped = ok(&run(&["--stop-after", "1"], "resumed"));
-    assert!(stopped.contains("continue with the same command and --resume"), "{stopped}");
-    std::fs::write(dir("resumed").join("parts").join(".part-00000000000000000064.parquet.tmp-1"), b"PAR1 junk")
-        .unwrap();
-    let resumed = ok(&run(&["--resume"], "resumed"));
-    assert!(resumed.contains("(66 run, 64 resumed)"), "{resumed}");
-
-    let reference = read_frame(&dir("one").join("trials.parquet"));
+    let reference = read_frame(&one_dir.join("trials.parquet"));
     assert_eq!(reference.height(), 130 * 4, "one row per trial and bank: one fault window per faulty trial");
-    for other in ["two", "merged", "resumed"] {
-        let df = read_frame(&dir(other).join("trials.parquet"));
-        assert!(reference.equals_missing(&df), "{other} differs from the 1-thread run");
-    }
-    for table in ["summary.csv", "variants.csv", "comparison.csv"] {
-        let a = std::fs::read_to_string(dir("one").join(table)).unwrap();
-        assert_eq!(a, std::fs::read_to_string(dir("merged").join(table)).unwrap(), "{table}");
-    }
-    assert_eq!(csv_frame(&dir("one").join("variants.csv")).height(), 4);
+    assert_eq!(csv_frame(&dir("one").join("detectors.csv")).height(), 4);
     assert_eq!(csv_frame(&dir("one").join("comparison.csv")).height(), 6, "every pair of the four variants");
 
     // `simulate --trial N` flies trial N of the run: the same declaration delay.
@@ -483,6 +495,69 @@ fn check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
     assert!(stdout.contains("REGRESSION deck | seed | bias | alpha_rad | 1.0"), "{stdout}");
     // Against the true baseline the same folder passes.
     ok(&fdimc(&["check", run_dir.to_str().unwrap(), "--baseline", baseline]));
+}
+
+#[test]
+fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
+    let tmp = tempfile::tempdir().unwrap();
+    // The bundled deck cut to 30 s flights and 300 trials (part files of 256: 256 + 44).
+    let full =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed002_air_data.toml")).unwrap();
+    let mut small = full.clone();
+    for (from, to) in [
+        ("duration_s = 60.0", "duration_s = 30.0"),
+        ("onset_s = { range = [10.0, 40.0] }", "onset_s = { range = [5.0, 20.0] }"),
+        ("trials = 3000", "trials = 300"),
+    ] {
+        assert!(small.contains(from), "{from}");
+        small = small.replacen(from, to, 1);
+    }
+    let deck_path = tmp.path().join("small_air_data.toml");
+    std::fs::write(&deck_path, small).unwrap();
+    let deck = deck_path.to_str().unwrap();
+    let s = |p: PathBuf| p.to_str().unwrap().to_string();
+    let tables = ["summary.csv", "detectors.csv", "comparison.csv"];
+    let (one, stdout) = assert_identical_runs(deck, tmp.path(), 300, 256, &tables);
+    for detector in ["patent", "window10"] {
+        assert_eq!(stdout.lines().filter(|l| l.starts_with(&format!("    {detector} "))).count(), 1, "{stdout}");
+    }
+    let reference = read_frame(&one.join("trials.parquet"));
+    assert_eq!(reference.height(), 300 * 2, "one row per trial and detector");
+    assert_eq!(csv_frame(&one.join("detectors.csv")).height(), 2);
+    assert_eq!(csv_frame(&one.join("comparison.csv")).height(), 1);
+
+    // `simulate --trial N` flies trial N of the run: the same detection delay and isolated set.
+    use polars::prelude::*;
+    let row = reference
+        .clone()
+        .lazy()
+        .filter(col("detector").eq(lit("patent")).and(col("faulty_sensors").eq(lit(2u32))).and(col("detected")))
+        .first()
+        .collect()
+        .unwrap();
+    let trial = row.column("trial").unwrap().u64().unwrap().get(0).unwrap().to_string();
+    let delay = row.column("delay_s").unwrap().f64().unwrap().get(0).unwrap();
+    let isolated = row.column("isolated").unwrap().str().unwrap().get(0).unwrap().to_string();
+    let trace = s(tmp.path().join("trace.parquet"));
+    let sim = ok(&fdimc(&["simulate", deck, "--trial", &trial, "--detector", "patent", "--out", &trace]));
+    assert!(sim.contains(&format!("delay {delay:.2} s, isolated {isolated},")), "trial {trial}: {sim}");
+    assert!(sim.contains("airspeed_mps+alpha_rad bias size"), "{sim}");
+    let df = read_frame(Path::new(&trace));
+    assert_eq!(df.height(), 3000);
+    assert_eq!(df.width(), 1 + 8 + 2 * 3 + 1 + 1 + 3 * 4, "time, inertial, air data and truth, one detector");
+
+    let check = ok(&fdimc(&["check", &s(one.clone()), "--baseline", &s(one.join("summary.csv"))]));
+    assert!(check.contains(": 0 regression(s)"), "{check}");
+    let out = fdimc(&["report", &s(one)]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("an air-data study"), "{}", text(&out.stderr));
+}
+
+#[test]
+fn air_data_check_passes_on_its_baseline() {
+    let out = fdimc(&["check", "studies/ci_seed002.toml", "--baseline", "results/baselines/ci_seed002.csv"]);
+    let stdout = ok(&out);
+    assert!(stdout.contains("9 groups compared, 17 tests") && stdout.contains(": 0 regression(s)"), "{stdout}");
 }
 
 #[test]

@@ -3,10 +3,13 @@ use std::path::{Path, PathBuf};
 
 use super::CliError;
 use crate::runner::{self, Manifest, RunError, RunOptions, Shard, StudyKind};
+use crate::sim::air_data::AirDataTrials;
 use crate::sim::surfaces::SurfaceTrials;
+use crate::stats::air_data::AirDataSummary;
 use crate::stats::surfaces::SurfaceSummary;
 use crate::stats::{self, Calibration, SummaryReport};
 use crate::study::Study;
+use crate::study::air_data::{AirDataStudy, is_air_data_deck};
 use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
 
 impl From<RunError> for CliError {
@@ -35,6 +38,7 @@ pub struct RunArgs<'a> {
 enum Loaded {
     Lti(Study),
     Surfaces(SurfaceStudy),
+    AirData(AirDataStudy),
 }
 
 impl Loaded {
@@ -43,6 +47,8 @@ impl Loaded {
             .map_err(|e| CliError::Invalid(format!("{}: cannot read the deck: {e}", a.deck.display())))?;
         let mut loaded = if is_surface_deck(&text) {
             Loaded::Surfaces(SurfaceStudy::from_toml(&text, a.deck)?)
+        } else if is_air_data_deck(&text) {
+            Loaded::AirData(AirDataStudy::from_toml(&text, a.deck)?)
         } else {
             Loaded::Lti(Study::from_toml(&text, a.deck)?)
         };
@@ -53,12 +59,14 @@ impl Loaded {
             match &mut loaded {
                 Loaded::Lti(s) => s.monte_carlo.trials = n,
                 Loaded::Surfaces(s) => s.monte_carlo.trials = n,
+                Loaded::AirData(s) => s.monte_carlo.trials = n,
             }
         }
         if let Some(seed) = a.seed {
             match &mut loaded {
                 Loaded::Lti(s) => s.seed = seed,
                 Loaded::Surfaces(s) => s.seed = seed,
+                Loaded::AirData(s) => s.seed = seed,
             }
         }
         Ok(loaded)
@@ -68,6 +76,7 @@ impl Loaded {
         match self {
             Loaded::Lti(s) => &s.name,
             Loaded::Surfaces(s) => &s.name,
+            Loaded::AirData(s) => &s.name,
         }
     }
 }
@@ -100,6 +109,10 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         Loaded::Lti(study) => runner::run_study(study, &opts)?,
         Loaded::Surfaces(study) => {
             let trials = SurfaceTrials::new(study);
+            runner::run(&trials, trials.manifest(), &opts)?
+        }
+        Loaded::AirData(study) => {
+            let trials = AirDataTrials::new(study);
             runner::run(&trials, trials.manifest(), &opts)?
         }
     };
@@ -146,6 +159,7 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
 enum Summary {
     Lti(SummaryReport),
     Surfaces(SurfaceSummary),
+    AirData(AirDataSummary),
 }
 
 impl Summary {
@@ -153,6 +167,7 @@ impl Summary {
         match self {
             Summary::Lti(s) => print_summary(dir, s),
             Summary::Surfaces(s) => print_surface_summary(dir, s),
+            Summary::AirData(s) => print_air_data_summary(dir, s),
         }
     }
 }
@@ -164,16 +179,15 @@ fn summarize(dir: &Path, manifest: &Manifest, calibration: Option<Calibration>) 
         StudyKind::DetectionFilter => {
             Summary::Lti(stats::summarize(dir, &calibration.unwrap_or(Calibration::Target(manifest.target_pfa)))?)
         }
-        StudyKind::SurfaceBank => {
-            if calibration.is_some() {
-                return Err(CliError::Invalid(format!(
-                    "{}: a control-surface study declares by model probabilities (the deck's 0.9 / 0.05): \
-                     --target-pfa and --thresholds apply to detection-filter studies",
-                    dir.display()
-                )));
-            }
-            Summary::Surfaces(stats::surfaces::summarize(dir)?)
+        StudyKind::SurfaceBank | StudyKind::AirData if calibration.is_some() => {
+            return Err(CliError::Invalid(format!(
+                "{}: this study's detectors declare by model probabilities (the deck's 0.9 / 0.05): \
+                 --target-pfa and --thresholds apply to detection-filter studies",
+                dir.display()
+            )));
         }
+        StudyKind::SurfaceBank => Summary::Surfaces(stats::surfaces::summarize(dir)?),
+        StudyKind::AirData => Summary::AirData(stats::air_data::summarize(dir)?),
     })
 }
 
@@ -351,10 +365,10 @@ fn print_summary(dir: &Path, s: &SummaryReport) -> Result<(), CliError> {
     Ok(())
 }
 
-/// The per-variant table of a surface study (`variants.csv`), then warnings and the files written.
+/// The per-detector (variant) table of a surface study (`detectors.csv`), then warnings and the files written.
 fn print_surface_summary(dir: &Path, s: &SurfaceSummary) -> Result<(), CliError> {
     use polars::prelude::*;
-    let v = &s.variants;
+    let v = &s.detectors;
     let internal = |e: PolarsError| CliError::Internal(e.to_string());
     let f = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::Float64)).map_err(internal);
     let u = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::UInt64)).map_err(internal);
@@ -410,7 +424,66 @@ fn print_surface_summary(dir: &Path, s: &SurfaceSummary) -> Result<(), CliError>
     for w in &s.warnings {
         println!("  warning: {w}");
     }
-    println!("  wrote summary.csv, summary.parquet, variants.csv, comparison.csv in {}", dir.display());
+    println!("  wrote summary.csv, summary.parquet, detectors.csv, comparison.csv in {}", dir.display());
+    Ok(())
+}
+
+/// The per-detector table of an air-data study (`detectors.csv`), then warnings and the files written.
+fn print_air_data_summary(dir: &Path, s: &AirDataSummary) -> Result<(), CliError> {
+    use polars::prelude::*;
+    let v = &s.detectors;
+    let internal = |e: PolarsError| CliError::Internal(e.to_string());
+    let f = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::Float64)).map_err(internal);
+    let u = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::UInt64)).map_err(internal);
+    let names = v.column("detector").and_then(|c| c.str().cloned()).map_err(internal)?;
+    let g = |c: &Column, i: usize| c.f64().ok().and_then(|c| c.get(i)).unwrap_or(f64::NAN);
+    let n = |c: &Column, i: usize| c.u64().ok().and_then(|c| c.get(i)).unwrap_or(0);
+    let (pd, pd_lo, pd_hi) = (f("pd")?, f("pd_lo")?, f("pd_hi")?);
+    let (iso, iso_lo, iso_hi) = (f("isolation_accuracy")?, f("isolation_accuracy_lo")?, f("isolation_accuracy_hi")?);
+    let (d50, d90) = (f("delay_p50_s")?, f("delay_p90_s")?);
+    let (bias, est, raw) = (f("bias_error_p50_sigma")?, f("estimate_rms_p50_sigma")?, f("raw_rms_p50_sigma")?);
+    let (pfa, pfa_lo, pfa_hi) = (f("pfa")?, f("pfa_lo")?, f("pfa_hi")?);
+    let (faults, flights, repaired) = (u("faulty_trials")?, u("flights")?, u("repaired")?);
+    println!("  per detector, paired over the same trials (see summary.csv for groups, comparison.csv for tests);");
+    println!("  errors in sensor sigmas, medians; Pfa: declarations before the onset or in fault-free flights:");
+    println!(
+        "    {:<12} {:>6} {:<21} {:<21} {:>14} {:>9} {:>15} {:>7} {:<21} {:>8}",
+        "detector",
+        "faults",
+        "Pd [95 % CI]",
+        "isolated [95 % CI]",
+        "delay p50/p90",
+        "bias err",
+        "air data / raw",
+        "flights",
+        "Pfa [95 % CI]",
+        "repaired"
+    );
+    for i in 0..v.height() {
+        println!(
+            "    {:<12} {:>6} {:.3} [{:.3}, {:.3}]   {:.3} [{:.3}, {:.3}]   {:>14} {:>9.2} {:>15} {:>7} {:.3} [{:.3}, {:.3}]   {:>8}",
+            names.get(i).unwrap_or(""),
+            n(&faults, i),
+            g(&pd, i),
+            g(&pd_lo, i),
+            g(&pd_hi, i),
+            g(&iso, i),
+            g(&iso_lo, i),
+            g(&iso_hi, i),
+            format!("{:.2}/{:.2} s", g(&d50, i), g(&d90, i)),
+            g(&bias, i),
+            format!("{:.2} / {:.2}", g(&est, i), g(&raw, i)),
+            n(&flights, i),
+            g(&pfa, i),
+            g(&pfa_lo, i),
+            g(&pfa_hi, i),
+            n(&repaired, i),
+        );
+    }
+    for w in &s.warnings {
+        println!("  warning: {w}");
+    }
+    println!("  wrote summary.csv, summary.parquet, detectors.csv, comparison.csv in {}", dir.display());
     Ok(())
 }
 

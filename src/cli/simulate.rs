@@ -9,6 +9,7 @@ use crate::sampling::surfaces::SurfaceScenarioSampler;
 use crate::sampling::{Substream, noise_rng};
 use crate::sim::surfaces::{SurfaceTrial, run_banks};
 use crate::sim::{Engine, Trace};
+use crate::study::air_data::{AirDataStudy, is_air_data_deck};
 use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
 use crate::study::{DeckError, Study};
 
@@ -21,6 +22,9 @@ pub fn exec(deck: &Path, trial: u64, detector: Option<&str>, out: &Path) -> Resu
     let text = std::fs::read_to_string(deck).map_err(|source| DeckError::Read { file: deck.into(), source })?;
     if is_surface_deck(&text) {
         return surfaces(&SurfaceStudy::from_toml(&text, deck)?, trial, detector, out);
+    }
+    if is_air_data_deck(&text) {
+        return air_data(&AirDataStudy::from_toml(&text, deck)?, trial, detector, out);
     }
     let study = Study::from_toml(&text, deck)?;
     let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
@@ -170,6 +174,102 @@ fn surfaces(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &Path
         println!(
             "  {bank:<16} false alarms {}, post-fault declarations {}, covariance asymmetric {} / not positive definite {} / non-finite {} steps",
             o.false_alarms, o.post_fault_declarations, h.asymmetric, h.not_positive_definite, h.non_finite
+        );
+    }
+    Ok(())
+}
+
+/// One flight of an air-data deck: every detector (or `--detector`'s) on the same samples; the trace
+/// holds the inertial and air-data measurements, the true air data, and per detector the fault
+/// probability, the declaration, the isolation statistics and flags, the air-data and bias estimates.
+fn air_data(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), CliError> {
+    use crate::plant::air_data::{AIR_DATA_CHANNEL_NAMES, INERTIAL_CHANNEL_NAMES};
+    let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
+    let mut selected = study.clone();
+    if let Some(name) = detector {
+        let d = study.detectors.iter().find(|d| d.name == name).ok_or_else(|| {
+            CliError::Invalid(format!(
+                "--detector {name:?}: {} has detectors {}",
+                study.path.display(),
+                names.join(", ")
+            ))
+        })?;
+        selected.detectors = vec![d.clone()];
+    }
+    let trials = crate::sim::air_data::AirDataTrials::new(&selected);
+    let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
+    let mut bools: Vec<(String, Vec<bool>)> = Vec::new();
+    let result = trials.run_trial_with(trial, |s, steps| {
+        let mut f = Vec::new();
+        let mut b = Vec::new();
+        f.push(("t_s".to_string(), s.t_s));
+        for (name, v) in INERTIAL_CHANNEL_NAMES.iter().zip(s.inertial.to_array()) {
+            f.push((format!("{name}_measured"), v));
+        }
+        for ((name, v), truth) in
+            AIR_DATA_CHANNEL_NAMES.iter().zip(s.air_data.to_array()).zip(s.truth.air_data.to_array())
+        {
+            f.push((format!("{name}_measured"), v));
+            f.push((format!("{name}_true"), truth));
+        }
+        for (d, step) in selected.detectors.iter().zip(steps) {
+            f.push((format!("{}_p_fault", d.name), step.probabilities[1]));
+            b.push((format!("{}_declared", d.name), step.fault_declared));
+            for (j, name) in AIR_DATA_CHANNEL_NAMES.iter().enumerate() {
+                f.push((format!("{}_{name}_estimate", d.name), step.air_data.to_array()[j]));
+                f.push((format!("{}_{name}_bias", d.name), step.bias[j]));
+                f.push((format!("{}_{name}_chi_square", d.name), step.chi_square[j]));
+                b.push((format!("{}_{name}_isolated", d.name), step.isolated[j]));
+            }
+        }
+        if floats.is_empty() {
+            floats = f.iter().map(|(n, _)| (n.clone(), Vec::new())).collect();
+            bools = b.iter().map(|(n, _)| (n.clone(), Vec::new())).collect();
+        }
+        for (col, (_, v)) in floats.iter_mut().zip(f) {
+            col.1.push(v);
+        }
+        for (col, (_, v)) in bools.iter_mut().zip(b) {
+            col.1.push(v);
+        }
+    });
+    let outcomes =
+        result.outcome.map_err(|e| CliError::Invalid(format!("{}: trial {trial}: {e}", study.path.display())))?;
+    let trace = Trace { float_columns: floats, bool_columns: bools };
+    let mut df = trace_frame(&trace).map_err(|e| CliError::Internal(e.to_string()))?;
+    write_table(&mut df, out)?;
+    let spec = &result.spec;
+    println!(
+        "{}: trial {trial}, {} detector(s), {} samples -> {}",
+        study.name,
+        selected.detectors.len(),
+        df.height(),
+        out.display()
+    );
+    if spec.faults.is_empty() {
+        println!("  fault-free trial");
+    } else {
+        println!(
+            "  fault               {} {} size {} from {:.3} s",
+            crate::output::air_data::sensor_set(&spec.outputs),
+            spec.kind,
+            spec.size,
+            spec.onset_s
+        );
+    }
+    println!("  noise scale {}, gust {:.2} m/s", spec.noise_scale, spec.gust_std_mps);
+    let secs = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+    for (d, o) in selected.detectors.iter().zip(&outcomes) {
+        let delay = o.detection_s.map(|t| t - spec.onset_s);
+        let isolated = o.isolated.as_deref().map_or("-".to_string(), crate::output::air_data::sensor_set);
+        println!(
+            "  {:<12} false alarm {}, delay {} s, isolated {isolated}, bias error {} sigma, air data {} / raw {} sigma",
+            d.name,
+            secs(o.false_alarm_s),
+            secs(delay),
+            secs(o.bias_error_rms_sigma),
+            secs(o.estimate_rms_sigma),
+            secs(o.raw_rms_sigma)
         );
     }
     Ok(())

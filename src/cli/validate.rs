@@ -4,6 +4,7 @@ use super::{CliError, design_error};
 use crate::detector::stmmae::BankParams;
 use crate::fault::actuator::ActuatorFaultKind;
 use crate::plant::uav::{AerosondeParams, SURFACE_NAMES, trim};
+use crate::study::air_data::{AirDataStudy, is_air_data_deck};
 use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
 use crate::study::{DeckError, Shape, Study};
 
@@ -11,6 +12,9 @@ pub fn exec(deck: &Path) -> Result<(), CliError> {
     let text = std::fs::read_to_string(deck).map_err(|source| DeckError::Read { file: deck.into(), source })?;
     if is_surface_deck(&text) {
         return surfaces(&SurfaceStudy::from_toml(&text, deck)?);
+    }
+    if is_air_data_deck(&text) {
+        return air_data(&AirDataStudy::from_toml(&text, deck)?);
     }
     let study = Study::from_toml(&text, deck)?;
     let mut filters = Vec::with_capacity(study.detectors.len());
@@ -199,6 +203,72 @@ fn surfaces(study: &SurfaceStudy) -> Result<(), CliError> {
             pe.coefficients.join(", "),
             pe.relative
         );
+    }
+    Ok(())
+}
+
+/// The resolved air-data study (method 002).
+fn air_data(study: &AirDataStudy) -> Result<(), CliError> {
+    println!("{}: valid", study.path.display());
+    let samples = (study.duration_s / study.dt_s).round();
+    println!(
+        "study       {} (seed {}, {} s at dt {} s = {samples} samples)",
+        study.name, study.seed, study.duration_s, study.dt_s
+    );
+    let p = &study.profile;
+    println!(
+        "flight      profile {:?}: {} m/s, alpha {:.1} deg, pitch {:.1} deg, {} manoeuvre segments",
+        study.profile_name,
+        p.airspeed_mps,
+        p.alpha_rad.to_degrees(),
+        p.pitch_rad.to_degrees(),
+        p.segments.len()
+    );
+    let n = &study.noise;
+    println!(
+        "sensors     gyro {:.3} deg/s, accelerometer {} m/s^2, attitude {:.3} deg; airspeed {} m/s, alpha {:.3} deg, beta {:.3} deg",
+        n.gyro_std_rad_s.to_degrees(),
+        n.accelerometer_std_mps2,
+        n.attitude_std_rad.to_degrees(),
+        n.airspeed_std_mps,
+        n.alpha_std_rad.to_degrees(),
+        n.beta_std_rad.to_degrees()
+    );
+    let w = &study.wind;
+    println!(
+        "wind        steady NED {:?} m/s, gust {} m/s (time constant {:.1} s)",
+        w.steady_ned_mps, w.gust_std_mps, w.gust_time_constant_s
+    );
+    for d in &study.detectors {
+        let q = &d.params;
+        println!(
+            "detector    {}: dual_ukf, isolation P_fa {} over {} sample(s) (threshold {:.3}), declare {} held {} s, clear {}, isolated set read {} s after a declaration",
+            d.name,
+            q.false_alarm_probability,
+            q.isolation_window,
+            crate::detector::dual_ukf::chi_square_threshold(q.isolation_window as u32, q.false_alarm_probability),
+            q.declare_probability,
+            q.declare_hold_s,
+            q.clear_probability,
+            d.isolation_delay_s
+        );
+    }
+    let names = study.output_names();
+    for f in &study.faults {
+        println!("fault       {} {} {} from {} s", names[f.channel], f.mode.name(), f.mode.size(), f.onset_s);
+    }
+    let mc = &study.monte_carlo;
+    println!(
+        "monte carlo {} trials, fault-free fraction {}, sampler {:?}, onset {:?} s, noise scale {:?}, gust {:?} m/s",
+        mc.trials, mc.fault_free_fraction, mc.sampler, mc.onset_s, mc.noise_scale, mc.gust_std_mps
+    );
+    let sets: Vec<String> = mc.output_sets.iter().map(|s| crate::output::air_data::sensor_set(s)).collect();
+    println!("            sensor sets [{}]", sets.join(", "));
+    for f in &mc.faults {
+        println!("            fault kind {}: size {:?}", f.kind.name(), f.size);
+    }
+    if mc.faults.is_empty() {
+        println!("            every faulty trial flies the faults above");
     }
     Ok(())
 }

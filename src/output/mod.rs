@@ -9,6 +9,7 @@ use polars::prelude::*;
 
 use crate::sim::Trace;
 
+pub mod air_data;
 pub mod records;
 pub mod surfaces;
 

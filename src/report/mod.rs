@@ -48,9 +48,10 @@ pub fn write_report(dir: &Path, trials: &[u64]) -> Result<Report, RunError> {
     let manifest = Manifest::read(dir)?;
     if manifest.kind != StudyKind::DetectionFilter {
         return Err(RunError::Invalid(format!(
-            "{}: a control-surface study: its report is the tables summary.csv, variants.csv and comparison.csv; \
+            "{}: {} study: its report is the tables summary.csv, detectors.csv and comparison.csv; \
              `fdimc report` draws detection-filter studies",
-            dir.display()
+            dir.display(),
+            if manifest.kind == StudyKind::AirData { "an air-data" } else { "a control-surface" }
         )));
     }
     for f in ["summary.parquet", "thresholds.csv", "curves.csv", "min_detectable.csv"] {

@@ -9,6 +9,7 @@
 //! The per-step noise substreams are drawn from xoshiro256++ seeded by the substream's ChaCha8 (see
 //! [`noise_rng`]); the scenario draws, a few per trial, come from ChaCha8 itself.
 
+pub mod air_data;
 pub mod noise;
 pub mod scenario;
 pub mod surfaces;

@@ -17,7 +17,9 @@
 //! of a group whose design succeeded, those with an alarm at or after the onset; the false-alarm rate
 //! counts alarms before the onset (the whole trial when fault-free). Intervals are 95 % Wilson.
 
+pub mod air_data;
 pub mod intervals;
+pub mod paired;
 pub mod surfaces;
 
 use std::path::{Path, PathBuf};
@@ -758,6 +760,60 @@ pub fn read_thresholds(path: &Path) -> Result<Vec<(String, Vec<f64>, Vec<f64>)>,
         }
     }
     Ok(result)
+}
+
+/// The manifest and the whole `trials.parquet` of a complete run in `dir` (studies whose records fit in
+/// memory: one row per trial and detector, or per fault window).
+pub(crate) fn read_run(dir: &Path) -> Result<(Manifest, DataFrame, PathBuf), RunError> {
+    let manifest = Manifest::read(dir)?;
+    let path = dir.join("trials.parquet");
+    if !manifest.complete || !path.exists() {
+        return Err(RunError::Invalid(format!(
+            "{}: the run is not complete: finish it with `fdimc run ... --resume`",
+            dir.display()
+        )));
+    }
+    let trials = read_parquet(&path)?;
+    if trials.height() as u64 != manifest.rows {
+        return Err(RunError::Invalid(format!(
+            "{}: holds {} rows, its manifest.json says {}: re-run the study",
+            path.display(),
+            trials.height(),
+            manifest.rows
+        )));
+    }
+    Ok((manifest, trials, path))
+}
+
+/// A count column as numbers (nulls as 0).
+pub(crate) fn u64_values(df: &DataFrame, name: &str) -> PolarsResult<Vec<u64>> {
+    let c = df.column(name)?.cast(&DataType::UInt64)?;
+    let c = c.u64()?;
+    Ok((0..c.len()).map(|i| c.get(i).unwrap_or(0)).collect())
+}
+
+/// Adds the columns `name`, `name_lo`, `name_hi`: the rate `k / n` with its 95 % Wilson interval, null
+/// where `keep` is false or `n = 0`.
+pub(crate) fn add_rate(
+    df: &mut DataFrame,
+    name: &str,
+    k: &[u64],
+    n: &[u64],
+    keep: &dyn Fn(usize) -> bool,
+) -> PolarsResult<()> {
+    let mut cols: [Vec<Option<f64>>; 3] = Default::default();
+    for i in 0..k.len() {
+        let ok = keep(i) && n[i] > 0;
+        let (lo, hi) = wilson(k[i], n[i], Z95);
+        cols[0].push(ok.then(|| k[i] as f64 / n[i] as f64));
+        cols[1].push(ok.then_some(lo));
+        cols[2].push(ok.then_some(hi));
+    }
+    let [rate, lo, hi] = cols;
+    df.with_column(Column::new(name.into(), rate))?;
+    df.with_column(Column::new(format!("{name}_lo").into(), lo))?;
+    df.with_column(Column::new(format!("{name}_hi").into(), hi))?;
+    Ok(())
 }
 
 /// Loads `summary.parquet` or `summary.csv`.

@@ -13,7 +13,7 @@
 //!   surface-estimate error; trials whose covariances lost symmetry, positive definiteness or
 //!   finiteness. The false-alarm rate counts declarations before any fault (the whole flight when
 //!   fault-free), as the detection-filter summaries do;
-//! - `variants.csv`: the same per detector over all faults (window rates over the faulty windows,
+//! - `detectors.csv`: the same per detector over all faults (window rates over the faulty windows,
 //!   trial rates once per trial), the table `fdimc run` prints;
 //! - `comparison.csv`: every pair of detectors on the same windows and trials: discordant detections,
 //!   correct isolations and false alarms with exact McNemar p-values, and the median paired difference
@@ -21,58 +21,43 @@
 //!
 //! Rates are over the flights that reached the end: a trial that left the envelope counts in `failed`.
 
-use std::collections::BTreeMap;
 use std::path::Path;
 
 use polars::prelude::*;
 
-use super::intervals::{Z95, mcnemar_exact, wilson};
-use super::{f64_col, str_col};
+use super::intervals::{Z95, wilson};
+use super::paired::{Outcome, PairedUnits};
+use super::{add_rate, f64_col, read_run, str_col, u64_values};
 use crate::output::records::col as common;
 use crate::output::surfaces::col;
 use crate::output::write_table;
-use crate::runner::{Manifest, RunError, pol, read_parquet, write_parquet};
+use crate::runner::{RunError, pol, write_parquet};
 
 /// What `summarize` wrote for a surface study.
 #[derive(Debug)]
 pub struct SurfaceSummary {
     pub summary: DataFrame,
-    pub variants: DataFrame,
+    /// Per detector (bank), over all faults: `detectors.csv`.
+    pub detectors: DataFrame,
     pub comparison: DataFrame,
     pub warnings: Vec<String>,
 }
 
 /// Reads `dir/trials.parquet` of a complete surface run and writes the tables of the module docs.
 pub fn summarize(dir: &Path) -> Result<SurfaceSummary, RunError> {
-    let manifest = Manifest::read(dir)?;
-    let trials_path = dir.join("trials.parquet");
-    if !manifest.complete || !trials_path.exists() {
-        return Err(RunError::Invalid(format!(
-            "{}: the run is not complete: finish it with `fdimc run ... --resume`",
-            dir.display()
-        )));
-    }
-    let trials = read_parquet(&trials_path)?;
-    if trials.height() as u64 != manifest.rows {
-        return Err(RunError::Invalid(format!(
-            "{}: holds {} rows, its manifest.json says {}: re-run the study",
-            trials_path.display(),
-            trials.height(),
-            manifest.rows
-        )));
-    }
+    let (manifest, trials, trials_path) = read_run(dir)?;
     let keys =
         [common::DETECTOR, common::KIND, col::SURFACE, common::SIZE_BIN, common::NOISE_BIN, common::PARAM_ERROR_BIN];
     let mut summary = aggregate(&windows(&trials), &keys).map_err(pol(&trials_path))?;
-    let mut variants = variants(&trials).map_err(pol(&trials_path))?;
+    let mut detectors = per_detector(&trials).map_err(pol(&trials_path))?;
     let mut comparison = compare(&trials, &manifest.detectors, &trials_path)?;
     let out = |name: &str| dir.join(name);
     write_table(&mut summary, &out("summary.csv"))?;
     write_parquet(&mut summary, &out("summary.parquet"))?;
-    write_table(&mut variants, &out("variants.csv"))?;
+    write_table(&mut detectors, &out("detectors.csv"))?;
     write_table(&mut comparison, &out("comparison.csv"))?;
     let warnings = warnings(&trials).map_err(pol(&trials_path))?;
-    Ok(SurfaceSummary { summary, variants, comparison, warnings })
+    Ok(SurfaceSummary { summary, detectors, comparison, warnings })
 }
 
 /// The records with the per-row indicators the aggregation counts.
@@ -132,47 +117,28 @@ fn aggregate(rows: &LazyFrame, keys: &[&str]) -> PolarsResult<DataFrame> {
     Ok(df)
 }
 
-/// Adds `pd`, `pfa`, `isolation_accuracy`, `clearing_rate` with 95 % Wilson intervals to counts.
+/// Adds `pd`, `pfa`, `isolation_accuracy`, `clearing_rate`, `post_fault_rate` with 95 % Wilson
+/// intervals to counts.
 fn add_rates(df: &mut DataFrame) -> PolarsResult<()> {
-    let get = |n: &str| -> PolarsResult<Vec<u64>> {
-        let c = df.column(n)?.cast(&DataType::UInt64)?;
-        let c = c.u64()?;
-        Ok((0..c.len()).map(|i| c.get(i).unwrap_or(0)).collect())
-    };
-    let (trials, failed, detected, isolated) =
-        (get("trials")?, get("failed")?, get("detected")?, get("isolated_correctly")?);
-    let (clear_decided, cleared, fa) = (get("clear_decided")?, get("cleared")?, get("false_alarms")?);
-    let post_fault = get("post_fault")?;
+    let (trials, failed) = (u64_values(df, "trials")?, u64_values(df, "failed")?);
+    let (detected, isolated) = (u64_values(df, "detected")?, u64_values(df, "isolated_correctly")?);
+    let (clear_decided, cleared) = (u64_values(df, "clear_decided")?, u64_values(df, "cleared")?);
+    let (fa, post_fault) = (u64_values(df, "false_alarms")?, u64_values(df, "post_fault")?);
     let faulty = df.column("faulty")?.bool()?.clone();
     let faulty: Vec<bool> = (0..faulty.len()).map(|i| faulty.get(i).unwrap_or(false)).collect();
     let flown: Vec<u64> = trials.iter().zip(&failed).map(|(t, f)| t - f).collect();
-    let mut add = |name: &str, k: &[u64], n: &[u64], keep: &dyn Fn(usize) -> bool| -> PolarsResult<()> {
-        let mut cols: [Vec<Option<f64>>; 3] = Default::default();
-        for i in 0..k.len() {
-            let ok = keep(i) && n[i] > 0;
-            let (lo, hi) = wilson(k[i], n[i], Z95);
-            cols[0].push(ok.then(|| k[i] as f64 / n[i] as f64));
-            cols[1].push(ok.then_some(lo));
-            cols[2].push(ok.then_some(hi));
-        }
-        let [rate, lo, hi] = cols;
-        df.with_column(Column::new(name.into(), rate))?;
-        df.with_column(Column::new(format!("{name}_lo").into(), lo))?;
-        df.with_column(Column::new(format!("{name}_hi").into(), hi))?;
-        Ok(())
-    };
-    add("pd", &detected, &flown, &|i| faulty[i])?;
-    add("pfa", &fa, &flown, &|_| true)?;
-    add("isolation_accuracy", &isolated, &detected, &|i| faulty[i])?;
-    add("clearing_rate", &cleared, &clear_decided, &|i| faulty[i])?;
-    add("post_fault_rate", &post_fault, &flown, &|i| faulty[i])?;
+    add_rate(df, "pd", &detected, &flown, &|i| faulty[i])?;
+    add_rate(df, "pfa", &fa, &flown, &|_| true)?;
+    add_rate(df, "isolation_accuracy", &isolated, &detected, &|i| faulty[i])?;
+    add_rate(df, "clearing_rate", &cleared, &clear_decided, &|i| faulty[i])?;
+    add_rate(df, "post_fault_rate", &post_fault, &flown, &|i| faulty[i])?;
     df.drop_in_place("faulty")?;
     Ok(())
 }
 
 /// Per detector: window rates over the faulty windows, trial rates (false alarms, health) once per
 /// trial, joined into one row per detector in deck order.
-fn variants(trials: &DataFrame) -> PolarsResult<DataFrame> {
+fn per_detector(trials: &DataFrame) -> PolarsResult<DataFrame> {
     use polars::prelude::col as c;
     let rows = windows(trials);
     let faulty = aggregate(&rows.clone().filter(c("faulty")), &[common::DETECTOR])?;
@@ -235,21 +201,7 @@ fn variants(trials: &DataFrame) -> PolarsResult<DataFrame> {
     Ok(out)
 }
 
-/// One detector's result on one window (or one fault-free trial), for the paired counts.
-#[derive(Debug, Clone, Copy)]
-struct Paired {
-    flown: bool,
-    faulty: bool,
-    detected: bool,
-    isolated: bool,
-    delay_s: Option<f64>,
-    clearing_s: Option<f64>,
-    false_alarm: bool,
-    first_row_of_trial: bool,
-}
-
-/// Every pair of detectors on the same (trial, window): discordant counts, McNemar p-values, median
-/// paired delay differences.
+/// Every pair of detectors on the same (trial, window) ([`PairedUnits`]).
 fn compare(trials: &DataFrame, detectors: &[String], file: &Path) -> Result<DataFrame, RunError> {
     let trial = trials.column(common::TRIAL).and_then(|c| c.u64().cloned()).map_err(pol(file))?;
     let window = trials.column(col::WINDOW).and_then(|c| c.u32().cloned()).map_err(pol(file))?;
@@ -261,17 +213,10 @@ fn compare(trials: &DataFrame, detectors: &[String], file: &Path) -> Result<Data
     let delay = f64_col(trials, col::DETECTION_DELAY_S, file)?;
     let clearing = f64_col(trials, col::CLEARING_DELAY_S, file)?;
     let fa = trials.column(col::FALSE_ALARMS).and_then(|c| c.u32().cloned()).map_err(pol(file))?;
-    // (trial, window) -> per detector.
-    let mut table: BTreeMap<(u64, Option<u32>), Vec<Option<Paired>>> = BTreeMap::new();
+    let mut units = PairedUnits::new(detectors);
     for i in 0..trials.height() {
-        let d_name = det.get(i).unwrap_or_default();
-        let d = detectors
-            .iter()
-            .position(|n| n == d_name)
-            .ok_or_else(|| RunError::Invalid(format!("{}: unknown detector {d_name:?}", file.display())))?;
         let w = window.get(i);
-        let entry = table.entry((trial.get(i).unwrap_or(0), w)).or_insert_with(|| vec![None; detectors.len()]);
-        entry[d] = Some(Paired {
+        let outcome = Outcome {
             flown: failure.get(i).is_none(),
             faulty: kind.get(i) != Some(common::NO_FAULT),
             detected: detected.get(i).unwrap_or(false),
@@ -279,130 +224,13 @@ fn compare(trials: &DataFrame, detectors: &[String], file: &Path) -> Result<Data
             delay_s: delay.get(i),
             clearing_s: clearing.get(i),
             false_alarm: fa.get(i).unwrap_or(0) > 0,
-            first_row_of_trial: w.is_none_or(|w| w == 0),
-        });
+            first_unit_of_trial: w.is_none_or(|w| w == 0),
+        };
+        units
+            .insert(trial.get(i).unwrap_or(0), w, det.get(i).unwrap_or_default(), outcome)
+            .map_err(|e| RunError::Invalid(format!("{}: {e}", file.display())))?;
     }
-    let mut c = Comparison::default();
-    for a in 0..detectors.len() {
-        for b in a + 1..detectors.len() {
-            let mut n = [0u64; 3]; // faulty windows, flights, (unused)
-            let mut disc = [[0u64; 2]; 3]; // detection, isolation, false alarm: [a only, b only]
-            let mut rate = [[0u64; 2]; 2]; // detected, isolated: [a, b]
-            let (mut delay_diff, mut clear_diff) = (Vec::new(), Vec::new());
-            for row in table.values() {
-                let (Some(x), Some(y)) = (row[a], row[b]) else { continue };
-                if !(x.flown && y.flown) {
-                    continue;
-                }
-                if x.faulty {
-                    n[0] += 1;
-                    for (k, (u, v)) in [(x.detected, y.detected), (x.isolated, y.isolated)].into_iter().enumerate() {
-                        disc[k][0] += (u && !v) as u64;
-                        disc[k][1] += (v && !u) as u64;
-                        rate[k][0] += u as u64;
-                        rate[k][1] += v as u64;
-                    }
-                    if let (Some(u), Some(v)) = (x.delay_s, y.delay_s) {
-                        delay_diff.push(v - u);
-                    }
-                    if let (Some(u), Some(v)) = (x.clearing_s, y.clearing_s) {
-                        clear_diff.push(v - u);
-                    }
-                }
-                if x.first_row_of_trial {
-                    n[1] += 1;
-                    disc[2][0] += (x.false_alarm && !y.false_alarm) as u64;
-                    disc[2][1] += (y.false_alarm && !x.false_alarm) as u64;
-                }
-            }
-            let share = |k: u64| if n[0] > 0 { k as f64 / n[0] as f64 } else { f64::NAN };
-            c.a.push(detectors[a].clone());
-            c.b.push(detectors[b].clone());
-            c.windows.push(n[0]);
-            c.pd_a.push(share(rate[0][0]));
-            c.pd_b.push(share(rate[0][1]));
-            c.det_a_only.push(disc[0][0]);
-            c.det_b_only.push(disc[0][1]);
-            c.p_det.push(mcnemar_exact(disc[0][0], disc[0][1]));
-            c.iso_a.push(share(rate[1][0]));
-            c.iso_b.push(share(rate[1][1]));
-            c.iso_a_only.push(disc[1][0]);
-            c.iso_b_only.push(disc[1][1]);
-            c.p_iso.push(mcnemar_exact(disc[1][0], disc[1][1]));
-            c.delay_pairs.push(delay_diff.len() as u64);
-            c.delay_diff.push(median(&mut delay_diff));
-            c.clear_pairs.push(clear_diff.len() as u64);
-            c.clear_diff.push(median(&mut clear_diff));
-            c.flights.push(n[1]);
-            c.fa_a_only.push(disc[2][0]);
-            c.fa_b_only.push(disc[2][1]);
-            c.p_fa.push(mcnemar_exact(disc[2][0], disc[2][1]));
-        }
-    }
-    c.into_frame().map_err(pol(file))
-}
-
-/// The median (mean of the two middle values for an even count); `None` when empty.
-fn median(v: &mut [f64]) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let m = v.len() / 2;
-    Some(if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) })
-}
-
-#[derive(Default)]
-struct Comparison {
-    a: Vec<String>,
-    b: Vec<String>,
-    windows: Vec<u64>,
-    pd_a: Vec<f64>,
-    pd_b: Vec<f64>,
-    det_a_only: Vec<u64>,
-    det_b_only: Vec<u64>,
-    p_det: Vec<f64>,
-    iso_a: Vec<f64>,
-    iso_b: Vec<f64>,
-    iso_a_only: Vec<u64>,
-    iso_b_only: Vec<u64>,
-    p_iso: Vec<f64>,
-    delay_pairs: Vec<u64>,
-    delay_diff: Vec<Option<f64>>,
-    clear_pairs: Vec<u64>,
-    clear_diff: Vec<Option<f64>>,
-    flights: Vec<u64>,
-    fa_a_only: Vec<u64>,
-    fa_b_only: Vec<u64>,
-    p_fa: Vec<f64>,
-}
-
-impl Comparison {
-    fn into_frame(self) -> PolarsResult<DataFrame> {
-        DataFrame::new_infer_height(vec![
-            Column::new("detector_a".into(), self.a),
-            Column::new("detector_b".into(), self.b),
-            Column::new("fault_windows".into(), self.windows),
-            Column::new("pd_a".into(), self.pd_a),
-            Column::new("pd_b".into(), self.pd_b),
-            Column::new("detected_by_a_only".into(), self.det_a_only),
-            Column::new("detected_by_b_only".into(), self.det_b_only),
-            Column::new("mcnemar_p_detection".into(), self.p_det),
-            Column::new("isolated_a".into(), self.iso_a),
-            Column::new("isolated_b".into(), self.iso_b),
-            Column::new("isolated_by_a_only".into(), self.iso_a_only),
-            Column::new("isolated_by_b_only".into(), self.iso_b_only),
-            Column::new("mcnemar_p_isolation".into(), self.p_iso),
-            Column::new("delay_pairs".into(), self.delay_pairs),
-            Column::new("median_delay_b_minus_a_s".into(), self.delay_diff),
-            Column::new("clearing_pairs".into(), self.clear_pairs),
-            Column::new("median_clearing_b_minus_a_s".into(), self.clear_diff),
-            Column::new("flights".into(), self.flights),
-            Column::new("false_alarm_a_only".into(), self.fa_a_only),
-            Column::new("false_alarm_b_only".into(), self.fa_b_only),
-            Column::new("mcnemar_p_false_alarm".into(), self.p_fa),
-        ])
-    }
+    units.compare(true).map_err(pol(file))
 }
 
 /// Flights that stopped early, and covariance trouble, counted once per (trial, detector).
@@ -433,13 +261,6 @@ mod tests {
     use crate::sampling::surfaces::{ScenarioFault, SurfaceTrialSpec};
     use crate::sim::surfaces::{BankOutcome, SurfaceTrialResult, UavSimError, WindowOutcome};
     use crate::study::surfaces::SurfaceStudy;
-
-    #[test]
-    fn median_of_odd_and_even_counts() {
-        assert_eq!(median(&mut []), None);
-        assert_eq!(median(&mut [3.0, 1.0, 2.0]), Some(2.0));
-        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), Some(2.5));
-    }
 
     /// Two banks on five hand-made trials (a left aileron stuck at -15 deg from 5 s to 15 s, or none):
     /// trial 0: a isolates (0.5 s), b declares the rudder first (1.0 s); trial 1: a misses, b isolates
@@ -565,7 +386,7 @@ mod tests {
         let p = c.column("mcnemar_p_detection").unwrap().f64().unwrap().get(0).unwrap();
         assert_eq!(p, 1.0);
 
-        let v = variants(&df).unwrap();
+        let v = per_detector(&df).unwrap();
         let vu = |n: &str| -> Vec<u64> { v.column(n).unwrap().u64().unwrap().into_no_null_iter().collect() };
         assert_eq!(vu("flights"), [5, 5]);
         assert_eq!(vu("flights_failed"), [1, 1]);

@@ -2,6 +2,7 @@
 //!
 //! Every rejection names the file, the field (as a TOML path) and what is allowed.
 
+pub mod air_data;
 pub mod deck;
 pub mod surfaces;
 
@@ -243,12 +244,17 @@ impl Study {
 
     /// Parses and validates deck text; `path` names it in messages.
     pub fn from_toml(text: &str, path: &Path) -> Result<Study, DeckError> {
-        if surfaces::is_surface_deck(text) {
-            return Err(DeckError::Invalid {
-                file: path.into(),
-                field: "airframe".into(),
-                message: "this is a control-surface deck (method 004); this command reads detection-filter ([plant]) decks only".into(),
-            });
+        for (is, field, method) in [
+            (surfaces::is_surface_deck as fn(&str) -> bool, "airframe", "a control-surface deck (method 004)"),
+            (air_data::is_air_data_deck, "flight", "an air-data deck (method 002)"),
+        ] {
+            if is(text) {
+                return Err(DeckError::Invalid {
+                    file: path.into(),
+                    field: field.into(),
+                    message: format!("this is {method}; this command reads detection-filter ([plant]) decks only"),
+                });
+            }
         }
         let deck: Deck = toml::from_str(text)
             .map_err(|e| DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() })?;
@@ -334,15 +340,15 @@ impl Validator<'_> {
         Ok(())
     }
 
-    fn index_of(&self, field: &str, name: &str, names: &[String], list: &str) -> Result<usize, DeckError> {
+    pub(crate) fn index_of(&self, field: &str, name: &str, names: &[String], list: &str) -> Result<usize, DeckError> {
         names
             .iter()
             .position(|n| n == name)
             .ok_or_else(|| self.err(field, format!("{name:?} is not one of {list}: {}", names.join(", "))))
     }
 
-    fn study(&self, deck: Deck) -> Result<Study, DeckError> {
-        let s = &deck.study;
+    /// `[study]`: a name fit for a folder, a positive duration and step; returns (duration, step, samples).
+    pub(crate) fn study_section(&self, s: &deck::StudySection) -> Result<(f64, f64, usize), DeckError> {
         if s.name.is_empty() || !s.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
             return Err(self.err(
                 "study.name",
@@ -355,7 +361,12 @@ impl Validator<'_> {
         if steps_f < 1.0 || steps_f > 1e8 {
             return Err(self.err("study.dt_s", format!("duration_s / dt_s = {steps_f} samples; allowed 1 to 1e8")));
         }
-        let steps = steps_f as usize;
+        Ok((duration_s, dt_s, steps_f as usize))
+    }
+
+    fn study(&self, deck: Deck) -> Result<Study, DeckError> {
+        let s = &deck.study;
+        let (duration_s, dt_s, steps) = self.study_section(s)?;
 
         let p = &deck.plant;
         self.names("plant.states", &p.states)?;
@@ -703,6 +714,61 @@ impl Validator<'_> {
         }
     }
 
+    /// One `[[monte_carlo.fault]]` population (the same syntax in every deck with sensor faults).
+    pub(crate) fn fault_kind_spec(&self, prefix: &str, f: &deck::FaultKindSection) -> Result<FaultKindSpec, DeckError> {
+        let field = |name: &str| format!("{prefix}.{name}");
+        if f.frequency_hz.is_some() && f.kind != "oscillation" {
+            return Err(self.err(field("frequency_hz"), format!("only used by kind \"oscillation\", not {:?}", f.kind)));
+        }
+        let kind = match f.kind.as_str() {
+            "stuck" => FaultKind::Stuck,
+            "gain" => FaultKind::Gain,
+            "bias" => FaultKind::Bias,
+            "total_failure" => FaultKind::TotalFailure,
+            "drift" => FaultKind::Drift,
+            "oscillation" => match f.frequency_hz {
+                Some(v) => FaultKind::Oscillation { frequency_hz: self.positive(&field("frequency_hz"), v)? },
+                None => return Err(self.err(field("frequency_hz"), "required for kind \"oscillation\"")),
+            },
+            other => {
+                return Err(self.err(field("kind"), format!("{other:?}: allowed \"stuck\" (held at onset), \"gain\", \"bias\", \"total_failure\", \"drift\", \"oscillation\"")));
+            }
+        };
+        let sized = !matches!(kind, FaultKind::Stuck | FaultKind::TotalFailure);
+        let size =
+            match (sized, &f.size, &f.size_sigma) {
+                (false, None, None) => SizeSpec::None,
+                (false, _, _) => {
+                    return Err(
+                        self.err(field("size"), format!("kind {:?} has no size: remove size and size_sigma", f.kind))
+                    );
+                }
+                (true, Some(_), Some(_)) => {
+                    return Err(self.err(field("size_sigma"), "give size or size_sigma, not both"));
+                }
+                (true, None, None) => return Err(self.err(
+                    field("size"),
+                    format!(
+                        "kind {:?} needs size (output units) or size_sigma (multiples of the output's sensor sigma)",
+                        f.kind
+                    ),
+                )),
+                (true, Some(v), None) => SizeSpec::Output(self.factor(&field("size"), Some(v), Factor::Fixed(0.0))?),
+                (true, None, Some(v)) => {
+                    if kind == FaultKind::Gain {
+                        return Err(self.err(field("size_sigma"), "a gain is a factor: use size"));
+                    }
+                    SizeSpec::SensorSigma(self.factor(&field("size_sigma"), Some(v), Factor::Fixed(0.0))?)
+                }
+            };
+        if kind == FaultKind::Gain {
+            if let SizeSpec::Output(factor) = &size {
+                self.factor_within(&field("size"), factor, |v| v != 1.0, "gain factors != 1")?;
+            }
+        }
+        Ok(FaultKindSpec { kind, size })
+    }
+
     fn monte_carlo(
         &self,
         mc: Option<&deck::MonteCarloSection>,
@@ -750,61 +816,12 @@ impl Validator<'_> {
         let noise_scale = self.factor("monte_carlo.noise_scale", mc.noise_scale.as_ref(), Factor::Fixed(1.0))?;
         self.factor_within("monte_carlo.noise_scale", &noise_scale, |v| v >= 0.0, ">= 0")?;
 
-        let mut faults = Vec::with_capacity(mc.fault.len());
-        for (i, f) in mc.fault.iter().enumerate() {
-            let field = |name: &str| format!("monte_carlo.fault[{i}].{name}");
-            if f.frequency_hz.is_some() && f.kind != "oscillation" {
-                return Err(
-                    self.err(field("frequency_hz"), format!("only used by kind \"oscillation\", not {:?}", f.kind))
-                );
-            }
-            let kind = match f.kind.as_str() {
-                "stuck" => FaultKind::Stuck,
-                "gain" => FaultKind::Gain,
-                "bias" => FaultKind::Bias,
-                "total_failure" => FaultKind::TotalFailure,
-                "drift" => FaultKind::Drift,
-                "oscillation" => match f.frequency_hz {
-                    Some(v) => FaultKind::Oscillation { frequency_hz: self.positive(&field("frequency_hz"), v)? },
-                    None => return Err(self.err(field("frequency_hz"), "required for kind \"oscillation\"")),
-                },
-                other => {
-                    return Err(self.err(field("kind"), format!("{other:?}: allowed \"stuck\" (held at onset), \"gain\", \"bias\", \"total_failure\", \"drift\", \"oscillation\"")));
-                }
-            };
-            let sized = !matches!(kind, FaultKind::Stuck | FaultKind::TotalFailure);
-            let size = match (sized, &f.size, &f.size_sigma) {
-                (false, None, None) => SizeSpec::None,
-                (false, _, _) => {
-                    return Err(
-                        self.err(field("size"), format!("kind {:?} has no size: remove size and size_sigma", f.kind))
-                    );
-                }
-                (true, Some(_), Some(_)) => {
-                    return Err(self.err(field("size_sigma"), "give size or size_sigma, not both"));
-                }
-                (true, None, None) => return Err(self.err(
-                    field("size"),
-                    format!(
-                        "kind {:?} needs size (output units) or size_sigma (multiples of the output's sensor sigma)",
-                        f.kind
-                    ),
-                )),
-                (true, Some(v), None) => SizeSpec::Output(self.factor(&field("size"), Some(v), Factor::Fixed(0.0))?),
-                (true, None, Some(v)) => {
-                    if kind == FaultKind::Gain {
-                        return Err(self.err(field("size_sigma"), "a gain is a factor: use size"));
-                    }
-                    SizeSpec::SensorSigma(self.factor(&field("size_sigma"), Some(v), Factor::Fixed(0.0))?)
-                }
-            };
-            if kind == FaultKind::Gain {
-                if let SizeSpec::Output(factor) = &size {
-                    self.factor_within(&field("size"), factor, |v| v != 1.0, "gain factors != 1")?;
-                }
-            }
-            faults.push(FaultKindSpec { kind, size });
-        }
+        let faults = mc
+            .fault
+            .iter()
+            .enumerate()
+            .map(|(i, f)| self.fault_kind_spec(&format!("monte_carlo.fault[{i}]"), f))
+            .collect::<Result<Vec<_>, _>>()?;
 
         let mut parameter_errors = Vec::with_capacity(mc.parameter_error.len());
         for (i, pe) in mc.parameter_error.iter().enumerate() {
@@ -856,7 +873,7 @@ impl Validator<'_> {
         })
     }
 
-    fn fault(&self, i: usize, f: &deck::FaultSection, outputs: &[String]) -> Result<SensorFault, DeckError> {
+    pub(crate) fn fault(&self, i: usize, f: &deck::FaultSection, outputs: &[String]) -> Result<SensorFault, DeckError> {
         let field = |name: &str| format!("faults[{i}].{name}");
         let channel = self.index_of(&field("output"), &f.output, outputs, "plant.outputs")?;
         let onset_s = self.finite(&field("onset_s"), f.onset_s)?;
