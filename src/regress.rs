@@ -4,7 +4,8 @@
 //! Groups are matched on the key columns the summaries have: (thresholds, detector, kind, output,
 //! size_bin, noise_bin, param_error_bin) for detection filters, (detector, kind, surface, size_bin,
 //! noise_bin, param_error_bin) for surface banks, (detector, kind, sensors, size_bin, noise_bin,
-//! gust_bin) for air-data detectors. Flights that did not run to the end (design failures,
+//! gust_bin) for air-data detectors, (thresholds, detector, kind, engine, size_bin, noise_bin, gust_bin)
+//! for thrust-loss detectors. Flights that did not run to the end (design failures,
 //! or `failed` surface flights) are left out of both rates.
 //! Each rate is tested one-sided with a pooled two-proportion z-test (continuity-corrected) at level
 //! `alpha / m`, m the number of tests (Bonferroni), so a study with hundreds of groups does not flag
@@ -18,13 +19,14 @@ use crate::output::records::col;
 use crate::runner::RunError;
 use crate::stats::intervals::p_lower;
 
-const KEYS: [&str; 10] = [
+const KEYS: [&str; 11] = [
     "thresholds",
     col::DETECTOR,
     col::KIND,
     col::OUTPUT,
     crate::output::surfaces::col::SURFACE,
     crate::output::air_data::col::SENSORS,
+    crate::output::launch::col::ENGINE,
     col::SIZE_BIN,
     col::NOISE_BIN,
     col::PARAM_ERROR_BIN,

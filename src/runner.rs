@@ -12,8 +12,7 @@
 //!
 //! The runner knows nothing of plants or detectors: a study hands it a [`TrialSource`] (simulate trials
 //! `first..end`, turn results into rows) and the study fields of its [`Manifest`]. The LTI studies of
-//! method 000 ([`run_study`]), the air-data studies of method 002 and the control-surface studies of
-//! method 004 share it.
+//! method 000 ([`run_study`]), and the studies of methods 001, 002 and 004 share it.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -56,6 +55,8 @@ pub enum StudyKind {
     SurfaceBank,
     /// Method 002: air-data sensor faults and the dual-model UKF (`[flight]` decks).
     AirData,
+    /// Method 001: launch-vehicle thrust loss, EKF residual and moving-horizon GLS (`[vehicle]` decks).
+    ThrustLoss,
 }
 
 /// Trials per part file of LTI studies (a few seconds of work); a source may choose its own.

@@ -561,6 +561,64 @@ fn air_data_check_passes_on_its_baseline() {
 }
 
 #[test]
+fn launch_records_are_identical_for_any_threads_shards_and_resume() {
+    let tmp = tempfile::tempdir().unwrap();
+    // The bundled deck cut to 30 s flights and 150 trials (part files of 128: 128 + 22).
+    let full =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed001_thrust.toml")).unwrap();
+    let mut small = full.clone();
+    for (from, to) in [
+        ("duration_s = 90.0", "duration_s = 30.0"),
+        ("onset_s = { range = [15.0, 75.0] }", "onset_s = { range = [5.0, 20.0] }"),
+        ("trials = 2000", "trials = 150"),
+        ("start_s = 40.0", "start_s = 10.0"),
+        ("start_s = 50.0", "start_s = 15.0"),
+        ("threshold_fhat = 1.3e-5", "threshold_fhat = 1.3e-5\nloss_fit_onsets_s = [10.0, 20.0]"),
+    ] {
+        assert!(small.contains(from), "{from}");
+        small = small.replacen(from, to, 1);
+    }
+    let deck_path = tmp.path().join("small_launch.toml");
+    std::fs::write(&deck_path, small).unwrap();
+    let deck = deck_path.to_str().unwrap();
+    let s = |p: PathBuf| p.to_str().unwrap().to_string();
+    let tables = ["thresholds.csv", "summary.csv", "detectors.csv", "comparison.csv"];
+    let (one, stdout) = assert_identical_runs(deck, tmp.path(), 150, 128, &tables);
+    assert!(stdout.contains("seed         deck 1.3000e-5, calibrated"), "{stdout}");
+    let reference = read_frame(&one.join("trials.parquet"));
+    assert_eq!(reference.height(), 150, "one row per trial and detector");
+    assert_eq!(csv_frame(&one.join("detectors.csv")).height(), 2, "deck and calibrated thresholds");
+
+    // `simulate --trial N` flies trial N of the run: the same delay and engine.
+    use polars::prelude::*;
+    let row = reference.clone().lazy().filter(col("localised_correctly").eq(lit(true))).first().collect().unwrap();
+    let trial = row.column("trial").unwrap().u64().unwrap().get(0).unwrap().to_string();
+    let delay = row.column("delay_s").unwrap().f64().unwrap().get(0).unwrap();
+    let engine = row.column("engine").unwrap().str().unwrap().get(0).unwrap().replace('_', " ");
+    let trace = s(tmp.path().join("trace.parquet"));
+    let sim = ok(&fdimc(&["simulate", deck, "--trial", &trial, "--out", &trace]));
+    assert!(sim.contains(&format!("delay {delay:.2} s, localised {engine},")), "trial {trial}: {sim}");
+    assert_eq!(read_frame(Path::new(&trace)).height(), 3000);
+
+    let out = fdimc(&["report", &s(one.clone())]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("a launch-vehicle study"), "{}", text(&out.stderr));
+    // Thresholds recalibrated at another false-alarm probability: a fifth of the flights may alarm.
+    ok(&fdimc(&["summarize", &s(one.clone()), "--target-pfa", "0.2"]));
+    let thresholds = csv_frame(&one.join("thresholds.csv"));
+    let pfa = thresholds.column("pfa_achieved").unwrap().f64().unwrap().get(0).unwrap();
+    assert_eq!(thresholds.column("target_pfa").unwrap().f64().unwrap().get(0), Some(0.2));
+    assert!(pfa > 0.1 && pfa <= 0.2, "{pfa}");
+}
+
+#[test]
+fn launch_check_passes_on_its_baseline() {
+    let out = fdimc(&["check", "studies/ci_seed001.toml", "--baseline", "results/baselines/ci_seed001.csv"]);
+    let stdout = ok(&out);
+    assert!(stdout.contains(": 0 regression(s)") && !stdout.contains("warning: group"), "{stdout}");
+}
+
+#[test]
 fn surface_check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
     let baseline = "results/baselines/ci_seed004.csv";
     let tmp = tempfile::tempdir().unwrap();

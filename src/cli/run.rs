@@ -4,12 +4,15 @@ use std::path::{Path, PathBuf};
 use super::CliError;
 use crate::runner::{self, Manifest, RunError, RunOptions, Shard, StudyKind};
 use crate::sim::air_data::AirDataTrials;
+use crate::sim::launch::LaunchTrials;
 use crate::sim::surfaces::SurfaceTrials;
 use crate::stats::air_data::AirDataSummary;
+use crate::stats::launch::LaunchSummary;
 use crate::stats::surfaces::SurfaceSummary;
 use crate::stats::{self, Calibration, SummaryReport};
 use crate::study::Study;
 use crate::study::air_data::{AirDataStudy, is_air_data_deck};
+use crate::study::launch::{LaunchStudy, is_launch_deck};
 use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
 
 impl From<RunError> for CliError {
@@ -39,6 +42,7 @@ enum Loaded {
     Lti(Study),
     Surfaces(SurfaceStudy),
     AirData(AirDataStudy),
+    Launch(LaunchStudy),
 }
 
 impl Loaded {
@@ -49,6 +53,8 @@ impl Loaded {
             Loaded::Surfaces(SurfaceStudy::from_toml(&text, a.deck)?)
         } else if is_air_data_deck(&text) {
             Loaded::AirData(AirDataStudy::from_toml(&text, a.deck)?)
+        } else if is_launch_deck(&text) {
+            Loaded::Launch(LaunchStudy::from_toml(&text, a.deck)?)
         } else {
             Loaded::Lti(Study::from_toml(&text, a.deck)?)
         };
@@ -60,6 +66,7 @@ impl Loaded {
                 Loaded::Lti(s) => s.monte_carlo.trials = n,
                 Loaded::Surfaces(s) => s.monte_carlo.trials = n,
                 Loaded::AirData(s) => s.monte_carlo.trials = n,
+                Loaded::Launch(s) => s.monte_carlo.trials = n,
             }
         }
         if let Some(seed) = a.seed {
@@ -67,6 +74,7 @@ impl Loaded {
                 Loaded::Lti(s) => s.seed = seed,
                 Loaded::Surfaces(s) => s.seed = seed,
                 Loaded::AirData(s) => s.seed = seed,
+                Loaded::Launch(s) => s.seed = seed,
             }
         }
         Ok(loaded)
@@ -77,6 +85,7 @@ impl Loaded {
             Loaded::Lti(s) => &s.name,
             Loaded::Surfaces(s) => &s.name,
             Loaded::AirData(s) => &s.name,
+            Loaded::Launch(s) => &s.name,
         }
     }
 }
@@ -113,6 +122,12 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         }
         Loaded::AirData(study) => {
             let trials = AirDataTrials::new(study);
+            runner::run(&trials, trials.manifest(), &opts)?
+        }
+        Loaded::Launch(study) => {
+            // Designs and loss tables are the deck's: one that cannot be designed is invalid input.
+            let trials =
+                LaunchTrials::new(study).map_err(|e| CliError::Invalid(format!("{}: {e}", study.path.display())))?;
             runner::run(&trials, trials.manifest(), &opts)?
         }
     };
@@ -160,6 +175,7 @@ enum Summary {
     Lti(SummaryReport),
     Surfaces(SurfaceSummary),
     AirData(AirDataSummary),
+    Launch(LaunchSummary),
 }
 
 impl Summary {
@@ -168,6 +184,7 @@ impl Summary {
             Summary::Lti(s) => print_summary(dir, s),
             Summary::Surfaces(s) => print_surface_summary(dir, s),
             Summary::AirData(s) => print_air_data_summary(dir, s),
+            Summary::Launch(s) => print_launch_summary(dir, s),
         }
     }
 }
@@ -182,10 +199,23 @@ fn summarize(dir: &Path, manifest: &Manifest, calibration: Option<Calibration>) 
         StudyKind::SurfaceBank | StudyKind::AirData if calibration.is_some() => {
             return Err(CliError::Invalid(format!(
                 "{}: this study's detectors declare by model probabilities (the deck's 0.9 / 0.05): \
-                 --target-pfa and --thresholds apply to detection-filter studies",
+                 --target-pfa and --thresholds apply to detection-filter and thrust-loss studies",
                 dir.display()
             )));
         }
+        StudyKind::ThrustLoss => Summary::Launch(stats::launch::summarize(
+            dir,
+            match calibration {
+                None => manifest.target_pfa,
+                Some(Calibration::Target(p)) => p,
+                Some(Calibration::File(_)) => {
+                    return Err(CliError::Invalid(format!(
+                        "{}: --thresholds reads a detection filter's thresholds.csv; use --target-pfa here",
+                        dir.display()
+                    )));
+                }
+            },
+        )?),
         StudyKind::SurfaceBank => Summary::Surfaces(stats::surfaces::summarize(dir)?),
         StudyKind::AirData => Summary::AirData(stats::air_data::summarize(dir)?),
     })
@@ -495,5 +525,82 @@ pub fn exec_report(dir: &Path, trials: &[u64]) -> Result<(), CliError> {
     if let Some(page) = report.files.last() {
         println!("{} plots -> {}", report.files.len() - 1, page.display());
     }
+    Ok(())
+}
+
+/// The thresholds and per-detector table of a launch study (`detectors.csv`).
+fn print_launch_summary(dir: &Path, s: &LaunchSummary) -> Result<(), CliError> {
+    use polars::prelude::*;
+    println!("  thresholds on |fhat|: the deck's, and calibrated on the fault-free flights:");
+    for t in &s.thresholds {
+        println!(
+            "    {:<12} deck {:.4e}, calibrated {:.4e} (Pfa achieved {:.4} on {} calibration flights)",
+            t.detector,
+            t.deck,
+            t.calibrated,
+            t.false_alarms as f64 / t.calibration_trials.max(1) as f64,
+            t.calibration_trials
+        );
+    }
+    let v = &s.detectors;
+    let internal = |e: PolarsError| CliError::Internal(e.to_string());
+    let f = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::Float64)).map_err(internal);
+    let u = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::UInt64)).map_err(internal);
+    let text = |n: &str| v.column(n).and_then(|c| c.str().cloned()).map_err(internal);
+    let (sets, names) = (text("thresholds")?, text("detector")?);
+    let g = |c: &Column, i: usize| c.f64().ok().and_then(|c| c.get(i)).unwrap_or(f64::NAN);
+    let n = |c: &Column, i: usize| c.u64().ok().and_then(|c| c.get(i)).unwrap_or(0);
+    let (pd, pd_lo, pd_hi) = (f("pd")?, f("pd_lo")?, f("pd_hi")?);
+    let (d50, d90) = (f("delay_p50_s")?, f("delay_p90_s")?);
+    let (loc, loc_lo, loc_hi) =
+        (f("localisation_accuracy")?, f("localisation_accuracy_lo")?, f("localisation_accuracy_hi")?);
+    let loss = f("loss_abs_error_p50_percent")?;
+    let (pfa, pfa_lo, pfa_hi) = (f("pfa")?, f("pfa_lo")?, f("pfa_hi")?);
+    let (faults, flights) = (u("faulty_trials")?, u("flights")?);
+    println!("  per detector, paired over the same trials (see summary.csv for groups, comparison.csv for tests);");
+    println!("  engine and loss (median |error|) at the deck's threshold only; Pfa: alarms before the onset:");
+    println!(
+        "    {:<10} {:<12} {:>6} {:<21} {:>14} {:<21} {:>8} {:>7} {:<21}",
+        "thresholds",
+        "detector",
+        "faults",
+        "Pd [95 % CI]",
+        "delay p50/p90",
+        "engine [95 % CI]",
+        "loss err",
+        "flights",
+        "Pfa [95 % CI]"
+    );
+    for i in 0..v.height() {
+        let engine = if g(&loc, i).is_nan() {
+            "-".to_string()
+        } else {
+            format!("{:.3} [{:.3}, {:.3}]", g(&loc, i), g(&loc_lo, i), g(&loc_hi, i))
+        };
+        let loss_text = if g(&loss, i).is_nan() { "-".to_string() } else { format!("{:.1} %", g(&loss, i)) };
+        println!(
+            "    {:<10} {:<12} {:>6} {:.3} [{:.3}, {:.3}]   {:>14} {:<21} {:>8} {:>7} {:.3} [{:.3}, {:.3}]",
+            sets.get(i).unwrap_or(""),
+            names.get(i).unwrap_or(""),
+            n(&faults, i),
+            g(&pd, i),
+            g(&pd_lo, i),
+            g(&pd_hi, i),
+            format!("{:.2}/{:.2} s", g(&d50, i), g(&d90, i)),
+            engine,
+            loss_text,
+            n(&flights, i),
+            g(&pfa, i),
+            g(&pfa_lo, i),
+            g(&pfa_hi, i),
+        );
+    }
+    for w in &s.warnings {
+        println!("  warning: {w}");
+    }
+    println!(
+        "  wrote thresholds.csv, summary.csv, summary.parquet, detectors.csv, comparison.csv in {}",
+        dir.display()
+    );
     Ok(())
 }

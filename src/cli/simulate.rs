@@ -10,6 +10,7 @@ use crate::sampling::{Substream, noise_rng};
 use crate::sim::surfaces::{SurfaceTrial, run_banks};
 use crate::sim::{Engine, Trace};
 use crate::study::air_data::{AirDataStudy, is_air_data_deck};
+use crate::study::launch::{LaunchStudy, is_launch_deck};
 use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
 use crate::study::{DeckError, Study};
 
@@ -25,6 +26,9 @@ pub fn exec(deck: &Path, trial: u64, detector: Option<&str>, out: &Path) -> Resu
     }
     if is_air_data_deck(&text) {
         return air_data(&AirDataStudy::from_toml(&text, deck)?, trial, detector, out);
+    }
+    if is_launch_deck(&text) {
+        return launch(&LaunchStudy::from_toml(&text, deck)?, trial, detector, out);
     }
     let study = Study::from_toml(&text, deck)?;
     let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
@@ -270,6 +274,93 @@ fn air_data(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &Path
             secs(o.bias_error_rms_sigma),
             secs(o.estimate_rms_sigma),
             secs(o.raw_rms_sigma)
+        );
+    }
+    Ok(())
+}
+
+/// One flight of a launch deck: every detector (or `--detector`'s) on the same samples; the trace holds
+/// the measured pitch rate and overloads, the true thrust, and per detector the residual, `fhat` and the
+/// alarm.
+fn launch(study: &LaunchStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), CliError> {
+    let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
+    let mut selected = study.clone();
+    if let Some(name) = detector {
+        let d = study.detectors.iter().find(|d| d.name == name).ok_or_else(|| {
+            CliError::Invalid(format!(
+                "--detector {name:?}: {} has detectors {}",
+                study.path.display(),
+                names.join(", ")
+            ))
+        })?;
+        selected.detectors = vec![d.clone()];
+    }
+    let trials = crate::sim::launch::LaunchTrials::new(&selected)
+        .map_err(|e| CliError::Invalid(format!("{}: {e}", study.path.display())))?;
+    let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
+    let mut bools: Vec<(String, Vec<bool>)> = Vec::new();
+    let result = trials.run_trial_with(trial, |m, steps| {
+        use crate::plant::launch_vehicle::idx;
+        let mut f = vec![
+            ("t_s".to_string(), m.t_s),
+            ("wz_measured_rad_s".to_string(), m.y[idx::WZ - 1]),
+            ("wz_true_rad_s".to_string(), m.truth[idx::WZ]),
+            ("n_y_measured_g".to_string(), m.n_y_g),
+            ("n_z_measured_g".to_string(), m.n_z_g),
+            ("thrust_true_n".to_string(), m.truth[idx::THRUST]),
+        ];
+        let mut b = Vec::new();
+        for (d, step) in selected.detectors.iter().zip(steps) {
+            f.push((format!("{}_residual_rad_s", d.name), step.residual_rad_s));
+            f.push((format!("{}_fhat", d.name), step.fhat));
+            b.push((format!("{}_alarm", d.name), step.alarm));
+        }
+        if floats.is_empty() {
+            floats = f.iter().map(|(n, _)| (n.clone(), Vec::new())).collect();
+            bools = b.iter().map(|(n, _)| (n.clone(), Vec::new())).collect();
+        }
+        for (col, (_, v)) in floats.iter_mut().zip(f) {
+            col.1.push(v);
+        }
+        for (col, (_, v)) in bools.iter_mut().zip(b) {
+            col.1.push(v);
+        }
+    });
+    let trace = Trace { float_columns: floats, bool_columns: bools };
+    let mut df = trace_frame(&trace).map_err(|e| CliError::Internal(e.to_string()))?;
+    write_table(&mut df, out)?;
+    let outcomes =
+        result.outcome.map_err(|e| CliError::Invalid(format!("{}: trial {trial}: {e}", study.path.display())))?;
+    let spec = &result.spec;
+    println!(
+        "{}: trial {trial}, {} detector(s), {} samples -> {}",
+        study.name,
+        outcomes.len(),
+        df.height(),
+        out.display()
+    );
+    match spec.fault {
+        Some(f) => println!(
+            "  fault               engine {} loses {:.1} % from {:.3} s",
+            f.engine + 1,
+            spec.loss_percent,
+            f.onset_s
+        ),
+        None => println!("  fault-free trial"),
+    }
+    println!("  noise scale {}, gust scale {}", spec.noise_scale, spec.gust_scale);
+    let secs = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+    for (d, o) in selected.detectors.iter().zip(&outcomes) {
+        let delay = o.alarm_s.zip(spec.fault).map(|(a, f)| a - f.onset_s);
+        let engine =
+            o.localised.map_or("-".to_string(), |e| e.map_or("none".to_string(), |e| format!("engine {}", e + 1)));
+        println!(
+            "  {:<12} max |fhat| before onset {:.3e}, false alarm {}, delay {} s, localised {engine}, loss estimate {} %",
+            d.name,
+            o.pre_max_fhat,
+            secs(o.false_alarm_s),
+            secs(delay),
+            o.loss_estimate_percent.map_or("-".to_string(), |l| format!("{l:.1}"))
         );
     }
     Ok(())

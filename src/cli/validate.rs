@@ -5,6 +5,7 @@ use crate::detector::stmmae::BankParams;
 use crate::fault::actuator::ActuatorFaultKind;
 use crate::plant::uav::{AerosondeParams, SURFACE_NAMES, trim};
 use crate::study::air_data::{AirDataStudy, is_air_data_deck};
+use crate::study::launch::{LaunchStudy, is_launch_deck};
 use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
 use crate::study::{DeckError, Shape, Study};
 
@@ -15,6 +16,9 @@ pub fn exec(deck: &Path) -> Result<(), CliError> {
     }
     if is_air_data_deck(&text) {
         return air_data(&AirDataStudy::from_toml(&text, deck)?);
+    }
+    if is_launch_deck(&text) {
+        return launch(&LaunchStudy::from_toml(&text, deck)?);
     }
     let study = Study::from_toml(&text, deck)?;
     let mut filters = Vec::with_capacity(study.detectors.len());
@@ -270,5 +274,63 @@ fn air_data(study: &AirDataStudy) -> Result<(), CliError> {
     if mc.faults.is_empty() {
         println!("            every faulty trial flies the faults above");
     }
+    Ok(())
+}
+
+/// The resolved launch-vehicle study (method 001).
+fn launch(study: &LaunchStudy) -> Result<(), CliError> {
+    println!("{}: valid", study.path.display());
+    let c = &study.config;
+    println!(
+        "study       {} (seed {}, {} s at dt {} s = {} samples)",
+        study.name,
+        study.seed,
+        study.duration_s,
+        c.dt_s,
+        (study.duration_s / c.dt_s).round()
+    );
+    let p = &c.params;
+    println!(
+        "vehicle     medium_launcher: {:.0} t at lift-off, 4 engines of {:.0} kN at sea level, thrust/weight {:.2}",
+        p.liftoff_mass_kg / 1000.0,
+        p.engine_thrust_n(0.0) / 1000.0,
+        4.0 * p.engine_thrust_n(0.0) / (p.liftoff_mass_kg * p.gravity_mps2)
+    );
+    for g in &study.gusts {
+        println!(
+            "gust        {:?} {} m/s from {} s for {} s (1 - cosine; the filter knows no wind)",
+            g.axis, g.amplitude_mps, g.start_s, g.duration_s
+        );
+    }
+    for d in &study.detectors {
+        let m = &d.params.mhe;
+        println!(
+            "detector    {}: ekf_mhe, N {}, D {} sample(s), F {} (R = F^2), V = {} I, threshold |fhat| {:e}; loss table at {:?} s from losses {:?} %",
+            d.name,
+            m.window_n,
+            m.interval_samples,
+            m.fault_intensity,
+            m.window_variance,
+            d.params.threshold_fhat,
+            d.loss_table.onsets_s,
+            d.loss_table.losses_percent
+        );
+    }
+    if let Some(f) = &study.fault {
+        println!("fault       engine {} loses {} % from {} s", f.engine + 1, f.loss_percent, f.onset_s);
+    }
+    let mc = &study.monte_carlo;
+    println!(
+        "monte carlo {} trials, fault-free fraction {}, sampler {:?}, target Pfa {}, engines {:?}",
+        mc.trials,
+        mc.fault_free_fraction,
+        mc.sampler,
+        mc.target_pfa,
+        mc.engines.iter().map(|e| e + 1).collect::<Vec<_>>()
+    );
+    println!(
+        "            loss {:?} %, onset {:?} s, noise scale {:?}, gust scale {:?}; detection within {} s of the onset",
+        mc.loss_percent, mc.onset_s, mc.noise_scale, mc.gust_scale, mc.detection_window_s
+    );
     Ok(())
 }

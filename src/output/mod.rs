@@ -10,6 +10,7 @@ use polars::prelude::*;
 use crate::sim::Trace;
 
 pub mod air_data;
+pub mod launch;
 pub mod records;
 pub mod surfaces;
 

@@ -45,7 +45,8 @@
 //! Simple and documented, enough to give the attitude loop its (small) aerodynamic instability: axial
 //! force `-1/2 rho S C_A |v| v_x1`, normal forces `-1/2 rho S C_N_alpha |v| (v_y1, v_z1)` (the linear
 //! normal-force slope times `sin alpha`, written so that it is smooth at zero speed) acting at the centre
-//! of pressure ahead of the centre of mass; no Mach dependence, no aerodynamic damping, no wind.
+//! of pressure ahead of the centre of mass, `v` relative to the air; no Mach dependence, no aerodynamic
+//! damping. The truth may fly through discrete gusts ([`Gust`]); the filter's model has no wind.
 //! Exponential atmosphere for density and pressure.
 //!
 //! # Attitude control
@@ -293,6 +294,44 @@ pub struct Loads {
     pub thrust_n: [f64; ENGINES],
     /// Gimbal deflection of each engine (rad, tangential, module docs).
     pub gimbal_rad: [f64; ENGINES],
+    /// Velocity of the air, launch frame (m/s): the truth's gusts; zero in the filter's model.
+    pub wind_mps: Vector3<f64>,
+}
+
+/// Horizontal axis of a gust, in the launch frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GustAxis {
+    /// `x`, along the trajectory's plane: it changes the angle of attack in pitch.
+    DownRange,
+    /// `z`, across it: it changes the sideslip (yaw).
+    CrossRange,
+}
+
+/// A discrete "1 - cosine" gust in the truth (the filter knows no wind): the air moves at
+/// `amplitude (1 - cos(2 pi (t - start) / duration)) / 2` along `axis` over `[start, start + duration)`.
+/// The aerodynamic moment it brings moves the pitch-rate residual with no engine at fault: the seed's
+/// "unrelated jumps" a thrust-loss detector must not alarm on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Gust {
+    pub axis: GustAxis,
+    pub amplitude_mps: f64,
+    pub start_s: f64,
+    pub duration_s: f64,
+}
+
+impl Gust {
+    /// The air's velocity, launch frame (m/s), at `t_s`.
+    pub fn wind_mps(&self, t_s: f64) -> Vector3<f64> {
+        let phase = (t_s - self.start_s) / self.duration_s;
+        if !(0.0..1.0).contains(&phase) {
+            return Vector3::zeros();
+        }
+        let speed = 0.5 * self.amplitude_mps * (1.0 - (std::f64::consts::TAU * phase).cos());
+        match self.axis {
+            GustAxis::DownRange => Vector3::new(speed, 0.0, 0.0),
+            GustAxis::CrossRange => Vector3::new(0.0, 0.0, speed),
+        }
+    }
 }
 
 /// Rates of the 12 rigid-body states (entry [`idx::THRUST`] left 0), the specific force at the centre of
@@ -301,7 +340,8 @@ pub fn rigid_body_derivatives(p: &VehicleParams, x: &State, loads: &Loads) -> (S
     let C = launch_to_body(x[idx::PHI], x[idx::PSI], x[idx::GAMMA]);
     let v = Vector3::new(x[idx::VX], x[idx::VY], x[idx::VZ]);
     let w = Vector3::new(x[idx::WX], x[idx::WY], x[idx::WZ]);
-    let v_body = C * v;
+    // The aerodynamics see the velocity relative to the air.
+    let v_body = C * (v - loads.wind_mps);
 
     let mut force = Vector3::zeros();
     let mut moment = Vector3::zeros();
@@ -351,6 +391,7 @@ pub fn filter_derivatives(p: &VehicleParams, x: &State, t_s: f64, gimbal_rad: &[
         mass_kg: p.nominal_mass_kg(t_s),
         thrust_n: [x[idx::THRUST] / ENGINES as f64; ENGINES],
         gimbal_rad: *gimbal_rad,
+        wind_mps: Vector3::zeros(),
     };
     let (mut dx, _, _) = rigid_body_derivatives(p, x, &loads);
     dx[idx::THRUST] = ENGINES as f64 * p.engine_thrust_rate_n_s(x[idx::Y], x[idx::VY]);
@@ -526,6 +567,17 @@ impl SensorNoise {
         SensorNoise { velocity_mps: 0.0, rate_rad_s: 0.0, position_m: 0.0, attitude_rad: 0.0, overload_g: 0.0 }
     }
 
+    /// Every standard deviation times `factor`.
+    pub fn scaled(&self, factor: f64) -> Self {
+        SensorNoise {
+            velocity_mps: self.velocity_mps * factor,
+            rate_rad_s: self.rate_rad_s * factor,
+            position_m: self.position_m * factor,
+            attitude_rad: self.attitude_rad * factor,
+            overload_g: self.overload_g * factor,
+        }
+    }
+
     /// Standard deviations of the 12 measured states, in [`Measured`] order.
     pub fn measured_sigma(&self) -> [f64; MEASURED] {
         let (v, w, r, a) = (self.velocity_mps, self.rate_rad_s, self.position_m, self.attitude_rad);
@@ -555,6 +607,15 @@ pub struct LaunchVehicleConfig {
     pub dt_s: f64,
     /// An attitude error (any axis) past this ends the trial as a loss of control: 30 deg.
     pub max_attitude_error_rad: f64,
+    /// Gusts the truth flies through (none by default; the detector's design never sees them).
+    pub gusts: Vec<Gust>,
+}
+
+impl LaunchVehicleConfig {
+    /// The air's velocity at `t_s`: every gust summed.
+    pub fn wind_mps(&self, t_s: f64) -> Vector3<f64> {
+        self.gusts.iter().map(|g| g.wind_mps(t_s)).sum()
+    }
 }
 
 impl Default for LaunchVehicleConfig {
@@ -566,6 +627,7 @@ impl Default for LaunchVehicleConfig {
             noise: SensorNoise::default(),
             dt_s: 0.01,
             max_attitude_error_rad: 30f64.to_radians(),
+            gusts: Vec::new(),
         }
     }
 }
@@ -645,6 +707,7 @@ impl Vehicle {
             mass_kg: p.liftoff_mass_kg,
             thrust_n: [p.engine_thrust_n(0.0); ENGINES],
             gimbal_rad: [0.0; ENGINES],
+            wind_mps: Vector3::zeros(),
         };
         Ok(Vehicle {
             config: config.clone(),
@@ -754,6 +817,7 @@ impl Vehicle {
                 mass_kg: mass0 - flow_kg_s * (tau_s - t_s),
                 thrust_n: losses.map(|f| (1.0 - f) * engine),
                 gimbal_rad,
+                wind_mps: cfg.wind_mps(tau_s),
             };
             let (mut dx, _, _) = rigid_body_derivatives(p, x, &loads);
             let healthy: f64 = losses.iter().map(|f| 1.0 - f).sum();
@@ -773,6 +837,7 @@ impl Vehicle {
             mass_kg: self.mass_kg,
             thrust_n: losses.map(|f| (1.0 - f) * p.engine_thrust_n(next[idx::Y])),
             gimbal_rad,
+            wind_mps: cfg.wind_mps(t_s + dt_s),
         };
         self.x = next;
         self.k += 1;

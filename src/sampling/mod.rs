@@ -10,6 +10,7 @@
 //! [`noise_rng`]); the scenario draws, a few per trial, come from ChaCha8 itself.
 
 pub mod air_data;
+pub mod launch;
 pub mod noise;
 pub mod scenario;
 pub mod surfaces;

@@ -33,6 +33,7 @@ pub mod air_data;
 mod engine;
 pub mod kernel;
 mod lanes;
+pub mod launch;
 pub mod normals;
 pub mod surfaces;
 pub use engine::{Engine, TrialResult};

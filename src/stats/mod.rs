@@ -19,6 +19,7 @@
 
 pub mod air_data;
 pub mod intervals;
+pub mod launch;
 pub mod paired;
 pub mod surfaces;
 

@@ -4,6 +4,7 @@
 
 pub mod air_data;
 pub mod deck;
+pub mod launch;
 pub mod surfaces;
 
 use std::path::{Path, PathBuf};
@@ -247,6 +248,7 @@ impl Study {
         for (is, field, method) in [
             (surfaces::is_surface_deck as fn(&str) -> bool, "airframe", "a control-surface deck (method 004)"),
             (air_data::is_air_data_deck, "flight", "an air-data deck (method 002)"),
+            (launch::is_launch_deck, "vehicle", "a launch-vehicle deck (method 001)"),
         ] {
             if is(text) {
                 return Err(DeckError::Invalid {
