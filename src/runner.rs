@@ -44,20 +44,7 @@ pub trait TrialSource: Sync {
     fn frame(&self, results: &[Self::Result]) -> PolarsResult<DataFrame>;
 }
 
-/// Which kind of study a results folder holds; `summarize`, `merge` and `report` dispatch on it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum StudyKind {
-    /// Method 000: an LTI plant and detection filters (`[plant]` decks).
-    #[default]
-    DetectionFilter,
-    /// Method 004: the UAV with control-surface faults and banks of filters (`[airframe]` decks).
-    SurfaceBank,
-    /// Method 002: air-data sensor faults and the dual-model UKF (`[flight]` decks).
-    AirData,
-    /// Method 001: launch-vehicle thrust loss, EKF residual and moving-horizon GLS (`[vehicle]` decks).
-    ThrustLoss,
-}
+pub use crate::study::StudyKind;
 
 /// Trials per part file of LTI studies (a few seconds of work); a source may choose its own.
 pub const CHUNK_TRIALS: u64 = 4096;

@@ -11,9 +11,10 @@ use crate::stats::launch::LaunchSummary;
 use crate::stats::surfaces::SurfaceSummary;
 use crate::stats::{self, Calibration, SummaryReport};
 use crate::study::Study;
-use crate::study::air_data::{AirDataStudy, is_air_data_deck};
-use crate::study::launch::{LaunchStudy, is_launch_deck};
-use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
+use crate::study::air_data::AirDataStudy;
+use crate::study::deck_kind;
+use crate::study::launch::LaunchStudy;
+use crate::study::surfaces::SurfaceStudy;
 
 impl From<RunError> for CliError {
     fn from(e: RunError) -> Self {
@@ -49,14 +50,11 @@ impl Loaded {
     fn load(a: &RunArgs) -> Result<Loaded, CliError> {
         let text = std::fs::read_to_string(a.deck)
             .map_err(|e| CliError::Invalid(format!("{}: cannot read the deck: {e}", a.deck.display())))?;
-        let mut loaded = if is_surface_deck(&text) {
-            Loaded::Surfaces(SurfaceStudy::from_toml(&text, a.deck)?)
-        } else if is_air_data_deck(&text) {
-            Loaded::AirData(AirDataStudy::from_toml(&text, a.deck)?)
-        } else if is_launch_deck(&text) {
-            Loaded::Launch(LaunchStudy::from_toml(&text, a.deck)?)
-        } else {
-            Loaded::Lti(Study::from_toml(&text, a.deck)?)
+        let mut loaded = match deck_kind(&text) {
+            StudyKind::SurfaceBank => Loaded::Surfaces(SurfaceStudy::from_toml(&text, a.deck)?),
+            StudyKind::AirData => Loaded::AirData(AirDataStudy::from_toml(&text, a.deck)?),
+            StudyKind::ThrustLoss => Loaded::Launch(LaunchStudy::from_toml(&text, a.deck)?),
+            StudyKind::DetectionFilter => Loaded::Lti(Study::from_toml(&text, a.deck)?),
         };
         if let Some(n) = a.trials {
             if n == 0 || n > crate::sampling::MAX_TRIAL {
@@ -395,24 +393,54 @@ fn print_summary(dir: &Path, s: &SummaryReport) -> Result<(), CliError> {
     Ok(())
 }
 
+/// A summary table's columns as plain values for printing: a missing column or a null prints as NaN
+/// (numbers), 0 (counts) or "" (text).
+struct Table<'a>(&'a polars::prelude::DataFrame);
+
+impl Table<'_> {
+    fn f64s(&self, name: &str) -> Vec<f64> {
+        use polars::prelude::*;
+        let column = self.0.column(name).and_then(|c| c.cast(&DataType::Float64));
+        let values = column.as_ref().ok().and_then(|c| c.f64().ok());
+        (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or(f64::NAN)).collect()
+    }
+
+    fn u64s(&self, name: &str) -> Vec<u64> {
+        use polars::prelude::*;
+        let column = self.0.column(name).and_then(|c| c.cast(&DataType::UInt64));
+        let values = column.as_ref().ok().and_then(|c| c.u64().ok());
+        (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or(0)).collect()
+    }
+
+    fn strs(&self, name: &str) -> Vec<String> {
+        let values = self.0.column(name).ok().and_then(|c| c.str().ok());
+        (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or("").to_string()).collect()
+    }
+
+    /// `rate [lo, hi]` per row from the columns `name`, `name_lo`, `name_hi`; "-" where there is no rate.
+    fn rates(&self, name: &str) -> Vec<String> {
+        let (rate, lo, hi) = (self.f64s(name), self.f64s(&format!("{name}_lo")), self.f64s(&format!("{name}_hi")));
+        (0..rate.len())
+            .map(|i| if rate[i].is_nan() { "-".into() } else { format!("{:.3} [{:.3}, {:.3}]", rate[i], lo[i], hi[i]) })
+            .collect()
+    }
+
+    /// `p50/p90 s` per row from two percentile columns.
+    fn delays(&self, p50: &str, p90: &str) -> Vec<String> {
+        let (a, b) = (self.f64s(p50), self.f64s(p90));
+        a.iter().zip(&b).map(|(a, b)| format!("{a:.2}/{b:.2} s")).collect()
+    }
+}
+
 /// The per-detector (variant) table of a surface study (`detectors.csv`), then warnings and the files written.
 fn print_surface_summary(dir: &Path, s: &SurfaceSummary) -> Result<(), CliError> {
-    use polars::prelude::*;
-    let v = &s.detectors;
-    let internal = |e: PolarsError| CliError::Internal(e.to_string());
-    let f = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::Float64)).map_err(internal);
-    let u = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::UInt64)).map_err(internal);
-    let names = v.column("detector").and_then(|c| c.str().cloned()).map_err(internal)?;
-    let (pd, pd_lo, pd_hi) = (f("pd")?, f("pd_lo")?, f("pd_hi")?);
-    let (iso, iso_lo, iso_hi) = (f("isolation_accuracy")?, f("isolation_accuracy_lo")?, f("isolation_accuracy_hi")?);
-    let (d50, d90, c50) = (f("delay_p50_s")?, f("delay_p90_s")?, f("clearing_p50_s")?);
-    let relapse = f("post_fault_rate")?;
-    let (pfa, pfa_lo, pfa_hi) = (f("pfa")?, f("pfa_lo")?, f("pfa_hi")?);
-    let (windows, flights) = (u("fault_windows")?, u("flights")?);
+    let t = Table(&s.detectors);
+    let (names, windows, flights) = (t.strs("detector"), t.u64s("fault_windows"), t.u64s("flights"));
+    let (pd, iso, pfa) = (t.rates("pd"), t.rates("isolation_accuracy"), t.rates("pfa"));
+    let (delay, clear, relapse) =
+        (t.delays("delay_p50_s", "delay_p90_s"), t.f64s("clearing_p50_s"), t.f64s("post_fault_rate"));
     let (asym, not_pd, non_finite) =
-        (u("flights_asymmetric")?, u("flights_not_positive_definite")?, u("flights_non_finite")?);
-    let g = |c: &Column, i: usize| c.f64().ok().and_then(|c| c.get(i)).unwrap_or(f64::NAN);
-    let n = |c: &Column, i: usize| c.u64().ok().and_then(|c| c.get(i)).unwrap_or(0);
+        (t.u64s("flights_asymmetric"), t.u64s("flights_not_positive_definite"), t.u64s("flights_non_finite"));
     println!("  per variant, paired over the same trials (see summary.csv for groups, comparison.csv for tests);");
     println!("  relapse: share of faults after which a surface is declared again; Pfa: alarms before any fault:");
     println!(
@@ -428,52 +456,36 @@ fn print_surface_summary(dir: &Path, s: &SurfaceSummary) -> Result<(), CliError>
         "Pfa [95 % CI]",
         "asym/notPD/NaN"
     );
-    for i in 0..v.height() {
+    for i in 0..names.len() {
         println!(
-            "    {:<16} {:>7} {:.3} [{:.3}, {:.3}]   {:.3} [{:.3}, {:.3}]   {:>14} {:>10} {:>8.3} {:>7} {:.3} [{:.3}, {:.3}]   {:>5}/{}/{}",
-            names.get(i).unwrap_or(""),
-            n(&windows, i),
-            g(&pd, i),
-            g(&pd_lo, i),
-            g(&pd_hi, i),
-            g(&iso, i),
-            g(&iso_lo, i),
-            g(&iso_hi, i),
-            format!("{:.2}/{:.2} s", g(&d50, i), g(&d90, i)),
-            format!("{:.2} s", g(&c50, i)),
-            g(&relapse, i),
-            n(&flights, i),
-            g(&pfa, i),
-            g(&pfa_lo, i),
-            g(&pfa_hi, i),
-            n(&asym, i),
-            n(&not_pd, i),
-            n(&non_finite, i),
+            "    {:<16} {:>7} {:<21} {:<21} {:>14} {:>8.2} s {:>8.3} {:>7} {:<21} {:>7}/{}/{}",
+            names[i],
+            windows[i],
+            pd[i],
+            iso[i],
+            delay[i],
+            clear[i],
+            relapse[i],
+            flights[i],
+            pfa[i],
+            asym[i],
+            not_pd[i],
+            non_finite[i]
         );
     }
-    for w in &s.warnings {
-        println!("  warning: {w}");
-    }
-    println!("  wrote summary.csv, summary.parquet, detectors.csv, comparison.csv in {}", dir.display());
+    print_footer(dir, &s.warnings, "summary.csv, summary.parquet, detectors.csv, comparison.csv");
     Ok(())
 }
 
 /// The per-detector table of an air-data study (`detectors.csv`), then warnings and the files written.
 fn print_air_data_summary(dir: &Path, s: &AirDataSummary) -> Result<(), CliError> {
-    use polars::prelude::*;
-    let v = &s.detectors;
-    let internal = |e: PolarsError| CliError::Internal(e.to_string());
-    let f = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::Float64)).map_err(internal);
-    let u = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::UInt64)).map_err(internal);
-    let names = v.column("detector").and_then(|c| c.str().cloned()).map_err(internal)?;
-    let g = |c: &Column, i: usize| c.f64().ok().and_then(|c| c.get(i)).unwrap_or(f64::NAN);
-    let n = |c: &Column, i: usize| c.u64().ok().and_then(|c| c.get(i)).unwrap_or(0);
-    let (pd, pd_lo, pd_hi) = (f("pd")?, f("pd_lo")?, f("pd_hi")?);
-    let (iso, iso_lo, iso_hi) = (f("isolation_accuracy")?, f("isolation_accuracy_lo")?, f("isolation_accuracy_hi")?);
-    let (d50, d90) = (f("delay_p50_s")?, f("delay_p90_s")?);
-    let (bias, est, raw) = (f("bias_error_p50_sigma")?, f("estimate_rms_p50_sigma")?, f("raw_rms_p50_sigma")?);
-    let (pfa, pfa_lo, pfa_hi) = (f("pfa")?, f("pfa_lo")?, f("pfa_hi")?);
-    let (faults, flights, repaired) = (u("faulty_trials")?, u("flights")?, u("repaired")?);
+    let t = Table(&s.detectors);
+    let (names, faults, flights, repaired) =
+        (t.strs("detector"), t.u64s("faulty_trials"), t.u64s("flights"), t.u64s("repaired"));
+    let (pd, iso, pfa) = (t.rates("pd"), t.rates("isolation_accuracy"), t.rates("pfa"));
+    let delay = t.delays("delay_p50_s", "delay_p90_s");
+    let (bias, est, raw) =
+        (t.f64s("bias_error_p50_sigma"), t.f64s("estimate_rms_p50_sigma"), t.f64s("raw_rms_p50_sigma"));
     println!("  per detector, paired over the same trials (see summary.csv for groups, comparison.csv for tests);");
     println!("  errors in sensor sigmas, medians; Pfa: declarations before the onset or in fault-free flights:");
     println!(
@@ -489,48 +501,27 @@ fn print_air_data_summary(dir: &Path, s: &AirDataSummary) -> Result<(), CliError
         "Pfa [95 % CI]",
         "repaired"
     );
-    for i in 0..v.height() {
+    for i in 0..names.len() {
         println!(
-            "    {:<12} {:>6} {:.3} [{:.3}, {:.3}]   {:.3} [{:.3}, {:.3}]   {:>14} {:>9.2} {:>15} {:>7} {:.3} [{:.3}, {:.3}]   {:>8}",
-            names.get(i).unwrap_or(""),
-            n(&faults, i),
-            g(&pd, i),
-            g(&pd_lo, i),
-            g(&pd_hi, i),
-            g(&iso, i),
-            g(&iso_lo, i),
-            g(&iso_hi, i),
-            format!("{:.2}/{:.2} s", g(&d50, i), g(&d90, i)),
-            g(&bias, i),
-            format!("{:.2} / {:.2}", g(&est, i), g(&raw, i)),
-            n(&flights, i),
-            g(&pfa, i),
-            g(&pfa_lo, i),
-            g(&pfa_hi, i),
-            n(&repaired, i),
+            "    {:<12} {:>6} {:<21} {:<21} {:>14} {:>9.2} {:>15} {:>7} {:<21} {:>8}",
+            names[i],
+            faults[i],
+            pd[i],
+            iso[i],
+            delay[i],
+            bias[i],
+            format!("{:.2} / {:.2}", est[i], raw[i]),
+            flights[i],
+            pfa[i],
+            repaired[i]
         );
     }
-    for w in &s.warnings {
-        println!("  warning: {w}");
-    }
-    println!("  wrote summary.csv, summary.parquet, detectors.csv, comparison.csv in {}", dir.display());
-    Ok(())
-}
-
-pub fn exec_report(dir: &Path, trials: &[u64]) -> Result<(), CliError> {
-    let report = crate::report::write_report(dir, trials)?;
-    for w in &report.warnings {
-        println!("warning: {w}");
-    }
-    if let Some(page) = report.files.last() {
-        println!("{} plots -> {}", report.files.len() - 1, page.display());
-    }
+    print_footer(dir, &s.warnings, "summary.csv, summary.parquet, detectors.csv, comparison.csv");
     Ok(())
 }
 
 /// The thresholds and per-detector table of a launch study (`detectors.csv`).
 fn print_launch_summary(dir: &Path, s: &LaunchSummary) -> Result<(), CliError> {
-    use polars::prelude::*;
     println!("  thresholds on |fhat|: the deck's, and calibrated on the fault-free flights:");
     for t in &s.thresholds {
         println!(
@@ -542,21 +533,11 @@ fn print_launch_summary(dir: &Path, s: &LaunchSummary) -> Result<(), CliError> {
             t.calibration_trials
         );
     }
-    let v = &s.detectors;
-    let internal = |e: PolarsError| CliError::Internal(e.to_string());
-    let f = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::Float64)).map_err(internal);
-    let u = |n: &str| v.column(n).and_then(|c| c.cast(&DataType::UInt64)).map_err(internal);
-    let text = |n: &str| v.column(n).and_then(|c| c.str().cloned()).map_err(internal);
-    let (sets, names) = (text("thresholds")?, text("detector")?);
-    let g = |c: &Column, i: usize| c.f64().ok().and_then(|c| c.get(i)).unwrap_or(f64::NAN);
-    let n = |c: &Column, i: usize| c.u64().ok().and_then(|c| c.get(i)).unwrap_or(0);
-    let (pd, pd_lo, pd_hi) = (f("pd")?, f("pd_lo")?, f("pd_hi")?);
-    let (d50, d90) = (f("delay_p50_s")?, f("delay_p90_s")?);
-    let (loc, loc_lo, loc_hi) =
-        (f("localisation_accuracy")?, f("localisation_accuracy_lo")?, f("localisation_accuracy_hi")?);
-    let loss = f("loss_abs_error_p50_percent")?;
-    let (pfa, pfa_lo, pfa_hi) = (f("pfa")?, f("pfa_lo")?, f("pfa_hi")?);
-    let (faults, flights) = (u("faulty_trials")?, u("flights")?);
+    let t = Table(&s.detectors);
+    let (sets, names, faults, flights) =
+        (t.strs("thresholds"), t.strs("detector"), t.u64s("faulty_trials"), t.u64s("flights"));
+    let (pd, engine, pfa) = (t.rates("pd"), t.rates("localisation_accuracy"), t.rates("pfa"));
+    let (delay, loss) = (t.delays("delay_p50_s", "delay_p90_s"), t.f64s("loss_abs_error_p50_percent"));
     println!("  per detector, paired over the same trials (see summary.csv for groups, comparison.csv for tests);");
     println!("  engine and loss (median |error|) at the deck's threshold only; Pfa: alarms before the onset:");
     println!(
@@ -571,36 +552,32 @@ fn print_launch_summary(dir: &Path, s: &LaunchSummary) -> Result<(), CliError> {
         "flights",
         "Pfa [95 % CI]"
     );
-    for i in 0..v.height() {
-        let engine = if g(&loc, i).is_nan() {
-            "-".to_string()
-        } else {
-            format!("{:.3} [{:.3}, {:.3}]", g(&loc, i), g(&loc_lo, i), g(&loc_hi, i))
-        };
-        let loss_text = if g(&loss, i).is_nan() { "-".to_string() } else { format!("{:.1} %", g(&loss, i)) };
+    for i in 0..names.len() {
+        let loss_text = if loss[i].is_nan() { "-".to_string() } else { format!("{:.1} %", loss[i]) };
         println!(
-            "    {:<10} {:<12} {:>6} {:.3} [{:.3}, {:.3}]   {:>14} {:<21} {:>8} {:>7} {:.3} [{:.3}, {:.3}]",
-            sets.get(i).unwrap_or(""),
-            names.get(i).unwrap_or(""),
-            n(&faults, i),
-            g(&pd, i),
-            g(&pd_lo, i),
-            g(&pd_hi, i),
-            format!("{:.2}/{:.2} s", g(&d50, i), g(&d90, i)),
-            engine,
-            loss_text,
-            n(&flights, i),
-            g(&pfa, i),
-            g(&pfa_lo, i),
-            g(&pfa_hi, i),
+            "    {:<10} {:<12} {:>6} {:<21} {:>14} {:<21} {:>8} {:>7} {:<21}",
+            sets[i], names[i], faults[i], pd[i], delay[i], engine[i], loss_text, flights[i], pfa[i]
         );
     }
-    for w in &s.warnings {
+    print_footer(dir, &s.warnings, "thresholds.csv, summary.csv, summary.parquet, detectors.csv, comparison.csv");
+    Ok(())
+}
+
+/// Warnings, then the files written.
+fn print_footer(dir: &Path, warnings: &[String], files: &str) {
+    for w in warnings {
         println!("  warning: {w}");
     }
-    println!(
-        "  wrote thresholds.csv, summary.csv, summary.parquet, detectors.csv, comparison.csv in {}",
-        dir.display()
-    );
+    println!("  wrote {files} in {}", dir.display());
+}
+
+pub fn exec_report(dir: &Path, trials: &[u64]) -> Result<(), CliError> {
+    let report = crate::report::write_report(dir, trials)?;
+    for w in &report.warnings {
+        println!("warning: {w}");
+    }
+    if let Some(page) = report.files.last() {
+        println!("{} plots -> {}", report.files.len() - 1, page.display());
+    }
     Ok(())
 }

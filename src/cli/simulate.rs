@@ -9,10 +9,11 @@ use crate::sampling::surfaces::SurfaceScenarioSampler;
 use crate::sampling::{Substream, noise_rng};
 use crate::sim::surfaces::{SurfaceTrial, run_banks};
 use crate::sim::{Engine, Trace};
-use crate::study::air_data::{AirDataStudy, is_air_data_deck};
-use crate::study::launch::{LaunchStudy, is_launch_deck};
-use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
+use crate::study::air_data::AirDataStudy;
+use crate::study::launch::LaunchStudy;
+use crate::study::surfaces::SurfaceStudy;
 use crate::study::{DeckError, Study};
+use crate::study::{StudyKind, deck_kind};
 
 pub fn exec(deck: &Path, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), CliError> {
     // Check the output name before simulating, so a typo costs nothing.
@@ -21,14 +22,11 @@ pub fn exec(deck: &Path, trial: u64, detector: Option<&str>, out: &Path) -> Resu
         return Err(CliError::Invalid(format!("--trial {trial}: allowed 0 to {MAX_TRIAL}")));
     }
     let text = std::fs::read_to_string(deck).map_err(|source| DeckError::Read { file: deck.into(), source })?;
-    if is_surface_deck(&text) {
-        return surfaces(&SurfaceStudy::from_toml(&text, deck)?, trial, detector, out);
-    }
-    if is_air_data_deck(&text) {
-        return air_data(&AirDataStudy::from_toml(&text, deck)?, trial, detector, out);
-    }
-    if is_launch_deck(&text) {
-        return launch(&LaunchStudy::from_toml(&text, deck)?, trial, detector, out);
+    match deck_kind(&text) {
+        StudyKind::SurfaceBank => return surfaces(&SurfaceStudy::from_toml(&text, deck)?, trial, detector, out),
+        StudyKind::AirData => return air_data(&AirDataStudy::from_toml(&text, deck)?, trial, detector, out),
+        StudyKind::ThrustLoss => return launch(&LaunchStudy::from_toml(&text, deck)?, trial, detector, out),
+        StudyKind::DetectionFilter => {}
     }
     let study = Study::from_toml(&text, deck)?;
     let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();

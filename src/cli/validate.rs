@@ -4,21 +4,19 @@ use super::{CliError, design_error};
 use crate::detector::stmmae::BankParams;
 use crate::fault::actuator::ActuatorFaultKind;
 use crate::plant::uav::{AerosondeParams, SURFACE_NAMES, trim};
-use crate::study::air_data::{AirDataStudy, is_air_data_deck};
-use crate::study::launch::{LaunchStudy, is_launch_deck};
-use crate::study::surfaces::{SurfaceStudy, is_surface_deck};
+use crate::study::air_data::AirDataStudy;
+use crate::study::launch::LaunchStudy;
+use crate::study::surfaces::SurfaceStudy;
 use crate::study::{DeckError, Shape, Study};
+use crate::study::{StudyKind, deck_kind};
 
 pub fn exec(deck: &Path) -> Result<(), CliError> {
     let text = std::fs::read_to_string(deck).map_err(|source| DeckError::Read { file: deck.into(), source })?;
-    if is_surface_deck(&text) {
-        return surfaces(&SurfaceStudy::from_toml(&text, deck)?);
-    }
-    if is_air_data_deck(&text) {
-        return air_data(&AirDataStudy::from_toml(&text, deck)?);
-    }
-    if is_launch_deck(&text) {
-        return launch(&LaunchStudy::from_toml(&text, deck)?);
+    match deck_kind(&text) {
+        StudyKind::SurfaceBank => return surfaces(&SurfaceStudy::from_toml(&text, deck)?),
+        StudyKind::AirData => return air_data(&AirDataStudy::from_toml(&text, deck)?),
+        StudyKind::ThrustLoss => return launch(&LaunchStudy::from_toml(&text, deck)?),
+        StudyKind::DetectionFilter => {}
     }
     let study = Study::from_toml(&text, deck)?;
     let mut filters = Vec::with_capacity(study.detectors.len());

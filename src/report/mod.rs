@@ -51,11 +51,7 @@ pub fn write_report(dir: &Path, trials: &[u64]) -> Result<Report, RunError> {
             "{}: {} study: its report is the tables summary.csv, detectors.csv and comparison.csv; \
              `fdimc report` draws detection-filter studies",
             dir.display(),
-            match manifest.kind {
-                StudyKind::AirData => "an air-data",
-                StudyKind::ThrustLoss => "a launch-vehicle",
-                _ => "a control-surface",
-            }
+            manifest.kind.adjective()
         )));
     }
     for f in ["summary.parquet", "thresholds.csv", "curves.csv", "min_detectable.csv"] {

@@ -4,10 +4,7 @@
 //! sensor set, size, onset, noise, gust); ranges are drawn by the deck's sampler; whether a trial is
 //! fault-free is the first draw of its scenario stream.
 
-use rand::RngExt;
-
 use super::scenario::{GridDigits, UnitSampler, draw};
-use super::{Substream, trial_rng};
 use crate::fault::SensorFault;
 use crate::plant::air_data::ScenarioParams;
 use crate::study::SizeSpec;
@@ -55,9 +52,7 @@ impl<'a> AirDataScenarioSampler<'a> {
     pub fn spec(&self, trial: u64) -> AirDataTrialSpec {
         let s = self.study;
         let mc = &s.monte_carlo;
-        let mut rng = trial_rng(s.seed, trial, Substream::Scenario);
-        let fault_free = rng.random::<f64>() < mc.fault_free_fraction;
-        let units: Vec<f64> = (0..DIMS).map(|d| self.units.unit(trial, d, &mut rng)).collect();
+        let (fault_free, units) = self.units.draws(trial, mc.fault_free_fraction, DIMS);
         let mut grid = GridDigits::new(trial);
         let mut digit = |n: usize| grid.next(n);
 

@@ -4,10 +4,7 @@
 //! onset, noise, gust scale); ranges are drawn by the deck's sampler; whether a trial is fault-free is
 //! the first draw of its scenario stream.
 
-use rand::RngExt;
-
 use super::scenario::{GridDigits, UnitSampler, draw};
-use super::{Substream, trial_rng};
 use crate::plant::launch_vehicle::{Gust, LaunchVehicleConfig, ThrustFault};
 use crate::study::launch::LaunchStudy;
 
@@ -48,9 +45,7 @@ impl<'a> LaunchScenarioSampler<'a> {
     pub fn spec(&self, trial: u64) -> LaunchTrialSpec {
         let s = self.study;
         let mc = &s.monte_carlo;
-        let mut rng = trial_rng(s.seed, trial, Substream::Scenario);
-        let fault_free = rng.random::<f64>() < mc.fault_free_fraction;
-        let units: Vec<f64> = (0..DIMS).map(|d| self.units.unit(trial, d, &mut rng)).collect();
+        let (fault_free, units) = self.units.draws(trial, mc.fault_free_fraction, DIMS);
         let mut grid = GridDigits::new(trial);
         let mut digit = |n: usize| grid.next(n);
         let sampled = mc.loss_percent.as_ref().map(|f| {

@@ -77,6 +77,15 @@ impl UnitSampler {
         UnitSampler { sampler, trials, seed, lhs }
     }
 
+    /// A trial's scenario draws, in the same order for every kind of study: whether it is fault-free
+    /// (the first draw of its scenario stream, true with probability `fault_free_fraction`), then one
+    /// unit draw per dimension `0..dims`.
+    pub fn draws(&self, trial: u64, fault_free_fraction: f64, dims: usize) -> (bool, Vec<f64>) {
+        let mut rng = trial_rng(self.seed, trial, Substream::Scenario);
+        let fault_free = rng.random::<f64>() < fault_free_fraction;
+        (fault_free, (0..dims).map(|d| self.unit(trial, d, &mut rng)).collect())
+    }
+
     /// Uniform in [0, 1) for dimension `dim` of trial `trial`; `rng` is the trial's scenario stream
     /// (one draw per call, whatever the sampler, so later draws do not depend on it).
     pub fn unit(&self, trial: u64, dim: usize, rng: &mut ChaCha8Rng) -> f64 {
@@ -131,10 +140,8 @@ impl<'a> ScenarioSampler<'a> {
     pub fn spec(&self, trial: u64) -> TrialSpec {
         let s = self.study;
         let mc = &s.monte_carlo;
-        let mut rng = trial_rng(s.seed, trial, Substream::Scenario);
-        let fault_free = rng.random::<f64>() < mc.fault_free_fraction;
-        let dims = DIM_PARAMETERS + mc.parameter_errors.len();
-        let units: Vec<f64> = (0..dims).map(|d| self.units.unit(trial, d, &mut rng)).collect();
+        let (fault_free, units) =
+            self.units.draws(trial, mc.fault_free_fraction, DIM_PARAMETERS + mc.parameter_errors.len());
         let mut grid = GridDigits::new(trial);
         let mut digit = |n: usize| grid.next(n);
 

@@ -5,10 +5,7 @@
 //! drawn by the deck's sampler, one dimension per factor; whether a trial is fault-free is the first
 //! draw of its scenario stream.
 
-use rand::RngExt;
-
 use super::scenario::{GridDigits, UnitSampler, draw};
-use super::{Substream, trial_rng};
 use crate::fault::actuator::{ActuatorFault, ActuatorFaultKind};
 use crate::plant::uav::AerosondeParams;
 use crate::study::ModelTarget;
@@ -66,10 +63,8 @@ impl<'a> SurfaceScenarioSampler<'a> {
     pub fn spec(&self, trial: u64) -> SurfaceTrialSpec {
         let s = self.study;
         let mc = &s.monte_carlo;
-        let mut rng = trial_rng(s.seed, trial, Substream::Scenario);
-        let fault_free = rng.random::<f64>() < mc.fault_free_fraction;
-        let dims = DIM_PARAMETERS + mc.parameter_errors.len();
-        let units: Vec<f64> = (0..dims).map(|d| self.units.unit(trial, d, &mut rng)).collect();
+        let (fault_free, units) =
+            self.units.draws(trial, mc.fault_free_fraction, DIM_PARAMETERS + mc.parameter_errors.len());
         let mut grid = GridDigits::new(trial);
         let mut digit = |n: usize| grid.next(n);
 

@@ -148,11 +148,6 @@ pub struct AirDataStudy {
     pub monte_carlo: AirDataMonteCarlo,
 }
 
-/// Whether a TOML text is an air-data deck (it has a `[flight]` table).
-pub fn is_air_data_deck(text: &str) -> bool {
-    text.parse::<toml::Table>().is_ok_and(|t| t.contains_key("flight"))
-}
-
 impl AirDataStudy {
     pub fn load(path: &Path) -> Result<AirDataStudy, DeckError> {
         let text = std::fs::read_to_string(path).map_err(|source| DeckError::Read { file: path.into(), source })?;
@@ -418,7 +413,7 @@ mod tests {
         assert_eq!(mc.output_sets, [vec![0], vec![1], vec![2], vec![0, 1], vec![0, 1, 2]]);
         assert_eq!(study.detectors.len(), 2);
         assert_eq!(study.detectors[0].params.isolation_window, 1);
-        assert!(is_air_data_deck(&deck()));
+        assert_eq!(crate::study::deck_kind(&deck()), crate::study::StudyKind::AirData);
     }
 
     #[test]

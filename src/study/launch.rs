@@ -154,11 +154,6 @@ pub struct LaunchStudy {
     pub monte_carlo: LaunchMonteCarlo,
 }
 
-/// Whether a TOML text is a launch-vehicle deck (it has a `[vehicle]` table).
-pub fn is_launch_deck(text: &str) -> bool {
-    text.parse::<toml::Table>().is_ok_and(|t| t.contains_key("vehicle"))
-}
-
 impl LaunchStudy {
     pub fn load(path: &Path) -> Result<LaunchStudy, DeckError> {
         let text = std::fs::read_to_string(path).map_err(|source| DeckError::Read { file: path.into(), source })?;
@@ -429,7 +424,7 @@ mod tests {
         assert_eq!(study.detectors[0].params.mhe, MheParams::seed());
         assert_eq!(study.gusts.len(), 2);
         assert_eq!(study.monte_carlo.engines, [0, 1, 2, 3]);
-        assert!(is_launch_deck(&deck()));
+        assert_eq!(crate::study::deck_kind(&deck()), crate::study::StudyKind::ThrustLoss);
     }
 
     #[test]

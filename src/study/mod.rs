@@ -11,6 +11,8 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{DMatrix, DVector};
 
+use serde::{Deserialize, Serialize};
+
 use crate::fault::{FaultMode, SensorFault};
 use crate::plant::LtiPlant;
 use deck::Deck;
@@ -236,6 +238,64 @@ pub struct MonteCarlo {
     pub parameter_errors: Vec<ParameterError>,
 }
 
+/// Which kind of study a deck describes and a results folder holds: the commands dispatch on it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StudyKind {
+    /// Method 000: an LTI plant and detection filters (`[plant]` decks).
+    #[default]
+    DetectionFilter,
+    /// Method 004: the UAV with control-surface faults and banks of filters (`[airframe]` decks).
+    SurfaceBank,
+    /// Method 002: air-data sensor faults and the dual-model UKF (`[flight]` decks).
+    AirData,
+    /// Method 001: launch-vehicle thrust loss, EKF residual and moving-horizon GLS (`[vehicle]` decks).
+    ThrustLoss,
+}
+
+impl StudyKind {
+    /// The top-level table that marks a deck of this kind.
+    pub fn deck_table(self) -> &'static str {
+        match self {
+            StudyKind::DetectionFilter => "plant",
+            StudyKind::SurfaceBank => "airframe",
+            StudyKind::AirData => "flight",
+            StudyKind::ThrustLoss => "vehicle",
+        }
+    }
+
+    /// The kind in words, with its article: "a control-surface" (deck, study).
+    pub fn adjective(self) -> &'static str {
+        match self {
+            StudyKind::DetectionFilter => "a detection-filter",
+            StudyKind::SurfaceBank => "a control-surface",
+            StudyKind::AirData => "an air-data",
+            StudyKind::ThrustLoss => "a launch-vehicle",
+        }
+    }
+
+    /// The seed method a kind studies.
+    pub fn method(self) -> &'static str {
+        match self {
+            StudyKind::DetectionFilter => "000",
+            StudyKind::ThrustLoss => "001",
+            StudyKind::AirData => "002",
+            StudyKind::SurfaceBank => "004",
+        }
+    }
+}
+
+/// Which kind of deck a TOML text is, by the table that marks it (`[airframe]`, `[flight]`,
+/// `[vehicle]`); anything else, unparsable text included, is read as a detection-filter deck, whose
+/// parser then names the file, the line and the field.
+pub fn deck_kind(text: &str) -> StudyKind {
+    let Ok(table) = text.parse::<toml::Table>() else { return StudyKind::DetectionFilter };
+    [StudyKind::SurfaceBank, StudyKind::AirData, StudyKind::ThrustLoss]
+        .into_iter()
+        .find(|k| table.contains_key(k.deck_table()))
+        .unwrap_or(StudyKind::DetectionFilter)
+}
+
 impl Study {
     /// Reads, parses and validates a deck file.
     pub fn load(path: &Path) -> Result<Study, DeckError> {
@@ -245,18 +305,17 @@ impl Study {
 
     /// Parses and validates deck text; `path` names it in messages.
     pub fn from_toml(text: &str, path: &Path) -> Result<Study, DeckError> {
-        for (is, field, method) in [
-            (surfaces::is_surface_deck as fn(&str) -> bool, "airframe", "a control-surface deck (method 004)"),
-            (air_data::is_air_data_deck, "flight", "an air-data deck (method 002)"),
-            (launch::is_launch_deck, "vehicle", "a launch-vehicle deck (method 001)"),
-        ] {
-            if is(text) {
-                return Err(DeckError::Invalid {
-                    file: path.into(),
-                    field: field.into(),
-                    message: format!("this is {method}; this command reads detection-filter ([plant]) decks only"),
-                });
-            }
+        let kind = deck_kind(text);
+        if kind != StudyKind::DetectionFilter {
+            return Err(DeckError::Invalid {
+                file: path.into(),
+                field: kind.deck_table().into(),
+                message: format!(
+                    "this is {} deck (method {}); this command reads detection-filter ([plant]) decks only",
+                    kind.adjective(),
+                    kind.method()
+                ),
+            });
         }
         let deck: Deck = toml::from_str(text)
             .map_err(|e| DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() })?;

@@ -255,11 +255,6 @@ pub struct SurfaceStudy {
     pub monte_carlo: SurfaceMonteCarlo,
 }
 
-/// Whether a TOML text is a control-surface deck (it has an `[airframe]` table).
-pub fn is_surface_deck(text: &str) -> bool {
-    text.parse::<toml::Table>().is_ok_and(|t| t.contains_key("airframe"))
-}
-
 impl SurfaceStudy {
     pub fn load(path: &Path) -> Result<SurfaceStudy, DeckError> {
         let text = std::fs::read_to_string(path).map_err(|source| DeckError::Read { file: path.into(), source })?;
@@ -783,7 +778,7 @@ mod tests {
             ]
         );
         assert_eq!(study.sensors.gyro_variance_rad2_s2, 0.0076);
-        assert!(is_surface_deck(&seed_deck()));
+        assert_eq!(crate::study::deck_kind(&seed_deck()), crate::study::StudyKind::SurfaceBank);
     }
 
     #[test]
