@@ -3,6 +3,7 @@
 pub mod detection_filter;
 pub mod dual_ukf;
 pub mod ekf_mhe;
+pub mod ekf_svm;
 pub mod stmmae;
 
 pub use detection_filter::DetectionFilter;

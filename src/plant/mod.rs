@@ -6,6 +6,7 @@
 #![allow(non_snake_case)]
 
 pub mod air_data;
+pub mod imu;
 pub mod launch_vehicle;
 pub mod uav;
 
