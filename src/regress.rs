@@ -1,5 +1,5 @@
-//! Baseline comparison: is any group's detection rate lower, or false-alarm rate higher, than the
-//! committed baseline's, beyond chance?
+//! Baseline comparison: is any group's detection rate (or classification recall) lower, or false-alarm
+//! rate higher, than the committed baseline's, beyond chance?
 //!
 //! Groups are matched on the key columns the summaries have: (thresholds, detector, kind, output,
 //! size_bin, noise_bin, param_error_bin) for detection filters, (detector, kind, surface, size_bin,
@@ -19,7 +19,7 @@ use crate::output::records::col;
 use crate::runner::RunError;
 use crate::stats::intervals::p_lower;
 
-const KEYS: [&str; 11] = [
+const KEYS: [&str; 12] = [
     "thresholds",
     col::DETECTOR,
     col::KIND,
@@ -27,6 +27,7 @@ const KEYS: [&str; 11] = [
     crate::output::surfaces::col::SURFACE,
     crate::output::air_data::col::SENSORS,
     crate::output::launch::col::ENGINE,
+    crate::output::accelerometer::col::AXIS,
     col::SIZE_BIN,
     col::NOISE_BIN,
     col::PARAM_ERROR_BIN,
@@ -42,6 +43,8 @@ struct Counts {
     designed: u64,
     detected: u64,
     false_alarms: u64,
+    /// Trials classified correctly (classification studies).
+    correct: Option<u64>,
     faulty: bool,
 }
 
@@ -96,6 +99,9 @@ fn groups(df: &DataFrame) -> PolarsResult<HashMap<String, Counts>> {
     let kind_cols = df.column(col::KIND)?.str()?.clone();
     let u = |n: &str| -> PolarsResult<UInt64Chunked> { Ok(df.column(n)?.cast(&DataType::UInt64)?.u64()?.clone()) };
     let (trials, failures, detected, fa) = (u("trials")?, u(failure_column)?, u("detected")?, u("false_alarms")?);
+    // Classification studies also count the trials classified correctly.
+    let correct = df.column("correct").is_ok().then(|| u("correct")).transpose()?;
+    let normal = crate::detector::ekf_svm::FaultClass::Normal.name();
     let mut map = HashMap::with_capacity(df.height());
     for i in 0..df.height() {
         let key: Vec<&str> = key_cols.iter().map(|c| c.get(i).unwrap_or("")).collect();
@@ -106,7 +112,8 @@ fn groups(df: &DataFrame) -> PolarsResult<HashMap<String, Counts>> {
                 designed: trials.get(i).unwrap_or(0) - failures.get(i).unwrap_or(0),
                 detected: detected.get(i).unwrap_or(0),
                 false_alarms: fa.get(i).unwrap_or(0),
-                faulty: kind != col::NO_FAULT,
+                correct: correct.as_ref().map(|c| c.get(i).unwrap_or(0)),
+                faulty: kind != col::NO_FAULT && kind != normal,
             },
         );
     }
@@ -131,6 +138,15 @@ pub fn compare(current: &DataFrame, baseline: &DataFrame, alpha: f64) -> Result<
             continue;
         };
         verdict.compared_groups += 1;
+        if let (Some(bc), Some(cc)) = (b.correct, c.correct) {
+            candidates.push((
+                key.clone(),
+                "classification recall",
+                (bc, b.designed),
+                (cc, c.designed),
+                p_lower(cc, c.designed, bc, b.designed),
+            ));
+        }
         if b.faulty {
             candidates.push((
                 key.clone(),

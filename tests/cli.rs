@@ -619,6 +619,75 @@ fn launch_check_passes_on_its_baseline() {
 }
 
 #[test]
+fn accelerometer_classifiers_train_save_load_and_runs_are_identical() {
+    let tmp = tempfile::tempdir().unwrap();
+    // The CI deck cut to 600 trials (part files of 512: 512 + 88) and 40 training trials per class.
+    let full = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/ci_seed003.toml")).unwrap();
+    let mut small = full.clone();
+    for (from, to) in [("trials = 400", "trials = 600"), ("trials_per_class = 80", "trials_per_class = 40")] {
+        assert!(small.contains(from), "{from}");
+        small = small.replacen(from, to, 1);
+    }
+    let deck_path = tmp.path().join("small_accelerometer.toml");
+    std::fs::write(&deck_path, small).unwrap();
+    let deck = deck_path.to_str().unwrap();
+    let s = |p: PathBuf| p.to_str().unwrap().to_string();
+    // Every run below trains in its own process: identical records say the training is deterministic.
+    let tables = ["confusion.csv", "summary.csv", "detectors.csv", "comparison.csv"];
+    let (one, stdout) = assert_identical_runs(deck, tmp.path(), 600, 512, &tables);
+    for name in ["tree", "flat"] {
+        assert_eq!(stdout.lines().filter(|l| l.starts_with(&format!("    {name} "))).count(), 1, "{stdout}");
+    }
+    let reference = read_frame(&one.join("trials.parquet"));
+    assert_eq!(reference.height(), 600 * 2, "one row per trial and classifier");
+    assert_eq!(csv_frame(&one.join("confusion.csv")).height(), 2 * 16);
+    assert_eq!(csv_frame(&one.join("detectors.csv")).height(), 2);
+
+    // `fdimc train` writes the classifiers the run trained; a run with them gives the same records.
+    let file = s(tmp.path().join("classifiers.json"));
+    let trained = ok(&fdimc(&["train", deck, "--out", &file]));
+    assert!(trained.contains("merge 1: ") && trained.contains("merge 3: "), "{trained}");
+    assert_eq!(std::fs::read(&file).unwrap(), std::fs::read(one.join("classifiers.json")).unwrap());
+    let loaded = s(tmp.path().join("loaded"));
+    ok(&fdimc(&["run", deck, "--classifiers", &file, "--out", &loaded]));
+    assert!(reference.equals_missing(&read_frame(&Path::new(&loaded).join("trials.parquet"))));
+
+    // `simulate --trial N` classifies trial N as the run did.
+    use polars::prelude::*;
+    let row = reference
+        .clone()
+        .lazy()
+        .filter(col("detector").eq(lit("tree")).and(col("kind").eq(lit("gain"))))
+        .first()
+        .collect()
+        .unwrap();
+    let trial = row.column("trial").unwrap().u64().unwrap().get(0).unwrap().to_string();
+    let predicted = row.column("predicted").unwrap().str().unwrap().get(0).unwrap().to_string();
+    let trace = s(tmp.path().join("trace.csv"));
+    let sim = ok(&fdimc(&["simulate", deck, "--trial", &trial, "--classifiers", &file, "--out", &trace]));
+    assert!(sim.contains("class gain") && sim.contains(&format!("tree   predicts {predicted}")), "{sim}");
+    assert_eq!(csv_frame(Path::new(&trace)).height(), 2000);
+
+    // A file that is not classifiers is the user's error, named.
+    std::fs::write(tmp.path().join("junk.json"), "{}").unwrap();
+    let out =
+        fdimc(&["run", deck, "--classifiers", &s(tmp.path().join("junk.json")), "--out", &s(tmp.path().join("x"))]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("junk.json: not classifiers written by `fdimc train`"), "{}", text(&out.stderr));
+    assert!(!tmp.path().join("x").exists(), "nothing written for a refused run");
+    let out = fdimc(&["report", &s(one)]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("an accelerometer study"), "{}", text(&out.stderr));
+}
+
+#[test]
+fn accelerometer_check_passes_on_its_baseline() {
+    let out = fdimc(&["check", "studies/ci_seed003.toml", "--baseline", "results/baselines/ci_seed003.csv"]);
+    let stdout = ok(&out);
+    assert!(stdout.contains(": 0 regression(s)") && !stdout.contains("warning: group"), "{stdout}");
+}
+
+#[test]
 fn surface_check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
     let baseline = "results/baselines/ci_seed004.csv";
     let tmp = tempfile::tempdir().unwrap();

@@ -62,6 +62,18 @@ pub enum Command {
         /// Trace file; the format follows the extension: .csv or .parquet.
         #[arg(long)]
         out: PathBuf,
+        /// Accelerometer decks: classifiers written by `fdimc train` (default: trained now).
+        #[arg(long, value_name = "FILE")]
+        classifiers: Option<PathBuf>,
+    },
+    /// Train an accelerometer deck's classifiers (the SVM decision tree and the flat one-against-one
+    /// SVM) on the deck's training trials and save them; `run --classifiers FILE` evaluates them.
+    Train {
+        /// Accelerometer study deck (TOML, with [imu]).
+        deck: PathBuf,
+        /// Classifiers file (default: results/<study>/classifiers.json).
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Run the Monte Carlo study: trials in parallel, records to DIR/trials.parquet, then thresholds
     /// and summaries (thresholds.csv, summary.csv/.parquet, curves.csv, min_detectable.csv).
@@ -94,6 +106,10 @@ The same deck and seed give identical records for any --threads, shard split or 
         /// No progress bar or report.
         #[arg(long)]
         quiet: bool,
+        /// Accelerometer decks: evaluate the classifiers in FILE (written by `fdimc train`) instead of
+        /// training them first.
+        #[arg(long, value_name = "FILE")]
+        classifiers: Option<PathBuf>,
         /// Stop after writing N part files (4096 trials each for detection filters, 64 for surface banks), as
         /// if interrupted; continue later with --resume.
         #[arg(long, value_name = "N")]
@@ -181,8 +197,11 @@ pub fn run(cli: Cli) -> ExitCode {
     let result = match cli.command {
         Command::Validate { deck } => validate::exec(&deck),
         Command::Design { deck, json } => design::exec(&deck, json),
-        Command::Simulate { deck, trial, detector, out } => simulate::exec(&deck, trial, detector.as_deref(), &out),
-        Command::Run { deck, trials, seed, threads, out, shard, resume, force, quiet, stop_after } => {
+        Command::Simulate { deck, trial, detector, out, classifiers } => {
+            simulate::exec(&deck, trial, detector.as_deref(), &out, classifiers.as_deref())
+        }
+        Command::Train { deck, out } => run::exec_train(&deck, out),
+        Command::Run { deck, trials, seed, threads, out, shard, resume, force, quiet, stop_after, classifiers } => {
             run::exec_run(run::RunArgs {
                 deck: &deck,
                 trials,
@@ -194,6 +213,7 @@ pub fn run(cli: Cli) -> ExitCode {
                 force,
                 quiet,
                 stop_after,
+                classifiers: classifiers.as_deref(),
             })
             .map(|_| ())
         }

@@ -3,14 +3,17 @@ use std::path::{Path, PathBuf};
 
 use super::CliError;
 use crate::runner::{self, Manifest, RunError, RunOptions, Shard, StudyKind};
+use crate::sim::accelerometer::{AccelerometerTrials, TrainedClassifiers};
 use crate::sim::air_data::AirDataTrials;
 use crate::sim::launch::LaunchTrials;
 use crate::sim::surfaces::SurfaceTrials;
+use crate::stats::accelerometer::AccelerometerSummary;
 use crate::stats::air_data::AirDataSummary;
 use crate::stats::launch::LaunchSummary;
 use crate::stats::surfaces::SurfaceSummary;
 use crate::stats::{self, Calibration, SummaryReport};
 use crate::study::Study;
+use crate::study::accelerometer::AccelerometerStudy;
 use crate::study::air_data::AirDataStudy;
 use crate::study::deck_kind;
 use crate::study::launch::LaunchStudy;
@@ -36,6 +39,8 @@ pub struct RunArgs<'a> {
     pub force: bool,
     pub quiet: bool,
     pub stop_after: Option<u64>,
+    /// Accelerometer decks: classifiers to evaluate instead of training them.
+    pub classifiers: Option<&'a Path>,
 }
 
 /// A deck of either kind, with the command line's overrides applied.
@@ -44,6 +49,7 @@ enum Loaded {
     Surfaces(SurfaceStudy),
     AirData(AirDataStudy),
     Launch(LaunchStudy),
+    Accelerometer(AccelerometerStudy),
 }
 
 impl Loaded {
@@ -54,6 +60,7 @@ impl Loaded {
             StudyKind::SurfaceBank => Loaded::Surfaces(SurfaceStudy::from_toml(&text, a.deck)?),
             StudyKind::AirData => Loaded::AirData(AirDataStudy::from_toml(&text, a.deck)?),
             StudyKind::ThrustLoss => Loaded::Launch(LaunchStudy::from_toml(&text, a.deck)?),
+            StudyKind::Accelerometer => Loaded::Accelerometer(AccelerometerStudy::from_toml(&text, a.deck)?),
             StudyKind::DetectionFilter => Loaded::Lti(Study::from_toml(&text, a.deck)?),
         };
         if let Some(n) = a.trials {
@@ -65,6 +72,7 @@ impl Loaded {
                 Loaded::Surfaces(s) => s.monte_carlo.trials = n,
                 Loaded::AirData(s) => s.monte_carlo.trials = n,
                 Loaded::Launch(s) => s.monte_carlo.trials = n,
+                Loaded::Accelerometer(s) => s.trials = n,
             }
         }
         if let Some(seed) = a.seed {
@@ -73,6 +81,7 @@ impl Loaded {
                 Loaded::Surfaces(s) => s.seed = seed,
                 Loaded::AirData(s) => s.seed = seed,
                 Loaded::Launch(s) => s.seed = seed,
+                Loaded::Accelerometer(s) => s.seed = seed,
             }
         }
         Ok(loaded)
@@ -84,6 +93,7 @@ impl Loaded {
             Loaded::Surfaces(s) => &s.name,
             Loaded::AirData(s) => &s.name,
             Loaded::Launch(s) => &s.name,
+            Loaded::Accelerometer(s) => &s.name,
         }
     }
 }
@@ -127,6 +137,34 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
             let trials =
                 LaunchTrials::new(study).map_err(|e| CliError::Invalid(format!("{}: {e}", study.path.display())))?;
             runner::run(&trials, trials.manifest(), &opts)?
+        }
+        Loaded::Accelerometer(study) => {
+            // Classifiers from a file, from the folder being resumed, or trained now; written beside the
+            // results once the run has started, so a refused run leaves the folder as it was.
+            let beside = out_dir.join("classifiers.json");
+            let (classifiers, write_beside) = match a.classifiers {
+                Some(file) => (TrainedClassifiers::load(file)?, true),
+                None if a.resume && beside.exists() => (TrainedClassifiers::load(&beside)?, false),
+                None => {
+                    if !a.quiet {
+                        eprintln!(
+                            "training the classifiers on {} trials per class (seed {})",
+                            study.training.trials_per_class, study.training.seed
+                        );
+                    }
+                    (
+                        TrainedClassifiers::train(study)
+                            .map_err(|e| CliError::Invalid(format!("{}: {e}", study.path.display())))?,
+                        true,
+                    )
+                }
+            };
+            let trials = AccelerometerTrials::new(study, &classifiers);
+            let report = runner::run(&trials, trials.manifest(), &opts)?;
+            if write_beside {
+                classifiers.save(&beside)?;
+            }
+            report
         }
     };
     let m = &report.manifest;
@@ -174,6 +212,7 @@ enum Summary {
     Surfaces(SurfaceSummary),
     AirData(AirDataSummary),
     Launch(LaunchSummary),
+    Accelerometer(AccelerometerSummary),
 }
 
 impl Summary {
@@ -183,6 +222,7 @@ impl Summary {
             Summary::Surfaces(s) => print_surface_summary(dir, s),
             Summary::AirData(s) => print_air_data_summary(dir, s),
             Summary::Launch(s) => print_launch_summary(dir, s),
+            Summary::Accelerometer(s) => print_accelerometer_summary(dir, s),
         }
     }
 }
@@ -194,7 +234,7 @@ fn summarize(dir: &Path, manifest: &Manifest, calibration: Option<Calibration>) 
         StudyKind::DetectionFilter => {
             Summary::Lti(stats::summarize(dir, &calibration.unwrap_or(Calibration::Target(manifest.target_pfa)))?)
         }
-        StudyKind::SurfaceBank | StudyKind::AirData if calibration.is_some() => {
+        StudyKind::SurfaceBank | StudyKind::AirData | StudyKind::Accelerometer if calibration.is_some() => {
             return Err(CliError::Invalid(format!(
                 "{}: this study's detectors declare by model probabilities (the deck's 0.9 / 0.05): \
                  --target-pfa and --thresholds apply to detection-filter and thrust-loss studies",
@@ -216,6 +256,7 @@ fn summarize(dir: &Path, manifest: &Manifest, calibration: Option<Calibration>) 
         )?),
         StudyKind::SurfaceBank => Summary::Surfaces(stats::surfaces::summarize(dir)?),
         StudyKind::AirData => Summary::AirData(stats::air_data::summarize(dir)?),
+        StudyKind::Accelerometer => Summary::Accelerometer(stats::accelerometer::summarize(dir)?),
     })
 }
 
@@ -312,6 +353,7 @@ pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<us
             force: true,
             quiet: true,
             stop_after: None,
+            classifiers: None,
         };
         let dir = exec_run(args)?;
         (stats::read_summary(&dir.join("summary.csv"))?, Some(scratch))
@@ -579,5 +621,79 @@ pub fn exec_report(dir: &Path, trials: &[u64]) -> Result<(), CliError> {
     if let Some(page) = report.files.last() {
         println!("{} plots -> {}", report.files.len() - 1, page.display());
     }
+    Ok(())
+}
+
+/// `fdimc train`: trains an accelerometer deck's classifiers and writes them.
+pub fn exec_train(deck: &Path, out: Option<PathBuf>) -> Result<(), CliError> {
+    let study = AccelerometerStudy::load(deck)?;
+    let out = out.unwrap_or_else(|| PathBuf::from("results").join(&study.name).join("classifiers.json"));
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| CliError::Internal(format!("{}: {e}", parent.display())))?;
+    }
+    let started = std::time::Instant::now();
+    let trained =
+        TrainedClassifiers::train(&study).map_err(|e| CliError::Invalid(format!("{}: {e}", deck.display())))?;
+    trained.save(&out)?;
+    println!(
+        "{}: trained the SVM decision tree and the one-against-one SVM on {} trials per class (seed {}) in {:.1} s -> {}",
+        study.name,
+        study.training.trials_per_class,
+        study.training.seed,
+        started.elapsed().as_secs_f64(),
+        out.display()
+    );
+    if let Some(tree) = trained.tree.tree() {
+        for (k, m) in tree.merges.iter().enumerate() {
+            let names =
+                |c: &[crate::detector::ekf_svm::FaultClass]| c.iter().map(|c| c.name()).collect::<Vec<_>>().join("+");
+            println!(
+                "  merge {}: {} | {} (separability {:.3}, the least of the {} pairs)",
+                k + 1,
+                names(&m.positive),
+                names(&m.negative),
+                m.separability,
+                m.candidates.len()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The confusion matrices and per-classifier table of an accelerometer study.
+fn print_accelerometer_summary(dir: &Path, s: &AccelerometerSummary) -> Result<(), CliError> {
+    let t = Table(&s.detectors);
+    let (names, trials) = (t.strs("detector"), t.u64s("trials"));
+    let (accuracy, pd, pfa) = (t.rates("accuracy"), t.rates("pd"), t.rates("pfa"));
+    let delay = t.delays("delay_p50_s", "delay_p90_s");
+    println!("  per classifier, on the same fresh trials (confusion.csv, summary.csv; comparison.csv for the test):");
+    println!(
+        "    {:<6} {:>6} {:<21} {:<21} {:<21} {:<21} {:<21}",
+        "", "trials", "accuracy", "recall normal", "recall bias", "recall gain", "recall stuck"
+    );
+    for i in 0..names.len() {
+        let recall: Vec<String> =
+            ["normal", "bias", "gain", "stuck"].iter().map(|c| t.rates(&format!("recall_{c}"))[i].clone()).collect();
+        println!(
+            "    {:<6} {:>6} {:<21} {:<21} {:<21} {:<21} {:<21}",
+            names[i], trials[i], accuracy[i], recall[0], recall[1], recall[2], recall[3]
+        );
+    }
+    if let Some(i) = (0..names.len()).next() {
+        println!("  residual detector (either classifier's rows): Pd {}, delay {}, Pfa {}", pd[i], delay[i], pfa[i]);
+    }
+    let c = Table(&s.confusion);
+    let (det, truth, count) = (c.strs("detector"), c.strs("true_class"), c.u64s("trials"));
+    for name in &names {
+        println!("  confusion ({name}): rows true class, columns predicted normal / bias / gain / stuck");
+        for class in ["normal", "bias", "gain", "stuck"] {
+            let row: Vec<String> = (0..det.len())
+                .filter(|&i| det[i] == *name && truth[i] == class)
+                .map(|i| format!("{:>6}", count[i]))
+                .collect();
+            println!("    {class:<7} {}", row.join(" "));
+        }
+    }
+    print_footer(dir, &s.warnings, "confusion.csv, summary.csv, summary.parquet, detectors.csv, comparison.csv");
     Ok(())
 }

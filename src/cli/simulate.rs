@@ -9,13 +9,20 @@ use crate::sampling::surfaces::SurfaceScenarioSampler;
 use crate::sampling::{Substream, noise_rng};
 use crate::sim::surfaces::{SurfaceTrial, run_banks};
 use crate::sim::{Engine, Trace};
+use crate::study::accelerometer::AccelerometerStudy;
 use crate::study::air_data::AirDataStudy;
 use crate::study::launch::LaunchStudy;
 use crate::study::surfaces::SurfaceStudy;
 use crate::study::{DeckError, Study};
 use crate::study::{StudyKind, deck_kind};
 
-pub fn exec(deck: &Path, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), CliError> {
+pub fn exec(
+    deck: &Path,
+    trial: u64,
+    detector: Option<&str>,
+    out: &Path,
+    classifiers: Option<&Path>,
+) -> Result<(), CliError> {
     // Check the output name before simulating, so a typo costs nothing.
     TableFormat::from_path(out)?;
     if trial > MAX_TRIAL {
@@ -26,6 +33,9 @@ pub fn exec(deck: &Path, trial: u64, detector: Option<&str>, out: &Path) -> Resu
         StudyKind::SurfaceBank => return surfaces(&SurfaceStudy::from_toml(&text, deck)?, trial, detector, out),
         StudyKind::AirData => return air_data(&AirDataStudy::from_toml(&text, deck)?, trial, detector, out),
         StudyKind::ThrustLoss => return launch(&LaunchStudy::from_toml(&text, deck)?, trial, detector, out),
+        StudyKind::Accelerometer => {
+            return accelerometer(&AccelerometerStudy::from_toml(&text, deck)?, trial, out, classifiers);
+        }
         StudyKind::DetectionFilter => {}
     }
     let study = Study::from_toml(&text, deck)?;
@@ -361,5 +371,60 @@ fn launch(study: &LaunchStudy, trial: u64, detector: Option<&str>, out: &Path) -
             o.loss_estimate_percent.map_or("-".to_string(), |l| format!("{l:.1}"))
         );
     }
+    Ok(())
+}
+
+/// One trial of an accelerometer deck: the residual and its detection statistic per sample, and what
+/// both classifiers make of the window after the onset (from `classifiers`, or trained now).
+fn accelerometer(
+    study: &AccelerometerStudy,
+    trial: u64,
+    out: &Path,
+    classifiers: Option<&Path>,
+) -> Result<(), CliError> {
+    use crate::sim::accelerometer::{AccelerometerTrials, DETECTORS, TrainedClassifiers};
+    let trained = match classifiers {
+        Some(file) => TrainedClassifiers::load(file)?,
+        None => {
+            TrainedClassifiers::train(study).map_err(|e| CliError::Invalid(format!("{}: {e}", study.path.display())))?
+        }
+    };
+    let trials = AccelerometerTrials::new(study, &trained);
+    let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
+    let result = trials.run_trial_with(trial, |samples, statistics| {
+        let dt_s = study.design.scenario.dt_s;
+        floats.push(("t_s".into(), (0..samples.len()).map(|k| k as f64 * dt_s).collect()));
+        for (j, axis) in ["x", "y", "z"].iter().enumerate() {
+            floats.push((format!("residual_{axis}"), samples.iter().map(|s| s.residual[j]).collect()));
+        }
+        floats.push(("detection_statistic".into(), statistics.to_vec()));
+    });
+    let outcome =
+        result.outcome.map_err(|e| CliError::Invalid(format!("{}: trial {trial}: {e}", study.path.display())))?;
+    let threshold = study.detection.threshold;
+    let alarm = floats.last().map(|(_, t)| t.iter().map(|&v| v >= threshold).collect()).unwrap_or_default();
+    let trace = Trace { float_columns: floats, bool_columns: vec![("alarm".into(), alarm)] };
+    let mut df = trace_frame(&trace).map_err(|e| CliError::Internal(e.to_string()))?;
+    write_table(&mut df, out)?;
+    let s = &result.spec;
+    println!("{}: trial {trial}, {} samples -> {}", study.name, df.height(), out.display());
+    let axis = s.axis.map_or("-", |a| ["x", "y", "z"][a]);
+    println!(
+        "  class {} on axis {axis}, size {}, onset {:.3} s, noise scale {}",
+        s.class.name(),
+        s.size,
+        s.onset_s,
+        s.noise_scale
+    );
+    for (d, name) in DETECTORS.iter().enumerate() {
+        println!("  {name:<6} predicts {}", outcome.predicted[d].name());
+    }
+    let secs = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+    println!(
+        "  residual detector: false alarm {} s, alarm {} s (delay {} s)",
+        secs(outcome.false_alarm_s),
+        secs(outcome.alarm_s),
+        secs(outcome.alarm_s.map(|a| a - s.onset_s))
+    );
     Ok(())
 }

@@ -4,6 +4,7 @@ use super::{CliError, design_error};
 use crate::detector::stmmae::BankParams;
 use crate::fault::actuator::ActuatorFaultKind;
 use crate::plant::uav::{AerosondeParams, SURFACE_NAMES, trim};
+use crate::study::accelerometer::AccelerometerStudy;
 use crate::study::air_data::AirDataStudy;
 use crate::study::launch::LaunchStudy;
 use crate::study::surfaces::SurfaceStudy;
@@ -16,6 +17,7 @@ pub fn exec(deck: &Path) -> Result<(), CliError> {
         StudyKind::SurfaceBank => return surfaces(&SurfaceStudy::from_toml(&text, deck)?),
         StudyKind::AirData => return air_data(&AirDataStudy::from_toml(&text, deck)?),
         StudyKind::ThrustLoss => return launch(&LaunchStudy::from_toml(&text, deck)?),
+        StudyKind::Accelerometer => return accelerometer(&AccelerometerStudy::from_toml(&text, deck)?),
         StudyKind::DetectionFilter => {}
     }
     let study = Study::from_toml(&text, deck)?;
@@ -329,6 +331,47 @@ fn launch(study: &LaunchStudy) -> Result<(), CliError> {
     println!(
         "            loss {:?} %, onset {:?} s, noise scale {:?}, gust scale {:?}; detection within {} s of the onset",
         mc.loss_percent, mc.onset_s, mc.noise_scale, mc.gust_scale, mc.detection_window_s
+    );
+    Ok(())
+}
+
+/// The resolved accelerometer study (method 003).
+fn accelerometer(study: &AccelerometerStudy) -> Result<(), CliError> {
+    let d = &study.design;
+    println!("{}: valid", study.path.display());
+    println!(
+        "study       {} (seed {}, {} s at dt {} s)",
+        study.name, study.seed, d.scenario.duration_s, d.scenario.dt_s
+    );
+    let n = &d.scenario.noise;
+    println!(
+        "imu         gyro noise {:.3} deg/s (bias spread {:.3}), accelerometer noise {} m/s^2 (bias spread {})",
+        n.gyro_noise_std_rad_s.to_degrees(),
+        n.gyro_bias_std_rad_s.to_degrees(),
+        n.accel_noise_std_mps2,
+        n.accel_bias_std_mps2
+    );
+    let r = &d.ranges;
+    println!(
+        "faults      bias |{:?}| m/s^2, gain |factor - 1| {:?}, stuck at the reading at onset; onset {:?} s; axis and sign drawn",
+        r.bias_mps2, r.gain_deviation, r.onset_s
+    );
+    println!("features    {} samples from {} s after the onset", d.features.window_len, d.window_delay_s);
+    let t = &study.training;
+    println!(
+        "training    {} trials per class from seed {} at noise scales {:?}; SVM {:?}, C {}",
+        t.trials_per_class, t.seed, t.noise_scales, t.svm.kernel, t.svm.c
+    );
+    println!(
+        "detection   T over {} samples, threshold {}, counted from {} s",
+        study.detection.window, study.detection.threshold, study.settle_s
+    );
+    let classes: Vec<&str> = study.classes.iter().map(|c| c.name()).collect();
+    println!(
+        "monte carlo {} trials, classes [{}] cycled, noise scale {:?}",
+        study.trials,
+        classes.join(", "),
+        study.noise_scale
     );
     Ok(())
 }

@@ -9,6 +9,7 @@ use polars::prelude::*;
 
 use crate::sim::Trace;
 
+pub mod accelerometer;
 pub mod air_data;
 pub mod launch;
 pub mod records;

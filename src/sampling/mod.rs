@@ -28,6 +28,8 @@ pub enum Substream {
     Scenario = 0,
     SensorNoise = 1,
     ProcessNoise = 2,
+    /// A trial's fault and sensor biases where a method draws them from a generator (method 003).
+    Fault = 3,
 }
 
 /// Highest trial index with its own streams (the stream id must fit in 64 bits).

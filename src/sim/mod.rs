@@ -29,6 +29,7 @@ use crate::fault::ActiveFaults;
 use crate::sampling::{Substream, TrialSpec, noise_rng};
 use crate::study::Study;
 
+pub mod accelerometer;
 pub mod air_data;
 mod engine;
 pub mod kernel;

@@ -17,6 +17,7 @@
 //! of a group whose design succeeded, those with an alarm at or after the onset; the false-alarm rate
 //! counts alarms before the onset (the whole trial when fault-free). Intervals are 95 % Wilson.
 
+pub mod accelerometer;
 pub mod air_data;
 pub mod intervals;
 pub mod launch;

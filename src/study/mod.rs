@@ -2,6 +2,7 @@
 //!
 //! Every rejection names the file, the field (as a TOML path) and what is allowed.
 
+pub mod accelerometer;
 pub mod air_data;
 pub mod deck;
 pub mod launch;
@@ -251,6 +252,8 @@ pub enum StudyKind {
     AirData,
     /// Method 001: launch-vehicle thrust loss, EKF residual and moving-horizon GLS (`[vehicle]` decks).
     ThrustLoss,
+    /// Method 003: accelerometer faults, attitude-EKF residuals and SVM classifiers (`[imu]` decks).
+    Accelerometer,
 }
 
 impl StudyKind {
@@ -261,6 +264,7 @@ impl StudyKind {
             StudyKind::SurfaceBank => "airframe",
             StudyKind::AirData => "flight",
             StudyKind::ThrustLoss => "vehicle",
+            StudyKind::Accelerometer => "imu",
         }
     }
 
@@ -271,6 +275,7 @@ impl StudyKind {
             StudyKind::SurfaceBank => "a control-surface",
             StudyKind::AirData => "an air-data",
             StudyKind::ThrustLoss => "a launch-vehicle",
+            StudyKind::Accelerometer => "an accelerometer",
         }
     }
 
@@ -280,17 +285,18 @@ impl StudyKind {
             StudyKind::DetectionFilter => "000",
             StudyKind::ThrustLoss => "001",
             StudyKind::AirData => "002",
+            StudyKind::Accelerometer => "003",
             StudyKind::SurfaceBank => "004",
         }
     }
 }
 
 /// Which kind of deck a TOML text is, by the table that marks it (`[airframe]`, `[flight]`,
-/// `[vehicle]`); anything else, unparsable text included, is read as a detection-filter deck, whose
+/// `[vehicle]`, `[imu]`); anything else, unparsable text included, is read as a detection-filter deck, whose
 /// parser then names the file, the line and the field.
 pub fn deck_kind(text: &str) -> StudyKind {
     let Ok(table) = text.parse::<toml::Table>() else { return StudyKind::DetectionFilter };
-    [StudyKind::SurfaceBank, StudyKind::AirData, StudyKind::ThrustLoss]
+    [StudyKind::SurfaceBank, StudyKind::AirData, StudyKind::ThrustLoss, StudyKind::Accelerometer]
         .into_iter()
         .find(|k| table.contains_key(k.deck_table()))
         .unwrap_or(StudyKind::DetectionFilter)
