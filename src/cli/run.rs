@@ -54,8 +54,7 @@ enum Loaded {
 
 impl Loaded {
     fn load(a: &RunArgs) -> Result<Loaded, CliError> {
-        let text = std::fs::read_to_string(a.deck)
-            .map_err(|e| CliError::Invalid(format!("{}: cannot read the deck: {e}", a.deck.display())))?;
+        let text = crate::study::read_deck(a.deck)?;
         let mut loaded = match deck_kind(&text) {
             StudyKind::SurfaceBank => Loaded::Surfaces(SurfaceStudy::from_toml(&text, a.deck)?),
             StudyKind::AirData => Loaded::AirData(AirDataStudy::from_toml(&text, a.deck)?),

@@ -9,11 +9,11 @@ use crate::sampling::surfaces::SurfaceScenarioSampler;
 use crate::sampling::{Substream, noise_rng};
 use crate::sim::surfaces::{SurfaceTrial, run_banks};
 use crate::sim::{Engine, Trace};
+use crate::study::Study;
 use crate::study::accelerometer::AccelerometerStudy;
 use crate::study::air_data::AirDataStudy;
 use crate::study::launch::LaunchStudy;
 use crate::study::surfaces::SurfaceStudy;
-use crate::study::{DeckError, Study};
 use crate::study::{StudyKind, deck_kind};
 
 pub fn exec(
@@ -28,7 +28,7 @@ pub fn exec(
     if trial > MAX_TRIAL {
         return Err(CliError::Invalid(format!("--trial {trial}: allowed 0 to {MAX_TRIAL}")));
     }
-    let text = std::fs::read_to_string(deck).map_err(|source| DeckError::Read { file: deck.into(), source })?;
+    let text = crate::study::read_deck(deck)?;
     match deck_kind(&text) {
         StudyKind::SurfaceBank => return surfaces(&SurfaceStudy::from_toml(&text, deck)?, trial, detector, out),
         StudyKind::AirData => return air_data(&AirDataStudy::from_toml(&text, deck)?, trial, detector, out),

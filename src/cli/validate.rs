@@ -8,11 +8,11 @@ use crate::study::accelerometer::AccelerometerStudy;
 use crate::study::air_data::AirDataStudy;
 use crate::study::launch::LaunchStudy;
 use crate::study::surfaces::SurfaceStudy;
-use crate::study::{DeckError, Shape, Study};
+use crate::study::{Shape, Study};
 use crate::study::{StudyKind, deck_kind};
 
 pub fn exec(deck: &Path) -> Result<(), CliError> {
-    let text = std::fs::read_to_string(deck).map_err(|source| DeckError::Read { file: deck.into(), source })?;
+    let text = crate::study::read_deck(deck)?;
     match deck_kind(&text) {
         StudyKind::SurfaceBank => return surfaces(&SurfaceStudy::from_toml(&text, deck)?),
         StudyKind::AirData => return air_data(&AirDataStudy::from_toml(&text, deck)?),

@@ -20,7 +20,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::deck::{FactorSpec, StudySection};
-use super::{DeckError, Factor, Validator};
+use super::{DeckError, Factor, Validator, parse_deck, read_deck};
 use crate::detector::ekf_svm::{DetectionParams, FaultClass, SvmKernel, SvmParams, TrialDesign};
 
 #[derive(Debug, Deserialize)]
@@ -106,13 +106,12 @@ pub struct AccelerometerStudy {
 
 impl AccelerometerStudy {
     pub fn load(path: &Path) -> Result<AccelerometerStudy, DeckError> {
-        let text = std::fs::read_to_string(path).map_err(|source| DeckError::Read { file: path.into(), source })?;
+        let text = read_deck(path)?;
         Self::from_toml(&text, path)
     }
 
     pub fn from_toml(text: &str, path: &Path) -> Result<AccelerometerStudy, DeckError> {
-        let deck: AccelerometerDeck = toml::from_str(text)
-            .map_err(|e| DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() })?;
+        let deck: AccelerometerDeck = parse_deck(text, path)?;
         let v = Validator { file: path };
         let (duration_s, dt_s, _) = v.study_section(&deck.study)?;
         let mut design = TrialDesign::seed();

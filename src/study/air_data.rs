@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::deck::{FactorSpec, FaultKindSection, FaultSection, StudySection};
-use super::{DeckError, Factor, FaultKindSpec, Sampler, Validator};
+use super::{DeckError, Factor, FaultKindSpec, Sampler, Validator, parse_deck, read_deck};
 use crate::detector::dual_ukf::DualUkfParams;
 use crate::fault::SensorFault;
 use crate::plant::air_data::{
@@ -150,13 +150,12 @@ pub struct AirDataStudy {
 
 impl AirDataStudy {
     pub fn load(path: &Path) -> Result<AirDataStudy, DeckError> {
-        let text = std::fs::read_to_string(path).map_err(|source| DeckError::Read { file: path.into(), source })?;
+        let text = read_deck(path)?;
         Self::from_toml(&text, path)
     }
 
     pub fn from_toml(text: &str, path: &Path) -> Result<AirDataStudy, DeckError> {
-        let deck: AirDataDeck = toml::from_str(text)
-            .map_err(|e| DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() })?;
+        let deck: AirDataDeck = parse_deck(text, path)?;
         let v = Validator { file: path };
         let (duration_s, dt_s, _) = v.study_section(&deck.study)?;
 

@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::deck::{FactorSpec, StudySection};
-use super::{DeckError, Factor, Sampler, Validator};
+use super::{DeckError, Factor, Sampler, Validator, parse_deck, read_deck};
 use crate::detector::ekf_mhe::{DetectorParams, EkfParams, MheParams};
 use crate::plant::launch_vehicle::{ENGINES, Gust, GustAxis, LaunchVehicleConfig};
 
@@ -156,13 +156,12 @@ pub struct LaunchStudy {
 
 impl LaunchStudy {
     pub fn load(path: &Path) -> Result<LaunchStudy, DeckError> {
-        let text = std::fs::read_to_string(path).map_err(|source| DeckError::Read { file: path.into(), source })?;
+        let text = read_deck(path)?;
         Self::from_toml(&text, path)
     }
 
     pub fn from_toml(text: &str, path: &Path) -> Result<LaunchStudy, DeckError> {
-        let deck: LaunchDeck = toml::from_str(text)
-            .map_err(|e| DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() })?;
+        let deck: LaunchDeck = parse_deck(text, path)?;
         let v = Validator { file: path };
         let (duration_s, dt_s, _) = v.study_section(&deck.study)?;
         if !(0.001..=0.05).contains(&dt_s) {

@@ -239,6 +239,17 @@ pub struct MonteCarlo {
     pub parameter_errors: Vec<ParameterError>,
 }
 
+/// A deck file's text; a missing or unreadable file names itself.
+pub(crate) fn read_deck(path: &Path) -> Result<String, DeckError> {
+    std::fs::read_to_string(path).map_err(|source| DeckError::Read { file: path.into(), source })
+}
+
+/// A deck's text parsed into its serde type; TOML errors (unknown fields among them) name the file.
+pub(crate) fn parse_deck<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T, DeckError> {
+    toml::from_str(text)
+        .map_err(|e| DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() })
+}
+
 /// Which kind of study a deck describes and a results folder holds: the commands dispatch on it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -305,7 +316,7 @@ pub fn deck_kind(text: &str) -> StudyKind {
 impl Study {
     /// Reads, parses and validates a deck file.
     pub fn load(path: &Path) -> Result<Study, DeckError> {
-        let text = std::fs::read_to_string(path).map_err(|source| DeckError::Read { file: path.into(), source })?;
+        let text = read_deck(path)?;
         Study::from_toml(&text, path)
     }
 
@@ -323,8 +334,7 @@ impl Study {
                 ),
             });
         }
-        let deck: Deck = toml::from_str(text)
-            .map_err(|e| DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() })?;
+        let deck: Deck = parse_deck(text, path)?;
         Validator { file: path }.study(deck)
     }
 }

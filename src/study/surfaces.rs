@@ -32,7 +32,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 
 use super::deck::FactorSpec;
-use super::{DeckError, Factor, ModelTarget, Sampler, Validator};
+use super::{DeckError, Factor, ModelTarget, Sampler, Validator, parse_deck, read_deck};
 use crate::detector::stmmae::{BankParams, CovarianceForm};
 use crate::estimation::LikelihoodForm;
 use crate::fault::actuator::DEFAULT_SQUARE_WAVE_PERIOD_S;
@@ -257,13 +257,12 @@ pub struct SurfaceStudy {
 
 impl SurfaceStudy {
     pub fn load(path: &Path) -> Result<SurfaceStudy, DeckError> {
-        let text = std::fs::read_to_string(path).map_err(|source| DeckError::Read { file: path.into(), source })?;
+        let text = read_deck(path)?;
         Self::from_toml(&text, path)
     }
 
     pub fn from_toml(text: &str, path: &Path) -> Result<SurfaceStudy, DeckError> {
-        let deck: SurfaceDeck =
-            toml::from_str(text).map_err(|e| DeckError::Parse { file: path.into(), message: e.to_string() })?;
+        let deck: SurfaceDeck = parse_deck(text, path)?;
         let bad = |field: String, message: String| DeckError::Invalid { file: path.into(), field, message };
         let positive = |field: &str, v: f64| {
             if v.is_finite() && v > 0.0 {
