@@ -448,24 +448,33 @@ impl MheDesign {
     /// `S` for a fault hypothesised at `onset_s`: linear interpolation in the grid; `true` when clamped
     /// at an end of the grid (a non-finite onset gets the first entry, flagged).
     pub fn sensitivity_at(&self, onset_s: f64) -> (Vec<f64>, bool) {
+        let mut S = Vec::with_capacity(self.params.mhe.window_n + 1);
+        let clamped = self.sensitivity_into(onset_s, &mut S);
+        (S, clamped)
+    }
+
+    /// [`MheDesign::sensitivity_at`] into `S` (cleared first): the detector's per-sample form, with no
+    /// allocation once `S` has grown to the window.
+    pub fn sensitivity_into(&self, onset_s: f64, S: &mut Vec<f64>) -> bool {
+        S.clear();
         let t = &self.onsets_s;
         let (first, last) = (t[0], t[t.len() - 1]);
-        if !onset_s.is_finite() {
-            return (self.sensitivity[0].clone(), true);
-        }
-        if t.len() == 1 {
-            return (self.sensitivity[0].clone(), onset_s != first);
-        }
-        if onset_s <= first {
-            return (self.sensitivity[0].clone(), onset_s < first);
-        }
-        if onset_s >= last {
-            return (self.sensitivity[t.len() - 1].clone(), onset_s > last);
-        }
-        let i = t.partition_point(|&s| s <= onset_s) - 1;
-        let w = (onset_s - t[i]) / (t[i + 1] - t[i]);
-        let S = self.sensitivity[i].iter().zip(&self.sensitivity[i + 1]).map(|(a, b)| a + w * (b - a)).collect();
-        (S, false)
+        let (row, clamped) = if !onset_s.is_finite() {
+            (0, true)
+        } else if t.len() == 1 {
+            (0, onset_s != first)
+        } else if onset_s <= first {
+            (0, onset_s < first)
+        } else if onset_s >= last {
+            (t.len() - 1, onset_s > last)
+        } else {
+            let i = t.partition_point(|&s| s <= onset_s) - 1;
+            let w = (onset_s - t[i]) / (t[i + 1] - t[i]);
+            S.extend(self.sensitivity[i].iter().zip(&self.sensitivity[i + 1]).map(|(a, b)| a + w * (b - a)));
+            return false;
+        };
+        S.extend_from_slice(&self.sensitivity[row]);
+        clamped
     }
 
     /// Calibrates the linear loss fit (the seed's eq. 27) from noise-free flights of `config` with a loss
@@ -638,11 +647,11 @@ struct Past {
     fhat: f64,
 }
 
-/// The window `[x(k - N D), x(k - (N-1) D), ..., x(k)]` of the newest samples (the history must hold at
-/// least `N D + 1`).
-fn window(history: &VecDeque<Past>, mhe: &MheParams) -> Vec<Past> {
-    let first = history.len() - mhe.span_samples();
-    (0..=mhe.window_n).map(|j| history[first + j * mhe.interval_samples]).collect()
+/// Indices, in a history of `len` samples (at least `N D + 1`), of the window
+/// `[x(k - N D), x(k - (N-1) D), ..., x(k)]` of the newest samples.
+fn window_indices(len: usize, mhe: &MheParams) -> impl Iterator<Item = usize> + use<> {
+    let (first, n, d) = (len - mhe.span_samples(), mhe.window_n, mhe.interval_samples);
+    (0..=n).map(move |j| first + j * d)
 }
 
 /// The online detector of one trial.
@@ -657,6 +666,10 @@ pub struct EkfMhe {
     detection: Option<Detection>,
     peak_abs_fhat: f64,
     health: DetectorHealth,
+    /// Per-sample buffers of the window's `Y`, `Y0` and `S`, kept to spare an allocation each sample.
+    window_y: Vec<f64>,
+    window_y0: Vec<f64>,
+    window_s: Vec<f64>,
 }
 
 impl EkfMhe {
@@ -674,6 +687,9 @@ impl EkfMhe {
             detection: None,
             peak_abs_fhat: 0.0,
             health: DetectorHealth::default(),
+            window_y: Vec::new(),
+            window_y0: Vec::new(),
+            window_s: Vec::new(),
         }
     }
 
@@ -699,22 +715,24 @@ impl EkfMhe {
         let window_full = self.history.len() >= p.mhe.span_samples();
         let mut fhat = 0.0;
         if window_full {
-            let samples = window(&self.history, &p.mhe);
-            let Y: Vec<f64> = samples.iter().map(|s| s.residual).collect();
-            let Y0: Vec<f64> = samples
-                .iter()
-                .map(|s| {
-                    design.nominal_residual.get(s.k).copied().unwrap_or_else(|| {
-                        self.health.nominal_residual_missing += 1;
-                        0.0
-                    })
-                })
-                .collect();
+            self.window_y.clear();
+            self.window_y0.clear();
+            let mut oldest_k = None;
+            for i in window_indices(self.history.len(), &p.mhe) {
+                let k = self.history[i].k;
+                oldest_k.get_or_insert(k);
+                self.window_y.push(self.history[i].residual);
+                self.window_y0.push(design.nominal_residual.get(k).copied().unwrap_or_else(|| {
+                    self.health.nominal_residual_missing += 1;
+                    0.0
+                }));
+            }
             // A fault cannot begin before lift-off: the first windows hypothesise an onset at sample 0.
-            let onset_s = samples[0].k.saturating_sub(1) as f64 * design.model.dt_s;
-            let (S, clamped) = design.sensitivity_at(onset_s);
+            let onset_s = oldest_k.unwrap_or(0).saturating_sub(1) as f64 * design.model.dt_s;
+            let clamped = design.sensitivity_into(onset_s, &mut self.window_s);
             self.health.sensitivity_clamped += u32::from(clamped);
-            match gls_fault_estimate(&S, &Y, &Y0, p.mhe.window_variance, p.mhe.R()) {
+            match gls_fault_estimate(&self.window_s, &self.window_y, &self.window_y0, p.mhe.window_variance, p.mhe.R())
+            {
                 Some(f) => fhat = f,
                 None => self.health.gls_failed += 1,
             }
@@ -852,7 +870,8 @@ mod tests {
         let mhe = MheParams { window_n: 3, interval_samples: 2, ..MheParams::seed() };
         let history: VecDeque<Past> =
             (0..20).map(|k| Past { k, residual: k as f64, n_y_g: 0.0, n_z_g: 0.0, fhat: 0.0 }).collect();
-        assert_eq!(window(&history, &mhe).iter().map(|p| p.k).collect::<Vec<_>>(), vec![13, 15, 17, 19]);
+        let ks: Vec<usize> = window_indices(history.len(), &mhe).map(|i| history[i].k).collect();
+        assert_eq!(ks, [13, 15, 17, 19]);
     }
 
     /// On a real noisy run with a 30 % loss, every `fhat` the detector reports from 0.5 s before to 1 s

@@ -218,10 +218,6 @@ impl<'a> LaunchTrials<'a> {
         Ok(LaunchTrials { study, sampler: LaunchScenarioSampler::new(study), detectors })
     }
 
-    pub fn detectors(&self) -> &[DesignedDetector] {
-        &self.detectors
-    }
-
     /// The study's fields of `manifest.json`.
     pub fn manifest(&self) -> Manifest {
         let s = self.study;
@@ -252,7 +248,8 @@ impl<'a> LaunchTrials<'a> {
 
 impl TrialSource for LaunchTrials<'_> {
     type Result = LaunchTrialResult;
-    /// A 90 s flight costs about 0.15 s per detector: 128 make a part file of seconds.
+    /// A 90 s flight costs about 0.12 s per detector (measured on the bundled deck): 128 make a part
+    /// file of seconds.
     fn chunk_trials(&self) -> u64 {
         128
     }
