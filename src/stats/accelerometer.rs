@@ -14,7 +14,7 @@ use std::path::Path;
 use polars::prelude::*;
 
 use super::intervals::{Z95, mcnemar_exact, wilson};
-use super::{add_rate, read_run, str_col, u64_values};
+use super::{add_rate, flown_and_faulty, read_run, str_col, u64_values};
 use crate::detector::ekf_svm::FaultClass;
 use crate::output::accelerometer::col;
 use crate::output::records::col as common;
@@ -79,13 +79,9 @@ fn aggregate(trials: &DataFrame, keys: &[&str]) -> PolarsResult<DataFrame> {
             SortMultipleOptions::default().with_nulls_last(true),
         )
         .collect()?;
-    let (trials_n, failed) = (u64_values(&df, "trials")?, u64_values(&df, "failed")?);
     let (correct, detected, fa) =
         (u64_values(&df, "correct")?, u64_values(&df, "detected")?, u64_values(&df, "false_alarms")?);
-    let faulty = df.column("faulty")?.bool()?.clone();
-    let faulty: Vec<bool> = (0..faulty.len()).map(|i| faulty.get(i).unwrap_or(false)).collect();
-    df.drop_in_place("faulty")?;
-    let flown: Vec<u64> = trials_n.iter().zip(&failed).map(|(t, f)| t - f).collect();
+    let (flown, faulty) = flown_and_faulty(&mut df)?;
     add_rate(&mut df, "recall", &correct, &flown, &|_| true)?;
     add_rate(&mut df, "pd", &detected, &flown, &|i| faulty[i])?;
     add_rate(&mut df, "pfa", &fa, &flown, &|_| true)?;

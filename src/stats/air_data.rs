@@ -16,7 +16,7 @@ use std::path::Path;
 use polars::prelude::*;
 
 use super::paired::{Outcome, PairedUnits};
-use super::{add_rate, f64_col, read_run, str_col, u64_values};
+use super::{add_rate, f64_col, flown_and_faulty, read_run, str_col, u64_values};
 use crate::output::air_data::col;
 use crate::output::records::col as common;
 use crate::output::write_table;
@@ -100,16 +100,12 @@ fn aggregate(rows: &LazyFrame, keys: &[&str]) -> PolarsResult<DataFrame> {
             SortMultipleOptions::default().with_nulls_last(true),
         )
         .collect()?;
-    let (trials, failed) = (u64_values(&df, "trials")?, u64_values(&df, "failed")?);
     let (detected, isolated, fa) =
         (u64_values(&df, "detected")?, u64_values(&df, "isolated_correctly")?, u64_values(&df, "false_alarms")?);
-    let faulty = df.column("faulty")?.bool()?.clone();
-    let faulty: Vec<bool> = (0..faulty.len()).map(|i| faulty.get(i).unwrap_or(false)).collect();
-    let flown: Vec<u64> = trials.iter().zip(&failed).map(|(t, f)| t - f).collect();
+    let (flown, faulty) = flown_and_faulty(&mut df)?;
     add_rate(&mut df, "pd", &detected, &flown, &|i| faulty[i])?;
     add_rate(&mut df, "pfa", &fa, &flown, &|_| true)?;
     add_rate(&mut df, "isolation_accuracy", &isolated, &detected, &|i| faulty[i])?;
-    df.drop_in_place("faulty")?;
     Ok(df)
 }
 

@@ -794,6 +794,16 @@ pub(crate) fn u64_values(df: &DataFrame, name: &str) -> PolarsResult<Vec<u64>> {
     Ok((0..c.len()).map(|i| c.get(i).unwrap_or(0)).collect())
 }
 
+/// What every summary's rates rest on, per group: the trials flown to the end (`trials - failed`) and
+/// whether the group is faulty (its boolean `faulty` column, which is dropped).
+pub(crate) fn flown_and_faulty(df: &mut DataFrame) -> PolarsResult<(Vec<u64>, Vec<bool>)> {
+    let flown = u64_values(df, "trials")?.iter().zip(u64_values(df, "failed")?).map(|(t, f)| t - f).collect();
+    let faulty = df.column("faulty")?.bool()?.clone();
+    let faulty = (0..faulty.len()).map(|i| faulty.get(i).unwrap_or(false)).collect();
+    df.drop_in_place("faulty")?;
+    Ok((flown, faulty))
+}
+
 /// Adds the columns `name`, `name_lo`, `name_hi`: the rate `k / n` with its 95 % Wilson interval, null
 /// where `keep` is false or `n = 0`.
 pub(crate) fn add_rate(

@@ -27,7 +27,7 @@ use polars::prelude::*;
 
 use super::intervals::{Z95, wilson};
 use super::paired::{Outcome, PairedUnits};
-use super::{add_rate, f64_col, read_run, str_col, u64_values};
+use super::{add_rate, f64_col, flown_and_faulty, read_run, str_col, u64_values};
 use crate::output::records::col as common;
 use crate::output::surfaces::col;
 use crate::output::write_table;
@@ -120,19 +120,15 @@ fn aggregate(rows: &LazyFrame, keys: &[&str]) -> PolarsResult<DataFrame> {
 /// Adds `pd`, `pfa`, `isolation_accuracy`, `clearing_rate`, `post_fault_rate` with 95 % Wilson
 /// intervals to counts.
 fn add_rates(df: &mut DataFrame) -> PolarsResult<()> {
-    let (trials, failed) = (u64_values(df, "trials")?, u64_values(df, "failed")?);
     let (detected, isolated) = (u64_values(df, "detected")?, u64_values(df, "isolated_correctly")?);
     let (clear_decided, cleared) = (u64_values(df, "clear_decided")?, u64_values(df, "cleared")?);
     let (fa, post_fault) = (u64_values(df, "false_alarms")?, u64_values(df, "post_fault")?);
-    let faulty = df.column("faulty")?.bool()?.clone();
-    let faulty: Vec<bool> = (0..faulty.len()).map(|i| faulty.get(i).unwrap_or(false)).collect();
-    let flown: Vec<u64> = trials.iter().zip(&failed).map(|(t, f)| t - f).collect();
+    let (flown, faulty) = flown_and_faulty(df)?;
     add_rate(df, "pd", &detected, &flown, &|i| faulty[i])?;
     add_rate(df, "pfa", &fa, &flown, &|_| true)?;
     add_rate(df, "isolation_accuracy", &isolated, &detected, &|i| faulty[i])?;
     add_rate(df, "clearing_rate", &cleared, &clear_decided, &|i| faulty[i])?;
     add_rate(df, "post_fault_rate", &post_fault, &flown, &|i| faulty[i])?;
-    df.drop_in_place("faulty")?;
     Ok(())
 }
 
