@@ -19,9 +19,9 @@ use nalgebra::{SMatrix, SVector};
 use rand::{RngExt, SeedableRng, rngs::Xoshiro256PlusPlus};
 use rand_distr::StandardNormal;
 
-use fdimc::sim::Engine;
-use fdimc::sim::kernel::LANES;
-use fdimc::study::Study;
+use fdimc::methods::detection_filter::kernel::LANES;
+use fdimc::methods::detection_filter::study::Study;
+use fdimc::methods::detection_filter::trials::Engine;
 
 const ROUNDS: usize = 480 / LANES;
 /// One lane group per turn.

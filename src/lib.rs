@@ -1,22 +1,16 @@
 //! fdimc: Monte Carlo robustness studies of fault detection and isolation (FDI) in flight control.
 //!
-//! Data flow (one direction): a TOML deck is parsed and validated into a [`study::Study`]; a detector
-//! is designed from it ([`study::DetectionFilterParams::design`]); [`sim`] runs a trial (plant, noise,
-//! faults, loop, detector, alarms) and returns a compact outcome or a per-sample trace; [`output`]
-//! writes tables. The CLI in [`cli`] is a thin layer over these.
+//! [`engine`] owns what every study shares (decks' common sections, scenario sampling, the parallel
+//! runner, records, summaries, checks, reports); [`methods`] holds one folder per study method;
+//! [`design`], [`estimation`], [`fault`], [`kinematics`], [`lti`] and [`linalg`] are building blocks the methods share.
+//! The CLI in [`cli`] is a thin layer over these.
 
 pub mod cli;
 pub mod design;
-pub mod detector;
+pub mod engine;
 pub mod estimation;
 pub mod fault;
+pub mod kinematics;
 pub mod linalg;
-pub mod output;
-pub mod plant;
-pub mod regress;
-pub mod report;
-pub mod runner;
-pub mod sampling;
-pub mod sim;
-pub mod stats;
-pub mod study;
+pub mod lti;
+pub mod methods;

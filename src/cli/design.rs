@@ -3,9 +3,11 @@ use std::path::Path;
 use nalgebra::DMatrix;
 use serde_json::json;
 
-use super::{CliError, design_error, validate::indent};
+use crate::cli::{CliError, design_error};
+
+use crate::cli::validate::indent;
 use crate::design::Assignment;
-use crate::study::Study;
+use crate::methods::detection_filter::study::Study;
 
 pub fn exec(deck: &Path, as_json: bool) -> Result<(), CliError> {
     let study = Study::load(deck)?;

@@ -9,8 +9,8 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 use crate::design::DesignError;
-use crate::output::OutputError;
-use crate::study::DeckError;
+use crate::engine::deck::DeckError;
+use crate::engine::output::OutputError;
 
 mod design;
 mod run;

@@ -1,23 +1,24 @@
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
-use super::CliError;
-use crate::runner::{self, Manifest, RunError, RunOptions, Shard, StudyKind};
-use crate::sim::accelerometer::{AccelerometerTrials, TrainedClassifiers};
-use crate::sim::air_data::AirDataTrials;
-use crate::sim::launch::LaunchTrials;
-use crate::sim::surfaces::SurfaceTrials;
-use crate::stats::accelerometer::AccelerometerSummary;
-use crate::stats::air_data::AirDataSummary;
-use crate::stats::launch::LaunchSummary;
-use crate::stats::surfaces::SurfaceSummary;
-use crate::stats::{self, Calibration, SummaryReport};
-use crate::study::Study;
-use crate::study::accelerometer::AccelerometerStudy;
-use crate::study::air_data::AirDataStudy;
-use crate::study::deck_kind;
-use crate::study::launch::LaunchStudy;
-use crate::study::surfaces::SurfaceStudy;
+use crate::cli::CliError;
+use crate::engine::deck::deck_kind;
+use crate::engine::runner::{self, Manifest, RunError, RunOptions, Shard, StudyKind};
+use crate::methods::accelerometer::AccelerometerTrials;
+use crate::methods::accelerometer::study::AccelerometerStudy;
+use crate::methods::accelerometer::summary::AccelerometerSummary;
+use crate::methods::accelerometer::trial::TrainedClassifiers;
+use crate::methods::air_data::AirDataTrials;
+use crate::methods::air_data::study::AirDataStudy;
+use crate::methods::air_data::summary::AirDataSummary;
+use crate::methods::detection_filter::study::Study;
+use crate::methods::detection_filter::summary::{Calibration, SummaryReport};
+use crate::methods::surface_bank::SurfaceTrials;
+use crate::methods::surface_bank::study::SurfaceStudy;
+use crate::methods::surface_bank::summary::SurfaceSummary;
+use crate::methods::thrust_loss::LaunchTrials;
+use crate::methods::thrust_loss::study::LaunchStudy;
+use crate::methods::thrust_loss::summary::LaunchSummary;
 
 impl From<RunError> for CliError {
     fn from(e: RunError) -> Self {
@@ -54,7 +55,7 @@ enum Loaded {
 
 impl Loaded {
     fn load(a: &RunArgs) -> Result<Loaded, CliError> {
-        let text = crate::study::read_deck(a.deck)?;
+        let text = crate::engine::deck::read_deck(a.deck)?;
         let mut loaded = match deck_kind(&text) {
             StudyKind::SurfaceBank => Loaded::Surfaces(SurfaceStudy::from_toml(&text, a.deck)?),
             StudyKind::AirData => Loaded::AirData(AirDataStudy::from_toml(&text, a.deck)?),
@@ -63,8 +64,11 @@ impl Loaded {
             StudyKind::DetectionFilter => Loaded::Lti(Study::from_toml(&text, a.deck)?),
         };
         if let Some(n) = a.trials {
-            if n == 0 || n > crate::sampling::MAX_TRIAL {
-                return Err(CliError::Invalid(format!("--trials {n}: allowed 1 to {}", crate::sampling::MAX_TRIAL)));
+            if n == 0 || n > crate::engine::streams::MAX_TRIAL {
+                return Err(CliError::Invalid(format!(
+                    "--trials {n}: allowed 1 to {}",
+                    crate::engine::streams::MAX_TRIAL
+                )));
             }
             match &mut loaded {
                 Loaded::Lti(s) => s.monte_carlo.trials = n,
@@ -122,7 +126,7 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         command_line: std::env::args().collect(),
     };
     let report = match &study {
-        Loaded::Lti(study) => runner::run_study(study, &opts)?,
+        Loaded::Lti(study) => crate::methods::detection_filter::run_study(study, &opts)?,
         Loaded::Surfaces(study) => {
             let trials = SurfaceTrials::new(study);
             runner::run(&trials, trials.manifest(), &opts)?
@@ -230,9 +234,10 @@ impl Summary {
 /// target false-alarm probability.
 fn summarize(dir: &Path, manifest: &Manifest, calibration: Option<Calibration>) -> Result<Summary, CliError> {
     Ok(match manifest.kind {
-        StudyKind::DetectionFilter => {
-            Summary::Lti(stats::summarize(dir, &calibration.unwrap_or(Calibration::Target(manifest.target_pfa)))?)
-        }
+        StudyKind::DetectionFilter => Summary::Lti(crate::methods::detection_filter::summary::summarize(
+            dir,
+            &calibration.unwrap_or(Calibration::Target(manifest.target_pfa)),
+        )?),
         StudyKind::SurfaceBank | StudyKind::AirData | StudyKind::Accelerometer if calibration.is_some() => {
             return Err(CliError::Invalid(format!(
                 "{}: this study's detectors declare by model probabilities (the deck's 0.9 / 0.05): \
@@ -240,7 +245,7 @@ fn summarize(dir: &Path, manifest: &Manifest, calibration: Option<Calibration>) 
                 dir.display()
             )));
         }
-        StudyKind::ThrustLoss => Summary::Launch(stats::launch::summarize(
+        StudyKind::ThrustLoss => Summary::Launch(crate::methods::thrust_loss::summary::summarize(
             dir,
             match calibration {
                 None => manifest.target_pfa,
@@ -253,9 +258,9 @@ fn summarize(dir: &Path, manifest: &Manifest, calibration: Option<Calibration>) 
                 }
             },
         )?),
-        StudyKind::SurfaceBank => Summary::Surfaces(stats::surfaces::summarize(dir)?),
-        StudyKind::AirData => Summary::AirData(stats::air_data::summarize(dir)?),
-        StudyKind::Accelerometer => Summary::Accelerometer(stats::accelerometer::summarize(dir)?),
+        StudyKind::SurfaceBank => Summary::Surfaces(crate::methods::surface_bank::summary::summarize(dir)?),
+        StudyKind::AirData => Summary::AirData(crate::methods::air_data::summary::summarize(dir)?),
+        StudyKind::Accelerometer => Summary::Accelerometer(crate::methods::accelerometer::summary::summarize(dir)?),
     })
 }
 
@@ -335,9 +340,9 @@ pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<us
     if !(alpha > 0.0 && alpha < 1.0) {
         return Err(CliError::Invalid(format!("--alpha {alpha}: allowed 0 < alpha < 1")));
     }
-    let base = stats::read_summary(baseline)?;
+    let base = crate::engine::summary::read_summary(baseline)?;
     let (current, scratch) = if target.is_dir() {
-        (stats::read_summary(&target.join("summary.csv"))?, None)
+        (crate::engine::summary::read_summary(&target.join("summary.csv"))?, None)
     } else {
         let scratch = std::env::temp_dir().join(format!("fdimc-check-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&scratch);
@@ -355,9 +360,9 @@ pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<us
             classifiers: None,
         };
         let dir = exec_run(args)?;
-        (stats::read_summary(&dir.join("summary.csv"))?, Some(scratch))
+        (crate::engine::summary::read_summary(&dir.join("summary.csv"))?, Some(scratch))
     };
-    let verdict = crate::regress::compare(&current, &base, alpha);
+    let verdict = crate::engine::check::compare(&current, &base, alpha);
     if let Some(s) = scratch {
         let _ = std::fs::remove_dir_all(s);
     }
@@ -613,7 +618,7 @@ fn print_footer(dir: &Path, warnings: &[String], files: &str) {
 }
 
 pub fn exec_report(dir: &Path, trials: &[u64]) -> Result<(), CliError> {
-    let report = crate::report::write_report(dir, trials)?;
+    let report = crate::methods::detection_filter::report::write_report(dir, trials)?;
     for w in &report.warnings {
         println!("warning: {w}");
     }
@@ -644,8 +649,9 @@ pub fn exec_train(deck: &Path, out: Option<PathBuf>) -> Result<(), CliError> {
     );
     if let Some(tree) = trained.tree.tree() {
         for (k, m) in tree.merges.iter().enumerate() {
-            let names =
-                |c: &[crate::detector::ekf_svm::FaultClass]| c.iter().map(|c| c.name()).collect::<Vec<_>>().join("+");
+            let names = |c: &[crate::methods::accelerometer::ekf_svm::FaultClass]| {
+                c.iter().map(|c| c.name()).collect::<Vec<_>>().join("+")
+            };
             println!(
                 "  merge {}: {} | {} (separability {:.3}, the least of the {} pairs)",
                 k + 1,

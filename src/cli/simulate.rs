@@ -1,20 +1,21 @@
 use std::path::Path;
 
-use super::{CliError, design_error};
-use crate::detector::stmmae::MODELS;
-use crate::output::{TableFormat, trace_frame, write_table};
-use crate::plant::uav::SURFACE_NAMES;
-use crate::sampling::MAX_TRIAL;
-use crate::sampling::surfaces::SurfaceScenarioSampler;
-use crate::sampling::{Substream, noise_rng};
-use crate::sim::surfaces::{SurfaceTrial, run_banks};
-use crate::sim::{Engine, Trace};
-use crate::study::Study;
-use crate::study::accelerometer::AccelerometerStudy;
-use crate::study::air_data::AirDataStudy;
-use crate::study::launch::LaunchStudy;
-use crate::study::surfaces::SurfaceStudy;
-use crate::study::{StudyKind, deck_kind};
+use crate::cli::{CliError, design_error};
+use crate::engine::deck::{StudyKind, deck_kind};
+use crate::engine::output::Trace;
+use crate::engine::output::{TableFormat, trace_frame, write_table};
+use crate::engine::streams::MAX_TRIAL;
+use crate::engine::streams::{Substream, noise_rng};
+use crate::methods::accelerometer::study::AccelerometerStudy;
+use crate::methods::air_data::study::AirDataStudy;
+use crate::methods::detection_filter::study::Study;
+use crate::methods::detection_filter::trials::Engine;
+use crate::methods::surface_bank::scenario::SurfaceScenarioSampler;
+use crate::methods::surface_bank::stmmae::MODELS;
+use crate::methods::surface_bank::study::SurfaceStudy;
+use crate::methods::surface_bank::trial::{SurfaceTrial, run_banks};
+use crate::methods::surface_bank::uav::SURFACE_NAMES;
+use crate::methods::thrust_loss::study::LaunchStudy;
 
 pub fn exec(
     deck: &Path,
@@ -28,7 +29,7 @@ pub fn exec(
     if trial > MAX_TRIAL {
         return Err(CliError::Invalid(format!("--trial {trial}: allowed 0 to {MAX_TRIAL}")));
     }
-    let text = crate::study::read_deck(deck)?;
+    let text = crate::engine::deck::read_deck(deck)?;
     match deck_kind(&text) {
         StudyKind::SurfaceBank => return surfaces(&SurfaceStudy::from_toml(&text, deck)?, trial, detector, out),
         StudyKind::AirData => return air_data(&AirDataStudy::from_toml(&text, deck)?, trial, detector, out),
@@ -195,7 +196,7 @@ fn surfaces(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &Path
 /// holds the inertial and air-data measurements, the true air data, and per detector the fault
 /// probability, the declaration, the isolation statistics and flags, the air-data and bias estimates.
 fn air_data(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), CliError> {
-    use crate::plant::air_data::{AIR_DATA_CHANNEL_NAMES, INERTIAL_CHANNEL_NAMES};
+    use crate::methods::air_data::flight::{AIR_DATA_CHANNEL_NAMES, INERTIAL_CHANNEL_NAMES};
     let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
     let mut selected = study.clone();
     if let Some(name) = detector {
@@ -208,7 +209,7 @@ fn air_data(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &Path
         })?;
         selected.detectors = vec![d.clone()];
     }
-    let trials = crate::sim::air_data::AirDataTrials::new(&selected);
+    let trials = crate::methods::air_data::AirDataTrials::new(&selected);
     let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
     let mut bools: Vec<(String, Vec<bool>)> = Vec::new();
     let result = trials.run_trial_with(trial, |s, steps| {
@@ -263,7 +264,7 @@ fn air_data(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &Path
     } else {
         println!(
             "  fault               {} {} size {} from {:.3} s",
-            crate::output::air_data::sensor_set(&spec.outputs),
+            crate::methods::air_data::records::sensor_set(&spec.outputs),
             spec.kind,
             spec.size,
             spec.onset_s
@@ -273,7 +274,7 @@ fn air_data(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &Path
     let secs = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
     for (d, o) in selected.detectors.iter().zip(&outcomes) {
         let delay = o.detection_s.map(|t| t - spec.onset_s);
-        let isolated = o.isolated.as_deref().map_or("-".to_string(), crate::output::air_data::sensor_set);
+        let isolated = o.isolated.as_deref().map_or("-".to_string(), crate::methods::air_data::records::sensor_set);
         println!(
             "  {:<12} false alarm {}, delay {} s, isolated {isolated}, bias error {} sigma, air data {} / raw {} sigma",
             d.name,
@@ -303,12 +304,12 @@ fn launch(study: &LaunchStudy, trial: u64, detector: Option<&str>, out: &Path) -
         })?;
         selected.detectors = vec![d.clone()];
     }
-    let trials = crate::sim::launch::LaunchTrials::new(&selected)
+    let trials = crate::methods::thrust_loss::LaunchTrials::new(&selected)
         .map_err(|e| CliError::Invalid(format!("{}: {e}", study.path.display())))?;
     let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
     let mut bools: Vec<(String, Vec<bool>)> = Vec::new();
     let result = trials.run_trial_with(trial, |m, steps| {
-        use crate::plant::launch_vehicle::idx;
+        use crate::methods::thrust_loss::vehicle::idx;
         let mut f = vec![
             ("t_s".to_string(), m.t_s),
             ("wz_measured_rad_s".to_string(), m.y[idx::WZ - 1]),
@@ -382,7 +383,8 @@ fn accelerometer(
     out: &Path,
     classifiers: Option<&Path>,
 ) -> Result<(), CliError> {
-    use crate::sim::accelerometer::{AccelerometerTrials, DETECTORS, TrainedClassifiers};
+    use crate::methods::accelerometer::AccelerometerTrials;
+    use crate::methods::accelerometer::trial::{DETECTORS, TrainedClassifiers};
     let trained = match classifiers {
         Some(file) => TrainedClassifiers::load(file)?,
         None => {

@@ -1,18 +1,18 @@
 use std::path::Path;
 
-use super::{CliError, design_error};
-use crate::detector::stmmae::BankParams;
-use crate::fault::actuator::ActuatorFaultKind;
-use crate::plant::uav::{AerosondeParams, SURFACE_NAMES, trim};
-use crate::study::accelerometer::AccelerometerStudy;
-use crate::study::air_data::AirDataStudy;
-use crate::study::launch::LaunchStudy;
-use crate::study::surfaces::SurfaceStudy;
-use crate::study::{Shape, Study};
-use crate::study::{StudyKind, deck_kind};
+use crate::cli::{CliError, design_error};
+use crate::engine::deck::{StudyKind, deck_kind};
+use crate::methods::accelerometer::study::AccelerometerStudy;
+use crate::methods::air_data::study::AirDataStudy;
+use crate::methods::detection_filter::study::{Shape, Study};
+use crate::methods::surface_bank::actuator::ActuatorFaultKind;
+use crate::methods::surface_bank::stmmae::BankParams;
+use crate::methods::surface_bank::study::SurfaceStudy;
+use crate::methods::surface_bank::uav::{AerosondeParams, SURFACE_NAMES, trim};
+use crate::methods::thrust_loss::study::LaunchStudy;
 
 pub fn exec(deck: &Path) -> Result<(), CliError> {
-    let text = crate::study::read_deck(deck)?;
+    let text = crate::engine::deck::read_deck(deck)?;
     match deck_kind(&text) {
         StudyKind::SurfaceBank => return surfaces(&SurfaceStudy::from_toml(&text, deck)?),
         StudyKind::AirData => return air_data(&AirDataStudy::from_toml(&text, deck)?),
@@ -250,7 +250,10 @@ fn air_data(study: &AirDataStudy) -> Result<(), CliError> {
             d.name,
             q.false_alarm_probability,
             q.isolation_window,
-            crate::detector::dual_ukf::chi_square_threshold(q.isolation_window as u32, q.false_alarm_probability),
+            crate::methods::air_data::dual_ukf::chi_square_threshold(
+                q.isolation_window as u32,
+                q.false_alarm_probability
+            ),
             q.declare_probability,
             q.declare_hold_s,
             q.clear_probability,
@@ -266,7 +269,7 @@ fn air_data(study: &AirDataStudy) -> Result<(), CliError> {
         "monte carlo {} trials, fault-free fraction {}, sampler {:?}, onset {:?} s, noise scale {:?}, gust {:?} m/s",
         mc.trials, mc.fault_free_fraction, mc.sampler, mc.onset_s, mc.noise_scale, mc.gust_std_mps
     );
-    let sets: Vec<String> = mc.output_sets.iter().map(|s| crate::output::air_data::sensor_set(s)).collect();
+    let sets: Vec<String> = mc.output_sets.iter().map(|s| crate::methods::air_data::records::sensor_set(s)).collect();
     println!("            sensor sets [{}]", sets.join(", "));
     for f in &mc.faults {
         println!("            fault kind {}: size {:?}", f.kind.name(), f.size);

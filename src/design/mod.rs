@@ -240,7 +240,7 @@ mod tests {
     #[test]
     fn discrete_design_places_exp_lambda_dt() {
         let (A, B, C) = seed000();
-        let plant = crate::plant::LtiPlant {
+        let plant = crate::lti::LtiPlant {
             state_names: vec![String::new(); 5],
             input_names: vec![String::new(); 2],
             output_names: vec![String::new(); 6],

@@ -20,7 +20,7 @@
 
 use nalgebra::{Const, DimMin, SMatrix};
 
-use super::stekf::Innovation;
+use crate::estimation::stekf::Innovation;
 
 /// Which likelihood turns innovations into probabilities; see the module docs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -6,7 +6,6 @@
 //! trial; numerical trouble (a singular innovation covariance, a covariance that lost symmetry or
 //! positive definiteness, a non-finite estimate) is counted and reported, never a panic.
 
-pub mod attitude;
 pub mod bank;
 pub mod stekf;
 pub mod ukf;

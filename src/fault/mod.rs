@@ -15,7 +15,7 @@
 //! A held stuck value is the sensor's reading at the first sample at or after onset (noise included):
 //! a frozen sensor repeats what it last produced. Several faults on one channel apply in deck order.
 
-pub mod actuator;
+pub mod deck;
 
 use serde::Serialize;
 

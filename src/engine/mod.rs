@@ -1,0 +1,15 @@
+//! The engine: everything a study needs that does not depend on its method. It knows methods only
+//! through the [`runner::TrialSource`] trait and the manifest's `kind`.
+
+pub mod check;
+pub mod deck;
+pub mod intervals;
+pub mod noise;
+pub mod output;
+pub mod paired;
+
+pub mod runner;
+pub mod scenario;
+pub mod schema;
+pub mod streams;
+pub mod summary;

@@ -1,0 +1,81 @@
+//! Writing tables: CSV or Parquet chosen by the file extension, always through a temporary file in
+//! the same folder renamed into place, so a killed run never leaves a half-written file under the
+//! final name and an existing file is replaced only by a complete one.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+use polars::prelude::*;
+
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    #[error("{file}: unknown table format: use a .csv or .parquet file name")]
+    UnknownFormat { file: PathBuf },
+    #[error("{file}: {source}")]
+    Io { file: PathBuf, source: std::io::Error },
+    #[error("{file}: {source}")]
+    Polars { file: PathBuf, source: PolarsError },
+}
+
+/// Table formats fdimc writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TableFormat {
+    Csv,
+    Parquet,
+}
+
+impl TableFormat {
+    pub fn from_path(path: &Path) -> Result<TableFormat, OutputError> {
+        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("csv") => Ok(TableFormat::Csv),
+            Some("parquet") => Ok(TableFormat::Parquet),
+            _ => Err(OutputError::UnknownFormat { file: path.into() }),
+        }
+    }
+}
+
+/// Per-sample trace of one trial, column by column (names carry units).
+#[derive(Debug, Default, Clone)]
+pub struct Trace {
+    pub float_columns: Vec<(String, Vec<f64>)>,
+    pub bool_columns: Vec<(String, Vec<bool>)>,
+}
+
+/// Turns a trace into a data frame, columns in trace order.
+pub fn trace_frame(trace: &Trace) -> PolarsResult<DataFrame> {
+    let mut columns: Vec<Column> =
+        trace.float_columns.iter().map(|(name, v)| Column::new(name.as_str().into(), v.as_slice())).collect();
+    columns.extend(trace.bool_columns.iter().map(|(name, v)| Column::new(name.as_str().into(), v.as_slice())));
+    DataFrame::new_infer_height(columns)
+}
+
+/// Writes `df` to `path` (format by extension) atomically.
+pub fn write_table(df: &mut DataFrame, path: &Path) -> Result<(), OutputError> {
+    let format = TableFormat::from_path(path)?;
+    let tmp = temporary_sibling(path);
+    let io = |source| OutputError::Io { file: path.into(), source };
+    let result = (|| {
+        if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(io)?;
+        }
+        let file = File::create(&tmp).map_err(io)?;
+        let pol = |source| OutputError::Polars { file: path.into(), source };
+        match format {
+            TableFormat::Csv => CsvWriter::new(file).finish(df).map_err(pol)?,
+            TableFormat::Parquet => {
+                ParquetWriter::new(file).finish(df).map_err(pol)?;
+            }
+        }
+        std::fs::rename(&tmp, path).map_err(io)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// `dir/.name.tmp-<pid>`: same folder (so the rename is atomic), hidden, unique per process.
+pub fn temporary_sibling(path: &Path) -> PathBuf {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
+}

@@ -1,0 +1,500 @@
+//! The Monte Carlo runner: the only parallel code in fdimc.
+//!
+//! Trials are processed in chunks of consecutive indices ([`TrialSource::chunk_trials`]). A chunk runs in parallel on
+//! rayon, its results are collected in trial order and written as one complete Parquet part file
+//! (`parts/part-<first trial>.parquet`, temporary name then rename), so memory stays at a few chunks
+//! whatever the trial count, and a killed run loses at most the chunks in flight. A writer thread
+//! encodes each chunk while the next one simulates, and appends its rows in trial order to
+//! `trials.parquet` (renamed into place when the last chunk is in, the parts then removed).
+//! `--resume` reads back the parts already on disk instead of simulating them.
+//! Each trial's numbers depend only on (deck, seed, trial index), so any thread count, shard split or
+//! resume gives identical rows.
+//!
+//! The runner knows nothing of plants or detectors: a study hands it a [`TrialSource`] (simulate trials
+//! `first..end`, turn results into rows) and the study fields of its [`Manifest`]. The LTI studies of
+//! method 000 ([`run_study`]), and the studies of methods 001, 002 and 004 share it.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use polars::prelude::*;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::engine::output::temporary_sibling;
+
+/// What the runner needs of a study.
+pub trait TrialSource: Sync {
+    type Result: Send;
+    /// Trials per part file: what a killed run can lose, so a few seconds to a minute of work.
+    fn chunk_trials(&self) -> u64 {
+        CHUNK_TRIALS
+    }
+    /// Consecutive trials one worker simulates together (the SIMD lane width for LTI studies).
+    fn group_trials(&self) -> u64;
+    /// The results of trials `first..end` (at most [`TrialSource::group_trials`]), in trial order.
+    fn simulate(&self, first: u64, end: u64) -> Vec<Self::Result>;
+    /// The trials.parquet rows of `results` (trial order); `&[]` gives the empty table with its schema.
+    fn frame(&self, results: &[Self::Result]) -> PolarsResult<DataFrame>;
+}
+
+pub use crate::engine::deck::StudyKind;
+
+/// Trials per part file of LTI studies (a few seconds of work); a source may choose its own.
+pub const CHUNK_TRIALS: u64 = 4096;
+
+/// Errors of a run; `Invalid` ones are the user's to fix (exit 2), the rest are I/O or internal (exit 3).
+#[derive(Debug, thiserror::Error)]
+pub enum RunError {
+    #[error("{0}")]
+    Invalid(String),
+    #[error("{file}: {source}")]
+    Io { file: PathBuf, source: std::io::Error },
+    #[error("{file}: {source}")]
+    Polars { file: PathBuf, source: PolarsError },
+    #[error("{0}")]
+    Internal(String),
+}
+
+pub(crate) fn io(file: &Path) -> impl FnOnce(std::io::Error) -> RunError + '_ {
+    move |source| RunError::Io { file: file.into(), source }
+}
+
+pub(crate) fn pol(file: &Path) -> impl FnOnce(PolarsError) -> RunError + '_ {
+    move |source| RunError::Polars { file: file.into(), source }
+}
+
+impl From<crate::engine::output::OutputError> for RunError {
+    fn from(e: crate::engine::output::OutputError) -> Self {
+        use crate::engine::output::OutputError;
+        match e {
+            OutputError::UnknownFormat { .. } => RunError::Invalid(e.to_string()),
+            OutputError::Io { file, source } => RunError::Io { file, source },
+            OutputError::Polars { file, source } => RunError::Polars { file, source },
+        }
+    }
+}
+
+/// Part `index` of `count` of a study's trials.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Shard {
+    pub index: u64,
+    pub count: u64,
+}
+
+impl Shard {
+    pub const WHOLE: Shard = Shard { index: 0, count: 1 };
+
+    /// Parses `I/N` (0 <= I < N).
+    pub fn parse(text: &str) -> Result<Shard, String> {
+        let (i, n) = text.split_once('/').ok_or_else(|| format!("{text:?}: expected I/N, e.g. 0/4"))?;
+        let index: u64 = i.trim().parse().map_err(|_| format!("{text:?}: I must be a whole number"))?;
+        let count: u64 = n.trim().parse().map_err(|_| format!("{text:?}: N must be a whole number"))?;
+        if count == 0 || index >= count {
+            return Err(format!("{text:?}: needs 0 <= I < N (shards are numbered from 0)"));
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// The half-open trial range of this shard among `trials`.
+    pub fn range(&self, trials: u64) -> (u64, u64) {
+        let at = |k: u64| ((k as u128 * trials as u128) / self.count as u128) as u64;
+        (at(self.index), at(self.index + 1))
+    }
+}
+
+/// Provenance of a results folder, and what `--resume` and `merge` check.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub fdimc_version: String,
+    /// Absent in folders written before method 004: those are detection-filter runs.
+    #[serde(default)]
+    pub kind: StudyKind,
+    pub study: String,
+    pub deck: String,
+    pub deck_sha256: String,
+    pub seed: u64,
+    /// Trials of the whole study (all shards).
+    pub trials: u64,
+    pub shard: Shard,
+    /// Trial range written here: `[first_trial, end_trial)`.
+    pub first_trial: u64,
+    pub end_trial: u64,
+    pub chunk_trials: u64,
+    pub detectors: Vec<String>,
+    /// The faulty components a study can name: output names (sensors) or surface names.
+    pub outputs: Vec<String>,
+    /// Per detector, the deck's thresholds (detection filters; empty for banks).
+    pub deck_thresholds: Vec<Vec<f64>>,
+    /// Calibration target of detection filters; 0 for banks, which declare by model probability.
+    pub target_pfa: f64,
+    /// Unit of each fault kind's size bins (for plot axes).
+    #[serde(default)]
+    pub fault_size_units: std::collections::BTreeMap<String, String>,
+    pub command_line: Vec<String>,
+    pub complete: bool,
+    pub rows: u64,
+}
+
+impl Manifest {
+    pub fn read(dir: &Path) -> Result<Manifest, RunError> {
+        let path = dir.join("manifest.json");
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            RunError::Invalid(format!("{}: cannot read ({e}): not an fdimc results folder?", path.display()))
+        })?;
+        serde_json::from_str(&text)
+            .map_err(|e| RunError::Invalid(format!("{}: not a valid fdimc manifest: {e}", path.display())))
+    }
+
+    pub fn write(&self, dir: &Path) -> Result<(), RunError> {
+        let path = dir.join("manifest.json");
+        let text = serde_json::to_string_pretty(self).map_err(|e| RunError::Internal(e.to_string()))?;
+        write_atomically(&path, text.as_bytes())
+    }
+
+    /// Whether two manifests describe the same study run (deck, seed, trial count, chunking).
+    fn same_study(&self, other: &Manifest) -> bool {
+        self.deck_sha256 == other.deck_sha256
+            && self.seed == other.seed
+            && self.trials == other.trials
+            && self.chunk_trials == other.chunk_trials
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary file and a rename.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), RunError> {
+    let tmp = temporary_sibling(path);
+    std::fs::write(&tmp, bytes).map_err(io(path))?;
+    std::fs::rename(&tmp, path).map_err(io(path))
+}
+
+/// SHA-256 of the deck's bytes, hex.
+pub fn deck_sha256(deck: &Path) -> Result<String, RunError> {
+    use sha2::{Digest, Sha256};
+    let bytes = std::fs::read(deck).map_err(io(deck))?;
+    Ok(Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// What `fdimc run` was asked.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    pub deck: PathBuf,
+    pub out_dir: PathBuf,
+    pub threads: Option<usize>,
+    pub shard: Shard,
+    pub resume: bool,
+    /// Replace an existing results folder.
+    pub force: bool,
+    pub progress: bool,
+    /// Stop after writing this many part files, as if interrupted (time-boxed or preemptible jobs).
+    pub stop_after_chunks: Option<u64>,
+    pub command_line: Vec<String>,
+}
+
+/// What a finished run reports.
+#[derive(Debug, Clone)]
+pub struct RunReport {
+    pub manifest: Manifest,
+    pub trials_run: u64,
+    pub trials_resumed: u64,
+    pub seconds: f64,
+}
+
+fn part_path(dir: &Path, first_trial: u64) -> PathBuf {
+    dir.join("parts").join(format!("part-{first_trial:020}.parquet"))
+}
+
+impl Manifest {
+    /// Every field a run fills in itself at its defaults; a study sets its own fields on top.
+    pub fn unstarted() -> Manifest {
+        Manifest {
+            fdimc_version: env!("CARGO_PKG_VERSION").into(),
+            kind: StudyKind::default(),
+            study: String::new(),
+            deck: String::new(),
+            deck_sha256: String::new(),
+            seed: 0,
+            trials: 0,
+            shard: Shard::WHOLE,
+            first_trial: 0,
+            end_trial: 0,
+            chunk_trials: CHUNK_TRIALS,
+            detectors: Vec::new(),
+            outputs: Vec::new(),
+            deck_thresholds: Vec::new(),
+            target_pfa: 0.0,
+            fault_size_units: Default::default(),
+            command_line: Vec::new(),
+            complete: false,
+            rows: 0,
+        }
+    }
+}
+
+/// Runs the trials of `opts.shard` of `study_manifest.trials` into `opts.out_dir` (see the module
+/// docs). `study_manifest` carries the study's own fields (kind, name, seed, trials, detectors,
+/// outputs, thresholds, units); the run fills in the deck, its hash, the shard and the progress.
+pub fn run<S: TrialSource>(source: &S, study_manifest: Manifest, opts: &RunOptions) -> Result<RunReport, RunError> {
+    let started = Instant::now();
+    let trials = study_manifest.trials;
+    let (first, end) = opts.shard.range(trials);
+    let manifest = Manifest {
+        fdimc_version: env!("CARGO_PKG_VERSION").into(),
+        deck: opts.deck.display().to_string(),
+        deck_sha256: deck_sha256(&opts.deck)?,
+        shard: opts.shard,
+        first_trial: first,
+        end_trial: end,
+        chunk_trials: source.chunk_trials(),
+        command_line: opts.command_line.clone(),
+        complete: false,
+        rows: 0,
+        ..study_manifest
+    };
+
+    let dir = &opts.out_dir;
+    let existing = dir.join("manifest.json").exists();
+    if existing && opts.resume {
+        let old = Manifest::read(dir)?;
+        if !old.same_study(&manifest) || old.shard != manifest.shard {
+            return Err(RunError::Invalid(format!(
+                "{}: holds a run of another deck, seed, trial count or shard (deck {}, seed {}, {} trials, shard {}/{}); \
+                 --resume continues only the same run: use another --out",
+                dir.display(),
+                old.deck,
+                old.seed,
+                old.trials,
+                old.shard.index,
+                old.shard.count
+            )));
+        }
+        if old.complete && dir.join("trials.parquet").exists() {
+            return Ok(RunReport { manifest: old, trials_run: 0, trials_resumed: end - first, seconds: 0.0 });
+        }
+    } else if existing && !opts.force {
+        return Err(RunError::Invalid(format!(
+            "{}: already holds a run; use --resume to continue it, --force to replace it, or another --out",
+            dir.display()
+        )));
+    } else if existing {
+        for name in ["trials.parquet", "thresholds.csv", "summary.csv", "summary.parquet", "comparison.csv"] {
+            let _ = std::fs::remove_file(dir.join(name));
+        }
+        let _ = std::fs::remove_dir_all(dir.join("parts"));
+    }
+    std::fs::create_dir_all(dir.join("parts")).map_err(io(dir))?;
+    manifest.write(dir)?;
+
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(opts.threads.unwrap_or(0))
+        .build()
+        .map_err(|e| RunError::Internal(format!("thread pool: {e}")))?;
+    let bar = if opts.progress { ProgressBar::new(end - first) } else { ProgressBar::hidden() };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {pos}/{len} trials [{elapsed_precise} < {eta_precise}] {per_sec}")
+            .expect("static template"),
+    );
+
+    // Simulation and output overlap: a writer thread encodes chunk k (its part file, then its rows
+    // appended to trials.parquet) while the pool simulates chunk k + 1. The channel holds one chunk,
+    // so memory stays at about three chunks.
+    let (mut resumed, mut run_count, mut chunks_written) = (0, 0, 0);
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Chunk<S::Result>>(1);
+    let outcome = std::thread::scope(|scope| -> Result<Option<u64>, RunError> {
+        let writer = scope.spawn(move || write_chunks(source, dir, rx));
+        let mut chunk_start = first;
+        let mut stopped_early = false;
+        while chunk_start < end {
+            let chunk_end = (chunk_start + manifest.chunk_trials).min(end);
+            let path = part_path(dir, chunk_start);
+            let chunk = if path.exists() && opts.resume {
+                resumed += chunk_end - chunk_start;
+                Chunk::Resumed { path }
+            } else {
+                let group = source.group_trials();
+                let results: Vec<S::Result> = pool.install(|| {
+                    (chunk_start..chunk_end)
+                        .step_by(group as usize)
+                        .collect::<Vec<u64>>()
+                        .into_par_iter()
+                        .flat_map_iter(|first| {
+                            let r = source.simulate(first, (first + group).min(chunk_end));
+                            bar.inc(r.len() as u64);
+                            r
+                        })
+                        .collect()
+                });
+                run_count += chunk_end - chunk_start;
+                chunks_written += 1;
+                Chunk::Fresh { path, results }
+            };
+            if tx.send(chunk).is_err() {
+                break; // The writer failed; its error is reported below.
+            }
+            chunk_start = chunk_end;
+            if opts.stop_after_chunks.is_some_and(|n| chunks_written >= n) && chunk_start < end {
+                stopped_early = true;
+                break;
+            }
+        }
+        if !stopped_early && first < end {
+            let _ = tx.send(Chunk::Complete);
+        }
+        drop(tx);
+        writer.join().map_err(|_| RunError::Internal("the trials writer panicked".into()))?
+    });
+    bar.finish_and_clear();
+    let rows = match outcome? {
+        Some(rows) => rows,
+        None if first < end => {
+            return Ok(RunReport {
+                manifest,
+                trials_run: run_count,
+                trials_resumed: resumed,
+                seconds: started.elapsed().as_secs_f64(),
+            });
+        }
+        None => {
+            // A shard with no trials (more shards than trials) still leaves a readable, empty table.
+            let path = dir.join("trials.parquet");
+            let mut empty = source.frame(&[]).map_err(pol(&path))?;
+            write_parquet(&mut empty, &path)?;
+            std::fs::remove_dir_all(dir.join("parts")).map_err(io(dir))?;
+            0
+        }
+    };
+    let manifest = Manifest { complete: true, rows, ..manifest };
+    manifest.write(dir)?;
+    Ok(RunReport { manifest, trials_run: run_count, trials_resumed: resumed, seconds: started.elapsed().as_secs_f64() })
+}
+
+/// What the writer thread receives, in trial order.
+enum Chunk<R> {
+    /// Simulated now: write its part file, then append it.
+    Fresh { path: PathBuf, results: Vec<R> },
+    /// On disk from an interrupted run: append it.
+    Resumed { path: PathBuf },
+    /// Every chunk was sent: finish trials.parquet.
+    Complete,
+}
+
+/// The writer thread: part files for resuming, and their rows appended in order to trials.parquet
+/// (under a temporary name until [`Chunk::Complete`], then renamed, and the parts removed). Returns
+/// the rows of trials.parquet, or `None` if the run stopped before its last chunk.
+fn write_chunks<S: TrialSource>(
+    source: &S,
+    dir: &Path,
+    chunks: std::sync::mpsc::Receiver<Chunk<S::Result>>,
+) -> Result<Option<u64>, RunError> {
+    let out = dir.join("trials.parquet");
+    let tmp = temporary_sibling(&out);
+    let result = (|| {
+        let mut writer: Option<polars::io::parquet::write::BatchedWriter<File>> = None;
+        let mut rows = 0;
+        for chunk in chunks {
+            let df = match chunk {
+                Chunk::Fresh { path, results } => {
+                    let mut df = source.frame(&results).map_err(pol(&path))?;
+                    write_parquet(&mut df, &path)?;
+                    df
+                }
+                Chunk::Resumed { path } => read_parquet(&path)?,
+                Chunk::Complete => {
+                    let w = writer.ok_or_else(|| RunError::Internal("no chunk before the end".into()))?;
+                    w.finish().map_err(pol(&out))?;
+                    std::fs::rename(&tmp, &out).map_err(io(&out))?;
+                    std::fs::remove_dir_all(dir.join("parts")).map_err(io(dir))?;
+                    return Ok(Some(rows));
+                }
+            };
+            let w = match &mut writer {
+                Some(w) => w,
+                None => writer.insert(
+                    ParquetWriter::new(File::create(&tmp).map_err(io(&out))?)
+                        .batched(df.schema())
+                        .map_err(pol(&out))?,
+                ),
+            };
+            w.write_batch(&df).map_err(pol(&out))?;
+            rows += df.height() as u64;
+        }
+        Ok(None)
+    })();
+    if !matches!(result, Ok(Some(_))) {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Writes a complete Parquet file atomically.
+pub fn write_parquet(df: &mut DataFrame, path: &Path) -> Result<(), RunError> {
+    let tmp = temporary_sibling(path);
+    let file = File::create(&tmp).map_err(io(path))?;
+    ParquetWriter::new(file).finish(df).map_err(pol(path))?;
+    std::fs::rename(&tmp, path).map_err(io(path))
+}
+
+/// Reads a Parquet file, naming it in errors (a corrupt file is the user's input: exit 2).
+pub fn read_parquet(path: &Path) -> Result<DataFrame, RunError> {
+    let file = File::open(path).map_err(io(path))?;
+    ParquetReader::new(file).finish().map_err(|e| {
+        RunError::Invalid(format!("{}: not a readable Parquet file ({e}); re-run or remove it", path.display()))
+    })
+}
+
+/// Concatenates Parquet files (same schema) in order into `out`, one input in memory at a time.
+pub fn concatenate(inputs: &[PathBuf], out: &Path) -> Result<(), RunError> {
+    let tmp = temporary_sibling(out);
+    let result = (|| {
+        let file = File::create(&tmp).map_err(io(out))?;
+        let mut writer = None;
+        for path in inputs {
+            let df = read_parquet(path)?;
+            let w = match &mut writer {
+                Some(w) => w,
+                None => writer.insert(
+                    ParquetWriter::new(file.try_clone().map_err(io(out))?).batched(df.schema()).map_err(pol(out))?,
+                ),
+            };
+            w.write_batch(&df)
+                .map_err(|e| RunError::Invalid(format!("{}: does not match the other parts ({e})", path.display())))?;
+        }
+        match writer {
+            Some(w) => {
+                w.finish().map_err(pol(out))?;
+            }
+            None => return Err(RunError::Internal("nothing to concatenate".into())),
+        }
+        std::fs::rename(&tmp, out).map_err(io(out))
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_cover_the_trials_exactly_once() {
+        for trials in [1u64, 7, 4096, 10_001] {
+            for count in 1..6 {
+                let mut next = 0;
+                for index in 0..count {
+                    let (a, b) = Shard { index, count }.range(trials);
+                    assert_eq!(a, next);
+                    next = b;
+                }
+                assert_eq!(next, trials);
+            }
+        }
+        assert!(Shard::parse("3/2").is_err());
+        assert!(Shard::parse("1/0").is_err());
+        assert!(Shard::parse("x").is_err());
+        assert_eq!(Shard::parse("1/4"), Ok(Shard { index: 1, count: 4 }));
+    }
+}

@@ -1,0 +1,135 @@
+//! Trial scenarios, the part every kind of study shares. A trial's scenario is a function of (deck, seed,
+//! trial index) only. Listed factors (`values`, the fault kinds, the faulty components) form a full grid
+//! cycled over the trial index (mixed radix, fault kind fastest, [`GridDigits`]), so every combination gets
+//! its share. Continuous factors (`range`) are drawn by the deck's sampler ([`UnitSampler`]), one dimension
+//! per factor: independent uniforms, a Latin hypercube over all `monte_carlo.trials` (stratum of trial i in
+//! dimension d = a seeded permutation of 0..N), or an Owen-scrambled Sobol sequence (sobol_burley;
+//! independent scrambles per block of 65,536 trials, since one sequence holds 2^16 points). Whether a
+//! trial is fault-free is the first draw of its scenario stream.
+
+use rand::RngExt;
+use rand::SeedableRng;
+use rand::rngs::ChaCha8Rng;
+
+use crate::engine::deck::{Factor, Sampler};
+use crate::engine::streams::{Substream, trial_rng};
+
+/// Uniform draws in [0, 1) per (trial, dimension) by the deck's sampler: independent uniforms, a Latin
+/// hypercube over `trials`, or Owen-scrambled Sobol points. Shared by every kind of study.
+pub struct UnitSampler {
+    sampler: Sampler,
+    trials: u64,
+    seed: u64,
+    /// Latin-hypercube strata: `lhs[d][i]` for dimension d, trial i.
+    lhs: Vec<Vec<u32>>,
+}
+
+impl UnitSampler {
+    pub fn new(sampler: Sampler, trials: u64, seed: u64, dims: usize) -> Self {
+        let lhs = if sampler == Sampler::LatinHypercube {
+            let n = trials as usize;
+            (0..dims)
+                .map(|d| {
+                    // Fisher-Yates with a stream of its own per dimension.
+                    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x4c48_535f_7065_726d);
+                    rng.set_stream(d as u64);
+                    let mut perm: Vec<u32> = (0..n as u32).collect();
+                    for i in (1..n).rev() {
+                        perm.swap(i, rng.random_range(0..=i));
+                    }
+                    perm
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        UnitSampler { sampler, trials, seed, lhs }
+    }
+
+    /// A trial's scenario draws, in the same order for every kind of study: whether it is fault-free
+    /// (the first draw of its scenario stream, true with probability `fault_free_fraction`), then one
+    /// unit draw per dimension `0..dims`.
+    pub fn draws(&self, trial: u64, fault_free_fraction: f64, dims: usize) -> (bool, Vec<f64>) {
+        let mut rng = trial_rng(self.seed, trial, Substream::Scenario);
+        let fault_free = rng.random::<f64>() < fault_free_fraction;
+        (fault_free, (0..dims).map(|d| self.unit(trial, d, &mut rng)).collect())
+    }
+
+    /// Uniform in [0, 1) for dimension `dim` of trial `trial`; `rng` is the trial's scenario stream
+    /// (one draw per call, whatever the sampler, so later draws do not depend on it).
+    pub fn unit(&self, trial: u64, dim: usize, rng: &mut ChaCha8Rng) -> f64 {
+        let jitter: f64 = rng.random();
+        match self.sampler {
+            Sampler::Random => jitter,
+            Sampler::LatinHypercube => {
+                let n = self.trials as f64;
+                // Trials past the design's count (a --trials override) wrap onto the design.
+                let stratum = self.lhs[dim][(trial % self.trials) as usize] as f64;
+                (stratum + jitter) / n
+            }
+            Sampler::Sobol => {
+                let block = (trial >> 16) as u32;
+                let seed = (self.seed as u32) ^ (self.seed >> 32) as u32 ^ block.wrapping_mul(0x9e37_79b9);
+                sobol_burley::sample((trial & 0xffff) as u32, dim as u32, seed) as f64
+            }
+        }
+    }
+}
+
+/// The listed-factor grid of one trial: mixed-radix digits of the trial index, taken in order.
+pub struct GridDigits(u64);
+
+impl GridDigits {
+    pub fn new(trial: u64) -> Self {
+        GridDigits(trial)
+    }
+
+    /// The next digit, in `0..n`.
+    pub fn next(&mut self, n: usize) -> usize {
+        let d = (self.0 % n as u64) as usize;
+        self.0 /= n as u64;
+        d
+    }
+}
+
+/// A factor's value and group label, from the unit draw `u` (ranges) or the next grid digit (lists).
+pub fn draw(f: &Factor, u: f64, digit: &mut impl FnMut(usize) -> usize) -> (f64, f64) {
+    match f {
+        Factor::Fixed(v) => (*v, *v),
+        Factor::Values(v) => {
+            let x = v[digit(v.len())];
+            (x, x)
+        }
+        Factor::Range { lo, hi, bins } => {
+            let width = hi - lo;
+            let bin = ((u * *bins as f64) as usize).min(bins - 1);
+            (lo + u * width, lo + (bin as f64 + 0.5) * width / *bins as f64)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn range_draw_and_bins() {
+        let f = Factor::Range { lo: 2.0, hi: 10.0, bins: 4 };
+        let mut no_digit = |_: usize| -> usize { unreachable!() };
+        assert_eq!(draw(&f, 0.0, &mut no_digit), (2.0, 3.0));
+        assert_eq!(draw(&f, 0.5, &mut no_digit), (6.0, 7.0));
+        assert_eq!(draw(&f, 0.999, &mut no_digit).1, 9.0);
+    }
+
+    #[test]
+    fn listed_values_cycle_with_the_grid() {
+        let f = Factor::Values(vec![1.0, 2.0, 3.0]);
+        let picks: Vec<f64> = (0..6u64)
+            .map(|i| {
+                let mut grid = GridDigits::new(i);
+                draw(&f, 0.0, &mut |n| grid.next(n)).0
+            })
+            .collect();
+        assert_eq!(picks, [1.0, 2.0, 3.0, 1.0, 2.0, 3.0]);
+    }
+}

@@ -1,0 +1,66 @@
+//! Per-trial random streams.
+//!
+//! Every trial draws from ChaCha8 keyed by the study seed, on stream `4 * trial + substream`: the
+//! scenario draw, the sensor noise and the process noise each have their own stream. A trial's numbers
+//! therefore depend only on (seed, trial index), never on which thread or shard ran it or on how many
+//! draws another substream made, and two detector configurations given the same seed see the same
+//! trials (common random numbers).
+//!
+//! The per-step noise substreams are drawn from xoshiro256++ seeded by the substream's ChaCha8 (see
+//! [`noise_rng`]); the scenario draws, a few per trial, come from ChaCha8 itself.
+
+use crate::engine::noise::NoiseRng;
+
+use rand::SeedableRng;
+use rand::rngs::ChaCha8Rng;
+
+/// Independent random streams of one trial.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u64)]
+pub enum Substream {
+    Scenario = 0,
+    SensorNoise = 1,
+    ProcessNoise = 2,
+    /// A trial's fault and sensor biases where a method draws them from a generator (method 003).
+    Fault = 3,
+}
+
+/// Highest trial index with its own streams (the stream id must fit in 64 bits).
+pub const MAX_TRIAL: u64 = (u64::MAX >> 2) - 1;
+
+/// The RNG of `substream` of trial `trial` in a study seeded with `seed`.
+///
+/// Panics if `trial > MAX_TRIAL` (callers validate trial indices).
+#[track_caller]
+pub fn trial_rng(seed: u64, trial: u64, substream: Substream) -> ChaCha8Rng {
+    assert!(trial <= MAX_TRIAL, "trial index {trial} exceeds {MAX_TRIAL}");
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(4 * trial + substream as u64);
+    rng
+}
+
+/// The noise generator of `substream` of trial `trial`: xoshiro256++ seeded with 256 bits of the
+/// substream's ChaCha8. ChaCha8 costs about 4 ns a 64-bit word on these machines, xoshiro256++
+/// about 1.5 ns, and a trial draws 18,000 normals; 256 independent seed bits per substream make
+/// overlapping xoshiro sequences (period 2^256 - 1) practically impossible.
+pub fn noise_rng(seed: u64, trial: u64, substream: Substream) -> NoiseRng {
+    NoiseRng::from_rng(&mut trial_rng(seed, trial, substream))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::RngExt;
+
+    #[test]
+    fn streams_differ_by_trial_and_substream_and_repeat_exactly() {
+        let draw = |t, s| trial_rng(7, t, s).random::<u64>();
+        assert_eq!(draw(3, Substream::SensorNoise), draw(3, Substream::SensorNoise));
+        assert_ne!(draw(3, Substream::SensorNoise), draw(4, Substream::SensorNoise));
+        assert_ne!(draw(3, Substream::SensorNoise), draw(3, Substream::ProcessNoise));
+        assert_ne!(
+            trial_rng(7, 0, Substream::Scenario).random::<u64>(),
+            trial_rng(8, 0, Substream::Scenario).random::<u64>()
+        );
+    }
+}

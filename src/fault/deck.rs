@@ -1,0 +1,195 @@
+//! Sensor faults as decks write them: a fixed scenario (`[[faults]]`) and sampled populations
+//! (`[[monte_carlo.fault]]`), the same syntax in every deck with sensor faults (methods 000 and 002).
+
+use serde::Deserialize;
+
+use super::{FaultMode, SensorFault};
+use crate::engine::deck::{DeckError, Factor, FactorSpec, Validator};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FaultSection {
+    pub output: String,
+    pub kind: String,
+    pub onset_s: f64,
+    pub size: Option<f64>,
+    pub frequency_hz: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FaultKindSection {
+    pub kind: String,
+    pub size: Option<FactorSpec>,
+    pub size_sigma: Option<FactorSpec>,
+    pub frequency_hz: Option<f64>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FaultKind {
+    /// Held at the reading at onset.
+    Stuck,
+    Gain,
+    Bias,
+    TotalFailure,
+    Drift,
+    Oscillation {
+        frequency_hz: f64,
+    },
+}
+
+impl FaultKind {
+    pub fn name(&self) -> &'static str {
+        match self {
+            FaultKind::Stuck => "stuck",
+            FaultKind::Gain => "gain",
+            FaultKind::Bias => "bias",
+            FaultKind::TotalFailure => "total_failure",
+            FaultKind::Drift => "drift",
+            FaultKind::Oscillation { .. } => "oscillation",
+        }
+    }
+
+    /// The fault with a given size (output units, or a factor for gain).
+    pub fn mode(&self, size: f64) -> FaultMode {
+        match *self {
+            FaultKind::Stuck => FaultMode::Stuck { value: None },
+            FaultKind::Gain => FaultMode::Gain { factor: size },
+            FaultKind::Bias => FaultMode::Bias { bias: size },
+            FaultKind::TotalFailure => FaultMode::TotalFailure,
+            FaultKind::Drift => FaultMode::Drift { rate_per_s: size },
+            FaultKind::Oscillation { frequency_hz } => FaultMode::Oscillation { amplitude: size, frequency_hz },
+        }
+    }
+}
+
+/// How a fault kind's size is given.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SizeSpec {
+    /// The kind has no size (stuck at the held value, total failure).
+    None,
+    /// In the faulty output's units (a factor for gain).
+    Output(Factor),
+    /// In multiples of the faulty output's nominal sensor sigma (so one spec fits every output).
+    SensorSigma(Factor),
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct FaultKindSpec {
+    pub kind: FaultKind,
+    pub size: SizeSpec,
+}
+
+impl Validator<'_> {
+    /// One `[[monte_carlo.fault]]` population (the same syntax in every deck with sensor faults).
+    pub(crate) fn fault_kind_spec(&self, prefix: &str, f: &FaultKindSection) -> Result<FaultKindSpec, DeckError> {
+        let field = |name: &str| format!("{prefix}.{name}");
+        if f.frequency_hz.is_some() && f.kind != "oscillation" {
+            return Err(self.err(field("frequency_hz"), format!("only used by kind \"oscillation\", not {:?}", f.kind)));
+        }
+        let kind = match f.kind.as_str() {
+            "stuck" => FaultKind::Stuck,
+            "gain" => FaultKind::Gain,
+            "bias" => FaultKind::Bias,
+            "total_failure" => FaultKind::TotalFailure,
+            "drift" => FaultKind::Drift,
+            "oscillation" => match f.frequency_hz {
+                Some(v) => FaultKind::Oscillation { frequency_hz: self.positive(&field("frequency_hz"), v)? },
+                None => return Err(self.err(field("frequency_hz"), "required for kind \"oscillation\"")),
+            },
+            other => {
+                return Err(self.err(field("kind"), format!("{other:?}: allowed \"stuck\" (held at onset), \"gain\", \"bias\", \"total_failure\", \"drift\", \"oscillation\"")));
+            }
+        };
+        let sized = !matches!(kind, FaultKind::Stuck | FaultKind::TotalFailure);
+        let size =
+            match (sized, &f.size, &f.size_sigma) {
+                (false, None, None) => SizeSpec::None,
+                (false, _, _) => {
+                    return Err(
+                        self.err(field("size"), format!("kind {:?} has no size: remove size and size_sigma", f.kind))
+                    );
+                }
+                (true, Some(_), Some(_)) => {
+                    return Err(self.err(field("size_sigma"), "give size or size_sigma, not both"));
+                }
+                (true, None, None) => return Err(self.err(
+                    field("size"),
+                    format!(
+                        "kind {:?} needs size (output units) or size_sigma (multiples of the output's sensor sigma)",
+                        f.kind
+                    ),
+                )),
+                (true, Some(v), None) => SizeSpec::Output(self.factor(&field("size"), Some(v), Factor::Fixed(0.0))?),
+                (true, None, Some(v)) => {
+                    if kind == FaultKind::Gain {
+                        return Err(self.err(field("size_sigma"), "a gain is a factor: use size"));
+                    }
+                    SizeSpec::SensorSigma(self.factor(&field("size_sigma"), Some(v), Factor::Fixed(0.0))?)
+                }
+            };
+        if kind == FaultKind::Gain {
+            if let SizeSpec::Output(factor) = &size {
+                self.factor_within(&field("size"), factor, |v| v != 1.0, "gain factors != 1")?;
+            }
+        }
+        Ok(FaultKindSpec { kind, size })
+    }
+
+    pub(crate) fn fault(&self, i: usize, f: &FaultSection, outputs: &[String]) -> Result<SensorFault, DeckError> {
+        let field = |name: &str| format!("faults[{i}].{name}");
+        let channel = self.index_of(&field("output"), &f.output, outputs, "plant.outputs")?;
+        let onset_s = self.finite(&field("onset_s"), f.onset_s)?;
+        if onset_s < 0.0 {
+            return Err(self.err(field("onset_s"), format!("must be >= 0, got {onset_s}")));
+        }
+        let size = match f.size {
+            Some(v) => Some(self.finite(&field("size"), v)?),
+            None => None,
+        };
+        let need_size = || size.ok_or_else(|| self.err(field("size"), format!("required for kind {:?}", f.kind)));
+        if f.frequency_hz.is_some() && f.kind != "oscillation" {
+            return Err(self.err(field("frequency_hz"), format!("only used by kind \"oscillation\", not {:?}", f.kind)));
+        }
+        let mode = match f.kind.as_str() {
+            "stuck" => FaultMode::Stuck { value: size },
+            "gain" => {
+                let factor = need_size()?;
+                if factor == 1.0 {
+                    return Err(self.err(field("size"), "a gain fault needs a factor != 1"));
+                }
+                FaultMode::Gain { factor }
+            }
+            "bias" => {
+                let bias = need_size()?;
+                if bias == 0.0 {
+                    return Err(self.err(field("size"), "a bias fault needs a bias != 0"));
+                }
+                FaultMode::Bias { bias }
+            }
+            "total_failure" => {
+                if size.is_some() {
+                    return Err(
+                        self.err(field("size"), "not used by kind \"total_failure\" (the output is 0): remove it")
+                    );
+                }
+                FaultMode::TotalFailure
+            }
+            "drift" => FaultMode::Drift { rate_per_s: need_size()? },
+            "oscillation" => {
+                let frequency_hz = match f.frequency_hz {
+                    Some(v) => self.positive(&field("frequency_hz"), v)?,
+                    None => return Err(self.err(field("frequency_hz"), "required for kind \"oscillation\"")),
+                };
+                FaultMode::Oscillation { amplitude: need_size()?, frequency_hz }
+            }
+            other => {
+                return Err(self.err(
+                    field("kind"),
+                    format!("{other:?}: allowed \"stuck\", \"gain\", \"bias\", \"total_failure\", \"drift\", \"oscillation\""),
+                ));
+            }
+        };
+        Ok(SensorFault { channel, onset_s, mode })
+    }
+}

@@ -1,0 +1,124 @@
+//! Accelerometer studies (method 003): attitude-EKF residuals and SVM classifiers.
+
+pub mod attitude;
+pub mod ekf_svm;
+pub mod imu;
+pub mod records;
+pub mod study;
+pub mod summary;
+pub mod trial;
+
+use crate::engine::runner::{Manifest, StudyKind, TrialSource};
+use crate::engine::scenario::{GridDigits, draw};
+use crate::engine::streams::{Substream, noise_rng, trial_rng};
+use crate::fault::FaultMode;
+use crate::methods::accelerometer::ekf_svm::{
+    FaultClass, ResidualSample, detection_statistics, first_alarm, simulate_trial, window_start,
+};
+use crate::methods::accelerometer::study::AccelerometerStudy;
+use trial::*;
+
+/// The runner's view of an accelerometer study with its trained classifiers.
+pub struct AccelerometerTrials<'a> {
+    study: &'a AccelerometerStudy,
+    classifiers: &'a TrainedClassifiers,
+}
+
+impl<'a> AccelerometerTrials<'a> {
+    pub fn new(study: &'a AccelerometerStudy, classifiers: &'a TrainedClassifiers) -> Self {
+        AccelerometerTrials { study, classifiers }
+    }
+
+    /// The study's fields of `manifest.json`.
+    pub fn manifest(&self) -> Manifest {
+        let s = self.study;
+        Manifest {
+            kind: StudyKind::Accelerometer,
+            study: s.name.clone(),
+            seed: s.seed,
+            trials: s.trials,
+            detectors: DETECTORS.iter().map(|d| d.to_string()).collect(),
+            outputs: ["accel_x", "accel_y", "accel_z"].iter().map(|a| a.to_string()).collect(),
+            fault_size_units: [
+                ("bias".to_string(), "m/s^2 (bin: |bias|)".to_string()),
+                ("gain".to_string(), "factor (bin: |factor - 1|)".to_string()),
+            ]
+            .into(),
+            ..Manifest::unstarted()
+        }
+    }
+
+    /// The scenario of trial `trial` and the scenario parameters it flies.
+    fn draw(&self, trial: u64) -> (AccelTrialSpec, crate::methods::accelerometer::imu::ImuScenarioParams) {
+        let s = self.study;
+        let mut grid = GridDigits::new(trial);
+        let class = s.classes[grid.next(s.classes.len())];
+        let (noise_scale, _) = draw(&s.noise_scale, 0.0, &mut |n| grid.next(n));
+        let mut rng = trial_rng(s.seed, trial, Substream::Fault);
+        let (mut scenario, onset_s) = s.design.draw_trial(class, &mut rng);
+        scenario.noise_scale = noise_scale;
+        let fault = scenario.faults.first();
+        let ranges = &s.design.ranges;
+        let third = |magnitude: f64, r: [f64; 2]| {
+            let width = (r[1] - r[0]) / 3.0;
+            r[0] + width * (((magnitude - r[0]) / width).floor().clamp(0.0, 2.0) + 0.5)
+        };
+        let (size, size_bin) = match fault.map(|f| f.mode) {
+            Some(FaultMode::Bias { bias }) => (bias, third(bias.abs(), ranges.bias_mps2)),
+            Some(FaultMode::Gain { factor }) => (factor, third((factor - 1.0).abs(), ranges.gain_deviation)),
+            _ => (f64::NAN, f64::NAN),
+        };
+        let spec =
+            AccelTrialSpec { trial, class, axis: fault.map(|f| f.channel), size, size_bin, onset_s, noise_scale };
+        (spec, scenario)
+    }
+
+    /// Trial `trial`, handing the residual samples to `on_trace` (for traces).
+    pub fn run_trial_with(&self, trial: u64, on_trace: impl FnOnce(&[ResidualSample], &[f64])) -> AccelTrialResult {
+        let s = self.study;
+        let (spec, scenario) = self.draw(trial);
+        let dt_s = scenario.dt_s;
+        let mut rng = noise_rng(s.seed, trial, Substream::SensorNoise);
+        let outcome = (|| {
+            let trace = simulate_trial(scenario, &s.design.ekf, &mut rng).map_err(|e| e.to_string())?;
+            let example = s.design.example(&trace, spec.onset_s, spec.class).map_err(|e| e.to_string())?;
+            let mut predicted = [FaultClass::Normal; 2];
+            for (d, p) in predicted.iter_mut().enumerate() {
+                *p = self.classifiers.get(d).classify(&example.features).map_err(|e| e.to_string())?;
+            }
+            let statistics = detection_statistics(&trace.samples, &s.detection);
+            on_trace(&trace.samples, &statistics);
+            let threshold = s.detection.threshold;
+            let settle = window_start(s.settle_s, 0.0, dt_s);
+            let onset = window_start(spec.onset_s, 0.0, dt_s);
+            let at = |k: usize| k as f64 * dt_s;
+            let (false_alarm_s, alarm_s) = if spec.class == FaultClass::Normal {
+                (first_alarm(&statistics, threshold, settle).map(at), None)
+            } else {
+                (
+                    first_alarm(&statistics, threshold, settle).filter(|&k| k < onset).map(at),
+                    first_alarm(&statistics, threshold, onset).map(at),
+                )
+            };
+            Ok(AccelOutcome { predicted, false_alarm_s, alarm_s, health: trace.health })
+        })();
+        AccelTrialResult { spec, outcome }
+    }
+}
+
+impl TrialSource for AccelerometerTrials<'_> {
+    type Result = AccelTrialResult;
+    /// A 20 s trial costs a few milliseconds: 512 make a part file of about a second.
+    fn chunk_trials(&self) -> u64 {
+        512
+    }
+    fn group_trials(&self) -> u64 {
+        1
+    }
+    fn simulate(&self, first: u64, end: u64) -> Vec<AccelTrialResult> {
+        (first..end).map(|t| self.run_trial_with(t, |_, _| ())).collect()
+    }
+    fn frame(&self, results: &[AccelTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {
+        crate::methods::accelerometer::records::frame(results)
+    }
+}

@@ -1,0 +1,308 @@
+//! Accelerometer fault-classification decks (method 003): parse a TOML deck with an `[imu]` section, then
+//! validate it into an [`AccelerometerStudy`] that cannot be invalid. Every rejection names the file, the
+//! field and what is allowed.
+//!
+//! ```toml
+//! [study]            name, seed, duration_s (20), dt_s (0.01)
+//! [imu]              optional manoeuvre_scale (on the seed manoeuvre's amplitudes; src/plant/imu.rs)
+//! [faults]           optional ranges: bias_mps2 = [lo, hi] (|bias|), gain_deviation = [lo, hi] (|factor - 1|),
+//!                    onset_s = [lo, hi]; a fault's axis and sign are drawn
+//! [training]         trials_per_class, seed (the training trials' own seed: fresh trials are another),
+//!                    noise_scale (a number or { values }: the training trials cycle through them),
+//!                    kernel = "gaussian" (gamma) | "linear", c
+//! [detection]        window_samples, threshold (on T = n |mean residual|^2 / sigma_z^2), settle_s
+//! [monte_carlo]      trials, classes (default normal, bias, gain, stuck: cycled over the trial index),
+//!                    noise_scale (factor on the white-noise sigmas)
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::engine::deck::{DeckError, Factor, Validator, parse_deck, read_deck};
+use crate::engine::deck::{FactorSpec, StudySection};
+use crate::methods::accelerometer::ekf_svm::{DetectionParams, FaultClass, SvmKernel, SvmParams, TrialDesign};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AccelerometerDeck {
+    study: StudySection,
+    imu: ImuSection,
+    faults: Option<FaultsSection>,
+    training: Option<TrainingSection>,
+    detection: Option<DetectionSection>,
+    monte_carlo: Option<MonteCarloSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ImuSection {
+    manoeuvre_scale: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FaultsSection {
+    bias_mps2: Option<[f64; 2]>,
+    gain_deviation: Option<[f64; 2]>,
+    onset_s: Option<[f64; 2]>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TrainingSection {
+    trials_per_class: Option<usize>,
+    seed: Option<u64>,
+    kernel: Option<String>,
+    gamma: Option<f64>,
+    c: Option<f64>,
+    noise_scale: Option<FactorSpec>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DetectionSection {
+    window_samples: Option<usize>,
+    threshold: Option<f64>,
+    settle_s: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MonteCarloSection {
+    trials: u64,
+    classes: Option<Vec<String>>,
+    noise_scale: Option<FactorSpec>,
+}
+
+/// How the classifiers are trained.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Training {
+    pub trials_per_class: usize,
+    /// Seed of the training trials (the evaluation trials use the study's seed).
+    pub seed: u64,
+    /// Noise scales the training trials cycle through (1: the nominal sensors only).
+    pub noise_scales: Vec<f64>,
+    pub svm: SvmParams,
+}
+
+/// A validated accelerometer study.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AccelerometerStudy {
+    pub path: PathBuf,
+    pub name: String,
+    pub seed: u64,
+    /// Scenario, fault ranges, filter, features and window of every trial.
+    pub design: TrialDesign,
+    pub training: Training,
+    pub detection: DetectionParams,
+    /// Alarms before this time (the filter aligning) are not counted (s).
+    pub settle_s: f64,
+    pub trials: u64,
+    /// Classes of the evaluation trials, cycled over the trial index.
+    pub classes: Vec<FaultClass>,
+    pub noise_scale: Factor,
+}
+
+impl AccelerometerStudy {
+    pub fn load(path: &Path) -> Result<AccelerometerStudy, DeckError> {
+        let text = read_deck(path)?;
+        Self::from_toml(&text, path)
+    }
+
+    pub fn from_toml(text: &str, path: &Path) -> Result<AccelerometerStudy, DeckError> {
+        let deck: AccelerometerDeck = parse_deck(text, path)?;
+        let v = Validator { file: path };
+        let (duration_s, dt_s, _) = v.study_section(&deck.study)?;
+        let mut design = TrialDesign::seed();
+        design.scenario.duration_s = duration_s;
+        design.scenario.dt_s = dt_s;
+        design.features.dt_s = dt_s;
+        if let Some(scale) = deck.imu.manoeuvre_scale {
+            let scale = v.finite("imu.manoeuvre_scale", scale)?;
+            design.scenario.manoeuvre = design.scenario.manoeuvre.scaled(scale);
+        }
+        if let Some(f) = &deck.faults {
+            let range = |field: &str, r: Option<[f64; 2]>, default: [f64; 2], min: f64| match r {
+                None => Ok(default),
+                Some([lo, hi]) if lo.is_finite() && hi.is_finite() && min <= lo && lo < hi => Ok([lo, hi]),
+                Some(r) => {
+                    Err(v.err(format!("faults.{field}"), format!("{r:?}: allowed [lo, hi] with {min} <= lo < hi")))
+                }
+            };
+            design.ranges.bias_mps2 = range("bias_mps2", f.bias_mps2, design.ranges.bias_mps2, 0.0)?;
+            design.ranges.gain_deviation =
+                range("gain_deviation", f.gain_deviation, design.ranges.gain_deviation, 0.0)?;
+            design.ranges.onset_s = range("onset_s", f.onset_s, design.ranges.onset_s, 0.0)?;
+        }
+        // The classification window must fit after the latest onset.
+        let window_s = design.features.window_len as f64 * dt_s;
+        let latest = design.ranges.onset_s[1] + design.window_delay_s + window_s;
+        if latest > duration_s {
+            return Err(v.err(
+                "faults.onset_s",
+                format!(
+                    "the latest onset {} s plus the {window_s} s classification window ends after duration_s = {duration_s}",
+                    design.ranges.onset_s[1]
+                ),
+            ));
+        }
+        if design.ranges.gain_deviation[1] >= 1.0 {
+            return Err(v.err("faults.gain_deviation", "allowed below 1 (a factor 1 - deviation must stay positive)"));
+        }
+
+        let t = deck.training.as_ref();
+        let trials_per_class = t.and_then(|t| t.trials_per_class).unwrap_or(300);
+        if !(2..=100_000).contains(&trials_per_class) {
+            return Err(v.err("training.trials_per_class", format!("{trials_per_class}: allowed 2 to 100000")));
+        }
+        let mut svm = SvmParams::seed();
+        match t.and_then(|t| t.kernel.as_deref()) {
+            None | Some("gaussian") => {
+                if let Some(gamma) = t.and_then(|t| t.gamma) {
+                    svm.kernel = SvmKernel::Gaussian { gamma: v.positive("training.gamma", gamma)? };
+                }
+            }
+            Some("linear") => {
+                if t.and_then(|t| t.gamma).is_some() {
+                    return Err(v.err("training.gamma", "only used by kernel = \"gaussian\""));
+                }
+                svm.kernel = SvmKernel::Linear;
+            }
+            Some(other) => {
+                return Err(v.err("training.kernel", format!("{other:?}: allowed \"gaussian\" or \"linear\"")));
+            }
+        }
+        if let Some(c) = t.and_then(|t| t.c) {
+            svm.c = v.positive("training.c", c)?;
+        }
+        let noise_scales =
+            match v.factor("training.noise_scale", t.and_then(|t| t.noise_scale.as_ref()), Factor::Fixed(1.0))? {
+                Factor::Fixed(x) => vec![x],
+                Factor::Values(list) => list,
+                Factor::Range { .. } => {
+                    return Err(v.err(
+                        "training.noise_scale",
+                        "a number or { values = [...] }: the training trials cycle through them",
+                    ));
+                }
+            };
+        if let Some(x) = noise_scales.iter().find(|x| !(**x >= 0.0)) {
+            return Err(v.err("training.noise_scale", format!("{x} is out of range; allowed >= 0")));
+        }
+        let training_seed = t.and_then(|t| t.seed).unwrap_or(deck.study.seed.wrapping_add(1));
+        if training_seed == deck.study.seed {
+            return Err(v.err(
+                "training.seed",
+                "must differ from study.seed: the classifiers are evaluated on fresh trials, not on their training set",
+            ));
+        }
+
+        let mut detection = DetectionParams::seed();
+        let d = deck.detection.as_ref();
+        if let Some(n) = d.and_then(|d| d.window_samples) {
+            if n == 0 {
+                return Err(v.err("detection.window_samples", "allowed at least 1"));
+            }
+            detection.window = n;
+        }
+        if let Some(x) = d.and_then(|d| d.threshold) {
+            detection.threshold = v.positive("detection.threshold", x)?;
+        }
+        let settle_s = d.and_then(|d| d.settle_s).unwrap_or(3.0);
+        if !(settle_s.is_finite() && settle_s >= 0.0 && settle_s < design.ranges.onset_s[0]) {
+            return Err(v.err(
+                "detection.settle_s",
+                format!("{settle_s}: allowed 0 <= settle_s < the earliest onset, {} s", design.ranges.onset_s[0]),
+            ));
+        }
+
+        let (trials, classes, noise_scale) = match &deck.monte_carlo {
+            None => (1000, FaultClass::ALL.to_vec(), Factor::Fixed(1.0)),
+            Some(mc) => {
+                let trials = v.trials("monte_carlo.trials", mc.trials)?;
+                let classes = match &mc.classes {
+                    None => FaultClass::ALL.to_vec(),
+                    Some(list) if list.is_empty() => return Err(v.err("monte_carlo.classes", "name at least one")),
+                    Some(list) => list
+                        .iter()
+                        .enumerate()
+                        .map(|(k, n)| {
+                            FaultClass::ALL.into_iter().find(|c| c.name() == n).ok_or_else(|| {
+                                v.err(
+                                    format!("monte_carlo.classes[{k}]"),
+                                    format!("{n:?}: allowed \"normal\", \"bias\", \"gain\", \"stuck\""),
+                                )
+                            })
+                        })
+                        .collect::<Result<Vec<_>, _>>()?,
+                };
+                let noise_scale = v.factor("monte_carlo.noise_scale", mc.noise_scale.as_ref(), Factor::Fixed(1.0))?;
+                if matches!(noise_scale, Factor::Range { .. }) {
+                    return Err(v.err(
+                        "monte_carlo.noise_scale",
+                        "a number or { values = [...] }: the classes are a grid, so is the noise",
+                    ));
+                }
+                v.factor_within("monte_carlo.noise_scale", &noise_scale, |x| x >= 0.0, ">= 0")?;
+                (trials, classes, noise_scale)
+            }
+        };
+
+        Ok(AccelerometerStudy {
+            path: path.into(),
+            name: deck.study.name.clone(),
+            seed: deck.study.seed,
+            design,
+            training: Training { trials_per_class, seed: training_seed, noise_scales, svm },
+            detection,
+            settle_s,
+            trials,
+            classes,
+            noise_scale,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn deck() -> String {
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/studies/seed003_accelerometer.toml")).unwrap()
+    }
+
+    #[test]
+    fn the_seed_deck_reads_as_documented() {
+        let study = AccelerometerStudy::from_toml(&deck(), Path::new("seed003_accelerometer.toml")).unwrap();
+        assert_eq!(study.design, TrialDesign::seed());
+        assert_eq!(study.classes, FaultClass::ALL);
+        assert_ne!(study.training.seed, study.seed);
+        assert_eq!(crate::engine::deck::deck_kind(&deck()), crate::engine::deck::StudyKind::Accelerometer);
+    }
+
+    #[test]
+    fn bad_decks_name_the_field_and_what_is_allowed() {
+        let cases: &[(&str, &str, &str)] = &[
+            ("kernel = \"gaussian\"", "kernel = \"poly\"", "training.kernel: \"poly\": allowed"),
+            ("seed = 31", "seed = 3", "training.seed: must differ from study.seed"),
+            ("bias_mps2 = [0.05, 0.5]", "bias_mps2 = [0.5, 0.05]", "faults.bias_mps2: [0.5, 0.05]: allowed"),
+            ("onset_s = [4.0, 14.0]", "onset_s = [4.0, 19.5]", "faults.onset_s: the latest onset 19.5 s"),
+            (
+                "classes = [\"normal\", \"bias\", \"gain\", \"stuck\"]",
+                "classes = [\"normal\", \"drift\"]",
+                "monte_carlo.classes[1]: \"drift\"",
+            ),
+            ("threshold = 60.0", "threshold = -1.0", "detection.threshold: must be a finite number > 0"),
+            ("trials_per_class = 300", "trials_per_class = 1", "training.trials_per_class: 1: allowed 2"),
+            ("trials = 2000", "trials = 2000\nwindow = 3", "unknown field `window`"),
+        ];
+        for (from, to, want) in cases {
+            let text = deck();
+            assert!(text.contains(from), "{from}");
+            let broken = text.replacen(from, to, 1);
+            let err = AccelerometerStudy::from_toml(&broken, Path::new("x.toml")).unwrap_err().to_string();
+            assert!(err.starts_with("x.toml: ") && err.contains(want), "{to}: {err}");
+        }
+    }
+}

@@ -1,0 +1,89 @@
+//! Air-data studies (method 002): the dual-model UKF detector of air-data sensor faults.
+
+pub mod dual_ukf;
+pub mod flight;
+pub mod records;
+pub mod scenario;
+pub mod study;
+pub mod summary;
+pub mod trial;
+
+use crate::engine::runner::{Manifest, StudyKind, TrialSource};
+use crate::engine::streams::{Substream, noise_rng};
+use crate::fault::deck::SizeSpec;
+use crate::methods::air_data::dual_ukf::DualUkfStep;
+use crate::methods::air_data::flight::{AIR_DATA_CHANNEL_NAMES, AirDataSample};
+use crate::methods::air_data::scenario::AirDataScenarioSampler;
+use crate::methods::air_data::study::AirDataStudy;
+use trial::*;
+
+/// The runner's view of an air-data study.
+pub struct AirDataTrials<'a> {
+    study: &'a AirDataStudy,
+    sampler: AirDataScenarioSampler<'a>,
+}
+
+impl<'a> AirDataTrials<'a> {
+    pub fn new(study: &'a AirDataStudy) -> Self {
+        AirDataTrials { study, sampler: AirDataScenarioSampler::new(study) }
+    }
+
+    /// The study's fields of `manifest.json`.
+    pub fn manifest(&self) -> Manifest {
+        let s = self.study;
+        let units = s.monte_carlo.faults.iter().map(|f| {
+            let unit = match (&f.size, f.kind.name()) {
+                (SizeSpec::SensorSigma(_), _) => "multiples of the sensor sigma",
+                (_, "gain") => "gain factor",
+                (SizeSpec::Output(_), _) => "output units (m/s, rad)",
+                (SizeSpec::None, _) => "none",
+            };
+            (f.kind.name().to_string(), unit.to_string())
+        });
+        Manifest {
+            kind: StudyKind::AirData,
+            study: s.name.clone(),
+            seed: s.seed,
+            trials: s.monte_carlo.trials,
+            detectors: s.detectors.iter().map(|d| d.name.clone()).collect(),
+            outputs: AIR_DATA_CHANNEL_NAMES.iter().map(|n| n.to_string()).collect(),
+            fault_size_units: units.collect(),
+            ..Manifest::unstarted()
+        }
+    }
+
+    /// Trial `trial`: its scenario from the scenario stream, its sensor noise and gusts from the sensor
+    /// stream; every detector on the same samples.
+    pub fn run_trial(&self, trial: u64) -> AirDataTrialResult {
+        self.run_trial_with(trial, |_, _| ())
+    }
+
+    /// [`AirDataTrials::run_trial`] handing each sample and the detectors' steps to `on_sample`.
+    pub fn run_trial_with(
+        &self,
+        trial: u64,
+        on_sample: impl FnMut(&AirDataSample, &[DualUkfStep]),
+    ) -> AirDataTrialResult {
+        let spec = self.sampler.spec(trial);
+        let mut rng = noise_rng(self.study.seed, trial, Substream::SensorNoise);
+        let outcome = run_detectors(self.sampler.scenario(&spec), &spec, &self.study.detectors, &mut rng, on_sample);
+        AirDataTrialResult { spec, outcome }
+    }
+}
+
+impl TrialSource for AirDataTrials<'_> {
+    type Result = AirDataTrialResult;
+    /// A 60 s flight with two detectors costs about 30 ms: 256 make a part file of a few seconds.
+    fn chunk_trials(&self) -> u64 {
+        256
+    }
+    fn group_trials(&self) -> u64 {
+        1
+    }
+    fn simulate(&self, first: u64, end: u64) -> Vec<AirDataTrialResult> {
+        (first..end).map(|t| self.run_trial(t)).collect()
+    }
+    fn frame(&self, results: &[AirDataTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {
+        crate::methods::air_data::records::frame(self.study, results)
+    }
+}

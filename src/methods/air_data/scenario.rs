@@ -1,0 +1,174 @@
+//! Trial scenarios of air-data studies (method 002): which sensors fail together, how, from when, with
+//! what noise level and turbulence. The scheme of [`crate::sampling::scenario`]: a function of (deck, seed, trial
+//! index) only; listed factors form a grid cycled over the trial index (fault kind fastest, then the
+//! sensor set, size, onset, noise, gust); ranges are drawn by the deck's sampler; whether a trial is
+//! fault-free is the first draw of its scenario stream.
+
+use crate::engine::scenario::{GridDigits, UnitSampler, draw};
+use crate::fault::SensorFault;
+use crate::fault::deck::SizeSpec;
+use crate::methods::air_data::flight::ScenarioParams;
+use crate::methods::air_data::study::AirDataStudy;
+
+const DIM_ONSET: usize = 0;
+const DIM_SIZE: usize = 1;
+const DIM_NOISE: usize = 2;
+const DIM_GUST: usize = 3;
+const DIMS: usize = 4;
+
+/// One trial's scenario.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AirDataTrialSpec {
+    pub trial: u64,
+    /// The faults (one per faulty sensor); empty: fault-free.
+    pub faults: Vec<SensorFault>,
+    /// Kind of the faults ("none" when fault-free).
+    pub kind: &'static str,
+    /// Faulty sensors, ascending channel indices.
+    pub outputs: Vec<usize>,
+    /// The size as the deck gives it (sensor sigmas, or output units, or a gain factor); NaN without one.
+    pub size: f64,
+    pub size_bin: f64,
+    pub onset_s: f64,
+    pub noise_scale: f64,
+    pub noise_bin: f64,
+    pub gust_std_mps: f64,
+    pub gust_bin: f64,
+}
+
+/// Draws the trial scenarios of one air-data study.
+pub struct AirDataScenarioSampler<'a> {
+    study: &'a AirDataStudy,
+    units: UnitSampler,
+}
+
+impl<'a> AirDataScenarioSampler<'a> {
+    pub fn new(study: &'a AirDataStudy) -> Self {
+        let mc = &study.monte_carlo;
+        AirDataScenarioSampler { study, units: UnitSampler::new(mc.sampler, mc.trials, study.seed, DIMS) }
+    }
+
+    /// The scenario of trial `trial`.
+    pub fn spec(&self, trial: u64) -> AirDataTrialSpec {
+        let s = self.study;
+        let mc = &s.monte_carlo;
+        let (fault_free, units) = self.units.draws(trial, mc.fault_free_fraction, DIMS);
+        let mut grid = GridDigits::new(trial);
+        let mut digit = |n: usize| grid.next(n);
+
+        let sampled = (!mc.faults.is_empty()).then(|| {
+            let spec = &mc.faults[digit(mc.faults.len())];
+            let set = &mc.output_sets[digit(mc.output_sets.len())];
+            let size = match &spec.size {
+                SizeSpec::None => (f64::NAN, f64::NAN),
+                SizeSpec::Output(f) | SizeSpec::SensorSigma(f) => draw(f, units[DIM_SIZE], &mut digit),
+            };
+            (spec, set, size)
+        });
+        let (onset_s, _) = draw(&mc.onset_s, units[DIM_ONSET], &mut digit);
+        let (noise_scale, noise_bin) = draw(&mc.noise_scale, units[DIM_NOISE], &mut digit);
+        let (gust_std_mps, gust_bin) = draw(&mc.gust_std_mps, units[DIM_GUST], &mut digit);
+        let mut spec = AirDataTrialSpec {
+            trial,
+            faults: Vec::new(),
+            kind: "none",
+            outputs: Vec::new(),
+            size: f64::NAN,
+            size_bin: f64::NAN,
+            onset_s: f64::NAN,
+            noise_scale,
+            noise_bin,
+            gust_std_mps,
+            gust_bin,
+        };
+        if fault_free {
+            return spec;
+        }
+        match sampled {
+            Some((kind_spec, set, (size, size_bin))) => {
+                let sigma = s.noise.air_data_std();
+                spec.faults = set
+                    .iter()
+                    .map(|&j| {
+                        let in_units = match kind_spec.size {
+                            SizeSpec::SensorSigma(_) => size * sigma[j],
+                            _ => size,
+                        };
+                        SensorFault { channel: j, onset_s, mode: kind_spec.kind.mode(in_units) }
+                    })
+                    .collect();
+                spec.kind = kind_spec.kind.name();
+                spec.outputs = set.clone();
+                (spec.size, spec.size_bin, spec.onset_s) = (size, size_bin, onset_s);
+            }
+            None if !s.faults.is_empty() => {
+                spec.faults = s.faults.clone();
+                spec.kind = s.faults[0].mode.name();
+                let mut outputs: Vec<usize> = s.faults.iter().map(|f| f.channel).collect();
+                outputs.sort_unstable();
+                outputs.dedup();
+                spec.outputs = outputs;
+                spec.size = s.faults[0].mode.size();
+                spec.size_bin = spec.size;
+                spec.onset_s = s.faults.iter().map(|f| f.onset_s).fold(f64::INFINITY, f64::min);
+            }
+            None => {}
+        }
+        spec
+    }
+
+    /// The flight of a trial, as the scenario generator takes it.
+    pub fn scenario(&self, spec: &AirDataTrialSpec) -> ScenarioParams {
+        let s = self.study;
+        ScenarioParams {
+            dt_s: s.dt_s,
+            duration_s: s.duration_s,
+            profile: s.profile.clone(),
+            noise: s.noise,
+            noise_scale: spec.noise_scale,
+            wind: crate::methods::air_data::flight::WindParams { gust_std_mps: spec.gust_std_mps, ..s.wind },
+            faults: spec.faults.clone(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fault::FaultMode;
+    use std::path::Path;
+
+    /// The bundled deck: kind (1) and sensor sets (5) cycle over the trial index, then noise (2 values)
+    /// and gust (2 values); bias sizes in each faulty sensor's own sigmas, one onset for all of them.
+    #[test]
+    fn sets_cycle_and_common_mode_biases_are_sized_per_sensor() {
+        let study =
+            AirDataStudy::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed002_air_data.toml")).unwrap();
+        let sampler = AirDataScenarioSampler::new(&study);
+        let sigma = study.noise.air_data_std();
+        let mut fault_free = 0;
+        for i in 0..3000u64 {
+            let spec = sampler.spec(i);
+            assert_eq!(spec.noise_scale, [1.0, 2.0][(i / 5 % 2) as usize], "trial {i}");
+            assert_eq!(spec.gust_std_mps, [0.0, 0.5][(i / 10 % 2) as usize], "trial {i}");
+            if spec.faults.is_empty() {
+                fault_free += 1;
+                assert_eq!(spec.kind, "none");
+                continue;
+            }
+            let set = &study.monte_carlo.output_sets[(i % 5) as usize];
+            assert_eq!(&spec.outputs, set, "trial {i}");
+            assert_eq!(spec.faults.len(), set.len());
+            assert!((2.0..20.0).contains(&spec.size) && (10.0..40.0).contains(&spec.onset_s), "{spec:?}");
+            for f in &spec.faults {
+                assert_eq!(f.onset_s, spec.onset_s);
+                assert_eq!(f.mode, FaultMode::Bias { bias: spec.size * sigma[f.channel] }, "trial {i}");
+            }
+            let params = sampler.scenario(&spec);
+            assert_eq!((params.noise_scale, params.wind.gust_std_mps), (spec.noise_scale, spec.gust_std_mps));
+            assert_eq!(params.faults, spec.faults);
+        }
+        // 10 % fault-free: 300 expected, binomial sd 16.4.
+        assert!((250..350).contains(&fault_free), "{fault_free}");
+    }
+}

@@ -1,0 +1,460 @@
+//! Air-data study decks (method 002): parse a TOML deck with a `[flight]` section, then validate it into an
+//! [`AirDataStudy`] that cannot be invalid. Every rejection names the file, the field and what is allowed.
+//!
+//! ```toml
+//! [study]            name, seed, duration_s, dt_s
+//! [flight]           profile = "seed" (level flight at 70 m/s and four manoeuvres) | "steady",
+//!                    optional manoeuvre_scale (every manoeuvre's amplitude times it)
+//! [sensors]          optional standard deviations: gyro_std_deg_s, accelerometer_std_mps2,
+//!                    attitude_std_deg, airspeed_std_mps, alpha_std_deg, beta_std_deg
+//! [wind]             optional: steady_ned_mps, gust_std_mps, gust_time_constant_s
+//! [[detector]]       name, kind = "dual_ukf", optional: false_alarm_probability, isolation_window,
+//!                    declare_probability, clear_probability, declare_hold_s, prior_fault_probability,
+//!                    isolation_delay_s (when the isolated set is read after a declaration; default 1 s)
+//! [[faults]]         a fixed scenario, as in the LTI decks: output (airspeed_mps, alpha_rad, beta_rad),
+//!                    kind (stuck, gain, bias, total_failure, drift, oscillation), size (the output's
+//!                    units), onset_s, frequency_hz
+//! [monte_carlo]      trials, fault_free_fraction, sampler, onset_s, noise_scale, gust_std_mps (factors;
+//!                    the gust defaults to [wind]'s),
+//!                    output_sets: the sets of sensors a fault hits together (default: each alone)
+//! [[monte_carlo.fault]]  kind with size (the outputs' units; a factor for gain) or size_sigma (multiples
+//!                    of each faulty sensor's noise standard deviation), as in the LTI decks
+//! ```
+//!
+//! A fault of a Monte Carlo population hits every sensor of the trial's set with the same kind and size
+//! (in sigmas, each sensor's own): a common-mode fault when the set has two or three sensors. Faults
+//! last to the end of the flight.
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::engine::deck::{FactorSpec, StudySection};
+
+use crate::engine::deck::{DeckError, Factor, Sampler, Validator, parse_deck, read_deck};
+use crate::fault::SensorFault;
+use crate::fault::deck::FaultKindSpec;
+use crate::fault::deck::{FaultKindSection, FaultSection};
+use crate::methods::air_data::dual_ukf::DualUkfParams;
+use crate::methods::air_data::flight::{
+    AIR_DATA_CHANNEL_NAMES, AirDataScenario, FlightProfile, ScenarioParams, SensorNoise, WindParams,
+};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AirDataDeck {
+    study: StudySection,
+    flight: FlightSection,
+    sensors: Option<SensorsSection>,
+    wind: Option<WindSection>,
+    detector: Vec<DetectorSection>,
+    #[serde(default)]
+    faults: Vec<FaultSection>,
+    monte_carlo: Option<MonteCarloSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FlightSection {
+    profile: String,
+    manoeuvre_scale: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SensorsSection {
+    gyro_std_deg_s: Option<f64>,
+    accelerometer_std_mps2: Option<f64>,
+    attitude_std_deg: Option<f64>,
+    airspeed_std_mps: Option<f64>,
+    alpha_std_deg: Option<f64>,
+    beta_std_deg: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WindSection {
+    steady_ned_mps: Option<[f64; 3]>,
+    gust_std_mps: Option<f64>,
+    gust_time_constant_s: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DetectorSection {
+    name: String,
+    kind: String,
+    false_alarm_probability: Option<f64>,
+    isolation_window: Option<usize>,
+    declare_probability: Option<f64>,
+    clear_probability: Option<f64>,
+    declare_hold_s: Option<f64>,
+    prior_fault_probability: Option<f64>,
+    isolation_delay_s: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MonteCarloSection {
+    trials: u64,
+    #[serde(default)]
+    fault_free_fraction: f64,
+    sampler: Option<String>,
+    onset_s: Option<FactorSpec>,
+    noise_scale: Option<FactorSpec>,
+    gust_std_mps: Option<FactorSpec>,
+    output_sets: Option<Vec<Vec<String>>>,
+    #[serde(default)]
+    fault: Vec<FaultKindSection>,
+}
+
+/// One detector configuration of an air-data study.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AirDataDetector {
+    pub name: String,
+    pub params: DualUkfParams,
+    /// The isolated set is the detector's faulty set this long after its declaration (s).
+    pub isolation_delay_s: f64,
+}
+
+/// The Monte Carlo section of an air-data study.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AirDataMonteCarlo {
+    pub trials: u64,
+    pub fault_free_fraction: f64,
+    pub sampler: Sampler,
+    pub onset_s: Factor,
+    /// Factor on every sensor standard deviation.
+    pub noise_scale: Factor,
+    /// Stationary standard deviation of the gust (m/s).
+    pub gust_std_mps: Factor,
+    /// Sensor sets a fault hits together (indices into [`AIR_DATA_CHANNEL_NAMES`], ascending).
+    pub output_sets: Vec<Vec<usize>>,
+    /// Sampled fault populations; empty: every faulty trial flies the deck's `[[faults]]`.
+    pub faults: Vec<FaultKindSpec>,
+}
+
+/// A validated air-data study.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AirDataStudy {
+    pub path: PathBuf,
+    pub name: String,
+    pub seed: u64,
+    pub duration_s: f64,
+    pub dt_s: f64,
+    pub profile_name: String,
+    pub profile: FlightProfile,
+    pub noise: SensorNoise,
+    pub wind: WindParams,
+    pub detectors: Vec<AirDataDetector>,
+    pub faults: Vec<SensorFault>,
+    pub monte_carlo: AirDataMonteCarlo,
+}
+
+impl AirDataStudy {
+    pub fn load(path: &Path) -> Result<AirDataStudy, DeckError> {
+        let text = read_deck(path)?;
+        Self::from_toml(&text, path)
+    }
+
+    pub fn from_toml(text: &str, path: &Path) -> Result<AirDataStudy, DeckError> {
+        let deck: AirDataDeck = parse_deck(text, path)?;
+        let v = Validator { file: path };
+        let (duration_s, dt_s, _) = v.study_section(&deck.study)?;
+
+        let f = &deck.flight;
+        let scale = v.finite("flight.manoeuvre_scale", f.manoeuvre_scale.unwrap_or(1.0))?;
+        let profile = match f.profile.as_str() {
+            "seed" => FlightProfile::seed().scaled(scale),
+            "steady" => {
+                if f.manoeuvre_scale.is_some() {
+                    return Err(v.err("flight.manoeuvre_scale", "a steady flight has no manoeuvres: remove it"));
+                }
+                FlightProfile::seed().scaled(0.0)
+            }
+            other => {
+                return Err(v.err(
+                    "flight.profile",
+                    format!("{other:?}: allowed \"seed\" (70 m/s and four manoeuvres) or \"steady\""),
+                ));
+            }
+        };
+
+        let mut noise = SensorNoise::seed();
+        if let Some(s) = &deck.sensors {
+            let deg = |d: f64| d.to_radians();
+            for (field, given, target, convert) in [
+                ("gyro_std_deg_s", s.gyro_std_deg_s, &mut noise.gyro_std_rad_s, deg as fn(f64) -> f64),
+                ("accelerometer_std_mps2", s.accelerometer_std_mps2, &mut noise.accelerometer_std_mps2, |x| x),
+                ("attitude_std_deg", s.attitude_std_deg, &mut noise.attitude_std_rad, deg),
+                ("airspeed_std_mps", s.airspeed_std_mps, &mut noise.airspeed_std_mps, |x| x),
+                ("alpha_std_deg", s.alpha_std_deg, &mut noise.alpha_std_rad, deg),
+                ("beta_std_deg", s.beta_std_deg, &mut noise.beta_std_rad, deg),
+            ] {
+                if let Some(x) = given {
+                    *target = convert(v.positive(&format!("sensors.{field}"), x)?);
+                }
+            }
+        }
+
+        let mut wind = WindParams::seed();
+        if let Some(w) = &deck.wind {
+            if let Some(steady) = w.steady_ned_mps {
+                for (i, x) in steady.iter().enumerate() {
+                    v.finite(&format!("wind.steady_ned_mps[{i}]"), *x)?;
+                }
+                wind.steady_ned_mps = steady;
+            }
+            if let Some(g) = w.gust_std_mps {
+                wind.gust_std_mps = v.finite("wind.gust_std_mps", g)?;
+                if g < 0.0 {
+                    return Err(v.err("wind.gust_std_mps", format!("must be >= 0 (0: calm air), got {g}")));
+                }
+            }
+            if let Some(t) = w.gust_time_constant_s {
+                wind.gust_time_constant_s = v.positive("wind.gust_time_constant_s", t)?;
+            }
+        }
+
+        if deck.detector.is_empty() {
+            return Err(v.err("detector", "at least one [[detector]] is required"));
+        }
+        let mut detectors: Vec<AirDataDetector> = Vec::new();
+        for (i, d) in deck.detector.iter().enumerate() {
+            let field = |f: &str| format!("detector[{i}].{f}");
+            if d.name.is_empty() || detectors.iter().any(|o| o.name == d.name) {
+                return Err(v.err(field("name"), format!("must be non-empty and unique, got {:?}", d.name)));
+            }
+            if d.kind != "dual_ukf" {
+                return Err(v.err(field("kind"), format!("{:?}: allowed \"dual_ukf\" (method 002)", d.kind)));
+            }
+            let mut p = DualUkfParams { noise, ..DualUkfParams::seed() };
+            if let Some(x) = d.false_alarm_probability {
+                p.false_alarm_probability = x;
+            }
+            if let Some(n) = d.isolation_window {
+                p.isolation_window = n;
+            }
+            if let Some(x) = d.declare_probability {
+                p.declare_probability = x;
+            }
+            if let Some(x) = d.clear_probability {
+                p.clear_probability = x;
+            }
+            if let Some(x) = d.declare_hold_s {
+                p.declare_hold_s = x;
+            }
+            if let Some(x) = d.prior_fault_probability {
+                p.prior_fault_probability = x;
+            }
+            // The building blocks name the offending parameter; the deck adds the file and the table.
+            p.validate().map_err(|e| v.err(format!("detector[{i}]"), e.to_string()))?;
+            let isolation_delay_s = d.isolation_delay_s.unwrap_or(1.0);
+            if !(isolation_delay_s.is_finite() && isolation_delay_s >= 0.0) {
+                return Err(v.err(field("isolation_delay_s"), format!("must be >= 0 s, got {isolation_delay_s}")));
+            }
+            detectors.push(AirDataDetector { name: d.name.clone(), params: p, isolation_delay_s });
+        }
+
+        let outputs: Vec<String> = AIR_DATA_CHANNEL_NAMES.iter().map(|s| s.to_string()).collect();
+        let faults =
+            deck.faults.iter().enumerate().map(|(i, f)| v.fault(i, f, &outputs)).collect::<Result<Vec<_>, _>>()?;
+        if let Some((i, f)) = faults.iter().enumerate().find(|(_, f)| f.onset_s >= duration_s) {
+            return Err(v.err(
+                format!("faults[{i}].onset_s"),
+                format!("{} s is not within the flight (duration_s = {duration_s})", f.onset_s),
+            ));
+        }
+
+        let monte_carlo =
+            monte_carlo(&v, deck.monte_carlo.as_ref(), duration_s, &outputs, !faults.is_empty(), wind.gust_std_mps)?;
+
+        // The scenario checks what the deck cannot see field by field (the profile's envelope).
+        let worst_noise = [&monte_carlo.noise_scale, &monte_carlo.gust_std_mps].map(factor_max);
+        let params = ScenarioParams {
+            dt_s,
+            duration_s,
+            profile: profile.clone(),
+            noise,
+            noise_scale: worst_noise[0],
+            wind: WindParams { gust_std_mps: wind.gust_std_mps.max(worst_noise[1]), ..wind },
+            faults: faults.clone(),
+        };
+        AirDataScenario::new(params).map_err(|e| v.err("flight", e.to_string()))?;
+
+        Ok(AirDataStudy {
+            path: path.into(),
+            name: deck.study.name.clone(),
+            seed: deck.study.seed,
+            duration_s,
+            dt_s,
+            profile_name: f.profile.clone(),
+            profile,
+            noise,
+            wind,
+            detectors,
+            faults,
+            monte_carlo,
+        })
+    }
+
+    /// The output names (channels a fault may hit).
+    pub fn output_names(&self) -> Vec<String> {
+        AIR_DATA_CHANNEL_NAMES.iter().map(|s| s.to_string()).collect()
+    }
+}
+
+/// The largest value a factor takes.
+fn factor_max(f: &Factor) -> f64 {
+    match f {
+        Factor::Fixed(v) => *v,
+        Factor::Range { hi, .. } => *hi,
+        Factor::Values(v) => v.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    }
+}
+
+/// Validates `[monte_carlo]`; without one, 1000 trials of the deck's `[[faults]]`.
+fn monte_carlo(
+    v: &Validator,
+    mc: Option<&MonteCarloSection>,
+    duration_s: f64,
+    outputs: &[String],
+    fixed_faults: bool,
+    deck_gust_std_mps: f64,
+) -> Result<AirDataMonteCarlo, DeckError> {
+    let Some(mc) = mc else {
+        return Ok(AirDataMonteCarlo {
+            trials: 1000,
+            fault_free_fraction: 0.0,
+            sampler: Sampler::Random,
+            onset_s: Factor::Fixed(duration_s / 3.0),
+            noise_scale: Factor::Fixed(1.0),
+            gust_std_mps: Factor::Fixed(deck_gust_std_mps),
+            output_sets: (0..outputs.len()).map(|j| vec![j]).collect(),
+            faults: Vec::new(),
+        });
+    };
+    let trials = v.trials("monte_carlo.trials", mc.trials)?;
+    let fault_free_fraction = v.fraction("monte_carlo.fault_free_fraction", mc.fault_free_fraction)?;
+    let sampler = v.sampler("monte_carlo.sampler", mc.sampler.as_deref())?;
+    let onset_s = v.factor("monte_carlo.onset_s", mc.onset_s.as_ref(), Factor::Fixed(duration_s / 3.0))?;
+    v.factor_within(
+        "monte_carlo.onset_s",
+        &onset_s,
+        |t| t >= 0.0 && t < duration_s,
+        &format!("0 <= onset_s < duration_s = {duration_s}"),
+    )?;
+    let noise_scale = v.factor("monte_carlo.noise_scale", mc.noise_scale.as_ref(), Factor::Fixed(1.0))?;
+    v.factor_within("monte_carlo.noise_scale", &noise_scale, |x| x >= 0.0, ">= 0")?;
+    let gust_std_mps =
+        v.factor("monte_carlo.gust_std_mps", mc.gust_std_mps.as_ref(), Factor::Fixed(deck_gust_std_mps))?;
+    v.factor_within("monte_carlo.gust_std_mps", &gust_std_mps, |x| x >= 0.0, ">= 0 m/s (0: calm air)")?;
+    let output_sets = match &mc.output_sets {
+        None => (0..outputs.len()).map(|j| vec![j]).collect(),
+        Some(sets) if sets.is_empty() => return Err(v.err("monte_carlo.output_sets", "list at least one set")),
+        Some(sets) => {
+            let mut out = Vec::with_capacity(sets.len());
+            for (k, set) in sets.iter().enumerate() {
+                let field = format!("monte_carlo.output_sets[{k}]");
+                if set.is_empty() {
+                    return Err(v.err(field, "a set names one to three of airspeed_mps, alpha_rad, beta_rad"));
+                }
+                let mut idx = set
+                    .iter()
+                    .enumerate()
+                    .map(|(m, n)| v.index_of(&format!("{field}[{m}]"), n, outputs, "the air-data outputs"))
+                    .collect::<Result<Vec<_>, _>>()?;
+                idx.sort_unstable();
+                if idx.windows(2).any(|w| w[0] == w[1]) {
+                    return Err(v.err(field, "names a sensor twice"));
+                }
+                out.push(idx);
+            }
+            out
+        }
+    };
+    let faults = mc
+        .fault
+        .iter()
+        .enumerate()
+        .map(|(i, f)| v.fault_kind_spec(&format!("monte_carlo.fault[{i}]"), f))
+        .collect::<Result<Vec<_>, _>>()?;
+    if faults.is_empty() && !fixed_faults && fault_free_fraction < 1.0 {
+        return Err(v.err(
+            "monte_carlo.fault",
+            "faulty trials need a fault: add [[monte_carlo.fault]] or [[faults]], or set fault_free_fraction = 1",
+        ));
+    }
+    Ok(AirDataMonteCarlo {
+        trials,
+        fault_free_fraction,
+        sampler,
+        onset_s,
+        noise_scale,
+        gust_std_mps,
+        output_sets,
+        faults,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn deck() -> String {
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/studies/seed002_air_data.toml")).unwrap()
+    }
+
+    #[test]
+    fn the_seed_deck_reads_as_documented() {
+        let study = AirDataStudy::from_toml(&deck(), Path::new("seed002_air_data.toml")).unwrap();
+        assert_eq!((study.duration_s, study.dt_s), (60.0, 0.01));
+        assert_eq!(study.profile, FlightProfile::seed());
+        assert_eq!(study.noise, SensorNoise::seed());
+        let mc = &study.monte_carlo;
+        assert_eq!(mc.output_sets, [vec![0], vec![1], vec![2], vec![0, 1], vec![0, 1, 2]]);
+        assert_eq!(study.detectors.len(), 2);
+        assert_eq!(study.detectors[0].params.isolation_window, 1);
+        assert_eq!(crate::engine::deck::deck_kind(&deck()), crate::engine::deck::StudyKind::AirData);
+    }
+
+    #[test]
+    fn bad_decks_name_the_field_and_what_is_allowed() {
+        let cases: &[(&str, &str, &str)] = &[
+            ("profile = \"seed\"", "profile = \"loop\"", "flight.profile: \"loop\": allowed \"seed\""),
+            ("kind = \"dual_ukf\"", "kind = \"ukf\"", "detector[0].kind: \"ukf\": allowed \"dual_ukf\""),
+            (
+                "false_alarm_probability = 0.001",
+                "false_alarm_probability = 1.5",
+                "detector[0]: false_alarm_probability = 1.5: must be in (0, 1)",
+            ),
+            ("isolation_window = 10", "isolation_window = 0", "isolation_window = 0: must be at least 1"),
+            ("[\"airspeed_mps\", \"alpha_rad\"]", "[\"airspeed_mps\", \"airspeed_mps\"]", "names a sensor twice"),
+            (
+                "[\"alpha_rad\"]",
+                "[\"aoa\"]",
+                "monte_carlo.output_sets[1][0]: \"aoa\" is not one of the air-data outputs",
+            ),
+            (
+                "gust_std_mps = { values = [0.0, 0.5] }",
+                "gust_std_mps = { values = [0.0, -0.5] }",
+                "gust_std_mps: -0.5 is out of range",
+            ),
+            ("kind = \"bias\"", "kind = \"spike\"", "monte_carlo.fault[0].kind: \"spike\": allowed"),
+            ("manoeuvre_scale = 1.0", "manoeuvre_scale = 9.0", "flight: "),
+            (
+                "airspeed_std_mps = 0.5",
+                "airspeed_std_mps = -0.5",
+                "sensors.airspeed_std_mps: must be a finite number > 0",
+            ),
+            ("trials = 3000", "trials = 3000\nhorizon = 2", "unknown field `horizon`"),
+        ];
+        for (from, to, want) in cases {
+            let text = deck();
+            assert!(text.contains(from), "{from}");
+            let broken = text.replacen(from, to, 1);
+            let err = AirDataStudy::from_toml(&broken, Path::new("x.toml")).unwrap_err().to_string();
+            assert!(err.starts_with("x.toml: ") && err.contains(want), "{to}: {err}");
+        }
+    }
+}

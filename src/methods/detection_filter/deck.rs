@@ -1,0 +1,111 @@
+//! The study deck as written in TOML. Parsing only: every check lives in `validate`, which turns a
+//! `Deck` into a `Study` that cannot be invalid. Unknown fields are errors, so a typo never silently
+//! falls back to a default.
+
+use serde::Deserialize;
+
+use crate::engine::deck::{FactorSpec, StudySection};
+use crate::fault::deck::{FaultKindSection, FaultSection};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Deck {
+    pub study: StudySection,
+    pub plant: PlantSection,
+    pub design_model: Option<DesignModelSection>,
+    pub controller: Option<ControllerSection>,
+    #[serde(default)]
+    pub excitation: Vec<ExcitationSection>,
+    pub noise: NoiseSection,
+    pub detector: Vec<DetectorSection>,
+    #[serde(default)]
+    pub faults: Vec<FaultSection>,
+    pub monte_carlo: Option<MonteCarloSection>,
+}
+
+/// Matrices are lists of rows.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlantSection {
+    pub states: Vec<String>,
+    pub inputs: Vec<String>,
+    pub outputs: Vec<String>,
+    pub a: Vec<Vec<f64>>,
+    pub b: Vec<Vec<f64>>,
+    pub c: Vec<Vec<f64>>,
+    pub d: Option<Vec<Vec<f64>>>,
+    pub initial_state: Option<Vec<f64>>,
+}
+
+/// The model the detector is designed on and runs, when it differs from the true plant.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DesignModelSection {
+    pub a: Option<Vec<Vec<f64>>>,
+    pub b: Option<Vec<Vec<f64>>>,
+}
+
+/// `u = u_excitation - G y_measured`: the loop that keeps an open-loop-unstable airframe flying.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControllerSection {
+    pub output_feedback: Vec<Vec<f64>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExcitationSection {
+    pub input: String,
+    pub shape: String,
+    pub amplitude: f64,
+    pub period_s: Option<f64>,
+    #[serde(default)]
+    pub start_s: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NoiseSection {
+    pub sensor_sigma: Vec<f64>,
+    pub process_sigma_per_step: Option<Vec<f64>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DetectorSection {
+    pub name: String,
+    pub kind: String,
+    pub eigenvalues_per_s: Vec<f64>,
+    pub fault_directions: Option<Vec<Vec<f64>>>,
+    pub thresholds: Vec<f64>,
+    pub isolation_delay_s: Option<f64>,
+    pub isolation_window_s: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MonteCarloSection {
+    pub trials: u64,
+    #[serde(default)]
+    pub fault_free_fraction: f64,
+    pub sampler: Option<String>,
+    pub target_pfa: Option<f64>,
+    pub outputs: Option<Vec<String>>,
+    pub onset_s: Option<FactorSpec>,
+    pub noise_scale: Option<FactorSpec>,
+    #[serde(default)]
+    pub fault: Vec<FaultKindSection>,
+    #[serde(default)]
+    pub parameter_error: Vec<ParameterErrorSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParameterErrorSection {
+    pub name: String,
+    pub model: String,
+    pub matrix: String,
+    pub entries: Vec<(String, String)>,
+    pub relative: Option<FactorSpec>,
+    pub absolute: Option<FactorSpec>,
+}

@@ -1,0 +1,420 @@
+//! The plots of a report, drawn with plotters into SVG files. Errors are returned as text.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Once;
+
+use plotters::prelude::*;
+use polars::prelude::*;
+
+use crate::engine::output::Trace;
+use crate::engine::schema::col;
+use crate::methods::detection_filter::scenario::TrialSpec;
+use crate::methods::detection_filter::study::Study;
+use crate::methods::detection_filter::trial::DetectorOutcome;
+
+const FONT: &str = "sans-serif";
+
+/// Registers the bundled font once per process (plotters' ab_glyph backend needs the bytes).
+pub fn register_font() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        let bytes: &'static [u8] = include_bytes!("../../../../assets/fonts/DejaVuSans.ttf");
+        // Only fails for a corrupt font file, which is bundled: a programmer error.
+        plotters::style::register_font(FONT, FontStyle::Normal, bytes).map_err(|_| ()).expect("bundled font");
+    });
+}
+
+fn e<E: std::fmt::Debug>(err: E) -> String {
+    format!("{err:?}")
+}
+
+/// The legend box every plot uses: its series' labels at `position`, in `size`-point text.
+fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+    position: SeriesLabelPosition,
+    size: u32,
+) -> Result<(), String> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((FONT, size))
+        .draw()
+        .map_err(e)
+}
+
+fn color(i: usize) -> RGBColor {
+    // Okabe-Ito: distinguishable, also for colour-blind readers.
+    const C: [(u8, u8, u8); 8] = [
+        (0, 114, 178),
+        (213, 94, 0),
+        (0, 158, 115),
+        (204, 121, 167),
+        (230, 159, 0),
+        (86, 180, 233),
+        (240, 228, 66),
+        (0, 0, 0),
+    ];
+    let (r, g, b) = C[i % C.len()];
+    RGBColor(r, g, b)
+}
+
+fn strs(df: &DataFrame, name: &str) -> Result<StringChunked, String> {
+    df.column(name).and_then(|c| c.cast(&DataType::String)).and_then(|c| c.str().cloned()).map_err(e)
+}
+
+fn floats(df: &DataFrame, name: &str) -> Result<Float64Chunked, String> {
+    df.column(name).and_then(|c| c.cast(&DataType::Float64)).and_then(|c| c.f64().cloned()).map_err(e)
+}
+
+/// Pd against size for one detector and kind: one line per faulty output, Wilson band, min size marked.
+pub fn pd_against_size(
+    file: &Path,
+    curves: &DataFrame,
+    min_det: &DataFrame,
+    detector: &str,
+    kind: &str,
+    unit: &str,
+) -> Result<(), String> {
+    let (set, det, k, out) = (
+        strs(curves, "thresholds")?,
+        strs(curves, col::DETECTOR)?,
+        strs(curves, col::KIND)?,
+        strs(curves, col::OUTPUT)?,
+    );
+    let (size, pd, lo, hi) =
+        (floats(curves, col::SIZE_BIN)?, floats(curves, "pd")?, floats(curves, "pd_lo")?, floats(curves, "pd_hi")?);
+    let mut series: BTreeMap<String, Vec<(f64, f64, f64, f64)>> = BTreeMap::new();
+    for i in 0..curves.height() {
+        if set.get(i) != Some("calibrated") || det.get(i) != Some(detector) || k.get(i) != Some(kind) {
+            continue;
+        }
+        if let (Some(o), Some(s), Some(p), Some(l), Some(h)) =
+            (out.get(i), size.get(i), pd.get(i), lo.get(i), hi.get(i))
+        {
+            series.entry(o.to_string()).or_default().push((s, p, l, h));
+        }
+    }
+    let (ms, md, mk, mo, mv) = (
+        strs(min_det, "thresholds")?,
+        strs(min_det, col::DETECTOR)?,
+        strs(min_det, col::KIND)?,
+        strs(min_det, col::OUTPUT)?,
+        floats(min_det, "min_size_pd90")?,
+    );
+    let min_size = |o: &str| {
+        (0..min_det.height())
+            .find(|&i| {
+                ms.get(i) == Some("calibrated")
+                    && md.get(i) == Some(detector)
+                    && mk.get(i) == Some(kind)
+                    && mo.get(i) == Some(o)
+            })
+            .and_then(|i| mv.get(i))
+    };
+    let xs = series.values().flatten().map(|p| p.0);
+    let (x0, x1) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
+    let pad = ((x1 - x0) * 0.05).max(1e-9);
+
+    let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
+    root.fill(&WHITE).map_err(e)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!(
+                "Detection probability vs fault size: {detector}, {kind} (calibrated thresholds; triangles: Pd >= 0.9)"
+            ),
+            (FONT, 18),
+        )
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d((x0 - pad)..(x1 + pad), 0f64..1.05)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc(format!("fault size ({unit})"))
+        .y_desc("detection probability Pd")
+        .label_style((FONT, 14))
+        .draw()
+        .map_err(e)?;
+    chart
+        .draw_series(LineSeries::new([(x0 - pad, 0.9), (x1 + pad, 0.9)], BLACK.mix(0.4)))
+        .map_err(e)?
+        .label("Pd = 0.9")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.mix(0.4)));
+    for (i, (name, pts)) in series.iter().enumerate() {
+        let c = color(i);
+        let mut band: Vec<(f64, f64)> = pts.iter().map(|p| (p.0, p.3)).collect();
+        band.extend(pts.iter().rev().map(|p| (p.0, p.2)));
+        chart.draw_series(std::iter::once(Polygon::new(band, c.mix(0.15)))).map_err(e)?;
+        let min = min_size(name);
+        let label = match min {
+            Some(m) => format!("{name} (Pd >= 0.9 from {m:.3})"),
+            None => format!("{name} (Pd < 0.9 at every size)"),
+        };
+        chart
+            .draw_series(LineSeries::new(pts.iter().map(|p| (p.0, p.1)), c.stroke_width(2)))
+            .map_err(e)?
+            .label(label)
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
+        chart.draw_series(pts.iter().map(|p| Circle::new((p.0, p.1), 3, c.filled()))).map_err(e)?;
+        if let Some(m) = min {
+            chart.draw_series(std::iter::once(TriangleMarker::new((m, 0.9), 8, c.filled()))).map_err(e)?;
+        }
+    }
+    legend(&mut chart, SeriesLabelPosition::LowerRight, 14)?;
+    root.present().map_err(e)
+}
+
+/// ROC: Pd against Pfa as the whole-detector thresholds are scaled; the calibrated threshold marked.
+pub fn roc(file: &Path, detectors: &[(String, Vec<f64>, Vec<f64>)]) -> Result<(), String> {
+    let n_min = detectors.iter().map(|d| d.1.len()).filter(|&n| n > 0).min().unwrap_or(1) as f64;
+    let floor = (0.5 / n_min).min(1e-2);
+    let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
+    root.fill(&WHITE).map_err(e)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("ROC: thresholds scaled 0.2x to 5x around the calibrated ones", (FONT, 20))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d((floor..1.0).log_scale(), 0f64..1.05)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc(format!("false-alarm probability Pfa per trial (log; 0 drawn at {floor:.1e})"))
+        .y_desc("detection probability Pd")
+        .label_style((FONT, 14))
+        .draw()
+        .map_err(e)?;
+    let rate = |z: &[f64], s: f64| {
+        if z.is_empty() { f64::NAN } else { z.iter().filter(|&&v| v > s).count() as f64 / z.len() as f64 }
+    };
+    for (i, (name, ff, f)) in detectors.iter().enumerate() {
+        if ff.is_empty() || f.is_empty() {
+            continue;
+        }
+        let c = color(i);
+        let pts: Vec<(f64, f64)> = (0..=200)
+            .map(|k| 0.2 * 25f64.powf(k as f64 / 200.0))
+            .map(|s| (rate(ff, s).max(floor), rate(f, s)))
+            .collect();
+        chart
+            .draw_series(LineSeries::new(pts, c.stroke_width(2)))
+            .map_err(e)?
+            .label(name.as_str())
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
+        let chosen = (rate(ff, 1.0).max(floor), rate(f, 1.0));
+        chart.draw_series(std::iter::once(Circle::new(chosen, 6, c.filled()))).map_err(e)?;
+        chart
+            .draw_series(std::iter::once(Text::new(
+                format!("{name} calibrated: Pfa {:.4}, Pd {:.3}", chosen.0, chosen.1),
+                (chosen.0 * 1.15, chosen.1 - 0.04 - 0.05 * i as f64),
+                (FONT, 13).into_font().color(&c),
+            )))
+            .map_err(e)?;
+    }
+    legend(&mut chart, SeriesLabelPosition::LowerRight, 14)?;
+    root.present().map_err(e)
+}
+
+/// Detection-delay distributions per fault kind, as frequency polygons over 40 bins.
+pub fn delays(file: &Path, detector: &str, delays: &BTreeMap<String, Vec<f64>>) -> Result<(), String> {
+    let mut all: Vec<f64> = delays.values().flatten().copied().filter(|d| d.is_finite()).collect();
+    all.sort_by(f64::total_cmp);
+    let top = all
+        .get(((all.len() as f64 * 0.99) as usize).min(all.len().saturating_sub(1)))
+        .copied()
+        .unwrap_or(1.0)
+        .max(0.05);
+    let bins = 40;
+    let width = top / bins as f64;
+    let hist: Vec<(String, Vec<(f64, f64)>)> = delays
+        .iter()
+        .map(|(k, v)| {
+            let mut counts = vec![0u64; bins];
+            for &d in v.iter().filter(|d| d.is_finite()) {
+                counts[((d / width) as usize).min(bins - 1)] += 1;
+            }
+            let n = v.len().max(1) as f64;
+            (k.clone(), counts.iter().enumerate().map(|(b, c)| ((b as f64 + 0.5) * width, *c as f64 / n)).collect())
+        })
+        .collect();
+    let ymax = hist.iter().flat_map(|h| h.1.iter().map(|p| p.1)).fold(0.0, f64::max).max(1e-3) * 1.1;
+    let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
+    root.fill(&WHITE).map_err(e)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("Detection delay by fault kind: {detector} (calibrated thresholds; last bin holds the top 1 %)"),
+            (FONT, 18),
+        )
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0f64..top, 0f64..ymax)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("delay after onset (s)")
+        .y_desc("fraction of detected trials per bin")
+        .label_style((FONT, 14))
+        .draw()
+        .map_err(e)?;
+    for (i, (kind, pts)) in hist.iter().enumerate() {
+        let c = color(i);
+        let n = delays[kind].len();
+        chart
+            .draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(2)))
+            .map_err(e)?
+            .label(format!("{kind} ({n} detected)"))
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
+    }
+    legend(&mut chart, SeriesLabelPosition::UpperRight, 14)?;
+    root.present().map_err(e)
+}
+
+/// Isolation confusion matrix: rows = faulty output, columns = isolated output (or none).
+pub fn confusion(
+    file: &Path,
+    detector: &str,
+    outputs: &[String],
+    counts: &BTreeMap<(String, String), u64>,
+) -> Result<(), String> {
+    let rows: Vec<&String> = outputs.iter().filter(|o| counts.keys().any(|k| &k.0 == *o)).collect();
+    let mut cols: Vec<String> = outputs.to_vec();
+    cols.push("none".into());
+    let (nr, nc) = (rows.len().max(1) as i32, cols.len() as i32);
+    let figure = SVGBackend::new(file, (1160, 140 + 70 * nr as u32)).into_drawing_area();
+    figure.fill(&WHITE).map_err(e)?;
+    let (root, key) = figure.split_horizontally(960);
+    // Legend: what the colours and shades mean.
+    let (green, orange) = (RGBColor(0, 158, 115), RGBColor(213, 94, 0));
+    for (k, (fill, text)) in [
+        (green.mix(1.0), "correct isolation"),
+        (orange.mix(1.0), "other output, or none"),
+        (orange.mix(0.1), "shade: share of the row"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let y = 60 + 28 * k as i32;
+        key.draw(&Rectangle::new([(8, y), (26, y + 18)], ShapeStyle::from(fill).filled())).map_err(e)?;
+        key.draw(&Text::new(text, (34, y + 3), (FONT, 13))).map_err(e)?;
+    }
+    let mut chart = ChartBuilder::on(&root)
+        .caption(format!("Isolation confusion: {detector} (deck thresholds, signature direction)"), (FONT, 18))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(110)
+        .build_cartesian_2d((0..nc - 1).into_segmented(), (0..nr - 1).into_segmented())
+        .map_err(e)?;
+    let centre = |v: &SegmentValue<i32>| match v {
+        SegmentValue::CenterOf(i) => Some(*i as usize),
+        _ => None,
+    };
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_labels(nc as usize)
+        .y_labels(nr as usize)
+        .x_label_formatter(&|v| centre(v).and_then(|i| cols.get(i).cloned()).unwrap_or_default())
+        .y_label_formatter(&|v| centre(v).and_then(|i| rows.get(i)).map(|s| s.to_string()).unwrap_or_default())
+        .x_desc("isolated output")
+        .y_desc("faulty output")
+        .label_style((FONT, 13))
+        .draw()
+        .map_err(e)?;
+    for (r, truth) in rows.iter().enumerate() {
+        let total: u64 = cols.iter().map(|c| counts.get(&((*truth).clone(), c.clone())).copied().unwrap_or(0)).sum();
+        let r = r as i32;
+        for (c, named) in cols.iter().enumerate() {
+            let n = counts.get(&((*truth).clone(), named.clone())).copied().unwrap_or(0);
+            let frac = if total > 0 { n as f64 / total as f64 } else { 0.0 };
+            let fill = if *truth == named { green } else { orange };
+            let c = c as i32;
+            let cell = [
+                (SegmentValue::Exact(c), SegmentValue::Exact(r)),
+                (SegmentValue::Exact(c + 1), SegmentValue::Exact(r + 1)),
+            ];
+            chart.draw_series(std::iter::once(Rectangle::new(cell, fill.mix(0.1 + 0.9 * frac).filled()))).map_err(e)?;
+            let label = Text::new(format!("{n}"), (SegmentValue::CenterOf(c), SegmentValue::CenterOf(r)), (FONT, 14));
+            chart.draw_series(std::iter::once(label)).map_err(e)?;
+        }
+    }
+    figure.present().map_err(e)
+}
+
+/// Residuals of one trial, one panel per output: residual, +/- deck and calibrated thresholds,
+/// onset and alarm times.
+pub fn trace(
+    file: &Path,
+    study: &Study,
+    spec: &TrialSpec,
+    outcome: &DetectorOutcome,
+    trace: &Trace,
+    calibrated: Option<&[f64]>,
+) -> Result<(), String> {
+    let outputs = &study.plant.output_names;
+    let t = &trace.float_columns.iter().find(|(n, _)| n == "t_s").ok_or("trace without t_s")?.1;
+    let deck = &study.detectors[0].params.thresholds;
+    let rows = outputs.len().div_ceil(2) as u32;
+    let root = SVGBackend::new(file, (1100, 80 + 260 * rows)).into_drawing_area();
+    root.fill(&WHITE).map_err(e)?;
+    let fault = match spec.output {
+        Some(j) => format!("{} {} size {:.4} from {:.2} s", outputs[j], spec.kind, spec.size, spec.onset_s),
+        None => "fault-free".into(),
+    };
+    let root = root
+        .titled(&format!("Trial {}: {fault}; detector {}", spec.trial, study.detectors[0].name), (FONT, 20))
+        .map_err(e)?;
+    let panels = root.split_evenly((rows as usize, 2));
+    for (j, name) in outputs.iter().enumerate() {
+        let r = &trace.float_columns.iter().find(|(n, _)| *n == format!("r_{name}")).ok_or("trace without residual")?.1;
+        let lim = r.iter().fold(deck[j], |m, v| m.max(v.abs())) * 1.15;
+        let mut chart = ChartBuilder::on(&panels[j])
+            .margin(8)
+            .x_label_area_size(35)
+            .y_label_area_size(65)
+            .build_cartesian_2d(0f64..study.duration_s, -lim..lim)
+            .map_err(e)?;
+        chart.configure_mesh().x_desc("t (s)").y_desc(format!("r_{name}")).label_style((FONT, 12)).draw().map_err(e)?;
+        chart
+            .draw_series(LineSeries::new(t.iter().copied().zip(r.iter().copied()), color(0)))
+            .map_err(e)?
+            .label(format!("r_{name}"))
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(0)));
+        for sign in [1.0, -1.0] {
+            let s = chart
+                .draw_series(LineSeries::new([(0.0, sign * deck[j]), (study.duration_s, sign * deck[j])], color(1)))
+                .map_err(e)?;
+            if sign > 0.0 {
+                s.label("deck threshold").legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(1)));
+            }
+            if let Some(c) = calibrated.and_then(|c| c.get(j)) {
+                let s = chart
+                    .draw_series(LineSeries::new([(0.0, sign * c), (study.duration_s, sign * c)], color(2)))
+                    .map_err(e)?;
+                if sign > 0.0 {
+                    s.label("calibrated threshold").legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(2)));
+                }
+            }
+        }
+        if spec.onset_s.is_finite() {
+            chart
+                .draw_series(LineSeries::new([(spec.onset_s, -lim), (spec.onset_s, lim)], BLACK.stroke_width(2)))
+                .map_err(e)?
+                .label("onset")
+                .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.stroke_width(2)));
+        }
+        if let Some((ta, _)) = outcome.detection.or(outcome.false_alarm) {
+            chart
+                .draw_series(LineSeries::new([(ta, -lim), (ta, lim)], color(3).stroke_width(2)))
+                .map_err(e)?
+                .label("first alarm")
+                .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(3).stroke_width(2)));
+        }
+        legend(&mut chart, SeriesLabelPosition::UpperLeft, 11)?;
+    }
+    root.present().map_err(e)
+}

@@ -1,0 +1,125 @@
+//! Detection-filter trial scenarios (method 000): which sensor fault (kind, output, size, onset), noise
+//! level and parameter errors trial i has, by the shared scheme of [`crate::engine::scenario`].
+
+use super::study::Study;
+use crate::engine::deck::ModelTarget;
+use crate::engine::scenario::{GridDigits, UnitSampler, draw};
+use crate::fault::SensorFault;
+use crate::fault::deck::{FaultKind, SizeSpec};
+
+/// Continuous-factor dimensions, fixed so a trial's draws do not depend on which factors are present.
+const DIM_ONSET: usize = 0;
+const DIM_SIZE: usize = 1;
+const DIM_NOISE: usize = 2;
+const DIM_PARAMETERS: usize = 3;
+
+/// One trial's scenario.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrialSpec {
+    pub trial: u64,
+    /// Faults of this trial (empty: fault-free).
+    pub faults: Vec<SensorFault>,
+    /// Kind of the (first) fault, "none" when fault-free.
+    pub kind: &'static str,
+    /// Faulty output index.
+    pub output: Option<usize>,
+    /// Fault size in the output's units (a factor for gain); NaN when the kind has none.
+    pub size: f64,
+    /// Group label of the size, in the unit the deck gives it (output units, or sensor sigmas).
+    pub size_bin: f64,
+    pub onset_s: f64,
+    pub noise_scale: f64,
+    pub noise_bin: f64,
+    /// Relative error of each `monte_carlo.parameter_error`, in deck order.
+    pub parameter_errors: Vec<f64>,
+    /// Largest |group label| of the parameter errors (0 without any).
+    pub parameter_error_bin: f64,
+}
+
+/// Draws trial scenarios for one study.
+pub struct ScenarioSampler<'a> {
+    study: &'a Study,
+    units: UnitSampler,
+}
+
+impl<'a> ScenarioSampler<'a> {
+    pub fn new(study: &'a Study) -> Self {
+        let mc = &study.monte_carlo;
+        let dims = DIM_PARAMETERS + mc.parameter_errors.len();
+        ScenarioSampler { study, units: UnitSampler::new(mc.sampler, mc.trials, study.seed, dims) }
+    }
+
+    /// The scenario of trial `trial`.
+    pub fn spec(&self, trial: u64) -> TrialSpec {
+        let s = self.study;
+        let mc = &s.monte_carlo;
+        let (fault_free, units) =
+            self.units.draws(trial, mc.fault_free_fraction, DIM_PARAMETERS + mc.parameter_errors.len());
+        let mut grid = GridDigits::new(trial);
+        let mut digit = |n: usize| grid.next(n);
+
+        // Sampled population: kind and output first (the fastest grid digits).
+        let sampled = (!mc.faults.is_empty()).then(|| (digit(mc.faults.len()), mc.outputs[digit(mc.outputs.len())]));
+        let size_pick = sampled.map(|(k, output)| match &mc.faults[k].size {
+            SizeSpec::None => (f64::NAN, f64::NAN),
+            SizeSpec::Output(f) => draw(f, units[DIM_SIZE], &mut digit),
+            SizeSpec::SensorSigma(f) => {
+                let (v, bin) = draw(f, units[DIM_SIZE], &mut digit);
+                (v * s.sensor_sigma[output], bin)
+            }
+        });
+        let (onset, _) = draw(&mc.onset_s, units[DIM_ONSET], &mut digit);
+        let (noise_scale, noise_bin) = draw(&mc.noise_scale, units[DIM_NOISE], &mut digit);
+        let mut parameter_errors = Vec::with_capacity(mc.parameter_errors.len());
+        let mut parameter_error_bin = 0.0f64;
+        for (k, pe) in mc.parameter_errors.iter().enumerate() {
+            let (v, bin) = draw(&pe.value, units[DIM_PARAMETERS + k], &mut digit);
+            parameter_errors.push(v);
+            parameter_error_bin = parameter_error_bin.max(bin.abs());
+        }
+
+        let mut spec = TrialSpec {
+            trial,
+            faults: Vec::new(),
+            kind: "none",
+            output: None,
+            size: f64::NAN,
+            size_bin: f64::NAN,
+            onset_s: f64::NAN,
+            noise_scale,
+            noise_bin,
+            parameter_errors,
+            parameter_error_bin,
+        };
+        if fault_free {
+            return spec;
+        }
+        match (sampled, size_pick) {
+            (Some((k, output)), Some((size, size_bin))) => {
+                let kind: FaultKind = mc.faults[k].kind;
+                spec.faults = vec![SensorFault { channel: output, onset_s: onset, mode: kind.mode(size) }];
+                spec.kind = kind.name();
+                spec.output = Some(output);
+                spec.size = size;
+                spec.size_bin = size_bin;
+                spec.onset_s = onset;
+            }
+            _ => {
+                if let Some(first) = s.faults.first() {
+                    spec.faults = s.faults.clone();
+                    spec.kind = first.mode.name();
+                    spec.output = Some(first.channel);
+                    spec.size = first.mode.size();
+                    spec.size_bin = first.mode.size();
+                    spec.onset_s = s.faults.iter().map(|f| f.onset_s).fold(f64::INFINITY, f64::min);
+                }
+            }
+        }
+        spec
+    }
+
+    /// Whether any parameter error perturbs `target`.
+    pub fn perturbs(&self, target: ModelTarget) -> bool {
+        self.study.monte_carlo.parameter_errors.iter().any(|p| p.model == target)
+    }
+}

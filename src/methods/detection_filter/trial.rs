@@ -1,0 +1,426 @@
+//! One trial: true plant + sensor noise + faults + output-feedback loop + detectors, and the alarm logic.
+//!
+//! Per sample k at `t = k dt`:
+//! 1. `y = C x + D r(t) + v` (healthy sensors, `v ~ N(0, diag((noise_scale sensor_sigma)^2))`), then the
+//!    trial's faults;
+//! 2. `u = r(t) - G y` (the excitation `r` through the output-feedback loop; validation forbids
+//!    `D != 0` together with `G != 0`, which would be an algebraic loop, so `y = C x + D u` holds);
+//! 3. every detector consumes the same `(u, y)`; output j of a detector alarms when `|gamma_j| > thr_j`;
+//! 4. `x <- Ad x + Bd u + w` (`w ~ N(0, diag(process_sigma_per_step^2))`).
+//!
+//! Detection is the first alarm at or after the fault onset; any alarm before it (or in a fault-free
+//! trial) is a false alarm. Isolation averages the residual over
+//! `[t_detect + isolation_delay_s, + isolation_window_s)` and names an output two ways (see
+//! `DetectionFilter::isolate_by_max` and `isolate_by_direction`).
+//!
+//! So that any threshold can be evaluated afterwards without re-simulating, each detector also keeps,
+//! per output, the largest |residual| before the onset and the first-passage profile after it: the
+//! points `(t, v)` where the running maximum of |residual| rises by more than [`PROFILE_RESOLUTION`]
+//! (relative) over the last kept point, the first post-onset sample, and the final maximum. For a
+//! threshold `thr`, the alarm time is the first kept point with `v > thr`: exact whether an alarm
+//! happens, and at most as late as the running maximum takes to rise by 2 % past `thr`.
+
+use nalgebra::DVector;
+use rand::RngExt;
+use rand_distr::StandardNormal;
+
+use crate::engine::streams::{Substream, noise_rng};
+use crate::fault::ActiveFaults;
+use crate::methods::detection_filter::filter::DetectionFilter;
+use crate::methods::detection_filter::scenario::TrialSpec;
+use crate::methods::detection_filter::study::Study;
+
+use super::kernel::{FilterState, FilterStep, PlantState, PlantStep};
+use crate::engine::output::Trace;
+
+/// Relative rise of the running maximum that adds a point to a first-passage profile.
+pub const PROFILE_RESOLUTION: f64 = 0.02;
+
+/// What one detector made of one trial, in compact form.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct DetectorOutcome {
+    /// Largest |residual| per output before the onset (over the whole trial when fault-free).
+    pub pre_onset_max_abs_residual: Vec<f64>,
+    /// Per output: the post-onset first-passage profile, times (s) and running-maximum values.
+    pub profile_t_s: Vec<Vec<f64>>,
+    pub profile_value: Vec<Vec<f64>>,
+    /// First alarm before the onset, and the output that raised it (deck thresholds).
+    pub false_alarm: Option<(f64, usize)>,
+    /// First alarm at or after the onset, and the output that raised it (deck thresholds).
+    pub detection: Option<(f64, usize)>,
+    pub isolated_by_max: Option<usize>,
+    pub isolated_by_direction: Option<usize>,
+    /// A residual became non-finite: the filter diverged; statistics stop at that sample.
+    pub diverged_at_s: Option<f64>,
+}
+
+/// Per-detector bookkeeping during a trial.
+struct Tracker {
+    out: DetectorOutcome,
+    thresholds: DVector<f64>,
+    running_max: Vec<f64>,
+    running_max_t: Vec<f64>,
+    last_kept: Vec<f64>,
+    iso_sum: DVector<f64>,
+    iso_count: usize,
+    iso_window: Option<(f64, f64)>,
+    isolation: (f64, f64),
+}
+
+impl Tracker {
+    fn new(filter: &DetectionFilter, ny: usize) -> Self {
+        Tracker {
+            out: DetectorOutcome {
+                pre_onset_max_abs_residual: vec![0.0; ny],
+                profile_t_s: vec![Vec::new(); ny],
+                profile_value: vec![Vec::new(); ny],
+                ..Default::default()
+            },
+            thresholds: filter.thresholds.clone(),
+            running_max: vec![0.0; ny],
+            running_max_t: vec![f64::NAN; ny],
+            last_kept: vec![f64::NAN; ny],
+            iso_sum: DVector::zeros(ny),
+            iso_count: 0,
+            iso_window: None,
+            isolation: (filter.isolation_delay_s, filter.isolation_window_s),
+        }
+    }
+
+    fn observe(&mut self, t: f64, after_onset: bool, residual: &[f64]) {
+        if self.out.diverged_at_s.is_some() {
+            return;
+        }
+        if residual.iter().any(|r| !r.is_finite()) {
+            self.out.diverged_at_s = Some(t);
+            return;
+        }
+        let mut alarm_channel = None;
+        for j in 0..residual.len() {
+            let a = residual[j].abs();
+            if after_onset {
+                if a > self.running_max[j] || self.running_max_t[j].is_nan() {
+                    self.running_max[j] = a;
+                    self.running_max_t[j] = t;
+                    let kept = self.last_kept[j];
+                    if kept.is_nan() || a > kept * (1.0 + PROFILE_RESOLUTION) {
+                        self.out.profile_t_s[j].push(t);
+                        self.out.profile_value[j].push(a);
+                        self.last_kept[j] = a;
+                    }
+                }
+            } else if a > self.out.pre_onset_max_abs_residual[j] {
+                self.out.pre_onset_max_abs_residual[j] = a;
+            }
+            if a > self.thresholds[j] && alarm_channel.is_none() {
+                alarm_channel = Some(j);
+            }
+        }
+        if let Some(j) = alarm_channel {
+            if !after_onset {
+                self.out.false_alarm.get_or_insert((t, j));
+            } else if self.out.detection.is_none() {
+                self.out.detection = Some((t, j));
+                let start = t + self.isolation.0;
+                self.iso_window = Some((start, start + self.isolation.1));
+            }
+        }
+        if let Some((start, end)) = self.iso_window {
+            if t >= start && t < end {
+                for (sum, r) in self.iso_sum.iter_mut().zip(residual) {
+                    *sum += r;
+                }
+                self.iso_count += 1;
+            }
+        }
+    }
+
+    fn finish(mut self, filter: &DetectionFilter) -> DetectorOutcome {
+        for j in 0..self.running_max.len() {
+            // The final maximum closes the profile, so "alarm or not" is exact for every threshold.
+            if !self.running_max_t[j].is_nan() && self.out.profile_value[j].last() != Some(&self.running_max[j]) {
+                self.out.profile_t_s[j].push(self.running_max_t[j]);
+                self.out.profile_value[j].push(self.running_max[j]);
+            }
+        }
+        if self.iso_count > 0 {
+            let mean = &self.iso_sum / self.iso_count as f64;
+            self.out.isolated_by_max = Some(filter.isolate_by_max(&mean));
+            self.out.isolated_by_direction = Some(filter.isolate_by_direction(&mean));
+        }
+        self.out
+    }
+}
+
+/// Runs trial `spec` on the sampled true plant `plant` with every filter in `filters` (a design and
+/// its products, started at the study's initial state): the general, one-trial path. `trace`, if
+/// given, receives every sample of `filters[0]`. [`lanes`] computes the same numbers for several
+/// trials at once.
+pub fn run_trial(
+    study: &Study,
+    plant: &PlantStep,
+    spec: &TrialSpec,
+    filters: &[(&DetectionFilter, FilterStep)],
+    mut trace: Option<&mut Trace>,
+) -> Vec<DetectorOutcome> {
+    let s = study;
+    let (n, nu, ny) = (s.plant.n_states(), s.plant.n_inputs(), s.plant.n_outputs());
+    let mut sensor_rng = noise_rng(s.seed, spec.trial, Substream::SensorNoise);
+    let mut process_rng = noise_rng(s.seed, spec.trial, Substream::ProcessNoise);
+    let has_process_noise = s.process_sigma_per_step.iter().any(|&v| v > 0.0);
+    let sensor_sigma = &s.sensor_sigma * spec.noise_scale;
+
+    let mut faults = ActiveFaults::new(spec.faults.clone());
+    let onset_s = faults.first_onset_s();
+    let x0 = s.initial_state.as_slice();
+    let mut plant_state = PlantState::new(x0, nu);
+    let mut y = vec![0.0; ny];
+    let mut states: Vec<FilterState<f64>> = filters.iter().map(|_| FilterState::new(x0, nu, ny)).collect();
+    let mut trackers: Vec<Tracker> = filters.iter().map(|(design, _)| Tracker::new(design, ny)).collect();
+    let mut rec = trace.as_deref_mut().map(|t| TraceWriter::new(t, s, n));
+
+    for k in 0..s.steps {
+        let t = k as f64 * s.dt_s;
+        let r = plant_state.reference_mut();
+        r.fill(0.0);
+        for e in &s.excitations {
+            r[e.input] += e.value(t);
+        }
+        plant.measure(&plant_state, &mut y);
+        for (yj, sigma) in y.iter_mut().zip(sensor_sigma.as_slice()) {
+            *yj += sigma * sensor_rng.sample::<f64, _>(StandardNormal);
+        }
+        faults.apply(t, &mut y);
+        plant.close_loop(&mut plant_state, &y);
+        let u = plant_state.inputs();
+
+        let after_onset = onset_s.is_some_and(|t0| t >= t0);
+        for (i, ((_, filter), (state, tracker))) in
+            filters.iter().zip(states.iter_mut().zip(trackers.iter_mut())).enumerate()
+        {
+            if i == 0 {
+                if let Some(rec) = rec.as_mut() {
+                    rec.before_step(t, u, &y, state.estimate());
+                }
+            }
+            filter.step(state, u, &y);
+            tracker.observe(t, after_onset, state.residual());
+            if i == 0 {
+                if let Some(rec) = rec.as_mut() {
+                    rec.after_step(state.residual(), &tracker.thresholds);
+                }
+            }
+        }
+
+        plant.advance(&mut plant_state, |x_next| {
+            if has_process_noise {
+                for (xi, sigma) in x_next.iter_mut().zip(s.process_sigma_per_step.as_slice()) {
+                    *xi += sigma * process_rng.sample::<f64, _>(StandardNormal);
+                }
+            }
+        });
+    }
+    if let Some(rec) = rec {
+        rec.finish();
+    }
+    trackers.into_iter().zip(filters).map(|(tr, (design, _))| tr.finish(design)).collect()
+}
+
+/// Collects trace columns: `t_s`, `u_<input>`, `y_<output>` (measured), `yhat_<output>`,
+/// `xhat_<state>`, `r_<output>` (residual), `alarm_<output>`.
+struct TraceWriter<'t> {
+    trace: &'t mut Trace,
+    t: Vec<f64>,
+    u: Vec<Vec<f64>>,
+    y: Vec<Vec<f64>>,
+    yhat: Vec<Vec<f64>>,
+    xhat: Vec<Vec<f64>>,
+    r: Vec<Vec<f64>>,
+    alarm: Vec<Vec<bool>>,
+    names: (Vec<String>, Vec<String>, Vec<String>),
+    last_y: Vec<f64>,
+}
+
+impl<'t> TraceWriter<'t> {
+    fn new(trace: &'t mut Trace, s: &Study, n: usize) -> Self {
+        let p = &s.plant;
+        let cols = |k: usize| vec![Vec::with_capacity(s.steps); k];
+        TraceWriter {
+            trace,
+            t: Vec::with_capacity(s.steps),
+            u: cols(p.n_inputs()),
+            y: cols(p.n_outputs()),
+            yhat: cols(p.n_outputs()),
+            xhat: cols(n),
+            r: cols(p.n_outputs()),
+            alarm: cols(p.n_outputs()).into_iter().map(|_| Vec::with_capacity(s.steps)).collect(),
+            names: (p.input_names.clone(), p.output_names.clone(), p.state_names.clone()),
+            last_y: vec![0.0; p.n_outputs()],
+        }
+    }
+
+    fn before_step(&mut self, t: f64, u: &[f64], y: &[f64], xhat: &[f64]) {
+        self.t.push(t);
+        for (col, v) in self.u.iter_mut().zip(u.iter()) {
+            col.push(*v);
+        }
+        for (col, v) in self.y.iter_mut().zip(y.iter()) {
+            col.push(*v);
+        }
+        for (col, v) in self.xhat.iter_mut().zip(xhat.iter()) {
+            col.push(*v);
+        }
+        self.last_y.copy_from_slice(y);
+    }
+
+    fn after_step(&mut self, residual: &[f64], thresholds: &DVector<f64>) {
+        for j in 0..residual.len() {
+            self.r[j].push(residual[j]);
+            self.yhat[j].push(self.last_y[j] - residual[j]);
+            self.alarm[j].push(residual[j].abs() > thresholds[j]);
+        }
+    }
+
+    fn finish(self) {
+        let (inputs, outputs, states) = self.names;
+        let tr = self.trace;
+        tr.float_columns.push(("t_s".into(), self.t));
+        let named = |prefix: &str, names: &[String], cols: Vec<Vec<f64>>| {
+            names.iter().map(|n| format!("{prefix}_{n}")).zip(cols).collect::<Vec<_>>()
+        };
+        tr.float_columns.extend(named("u", &inputs, self.u));
+        tr.float_columns.extend(named("y", &outputs, self.y));
+        tr.float_columns.extend(named("yhat", &outputs, self.yhat));
+        tr.float_columns.extend(named("xhat", &states, self.xhat));
+        tr.float_columns.extend(named("r", &outputs, self.r));
+        tr.bool_columns.extend(outputs.iter().map(|n| format!("alarm_{n}")).zip(self.alarm));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::trials::Engine;
+    use super::*;
+    use std::path::Path;
+
+    const SEED000: &str = include_str!("../../../studies/seed000_pitch_rate.toml");
+
+    fn seed000(faults: bool) -> Study {
+        let mut s = Study::from_toml(SEED000, Path::new("studies/seed000_pitch_rate.toml")).unwrap();
+        if !faults {
+            s.faults.clear();
+        }
+        s
+    }
+
+    fn column<'t>(trace: &'t Trace, name: &str) -> &'t [f64] {
+        &trace.float_columns.iter().find(|(n, _)| n == name).unwrap().1
+    }
+
+    fn stats(v: &[f64]) -> (f64, f64) {
+        let mean = v.iter().sum::<f64>() / v.len() as f64;
+        let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (v.len() - 1) as f64;
+        (mean, var.sqrt())
+    }
+
+    fn run(study: &Study, trial: u64) -> (DetectorOutcome, Trace) {
+        let mut trace = Trace::default();
+        let (_, out) = Engine::new(study).simulate(trial, 0, &mut trace).unwrap();
+        (out, trace)
+    }
+
+    #[test]
+    fn pitch_rate_bias_moves_pitch_rate_residual_by_about_its_size() {
+        let study = seed000(true);
+        let (out, trace) = run(&study, 0);
+        let filter = study.detectors[0].params.design(&study.design_plant, study.dt_s).unwrap();
+        let q = 2;
+        let r_q = column(&trace, "r_q_rad_s");
+        // Before the fault: noise only. After the transient (slowest mode e^{-t}, 5 s = 0.7 %): shifted.
+        let (before, _) = stats(&r_q[100..1000]);
+        let (after, _) = stats(&r_q[1500..]);
+        let expected = 0.1 * filter.signatures[(q, q)];
+        // Discrete steady-state signature: 0.988 (the continuous analysis gives 1 + 0.0241 / 3 = 1.008;
+        // K's tiny (q, q) entry makes the second-order ZOH terms visible).
+        assert!((0.985..0.991).contains(&filter.signatures[(q, q)]), "signature {}", filter.signatures[(q, q)]);
+        assert!(before.abs() < 0.002, "pre-fault mean {before}");
+        assert!((after - expected).abs() < 0.002, "post-fault mean {after}, expected {expected}");
+        // Detected right at the onset on the pitch-rate channel, no false alarm, isolated to q.
+        let (t, j) = out.detection.unwrap();
+        assert!((10.0..10.05).contains(&t) && j == q, "detection {t} on {j}");
+        assert_eq!(out.false_alarm, None);
+        // The signature direction names the pitch-rate sensor. The largest threshold-scaled residual does
+        // not: the flight-path-angle residual moves by about -0.1 too, against a 0.01 rad threshold.
+        assert_eq!(out.isolated_by_direction, Some(q));
+        assert_eq!(out.isolated_by_max, Some(4));
+        assert!((filter.signatures[(4, q)] + 0.99).abs() < 0.03, "gamma signature {}", filter.signatures[(4, q)]);
+    }
+
+    #[test]
+    fn fault_free_residual_stays_at_noise_level() {
+        let study = seed000(false);
+        let (out, trace) = run(&study, 3);
+        let sigma_q = study.sensor_sigma[2];
+        assert!(Engine::new(&study).spec(3).faults.is_empty());
+        let (mean, sd) = stats(column(&trace, "r_q_rad_s"));
+        assert!(mean.abs() < 3.0 * sd / (3000f64).sqrt() * 4.0, "mean {mean}");
+        // Residual noise is the sensor noise, slightly amplified by the filter's feedback.
+        assert!((0.9 * sigma_q..1.5 * sigma_q).contains(&sd), "sd {sd} vs sensor sigma {sigma_q}");
+        assert!(out.profile_t_s.iter().all(Vec::is_empty), "no onset, no profile");
+        assert_eq!(out.detection, None);
+        assert_eq!(out.false_alarm, None);
+        assert!(out.pre_onset_max_abs_residual[2] < study.detectors[0].params.thresholds[2]);
+    }
+
+    #[test]
+    fn same_trial_same_numbers_other_trial_other_noise() {
+        let study = seed000(true);
+        let (a, ta) = run(&study, 5);
+        let (b, tb) = run(&study, 5);
+        let (_, tc) = run(&study, 6);
+        assert_eq!(a, b);
+        assert_eq!(column(&ta, "r_q_rad_s"), column(&tb, "r_q_rad_s"));
+        assert_ne!(column(&ta, "r_q_rad_s"), column(&tc, "r_q_rad_s"));
+    }
+
+    #[test]
+    fn without_trace_and_beside_other_detectors_the_outcome_is_the_same() {
+        let mut study = seed000(true);
+        let mut other = study.detectors[0].clone();
+        other.name = "fast".into();
+        other.params.eigenvalues_per_s = vec![-2.0, -4.0, -6.0, -8.0, -10.0];
+        study.detectors.insert(0, other);
+        let mut trace = Trace::default();
+        let (_, alone) = Engine::new(&study).simulate(9, 1, &mut trace).unwrap();
+        let together = Engine::new(&study).run(9);
+        assert_eq!(together.detectors[1].as_ref().unwrap(), &alone);
+        assert_ne!(together.detectors[0].as_ref().unwrap(), &alone, "another design, another residual");
+    }
+
+    #[test]
+    fn first_passage_profile_gives_the_alarm_time_of_any_threshold() {
+        let study = seed000(true);
+        let (out, trace) = run(&study, 2);
+        let r_q = column(&trace, "r_q_rad_s");
+        let t_s = column(&trace, "t_s");
+        let (pt, pv) = (&out.profile_t_s[2], &out.profile_value[2]);
+        assert!(pv.windows(2).all(|w| w[1] > w[0]) && pt.windows(2).all(|w| w[1] >= w[0]));
+        let post: Vec<(f64, f64)> =
+            t_s.iter().zip(r_q).filter(|(t, _)| **t >= 10.0).map(|(t, r)| (*t, r.abs())).collect();
+        let post_max = post.iter().map(|p| p.1).fold(0.0, f64::max);
+        assert_eq!(*pv.last().unwrap(), post_max, "the profile ends at the post-onset maximum");
+        for thr in [0.01, 0.05, 0.09, 0.1, 0.105, 0.11, 0.2] {
+            let exact = post.iter().find(|(_, a)| *a > thr).map(|p| p.0);
+            let from_profile = pt.iter().zip(pv).find(|(_, v)| **v > thr).map(|(t, _)| *t);
+            assert_eq!(exact.is_some(), from_profile.is_some(), "threshold {thr}");
+            if let (Some(e), Some(p)) = (exact, from_profile) {
+                // Never earlier than the truth; later only while the maximum rises the last 2 %.
+                let a_at_p = post.iter().find(|q| q.0 == p).unwrap().1;
+                assert!(
+                    p >= e && (p == e || a_at_p <= thr * (1.0 + PROFILE_RESOLUTION) * (1.0 + PROFILE_RESOLUTION)),
+                    "threshold {thr}: exact {e}, profile {p}"
+                );
+            }
+        }
+    }
+}

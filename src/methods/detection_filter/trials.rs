@@ -1,0 +1,349 @@
+//! From a trial index to its result: scenario, perturbed models, detector designs, simulation.
+//! Designs and the sampled true plant are computed once when no parameter error touches them.
+
+use std::borrow::Cow;
+
+use crate::design::DesignError;
+use crate::engine::deck::ModelTarget;
+use crate::lti::{DiscreteLti, LtiPlant};
+use crate::methods::detection_filter::filter::DetectionFilter;
+use crate::methods::detection_filter::scenario::{ScenarioSampler, TrialSpec};
+use crate::methods::detection_filter::study::Study;
+
+use crate::engine::output::Trace;
+use crate::methods::detection_filter::kernel::{FilterPatterns, LANES, LaneFilter, LanePlant, PlantPatterns};
+use crate::methods::detection_filter::kernel::{FilterStep, PlantStep};
+use crate::methods::detection_filter::lanes::{LaneDetector, run_lanes};
+use crate::methods::detection_filter::trial::{DetectorOutcome, run_trial};
+
+/// One trial's scenario and, per detector configuration (deck order), its outcome or why its design
+/// failed for this trial's design model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrialResult {
+    pub spec: TrialSpec,
+    pub detectors: Vec<Result<DetectorOutcome, DesignError>>,
+}
+
+pub struct Engine<'a> {
+    study: &'a Study,
+    sampler: ScenarioSampler<'a>,
+    nominal_truth: DiscreteLti,
+    nominal_filters: Vec<Result<DetectionFilter, DesignError>>,
+    perturb_truth: bool,
+    perturb_design: bool,
+    plant_patterns: PlantPatterns,
+    filter_patterns: Vec<FilterPatterns>,
+    /// Lane forms of the nominal models, built once when no parameter error changes them per trial.
+    lane_plant: Option<LanePlant>,
+    lane_filters: Vec<Option<LaneFilter>>,
+}
+
+/// A trial's design of one detector configuration: the nominal one when the design model is not
+/// perturbed, else its own.
+type Design<'e> = Result<Cow<'e, DetectionFilter>, DesignError>;
+
+impl<'a> Engine<'a> {
+    pub fn new(study: &'a Study) -> Self {
+        let sampler = ScenarioSampler::new(study);
+        let perturb_truth = sampler.perturbs(ModelTarget::Plant);
+        let perturb_design = sampler.perturbs(ModelTarget::Design);
+        let nominal_truth = study.plant.discretise(study.dt_s);
+        let nominal_filters: Vec<_> =
+            study.detectors.iter().map(|d| d.params.design(&study.design_plant, study.dt_s)).collect();
+        let plant_patterns = PlantPatterns::new(&nominal_truth, &study.output_feedback, perturb_truth);
+        let filter_patterns: Vec<FilterPatterns> = nominal_filters
+            .iter()
+            .map(|f| FilterPatterns::new(&study.design_plant, f.as_ref().ok(), perturb_design))
+            .collect();
+        let lane_plant = (!perturb_truth)
+            .then(|| LanePlant::new(&plant_patterns, &[Some(&nominal_truth); LANES], &study.output_feedback));
+        let lane_filters = nominal_filters
+            .iter()
+            .zip(&filter_patterns)
+            .map(|(f, p)| match f {
+                Ok(f) if !perturb_design => Some(LaneFilter::new(p, &[Some(f); LANES])),
+                _ => None,
+            })
+            .collect();
+        Engine {
+            study,
+            sampler,
+            nominal_truth,
+            nominal_filters,
+            perturb_truth,
+            perturb_design,
+            plant_patterns,
+            filter_patterns,
+            lane_plant,
+            lane_filters,
+        }
+    }
+
+    /// The nominal designs (deck order), for reports and to fail fast on an infeasible deck.
+    pub fn nominal_filters(&self) -> &[Result<DetectionFilter, DesignError>] {
+        &self.nominal_filters
+    }
+
+    pub fn spec(&self, trial: u64) -> TrialSpec {
+        self.sampler.spec(trial)
+    }
+
+    /// `base` with the trial's parameter errors on `target` applied.
+    fn perturbed(&self, base: &LtiPlant, spec: &TrialSpec, target: ModelTarget) -> LtiPlant {
+        let mut p = base.clone();
+        for (pe, &rel) in self.study.monte_carlo.parameter_errors.iter().zip(&spec.parameter_errors) {
+            if pe.model != target {
+                continue;
+            }
+            let m = if pe.matrix_b { &mut p.B } else { &mut p.A };
+            for &(r, c) in &pe.entries {
+                if pe.absolute {
+                    m[(r, c)] += rel;
+                } else {
+                    m[(r, c)] *= 1.0 + rel;
+                }
+            }
+        }
+        p
+    }
+
+    /// The trial's design of every detector configuration (deck order).
+    fn designs(&self, spec: &TrialSpec) -> Vec<Design<'_>> {
+        if !self.perturb_design {
+            return self.nominal_filters.iter().map(|f| f.as_ref().map(Cow::Borrowed).map_err(Clone::clone)).collect();
+        }
+        let design = self.perturbed(&self.study.design_plant, spec, ModelTarget::Design);
+        self.study.detectors.iter().map(|d| d.params.design(&design, self.study.dt_s).map(Cow::Owned)).collect()
+    }
+
+    fn truth(&self, spec: &TrialSpec) -> Cow<'_, DiscreteLti> {
+        if self.perturb_truth {
+            let p = self.perturbed(&self.study.plant, spec, ModelTarget::Plant);
+            Cow::Owned(p.discretise(self.study.dt_s))
+        } else {
+            Cow::Borrowed(&self.nominal_truth)
+        }
+    }
+
+    /// Runs trial `spec` on the one-trial path with the given designs of the given detector
+    /// configurations (deck indices); `trace` records the first.
+    fn run_one<'d>(
+        &self,
+        spec: &TrialSpec,
+        filters: impl Iterator<Item = (usize, &'d DetectionFilter)>,
+        trace: Option<&mut Trace>,
+    ) -> Vec<DetectorOutcome> {
+        let s = self.study;
+        let plant = PlantStep::new(&self.plant_patterns, &[Some(&*self.truth(spec))], &s.output_feedback);
+        let filters: Vec<(&DetectionFilter, FilterStep)> =
+            filters.map(|(d, design)| (design, FilterStep::new(&self.filter_patterns[d], &[Some(design)]))).collect();
+        run_trial(s, &plant, spec, &filters, trace)
+    }
+
+    /// Runs every detector configuration on trial `trial`, one trial at a time (the general path).
+    pub fn run(&self, trial: u64) -> TrialResult {
+        let spec = self.spec(trial);
+        let designs = self.designs(&spec);
+        let ok = designs.iter().enumerate().filter_map(|(d, f)| Some((d, f.as_deref().ok()?)));
+        let mut outcomes = self.run_one(&spec, ok, None).into_iter();
+        let detectors =
+            designs.into_iter().map(|d| d.map(|_| outcomes.next().expect("one outcome per designed filter"))).collect();
+        TrialResult { spec, detectors }
+    }
+
+    /// Runs every detector configuration on trials `first..end` (at most [`LANES`]) together on the
+    /// lane path: the same results as [`run`](Self::run) on each trial, several times faster.
+    pub fn run_lanes(&self, first: u64, end: u64) -> Vec<TrialResult> {
+        let s = self.study;
+        let specs: Vec<TrialSpec> = (first..end).map(|t| self.spec(t)).collect();
+        let lane = |l: usize| (l < specs.len()).then_some(l);
+        let truths: Vec<Cow<'_, DiscreteLti>> =
+            if self.perturb_truth { specs.iter().map(|sp| self.truth(sp)).collect() } else { Vec::new() };
+        let own_plant;
+        let plant = match &self.lane_plant {
+            Some(p) => p,
+            None => {
+                let lanes: [_; LANES] = std::array::from_fn(|l| lane(l).map(|l| &*truths[l]));
+                own_plant = LanePlant::new(&self.plant_patterns, &lanes, &s.output_feedback);
+                &own_plant
+            }
+        };
+        let designs: Vec<Vec<Design<'_>>> = specs.iter().map(|sp| self.designs(sp)).collect();
+        let own_filters: Vec<Option<LaneFilter>> = (0..s.detectors.len())
+            .map(|d| {
+                self.lane_filters[d].is_none().then(|| {
+                    let lanes: [_; LANES] =
+                        std::array::from_fn(|l| lane(l).and_then(|l| designs[l][d].as_deref().ok()));
+                    LaneFilter::new(&self.filter_patterns[d], &lanes)
+                })
+            })
+            .collect();
+        let detectors: Vec<LaneDetector> = (0..s.detectors.len())
+            .map(|d| LaneDetector {
+                filter: self.lane_filters[d].as_ref().or(own_filters[d].as_ref()).expect("shared or own"),
+                designs: std::array::from_fn(|l| lane(l).and_then(|l| designs[l][d].as_deref().ok())),
+                params: &s.detectors[d].params,
+            })
+            .collect();
+        let mut outcomes: Vec<std::vec::IntoIter<Option<DetectorOutcome>>> =
+            run_lanes(s, plant, &specs, &detectors).into_iter().map(Vec::into_iter).collect();
+        let designs_ok: Vec<Vec<Result<(), DesignError>>> = designs
+            .iter()
+            .map(|ds| ds.iter().map(|d| d.as_ref().map(|_| ()).map_err(Clone::clone)).collect())
+            .collect();
+        specs
+            .into_iter()
+            .zip(designs_ok)
+            .map(|(spec, ds)| {
+                let detectors = ds
+                    .into_iter()
+                    .zip(outcomes.iter_mut())
+                    .map(|(d, o)| {
+                        let outcome = o.next().expect("one entry per trial");
+                        d.map(|()| outcome.expect("a designed lane has an outcome"))
+                    })
+                    .collect();
+                TrialResult { spec, detectors }
+            })
+            .collect()
+    }
+
+    /// Runs detector `detector` alone on trial `trial`, tracing every sample.
+    pub fn simulate(
+        &self,
+        trial: u64,
+        detector: usize,
+        trace: &mut Trace,
+    ) -> Result<(TrialSpec, DetectorOutcome), DesignError> {
+        let spec = self.spec(trial);
+        let designs = self.designs(&spec);
+        let design = designs[detector].as_deref().map_err(Clone::clone)?;
+        let outcome = self.run_one(&spec, std::iter::once((detector, design)), Some(trace)).remove(0);
+        Ok((spec, outcome))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    const ROBUST: &str = include_str!("../../../studies/seed000_robustness.toml");
+
+    fn study(extra: &str) -> Study {
+        Study::from_toml(&format!("{ROBUST}\n{extra}"), Path::new("robust.toml")).unwrap()
+    }
+
+    #[test]
+    fn parameter_errors_scale_or_shift_the_listed_entries_of_the_chosen_model() {
+        let s = study(
+            "[[monte_carlo.parameter_error]]\nname = \"speed\"\nmodel = \"plant\"\nmatrix = \"a\"\n\
+             entries = [[\"h_m\", \"theta_rad\"]]\nabsolute = 10.0\n",
+        );
+        let e = Engine::new(&s);
+        let spec = e.spec(0);
+        assert_eq!(spec.parameter_errors, vec![-0.2, -0.2, 10.0], "grid cell 0 of pitch_moment x elevator");
+        let design = e.perturbed(&s.design_plant, &spec, ModelTarget::Design);
+        assert_eq!(design.A[(2, 1)], -7.9101 * 0.8);
+        assert_eq!(design.A[(2, 2)], -3.0241 * 0.8);
+        assert_eq!(design.B[(2, 1)], -26.3821 * 0.8);
+        assert_eq!(design.A[(4, 3)], 272.24, "the absolute error is on the true plant only");
+        let truth = e.perturbed(&s.plant, &spec, ModelTarget::Plant);
+        assert_eq!(truth.A[(4, 3)], 282.24);
+        assert_eq!(truth.A[(2, 1)], -7.9101);
+        // The gains follow the design model: recomputed, still assigning -1..-5 on it.
+        let filters = e.designs(&spec);
+        let k = &filters[0].as_ref().unwrap().continuous.K;
+        assert!((k - &e.nominal_filters()[0].as_ref().unwrap().continuous.K).amax() > 1.0);
+        let closed = &design.A - k * &design.C;
+        assert!((closed[(2, 2)] + 3.0).abs() < 1e-9 && closed[(2, 1)].abs() < 1e-9);
+    }
+
+    #[test]
+    fn latin_hypercube_puts_one_trial_in_each_stratum() {
+        let mut s = study("");
+        s.monte_carlo.trials = 240;
+        let e = Engine::new(&s);
+        let specs: Vec<TrialSpec> = (0..240).map(|t| e.spec(t)).collect();
+        // Fault-free trials still draw their units; faulty ones carry the onset. Use all the faulty ones.
+        let mut strata: Vec<usize> = specs
+            .iter()
+            .filter(|sp| sp.onset_s.is_finite())
+            .map(|sp| ((sp.onset_s - 5.0) / 15.0 * 240.0) as usize)
+            .collect();
+        let faulty = strata.len();
+        strata.sort();
+        strata.dedup();
+        assert_eq!(strata.len(), faulty, "two faulty trials share an onset stratum");
+        let fault_free = 240 - faulty;
+        assert!((30..=70).contains(&fault_free), "{fault_free} fault-free of 240 at fraction 0.2");
+        // Kind is the fastest grid digit: each of the 4 kinds gets a quarter of the faulty trials.
+        for kind in ["bias", "gain", "stuck", "total_failure"] {
+            let n = specs.iter().filter(|sp| sp.kind == kind).count();
+            assert!((n as f64 - faulty as f64 / 4.0).abs() <= 12.0, "{kind}: {n}");
+        }
+    }
+
+    /// Every trial of `deck` (plus `extra` deck lines), on both paths: identical results.
+    fn assert_paths_agree(deck: &str, extra: &str, trials: u64) {
+        let mut s = Study::from_toml(&format!("{deck}\n{extra}"), Path::new("deck.toml")).unwrap();
+        s.monte_carlo.trials = trials;
+        let e = Engine::new(&s);
+        // Groups of 8, then a ragged group of 3 (idle lanes).
+        let mut lanes = Vec::new();
+        let mut first = 0;
+        while first < trials {
+            let end = (first + if first == 0 { 3 } else { LANES as u64 }).min(trials);
+            lanes.extend(e.run_lanes(first, end));
+            first = end;
+        }
+        for (t, lane) in (0..trials).zip(&lanes) {
+            let one = e.run(t);
+            assert_eq!(format!("{:?}", lane.spec), format!("{:?}", one.spec), "trial {t} (NaN sizes: compare as text)");
+            for (d, (a, b)) in lane.detectors.iter().zip(&one.detectors).enumerate() {
+                let (Ok(a), Ok(b)) = (a, b) else {
+                    assert_eq!(a.is_ok(), b.is_ok(), "trial {t} detector {d}");
+                    continue;
+                };
+                let brief = |o: &DetectorOutcome| {
+                    let profile: Vec<_> = o.profile_value.iter().map(|p| (p.len(), p.last().copied())).collect();
+                    format!(
+                        "pre {:?}\nprofile (points, last) {profile:?}\nfa {:?} det {:?} iso {:?}/{:?} div {:?}",
+                        o.pre_onset_max_abs_residual,
+                        o.false_alarm,
+                        o.detection,
+                        o.isolated_by_max,
+                        o.isolated_by_direction,
+                        o.diverged_at_s
+                    )
+                };
+                assert!(a == b, "trial {t} detector {d}:\nlanes    {}\none trial {}", brief(a), brief(b));
+            }
+        }
+    }
+
+    #[test]
+    fn lane_path_gives_the_one_trial_results_on_the_bench_and_ci_decks() {
+        assert_paths_agree(include_str!("../../../studies/bench_seed000.toml"), "", 40);
+        assert_paths_agree(include_str!("../../../studies/ci_seed000.toml"), "", 40);
+    }
+
+    #[test]
+    fn lane_path_gives_the_one_trial_results_under_model_errors_faults_and_divergence() {
+        // Design-model errors (per-trial designs), true-plant errors (one making some plants so
+        // unstable that the residuals overflow: divergence), process noise, every fault kind.
+        let extra = "[[monte_carlo.parameter_error]]\nname = \"speed\"\nmodel = \"plant\"\nmatrix = \"a\"\n\
+                     entries = [[\"h_m\", \"theta_rad\"]]\nrelative = { range = [-0.3, 0.3] }\n\
+                     [[monte_carlo.parameter_error]]\nname = \"unstable\"\nmodel = \"plant\"\nmatrix = \"a\"\n\
+                     entries = [[\"q_rad_s\", \"q_rad_s\"]]\nabsolute = { range = [0.0, 60.0] }\n\
+                     [[monte_carlo.fault]]\nkind = \"drift\"\nsize = { range = [0.001, 0.01] }\n\
+                     [[monte_carlo.fault]]\nkind = \"oscillation\"\nfrequency_hz = 0.5\nsize = { range = [0.01, 0.1] }\n";
+        let deck = ROBUST.replace("[noise]", "[noise]\nprocess_sigma_per_step = [0.001, 0.0001, 0.0001, 0.0001, 0.01]");
+        assert!(deck.contains("process_sigma_per_step"));
+        let s = Study::from_toml(&format!("{deck}\n{extra}"), Path::new("deck.toml")).unwrap();
+        let diverged =
+            (0..48).filter(|&t| Engine::new(&s).run(t).detectors[0].as_ref().unwrap().diverged_at_s.is_some());
+        assert!((5..40).contains(&diverged.count()), "some trials diverge, not all");
+        assert_paths_agree(&deck, extra, 48);
+    }
+}

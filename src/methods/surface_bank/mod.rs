@@ -1,0 +1,78 @@
+//! Control-surface studies (method 004): banks of (strong-tracking) EKFs on a UAV.
+
+pub mod actuator;
+pub mod records;
+pub mod scenario;
+pub mod stmmae;
+pub mod study;
+pub mod summary;
+pub mod trial;
+pub mod uav;
+
+use crate::engine::runner::{Manifest, StudyKind, TrialSource};
+use crate::engine::streams::{Substream, noise_rng};
+use crate::methods::surface_bank::scenario::SurfaceScenarioSampler;
+use crate::methods::surface_bank::stmmae::BankParams;
+use crate::methods::surface_bank::study::SurfaceStudy;
+use crate::methods::surface_bank::uav::SURFACE_NAMES;
+use trial::*;
+
+/// The runner's view of a surface study: every bank of the deck on each trial's one flight.
+pub struct SurfaceTrials<'a> {
+    study: &'a SurfaceStudy,
+    sampler: SurfaceScenarioSampler<'a>,
+    banks: Vec<BankParams>,
+}
+
+impl<'a> SurfaceTrials<'a> {
+    pub fn new(study: &'a SurfaceStudy) -> Self {
+        let banks = study.banks.iter().map(|(_, p)| p.clone()).collect();
+        SurfaceTrials { study, sampler: SurfaceScenarioSampler::new(study), banks }
+    }
+
+    /// The study's fields of `manifest.json`.
+    pub fn manifest(&self) -> Manifest {
+        let s = self.study;
+        let units = [
+            ("stuck", "deg (the stuck position)"),
+            ("oscillation", "deg (the square wave's amplitude)"),
+            ("loss_of_effectiveness", "fraction of the deflection still acting"),
+        ];
+        Manifest {
+            kind: StudyKind::SurfaceBank,
+            study: s.name.clone(),
+            seed: s.seed,
+            trials: s.monte_carlo.trials,
+            detectors: s.banks.iter().map(|(n, _)| n.clone()).collect(),
+            outputs: SURFACE_NAMES.iter().map(|n| n.to_string()).collect(),
+            fault_size_units: units.iter().map(|(k, u)| (k.to_string(), u.to_string())).collect(),
+            ..Manifest::unstarted()
+        }
+    }
+
+    /// Trial `trial`: its scenario from the scenario stream, its sensor noise from the sensor stream.
+    pub fn run_trial(&self, trial: u64) -> SurfaceTrialResult {
+        let spec = self.sampler.spec(trial);
+        let setup = SurfaceTrial::new(&self.sampler, &spec);
+        let mut rng = noise_rng(self.study.seed, trial, Substream::SensorNoise);
+        let outcome = run_banks(self.study, &setup, &self.banks, &mut rng, |_, _| ());
+        SurfaceTrialResult { spec, outcome }
+    }
+}
+
+impl TrialSource for SurfaceTrials<'_> {
+    type Result = SurfaceTrialResult;
+    /// A flight costs 0.1-2 s, so 64 of them make a part file of seconds to a minute on 2 cores.
+    fn chunk_trials(&self) -> u64 {
+        64
+    }
+    fn group_trials(&self) -> u64 {
+        1
+    }
+    fn simulate(&self, first: u64, end: u64) -> Vec<SurfaceTrialResult> {
+        (first..end).map(|t| self.run_trial(t)).collect()
+    }
+    fn frame(&self, results: &[SurfaceTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {
+        crate::methods::surface_bank::records::frame(self.study, results)
+    }
+}

@@ -1,0 +1,873 @@
+//! Control-surface study decks (method 004): parse a TOML deck with an `[airframe]` section, then
+//! validate it into a [`SurfaceStudy`] that cannot be invalid. Every rejection names the file, the
+//! field as a TOML path and what is allowed, like the LTI decks of [`super`].
+//!
+//! ```toml
+//! [study]            name, seed, duration_s, dt_s
+//! [airframe]         model = "aerosonde", trim_airspeed_mps, trim_altitude_m, optional wind_ned_mps
+//! [sensors]          optional: gyro_variance_rad2_s2, flow_angle_variance_rad2, airspeed_variance_m2_s2,
+//!                    attitude_sigma_rad (defaults: the seed's, attitude 0.01 rad)
+//! [[setpoint]]       from_s, airspeed_mps, altitude_m, roll_deg (optional schedule; trim before the first)
+//! [[surface_fault]]  surface (aileron_left, aileron_right, elevator_left, elevator_right, rudder),
+//!                    kind = "stuck" (position_deg) | "oscillation" (low_deg, high_deg, period_s)
+//!                    | "loss_of_effectiveness" (effectiveness in [0, 1)), onset_s, optional end_s
+//! [[bank]]           name, covariance = "ekf" | "strong_tracking" | "symmetric_strong_tracking",
+//!                    likelihood = "gaussian" | "euclidean_norm", optional overrides of the seed's numbers
+//! [monte_carlo]      trials, fault_free_fraction, sampler, surfaces (default all), onset_s,
+//!                    fault_duration_s (default: to the end), noise_scale (factors, as the LTI decks')
+//! [[monte_carlo.fault]]            kind = "stuck" (position_deg) | "oscillation" (amplitude_deg,
+//!                    optional center_deg = 0, period_s = 2) | "loss_of_effectiveness" (effectiveness)
+//! [[monte_carlo.parameter_error]]  name, model = "plant" | "design", coefficients (names of
+//!                    `AerosondeParams` coefficients), relative (factor: each scaled by 1 + relative)
+//! ```
+//!
+//! Without `[[monte_carlo.fault]]` every faulty trial flies the deck's `[[surface_fault]]` scenario and
+//! trials differ in their noise (and parameter errors); with it, each faulty trial has one sampled fault
+//! on one of `monte_carlo.surfaces` and the fixed scenario is not used. A stuck position and an
+//! oscillation's centre are absolute deflections, as the seed gives them (its rudder stuck at -1 deg is 1
+//! deg from trim); the actuator's +/-25 deg travel limits every command.
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::engine::deck::FactorSpec;
+use crate::engine::deck::{DeckError, Factor, ModelTarget, Sampler, Validator, parse_deck, read_deck};
+use crate::estimation::LikelihoodForm;
+use crate::methods::surface_bank::actuator::DEFAULT_SQUARE_WAVE_PERIOD_S;
+use crate::methods::surface_bank::actuator::{ActuatorFault, ActuatorFaultKind};
+use crate::methods::surface_bank::stmmae::{BankParams, CovarianceForm};
+use crate::methods::surface_bank::uav::{SCALABLE_COEFFICIENTS, SURFACE_NAMES, Setpoints};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SurfaceDeck {
+    study: StudySection,
+    airframe: AirframeSection,
+    sensors: Option<SensorsSection>,
+    #[serde(default)]
+    setpoint: Vec<SetpointSection>,
+    #[serde(default)]
+    surface_fault: Vec<SurfaceFaultSection>,
+    bank: Vec<BankSection>,
+    monte_carlo: Option<MonteCarloSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MonteCarloSection {
+    trials: u64,
+    #[serde(default)]
+    fault_free_fraction: f64,
+    sampler: Option<String>,
+    surfaces: Option<Vec<String>>,
+    onset_s: Option<FactorSpec>,
+    fault_duration_s: Option<FactorSpec>,
+    noise_scale: Option<FactorSpec>,
+    #[serde(default)]
+    fault: Vec<MonteCarloFaultSection>,
+    #[serde(default)]
+    parameter_error: Vec<ParameterErrorSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MonteCarloFaultSection {
+    kind: String,
+    position_deg: Option<FactorSpec>,
+    amplitude_deg: Option<FactorSpec>,
+    center_deg: Option<f64>,
+    period_s: Option<f64>,
+    effectiveness: Option<FactorSpec>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ParameterErrorSection {
+    name: String,
+    model: String,
+    coefficients: Vec<String>,
+    relative: FactorSpec,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StudySection {
+    name: String,
+    seed: u64,
+    duration_s: f64,
+    dt_s: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AirframeSection {
+    model: String,
+    trim_airspeed_mps: f64,
+    trim_altitude_m: f64,
+    wind_ned_mps: Option<[f64; 3]>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SensorsSection {
+    gyro_variance_rad2_s2: Option<f64>,
+    flow_angle_variance_rad2: Option<f64>,
+    airspeed_variance_m2_s2: Option<f64>,
+    attitude_sigma_rad: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SetpointSection {
+    from_s: f64,
+    airspeed_mps: f64,
+    altitude_m: f64,
+    roll_deg: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SurfaceFaultSection {
+    surface: String,
+    kind: String,
+    onset_s: f64,
+    end_s: Option<f64>,
+    position_deg: Option<f64>,
+    low_deg: Option<f64>,
+    high_deg: Option<f64>,
+    period_s: Option<f64>,
+    effectiveness: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BankSection {
+    name: String,
+    covariance: String,
+    likelihood: String,
+    process_variance_per_s: Option<[f64; 5]>,
+    measurement_variance: Option<[f64; 5]>,
+    surface_process_variance_rad2_per_s: Option<f64>,
+    rho: Option<f64>,
+    beta: Option<f64>,
+    a: Option<[f64; 5]>,
+    a_surface: Option<f64>,
+    declare_hold_s: Option<f64>,
+}
+
+/// Sensor noise of the truth simulation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SensorNoise {
+    pub gyro_variance_rad2_s2: f64,
+    pub flow_angle_variance_rad2: f64,
+    pub airspeed_variance_m2_s2: f64,
+    pub attitude_sigma_rad: f64,
+}
+
+impl SensorNoise {
+    /// Every standard deviation times `factor` (variances times `factor^2`).
+    pub fn scaled(&self, factor: f64) -> SensorNoise {
+        let f2 = factor * factor;
+        SensorNoise {
+            gyro_variance_rad2_s2: self.gyro_variance_rad2_s2 * f2,
+            flow_angle_variance_rad2: self.flow_angle_variance_rad2 * f2,
+            airspeed_variance_m2_s2: self.airspeed_variance_m2_s2 * f2,
+            attitude_sigma_rad: self.attitude_sigma_rad * factor,
+        }
+    }
+}
+
+/// A sampled fault population of a surface Monte Carlo study; sizes in degrees (effectiveness: a
+/// fraction).
+#[derive(Debug, Clone, PartialEq)]
+pub enum SurfaceFaultSpec {
+    /// The surface driven to and held at `position_deg`.
+    Stuck { position_deg: Factor },
+    /// Square wave between `center_deg - amplitude_deg` and `center_deg + amplitude_deg`.
+    Oscillation { amplitude_deg: Factor, center_deg: f64, period_s: f64 },
+    /// Only `effectiveness` of the surface's deflection acts on the airframe.
+    LossOfEffectiveness { effectiveness: Factor },
+}
+
+impl SurfaceFaultSpec {
+    pub fn name(&self) -> &'static str {
+        match self {
+            SurfaceFaultSpec::Stuck { .. } => "stuck",
+            SurfaceFaultSpec::Oscillation { .. } => "oscillation",
+            SurfaceFaultSpec::LossOfEffectiveness { .. } => "loss_of_effectiveness",
+        }
+    }
+
+    /// The factor whose value is the fault's size.
+    pub fn size(&self) -> &Factor {
+        match self {
+            SurfaceFaultSpec::Stuck { position_deg } => position_deg,
+            SurfaceFaultSpec::Oscillation { amplitude_deg, .. } => amplitude_deg,
+            SurfaceFaultSpec::LossOfEffectiveness { effectiveness } => effectiveness,
+        }
+    }
+}
+
+/// Relative errors of airframe coefficients, on the truth or on the banks' model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CoefficientError {
+    pub name: String,
+    pub model: ModelTarget,
+    /// Names from [`SCALABLE_COEFFICIENTS`]; each is scaled by `1 + relative`.
+    pub coefficients: Vec<String>,
+    pub relative: Factor,
+}
+
+/// The Monte Carlo section of a surface study.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceMonteCarlo {
+    pub trials: u64,
+    pub fault_free_fraction: f64,
+    pub sampler: Sampler,
+    /// Surfaces a sampled fault may hit (indices into [`SURFACE_NAMES`]).
+    pub surfaces: Vec<usize>,
+    pub onset_s: Factor,
+    /// How long a sampled fault lasts; `None`: to the end of the trial.
+    pub fault_duration_s: Option<Factor>,
+    /// Factor on every sensor standard deviation.
+    pub noise_scale: Factor,
+    /// Sampled faults; empty: every faulty trial flies the deck's `[[surface_fault]]` scenario.
+    pub faults: Vec<SurfaceFaultSpec>,
+    pub parameter_errors: Vec<CoefficientError>,
+}
+
+/// A validated control-surface study.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SurfaceStudy {
+    pub path: PathBuf,
+    pub name: String,
+    pub seed: u64,
+    pub duration_s: f64,
+    pub dt_s: f64,
+    pub trim_airspeed_mps: f64,
+    pub trim_altitude_m: f64,
+    pub wind_ned_mps: [f64; 3],
+    pub sensors: SensorNoise,
+    pub setpoints: Vec<(f64, Setpoints)>,
+    pub faults: Vec<ActuatorFault>,
+    pub banks: Vec<(String, BankParams)>,
+    pub monte_carlo: SurfaceMonteCarlo,
+}
+
+impl SurfaceStudy {
+    pub fn load(path: &Path) -> Result<SurfaceStudy, DeckError> {
+        let text = read_deck(path)?;
+        Self::from_toml(&text, path)
+    }
+
+    pub fn from_toml(text: &str, path: &Path) -> Result<SurfaceStudy, DeckError> {
+        let deck: SurfaceDeck = parse_deck(text, path)?;
+        let bad = |field: String, message: String| DeckError::Invalid { file: path.into(), field, message };
+        let positive = |field: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(v)
+            } else {
+                Err(bad(field.into(), format!("must be a positive number, got {v}")))
+            }
+        };
+        let finite = |field: String, v: f64| {
+            if v.is_finite() { Ok(v) } else { Err(bad(field, format!("must be a finite number, got {v}"))) }
+        };
+
+        let s = &deck.study;
+        if s.name.is_empty() || !s.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+            return Err(bad(
+                "study.name".into(),
+                format!("must be letters, digits, '_' or '-' (a folder name), got {:?}", s.name),
+            ));
+        }
+        let duration_s = positive("study.duration_s", s.duration_s)?;
+        let dt_s = positive("study.dt_s", s.dt_s)?;
+        if dt_s > 0.05 || dt_s * 10.0 > duration_s {
+            return Err(bad(
+                "study.dt_s".into(),
+                format!("must be at most 0.05 s and a tenth of duration_s, got {dt_s}"),
+            ));
+        }
+
+        let a = &deck.airframe;
+        if a.model != "aerosonde" {
+            return Err(bad(
+                "airframe.model".into(),
+                format!("must be \"aerosonde\" (the only airframe so far), got {:?}", a.model),
+            ));
+        }
+        let trim_airspeed_mps = positive("airframe.trim_airspeed_mps", a.trim_airspeed_mps)?;
+        if !(15.0..=45.0).contains(&trim_airspeed_mps) {
+            return Err(bad(
+                "airframe.trim_airspeed_mps".into(),
+                format!("must be within 15..45 m/s, got {trim_airspeed_mps}"),
+            ));
+        }
+        let trim_altitude_m = positive("airframe.trim_altitude_m", a.trim_altitude_m)?;
+        let wind_ned_mps = a.wind_ned_mps.unwrap_or([0.0; 3]);
+        for (i, w) in wind_ned_mps.iter().enumerate() {
+            finite(format!("airframe.wind_ned_mps[{i}]"), *w)?;
+        }
+
+        let sensors = {
+            let s = deck.sensors.as_ref();
+            let non_negative = |field: &str, v: Option<f64>, default: f64| {
+                let v = v.unwrap_or(default);
+                if v.is_finite() && v >= 0.0 {
+                    Ok(v)
+                } else {
+                    Err(bad(format!("sensors.{field}"), format!("must be >= 0, got {v}")))
+                }
+            };
+            SensorNoise {
+                gyro_variance_rad2_s2: non_negative(
+                    "gyro_variance_rad2_s2",
+                    s.and_then(|s| s.gyro_variance_rad2_s2),
+                    0.0076,
+                )?,
+                flow_angle_variance_rad2: non_negative(
+                    "flow_angle_variance_rad2",
+                    s.and_then(|s| s.flow_angle_variance_rad2),
+                    0.0012,
+                )?,
+                airspeed_variance_m2_s2: non_negative(
+                    "airspeed_variance_m2_s2",
+                    s.and_then(|s| s.airspeed_variance_m2_s2),
+                    1.0,
+                )?,
+                attitude_sigma_rad: non_negative("attitude_sigma_rad", s.and_then(|s| s.attitude_sigma_rad), 0.01)?,
+            }
+        };
+
+        let mut setpoints = Vec::new();
+        for (i, sp) in deck.setpoint.iter().enumerate() {
+            let field = |f: &str| format!("setpoint[{i}].{f}");
+            let from_s = finite(field("from_s"), sp.from_s)?;
+            if let Some(&(last, _)) = setpoints.last()
+                && from_s <= last
+            {
+                return Err(bad(
+                    field("from_s"),
+                    format!("must be later than the previous setpoint's {last} s, got {from_s}"),
+                ));
+            }
+            let va_mps = positive(&field("airspeed_mps"), sp.airspeed_mps)?;
+            let altitude_m = positive(&field("altitude_m"), sp.altitude_m)?;
+            let roll_deg = finite(field("roll_deg"), sp.roll_deg)?;
+            if roll_deg.abs() > 45.0 {
+                return Err(bad(
+                    field("roll_deg"),
+                    format!("must be within -45..45 deg (the autopilot's limit), got {roll_deg}"),
+                ));
+            }
+            setpoints.push((from_s, Setpoints { va_mps, altitude_m, roll_rad: roll_deg.to_radians() }));
+        }
+
+        let mut faults = Vec::new();
+        for (i, f) in deck.surface_fault.iter().enumerate() {
+            let field = |f: &str| format!("surface_fault[{i}].{f}");
+            let surface = SURFACE_NAMES.iter().position(|n| *n == f.surface).ok_or_else(|| {
+                bad(field("surface"), format!("must be one of {}, got {:?}", SURFACE_NAMES.join(", "), f.surface))
+            })?;
+            let onset_s = finite(field("onset_s"), f.onset_s)?;
+            if !(0.0..duration_s).contains(&onset_s) {
+                return Err(bad(
+                    field("onset_s"),
+                    format!("must be within 0..{duration_s} s (study.duration_s), got {onset_s}"),
+                ));
+            }
+            if let Some(end) = f.end_s
+                && !(end.is_finite() && end > onset_s)
+            {
+                return Err(bad(field("end_s"), format!("must be later than onset_s ({onset_s} s), got {end}")));
+            }
+            let need = |name: &str, v: Option<f64>| {
+                v.filter(|v| v.is_finite())
+                    .ok_or_else(|| bad(field(name), format!("a finite number is required for kind = {:?}", f.kind)))
+            };
+            let deflection = |name: &str, v: Option<f64>| {
+                let v = need(name, v)?;
+                if v.abs() <= 25.0 {
+                    Ok(v.to_radians())
+                } else {
+                    Err(bad(field(name), format!("must be within -25..25 deg (the actuator's travel), got {v}")))
+                }
+            };
+            let (kind, used): (_, &[&str]) = match f.kind.as_str() {
+                "stuck" => (
+                    ActuatorFaultKind::Stuck { position_rad: deflection("position_deg", f.position_deg)? },
+                    &["position_deg"],
+                ),
+                "oscillation" => {
+                    let low_rad = deflection("low_deg", f.low_deg)?;
+                    let high_rad = deflection("high_deg", f.high_deg)?;
+                    if high_rad <= low_rad {
+                        return Err(bad(field("high_deg"), "must be above low_deg".into()));
+                    }
+                    let period_s = positive(&field("period_s"), need("period_s", f.period_s)?)?;
+                    (
+                        ActuatorFaultKind::Oscillation { low_rad, high_rad, period_s },
+                        &["low_deg", "high_deg", "period_s"],
+                    )
+                }
+                "loss_of_effectiveness" => {
+                    let e = need("effectiveness", f.effectiveness)?;
+                    if !(0.0..1.0).contains(&e) {
+                        return Err(bad(
+                            field("effectiveness"),
+                            format!("must be within [0, 1) (1 is no fault), got {e}"),
+                        ));
+                    }
+                    (ActuatorFaultKind::LossOfEffectiveness { effectiveness: e }, &["effectiveness"])
+                }
+                other => {
+                    return Err(bad(
+                        field("kind"),
+                        format!("must be \"stuck\", \"oscillation\" or \"loss_of_effectiveness\", got {other:?}"),
+                    ));
+                }
+            };
+            let given = [
+                ("position_deg", f.position_deg),
+                ("low_deg", f.low_deg),
+                ("high_deg", f.high_deg),
+                ("period_s", f.period_s),
+                ("effectiveness", f.effectiveness),
+            ];
+            if let Some((name, _)) = given.iter().find(|(n, v)| v.is_some() && !used.contains(n)) {
+                return Err(bad(
+                    field(name),
+                    format!("does not apply to kind = {:?} (it takes {})", f.kind, used.join(", ")),
+                ));
+            }
+            faults.push(ActuatorFault { surface, kind, onset_s, end_s: f.end_s });
+        }
+        let mut windows: Vec<_> = faults.iter().map(|f| (f.onset_s, f.end_s.unwrap_or(duration_s))).collect();
+        windows.sort_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some(w) = windows.windows(2).find(|w| w[1].0 < w[0].1) {
+            return Err(bad(
+                "surface_fault".into(),
+                format!("faults must not overlap: one from {} s to {} s, the next from {} s", w[0].0, w[0].1, w[1].0),
+            ));
+        }
+
+        if deck.bank.is_empty() {
+            return Err(bad("bank".into(), "at least one [[bank]] is required".into()));
+        }
+        let mut banks: Vec<(String, BankParams)> = Vec::new();
+        for (i, b) in deck.bank.iter().enumerate() {
+            let field = |f: &str| format!("bank[{i}].{f}");
+            if banks.iter().any(|(n, _)| *n == b.name) || b.name.is_empty() {
+                return Err(bad(field("name"), format!("must be non-empty and unique, got {:?}", b.name)));
+            }
+            let covariance = match b.covariance.as_str() {
+                "ekf" => CovarianceForm::Ekf,
+                "strong_tracking" => CovarianceForm::StrongTracking,
+                "symmetric_strong_tracking" => CovarianceForm::SymmetricStrongTracking,
+                other => {
+                    return Err(bad(
+                        field("covariance"),
+                        format!("must be \"ekf\", \"strong_tracking\" or \"symmetric_strong_tracking\", got {other:?}"),
+                    ));
+                }
+            };
+            let likelihood = match b.likelihood.as_str() {
+                "gaussian" => LikelihoodForm::Gaussian,
+                "euclidean_norm" => LikelihoodForm::EuclideanNorm,
+                other => {
+                    return Err(bad(
+                        field("likelihood"),
+                        format!("must be \"gaussian\" or \"euclidean_norm\", got {other:?}"),
+                    ));
+                }
+            };
+            let mut p = BankParams::seed(covariance, likelihood);
+            if let Some(v) = b.process_variance_per_s {
+                for (j, x) in v.iter().enumerate() {
+                    positive(&format!("bank[{i}].process_variance_per_s[{j}]"), *x)?;
+                }
+                p.process_variance_per_s = v;
+            }
+            if let Some(v) = b.measurement_variance {
+                for (j, x) in v.iter().enumerate() {
+                    positive(&format!("bank[{i}].measurement_variance[{j}]"), *x)?;
+                }
+                p.measurement_variance = v;
+            }
+            if let Some(v) = b.surface_process_variance_rad2_per_s {
+                p.surface_process_variance_rad2_per_s = positive(&field("surface_process_variance_rad2_per_s"), v)?;
+            }
+            if let Some(rho) = b.rho {
+                if !(rho > 0.0 && rho <= 1.0) {
+                    return Err(bad(field("rho"), format!("must be within (0, 1], got {rho}")));
+                }
+                p.rho = rho;
+            }
+            if let Some(beta) = b.beta {
+                if !(beta.is_finite() && beta >= 1.0) {
+                    return Err(bad(field("beta"), format!("must be >= 1 (a weakening factor), got {beta}")));
+                }
+                p.beta = beta;
+            }
+            if let Some(a) = b.a {
+                if let Some(j) = a.iter().position(|a| !(a.is_finite() && *a >= 1.0)) {
+                    return Err(bad(
+                        format!("bank[{i}].a[{j}]"),
+                        format!("must be >= 1 (a prior weight), got {}", a[j]),
+                    ));
+                }
+                p.a = a;
+            }
+            if let Some(a) = b.a_surface {
+                if !(a.is_finite() && a >= 1.0) {
+                    return Err(bad(field("a_surface"), format!("must be >= 1 (a prior weight), got {a}")));
+                }
+                p.a_surface = a;
+            }
+            if let Some(h) = b.declare_hold_s {
+                if !(h.is_finite() && h >= 0.0) {
+                    return Err(bad(field("declare_hold_s"), format!("must be >= 0, got {h}")));
+                }
+                p.declare_hold_s = h;
+            }
+            banks.push((b.name.clone(), p));
+        }
+
+        let monte_carlo = monte_carlo(&Validator { file: path }, deck.monte_carlo.as_ref(), duration_s, &faults)?;
+
+        Ok(SurfaceStudy {
+            path: path.into(),
+            name: s.name.clone(),
+            seed: s.seed,
+            duration_s,
+            dt_s,
+            trim_airspeed_mps,
+            trim_altitude_m,
+            wind_ned_mps,
+            sensors,
+            setpoints,
+            faults,
+            banks,
+            monte_carlo,
+        })
+    }
+}
+
+/// Validates the `[monte_carlo]` section; without one, 1000 trials of the deck's scenario.
+fn monte_carlo(
+    v: &Validator,
+    mc: Option<&MonteCarloSection>,
+    duration_s: f64,
+    scenario: &[ActuatorFault],
+) -> Result<SurfaceMonteCarlo, DeckError> {
+    let Some(mc) = mc else {
+        return Ok(SurfaceMonteCarlo {
+            trials: 1000,
+            fault_free_fraction: 0.0,
+            sampler: Sampler::Random,
+            surfaces: (0..SURFACE_NAMES.len()).collect(),
+            onset_s: Factor::Fixed(0.0),
+            fault_duration_s: None,
+            noise_scale: Factor::Fixed(1.0),
+            faults: Vec::new(),
+            parameter_errors: Vec::new(),
+        });
+    };
+    let trials = v.trials("monte_carlo.trials", mc.trials)?;
+    let fault_free_fraction = v.fraction("monte_carlo.fault_free_fraction", mc.fault_free_fraction)?;
+    let sampler = v.sampler("monte_carlo.sampler", mc.sampler.as_deref())?;
+    let surfaces = match &mc.surfaces {
+        None => (0..SURFACE_NAMES.len()).collect(),
+        Some(names) if names.is_empty() => return Err(v.err("monte_carlo.surfaces", "name at least one surface")),
+        Some(names) => names
+            .iter()
+            .enumerate()
+            .map(|(k, n)| {
+                SURFACE_NAMES.iter().position(|s| s == n).ok_or_else(|| {
+                    v.err(format!("monte_carlo.surfaces[{k}]"), format!("{n:?}: allowed {}", SURFACE_NAMES.join(", ")))
+                })
+            })
+            .collect::<Result<Vec<_>, _>>()?,
+    };
+    let onset_s = v.factor("monte_carlo.onset_s", mc.onset_s.as_ref(), Factor::Fixed(duration_s / 3.0))?;
+    v.factor_within(
+        "monte_carlo.onset_s",
+        &onset_s,
+        |t| t >= 0.0 && t < duration_s,
+        &format!("0 <= onset_s < duration_s = {duration_s}"),
+    )?;
+    let fault_duration_s = match &mc.fault_duration_s {
+        None => None,
+        Some(spec) => {
+            let f = v.factor("monte_carlo.fault_duration_s", Some(spec), Factor::Fixed(0.0))?;
+            v.factor_within("monte_carlo.fault_duration_s", &f, |t| t > 0.0, "> 0 s")?;
+            Some(f)
+        }
+    };
+    let noise_scale = v.factor("monte_carlo.noise_scale", mc.noise_scale.as_ref(), Factor::Fixed(1.0))?;
+    v.factor_within("monte_carlo.noise_scale", &noise_scale, |x| x >= 0.0, ">= 0")?;
+
+    let mut faults = Vec::with_capacity(mc.fault.len());
+    for (i, f) in mc.fault.iter().enumerate() {
+        let field = |name: &str| format!("monte_carlo.fault[{i}].{name}");
+        let given = [
+            ("position_deg", f.position_deg.is_some()),
+            ("amplitude_deg", f.amplitude_deg.is_some()),
+            ("center_deg", f.center_deg.is_some()),
+            ("period_s", f.period_s.is_some()),
+            ("effectiveness", f.effectiveness.is_some()),
+        ];
+        let required = |name: &str, spec: Option<&FactorSpec>| match spec {
+            Some(spec) => v.factor(&field(name), Some(spec), Factor::Fixed(f64::NAN)),
+            None => Err(v.err(field(name), format!("required for kind {:?}", f.kind))),
+        };
+        let (spec, used): (_, &[&str]) = match f.kind.as_str() {
+            "stuck" => {
+                let position_deg = required("position_deg", f.position_deg.as_ref())?;
+                v.factor_within(
+                    &field("position_deg"),
+                    &position_deg,
+                    |x| x.abs() <= 25.0,
+                    "-25..25 deg (the actuator's travel)",
+                )?;
+                (SurfaceFaultSpec::Stuck { position_deg }, &["position_deg"])
+            }
+            "oscillation" => {
+                let amplitude_deg = required("amplitude_deg", f.amplitude_deg.as_ref())?;
+                v.factor_within(
+                    &field("amplitude_deg"),
+                    &amplitude_deg,
+                    |x| x > 0.0 && x <= 25.0,
+                    "0 < amplitude <= 25 deg",
+                )?;
+                let center_deg = v.finite(&field("center_deg"), f.center_deg.unwrap_or(0.0))?;
+                if center_deg.abs() > 25.0 {
+                    return Err(v.err(
+                        field("center_deg"),
+                        format!("allowed -25..25 deg (the actuator's travel), got {center_deg}"),
+                    ));
+                }
+                let period_s = v.positive(&field("period_s"), f.period_s.unwrap_or(DEFAULT_SQUARE_WAVE_PERIOD_S))?;
+                (
+                    SurfaceFaultSpec::Oscillation { amplitude_deg, center_deg, period_s },
+                    &["amplitude_deg", "center_deg", "period_s"],
+                )
+            }
+            "loss_of_effectiveness" => {
+                let effectiveness = required("effectiveness", f.effectiveness.as_ref())?;
+                v.factor_within(
+                    &field("effectiveness"),
+                    &effectiveness,
+                    |x| (0.0..1.0).contains(&x),
+                    "0 <= effectiveness < 1 (1 is no fault)",
+                )?;
+                (SurfaceFaultSpec::LossOfEffectiveness { effectiveness }, &["effectiveness"])
+            }
+            other => {
+                return Err(v.err(
+                    field("kind"),
+                    format!("{other:?}: allowed \"stuck\", \"oscillation\", \"loss_of_effectiveness\""),
+                ));
+            }
+        };
+        if let Some((name, _)) = given.iter().find(|(n, g)| *g && !used.contains(n)) {
+            return Err(
+                v.err(field(name), format!("does not apply to kind = {:?} (it takes {})", f.kind, used.join(", ")))
+            );
+        }
+        faults.push(spec);
+    }
+    if faults.is_empty() && scenario.is_empty() && fault_free_fraction < 1.0 {
+        return Err(v.err(
+            "monte_carlo.fault",
+            "faulty trials need a fault: add [[monte_carlo.fault]] or [[surface_fault]], or set fault_free_fraction = 1",
+        ));
+    }
+
+    let mut parameter_errors = Vec::with_capacity(mc.parameter_error.len());
+    for (i, pe) in mc.parameter_error.iter().enumerate() {
+        let field = |name: &str| format!("monte_carlo.parameter_error[{i}].{name}");
+        v.column_name(&field("name"), &pe.name, mc.parameter_error[..i].iter().map(|o| o.name.as_str()))?;
+        let model = v.model_target(&field("model"), &pe.model)?;
+        if pe.coefficients.is_empty() {
+            return Err(v.err(field("coefficients"), "name at least one coefficient"));
+        }
+        for (k, c) in pe.coefficients.iter().enumerate() {
+            if !SCALABLE_COEFFICIENTS.contains(&c.as_str()) {
+                return Err(v.err(
+                    field(&format!("coefficients[{k}]")),
+                    format!("{c:?}: allowed {}", SCALABLE_COEFFICIENTS.join(", ")),
+                ));
+            }
+        }
+        let relative = v.factor(&field("relative"), Some(&pe.relative), Factor::Fixed(0.0))?;
+        v.factor_within(&field("relative"), &relative, |x| x > -1.0 && x < 10.0, "-1 < relative < 10")?;
+        parameter_errors.push(CoefficientError {
+            name: pe.name.clone(),
+            model,
+            coefficients: pe.coefficients.clone(),
+            relative,
+        });
+    }
+
+    Ok(SurfaceMonteCarlo {
+        trials,
+        fault_free_fraction,
+        sampler,
+        surfaces,
+        onset_s,
+        fault_duration_s,
+        noise_scale,
+        faults,
+        parameter_errors,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn seed_deck() -> String {
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/studies/seed004_surfaces.toml")).unwrap()
+    }
+
+    #[test]
+    fn the_seed_deck_holds_the_seed_scenario_and_four_variants() {
+        let study = SurfaceStudy::from_toml(&seed_deck(), Path::new("seed004_surfaces.toml")).unwrap();
+        assert_eq!(study.duration_s, 300.0);
+        let expected = [
+            (0, 10.0, 40.0, ActuatorFaultKind::Stuck { position_rad: (-15f64).to_radians() }),
+            (
+                1,
+                70.0,
+                100.0,
+                ActuatorFaultKind::Oscillation {
+                    low_rad: (-15f64).to_radians(),
+                    high_rad: 15f64.to_radians(),
+                    period_s: 2.0,
+                },
+            ),
+            (4, 130.0, 160.0, ActuatorFaultKind::Stuck { position_rad: (-1f64).to_radians() }),
+            (2, 190.0, 220.0, ActuatorFaultKind::Stuck { position_rad: 10f64.to_radians() }),
+            (
+                3,
+                250.0,
+                280.0,
+                ActuatorFaultKind::Oscillation {
+                    low_rad: 2f64.to_radians(),
+                    high_rad: 6f64.to_radians(),
+                    period_s: 2.0,
+                },
+            ),
+        ];
+        assert_eq!(study.faults.len(), 5);
+        for (f, (surface, onset, end, kind)) in study.faults.iter().zip(expected) {
+            assert_eq!((f.surface, f.onset_s, f.end_s, f.kind), (surface, onset, Some(end), kind));
+        }
+        let variants: Vec<_> = study.banks.iter().map(|(n, p)| (n.as_str(), p.covariance, p.likelihood)).collect();
+        assert_eq!(
+            variants,
+            [
+                ("emmae", CovarianceForm::Ekf, LikelihoodForm::Gaussian),
+                ("ekf_fast", CovarianceForm::Ekf, LikelihoodForm::EuclideanNorm),
+                ("stmmae", CovarianceForm::StrongTracking, LikelihoodForm::EuclideanNorm),
+                ("improved_stmmae", CovarianceForm::SymmetricStrongTracking, LikelihoodForm::EuclideanNorm),
+            ]
+        );
+        assert_eq!(study.sensors.gyro_variance_rad2_s2, 0.0076);
+        assert_eq!(crate::engine::deck::deck_kind(&seed_deck()), crate::engine::deck::StudyKind::SurfaceBank);
+    }
+
+    #[test]
+    fn bad_decks_name_the_field_and_what_is_allowed() {
+        let cases: &[(&str, &str, &str)] = &[
+            ("model = \"aerosonde\"", "model = \"cessna\"", "airframe.model: must be \"aerosonde\""),
+            ("surface = \"rudder\"", "surface = \"flap\"", "surface_fault[2].surface: must be one of aileron_left"),
+            (
+                "position_deg = -15.0",
+                "position_deg = -40.0",
+                "surface_fault[0].position_deg: must be within -25..25 deg",
+            ),
+            (
+                "position_deg = -15.0",
+                "position_deg = -15.0\nperiod_s = 3.0",
+                "surface_fault[0].period_s: does not apply to kind = \"stuck\"",
+            ),
+            ("onset_s = 70.0", "onset_s = 30.0", "faults must not overlap"),
+            (
+                "likelihood = \"gaussian\"",
+                "likelihood = \"laplace\"",
+                "bank[0].likelihood: must be \"gaussian\" or \"euclidean_norm\"",
+            ),
+            ("covariance = \"ekf\"", "covariance = \"ukf\"", "bank[0].covariance: must be \"ekf\""),
+            ("duration_s = 300.0", "duration_s = nan", "study.duration_s: must be a positive number"),
+            ("trim_airspeed_mps = 25.0", "trim_airspeed_mps = 25.0\nflaps = 1", "unknown field `flaps`"),
+        ];
+        let mc =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/studies/seed004_monte_carlo.toml")).unwrap();
+        let mc_cases: &[(&str, &str, &str)] = &[
+            ("trials = 1200", "trials = 0", "monte_carlo.trials: allowed 1 to"),
+            ("sampler = \"lhs\"", "sampler = \"grid\"", "monte_carlo.sampler: \"grid\": allowed \"random\""),
+            (
+                "fault_free_fraction = 0.1",
+                "fault_free_fraction = 1.5",
+                "monte_carlo.fault_free_fraction: allowed 0 to 1",
+            ),
+            (
+                "onset_s = { range = [5.0, 15.0] }",
+                "onset_s = { range = [5.0, 45.0] }",
+                "monte_carlo.onset_s: 45 is out of range; allowed 0 <= onset_s < duration_s = 40",
+            ),
+            ("fault_duration_s = 15.0", "fault_duration_s = 0.0", "monte_carlo.fault_duration_s: 0 is out of range"),
+            (
+                "noise_scale = { values = [1.0, 2.0] }",
+                "noise_scale = { values = [1.0, -2.0] }",
+                "monte_carlo.noise_scale: -2 is out of range; allowed >= 0",
+            ),
+            (
+                "position_deg = { range = [-20.0, 20.0], bins = 4 }",
+                "position_deg = { range = [-30.0, 20.0], bins = 4 }",
+                "monte_carlo.fault[0].position_deg: -30 is out of range; allowed -25..25 deg",
+            ),
+            (
+                "position_deg = { range = [-20.0, 20.0], bins = 4 }",
+                "amplitude_deg = 3.0",
+                "monte_carlo.fault[0].position_deg: required for kind \"stuck\"",
+            ),
+            (
+                "amplitude_deg = { range = [2.0, 15.0], bins = 3 }",
+                "amplitude_deg = { range = [2.0, 15.0], bins = 3 }\neffectiveness = 0.5",
+                "monte_carlo.fault[1].effectiveness: does not apply to kind = \"oscillation\"",
+            ),
+            ("kind = \"oscillation\"", "kind = \"jammed\"", "monte_carlo.fault[1].kind: \"jammed\": allowed"),
+            ("model = \"design\"", "model = \"truth\"", "parameter_error[0].model: \"truth\": allowed \"plant\""),
+            (
+                "\"C_m_delta_e\"",
+                "\"C_m_elevator\"",
+                "parameter_error[0].coefficients[1]: \"C_m_elevator\": allowed C_L_0",
+            ),
+            (
+                "relative = { values = [-0.2, 0.0, 0.2] }",
+                "relative = { values = [-1.2, 0.0, 0.2] }",
+                "parameter_error[0].relative: -1.2 is out of range; allowed -1 < relative < 10",
+            ),
+            ("name = \"control_derivatives\"", "name = \"control derivatives\"", "it names a column"),
+            ("sampler = \"lhs\"", "sampler = \"lhs\"\nseed = 3", "unknown field `seed`"),
+        ];
+        for (from, to, want) in mc_cases {
+            assert!(mc.contains(from), "{from}");
+            let broken = mc.replacen(from, to, 1);
+            let err = SurfaceStudy::from_toml(&broken, Path::new("mc.toml")).unwrap_err().to_string();
+            assert!(err.starts_with("mc.toml: ") && err.contains(want), "{to}: {err}");
+        }
+        for (from, to, want) in cases {
+            let text = seed_deck();
+            assert!(text.contains(from), "{from}");
+            let broken = text.replacen(from, to, 1);
+            let err = SurfaceStudy::from_toml(&broken, Path::new("x.toml")).unwrap_err().to_string();
+            assert!(err.starts_with("x.toml: ") && err.contains(want), "{to}: {err}");
+        }
+    }
+}

@@ -1,0 +1,119 @@
+//! Trial scenarios of launch-vehicle studies (method 001): which engine loses how much thrust from when,
+//! with what sensor noise and gusts. The scheme of [`crate::sampling::scenario`]: a function of (deck, seed, trial
+//! index) only; listed factors form a grid cycled over the trial index (engine fastest, then loss,
+//! onset, noise, gust scale); ranges are drawn by the deck's sampler; whether a trial is fault-free is
+//! the first draw of its scenario stream.
+
+use crate::engine::scenario::{GridDigits, UnitSampler, draw};
+use crate::methods::thrust_loss::study::LaunchStudy;
+use crate::methods::thrust_loss::vehicle::{Gust, LaunchVehicleConfig, ThrustFault};
+
+const DIM_ONSET: usize = 0;
+const DIM_SIZE: usize = 1;
+const DIM_NOISE: usize = 2;
+const DIM_GUST: usize = 3;
+const DIMS: usize = 4;
+
+/// One trial's scenario.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaunchTrialSpec {
+    pub trial: u64,
+    /// `None`: fault-free.
+    pub fault: Option<ThrustFault>,
+    /// The loss (%) and its group label; NaN when fault-free.
+    pub loss_percent: f64,
+    pub loss_bin: f64,
+    pub noise_scale: f64,
+    pub noise_bin: f64,
+    pub gust_scale: f64,
+    pub gust_bin: f64,
+}
+
+/// Draws the trial scenarios of one launch study.
+pub struct LaunchScenarioSampler<'a> {
+    study: &'a LaunchStudy,
+    units: UnitSampler,
+}
+
+impl<'a> LaunchScenarioSampler<'a> {
+    pub fn new(study: &'a LaunchStudy) -> Self {
+        let mc = &study.monte_carlo;
+        LaunchScenarioSampler { study, units: UnitSampler::new(mc.sampler, mc.trials, study.seed, DIMS) }
+    }
+
+    /// The scenario of trial `trial`.
+    pub fn spec(&self, trial: u64) -> LaunchTrialSpec {
+        let s = self.study;
+        let mc = &s.monte_carlo;
+        let (fault_free, units) = self.units.draws(trial, mc.fault_free_fraction, DIMS);
+        let mut grid = GridDigits::new(trial);
+        let mut digit = |n: usize| grid.next(n);
+        let sampled = mc.loss_percent.as_ref().map(|f| {
+            let engine = mc.engines[digit(mc.engines.len())];
+            let (loss, bin) = draw(f, units[DIM_SIZE], &mut digit);
+            (engine, loss, bin)
+        });
+        let (onset_s, _) = draw(&mc.onset_s, units[DIM_ONSET], &mut digit);
+        let (noise_scale, noise_bin) = draw(&mc.noise_scale, units[DIM_NOISE], &mut digit);
+        let (gust_scale, gust_bin) = draw(&mc.gust_scale, units[DIM_GUST], &mut digit);
+        let (fault, loss_percent, loss_bin) = match (fault_free, sampled, s.fault) {
+            (true, _, _) => (None, f64::NAN, f64::NAN),
+            (false, Some((engine, loss, bin)), _) => {
+                (Some(ThrustFault { engine, loss_fraction: loss / 100.0, onset_s }), loss, bin)
+            }
+            (false, None, Some(f)) => (
+                Some(ThrustFault { engine: f.engine, loss_fraction: f.loss_percent / 100.0, onset_s: f.onset_s }),
+                f.loss_percent,
+                f.loss_percent,
+            ),
+            (false, None, None) => (None, f64::NAN, f64::NAN),
+        };
+        LaunchTrialSpec { trial, fault, loss_percent, loss_bin, noise_scale, noise_bin, gust_scale, gust_bin }
+    }
+
+    /// What the trial's truth flies: the study's vehicle with the trial's noise and gusts.
+    pub fn config(&self, spec: &LaunchTrialSpec) -> LaunchVehicleConfig {
+        let s = self.study;
+        LaunchVehicleConfig {
+            noise: s.config.noise.scaled(spec.noise_scale),
+            gusts: s.gusts.iter().map(|g| Gust { amplitude_mps: g.amplitude_mps * spec.gust_scale, ..*g }).collect(),
+            ..s.config.clone()
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    /// The bundled deck: engines (4) fastest, then the gust scale (2 values); losses in 10-60 % with the
+    /// onsets a Latin hypercube over 15-75 s; gusts scaled per trial, the vehicle's noise untouched.
+    #[test]
+    fn engines_and_gusts_cycle_and_losses_stay_in_range() {
+        let study =
+            LaunchStudy::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed001_thrust.toml")).unwrap();
+        let sampler = LaunchScenarioSampler::new(&study);
+        let mut fault_free = 0;
+        let mut strata = vec![0u32; 2000];
+        for i in 0..2000u64 {
+            let spec = sampler.spec(i);
+            assert_eq!(spec.gust_scale, [0.0, 1.0][(i / 4 % 2) as usize], "trial {i}");
+            let config = sampler.config(&spec);
+            assert_eq!(config.gusts.len(), 2);
+            assert_eq!(config.gusts[0].amplitude_mps, 15.0 * spec.gust_scale);
+            assert_eq!(config.noise, study.config.noise);
+            let Some(f) = spec.fault else {
+                fault_free += 1;
+                continue;
+            };
+            assert_eq!(f.engine, (i % 4) as usize, "trial {i}");
+            assert!((10.0..60.0).contains(&spec.loss_percent) && f.loss_fraction == spec.loss_percent / 100.0);
+            assert!((15.0..75.0).contains(&f.onset_s));
+            strata[((f.onset_s - 15.0) / 60.0 * 2000.0) as usize] += 1;
+        }
+        // 20 % fault-free: 400 expected, binomial sd 17.9.
+        assert!((330..470).contains(&fault_free), "{fault_free}");
+        assert!(strata.iter().all(|&c| c <= 1), "one onset per stratum of the hypercube");
+    }
+}

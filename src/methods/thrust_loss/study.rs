@@ -1,0 +1,458 @@
+//! Launch-vehicle thrust-loss decks (method 001): parse a TOML deck with a `[vehicle]` section, then
+//! validate it into a [`LaunchStudy`] that cannot be invalid. Every rejection names the file, the field
+//! and what is allowed.
+//!
+//! ```toml
+//! [study]            name, seed, duration_s, dt_s (0.01 s: the seed's D)
+//! [vehicle]          model = "medium_launcher" (src/plant/launch_vehicle.rs)
+//! [[gust]]           axis = "down_range" | "cross_range", amplitude_mps, start_s, duration_s: 1 - cosine
+//!                    gusts in the truth (the filter knows no wind): residual jumps with no engine at fault
+//! [[detector]]       name, kind = "ekf_mhe", optional: window_n (N), interval_samples (D), fault_intensity
+//!                    (F, R = F^2), window_variance (v, V = v I), threshold_fhat, loss_fit_onsets_s,
+//!                    loss_fit_losses_percent, loss_fit_horizon_s
+//! [[faults]]         one thrust loss for every faulty trial: engine (1-4), loss_percent, onset_s
+//! [monte_carlo]      trials, fault_free_fraction, sampler, target_pfa, engines (default 1-4),
+//!                    detection_window_s (default 2 s), and the factors loss_percent, onset_s, noise_scale
+//!                    (on every sensor sigma), gust_scale (on every gust's amplitude)
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use crate::engine::deck::{DeckError, Factor, Sampler, Validator, parse_deck, read_deck};
+use crate::engine::deck::{FactorSpec, StudySection};
+use crate::methods::thrust_loss::ekf_mhe::{DetectorParams, EkfParams, MheParams};
+use crate::methods::thrust_loss::vehicle::{ENGINES, Gust, GustAxis, LaunchVehicleConfig};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LaunchDeck {
+    study: StudySection,
+    vehicle: VehicleSection,
+    #[serde(default)]
+    gust: Vec<GustSection>,
+    detector: Vec<DetectorSection>,
+    #[serde(default)]
+    faults: Vec<FaultSection>,
+    monte_carlo: Option<MonteCarloSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct VehicleSection {
+    model: String,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GustSection {
+    axis: String,
+    amplitude_mps: f64,
+    start_s: f64,
+    duration_s: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DetectorSection {
+    name: String,
+    kind: String,
+    window_n: Option<usize>,
+    interval_samples: Option<usize>,
+    fault_intensity: Option<f64>,
+    window_variance: Option<f64>,
+    threshold_fhat: Option<f64>,
+    loss_fit_onsets_s: Option<Vec<f64>>,
+    loss_fit_losses_percent: Option<Vec<f64>>,
+    loss_fit_horizon_s: Option<f64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FaultSection {
+    engine: usize,
+    loss_percent: f64,
+    onset_s: f64,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MonteCarloSection {
+    trials: u64,
+    #[serde(default)]
+    fault_free_fraction: f64,
+    sampler: Option<String>,
+    target_pfa: Option<f64>,
+    engines: Option<Vec<usize>>,
+    loss_percent: Option<FactorSpec>,
+    onset_s: Option<FactorSpec>,
+    noise_scale: Option<FactorSpec>,
+    gust_scale: Option<FactorSpec>,
+    detection_window_s: Option<f64>,
+}
+
+/// The loss-percentage table of a detector: linear fits of the loss against the peak `|fhat|` at each
+/// of `onsets_s` (the seed's table over onset time and loss), from noise-free flights with
+/// `losses_percent`, the peak taken over `horizon_s`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LossTableSpec {
+    pub onsets_s: Vec<f64>,
+    pub losses_percent: Vec<f64>,
+    pub horizon_s: f64,
+}
+
+/// One detector configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaunchDetector {
+    pub name: String,
+    pub params: DetectorParams,
+    pub loss_table: LossTableSpec,
+}
+
+/// A thrust loss of the fixed scenario.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaunchFault {
+    /// Engine index 0..4 (the seed's engine `index + 1`).
+    pub engine: usize,
+    pub loss_percent: f64,
+    pub onset_s: f64,
+}
+
+/// The Monte Carlo section.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaunchMonteCarlo {
+    pub trials: u64,
+    pub fault_free_fraction: f64,
+    pub sampler: Sampler,
+    /// False-alarm probability the summary's calibrated thresholds are set to.
+    pub target_pfa: f64,
+    /// Engines a sampled loss may hit (indices).
+    pub engines: Vec<usize>,
+    /// `None`: every faulty trial flies the deck's `[[faults]]`.
+    pub loss_percent: Option<Factor>,
+    pub onset_s: Factor,
+    pub noise_scale: Factor,
+    pub gust_scale: Factor,
+    /// An alarm is the loss's detection only this long after the onset (s): a 10 % loss takes up to
+    /// about 1.5 s to alarm, and an alarm seconds later says more of a gust or the noise than of the loss.
+    pub detection_window_s: f64,
+}
+
+/// A validated launch study.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaunchStudy {
+    pub path: PathBuf,
+    pub name: String,
+    pub seed: u64,
+    pub duration_s: f64,
+    /// The vehicle flown and designed on (no gusts, noise x1; trials add their own).
+    pub config: LaunchVehicleConfig,
+    pub gusts: Vec<Gust>,
+    pub detectors: Vec<LaunchDetector>,
+    pub fault: Option<LaunchFault>,
+    pub monte_carlo: LaunchMonteCarlo,
+}
+
+impl LaunchStudy {
+    pub fn load(path: &Path) -> Result<LaunchStudy, DeckError> {
+        let text = read_deck(path)?;
+        Self::from_toml(&text, path)
+    }
+
+    pub fn from_toml(text: &str, path: &Path) -> Result<LaunchStudy, DeckError> {
+        let deck: LaunchDeck = parse_deck(text, path)?;
+        let v = Validator { file: path };
+        let (duration_s, dt_s, _) = v.study_section(&deck.study)?;
+        if !(0.001..=0.05).contains(&dt_s) {
+            return Err(v.err("study.dt_s", format!("allowed 0.001 to 0.05 s (the seed's D is 0.01), got {dt_s}")));
+        }
+        if deck.vehicle.model != "medium_launcher" {
+            return Err(v.err(
+                "vehicle.model",
+                format!("{:?}: allowed \"medium_launcher\" (src/plant/launch_vehicle.rs)", deck.vehicle.model),
+            ));
+        }
+        let config = LaunchVehicleConfig { dt_s, ..LaunchVehicleConfig::default() };
+        // First-stage burnout ends a flight: a study past it would fail every trial.
+        let burnout_s = config.params.liftoff_mass_kg - config.params.burnout_mass_kg();
+        let burnout_s = burnout_s / (ENGINES as f64 * config.params.engine_flow_kg_s());
+        if duration_s >= burnout_s {
+            return Err(v.err(
+                "study.duration_s",
+                format!("{duration_s} s: the first stage burns out at {burnout_s:.1} s; allowed less"),
+            ));
+        }
+
+        let mut gusts = Vec::with_capacity(deck.gust.len());
+        for (i, g) in deck.gust.iter().enumerate() {
+            let field = |f: &str| format!("gust[{i}].{f}");
+            let axis = match g.axis.as_str() {
+                "down_range" => GustAxis::DownRange,
+                "cross_range" => GustAxis::CrossRange,
+                other => {
+                    return Err(v.err(field("axis"), format!("{other:?}: allowed \"down_range\" or \"cross_range\"")));
+                }
+            };
+            let amplitude_mps = v.finite(&field("amplitude_mps"), g.amplitude_mps)?;
+            let start_s = v.finite(&field("start_s"), g.start_s)?;
+            if !(0.0..duration_s).contains(&start_s) {
+                return Err(v.err(field("start_s"), format!("allowed 0 <= start_s < duration_s = {duration_s}")));
+            }
+            let duration = v.positive(&field("duration_s"), g.duration_s)?;
+            gusts.push(Gust { axis, amplitude_mps, start_s, duration_s: duration });
+        }
+
+        if deck.detector.is_empty() {
+            return Err(v.err("detector", "at least one [[detector]] is required"));
+        }
+        let mut detectors: Vec<LaunchDetector> = Vec::new();
+        for (i, d) in deck.detector.iter().enumerate() {
+            let field = |f: &str| format!("detector[{i}].{f}");
+            if d.name.is_empty() || detectors.iter().any(|o| o.name == d.name) {
+                return Err(v.err(field("name"), format!("must be non-empty and unique, got {:?}", d.name)));
+            }
+            if d.kind != "ekf_mhe" {
+                return Err(v.err(field("kind"), format!("{:?}: allowed \"ekf_mhe\" (method 001)", d.kind)));
+            }
+            let mut mhe = MheParams::seed();
+            if let Some(n) = d.window_n {
+                mhe.window_n = n;
+            }
+            if let Some(n) = d.interval_samples {
+                mhe.interval_samples = n;
+            }
+            if let Some(f) = d.fault_intensity {
+                mhe.fault_intensity = f;
+            }
+            if let Some(w) = d.window_variance {
+                mhe.window_variance = w;
+            }
+            let mut params = DetectorParams { mhe, ekf: EkfParams::for_noise(&config.noise), ..DetectorParams::seed() };
+            if let Some(t) = d.threshold_fhat {
+                params.threshold_fhat = t;
+            }
+            // The detector checks its own numbers at design; checking here names the deck's field.
+            for (name, ok, value, allowed) in [
+                ("window_n", mhe.window_n >= 1, mhe.window_n as f64, ">= 1"),
+                ("interval_samples", mhe.interval_samples >= 1, mhe.interval_samples as f64, ">= 1"),
+                (
+                    "fault_intensity",
+                    mhe.fault_intensity.is_finite() && mhe.fault_intensity > 0.0,
+                    mhe.fault_intensity,
+                    "> 0",
+                ),
+                (
+                    "window_variance",
+                    mhe.window_variance.is_finite() && mhe.window_variance > 0.0,
+                    mhe.window_variance,
+                    "> 0",
+                ),
+                (
+                    "threshold_fhat",
+                    params.threshold_fhat.is_finite() && params.threshold_fhat > 0.0,
+                    params.threshold_fhat,
+                    "> 0",
+                ),
+            ] {
+                if !ok {
+                    return Err(v.err(field(name), format!("{value}: allowed {allowed}")));
+                }
+            }
+            let onsets_s = d.loss_fit_onsets_s.clone().unwrap_or_else(|| vec![10.0, 30.0, 50.0, 70.0, 90.0, 110.0]);
+            if onsets_s.is_empty() || onsets_s.windows(2).any(|w| !(w[0] < w[1])) {
+                return Err(v.err(field("loss_fit_onsets_s"), "list increasing onsets (s), at least one"));
+            }
+            if let Some(t) = onsets_s.iter().find(|t| !(t.is_finite() && **t > 0.0 && **t < burnout_s - 5.0)) {
+                return Err(
+                    v.err(field("loss_fit_onsets_s"), format!("{t}: allowed 0 < onset < {:.0} s", burnout_s - 5.0))
+                );
+            }
+            let losses_percent = d.loss_fit_losses_percent.clone().unwrap_or_else(|| vec![10.0, 30.0, 50.0]);
+            if losses_percent.len() < 2 || losses_percent.iter().any(|l| !(*l > 0.0 && *l <= 100.0)) {
+                return Err(v.err(field("loss_fit_losses_percent"), "list at least two losses in (0, 100] %"));
+            }
+            let horizon_s = v.positive(&field("loss_fit_horizon_s"), d.loss_fit_horizon_s.unwrap_or(3.0))?;
+            detectors.push(LaunchDetector {
+                name: d.name.clone(),
+                params,
+                loss_table: LossTableSpec { onsets_s, losses_percent, horizon_s },
+            });
+        }
+
+        if deck.faults.len() > 1 {
+            return Err(v.err("faults", "one thrust loss per trial (the plant models one faulty engine)"));
+        }
+        let fault = match deck.faults.first() {
+            None => None,
+            Some(f) => Some(LaunchFault {
+                engine: engine_index(&v, "faults[0].engine", f.engine)?,
+                loss_percent: loss(&v, "faults[0].loss_percent", f.loss_percent)?,
+                onset_s: onset(&v, "faults[0].onset_s", f.onset_s, duration_s)?,
+            }),
+        };
+
+        let monte_carlo = match &deck.monte_carlo {
+            None => LaunchMonteCarlo {
+                trials: 1000,
+                fault_free_fraction: 0.0,
+                sampler: Sampler::Random,
+                target_pfa: 0.01,
+                engines: (0..ENGINES).collect(),
+                loss_percent: None,
+                onset_s: Factor::Fixed(duration_s / 3.0),
+                noise_scale: Factor::Fixed(1.0),
+                gust_scale: Factor::Fixed(1.0),
+                detection_window_s: 2.0,
+            },
+            Some(mc) => {
+                let trials = v.trials("monte_carlo.trials", mc.trials)?;
+                let fault_free_fraction = v.fraction("monte_carlo.fault_free_fraction", mc.fault_free_fraction)?;
+                let sampler = v.sampler("monte_carlo.sampler", mc.sampler.as_deref())?;
+                let target_pfa = mc.target_pfa.unwrap_or(0.01);
+                if !(target_pfa > 0.0 && target_pfa < 1.0) {
+                    return Err(v.err("monte_carlo.target_pfa", format!("allowed 0 < p < 1, got {target_pfa}")));
+                }
+                let engines = match &mc.engines {
+                    None => (0..ENGINES).collect(),
+                    Some(list) if list.is_empty() => return Err(v.err("monte_carlo.engines", "name at least one")),
+                    Some(list) => list
+                        .iter()
+                        .enumerate()
+                        .map(|(k, e)| engine_index(&v, &format!("monte_carlo.engines[{k}]"), *e))
+                        .collect::<Result<Vec<_>, _>>()?,
+                };
+                let loss_percent = match &mc.loss_percent {
+                    None => None,
+                    Some(spec) => {
+                        let f = v.factor("monte_carlo.loss_percent", Some(spec), Factor::Fixed(0.0))?;
+                        v.factor_within(
+                            "monte_carlo.loss_percent",
+                            &f,
+                            |x| x > 0.0 && x <= 100.0,
+                            "0 < loss <= 100 %",
+                        )?;
+                        Some(f)
+                    }
+                };
+                if loss_percent.is_none() && fault.is_none() && fault_free_fraction < 1.0 {
+                    return Err(v.err(
+                        "monte_carlo.loss_percent",
+                        "faulty trials need a loss: give loss_percent, or [[faults]], or fault_free_fraction = 1",
+                    ));
+                }
+                let onset_s = v.factor("monte_carlo.onset_s", mc.onset_s.as_ref(), Factor::Fixed(duration_s / 3.0))?;
+                v.factor_within(
+                    "monte_carlo.onset_s",
+                    &onset_s,
+                    |t| t > 0.0 && t < duration_s,
+                    &format!("0 < onset_s < duration_s = {duration_s}"),
+                )?;
+                let noise_scale = v.factor("monte_carlo.noise_scale", mc.noise_scale.as_ref(), Factor::Fixed(1.0))?;
+                v.factor_within("monte_carlo.noise_scale", &noise_scale, |x| x >= 0.0, ">= 0")?;
+                let gust_scale = v.factor("monte_carlo.gust_scale", mc.gust_scale.as_ref(), Factor::Fixed(1.0))?;
+                v.factor_within("monte_carlo.gust_scale", &gust_scale, |x| x.is_finite(), "a finite factor")?;
+                let detection_window_s =
+                    v.positive("monte_carlo.detection_window_s", mc.detection_window_s.unwrap_or(2.0))?;
+                LaunchMonteCarlo {
+                    detection_window_s,
+                    trials,
+                    fault_free_fraction,
+                    sampler,
+                    target_pfa,
+                    engines,
+                    loss_percent,
+                    onset_s,
+                    noise_scale,
+                    gust_scale,
+                }
+            }
+        };
+
+        Ok(LaunchStudy {
+            path: path.into(),
+            name: deck.study.name.clone(),
+            seed: deck.study.seed,
+            duration_s,
+            config,
+            gusts,
+            detectors,
+            fault,
+            monte_carlo,
+        })
+    }
+}
+
+/// The seed numbers engines 1 to 4; the code indexes them from 0.
+fn engine_index(v: &Validator, field: &str, engine: usize) -> Result<usize, DeckError> {
+    if (1..=ENGINES).contains(&engine) {
+        Ok(engine - 1)
+    } else {
+        Err(v.err(field, format!("{engine}: allowed 1, 2, 3 or 4 (the seed's quadrant numbering)")))
+    }
+}
+
+fn loss(v: &Validator, field: &str, percent: f64) -> Result<f64, DeckError> {
+    if percent.is_finite() && percent > 0.0 && percent <= 100.0 {
+        Ok(percent)
+    } else {
+        Err(v.err(field, format!("{percent}: allowed 0 < loss <= 100 %")))
+    }
+}
+
+fn onset(v: &Validator, field: &str, t: f64, duration_s: f64) -> Result<f64, DeckError> {
+    if t.is_finite() && t > 0.0 && t < duration_s {
+        Ok(t)
+    } else {
+        Err(v.err(field, format!("{t}: allowed 0 < onset_s < duration_s = {duration_s}")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn deck() -> String {
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/studies/seed001_thrust.toml")).unwrap()
+    }
+
+    #[test]
+    fn the_seed_deck_reads_as_documented() {
+        let study = LaunchStudy::from_toml(&deck(), Path::new("seed001_thrust.toml")).unwrap();
+        assert_eq!(study.detectors.len(), 1);
+        assert_eq!(study.detectors[0].params.mhe, MheParams::seed());
+        assert_eq!(study.gusts.len(), 2);
+        assert_eq!(study.monte_carlo.engines, [0, 1, 2, 3]);
+        assert_eq!(crate::engine::deck::deck_kind(&deck()), crate::engine::deck::StudyKind::ThrustLoss);
+    }
+
+    #[test]
+    fn bad_decks_name_the_field_and_what_is_allowed() {
+        let cases: &[(&str, &str, &str)] = &[
+            ("model = \"medium_launcher\"", "model = \"saturn_v\"", "vehicle.model: \"saturn_v\": allowed"),
+            (
+                "duration_s = 90.0",
+                "duration_s = 150.0",
+                "study.duration_s: 150 s: the first stage burns out at 140.7 s",
+            ),
+            ("axis = \"down_range\"", "axis = \"up\"", "gust[0].axis: \"up\": allowed"),
+            ("kind = \"ekf_mhe\"", "kind = \"ukf\"", "detector[0].kind: \"ukf\": allowed \"ekf_mhe\""),
+            ("window_n = 5", "window_n = 0", "detector[0].window_n: 0: allowed >= 1"),
+            ("fault_intensity = 20.0", "fault_intensity = -1.0", "detector[0].fault_intensity: -1: allowed > 0"),
+            ("engines = [1, 2, 3, 4]", "engines = [1, 5]", "monte_carlo.engines[1]: 5: allowed 1, 2, 3 or 4"),
+            (
+                "loss_percent = { range = [10.0, 60.0], bins = 5 }",
+                "loss_percent = { range = [10.0, 160.0] }",
+                "monte_carlo.loss_percent: 160 is out of range",
+            ),
+            ("trials = 2000", "trials = 2000\nengine_out = true", "unknown field `engine_out`"),
+        ];
+        for (from, to, want) in cases {
+            let text = deck();
+            assert!(text.contains(from), "{from}");
+            let broken = text.replacen(from, to, 1);
+            let err = LaunchStudy::from_toml(&broken, Path::new("x.toml")).unwrap_err().to_string();
+            assert!(err.starts_with("x.toml: ") && err.contains(want), "{to}: {err}");
+        }
+    }
+}
