@@ -20,7 +20,7 @@ use rand::{RngExt, SeedableRng, rngs::Xoshiro256PlusPlus};
 use rand_distr::StandardNormal;
 
 use fdimc::methods::detection_filter::kernel::LANES;
-use fdimc::methods::detection_filter::study::Study;
+use fdimc::methods::detection_filter::study::LtiStudy;
 use fdimc::methods::detection_filter::trials::Engine;
 
 const ROUNDS: usize = 480 / LANES;
@@ -29,7 +29,7 @@ const TRIALS_PER_TURN: u64 = LANES as u64;
 
 fn main() {
     let study =
-        Study::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/bench_seed000.toml")).expect("bench deck");
+        LtiStudy::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/bench_seed000.toml")).expect("bench deck");
     let engine = Engine::new(&study);
     let plain = PlainLoop::new(&study, &engine);
 
@@ -81,7 +81,7 @@ struct PlainLoop {
 }
 
 impl PlainLoop {
-    fn new(study: &Study, engine: &Engine) -> Self {
+    fn new(study: &LtiStudy, engine: &Engine) -> Self {
         let truth = study.plant.discretise(study.dt_s);
         let filter = engine.nominal_filters()[0].as_ref().expect("bench design");
         PlainLoop {
@@ -97,7 +97,7 @@ impl PlainLoop {
     }
 
     /// Largest |residual| of one trial.
-    fn run(&self, study: &Study, trial: u64) -> f64 {
+    fn run(&self, study: &LtiStudy, trial: u64) -> f64 {
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(trial);
         let (mut x, mut xhat) = (SVector::<f64, 5>::zeros(), SVector::<f64, 5>::zeros());
         let mut peak = 0.0f64;

@@ -88,6 +88,18 @@ fn simulate_writes_a_trace_in_csv_and_parquet() {
 const BAD_DECKS: &[(&str, &str, &str, &str)] = &[
     ("unknown field", "seed = 20101001", "seed = 20101001\nseeed = 3", "unknown field `seeed`"),
     (
+        "no kind's table",
+        "[plant]",
+        "[plantt]",
+        "(top level): no kind of study matches: a deck has one of the tables [plant] (detection_filter: ",
+    ),
+    (
+        "two kinds' tables",
+        "[plant]",
+        "[imu]\nx = 1\n[plant]",
+        "the tables [plant], [imu] mark different kinds of study",
+    ),
+    (
         "matrix row too short",
         "[0.0,    -7.9101, -3.0241, 0.0,    0.0]",
         "[0.0, -7.9101, -3.0241, 0.0]",
@@ -250,6 +262,20 @@ fn bad_arguments_exit_2() {
 
     let out = fdimc(&["simulate", DECK]);
     assert_eq!(out.status.code(), Some(2), "clap: --out is required");
+
+    // An option the deck's kind does not take is refused by name, before anything runs.
+    let out = fdimc(&["run", DECK, "--classifiers", "x.json", "--out", dir.path().join("r").to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = text(&out.stderr);
+    assert!(
+        stderr.contains(
+            "--classifiers / fdimc train applies to accelerometer studies, not to this detection_filter study"
+        ),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("r").exists());
+    let out = fdimc(&["train", DECK]);
+    assert_eq!(out.status.code(), Some(2));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -308,7 +334,9 @@ fn a_surface_deck_validates_simulates_and_design_refuses_it_by_name() {
     assert_eq!(df.width(), 1 + 10 + 2 + 10 + 4 * (6 + 5) + 4 * 5);
     let out = fdimc(&["design", deck]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(text(&out.stderr).contains("studies/seed004_surfaces.toml: airframe: this is a control-surface deck"));
+    assert!(
+        text(&out.stderr).contains("fdimc design applies to detection_filter studies, not to this surface_bank study")
+    );
 }
 
 /// The bundled surface Monte Carlo deck cut to 8 s flights and 130 trials (part files of 64: 64 + 64 + 2).
@@ -405,7 +433,11 @@ fn surface_records_are_identical_for_any_threads_shards_and_resume() {
     assert!(check.contains(": 0 regression(s)"), "{check}");
     let out = fdimc(&["report", &s(dir("one"))]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(text(&out.stderr).contains("a control-surface study"), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("fdimc report applies to detection_filter studies, not to this surface_bank study"),
+        "{}",
+        text(&out.stderr)
+    );
     let out = fdimc(&["summarize", &s(dir("one")), "--target-pfa", "0.01"]);
     assert_eq!(out.status.code(), Some(2));
 }
@@ -550,7 +582,11 @@ fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
     assert!(check.contains(": 0 regression(s)"), "{check}");
     let out = fdimc(&["report", &s(one)]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(text(&out.stderr).contains("an air-data study"), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("fdimc report applies to detection_filter studies, not to this air_data study"),
+        "{}",
+        text(&out.stderr)
+    );
 }
 
 #[test]
@@ -602,7 +638,11 @@ fn launch_records_are_identical_for_any_threads_shards_and_resume() {
 
     let out = fdimc(&["report", &s(one.clone())]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(text(&out.stderr).contains("a launch-vehicle study"), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("fdimc report applies to detection_filter studies, not to this thrust_loss study"),
+        "{}",
+        text(&out.stderr)
+    );
     // Thresholds recalibrated at another false-alarm probability: a fifth of the flights may alarm.
     ok(&fdimc(&["summarize", &s(one.clone()), "--target-pfa", "0.2"]));
     let thresholds = csv_frame(&one.join("thresholds.csv"));
@@ -677,7 +717,11 @@ fn accelerometer_classifiers_train_save_load_and_runs_are_identical() {
     assert!(!tmp.path().join("x").exists(), "nothing written for a refused run");
     let out = fdimc(&["report", &s(one)]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(text(&out.stderr).contains("an accelerometer study"), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("fdimc report applies to detection_filter studies, not to this accelerometer study"),
+        "{}",
+        text(&out.stderr)
+    );
 }
 
 #[test]

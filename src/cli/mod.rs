@@ -8,14 +8,10 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use crate::design::DesignError;
 use crate::engine::deck::DeckError;
 use crate::engine::output::OutputError;
 
-mod design;
 mod run;
-mod simulate;
-mod validate;
 
 #[derive(Debug, Parser)]
 #[command(
@@ -188,19 +184,14 @@ impl From<OutputError> for CliError {
     }
 }
 
-/// A deck whose detector cannot be designed is invalid input.
-fn design_error(deck: &std::path::Path, what: &str, e: DesignError) -> CliError {
-    CliError::Invalid(format!("{}: detector: {what}: {e}", deck.display()))
-}
-
 pub fn run(cli: Cli) -> ExitCode {
     let result = match cli.command {
-        Command::Validate { deck } => validate::exec(&deck),
-        Command::Design { deck, json } => design::exec(&deck, json),
+        Command::Validate { deck } => run::exec_validate(&deck),
+        Command::Design { deck, json } => run::exec_design(&deck, json),
         Command::Simulate { deck, trial, detector, out, classifiers } => {
-            simulate::exec(&deck, trial, detector.as_deref(), &out, classifiers.as_deref())
+            run::exec_simulate(&deck, trial, detector.as_deref(), &out, classifiers.as_deref())
         }
-        Command::Train { deck, out } => run::exec_train(&deck, out),
+        Command::Train { deck, out } => run::exec_train(&deck, out.as_deref()),
         Command::Run { deck, trials, seed, threads, out, shard, resume, force, quiet, stop_after, classifiers } => {
             run::exec_run(run::RunArgs {
                 deck: &deck,

@@ -1,24 +1,14 @@
+//! `run`, `summarize`, `merge`, `check`, `report`, `train`: each finds the study's method in the registry
+//! (by the deck's marker table or the results folder's kind) and lets the engine do the rest.
+
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 use crate::cli::CliError;
-use crate::engine::deck::deck_kind;
-use crate::engine::runner::{self, Manifest, RunError, RunOptions, Shard, StudyKind};
-use crate::methods::accelerometer::AccelerometerTrials;
-use crate::methods::accelerometer::study::AccelerometerStudy;
-use crate::methods::accelerometer::summary::AccelerometerSummary;
-use crate::methods::accelerometer::trial::TrainedClassifiers;
-use crate::methods::air_data::AirDataTrials;
-use crate::methods::air_data::study::AirDataStudy;
-use crate::methods::air_data::summary::AirDataSummary;
-use crate::methods::detection_filter::study::Study;
-use crate::methods::detection_filter::summary::{Calibration, SummaryReport};
-use crate::methods::surface_bank::SurfaceTrials;
-use crate::methods::surface_bank::study::SurfaceStudy;
-use crate::methods::surface_bank::summary::SurfaceSummary;
-use crate::methods::thrust_loss::LaunchTrials;
-use crate::methods::thrust_loss::study::LaunchStudy;
-use crate::methods::thrust_loss::summary::LaunchSummary;
+use crate::engine::method::{self, Inputs, Method, Opt, Study};
+use crate::engine::runner::{self, Manifest, RunError, RunOptions, Shard};
+use crate::engine::summary::Calibration;
+use crate::methods::REGISTRY;
 
 impl From<RunError> for CliError {
     fn from(e: RunError) -> Self {
@@ -40,65 +30,25 @@ pub struct RunArgs<'a> {
     pub force: bool,
     pub quiet: bool,
     pub stop_after: Option<u64>,
-    /// Accelerometer decks: classifiers to evaluate instead of training them.
+    /// Classifiers to evaluate instead of training them ([`Opt::Classifiers`]).
     pub classifiers: Option<&'a Path>,
 }
 
-/// A deck of either kind, with the command line's overrides applied.
-enum Loaded {
-    Lti(Study),
-    Surfaces(SurfaceStudy),
-    AirData(AirDataStudy),
-    Launch(LaunchStudy),
-    Accelerometer(AccelerometerStudy),
+/// The deck's method and study, with `--classifiers` checked against what the method takes.
+pub fn load(deck: &Path, classifiers: Option<&Path>) -> Result<(&'static dyn Method, Box<dyn Study>), CliError> {
+    let (method, study) = method::load(REGISTRY, deck)?;
+    if classifiers.is_some() {
+        method::require(REGISTRY, method, Opt::Classifiers)?;
+    }
+    Ok((method, study))
 }
 
-impl Loaded {
-    fn load(a: &RunArgs) -> Result<Loaded, CliError> {
-        let text = crate::engine::deck::read_deck(a.deck)?;
-        let mut loaded = match deck_kind(&text) {
-            StudyKind::SurfaceBank => Loaded::Surfaces(SurfaceStudy::from_toml(&text, a.deck)?),
-            StudyKind::AirData => Loaded::AirData(AirDataStudy::from_toml(&text, a.deck)?),
-            StudyKind::ThrustLoss => Loaded::Launch(LaunchStudy::from_toml(&text, a.deck)?),
-            StudyKind::Accelerometer => Loaded::Accelerometer(AccelerometerStudy::from_toml(&text, a.deck)?),
-            StudyKind::DetectionFilter => Loaded::Lti(Study::from_toml(&text, a.deck)?),
-        };
-        if let Some(n) = a.trials {
-            if n == 0 || n > crate::engine::streams::MAX_TRIAL {
-                return Err(CliError::Invalid(format!(
-                    "--trials {n}: allowed 1 to {}",
-                    crate::engine::streams::MAX_TRIAL
-                )));
-            }
-            match &mut loaded {
-                Loaded::Lti(s) => s.monte_carlo.trials = n,
-                Loaded::Surfaces(s) => s.monte_carlo.trials = n,
-                Loaded::AirData(s) => s.monte_carlo.trials = n,
-                Loaded::Launch(s) => s.monte_carlo.trials = n,
-                Loaded::Accelerometer(s) => s.trials = n,
-            }
-        }
-        if let Some(seed) = a.seed {
-            match &mut loaded {
-                Loaded::Lti(s) => s.seed = seed,
-                Loaded::Surfaces(s) => s.seed = seed,
-                Loaded::AirData(s) => s.seed = seed,
-                Loaded::Launch(s) => s.seed = seed,
-                Loaded::Accelerometer(s) => s.seed = seed,
-            }
-        }
-        Ok(loaded)
-    }
-
-    fn name(&self) -> &str {
-        match self {
-            Loaded::Lti(s) => &s.name,
-            Loaded::Surfaces(s) => &s.name,
-            Loaded::AirData(s) => &s.name,
-            Loaded::Launch(s) => &s.name,
-            Loaded::Accelerometer(s) => &s.name,
-        }
-    }
+/// The method of the run in `dir`, from its manifest.
+fn method_of_run(dir: &Path) -> Result<(&'static dyn Method, Manifest), CliError> {
+    let manifest = Manifest::read(dir)?;
+    let method =
+        method::find(REGISTRY, &manifest.kind).map_err(|e| CliError::Invalid(format!("{}: {e}", dir.display())))?;
+    Ok((method, manifest))
 }
 
 pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
@@ -109,7 +59,16 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
     if a.threads == Some(0) {
         return Err(CliError::Invalid("--threads 0: give at least 1 (or leave it out for one per core)".into()));
     }
-    let study = Loaded::load(&a)?;
+    let (method, mut study) = load(a.deck, a.classifiers)?;
+    if let Some(n) = a.trials {
+        if n == 0 || n > crate::engine::streams::MAX_TRIAL {
+            return Err(CliError::Invalid(format!("--trials {n}: allowed 1 to {}", crate::engine::streams::MAX_TRIAL)));
+        }
+        study.set_trials(n);
+    }
+    if let Some(seed) = a.seed {
+        study.set_seed(seed);
+    }
     let out_dir = a.out.clone().unwrap_or_else(|| {
         let base = PathBuf::from("results").join(study.name());
         if shard == Shard::WHOLE { base } else { base.join(format!("shard-{}-of-{}", shard.index, shard.count)) }
@@ -125,51 +84,7 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         stop_after_chunks: a.stop_after,
         command_line: std::env::args().collect(),
     };
-    let report = match &study {
-        Loaded::Lti(study) => crate::methods::detection_filter::run_study(study, &opts)?,
-        Loaded::Surfaces(study) => {
-            let trials = SurfaceTrials::new(study);
-            runner::run(&trials, trials.manifest(), &opts)?
-        }
-        Loaded::AirData(study) => {
-            let trials = AirDataTrials::new(study);
-            runner::run(&trials, trials.manifest(), &opts)?
-        }
-        Loaded::Launch(study) => {
-            // Designs and loss tables are the deck's: one that cannot be designed is invalid input.
-            let trials =
-                LaunchTrials::new(study).map_err(|e| CliError::Invalid(format!("{}: {e}", study.path.display())))?;
-            runner::run(&trials, trials.manifest(), &opts)?
-        }
-        Loaded::Accelerometer(study) => {
-            // Classifiers from a file, from the folder being resumed, or trained now; written beside the
-            // results once the run has started, so a refused run leaves the folder as it was.
-            let beside = out_dir.join("classifiers.json");
-            let (classifiers, write_beside) = match a.classifiers {
-                Some(file) => (TrainedClassifiers::load(file)?, true),
-                None if a.resume && beside.exists() => (TrainedClassifiers::load(&beside)?, false),
-                None => {
-                    if !a.quiet {
-                        eprintln!(
-                            "training the classifiers on {} trials per class (seed {})",
-                            study.training.trials_per_class, study.training.seed
-                        );
-                    }
-                    (
-                        TrainedClassifiers::train(study)
-                            .map_err(|e| CliError::Invalid(format!("{}: {e}", study.path.display())))?,
-                        true,
-                    )
-                }
-            };
-            let trials = AccelerometerTrials::new(study, &classifiers);
-            let report = runner::run(&trials, trials.manifest(), &opts)?;
-            if write_beside {
-                classifiers.save(&beside)?;
-            }
-            report
-        }
-    };
+    let report = study.run(&opts, Inputs { classifiers: a.classifiers, quiet: a.quiet })?;
     let m = &report.manifest;
     if !a.quiet {
         let n = m.end_trial - m.first_trial;
@@ -199,73 +114,15 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         return Ok(out_dir);
     }
     if shard == Shard::WHOLE {
-        let summary = summarize(&out_dir, m, None)?;
-        if !a.quiet {
-            summary.print(&out_dir)?;
-        }
+        method.summarize(&out_dir, m, None, !a.quiet)?;
     } else if !a.quiet {
         println!("  shard done: join the shards with `fdimc merge <shard dirs>... --out DIR` to get the summary");
     }
     Ok(out_dir)
 }
 
-/// The summaries of either kind of study.
-enum Summary {
-    Lti(SummaryReport),
-    Surfaces(SurfaceSummary),
-    AirData(AirDataSummary),
-    Launch(LaunchSummary),
-    Accelerometer(AccelerometerSummary),
-}
-
-impl Summary {
-    fn print(&self, dir: &Path) -> Result<(), CliError> {
-        match self {
-            Summary::Lti(s) => print_summary(dir, s),
-            Summary::Surfaces(s) => print_surface_summary(dir, s),
-            Summary::AirData(s) => print_air_data_summary(dir, s),
-            Summary::Launch(s) => print_launch_summary(dir, s),
-            Summary::Accelerometer(s) => print_accelerometer_summary(dir, s),
-        }
-    }
-}
-
-/// Writes the summaries of the run in `dir`; `calibration` (LTI studies only) defaults to the deck's
-/// target false-alarm probability.
-fn summarize(dir: &Path, manifest: &Manifest, calibration: Option<Calibration>) -> Result<Summary, CliError> {
-    Ok(match manifest.kind {
-        StudyKind::DetectionFilter => Summary::Lti(crate::methods::detection_filter::summary::summarize(
-            dir,
-            &calibration.unwrap_or(Calibration::Target(manifest.target_pfa)),
-        )?),
-        StudyKind::SurfaceBank | StudyKind::AirData | StudyKind::Accelerometer if calibration.is_some() => {
-            return Err(CliError::Invalid(format!(
-                "{}: this study's detectors declare by model probabilities (the deck's 0.9 / 0.05): \
-                 --target-pfa and --thresholds apply to detection-filter and thrust-loss studies",
-                dir.display()
-            )));
-        }
-        StudyKind::ThrustLoss => Summary::Launch(crate::methods::thrust_loss::summary::summarize(
-            dir,
-            match calibration {
-                None => manifest.target_pfa,
-                Some(Calibration::Target(p)) => p,
-                Some(Calibration::File(_)) => {
-                    return Err(CliError::Invalid(format!(
-                        "{}: --thresholds reads a detection filter's thresholds.csv; use --target-pfa here",
-                        dir.display()
-                    )));
-                }
-            },
-        )?),
-        StudyKind::SurfaceBank => Summary::Surfaces(crate::methods::surface_bank::summary::summarize(dir)?),
-        StudyKind::AirData => Summary::AirData(crate::methods::air_data::summary::summarize(dir)?),
-        StudyKind::Accelerometer => Summary::Accelerometer(crate::methods::accelerometer::summary::summarize(dir)?),
-    })
-}
-
 pub fn exec_summarize(dir: &Path, target_pfa: Option<f64>, thresholds: Option<&Path>) -> Result<(), CliError> {
-    let manifest = Manifest::read(dir)?;
+    let (method, manifest) = method_of_run(dir)?;
     let calibration = match (target_pfa, thresholds) {
         (Some(_), Some(_)) => return Err(CliError::Invalid("give --target-pfa or --thresholds, not both".into())),
         (_, Some(f)) => Some(Calibration::File(f.into())),
@@ -273,7 +130,11 @@ pub fn exec_summarize(dir: &Path, target_pfa: Option<f64>, thresholds: Option<&P
         (Some(p), None) => return Err(CliError::Invalid(format!("--target-pfa {p}: allowed 0 < p < 1"))),
         (None, None) => None,
     };
-    summarize(dir, &manifest, calibration)?.print(dir)
+    if calibration.is_some() {
+        method::require(REGISTRY, method, Opt::Thresholds)
+            .map_err(|e| CliError::Invalid(format!("{}: {e}", dir.display())))?;
+    }
+    Ok(method.summarize(dir, &manifest, calibration.as_ref(), true)?)
 }
 
 pub fn exec_merge(dirs: &[PathBuf], out: &Path, force: bool) -> Result<(), CliError> {
@@ -333,7 +194,8 @@ pub fn exec_merge(dirs: &[PathBuf], out: &Path, force: bool) -> Result<(), CliEr
     };
     merged.write(out)?;
     println!("merged {} shards: {} rows -> {}", manifests.len(), rows, out.join("trials.parquet").display());
-    summarize(out, &merged, None)?.print(out)
+    let method = method::find(REGISTRY, &merged.kind)?;
+    Ok(method.summarize(out, &merged, None, true)?)
 }
 
 pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<usize>) -> Result<bool, CliError> {
@@ -386,319 +248,40 @@ pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<us
     Ok(verdict.regressions.is_empty())
 }
 
-fn print_summary(dir: &Path, s: &SummaryReport) -> Result<(), CliError> {
-    println!("  thresholds: {}", s.calibration_source);
-    for t in &s.thresholds {
-        let pfa =
-            if t.calibration_trials > 0 { t.whole_false_alarms as f64 / t.calibration_trials as f64 } else { f64::NAN };
-        println!(
-            "    {}: [{}] (Pfa achieved {:.4} on {} calibration trials)",
-            t.detector,
-            t.whole.iter().map(|v| format!("{v:.4}")).collect::<Vec<_>>().join(", "),
-            pfa,
-            t.calibration_trials
-        );
-    }
-    use polars::prelude::*;
-    let internal = |e: PolarsError| CliError::Internal(e.to_string());
-    let overall = s
-        .summary
-        .clone()
-        .lazy()
-        .filter(col("kind").neq(lit("none")))
-        .group_by_stable([col("thresholds"), col("detector"), col("kind")])
-        .agg([(col("trials") - col("design_failures")).sum().alias("n"), col("detected").sum().alias("detected")])
-        .sort(["thresholds", "detector", "kind"], Default::default())
-        .collect()
-        .map_err(internal)?;
-    println!("  detection probability over all sizes (see summary.csv for groups):");
-    let text = |n: &str| overall.column(n).and_then(|c| c.str().cloned()).map_err(internal);
-    let count = |n: &str| overall.column(n).and_then(|c| c.u64().cloned()).map_err(internal);
-    let (set, det, kind, n, detected) =
-        (text("thresholds")?, text("detector")?, text("kind")?, count("n")?, count("detected")?);
-    for i in 0..overall.height() {
-        let (n, k) = (n.get(i).unwrap_or(0), detected.get(i).unwrap_or(0));
-        println!(
-            "    {:<10} {:<12} {:<14} {:>6}/{:<6} = {:.3}",
-            set.get(i).unwrap_or(""),
-            det.get(i).unwrap_or(""),
-            kind.get(i).unwrap_or(""),
-            k,
-            n,
-            k as f64 / n.max(1) as f64
-        );
-    }
-    for w in &s.warnings {
-        println!("  warning: {w}");
-    }
-    let mut files = vec!["thresholds.csv", "summary.csv", "summary.parquet", "curves.csv", "min_detectable.csv"];
-    if s.comparison.is_some() {
-        files.push("comparison.csv");
-    }
-    println!("  wrote {} in {}", files.join(", "), dir.display());
-    Ok(())
-}
-
-/// A summary table's columns as plain values for printing: a missing column or a null prints as NaN
-/// (numbers), 0 (counts) or "" (text).
-struct Table<'a>(&'a polars::prelude::DataFrame);
-
-impl Table<'_> {
-    fn f64s(&self, name: &str) -> Vec<f64> {
-        use polars::prelude::*;
-        let column = self.0.column(name).and_then(|c| c.cast(&DataType::Float64));
-        let values = column.as_ref().ok().and_then(|c| c.f64().ok());
-        (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or(f64::NAN)).collect()
-    }
-
-    fn u64s(&self, name: &str) -> Vec<u64> {
-        use polars::prelude::*;
-        let column = self.0.column(name).and_then(|c| c.cast(&DataType::UInt64));
-        let values = column.as_ref().ok().and_then(|c| c.u64().ok());
-        (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or(0)).collect()
-    }
-
-    fn strs(&self, name: &str) -> Vec<String> {
-        let values = self.0.column(name).ok().and_then(|c| c.str().ok());
-        (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or("").to_string()).collect()
-    }
-
-    /// `rate [lo, hi]` per row from the columns `name`, `name_lo`, `name_hi`; "-" where there is no rate.
-    fn rates(&self, name: &str) -> Vec<String> {
-        let (rate, lo, hi) = (self.f64s(name), self.f64s(&format!("{name}_lo")), self.f64s(&format!("{name}_hi")));
-        (0..rate.len())
-            .map(|i| if rate[i].is_nan() { "-".into() } else { format!("{:.3} [{:.3}, {:.3}]", rate[i], lo[i], hi[i]) })
-            .collect()
-    }
-
-    /// `p50/p90 s` per row from two percentile columns.
-    fn delays(&self, p50: &str, p90: &str) -> Vec<String> {
-        let (a, b) = (self.f64s(p50), self.f64s(p90));
-        a.iter().zip(&b).map(|(a, b)| format!("{a:.2}/{b:.2} s")).collect()
-    }
-}
-
-/// The per-detector (variant) table of a surface study (`detectors.csv`), then warnings and the files written.
-fn print_surface_summary(dir: &Path, s: &SurfaceSummary) -> Result<(), CliError> {
-    let t = Table(&s.detectors);
-    let (names, windows, flights) = (t.strs("detector"), t.u64s("fault_windows"), t.u64s("flights"));
-    let (pd, iso, pfa) = (t.rates("pd"), t.rates("isolation_accuracy"), t.rates("pfa"));
-    let (delay, clear, relapse) =
-        (t.delays("delay_p50_s", "delay_p90_s"), t.f64s("clearing_p50_s"), t.f64s("post_fault_rate"));
-    let (asym, not_pd, non_finite) =
-        (t.u64s("flights_asymmetric"), t.u64s("flights_not_positive_definite"), t.u64s("flights_non_finite"));
-    println!("  per variant, paired over the same trials (see summary.csv for groups, comparison.csv for tests);");
-    println!("  relapse: share of faults after which a surface is declared again; Pfa: alarms before any fault:");
-    println!(
-        "    {:<16} {:>7} {:<21} {:<21} {:>14} {:>10} {:>8} {:>7} {:<21} {:>16}",
-        "variant",
-        "faults",
-        "Pd [95 % CI]",
-        "isolated [95 % CI]",
-        "delay p50/p90",
-        "clear p50",
-        "relapse",
-        "flights",
-        "Pfa [95 % CI]",
-        "asym/notPD/NaN"
-    );
-    for i in 0..names.len() {
-        println!(
-            "    {:<16} {:>7} {:<21} {:<21} {:>14} {:>8.2} s {:>8.3} {:>7} {:<21} {:>7}/{}/{}",
-            names[i],
-            windows[i],
-            pd[i],
-            iso[i],
-            delay[i],
-            clear[i],
-            relapse[i],
-            flights[i],
-            pfa[i],
-            asym[i],
-            not_pd[i],
-            non_finite[i]
-        );
-    }
-    print_footer(dir, &s.warnings, "summary.csv, summary.parquet, detectors.csv, comparison.csv");
-    Ok(())
-}
-
-/// The per-detector table of an air-data study (`detectors.csv`), then warnings and the files written.
-fn print_air_data_summary(dir: &Path, s: &AirDataSummary) -> Result<(), CliError> {
-    let t = Table(&s.detectors);
-    let (names, faults, flights, repaired) =
-        (t.strs("detector"), t.u64s("faulty_trials"), t.u64s("flights"), t.u64s("repaired"));
-    let (pd, iso, pfa) = (t.rates("pd"), t.rates("isolation_accuracy"), t.rates("pfa"));
-    let delay = t.delays("delay_p50_s", "delay_p90_s");
-    let (bias, est, raw) =
-        (t.f64s("bias_error_p50_sigma"), t.f64s("estimate_rms_p50_sigma"), t.f64s("raw_rms_p50_sigma"));
-    println!("  per detector, paired over the same trials (see summary.csv for groups, comparison.csv for tests);");
-    println!("  errors in sensor sigmas, medians; Pfa: declarations before the onset or in fault-free flights:");
-    println!(
-        "    {:<12} {:>6} {:<21} {:<21} {:>14} {:>9} {:>15} {:>7} {:<21} {:>8}",
-        "detector",
-        "faults",
-        "Pd [95 % CI]",
-        "isolated [95 % CI]",
-        "delay p50/p90",
-        "bias err",
-        "air data / raw",
-        "flights",
-        "Pfa [95 % CI]",
-        "repaired"
-    );
-    for i in 0..names.len() {
-        println!(
-            "    {:<12} {:>6} {:<21} {:<21} {:>14} {:>9.2} {:>15} {:>7} {:<21} {:>8}",
-            names[i],
-            faults[i],
-            pd[i],
-            iso[i],
-            delay[i],
-            bias[i],
-            format!("{:.2} / {:.2}", est[i], raw[i]),
-            flights[i],
-            pfa[i],
-            repaired[i]
-        );
-    }
-    print_footer(dir, &s.warnings, "summary.csv, summary.parquet, detectors.csv, comparison.csv");
-    Ok(())
-}
-
-/// The thresholds and per-detector table of a launch study (`detectors.csv`).
-fn print_launch_summary(dir: &Path, s: &LaunchSummary) -> Result<(), CliError> {
-    println!("  thresholds on |fhat|: the deck's, and calibrated on the fault-free flights:");
-    for t in &s.thresholds {
-        println!(
-            "    {:<12} deck {:.4e}, calibrated {:.4e} (Pfa achieved {:.4} on {} calibration flights)",
-            t.detector,
-            t.deck,
-            t.calibrated,
-            t.false_alarms as f64 / t.calibration_trials.max(1) as f64,
-            t.calibration_trials
-        );
-    }
-    let t = Table(&s.detectors);
-    let (sets, names, faults, flights) =
-        (t.strs("thresholds"), t.strs("detector"), t.u64s("faulty_trials"), t.u64s("flights"));
-    let (pd, engine, pfa) = (t.rates("pd"), t.rates("localisation_accuracy"), t.rates("pfa"));
-    let (delay, loss) = (t.delays("delay_p50_s", "delay_p90_s"), t.f64s("loss_abs_error_p50_percent"));
-    println!("  per detector, paired over the same trials (see summary.csv for groups, comparison.csv for tests);");
-    println!("  engine and loss (median |error|) at the deck's threshold only; Pfa: alarms before the onset:");
-    println!(
-        "    {:<10} {:<12} {:>6} {:<21} {:>14} {:<21} {:>8} {:>7} {:<21}",
-        "thresholds",
-        "detector",
-        "faults",
-        "Pd [95 % CI]",
-        "delay p50/p90",
-        "engine [95 % CI]",
-        "loss err",
-        "flights",
-        "Pfa [95 % CI]"
-    );
-    for i in 0..names.len() {
-        let loss_text = if loss[i].is_nan() { "-".to_string() } else { format!("{:.1} %", loss[i]) };
-        println!(
-            "    {:<10} {:<12} {:>6} {:<21} {:>14} {:<21} {:>8} {:>7} {:<21}",
-            sets[i], names[i], faults[i], pd[i], delay[i], engine[i], loss_text, flights[i], pfa[i]
-        );
-    }
-    print_footer(dir, &s.warnings, "thresholds.csv, summary.csv, summary.parquet, detectors.csv, comparison.csv");
-    Ok(())
-}
-
-/// Warnings, then the files written.
-fn print_footer(dir: &Path, warnings: &[String], files: &str) {
-    for w in warnings {
-        println!("  warning: {w}");
-    }
-    println!("  wrote {files} in {}", dir.display());
-}
-
 pub fn exec_report(dir: &Path, trials: &[u64]) -> Result<(), CliError> {
-    let report = crate::methods::detection_filter::report::write_report(dir, trials)?;
-    for w in &report.warnings {
-        println!("warning: {w}");
-    }
-    if let Some(page) = report.files.last() {
-        println!("{} plots -> {}", report.files.len() - 1, page.display());
-    }
-    Ok(())
+    let (method, _) = method_of_run(dir)?;
+    method::require(REGISTRY, method, Opt::Report).map_err(|e| CliError::Invalid(format!("{}: {e}", dir.display())))?;
+    Ok(method.report(dir, trials)?)
 }
 
-/// `fdimc train`: trains an accelerometer deck's classifiers and writes them.
-pub fn exec_train(deck: &Path, out: Option<PathBuf>) -> Result<(), CliError> {
-    let study = AccelerometerStudy::load(deck)?;
-    let out = out.unwrap_or_else(|| PathBuf::from("results").join(&study.name).join("classifiers.json"));
-    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(|e| CliError::Internal(format!("{}: {e}", parent.display())))?;
-    }
-    let started = std::time::Instant::now();
-    let trained =
-        TrainedClassifiers::train(&study).map_err(|e| CliError::Invalid(format!("{}: {e}", deck.display())))?;
-    trained.save(&out)?;
-    println!(
-        "{}: trained the SVM decision tree and the one-against-one SVM on {} trials per class (seed {}) in {:.1} s -> {}",
-        study.name,
-        study.training.trials_per_class,
-        study.training.seed,
-        started.elapsed().as_secs_f64(),
-        out.display()
-    );
-    if let Some(tree) = trained.tree.tree() {
-        for (k, m) in tree.merges.iter().enumerate() {
-            let names = |c: &[crate::methods::accelerometer::ekf_svm::FaultClass]| {
-                c.iter().map(|c| c.name()).collect::<Vec<_>>().join("+")
-            };
-            println!(
-                "  merge {}: {} | {} (separability {:.3}, the least of the {} pairs)",
-                k + 1,
-                names(&m.positive),
-                names(&m.negative),
-                m.separability,
-                m.candidates.len()
-            );
-        }
-    }
-    Ok(())
+pub fn exec_train(deck: &Path, out: Option<&Path>) -> Result<(), CliError> {
+    let (method, study) = method::load(REGISTRY, deck)?;
+    method::require(REGISTRY, method, Opt::Classifiers)?;
+    Ok(study.train(out)?)
 }
 
-/// The confusion matrices and per-classifier table of an accelerometer study.
-fn print_accelerometer_summary(dir: &Path, s: &AccelerometerSummary) -> Result<(), CliError> {
-    let t = Table(&s.detectors);
-    let (names, trials) = (t.strs("detector"), t.u64s("trials"));
-    let (accuracy, pd, pfa) = (t.rates("accuracy"), t.rates("pd"), t.rates("pfa"));
-    let delay = t.delays("delay_p50_s", "delay_p90_s");
-    println!("  per classifier, on the same fresh trials (confusion.csv, summary.csv; comparison.csv for the test):");
-    println!(
-        "    {:<6} {:>6} {:<21} {:<21} {:<21} {:<21} {:<21}",
-        "", "trials", "accuracy", "recall normal", "recall bias", "recall gain", "recall stuck"
-    );
-    for i in 0..names.len() {
-        let recall: Vec<String> =
-            ["normal", "bias", "gain", "stuck"].iter().map(|c| t.rates(&format!("recall_{c}"))[i].clone()).collect();
-        println!(
-            "    {:<6} {:>6} {:<21} {:<21} {:<21} {:<21} {:<21}",
-            names[i], trials[i], accuracy[i], recall[0], recall[1], recall[2], recall[3]
-        );
+pub fn exec_validate(deck: &Path) -> Result<(), CliError> {
+    Ok(method::load(REGISTRY, deck)?.1.validate()?)
+}
+
+pub fn exec_design(deck: &Path, json: bool) -> Result<(), CliError> {
+    let (method, study) = method::load(REGISTRY, deck)?;
+    method::require(REGISTRY, method, Opt::Design)?;
+    Ok(study.design(json)?)
+}
+
+pub fn exec_simulate(
+    deck: &Path,
+    trial: u64,
+    detector: Option<&str>,
+    out: &Path,
+    classifiers: Option<&Path>,
+) -> Result<(), CliError> {
+    // Check the output name before simulating, so a typo costs nothing.
+    crate::engine::output::TableFormat::from_path(out)?;
+    if trial > crate::engine::streams::MAX_TRIAL {
+        return Err(CliError::Invalid(format!("--trial {trial}: allowed 0 to {}", crate::engine::streams::MAX_TRIAL)));
     }
-    if let Some(i) = (0..names.len()).next() {
-        println!("  residual detector (either classifier's rows): Pd {}, delay {}, Pfa {}", pd[i], delay[i], pfa[i]);
-    }
-    let c = Table(&s.confusion);
-    let (det, truth, count) = (c.strs("detector"), c.strs("true_class"), c.u64s("trials"));
-    for name in &names {
-        println!("  confusion ({name}): rows true class, columns predicted normal / bias / gain / stuck");
-        for class in ["normal", "bias", "gain", "stuck"] {
-            let row: Vec<String> = (0..det.len())
-                .filter(|&i| det[i] == *name && truth[i] == class)
-                .map(|i| format!("{:>6}", count[i]))
-                .collect();
-            println!("    {class:<7} {}", row.join(" "));
-        }
-    }
-    print_footer(dir, &s.warnings, "confusion.csv, summary.csv, summary.parquet, detectors.csv, comparison.csv");
-    Ok(())
+    let (_, study) = load(deck, classifiers)?;
+    Ok(study.simulate(trial, detector, out, Inputs { classifiers, quiet: false })?)
 }

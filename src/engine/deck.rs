@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{DMatrix, DVector};
 
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
 
 /// A deck that could not be read or is not a valid study.
 #[derive(Debug, thiserror::Error)]
@@ -63,69 +63,6 @@ pub(crate) fn read_deck(path: &Path) -> Result<String, DeckError> {
 pub(crate) fn parse_deck<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T, DeckError> {
     toml::from_str(text)
         .map_err(|e| DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() })
-}
-
-/// Which kind of study a deck describes and a results folder holds: the commands dispatch on it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum StudyKind {
-    /// Method 000: an LTI plant and detection filters (`[plant]` decks).
-    #[default]
-    DetectionFilter,
-    /// Method 004: the UAV with control-surface faults and banks of filters (`[airframe]` decks).
-    SurfaceBank,
-    /// Method 002: air-data sensor faults and the dual-model UKF (`[flight]` decks).
-    AirData,
-    /// Method 001: launch-vehicle thrust loss, EKF residual and moving-horizon GLS (`[vehicle]` decks).
-    ThrustLoss,
-    /// Method 003: accelerometer faults, attitude-EKF residuals and SVM classifiers (`[imu]` decks).
-    Accelerometer,
-}
-
-impl StudyKind {
-    /// The top-level table that marks a deck of this kind.
-    pub fn deck_table(self) -> &'static str {
-        match self {
-            StudyKind::DetectionFilter => "plant",
-            StudyKind::SurfaceBank => "airframe",
-            StudyKind::AirData => "flight",
-            StudyKind::ThrustLoss => "vehicle",
-            StudyKind::Accelerometer => "imu",
-        }
-    }
-
-    /// The kind in words, with its article: "a control-surface" (deck, study).
-    pub fn adjective(self) -> &'static str {
-        match self {
-            StudyKind::DetectionFilter => "a detection-filter",
-            StudyKind::SurfaceBank => "a control-surface",
-            StudyKind::AirData => "an air-data",
-            StudyKind::ThrustLoss => "a launch-vehicle",
-            StudyKind::Accelerometer => "an accelerometer",
-        }
-    }
-
-    /// The seed method a kind studies.
-    pub fn method(self) -> &'static str {
-        match self {
-            StudyKind::DetectionFilter => "000",
-            StudyKind::ThrustLoss => "001",
-            StudyKind::AirData => "002",
-            StudyKind::Accelerometer => "003",
-            StudyKind::SurfaceBank => "004",
-        }
-    }
-}
-
-/// Which kind of deck a TOML text is, by the table that marks it (`[airframe]`, `[flight]`,
-/// `[vehicle]`, `[imu]`); anything else, unparsable text included, is read as a detection-filter deck, whose
-/// parser then names the file, the line and the field.
-pub fn deck_kind(text: &str) -> StudyKind {
-    let Ok(table) = text.parse::<toml::Table>() else { return StudyKind::DetectionFilter };
-    [StudyKind::SurfaceBank, StudyKind::AirData, StudyKind::ThrustLoss, StudyKind::Accelerometer]
-        .into_iter()
-        .find(|k| table.contains_key(k.deck_table()))
-        .unwrap_or(StudyKind::DetectionFilter)
 }
 
 /// `[study]`, the same in every deck.

@@ -1,9 +1,10 @@
 //! The engine: everything a study needs that does not depend on its method. It knows methods only
-//! through the [`runner::TrialSource`] trait and the manifest's `kind`.
+//! through the traits of [`method`] and [`runner::TrialSource`], never by name.
 
 pub mod check;
 pub mod deck;
 pub mod intervals;
+pub mod method;
 pub mod noise;
 pub mod output;
 pub mod paired;

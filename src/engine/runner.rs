@@ -40,8 +40,6 @@ pub trait TrialSource: Sync {
     fn frame(&self, results: &[Self::Result]) -> PolarsResult<DataFrame>;
 }
 
-pub use crate::engine::deck::StudyKind;
-
 /// Trials per part file of LTI studies (a few seconds of work); a source may choose its own.
 pub const CHUNK_TRIALS: u64 = 4096;
 
@@ -64,6 +62,12 @@ pub(crate) fn io(file: &Path) -> impl FnOnce(std::io::Error) -> RunError + '_ {
 
 pub(crate) fn pol(file: &Path) -> impl FnOnce(PolarsError) -> RunError + '_ {
     move |source| RunError::Polars { file: file.into(), source }
+}
+
+impl From<crate::engine::deck::DeckError> for RunError {
+    fn from(e: crate::engine::deck::DeckError) -> Self {
+        RunError::Invalid(e.to_string())
+    }
 }
 
 impl From<crate::engine::output::OutputError> for RunError {
@@ -109,9 +113,8 @@ impl Shard {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
     pub fdimc_version: String,
-    /// Absent in folders written before method 004: those are detection-filter runs.
-    #[serde(default)]
-    pub kind: StudyKind,
+    /// The kind of study ([`super::method::Method::kind`]): which method summarizes and reports it.
+    pub kind: String,
     pub study: String,
     pub deck: String,
     pub deck_sha256: String,
@@ -211,7 +214,7 @@ impl Manifest {
     pub fn unstarted() -> Manifest {
         Manifest {
             fdimc_version: env!("CARGO_PKG_VERSION").into(),
-            kind: StudyKind::default(),
+            kind: String::new(),
             study: String::new(),
             deck: String::new(),
             deck_sha256: String::new(),

@@ -8,6 +8,15 @@ use polars::prelude::*;
 use crate::engine::intervals::{Z95, wilson};
 use crate::engine::runner::{Manifest, RunError, io, pol, read_parquet};
 
+/// Where the calibrated thresholds came from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Calibration {
+    /// Calibrated here at this false-alarm probability.
+    Target(f64),
+    /// Read from another run's `thresholds.csv`.
+    File(PathBuf),
+}
+
 /// A detector's first post-onset alarm at per-output thresholds `thr`, from row `row` of the per-output
 /// first-passage profiles (see `sim`): for each output the first profile point above its threshold, then
 /// the earliest over outputs.
@@ -144,6 +153,53 @@ pub fn read_summary(path: &Path) -> Result<DataFrame, RunError> {
         .try_into_reader_with_file_path(Some(path.into()))
         .and_then(|r| r.finish())
         .map_err(|e| RunError::Invalid(format!("{}: cannot read summary ({e})", path.display())))
+}
+
+/// A summary table's columns as plain values for printing: a missing column or a null prints as NaN
+/// (numbers), 0 (counts) or "" (text).
+pub struct Table<'a>(pub &'a polars::prelude::DataFrame);
+
+impl Table<'_> {
+    pub fn f64s(&self, name: &str) -> Vec<f64> {
+        use polars::prelude::*;
+        let column = self.0.column(name).and_then(|c| c.cast(&DataType::Float64));
+        let values = column.as_ref().ok().and_then(|c| c.f64().ok());
+        (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or(f64::NAN)).collect()
+    }
+
+    pub fn u64s(&self, name: &str) -> Vec<u64> {
+        use polars::prelude::*;
+        let column = self.0.column(name).and_then(|c| c.cast(&DataType::UInt64));
+        let values = column.as_ref().ok().and_then(|c| c.u64().ok());
+        (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or(0)).collect()
+    }
+
+    pub fn strs(&self, name: &str) -> Vec<String> {
+        let values = self.0.column(name).ok().and_then(|c| c.str().ok());
+        (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or("").to_string()).collect()
+    }
+
+    /// `rate [lo, hi]` per row from the columns `name`, `name_lo`, `name_hi`; "-" where there is no rate.
+    pub fn rates(&self, name: &str) -> Vec<String> {
+        let (rate, lo, hi) = (self.f64s(name), self.f64s(&format!("{name}_lo")), self.f64s(&format!("{name}_hi")));
+        (0..rate.len())
+            .map(|i| if rate[i].is_nan() { "-".into() } else { format!("{:.3} [{:.3}, {:.3}]", rate[i], lo[i], hi[i]) })
+            .collect()
+    }
+
+    /// `p50/p90 s` per row from two percentile columns.
+    pub fn delays(&self, p50: &str, p90: &str) -> Vec<String> {
+        let (a, b) = (self.f64s(p50), self.f64s(p90));
+        a.iter().zip(&b).map(|(a, b)| format!("{a:.2}/{b:.2} s")).collect()
+    }
+}
+
+/// Warnings, then the files written.
+pub fn print_footer(dir: &Path, warnings: &[String], files: &str) {
+    for w in warnings {
+        println!("  warning: {w}");
+    }
+    println!("  wrote {files} in {}", dir.display());
 }
 
 #[cfg(test)]

@@ -1,6 +1,7 @@
 //! Accelerometer studies (method 003): attitude-EKF residuals and SVM classifiers.
 
 pub mod attitude;
+pub mod commands;
 pub mod ekf_svm;
 pub mod imu;
 pub mod records;
@@ -8,15 +9,107 @@ pub mod study;
 pub mod summary;
 pub mod trial;
 
-use crate::engine::runner::{Manifest, StudyKind, TrialSource};
+use std::path::Path;
+
+use crate::engine::deck::DeckError;
+use crate::engine::method::{Inputs, Method, Opt, Study};
+use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::scenario::{GridDigits, draw};
 use crate::engine::streams::{Substream, noise_rng, trial_rng};
+use crate::engine::summary::Calibration;
 use crate::fault::FaultMode;
 use crate::methods::accelerometer::ekf_svm::{
     FaultClass, ResidualSample, detection_statistics, first_alarm, simulate_trial, window_start,
 };
 use crate::methods::accelerometer::study::AccelerometerStudy;
 use trial::*;
+
+/// `manifest.json`'s kind of these studies.
+pub const KIND: &str = "accelerometer";
+
+/// Method 003: the registry's entry.
+pub struct Accelerometers;
+
+impl Method for Accelerometers {
+    fn kind(&self) -> &'static str {
+        KIND
+    }
+    fn marker(&self) -> &'static str {
+        "imu"
+    }
+    fn title(&self) -> &'static str {
+        "attitude-EKF residuals and SVM classifiers, accelerometer faults (method 003)"
+    }
+    fn options(&self) -> &'static [Opt] {
+        &[Opt::Classifiers]
+    }
+    fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
+        Ok(Box::new(AccelerometerStudy::from_toml(text, path)?))
+    }
+    fn summarize(&self, dir: &Path, _: &Manifest, _: Option<&Calibration>, print: bool) -> Result<(), RunError> {
+        let s = summary::summarize(dir)?;
+        if print {
+            summary::print(dir, &s)?;
+        }
+        Ok(())
+    }
+}
+
+impl Study for AccelerometerStudy {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn trials(&self) -> u64 {
+        self.trials
+    }
+    fn set_trials(&mut self, trials: u64) {
+        self.trials = trials;
+    }
+    fn set_seed(&mut self, seed: u64) {
+        self.seed = seed;
+    }
+    fn validate(&self) -> Result<(), RunError> {
+        commands::validate(self)
+    }
+    fn simulate(&self, trial: u64, detector: Option<&str>, out: &Path, inputs: Inputs) -> Result<(), RunError> {
+        if let Some(name) = detector {
+            return Err(RunError::Invalid(format!(
+                "--detector {name:?}: an accelerometer trial is classified by both classifiers ({}) at once; leave it out",
+                DETECTORS.join(", ")
+            )));
+        }
+        commands::simulate(self, trial, out, inputs.classifiers)
+    }
+    fn run(&self, opts: &RunOptions, inputs: Inputs) -> Result<RunReport, RunError> {
+        // Classifiers from a file, from the folder being resumed, or trained now; written beside the
+        // results once the run has started, so a refused run leaves the folder as it was.
+        let beside = opts.out_dir.join("classifiers.json");
+        let (classifiers, write_beside) = match inputs.classifiers {
+            Some(file) => (TrainedClassifiers::load(file)?, true),
+            None if opts.resume && beside.exists() => (TrainedClassifiers::load(&beside)?, false),
+            None => {
+                if !inputs.quiet {
+                    eprintln!(
+                        "training the classifiers on {} trials per class (seed {})",
+                        self.training.trials_per_class, self.training.seed
+                    );
+                }
+                let trained = TrainedClassifiers::train(self)
+                    .map_err(|e| RunError::Invalid(format!("{}: {e}", self.path.display())))?;
+                (trained, true)
+            }
+        };
+        let trials = AccelerometerTrials::new(self, &classifiers);
+        let report = run(&trials, trials.manifest(), opts)?;
+        if write_beside {
+            classifiers.save(&beside)?;
+        }
+        Ok(report)
+    }
+    fn train(&self, out: Option<&Path>) -> Result<(), RunError> {
+        commands::train(self, out)
+    }
+}
 
 /// The runner's view of an accelerometer study with its trained classifiers.
 pub struct AccelerometerTrials<'a> {
@@ -33,7 +126,7 @@ impl<'a> AccelerometerTrials<'a> {
     pub fn manifest(&self) -> Manifest {
         let s = self.study;
         Manifest {
-            kind: StudyKind::Accelerometer,
+            kind: KIND.into(),
             study: s.name.clone(),
             seed: s.seed,
             trials: s.trials,

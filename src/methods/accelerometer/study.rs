@@ -278,7 +278,6 @@ mod tests {
         assert_eq!(study.design, TrialDesign::seed());
         assert_eq!(study.classes, FaultClass::ALL);
         assert_ne!(study.training.seed, study.seed);
-        assert_eq!(crate::engine::deck::deck_kind(&deck()), crate::engine::deck::StudyKind::Accelerometer);
     }
 
     #[test]

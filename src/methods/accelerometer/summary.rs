@@ -9,6 +9,7 @@
 //! - `comparison.csv`: the tree against the flat SVM on the same trials: trials classified correctly by
 //!   one only, exact McNemar p-value.
 
+use crate::engine::summary::{Table, print_footer};
 use std::path::Path;
 
 use polars::prelude::*;
@@ -253,4 +254,42 @@ fn compare(trials: &DataFrame, detectors: &[String], file: &Path) -> Result<Data
         Column::new("mcnemar_p_correct".into(), p),
     ])
     .map_err(pol(file))
+}
+
+/// The confusion matrices and per-classifier table of an accelerometer study.
+pub fn print(dir: &Path, s: &AccelerometerSummary) -> Result<(), RunError> {
+    let t = Table(&s.detectors);
+    let (names, trials) = (t.strs("detector"), t.u64s("trials"));
+    let (accuracy, pd, pfa) = (t.rates("accuracy"), t.rates("pd"), t.rates("pfa"));
+    let delay = t.delays("delay_p50_s", "delay_p90_s");
+    println!("  per classifier, on the same fresh trials (confusion.csv, summary.csv; comparison.csv for the test):");
+    println!(
+        "    {:<6} {:>6} {:<21} {:<21} {:<21} {:<21} {:<21}",
+        "", "trials", "accuracy", "recall normal", "recall bias", "recall gain", "recall stuck"
+    );
+    for i in 0..names.len() {
+        let recall: Vec<String> =
+            ["normal", "bias", "gain", "stuck"].iter().map(|c| t.rates(&format!("recall_{c}"))[i].clone()).collect();
+        println!(
+            "    {:<6} {:>6} {:<21} {:<21} {:<21} {:<21} {:<21}",
+            names[i], trials[i], accuracy[i], recall[0], recall[1], recall[2], recall[3]
+        );
+    }
+    if let Some(i) = (0..names.len()).next() {
+        println!("  residual detector (either classifier's rows): Pd {}, delay {}, Pfa {}", pd[i], delay[i], pfa[i]);
+    }
+    let c = Table(&s.confusion);
+    let (det, truth, count) = (c.strs("detector"), c.strs("true_class"), c.u64s("trials"));
+    for name in &names {
+        println!("  confusion ({name}): rows true class, columns predicted normal / bias / gain / stuck");
+        for class in ["normal", "bias", "gain", "stuck"] {
+            let row: Vec<String> = (0..det.len())
+                .filter(|&i| det[i] == *name && truth[i] == class)
+                .map(|i| format!("{:>6}", count[i]))
+                .collect();
+            println!("    {class:<7} {}", row.join(" "));
+        }
+    }
+    print_footer(dir, &s.warnings, "confusion.csv, summary.csv, summary.parquet, detectors.csv, comparison.csv");
+    Ok(())
 }

@@ -1,5 +1,6 @@
 //! Air-data studies (method 002): the dual-model UKF detector of air-data sensor faults.
 
+pub mod commands;
 pub mod dual_ukf;
 pub mod flight;
 pub mod records;
@@ -8,14 +9,72 @@ pub mod study;
 pub mod summary;
 pub mod trial;
 
-use crate::engine::runner::{Manifest, StudyKind, TrialSource};
+use std::path::Path;
+
+use crate::engine::deck::DeckError;
+use crate::engine::method::{Inputs, Method, Study};
+use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
+use crate::engine::summary::Calibration;
 use crate::fault::deck::SizeSpec;
 use crate::methods::air_data::dual_ukf::DualUkfStep;
 use crate::methods::air_data::flight::{AIR_DATA_CHANNEL_NAMES, AirDataSample};
 use crate::methods::air_data::scenario::AirDataScenarioSampler;
 use crate::methods::air_data::study::AirDataStudy;
 use trial::*;
+
+/// `manifest.json`'s kind of these studies.
+pub const KIND: &str = "air_data";
+
+/// Method 002: the registry's entry.
+pub struct AirDataMethod;
+
+impl Method for AirDataMethod {
+    fn kind(&self) -> &'static str {
+        KIND
+    }
+    fn marker(&self) -> &'static str {
+        "flight"
+    }
+    fn title(&self) -> &'static str {
+        "dual-model UKF on air-data sensors, chi-square isolation (method 002)"
+    }
+    fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
+        Ok(Box::new(AirDataStudy::from_toml(text, path)?))
+    }
+    fn summarize(&self, dir: &Path, _: &Manifest, _: Option<&Calibration>, print: bool) -> Result<(), RunError> {
+        let s = summary::summarize(dir)?;
+        if print {
+            summary::print(dir, &s)?;
+        }
+        Ok(())
+    }
+}
+
+impl Study for AirDataStudy {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn trials(&self) -> u64 {
+        self.monte_carlo.trials
+    }
+    fn set_trials(&mut self, trials: u64) {
+        self.monte_carlo.trials = trials;
+    }
+    fn set_seed(&mut self, seed: u64) {
+        self.seed = seed;
+    }
+    fn validate(&self) -> Result<(), RunError> {
+        commands::validate(self)
+    }
+    fn simulate(&self, trial: u64, detector: Option<&str>, out: &Path, _: Inputs) -> Result<(), RunError> {
+        commands::simulate(self, trial, detector, out)
+    }
+    fn run(&self, opts: &RunOptions, _: Inputs) -> Result<RunReport, RunError> {
+        let trials = AirDataTrials::new(self);
+        run(&trials, trials.manifest(), opts)
+    }
+}
 
 /// The runner's view of an air-data study.
 pub struct AirDataTrials<'a> {
@@ -41,7 +100,7 @@ impl<'a> AirDataTrials<'a> {
             (f.kind.name().to_string(), unit.to_string())
         });
         Manifest {
-            kind: StudyKind::AirData,
+            kind: KIND.into(),
             study: s.name.clone(),
             seed: s.seed,
             trials: s.monte_carlo.trials,

@@ -415,7 +415,6 @@ mod tests {
         assert_eq!(mc.output_sets, [vec![0], vec![1], vec![2], vec![0, 1], vec![0, 1, 2]]);
         assert_eq!(study.detectors.len(), 2);
         assert_eq!(study.detectors[0].params.isolation_window, 1);
-        assert_eq!(crate::engine::deck::deck_kind(&deck()), crate::engine::deck::StudyKind::AirData);
     }
 
     #[test]

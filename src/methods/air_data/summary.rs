@@ -11,6 +11,7 @@
 //!   (what `fdimc run` prints);
 //! - `comparison.csv`: every pair of detectors on the same trials ([`crate::engine::paired`]).
 
+use crate::engine::summary::{Table, print_footer};
 use std::path::Path;
 
 use polars::prelude::*;
@@ -179,4 +180,47 @@ fn compare(trials: &DataFrame, detectors: &[String], file: &Path) -> Result<Data
             .map_err(|e| RunError::Invalid(format!("{}: {e}", file.display())))?;
     }
     units.compare(false).map_err(pol(file))
+}
+
+/// The per-detector table of an air-data study (`detectors.csv`), then warnings and the files written.
+pub fn print(dir: &Path, s: &AirDataSummary) -> Result<(), RunError> {
+    let t = Table(&s.detectors);
+    let (names, faults, flights, repaired) =
+        (t.strs("detector"), t.u64s("faulty_trials"), t.u64s("flights"), t.u64s("repaired"));
+    let (pd, iso, pfa) = (t.rates("pd"), t.rates("isolation_accuracy"), t.rates("pfa"));
+    let delay = t.delays("delay_p50_s", "delay_p90_s");
+    let (bias, est, raw) =
+        (t.f64s("bias_error_p50_sigma"), t.f64s("estimate_rms_p50_sigma"), t.f64s("raw_rms_p50_sigma"));
+    println!("  per detector, paired over the same trials (see summary.csv for groups, comparison.csv for tests);");
+    println!("  errors in sensor sigmas, medians; Pfa: declarations before the onset or in fault-free flights:");
+    println!(
+        "    {:<12} {:>6} {:<21} {:<21} {:>14} {:>9} {:>15} {:>7} {:<21} {:>8}",
+        "detector",
+        "faults",
+        "Pd [95 % CI]",
+        "isolated [95 % CI]",
+        "delay p50/p90",
+        "bias err",
+        "air data / raw",
+        "flights",
+        "Pfa [95 % CI]",
+        "repaired"
+    );
+    for i in 0..names.len() {
+        println!(
+            "    {:<12} {:>6} {:<21} {:<21} {:>14} {:>9.2} {:>15} {:>7} {:<21} {:>8}",
+            names[i],
+            faults[i],
+            pd[i],
+            iso[i],
+            delay[i],
+            bias[i],
+            format!("{:.2} / {:.2}", est[i], raw[i]),
+            flights[i],
+            pfa[i],
+            repaired[i]
+        );
+    }
+    print_footer(dir, &s.warnings, "summary.csv, summary.parquet, detectors.csv, comparison.csv");
+    Ok(())
 }

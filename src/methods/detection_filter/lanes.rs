@@ -22,7 +22,7 @@ use crate::methods::detection_filter::filter::DetectionFilter;
 use crate::methods::detection_filter::kernel::{FilterState, LANES, Lane, LaneFilter, LanePlant, PlantState};
 use crate::methods::detection_filter::normals::LaneNormals;
 use crate::methods::detection_filter::scenario::TrialSpec;
-use crate::methods::detection_filter::study::{DetectionFilterParams, Study};
+use crate::methods::detection_filter::study::{DetectionFilterParams, LtiStudy};
 use crate::methods::detection_filter::trial::{DetectorOutcome, PROFILE_RESOLUTION};
 
 /// One detector configuration on a group of lanes: its products and per-lane designs (`None`: no
@@ -36,7 +36,7 @@ pub(super) struct LaneDetector<'f> {
 /// Runs the trials `specs` (1 to [`LANES`]) on the true plants `plant` with every detector.
 /// Returns, per detector, one entry per trial in `specs`.
 pub(super) fn run_lanes(
-    study: &Study,
+    study: &LtiStudy,
     plant: &LanePlant,
     specs: &[TrialSpec],
     detectors: &[LaneDetector],
@@ -53,7 +53,7 @@ pub(super) fn run_lanes(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn run_avx2(
-    study: &Study,
+    study: &LtiStudy,
     plant: &LanePlant,
     specs: &[TrialSpec],
     detectors: &[LaneDetector],
@@ -69,7 +69,7 @@ struct LaneState<'f> {
 
 #[inline(always)]
 fn run_lanes_in(
-    study: &Study,
+    study: &LtiStudy,
     plant: &LanePlant,
     specs: &[TrialSpec],
     detectors: &[LaneDetector],

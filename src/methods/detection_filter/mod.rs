@@ -1,5 +1,6 @@
 //! Detection-filter studies (method 000): eigenstructure-assigned detection filters on an LTI plant.
 
+pub mod commands;
 pub mod deck;
 pub mod filter;
 pub mod kernel;
@@ -15,15 +16,95 @@ pub mod trials;
 
 use polars::prelude::*;
 
-use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, StudyKind, TrialSource, run};
+use std::path::Path;
+
+use crate::engine::deck::DeckError;
+use crate::engine::method::{Inputs, Method, Opt, Study};
+use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
+use crate::engine::summary::Calibration;
 use kernel::LANES;
 use records::RecordBuilder;
-use study::Study;
+use study::LtiStudy;
+
+/// `manifest.json`'s kind of these studies.
+pub const KIND: &str = "detection_filter";
+
+/// Method 000: the registry's entry.
+pub struct DetectionFilters;
+
+impl Method for DetectionFilters {
+    fn kind(&self) -> &'static str {
+        KIND
+    }
+    fn marker(&self) -> &'static str {
+        "plant"
+    }
+    fn title(&self) -> &'static str {
+        "eigenstructure-assigned detection filters on an LTI plant, sensor faults (method 000)"
+    }
+    fn options(&self) -> &'static [Opt] {
+        &[Opt::Thresholds, Opt::Design, Opt::Report]
+    }
+    fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
+        Ok(Box::new(LtiStudy::from_toml(text, path)?))
+    }
+    fn summarize(
+        &self,
+        dir: &Path,
+        manifest: &Manifest,
+        calibration: Option<&Calibration>,
+        print: bool,
+    ) -> Result<(), RunError> {
+        let calibration = calibration.cloned().unwrap_or(Calibration::Target(manifest.target_pfa));
+        let s = summary::summarize(dir, &calibration)?;
+        if print {
+            summary::print(dir, &s)?;
+        }
+        Ok(())
+    }
+    fn report(&self, dir: &Path, trials: &[u64]) -> Result<(), RunError> {
+        let report = report::write_report(dir, trials)?;
+        for w in &report.warnings {
+            println!("warning: {w}");
+        }
+        if let Some(page) = report.files.last() {
+            println!("{} plots -> {}", report.files.len() - 1, page.display());
+        }
+        Ok(())
+    }
+}
+
+impl Study for LtiStudy {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn trials(&self) -> u64 {
+        self.monte_carlo.trials
+    }
+    fn set_trials(&mut self, trials: u64) {
+        self.monte_carlo.trials = trials;
+    }
+    fn set_seed(&mut self, seed: u64) {
+        self.seed = seed;
+    }
+    fn validate(&self) -> Result<(), RunError> {
+        commands::validate(self)
+    }
+    fn design(&self, json: bool) -> Result<(), RunError> {
+        commands::design(self, json)
+    }
+    fn simulate(&self, trial: u64, detector: Option<&str>, out: &Path, _: Inputs) -> Result<(), RunError> {
+        commands::simulate(self, trial, detector, out)
+    }
+    fn run(&self, opts: &RunOptions, _: Inputs) -> Result<RunReport, RunError> {
+        run_study(self, opts)
+    }
+}
 use trials::{Engine, TrialResult};
 
 /// Runs an LTI study (method 000) through [`run`]; a detector that cannot be designed on the nominal
 /// model is the deck's error (with parameter errors, per-trial design failures are rows instead).
-pub fn run_study(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError> {
+pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunError> {
     let engine = Engine::new(study);
     for (d, f) in study.detectors.iter().zip(engine.nominal_filters()) {
         if let Err(e) = f {
@@ -33,7 +114,7 @@ pub fn run_study(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError
         }
     }
     let manifest = Manifest {
-        kind: StudyKind::DetectionFilter,
+        kind: KIND.into(),
         study: study.name.clone(),
         seed: study.seed,
         trials: study.monte_carlo.trials,
@@ -49,7 +130,7 @@ pub fn run_study(study: &Study, opts: &RunOptions) -> Result<RunReport, RunError
 
 /// Method 000's trials: 8 at a time in SIMD lanes.
 struct LtiTrials<'a> {
-    study: &'a Study,
+    study: &'a LtiStudy,
     engine: Engine<'a>,
 }
 
@@ -71,7 +152,7 @@ impl TrialSource for LtiTrials<'_> {
 }
 
 /// The unit of each fault kind's size, as the deck gives it.
-fn fault_size_units(study: &Study) -> std::collections::BTreeMap<String, String> {
+fn fault_size_units(study: &LtiStudy) -> std::collections::BTreeMap<String, String> {
     use crate::fault::deck::{FaultKind, SizeSpec};
     let mut units = std::collections::BTreeMap::new();
     for f in &study.monte_carlo.faults {

@@ -19,14 +19,14 @@
 
 use polars::prelude::*;
 
-use crate::methods::detection_filter::study::Study;
+use crate::methods::detection_filter::study::LtiStudy;
 use crate::methods::detection_filter::trials::TrialResult;
 
 use crate::engine::schema::col;
 
 /// Accumulates trial results column by column.
 pub struct RecordBuilder<'a> {
-    study: &'a Study,
+    study: &'a LtiStudy,
     trial: Vec<u64>,
     detector: Vec<&'a str>,
     kind: Vec<&'static str>,
@@ -57,7 +57,7 @@ fn finite(v: f64) -> Option<f64> {
 }
 
 impl<'a> RecordBuilder<'a> {
-    pub fn new(study: &'a Study, capacity: usize) -> Self {
+    pub fn new(study: &'a LtiStudy, capacity: usize) -> Self {
         let outputs = &study.plant.output_names;
         let list = |name: String| {
             ListPrimitiveChunkedBuilder::<Float64Type>::new(name.into(), capacity, capacity * 4, DataType::Float64)

@@ -1,7 +1,7 @@
 //! Detection-filter trial scenarios (method 000): which sensor fault (kind, output, size, onset), noise
 //! level and parameter errors trial i has, by the shared scheme of [`crate::engine::scenario`].
 
-use super::study::Study;
+use super::study::LtiStudy;
 use crate::engine::deck::ModelTarget;
 use crate::engine::scenario::{GridDigits, UnitSampler, draw};
 use crate::fault::SensorFault;
@@ -38,12 +38,12 @@ pub struct TrialSpec {
 
 /// Draws trial scenarios for one study.
 pub struct ScenarioSampler<'a> {
-    study: &'a Study,
+    study: &'a LtiStudy,
     units: UnitSampler,
 }
 
 impl<'a> ScenarioSampler<'a> {
-    pub fn new(study: &'a Study) -> Self {
+    pub fn new(study: &'a LtiStudy) -> Self {
         let mc = &study.monte_carlo;
         let dims = DIM_PARAMETERS + mc.parameter_errors.len();
         ScenarioSampler { study, units: UnitSampler::new(mc.sampler, mc.trials, study.seed, dims) }

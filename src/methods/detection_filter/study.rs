@@ -1,13 +1,11 @@
-//! Detection-filter decks (method 000): the `[plant]` deck validated into a [`Study`] that cannot be invalid.
+//! Detection-filter decks (method 000): the `[plant]` deck validated into a [`LtiStudy`] that cannot be invalid.
 
 use std::path::{Path, PathBuf};
 
 use nalgebra::{DMatrix, DVector};
 
 use super::deck::Deck;
-use crate::engine::deck::{
-    DeckError, Factor, ModelTarget, Sampler, StudyKind, Validator, deck_kind, parse_deck, read_deck,
-};
+use crate::engine::deck::{DeckError, Factor, ModelTarget, Sampler, Validator, parse_deck, read_deck};
 use crate::fault::SensorFault;
 use crate::fault::deck::FaultKindSpec;
 use crate::lti::LtiPlant;
@@ -72,7 +70,7 @@ pub struct DetectionFilterParams {
 
 /// A validated study: every dimension agrees, every number is finite and in range.
 #[derive(Debug, Clone)]
-pub struct Study {
+pub struct LtiStudy {
     pub source: PathBuf,
     pub name: String,
     pub seed: u64,
@@ -134,33 +132,21 @@ pub struct MonteCarlo {
     pub parameter_errors: Vec<ParameterError>,
 }
 
-impl Study {
+impl LtiStudy {
     /// Reads, parses and validates a deck file.
-    pub fn load(path: &Path) -> Result<Study, DeckError> {
+    pub fn load(path: &Path) -> Result<LtiStudy, DeckError> {
         let text = read_deck(path)?;
-        Study::from_toml(&text, path)
+        LtiStudy::from_toml(&text, path)
     }
 
     /// Parses and validates deck text; `path` names it in messages.
-    pub fn from_toml(text: &str, path: &Path) -> Result<Study, DeckError> {
-        let kind = deck_kind(text);
-        if kind != StudyKind::DetectionFilter {
-            return Err(DeckError::Invalid {
-                file: path.into(),
-                field: kind.deck_table().into(),
-                message: format!(
-                    "this is {} deck (method {}); this command reads detection-filter ([plant]) decks only",
-                    kind.adjective(),
-                    kind.method()
-                ),
-            });
-        }
+    pub fn from_toml(text: &str, path: &Path) -> Result<LtiStudy, DeckError> {
         let deck: Deck = parse_deck(text, path)?;
         study(&Validator { file: path }, deck)
     }
 }
 
-fn study(chk: &Validator, deck: Deck) -> Result<Study, DeckError> {
+fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
     let s = &deck.study;
     let (duration_s, dt_s, steps) = chk.study_section(s)?;
 
@@ -285,7 +271,7 @@ fn study(chk: &Validator, deck: Deck) -> Result<Study, DeckError> {
         ));
     }
 
-    Ok(Study {
+    Ok(LtiStudy {
         source: chk.file.into(),
         name: s.name.clone(),
         seed: s.seed,

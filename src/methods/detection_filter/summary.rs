@@ -17,7 +17,7 @@
 //! of a group whose design succeeded, those with an alarm at or after the onset; the false-alarm rate
 //! counts alarms before the onset (the whole trial when fault-free). Intervals are 95 % Wilson.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use polars::prelude::*;
 
@@ -25,7 +25,7 @@ use crate::engine::intervals::{Z95, mcnemar_exact, wilson};
 use crate::engine::output::write_table;
 use crate::engine::runner::{Manifest, RunError, io, pol, write_parquet};
 use crate::engine::schema::col;
-use crate::engine::summary::{alarm_time, calibrate, f64_col, list_col, read_slice, str_col};
+use crate::engine::summary::{Calibration, alarm_time, calibrate, f64_col, list_col, read_slice, str_col};
 
 /// Rows read at a time when evaluating (a multiple of the detector count is taken).
 const EVAL_ROWS: usize = 8_192;
@@ -42,15 +42,6 @@ pub struct DetectorThresholds {
     pub calibration_trials: u64,
     pub per_output_false_alarms: Vec<u64>,
     pub whole_false_alarms: u64,
-}
-
-/// Where the calibrated thresholds came from.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Calibration {
-    /// Calibrated here at this false-alarm probability.
-    Target(f64),
-    /// Read from another run's `thresholds.csv`.
-    File(PathBuf),
 }
 
 /// What `summarize` wrote.
@@ -694,6 +685,59 @@ pub fn read_thresholds(path: &Path) -> Result<Vec<(String, Vec<f64>, Vec<f64>)>,
         }
     }
     Ok(result)
+}
+
+pub fn print(dir: &Path, s: &SummaryReport) -> Result<(), RunError> {
+    println!("  thresholds: {}", s.calibration_source);
+    for t in &s.thresholds {
+        let pfa =
+            if t.calibration_trials > 0 { t.whole_false_alarms as f64 / t.calibration_trials as f64 } else { f64::NAN };
+        println!(
+            "    {}: [{}] (Pfa achieved {:.4} on {} calibration trials)",
+            t.detector,
+            t.whole.iter().map(|v| format!("{v:.4}")).collect::<Vec<_>>().join(", "),
+            pfa,
+            t.calibration_trials
+        );
+    }
+    use polars::prelude::*;
+    let internal = |e: PolarsError| RunError::Internal(e.to_string());
+    let overall = s
+        .summary
+        .clone()
+        .lazy()
+        .filter(col("kind").neq(lit("none")))
+        .group_by_stable([col("thresholds"), col("detector"), col("kind")])
+        .agg([(col("trials") - col("design_failures")).sum().alias("n"), col("detected").sum().alias("detected")])
+        .sort(["thresholds", "detector", "kind"], Default::default())
+        .collect()
+        .map_err(internal)?;
+    println!("  detection probability over all sizes (see summary.csv for groups):");
+    let text = |n: &str| overall.column(n).and_then(|c| c.str().cloned()).map_err(internal);
+    let count = |n: &str| overall.column(n).and_then(|c| c.u64().cloned()).map_err(internal);
+    let (set, det, kind, n, detected) =
+        (text("thresholds")?, text("detector")?, text("kind")?, count("n")?, count("detected")?);
+    for i in 0..overall.height() {
+        let (n, k) = (n.get(i).unwrap_or(0), detected.get(i).unwrap_or(0));
+        println!(
+            "    {:<10} {:<12} {:<14} {:>6}/{:<6} = {:.3}",
+            set.get(i).unwrap_or(""),
+            det.get(i).unwrap_or(""),
+            kind.get(i).unwrap_or(""),
+            k,
+            n,
+            k as f64 / n.max(1) as f64
+        );
+    }
+    for w in &s.warnings {
+        println!("  warning: {w}");
+    }
+    let mut files = vec!["thresholds.csv", "summary.csv", "summary.parquet", "curves.csv", "min_detectable.csv"];
+    if s.comparison.is_some() {
+        files.push("comparison.csv");
+    }
+    println!("  wrote {} in {}", files.join(", "), dir.display());
+    Ok(())
 }
 
 #[cfg(test)]

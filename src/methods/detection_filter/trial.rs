@@ -28,7 +28,7 @@ use crate::engine::streams::{Substream, noise_rng};
 use crate::fault::ActiveFaults;
 use crate::methods::detection_filter::filter::DetectionFilter;
 use crate::methods::detection_filter::scenario::TrialSpec;
-use crate::methods::detection_filter::study::Study;
+use crate::methods::detection_filter::study::LtiStudy;
 
 use super::kernel::{FilterState, FilterStep, PlantState, PlantStep};
 use crate::engine::output::Trace;
@@ -157,7 +157,7 @@ impl Tracker {
 /// given, receives every sample of `filters[0]`. [`lanes`] computes the same numbers for several
 /// trials at once.
 pub fn run_trial(
-    study: &Study,
+    study: &LtiStudy,
     plant: &PlantStep,
     spec: &TrialSpec,
     filters: &[(&DetectionFilter, FilterStep)],
@@ -242,7 +242,7 @@ struct TraceWriter<'t> {
 }
 
 impl<'t> TraceWriter<'t> {
-    fn new(trace: &'t mut Trace, s: &Study, n: usize) -> Self {
+    fn new(trace: &'t mut Trace, s: &LtiStudy, n: usize) -> Self {
         let p = &s.plant;
         let cols = |k: usize| vec![Vec::with_capacity(s.steps); k];
         TraceWriter {
@@ -305,8 +305,8 @@ mod tests {
 
     const SEED000: &str = include_str!("../../../studies/seed000_pitch_rate.toml");
 
-    fn seed000(faults: bool) -> Study {
-        let mut s = Study::from_toml(SEED000, Path::new("studies/seed000_pitch_rate.toml")).unwrap();
+    fn seed000(faults: bool) -> LtiStudy {
+        let mut s = LtiStudy::from_toml(SEED000, Path::new("studies/seed000_pitch_rate.toml")).unwrap();
         if !faults {
             s.faults.clear();
         }
@@ -323,7 +323,7 @@ mod tests {
         (mean, var.sqrt())
     }
 
-    fn run(study: &Study, trial: u64) -> (DetectorOutcome, Trace) {
+    fn run(study: &LtiStudy, trial: u64) -> (DetectorOutcome, Trace) {
         let mut trace = Trace::default();
         let (_, out) = Engine::new(study).simulate(trial, 0, &mut trace).unwrap();
         (out, trace)

@@ -8,7 +8,7 @@ use crate::engine::deck::ModelTarget;
 use crate::lti::{DiscreteLti, LtiPlant};
 use crate::methods::detection_filter::filter::DetectionFilter;
 use crate::methods::detection_filter::scenario::{ScenarioSampler, TrialSpec};
-use crate::methods::detection_filter::study::Study;
+use crate::methods::detection_filter::study::LtiStudy;
 
 use crate::engine::output::Trace;
 use crate::methods::detection_filter::kernel::{FilterPatterns, LANES, LaneFilter, LanePlant, PlantPatterns};
@@ -25,7 +25,7 @@ pub struct TrialResult {
 }
 
 pub struct Engine<'a> {
-    study: &'a Study,
+    study: &'a LtiStudy,
     sampler: ScenarioSampler<'a>,
     nominal_truth: DiscreteLti,
     nominal_filters: Vec<Result<DetectionFilter, DesignError>>,
@@ -43,7 +43,7 @@ pub struct Engine<'a> {
 type Design<'e> = Result<Cow<'e, DetectionFilter>, DesignError>;
 
 impl<'a> Engine<'a> {
-    pub fn new(study: &'a Study) -> Self {
+    pub fn new(study: &'a LtiStudy) -> Self {
         let sampler = ScenarioSampler::new(study);
         let perturb_truth = sampler.perturbs(ModelTarget::Plant);
         let perturb_design = sampler.perturbs(ModelTarget::Design);
@@ -230,8 +230,8 @@ mod tests {
 
     const ROBUST: &str = include_str!("../../../studies/seed000_robustness.toml");
 
-    fn study(extra: &str) -> Study {
-        Study::from_toml(&format!("{ROBUST}\n{extra}"), Path::new("robust.toml")).unwrap()
+    fn study(extra: &str) -> LtiStudy {
+        LtiStudy::from_toml(&format!("{ROBUST}\n{extra}"), Path::new("robust.toml")).unwrap()
     }
 
     #[test]
@@ -286,7 +286,7 @@ mod tests {
 
     /// Every trial of `deck` (plus `extra` deck lines), on both paths: identical results.
     fn assert_paths_agree(deck: &str, extra: &str, trials: u64) {
-        let mut s = Study::from_toml(&format!("{deck}\n{extra}"), Path::new("deck.toml")).unwrap();
+        let mut s = LtiStudy::from_toml(&format!("{deck}\n{extra}"), Path::new("deck.toml")).unwrap();
         s.monte_carlo.trials = trials;
         let e = Engine::new(&s);
         // Groups of 8, then a ragged group of 3 (idle lanes).
@@ -340,7 +340,7 @@ mod tests {
                      [[monte_carlo.fault]]\nkind = \"oscillation\"\nfrequency_hz = 0.5\nsize = { range = [0.01, 0.1] }\n";
         let deck = ROBUST.replace("[noise]", "[noise]\nprocess_sigma_per_step = [0.001, 0.0001, 0.0001, 0.0001, 0.01]");
         assert!(deck.contains("process_sigma_per_step"));
-        let s = Study::from_toml(&format!("{deck}\n{extra}"), Path::new("deck.toml")).unwrap();
+        let s = LtiStudy::from_toml(&format!("{deck}\n{extra}"), Path::new("deck.toml")).unwrap();
         let diverged =
             (0..48).filter(|&t| Engine::new(&s).run(t).detectors[0].as_ref().unwrap().diverged_at_s.is_some());
         assert!((5..40).contains(&diverged.count()), "some trials diverge, not all");

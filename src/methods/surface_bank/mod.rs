@@ -1,6 +1,7 @@
 //! Control-surface studies (method 004): banks of (strong-tracking) EKFs on a UAV.
 
 pub mod actuator;
+pub mod commands;
 pub mod records;
 pub mod scenario;
 pub mod stmmae;
@@ -9,13 +10,71 @@ pub mod summary;
 pub mod trial;
 pub mod uav;
 
-use crate::engine::runner::{Manifest, StudyKind, TrialSource};
+use std::path::Path;
+
+use crate::engine::deck::DeckError;
+use crate::engine::method::{Inputs, Method, Study};
+use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
+use crate::engine::summary::Calibration;
 use crate::methods::surface_bank::scenario::SurfaceScenarioSampler;
 use crate::methods::surface_bank::stmmae::BankParams;
 use crate::methods::surface_bank::study::SurfaceStudy;
 use crate::methods::surface_bank::uav::SURFACE_NAMES;
 use trial::*;
+
+/// `manifest.json`'s kind of these studies.
+pub const KIND: &str = "surface_bank";
+
+/// Method 004: the registry's entry.
+pub struct SurfaceBanks;
+
+impl Method for SurfaceBanks {
+    fn kind(&self) -> &'static str {
+        KIND
+    }
+    fn marker(&self) -> &'static str {
+        "airframe"
+    }
+    fn title(&self) -> &'static str {
+        "banks of (strong-tracking) EKFs on a UAV, control-surface faults (method 004)"
+    }
+    fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
+        Ok(Box::new(SurfaceStudy::from_toml(text, path)?))
+    }
+    fn summarize(&self, dir: &Path, _: &Manifest, _: Option<&Calibration>, print: bool) -> Result<(), RunError> {
+        let s = summary::summarize(dir)?;
+        if print {
+            summary::print(dir, &s)?;
+        }
+        Ok(())
+    }
+}
+
+impl Study for SurfaceStudy {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn trials(&self) -> u64 {
+        self.monte_carlo.trials
+    }
+    fn set_trials(&mut self, trials: u64) {
+        self.monte_carlo.trials = trials;
+    }
+    fn set_seed(&mut self, seed: u64) {
+        self.seed = seed;
+    }
+    fn validate(&self) -> Result<(), RunError> {
+        commands::validate(self)
+    }
+    fn simulate(&self, trial: u64, detector: Option<&str>, out: &Path, _: Inputs) -> Result<(), RunError> {
+        commands::simulate(self, trial, detector, out)
+    }
+    fn run(&self, opts: &RunOptions, _: Inputs) -> Result<RunReport, RunError> {
+        let trials = SurfaceTrials::new(self);
+        run(&trials, trials.manifest(), opts)
+    }
+}
 
 /// The runner's view of a surface study: every bank of the deck on each trial's one flight.
 pub struct SurfaceTrials<'a> {
@@ -39,7 +98,7 @@ impl<'a> SurfaceTrials<'a> {
             ("loss_of_effectiveness", "fraction of the deflection still acting"),
         ];
         Manifest {
-            kind: StudyKind::SurfaceBank,
+            kind: KIND.into(),
             study: s.name.clone(),
             seed: s.seed,
             trials: s.monte_carlo.trials,

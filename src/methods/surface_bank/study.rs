@@ -777,7 +777,6 @@ mod tests {
             ]
         );
         assert_eq!(study.sensors.gyro_variance_rad2_s2, 0.0076);
-        assert_eq!(crate::engine::deck::deck_kind(&seed_deck()), crate::engine::deck::StudyKind::SurfaceBank);
     }
 
     #[test]

@@ -21,6 +21,7 @@
 //!
 //! Rates are over the flights that reached the end: a trial that left the envelope counts in `failed`.
 
+use crate::engine::summary::{Table, print_footer};
 use std::path::Path;
 
 use polars::prelude::*;
@@ -247,6 +248,51 @@ fn warnings(trials: &DataFrame) -> PolarsResult<Vec<String>> {
         warnings.push(format!("{non_finite} trial x detector runs had non-finite covariances (non_finite_steps)"));
     }
     Ok(warnings)
+}
+
+/// The per-detector (variant) table of a surface study (`detectors.csv`), then warnings and the files written.
+pub fn print(dir: &Path, s: &SurfaceSummary) -> Result<(), RunError> {
+    let t = Table(&s.detectors);
+    let (names, windows, flights) = (t.strs("detector"), t.u64s("fault_windows"), t.u64s("flights"));
+    let (pd, iso, pfa) = (t.rates("pd"), t.rates("isolation_accuracy"), t.rates("pfa"));
+    let (delay, clear, relapse) =
+        (t.delays("delay_p50_s", "delay_p90_s"), t.f64s("clearing_p50_s"), t.f64s("post_fault_rate"));
+    let (asym, not_pd, non_finite) =
+        (t.u64s("flights_asymmetric"), t.u64s("flights_not_positive_definite"), t.u64s("flights_non_finite"));
+    println!("  per variant, paired over the same trials (see summary.csv for groups, comparison.csv for tests);");
+    println!("  relapse: share of faults after which a surface is declared again; Pfa: alarms before any fault:");
+    println!(
+        "    {:<16} {:>7} {:<21} {:<21} {:>14} {:>10} {:>8} {:>7} {:<21} {:>16}",
+        "variant",
+        "faults",
+        "Pd [95 % CI]",
+        "isolated [95 % CI]",
+        "delay p50/p90",
+        "clear p50",
+        "relapse",
+        "flights",
+        "Pfa [95 % CI]",
+        "asym/notPD/NaN"
+    );
+    for i in 0..names.len() {
+        println!(
+            "    {:<16} {:>7} {:<21} {:<21} {:>14} {:>8.2} s {:>8.3} {:>7} {:<21} {:>7}/{}/{}",
+            names[i],
+            windows[i],
+            pd[i],
+            iso[i],
+            delay[i],
+            clear[i],
+            relapse[i],
+            flights[i],
+            pfa[i],
+            asym[i],
+            not_pd[i],
+            non_finite[i]
+        );
+    }
+    print_footer(dir, &s.warnings, "summary.csv, summary.parquet, detectors.csv, comparison.csv");
+    Ok(())
 }
 
 #[cfg(test)]

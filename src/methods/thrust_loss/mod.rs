@@ -1,5 +1,6 @@
 //! Launch-vehicle thrust-loss studies (method 001): EKF residual and moving-horizon least squares.
 
+pub mod commands;
 pub mod ekf_mhe;
 pub mod records;
 pub mod scenario;
@@ -8,14 +9,92 @@ pub mod summary;
 pub mod trial;
 pub mod vehicle;
 
-use crate::engine::runner::{Manifest, StudyKind, TrialSource};
+use std::path::Path;
+
+use crate::engine::deck::DeckError;
+use crate::engine::method::{Inputs, Method, Opt, Study};
+use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
+use crate::engine::summary::Calibration;
 use crate::methods::thrust_loss::ekf_mhe::MheStep;
 use crate::methods::thrust_loss::scenario::LaunchScenarioSampler;
 use crate::methods::thrust_loss::study::LaunchStudy;
 use crate::methods::thrust_loss::vehicle::Measurement;
 use std::sync::Arc;
 use trial::*;
+
+/// `manifest.json`'s kind of these studies.
+pub const KIND: &str = "thrust_loss";
+
+/// Method 001: the registry's entry.
+pub struct ThrustLoss;
+
+impl Method for ThrustLoss {
+    fn kind(&self) -> &'static str {
+        KIND
+    }
+    fn marker(&self) -> &'static str {
+        "vehicle"
+    }
+    fn title(&self) -> &'static str {
+        "EKF residual and moving-horizon least squares on a launch vehicle, thrust loss (method 001)"
+    }
+    fn options(&self) -> &'static [Opt] {
+        &[Opt::Thresholds]
+    }
+    fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
+        Ok(Box::new(LaunchStudy::from_toml(text, path)?))
+    }
+    fn summarize(
+        &self,
+        dir: &Path,
+        manifest: &Manifest,
+        calibration: Option<&Calibration>,
+        print: bool,
+    ) -> Result<(), RunError> {
+        let target_pfa = match calibration {
+            None => manifest.target_pfa,
+            Some(Calibration::Target(p)) => *p,
+            Some(Calibration::File(_)) => {
+                return Err(RunError::Invalid(format!(
+                    "{}: --thresholds reads a detection filter's thresholds.csv; use --target-pfa here",
+                    dir.display()
+                )));
+            }
+        };
+        let s = summary::summarize(dir, target_pfa)?;
+        if print {
+            summary::print(dir, &s)?;
+        }
+        Ok(())
+    }
+}
+
+impl Study for LaunchStudy {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn trials(&self) -> u64 {
+        self.monte_carlo.trials
+    }
+    fn set_trials(&mut self, trials: u64) {
+        self.monte_carlo.trials = trials;
+    }
+    fn set_seed(&mut self, seed: u64) {
+        self.seed = seed;
+    }
+    fn validate(&self) -> Result<(), RunError> {
+        commands::validate(self)
+    }
+    fn simulate(&self, trial: u64, detector: Option<&str>, out: &Path, _: Inputs) -> Result<(), RunError> {
+        commands::simulate(self, trial, detector, out)
+    }
+    fn run(&self, opts: &RunOptions, _: Inputs) -> Result<RunReport, RunError> {
+        // Designs and loss tables are the deck's: one that cannot be designed is invalid input.
+        let trials = LaunchTrials::new(self).map_err(|e| RunError::Invalid(format!("{}: {e}", self.path.display())))?;
+        run(&trials, trials.manifest(), opts)
+    }
+}
 
 /// The runner's view of a launch study: designs built once, every trial flown once.
 pub struct LaunchTrials<'a> {
@@ -45,7 +124,7 @@ impl<'a> LaunchTrials<'a> {
     pub fn manifest(&self) -> Manifest {
         let s = self.study;
         Manifest {
-            kind: StudyKind::ThrustLoss,
+            kind: KIND.into(),
             study: s.name.clone(),
             seed: s.seed,
             trials: s.monte_carlo.trials,

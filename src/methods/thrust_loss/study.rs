@@ -423,7 +423,6 @@ mod tests {
         assert_eq!(study.detectors[0].params.mhe, MheParams::seed());
         assert_eq!(study.gusts.len(), 2);
         assert_eq!(study.monte_carlo.engines, [0, 1, 2, 3]);
-        assert_eq!(crate::engine::deck::deck_kind(&deck()), crate::engine::deck::StudyKind::ThrustLoss);
     }
 
     #[test]

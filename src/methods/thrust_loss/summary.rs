@@ -17,6 +17,7 @@
 //!   flights;
 //! - `comparison.csv`: every pair of detectors on the same trials, per threshold set ([`crate::engine::paired`]).
 
+use crate::engine::summary::{Table, print_footer};
 use std::path::Path;
 
 use polars::prelude::*;
@@ -312,4 +313,47 @@ fn compare(evaluated: &DataFrame, detectors: &[String], file: &Path) -> Result<D
     let mut all = frames.remove(0);
     all.vstack_mut(&frames[0]).map_err(pol(file))?;
     Ok(all)
+}
+
+/// The thresholds and per-detector table of a launch study (`detectors.csv`).
+pub fn print(dir: &Path, s: &LaunchSummary) -> Result<(), RunError> {
+    println!("  thresholds on |fhat|: the deck's, and calibrated on the fault-free flights:");
+    for t in &s.thresholds {
+        println!(
+            "    {:<12} deck {:.4e}, calibrated {:.4e} (Pfa achieved {:.4} on {} calibration flights)",
+            t.detector,
+            t.deck,
+            t.calibrated,
+            t.false_alarms as f64 / t.calibration_trials.max(1) as f64,
+            t.calibration_trials
+        );
+    }
+    let t = Table(&s.detectors);
+    let (sets, names, faults, flights) =
+        (t.strs("thresholds"), t.strs("detector"), t.u64s("faulty_trials"), t.u64s("flights"));
+    let (pd, engine, pfa) = (t.rates("pd"), t.rates("localisation_accuracy"), t.rates("pfa"));
+    let (delay, loss) = (t.delays("delay_p50_s", "delay_p90_s"), t.f64s("loss_abs_error_p50_percent"));
+    println!("  per detector, paired over the same trials (see summary.csv for groups, comparison.csv for tests);");
+    println!("  engine and loss (median |error|) at the deck's threshold only; Pfa: alarms before the onset:");
+    println!(
+        "    {:<10} {:<12} {:>6} {:<21} {:>14} {:<21} {:>8} {:>7} {:<21}",
+        "thresholds",
+        "detector",
+        "faults",
+        "Pd [95 % CI]",
+        "delay p50/p90",
+        "engine [95 % CI]",
+        "loss err",
+        "flights",
+        "Pfa [95 % CI]"
+    );
+    for i in 0..names.len() {
+        let loss_text = if loss[i].is_nan() { "-".to_string() } else { format!("{:.1} %", loss[i]) };
+        println!(
+            "    {:<10} {:<12} {:>6} {:<21} {:>14} {:<21} {:>8} {:>7} {:<21}",
+            sets[i], names[i], faults[i], pd[i], delay[i], engine[i], loss_text, flights[i], pfa[i]
+        );
+    }
+    print_footer(dir, &s.warnings, "thresholds.csv, summary.csv, summary.parquet, detectors.csv, comparison.csv");
+    Ok(())
 }

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 
 use polars::prelude::*;
 
-use crate::engine::runner::{Manifest, RunError, StudyKind, io, write_atomically};
+use crate::engine::runner::{Manifest, RunError, io, write_atomically};
 use crate::engine::schema::col;
 use crate::engine::summary::{alarm_time, f64_col, list_col, read_slice, str_col};
 use crate::methods::detection_filter::summary;
@@ -47,14 +47,6 @@ struct DetectorData {
 /// Writes the report of the run in `dir`; `trials` are traced (re-simulated from the deck).
 pub fn write_report(dir: &Path, trials: &[u64]) -> Result<Report, RunError> {
     let manifest = Manifest::read(dir)?;
-    if manifest.kind != StudyKind::DetectionFilter {
-        return Err(RunError::Invalid(format!(
-            "{}: {} study: its report is the tables summary.csv, detectors.csv and comparison.csv; \
-             `fdimc report` draws detection-filter studies",
-            dir.display(),
-            manifest.kind.adjective()
-        )));
-    }
     for f in ["summary.parquet", "thresholds.csv", "curves.csv", "min_detectable.csv"] {
         if !dir.join(f).exists() {
             return Err(RunError::Invalid(format!(
@@ -118,7 +110,7 @@ pub fn write_report(dir: &Path, trials: &[u64]) -> Result<Report, RunError> {
                 deck.display()
             )));
         }
-        let mut study = crate::methods::detection_filter::study::Study::load(&deck)
+        let mut study = crate::methods::detection_filter::study::LtiStudy::load(&deck)
             .map_err(|e| RunError::Invalid(e.to_string()))?;
         study.seed = manifest.seed;
         study.monte_carlo.trials = manifest.trials;

@@ -10,7 +10,7 @@ use polars::prelude::*;
 use crate::engine::output::Trace;
 use crate::engine::schema::col;
 use crate::methods::detection_filter::scenario::TrialSpec;
-use crate::methods::detection_filter::study::Study;
+use crate::methods::detection_filter::study::LtiStudy;
 use crate::methods::detection_filter::trial::DetectorOutcome;
 
 const FONT: &str = "sans-serif";
@@ -349,7 +349,7 @@ pub fn confusion(
 /// onset and alarm times.
 pub fn trace(
     file: &Path,
-    study: &Study,
+    study: &LtiStudy,
     spec: &TrialSpec,
     outcome: &DetectorOutcome,
     trace: &Trace,

@@ -1,0 +1,157 @@
+//! How the engine and the command line know a study method: a [`Method`] (one per folder in
+//! `src/methods/`, listed once in `methods::REGISTRY`) reads the decks of its kind into a [`Study`],
+//! which can be validated, simulated trial by trial and run through the engine's runner.
+//!
+//! The engine never names a method: commands find one by the table that marks a deck ([`load`]) or by
+//! the `kind` a results folder's manifest records ([`find`]), in the registry the caller hands in.
+
+use std::path::Path;
+
+use super::deck::{DeckError, read_deck};
+use super::runner::{Manifest, RunError, RunOptions, RunReport};
+use super::summary::Calibration;
+
+/// A kind of study.
+pub trait Method: Sync {
+    /// The kind's name: `manifest.json`'s `kind` and the folder under `src/methods/`.
+    fn kind(&self) -> &'static str;
+    /// The top-level table that marks a deck of this kind (`plant` for `[plant]`).
+    fn marker(&self) -> &'static str;
+    /// What the kind studies, in a few words with the seed method's number, for lists and messages.
+    fn title(&self) -> &'static str;
+    /// The options beyond the common ones that this kind takes.
+    fn options(&self) -> &'static [Opt] {
+        &[]
+    }
+    /// Parses and validates a deck of this kind; every rejection names the file and the field.
+    fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError>;
+    /// Writes the summaries of the complete run in `dir` (`calibration`: [`Opt::Thresholds`] only) and,
+    /// with `print`, shows them.
+    fn summarize(
+        &self,
+        dir: &Path,
+        manifest: &Manifest,
+        calibration: Option<&Calibration>,
+        print: bool,
+    ) -> Result<(), RunError>;
+    /// `fdimc report` ([`Opt::Report`]): plots and a page in `dir/report/`, traces of `trials`.
+    fn report(&self, _dir: &Path, _trials: &[u64]) -> Result<(), RunError> {
+        Err(RunError::Internal("this kind lists no report".into()))
+    }
+}
+
+/// Options that only some kinds take; a kind that does not list one refuses it (exit 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Opt {
+    /// `summarize --target-pfa` and `--thresholds`: the kind records a detection statistic whose
+    /// threshold can be calibrated after the run.
+    Thresholds,
+    /// `run`, `simulate --classifiers FILE` and `fdimc train`: the kind trains classifiers first.
+    Classifiers,
+    /// `fdimc design`: the kind has a gain design to show.
+    Design,
+    /// `fdimc report`: the kind draws a report.
+    Report,
+}
+
+impl Opt {
+    /// The option as the command line spells it.
+    pub fn flag(self) -> &'static str {
+        match self {
+            Opt::Thresholds => "--target-pfa / --thresholds",
+            Opt::Classifiers => "--classifiers / fdimc train",
+            Opt::Design => "fdimc design",
+            Opt::Report => "fdimc report",
+        }
+    }
+}
+
+/// What a command hands a study beyond the deck.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Inputs<'a> {
+    /// Classifiers written by `fdimc train` ([`Opt::Classifiers`]).
+    pub classifiers: Option<&'a Path>,
+    pub quiet: bool,
+}
+
+/// A deck its method has validated.
+pub trait Study: Sync {
+    fn name(&self) -> &str;
+    /// Trials of the Monte Carlo study.
+    fn trials(&self) -> u64;
+    /// `run --trials N`.
+    fn set_trials(&mut self, trials: u64);
+    /// `run --seed S`: another seed gives fresh trials.
+    fn set_seed(&mut self, seed: u64);
+    /// `fdimc validate`: prints the resolved study.
+    fn validate(&self) -> Result<(), RunError>;
+    /// `fdimc simulate`: writes one trial's per-sample trace to `out` and prints what happened in it.
+    fn simulate(&self, trial: u64, detector: Option<&str>, out: &Path, inputs: Inputs) -> Result<(), RunError>;
+    /// `fdimc run`: the trials through [`super::runner::run`].
+    fn run(&self, opts: &RunOptions, inputs: Inputs) -> Result<RunReport, RunError>;
+    /// `fdimc design` ([`Opt::Design`]): prints the detectors' gains.
+    fn design(&self, _json: bool) -> Result<(), RunError> {
+        Err(RunError::Internal("this kind lists no design".into()))
+    }
+    /// `fdimc train` ([`Opt::Classifiers`]): trains what the study evaluates and writes it to `out`.
+    fn train(&self, _out: Option<&Path>) -> Result<(), RunError> {
+        Err(RunError::Internal("this kind lists nothing to train".into()))
+    }
+}
+
+/// The method of `kind` (a results folder's), or an error listing the kinds there are.
+pub fn find<'r>(registry: &'r [&'r dyn Method], kind: &str) -> Result<&'r dyn Method, RunError> {
+    registry.iter().copied().find(|m| m.kind() == kind).ok_or_else(|| {
+        RunError::Invalid(format!("unknown kind of study {kind:?}; this fdimc knows {}", kinds(registry)))
+    })
+}
+
+/// Reads the deck at `path`, finds its method by the table that marks it, and validates it.
+pub fn load<'r>(registry: &'r [&'r dyn Method], path: &Path) -> Result<(&'r dyn Method, Box<dyn Study>), DeckError> {
+    let text = read_deck(path)?;
+    let method = method_of(registry, &text, path)?;
+    Ok((method, method.load(&text, path)?))
+}
+
+/// The method whose marker table the deck text has: exactly one must match.
+pub fn method_of<'r>(registry: &'r [&'r dyn Method], text: &str, path: &Path) -> Result<&'r dyn Method, DeckError> {
+    let table: toml::Table = toml::from_str(text)
+        .map_err(|e| DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() })?;
+    let matching: Vec<&dyn Method> = registry.iter().copied().filter(|m| table.contains_key(m.marker())).collect();
+    match matching.as_slice() {
+        [one] => Ok(*one),
+        [] => Err(DeckError::Invalid {
+            file: path.into(),
+            field: "(top level)".into(),
+            message: format!("no kind of study matches: a deck has one of the tables {}", kinds(registry)),
+        }),
+        several => Err(DeckError::Invalid {
+            file: path.into(),
+            field: "(top level)".into(),
+            message: format!(
+                "the tables {} mark different kinds of study: keep one",
+                several.iter().map(|m| format!("[{}]", m.marker())).collect::<Vec<_>>().join(", ")
+            ),
+        }),
+    }
+}
+
+/// Refuses an option `method` does not list, naming the kinds that take it.
+pub fn require(registry: &[&dyn Method], method: &dyn Method, opt: Opt) -> Result<(), RunError> {
+    if method.options().contains(&opt) {
+        return Ok(());
+    }
+    let takers: Vec<&str> = registry.iter().filter(|m| m.options().contains(&opt)).map(|m| m.kind()).collect();
+    Err(RunError::Invalid(format!(
+        "{} applies to {} studies, not to this {} study ({})",
+        opt.flag(),
+        takers.join(", "),
+        method.kind(),
+        method.title()
+    )))
+}
+
+/// `[plant] (detection_filter: ...), [vehicle] (...)`.
+fn kinds(registry: &[&dyn Method]) -> String {
+    registry.iter().map(|m| format!("[{}] ({}: {})", m.marker(), m.kind(), m.title())).collect::<Vec<_>>().join(", ")
+}

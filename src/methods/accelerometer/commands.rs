@@ -1,0 +1,145 @@
+//! What `fdimc validate` and `fdimc simulate` print and write for this kind of deck.
+
+use std::path::Path;
+
+use super::study::AccelerometerStudy;
+use super::trial::TrainedClassifiers;
+use crate::engine::output::{Trace, trace_frame, write_table};
+use crate::engine::runner::RunError;
+use std::path::PathBuf;
+
+/// The resolved accelerometer study (method 003).
+pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
+    let d = &study.design;
+    println!("{}: valid", study.path.display());
+    println!(
+        "study       {} (seed {}, {} s at dt {} s)",
+        study.name, study.seed, d.scenario.duration_s, d.scenario.dt_s
+    );
+    let n = &d.scenario.noise;
+    println!(
+        "imu         gyro noise {:.3} deg/s (bias spread {:.3}), accelerometer noise {} m/s^2 (bias spread {})",
+        n.gyro_noise_std_rad_s.to_degrees(),
+        n.gyro_bias_std_rad_s.to_degrees(),
+        n.accel_noise_std_mps2,
+        n.accel_bias_std_mps2
+    );
+    let r = &d.ranges;
+    println!(
+        "faults      bias |{:?}| m/s^2, gain |factor - 1| {:?}, stuck at the reading at onset; onset {:?} s; axis and sign drawn",
+        r.bias_mps2, r.gain_deviation, r.onset_s
+    );
+    println!("features    {} samples from {} s after the onset", d.features.window_len, d.window_delay_s);
+    let t = &study.training;
+    println!(
+        "training    {} trials per class from seed {} at noise scales {:?}; SVM {:?}, C {}",
+        t.trials_per_class, t.seed, t.noise_scales, t.svm.kernel, t.svm.c
+    );
+    println!(
+        "detection   T over {} samples, threshold {}, counted from {} s",
+        study.detection.window, study.detection.threshold, study.settle_s
+    );
+    let classes: Vec<&str> = study.classes.iter().map(|c| c.name()).collect();
+    println!(
+        "monte carlo {} trials, classes [{}] cycled, noise scale {:?}",
+        study.trials,
+        classes.join(", "),
+        study.noise_scale
+    );
+    Ok(())
+}
+
+/// One trial of an accelerometer deck: the residual and its detection statistic per sample, and what
+/// both classifiers make of the window after the onset (from `classifiers`, or trained now).
+pub fn simulate(
+    study: &AccelerometerStudy,
+    trial: u64,
+    out: &Path,
+    classifiers: Option<&Path>,
+) -> Result<(), RunError> {
+    use crate::methods::accelerometer::AccelerometerTrials;
+    use crate::methods::accelerometer::trial::{DETECTORS, TrainedClassifiers};
+    let trained = match classifiers {
+        Some(file) => TrainedClassifiers::load(file)?,
+        None => {
+            TrainedClassifiers::train(study).map_err(|e| RunError::Invalid(format!("{}: {e}", study.path.display())))?
+        }
+    };
+    let trials = AccelerometerTrials::new(study, &trained);
+    let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
+    let result = trials.run_trial_with(trial, |samples, statistics| {
+        let dt_s = study.design.scenario.dt_s;
+        floats.push(("t_s".into(), (0..samples.len()).map(|k| k as f64 * dt_s).collect()));
+        for (j, axis) in ["x", "y", "z"].iter().enumerate() {
+            floats.push((format!("residual_{axis}"), samples.iter().map(|s| s.residual[j]).collect()));
+        }
+        floats.push(("detection_statistic".into(), statistics.to_vec()));
+    });
+    let outcome =
+        result.outcome.map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.path.display())))?;
+    let threshold = study.detection.threshold;
+    let alarm = floats.last().map(|(_, t)| t.iter().map(|&v| v >= threshold).collect()).unwrap_or_default();
+    let trace = Trace { float_columns: floats, bool_columns: vec![("alarm".into(), alarm)] };
+    let mut df = trace_frame(&trace).map_err(|e| RunError::Internal(e.to_string()))?;
+    write_table(&mut df, out)?;
+    let s = &result.spec;
+    println!("{}: trial {trial}, {} samples -> {}", study.name, df.height(), out.display());
+    let axis = s.axis.map_or("-", |a| ["x", "y", "z"][a]);
+    println!(
+        "  class {} on axis {axis}, size {}, onset {:.3} s, noise scale {}",
+        s.class.name(),
+        s.size,
+        s.onset_s,
+        s.noise_scale
+    );
+    for (d, name) in DETECTORS.iter().enumerate() {
+        println!("  {name:<6} predicts {}", outcome.predicted[d].name());
+    }
+    let secs = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+    println!(
+        "  residual detector: false alarm {} s, alarm {} s (delay {} s)",
+        secs(outcome.false_alarm_s),
+        secs(outcome.alarm_s),
+        secs(outcome.alarm_s.map(|a| a - s.onset_s))
+    );
+    Ok(())
+}
+
+/// `fdimc train`: trains an accelerometer deck's classifiers and writes them.
+pub fn train(study: &AccelerometerStudy, out: Option<&Path>) -> Result<(), RunError> {
+    let deck = &study.path;
+    let out = out
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("results").join(&study.name).join("classifiers.json"));
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| RunError::Internal(format!("{}: {e}", parent.display())))?;
+    }
+    let started = std::time::Instant::now();
+    let trained =
+        TrainedClassifiers::train(&study).map_err(|e| RunError::Invalid(format!("{}: {e}", deck.display())))?;
+    trained.save(&out)?;
+    println!(
+        "{}: trained the SVM decision tree and the one-against-one SVM on {} trials per class (seed {}) in {:.1} s -> {}",
+        study.name,
+        study.training.trials_per_class,
+        study.training.seed,
+        started.elapsed().as_secs_f64(),
+        out.display()
+    );
+    if let Some(tree) = trained.tree.tree() {
+        for (k, m) in tree.merges.iter().enumerate() {
+            let names = |c: &[crate::methods::accelerometer::ekf_svm::FaultClass]| {
+                c.iter().map(|c| c.name()).collect::<Vec<_>>().join("+")
+            };
+            println!(
+                "  merge {}: {} | {} (separability {:.3}, the least of the {} pairs)",
+                k + 1,
+                names(&m.positive),
+                names(&m.negative),
+                m.separability,
+                m.candidates.len()
+            );
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,172 @@
+//! What `fdimc validate` and `fdimc simulate` print and write for this kind of deck.
+
+use std::path::Path;
+
+use super::study::AirDataStudy;
+use crate::engine::output::{Trace, trace_frame, write_table};
+use crate::engine::runner::RunError;
+
+/// The resolved air-data study (method 002).
+pub fn validate(study: &AirDataStudy) -> Result<(), RunError> {
+    println!("{}: valid", study.path.display());
+    let samples = (study.duration_s / study.dt_s).round();
+    println!(
+        "study       {} (seed {}, {} s at dt {} s = {samples} samples)",
+        study.name, study.seed, study.duration_s, study.dt_s
+    );
+    let p = &study.profile;
+    println!(
+        "flight      profile {:?}: {} m/s, alpha {:.1} deg, pitch {:.1} deg, {} manoeuvre segments",
+        study.profile_name,
+        p.airspeed_mps,
+        p.alpha_rad.to_degrees(),
+        p.pitch_rad.to_degrees(),
+        p.segments.len()
+    );
+    let n = &study.noise;
+    println!(
+        "sensors     gyro {:.3} deg/s, accelerometer {} m/s^2, attitude {:.3} deg; airspeed {} m/s, alpha {:.3} deg, beta {:.3} deg",
+        n.gyro_std_rad_s.to_degrees(),
+        n.accelerometer_std_mps2,
+        n.attitude_std_rad.to_degrees(),
+        n.airspeed_std_mps,
+        n.alpha_std_rad.to_degrees(),
+        n.beta_std_rad.to_degrees()
+    );
+    let w = &study.wind;
+    println!(
+        "wind        steady NED {:?} m/s, gust {} m/s (time constant {:.1} s)",
+        w.steady_ned_mps, w.gust_std_mps, w.gust_time_constant_s
+    );
+    for d in &study.detectors {
+        let q = &d.params;
+        println!(
+            "detector    {}: dual_ukf, isolation P_fa {} over {} sample(s) (threshold {:.3}), declare {} held {} s, clear {}, isolated set read {} s after a declaration",
+            d.name,
+            q.false_alarm_probability,
+            q.isolation_window,
+            crate::methods::air_data::dual_ukf::chi_square_threshold(
+                q.isolation_window as u32,
+                q.false_alarm_probability
+            ),
+            q.declare_probability,
+            q.declare_hold_s,
+            q.clear_probability,
+            d.isolation_delay_s
+        );
+    }
+    let names = study.output_names();
+    for f in &study.faults {
+        println!("fault       {} {} {} from {} s", names[f.channel], f.mode.name(), f.mode.size(), f.onset_s);
+    }
+    let mc = &study.monte_carlo;
+    println!(
+        "monte carlo {} trials, fault-free fraction {}, sampler {:?}, onset {:?} s, noise scale {:?}, gust {:?} m/s",
+        mc.trials, mc.fault_free_fraction, mc.sampler, mc.onset_s, mc.noise_scale, mc.gust_std_mps
+    );
+    let sets: Vec<String> = mc.output_sets.iter().map(|s| crate::methods::air_data::records::sensor_set(s)).collect();
+    println!("            sensor sets [{}]", sets.join(", "));
+    for f in &mc.faults {
+        println!("            fault kind {}: size {:?}", f.kind.name(), f.size);
+    }
+    if mc.faults.is_empty() {
+        println!("            every faulty trial flies the faults above");
+    }
+    Ok(())
+}
+
+/// One flight of an air-data deck: every detector (or `--detector`'s) on the same samples; the trace
+/// holds the inertial and air-data measurements, the true air data, and per detector the fault
+/// probability, the declaration, the isolation statistics and flags, the air-data and bias estimates.
+pub fn simulate(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), RunError> {
+    use crate::methods::air_data::flight::{AIR_DATA_CHANNEL_NAMES, INERTIAL_CHANNEL_NAMES};
+    let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
+    let mut selected = study.clone();
+    if let Some(name) = detector {
+        let d = study.detectors.iter().find(|d| d.name == name).ok_or_else(|| {
+            RunError::Invalid(format!(
+                "--detector {name:?}: {} has detectors {}",
+                study.path.display(),
+                names.join(", ")
+            ))
+        })?;
+        selected.detectors = vec![d.clone()];
+    }
+    let trials = crate::methods::air_data::AirDataTrials::new(&selected);
+    let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
+    let mut bools: Vec<(String, Vec<bool>)> = Vec::new();
+    let result = trials.run_trial_with(trial, |s, steps| {
+        let mut f = Vec::new();
+        let mut b = Vec::new();
+        f.push(("t_s".to_string(), s.t_s));
+        for (name, v) in INERTIAL_CHANNEL_NAMES.iter().zip(s.inertial.to_array()) {
+            f.push((format!("{name}_measured"), v));
+        }
+        for ((name, v), truth) in
+            AIR_DATA_CHANNEL_NAMES.iter().zip(s.air_data.to_array()).zip(s.truth.air_data.to_array())
+        {
+            f.push((format!("{name}_measured"), v));
+            f.push((format!("{name}_true"), truth));
+        }
+        for (d, step) in selected.detectors.iter().zip(steps) {
+            f.push((format!("{}_p_fault", d.name), step.probabilities[1]));
+            b.push((format!("{}_declared", d.name), step.fault_declared));
+            for (j, name) in AIR_DATA_CHANNEL_NAMES.iter().enumerate() {
+                f.push((format!("{}_{name}_estimate", d.name), step.air_data.to_array()[j]));
+                f.push((format!("{}_{name}_bias", d.name), step.bias[j]));
+                f.push((format!("{}_{name}_chi_square", d.name), step.chi_square[j]));
+                b.push((format!("{}_{name}_isolated", d.name), step.isolated[j]));
+            }
+        }
+        if floats.is_empty() {
+            floats = f.iter().map(|(n, _)| (n.clone(), Vec::new())).collect();
+            bools = b.iter().map(|(n, _)| (n.clone(), Vec::new())).collect();
+        }
+        for (col, (_, v)) in floats.iter_mut().zip(f) {
+            col.1.push(v);
+        }
+        for (col, (_, v)) in bools.iter_mut().zip(b) {
+            col.1.push(v);
+        }
+    });
+    let outcomes =
+        result.outcome.map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.path.display())))?;
+    let trace = Trace { float_columns: floats, bool_columns: bools };
+    let mut df = trace_frame(&trace).map_err(|e| RunError::Internal(e.to_string()))?;
+    write_table(&mut df, out)?;
+    let spec = &result.spec;
+    println!(
+        "{}: trial {trial}, {} detector(s), {} samples -> {}",
+        study.name,
+        selected.detectors.len(),
+        df.height(),
+        out.display()
+    );
+    if spec.faults.is_empty() {
+        println!("  fault-free trial");
+    } else {
+        println!(
+            "  fault               {} {} size {} from {:.3} s",
+            crate::methods::air_data::records::sensor_set(&spec.outputs),
+            spec.kind,
+            spec.size,
+            spec.onset_s
+        );
+    }
+    println!("  noise scale {}, gust {:.2} m/s", spec.noise_scale, spec.gust_std_mps);
+    let secs = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+    for (d, o) in selected.detectors.iter().zip(&outcomes) {
+        let delay = o.detection_s.map(|t| t - spec.onset_s);
+        let isolated = o.isolated.as_deref().map_or("-".to_string(), crate::methods::air_data::records::sensor_set);
+        println!(
+            "  {:<12} false alarm {}, delay {} s, isolated {isolated}, bias error {} sigma, air data {} / raw {} sigma",
+            d.name,
+            secs(o.false_alarm_s),
+            secs(delay),
+            secs(o.bias_error_rms_sigma),
+            secs(o.estimate_rms_sigma),
+            secs(o.raw_rms_sigma)
+        );
+    }
+    Ok(())
+}

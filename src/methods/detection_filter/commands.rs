@@ -1,0 +1,269 @@
+//! What `fdimc validate`, `design` and `simulate` print and write for detection-filter decks.
+
+use std::path::Path;
+
+use nalgebra::DMatrix;
+use serde_json::json;
+
+use super::study::{LtiStudy, Shape};
+use super::trials::Engine;
+use crate::design::{Assignment, DesignError};
+use crate::engine::output::{Trace, trace_frame, write_table};
+use crate::engine::runner::RunError;
+
+/// A deck whose detector cannot be designed is invalid input.
+fn design_error(deck: &Path, what: &str, e: DesignError) -> RunError {
+    RunError::Invalid(format!("{}: detector: {what}: {e}", deck.display()))
+}
+
+/// `fdimc design`: gains, closed-loop eigenvalues, conditioning and bias signatures per detector.
+pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
+    let deck = &study.source;
+    let ranks = study
+        .design_plant
+        .structural_ranks()
+        .ok_or_else(|| RunError::Internal("SVD of the controllability/observability matrix failed".into()))?;
+    let p = &study.design_plant;
+    let mut filters = Vec::with_capacity(study.detectors.len());
+    for d in &study.detectors {
+        let f = d.params.design(&study.design_plant, study.dt_s).map_err(|e| design_error(deck, &d.name, e))?;
+        filters.push(f);
+    }
+
+    if as_json {
+        let rows =
+            |m: &DMatrix<f64>| (0..m.nrows()).map(|i| m.row(i).iter().copied().collect::<Vec<_>>()).collect::<Vec<_>>();
+        let assignment = |a: &Assignment| {
+            json!({
+                "K": rows(&a.K),
+                "closed_loop_eigenvalues": a.closed_loop_eigenvalues,
+                "eigenvector_condition": a.eigenvector_condition,
+                "relative_residual": a.relative_residual,
+            })
+        };
+        let detectors: Vec<_> = study
+            .detectors
+            .iter()
+            .zip(&filters)
+            .map(|(d, f)| {
+                json!({
+                    "name": d.name,
+                    "eigenvalues_per_s": d.params.eigenvalues_per_s,
+                    "fault_directions": rows(&d.params.fault_directions.transpose()),
+                    "continuous": assignment(&f.continuous),
+                    "discrete": assignment(&f.discrete),
+                    "bias_signatures": rows(&f.signatures.transpose()),
+                })
+            })
+            .collect();
+        let doc = json!({
+            "deck": deck.display().to_string(),
+            "study": study.name,
+            "dt_s": study.dt_s,
+            "states": p.state_names,
+            "outputs": p.output_names,
+            "ranks": ranks,
+            "detectors": detectors,
+        });
+        println!("{}", serde_json::to_string_pretty(&doc).map_err(|e| RunError::Internal(e.to_string()))?);
+        return Ok(());
+    }
+
+    println!("{}: {}", deck.display(), study.name);
+    println!(
+        "rank ctrb(A, B) = {} of {}, rank obsv(A, C) = {} of {}",
+        ranks.controllability_rank, ranks.states, ranks.observability_rank, ranks.states
+    );
+    for (d, filter) in study.detectors.iter().zip(&filters) {
+        println!(
+            "\ndetector {:?}: detection filter, eigenvalues [{}] 1/s",
+            d.name,
+            d.params.eigenvalues_per_s.iter().map(|l| format!("{l}")).collect::<Vec<_>>().join(", ")
+        );
+        let discrete_label = format!("discrete time, dt = {} s", study.dt_s);
+        for (label, a) in [("continuous time", &filter.continuous), (discrete_label.as_str(), &filter.discrete)] {
+            println!(
+                "{label}: K (rows: states {}; columns: outputs {})",
+                p.state_names.join(", "),
+                p.output_names.join(", ")
+            );
+            print!("{}", indent(&format!("{:.6}", a.K)));
+            let evs: Vec<String> = a
+                .closed_loop_eigenvalues
+                .iter()
+                .map(|e| if e.im == 0.0 { format!("{:.9}", e.re) } else { format!("{:.9}{:+.9}i", e.re, e.im) })
+                .collect();
+            println!("  eigenvalues of A - K C: [{}]", evs.join(", "));
+            println!("  eigenvector condition number: {:.6}", a.eigenvector_condition);
+            println!("  assignment residual |(A - K C) F - F Lambda| / |A F|: {:.3e}", a.relative_residual);
+        }
+        println!("steady residual per unit bias on each output (columns: faulty output; rows: residual)");
+        print!("{}", indent(&format!("{:.4}", filter.signatures)));
+    }
+    Ok(())
+}
+
+/// `fdimc validate`: the plant, its ranks, the detectors' designs and the Monte Carlo study.
+pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
+    let deck = &study.source;
+    let mut filters = Vec::with_capacity(study.detectors.len());
+    for d in &study.detectors {
+        filters.push(d.params.design(&study.design_plant, study.dt_s).map_err(|e| design_error(deck, &d.name, e))?);
+    }
+    let p = &study.plant;
+    let ranks = p
+        .structural_ranks()
+        .ok_or_else(|| RunError::Internal("SVD of the controllability/observability matrix failed".into()))?;
+    let list = |v: &[String]| v.join(", ");
+    let nums = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(", ");
+
+    println!("{}: valid", deck.display());
+    println!(
+        "study       {} (seed {}, {} s at dt {} s = {} samples)",
+        study.name, study.seed, study.duration_s, study.dt_s, study.steps
+    );
+    println!("plant       {} states [{}]", p.n_states(), list(&p.state_names));
+    println!("            {} inputs [{}]", p.n_inputs(), list(&p.input_names));
+    println!("            {} outputs [{}]", p.n_outputs(), list(&p.output_names));
+    println!(
+        "            rank ctrb(A, B) = {} of {}, rank obsv(A, C) = {} of {}",
+        ranks.controllability_rank, ranks.states, ranks.observability_rank, ranks.states
+    );
+    let same = study.design_plant.A == p.A && study.design_plant.B == p.B;
+    println!(
+        "design      {}",
+        if same { "on the true plant" } else { "on a design model that differs from the true plant" }
+    );
+    if study.output_feedback.amax() > 0.0 {
+        println!("controller  u = r - G y, G =");
+        print!("{}", indent(&format!("{:.6}", study.output_feedback)));
+    } else {
+        println!("controller  none (open loop)");
+    }
+    for e in &study.excitations {
+        let shape = match e.shape {
+            Shape::Square { period_s } => format!("square, period {period_s} s"),
+            Shape::Sine { period_s } => format!("sine, period {period_s} s"),
+            Shape::Step => "step".to_string(),
+        };
+        println!("excitation  {}: {shape}, amplitude {}, from {} s", p.input_names[e.input], e.amplitude, e.start_s);
+    }
+    println!("noise       sensor sigma [{}]", nums(study.sensor_sigma.as_slice()));
+    if study.process_sigma_per_step.amax() > 0.0 {
+        println!("            process sigma per step [{}]", nums(study.process_sigma_per_step.as_slice()));
+    }
+    for (d, filter) in study.detectors.iter().zip(&filters) {
+        let params = &d.params;
+        println!(
+            "detector    {}: detection_filter, eigenvalues [{}] 1/s on {} fault directions",
+            d.name,
+            nums(&params.eigenvalues_per_s),
+            params.fault_directions.ncols()
+        );
+        println!("            thresholds [{}]", nums(params.thresholds.as_slice()));
+        println!(
+            "            isolation: mean residual {} s to {} s after the alarm",
+            params.isolation_delay_s,
+            params.isolation_delay_s + params.isolation_window_s
+        );
+        println!(
+            "            closed-loop eigenvalues [{}], eigenvector condition {:.3}",
+            filter
+                .continuous
+                .closed_loop_eigenvalues
+                .iter()
+                .map(|e| format!("{:.6}", e.re))
+                .collect::<Vec<_>>()
+                .join(", "),
+            filter.continuous.eigenvector_condition
+        );
+    }
+    let mc = &study.monte_carlo;
+    println!(
+        "monte carlo {} trials, fault-free fraction {}, sampler {:?}, target Pfa {}",
+        mc.trials, mc.fault_free_fraction, mc.sampler, mc.target_pfa
+    );
+    if !mc.faults.is_empty() {
+        let outs: Vec<&str> = mc.outputs.iter().map(|&j| p.output_names[j].as_str()).collect();
+        println!(
+            "            faults on [{}], onset {:?}, noise scale {:?}",
+            outs.join(", "),
+            mc.onset_s,
+            mc.noise_scale
+        );
+        for f in &mc.faults {
+            println!("            fault kind {}: size {:?}", f.kind.name(), f.size);
+        }
+    }
+    for pe in &mc.parameter_errors {
+        let how = if pe.absolute { "absolute" } else { "relative" };
+        println!("            parameter error {} on the {:?} model: {how} {:?}", pe.name, pe.model, pe.value);
+    }
+    if study.faults.is_empty() && mc.faults.is_empty() {
+        println!("faults      none");
+    }
+    for f in &study.faults {
+        let size = f.mode.size();
+        let size = if size.is_nan() { String::new() } else { format!(" {size}") };
+        println!("fault       {} {}{} from {} s", p.output_names[f.channel], f.mode.name(), size, f.onset_s);
+    }
+    Ok(())
+}
+
+/// `fdimc simulate`: one trial of one detector configuration, every sample.
+pub fn simulate(study: &LtiStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), RunError> {
+    let deck = &study.source;
+    let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
+    let index = match detector {
+        None => 0,
+        Some(name) => names.iter().position(|n| *n == name).ok_or_else(|| {
+            RunError::Invalid(format!("--detector {name:?}: {} has detectors {}", deck.display(), names.join(", ")))
+        })?,
+    };
+    let engine = Engine::new(&study);
+    let mut trace = Trace::default();
+    let (spec, outcome) = engine
+        .simulate(trial, index, &mut trace)
+        .map_err(|e| design_error(deck, &format!("trial {trial}, detector {}", names[index]), e))?;
+    let mut df = trace_frame(&trace).map_err(|e| RunError::Internal(e.to_string()))?;
+    write_table(&mut df, out)?;
+
+    let outputs = &study.plant.output_names;
+    println!("{}: trial {trial}, detector {}, {} samples -> {}", study.name, names[index], study.steps, out.display());
+    match spec.output {
+        Some(j) => {
+            println!("  fault               {} {} size {} from {} s", outputs[j], spec.kind, spec.size, spec.onset_s)
+        }
+        None => println!("  fault-free trial"),
+    }
+    if spec.noise_scale != 1.0 {
+        println!("  noise scale         {}", spec.noise_scale);
+    }
+    for (pe, v) in study.monte_carlo.parameter_errors.iter().zip(&spec.parameter_errors) {
+        if pe.absolute {
+            println!("  parameter error     {} {v:+}", pe.name);
+        } else {
+            println!("  parameter error     {} {:+.2} %", pe.name, 100.0 * v);
+        }
+    }
+    match outcome.false_alarm {
+        Some((t, j)) => println!("  false alarm         {t:.3} s on {}", outputs[j]),
+        None => println!("  false alarm         none"),
+    }
+    match outcome.detection {
+        Some((t, j)) => println!("  detected            {t:.3} s on {} (delay {:.3} s)", outputs[j], t - spec.onset_s),
+        None => println!("  detected            no"),
+    }
+    let name =
+        |j: Option<usize>| j.map_or("none (no alarm, or the trial ended first)".to_string(), |j| outputs[j].clone());
+    println!("  isolated (largest)  {}", name(outcome.isolated_by_max));
+    println!("  isolated (direction) {}", name(outcome.isolated_by_direction));
+    if let Some(t) = outcome.diverged_at_s {
+        println!("  DIVERGED            residual non-finite at {t:.3} s");
+    }
+    Ok(())
+}
+
+pub(super) fn indent(s: &str) -> String {
+    s.lines().filter(|l| !l.trim().is_empty()).map(|l| format!("            {l}\n")).collect()
+}

@@ -1,0 +1,152 @@
+//! What `fdimc validate` and `fdimc simulate` print and write for this kind of deck.
+
+use std::path::Path;
+
+use super::study::LaunchStudy;
+use crate::engine::output::{Trace, trace_frame, write_table};
+use crate::engine::runner::RunError;
+
+/// The resolved launch-vehicle study (method 001).
+pub fn validate(study: &LaunchStudy) -> Result<(), RunError> {
+    println!("{}: valid", study.path.display());
+    let c = &study.config;
+    println!(
+        "study       {} (seed {}, {} s at dt {} s = {} samples)",
+        study.name,
+        study.seed,
+        study.duration_s,
+        c.dt_s,
+        (study.duration_s / c.dt_s).round()
+    );
+    let p = &c.params;
+    println!(
+        "vehicle     medium_launcher: {:.0} t at lift-off, 4 engines of {:.0} kN at sea level, thrust/weight {:.2}",
+        p.liftoff_mass_kg / 1000.0,
+        p.engine_thrust_n(0.0) / 1000.0,
+        4.0 * p.engine_thrust_n(0.0) / (p.liftoff_mass_kg * p.gravity_mps2)
+    );
+    for g in &study.gusts {
+        println!(
+            "gust        {:?} {} m/s from {} s for {} s (1 - cosine; the filter knows no wind)",
+            g.axis, g.amplitude_mps, g.start_s, g.duration_s
+        );
+    }
+    for d in &study.detectors {
+        let m = &d.params.mhe;
+        println!(
+            "detector    {}: ekf_mhe, N {}, D {} sample(s), F {} (R = F^2), V = {} I, threshold |fhat| {:e}; loss table at {:?} s from losses {:?} %",
+            d.name,
+            m.window_n,
+            m.interval_samples,
+            m.fault_intensity,
+            m.window_variance,
+            d.params.threshold_fhat,
+            d.loss_table.onsets_s,
+            d.loss_table.losses_percent
+        );
+    }
+    if let Some(f) = &study.fault {
+        println!("fault       engine {} loses {} % from {} s", f.engine + 1, f.loss_percent, f.onset_s);
+    }
+    let mc = &study.monte_carlo;
+    println!(
+        "monte carlo {} trials, fault-free fraction {}, sampler {:?}, target Pfa {}, engines {:?}",
+        mc.trials,
+        mc.fault_free_fraction,
+        mc.sampler,
+        mc.target_pfa,
+        mc.engines.iter().map(|e| e + 1).collect::<Vec<_>>()
+    );
+    println!(
+        "            loss {:?} %, onset {:?} s, noise scale {:?}, gust scale {:?}; detection within {} s of the onset",
+        mc.loss_percent, mc.onset_s, mc.noise_scale, mc.gust_scale, mc.detection_window_s
+    );
+    Ok(())
+}
+
+/// One flight of a launch deck: every detector (or `--detector`'s) on the same samples; the trace holds
+/// the measured pitch rate and overloads, the true thrust, and per detector the residual, `fhat` and the
+/// alarm.
+pub fn simulate(study: &LaunchStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), RunError> {
+    let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
+    let mut selected = study.clone();
+    if let Some(name) = detector {
+        let d = study.detectors.iter().find(|d| d.name == name).ok_or_else(|| {
+            RunError::Invalid(format!(
+                "--detector {name:?}: {} has detectors {}",
+                study.path.display(),
+                names.join(", ")
+            ))
+        })?;
+        selected.detectors = vec![d.clone()];
+    }
+    let trials = crate::methods::thrust_loss::LaunchTrials::new(&selected)
+        .map_err(|e| RunError::Invalid(format!("{}: {e}", study.path.display())))?;
+    let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
+    let mut bools: Vec<(String, Vec<bool>)> = Vec::new();
+    let result = trials.run_trial_with(trial, |m, steps| {
+        use crate::methods::thrust_loss::vehicle::idx;
+        let mut f = vec![
+            ("t_s".to_string(), m.t_s),
+            ("wz_measured_rad_s".to_string(), m.y[idx::WZ - 1]),
+            ("wz_true_rad_s".to_string(), m.truth[idx::WZ]),
+            ("n_y_measured_g".to_string(), m.n_y_g),
+            ("n_z_measured_g".to_string(), m.n_z_g),
+            ("thrust_true_n".to_string(), m.truth[idx::THRUST]),
+        ];
+        let mut b = Vec::new();
+        for (d, step) in selected.detectors.iter().zip(steps) {
+            f.push((format!("{}_residual_rad_s", d.name), step.residual_rad_s));
+            f.push((format!("{}_fhat", d.name), step.fhat));
+            b.push((format!("{}_alarm", d.name), step.alarm));
+        }
+        if floats.is_empty() {
+            floats = f.iter().map(|(n, _)| (n.clone(), Vec::new())).collect();
+            bools = b.iter().map(|(n, _)| (n.clone(), Vec::new())).collect();
+        }
+        for (col, (_, v)) in floats.iter_mut().zip(f) {
+            col.1.push(v);
+        }
+        for (col, (_, v)) in bools.iter_mut().zip(b) {
+            col.1.push(v);
+        }
+    });
+    let trace = Trace { float_columns: floats, bool_columns: bools };
+    let mut df = trace_frame(&trace).map_err(|e| RunError::Internal(e.to_string()))?;
+    write_table(&mut df, out)?;
+    let outcomes =
+        result.outcome.map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.path.display())))?;
+    let spec = &result.spec;
+    println!(
+        "{}: trial {trial}, {} detector(s), {} samples -> {}",
+        study.name,
+        outcomes.len(),
+        df.height(),
+        out.display()
+    );
+    match spec.fault {
+        Some(f) => println!(
+            "  fault               engine {} loses {:.1} % from {:.3} s",
+            f.engine + 1,
+            spec.loss_percent,
+            f.onset_s
+        ),
+        None => println!("  fault-free trial"),
+    }
+    println!("  noise scale {}, gust scale {}", spec.noise_scale, spec.gust_scale);
+    let secs = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
+    for (d, o) in selected.detectors.iter().zip(&outcomes) {
+        let delay = o.alarm_s.zip(spec.fault).map(|(a, f)| a - f.onset_s);
+        let engine =
+            o.localised.map_or("-".to_string(), |e| e.map_or("none".to_string(), |e| format!("engine {}", e + 1)));
+        println!(
+            "  {:<12} max |fhat| before onset {:.3e}, false alarm {}, delay {} s, localised {engine}, loss estimate {} %",
+            d.name,
+            o.pre_max_fhat,
+            secs(o.false_alarm_s),
+            secs(delay),
+            o.loss_estimate_percent.map_or("-".to_string(), |l| format!("{l:.1}"))
+        );
+    }
+    Ok(())
+}
