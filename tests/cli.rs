@@ -405,7 +405,7 @@ fn surface_records_are_identical_for_any_threads_shards_and_resume() {
     let (one_dir, one) = assert_identical_runs(deck, tmp.path(), 130, 64, &tables);
     assert!(one.contains("x 4 detector(s)"), "{one}");
     for bank in ["emmae", "ekf_fast", "stmmae", "improved_stmmae"] {
-        assert_eq!(one.lines().filter(|l| l.starts_with(&format!("    {bank} "))).count(), 1, "{one}");
+        assert_eq!(one.lines().filter(|l| l.starts_with(&format!("    deck       {bank} "))).count(), 1, "{one}");
     }
     let reference = read_frame(&one_dir.join("trials.parquet"));
     assert_eq!(reference.height(), 130 * 4, "one row per trial and bank: one fault window per faulty trial");
@@ -422,7 +422,7 @@ fn surface_records_are_identical_for_any_threads_shards_and_resume() {
         .collect()
         .unwrap();
     let trial = row.column("trial").unwrap().u64().unwrap().get(0).unwrap();
-    let delay = row.column("detection_delay_s").unwrap().f64().unwrap().get(0).unwrap();
+    let delay = row.column("delay_s").unwrap().f64().unwrap().get(0).unwrap();
     let trace = s(dir("trace.csv"));
     let t = trial.to_string();
     let sim = ok(&fdimc(&["simulate", deck, "--trial", &t, "--detector", "improved_stmmae", "--out", &trace]));
@@ -512,7 +512,7 @@ fn check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
     let tmp = tempfile::tempdir().unwrap();
     let mut base = csv_frame(Path::new(env!("CARGO_MANIFEST_DIR")).join(baseline).as_path());
     let designed = (base.column("trials").unwrap().as_materialized_series()
-        - base.column("design_failures").unwrap().as_materialized_series())
+        - base.column("failed").unwrap().as_materialized_series())
     .unwrap();
     let faulty = base.column("kind").unwrap().str().unwrap().not_equal("none");
     let detected = designed.zip_with(&faulty, base.column("detected").unwrap().as_materialized_series()).unwrap();
@@ -524,7 +524,10 @@ fn check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
     let out = fdimc(&["check", run_dir.to_str().unwrap(), "--baseline", doctored.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1), "{}", text(&out.stdout));
     let stdout = text(&out.stdout);
-    assert!(stdout.contains("REGRESSION deck | seed | bias | alpha_rad | 1.0"), "{stdout}");
+    assert!(
+        stdout.contains("REGRESSION thresholds=deck detector=seed kind=bias target=alpha_rad size_bin=1.0 "),
+        "{stdout}"
+    );
     // Against the true baseline the same folder passes.
     ok(&fdimc(&["check", run_dir.to_str().unwrap(), "--baseline", baseline]));
 }
@@ -551,7 +554,11 @@ fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
     let tables = ["summary.csv", "detectors.csv", "comparison.csv"];
     let (one, stdout) = assert_identical_runs(deck, tmp.path(), 300, 256, &tables);
     for detector in ["patent", "window10"] {
-        assert_eq!(stdout.lines().filter(|l| l.starts_with(&format!("    {detector} "))).count(), 1, "{stdout}");
+        assert_eq!(
+            stdout.lines().filter(|l| l.starts_with(&format!("    deck       {detector} "))).count(),
+            1,
+            "{stdout}"
+        );
     }
     let reference = read_frame(&one.join("trials.parquet"));
     assert_eq!(reference.height(), 300 * 2, "one row per trial and detector");
@@ -593,7 +600,7 @@ fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
 fn air_data_check_passes_on_its_baseline() {
     let out = fdimc(&["check", "studies/ci_seed002.toml", "--baseline", "results/baselines/ci_seed002.csv"]);
     let stdout = ok(&out);
-    assert!(stdout.contains("9 groups compared, 17 tests") && stdout.contains(": 0 regression(s)"), "{stdout}");
+    assert!(stdout.contains("9 groups compared, 25 tests") && stdout.contains(": 0 regression(s)"), "{stdout}");
 }
 
 #[test]
@@ -618,19 +625,19 @@ fn launch_records_are_identical_for_any_threads_shards_and_resume() {
     std::fs::write(&deck_path, small).unwrap();
     let deck = deck_path.to_str().unwrap();
     let s = |p: PathBuf| p.to_str().unwrap().to_string();
-    let tables = ["thresholds.csv", "summary.csv", "detectors.csv", "comparison.csv"];
+    let tables = ["thresholds.csv", "summary.csv", "detectors.csv", "confusion.csv"];
     let (one, stdout) = assert_identical_runs(deck, tmp.path(), 150, 128, &tables);
-    assert!(stdout.contains("seed         deck 1.3000e-5, calibrated"), "{stdout}");
+    assert!(stdout.contains("    seed: calibrated [fhat ") && stdout.contains("(deck [fhat 1.300e-5])"), "{stdout}");
     let reference = read_frame(&one.join("trials.parquet"));
     assert_eq!(reference.height(), 150, "one row per trial and detector");
     assert_eq!(csv_frame(&one.join("detectors.csv")).height(), 2, "deck and calibrated thresholds");
 
     // `simulate --trial N` flies trial N of the run: the same delay and engine.
     use polars::prelude::*;
-    let row = reference.clone().lazy().filter(col("localised_correctly").eq(lit(true))).first().collect().unwrap();
+    let row = reference.clone().lazy().filter(col("isolated_correctly").eq(lit(true))).first().collect().unwrap();
     let trial = row.column("trial").unwrap().u64().unwrap().get(0).unwrap().to_string();
     let delay = row.column("delay_s").unwrap().f64().unwrap().get(0).unwrap();
-    let engine = row.column("engine").unwrap().str().unwrap().get(0).unwrap().replace('_', " ");
+    let engine = row.column("target").unwrap().str().unwrap().get(0).unwrap().replace('_', " ");
     let trace = s(tmp.path().join("trace.parquet"));
     let sim = ok(&fdimc(&["simulate", deck, "--trial", &trial, "--out", &trace]));
     assert!(sim.contains(&format!("delay {delay:.2} s, localised {engine},")), "trial {trial}: {sim}");
@@ -647,7 +654,8 @@ fn launch_records_are_identical_for_any_threads_shards_and_resume() {
     ok(&fdimc(&["summarize", &s(one.clone()), "--target-pfa", "0.2"]));
     let thresholds = csv_frame(&one.join("thresholds.csv"));
     let pfa = thresholds.column("pfa_achieved").unwrap().f64().unwrap().get(0).unwrap();
-    assert_eq!(thresholds.column("target_pfa").unwrap().f64().unwrap().get(0), Some(0.2));
+    let source = thresholds.column("source").unwrap().str().unwrap().get(0).unwrap().to_string();
+    assert_eq!(source, "calibrated at Pfa 0.2 on the fault-free trials");
     assert!(pfa > 0.1 && pfa <= 0.2, "{pfa}");
 }
 
@@ -676,11 +684,25 @@ fn accelerometer_classifiers_train_save_load_and_runs_are_identical() {
     let tables = ["confusion.csv", "summary.csv", "detectors.csv", "comparison.csv"];
     let (one, stdout) = assert_identical_runs(deck, tmp.path(), 600, 512, &tables);
     for name in ["tree", "flat"] {
-        assert_eq!(stdout.lines().filter(|l| l.starts_with(&format!("    {name} "))).count(), 1, "{stdout}");
+        assert_eq!(stdout.lines().filter(|l| l.starts_with(&format!("    deck       {name} "))).count(), 1, "{stdout}");
+        assert!(stdout.contains(&format!("  confusion ({name}): rows the true class")), "{stdout}");
     }
     let reference = read_frame(&one.join("trials.parquet"));
     assert_eq!(reference.height(), 600 * 2, "one row per trial and classifier");
-    assert_eq!(csv_frame(&one.join("confusion.csv")).height(), 2 * 16);
+    // Every classified trial once per classifier, in its true class's row.
+    let confusion = csv_frame(&one.join("confusion.csv"));
+    let units: u64 = confusion
+        .column("units")
+        .unwrap()
+        .cast(&polars::prelude::DataType::UInt64)
+        .unwrap()
+        .u64()
+        .unwrap()
+        .sum()
+        .unwrap();
+    let failed = reference.column("failure").unwrap().is_not_null().sum().unwrap() as u64;
+    assert_eq!(units, 600 * 2 - failed);
+    assert!(confusion.height() <= 2 * 16);
     assert_eq!(csv_frame(&one.join("detectors.csv")).height(), 2);
 
     // `fdimc train` writes the classifiers the run trained; a run with them gives the same records.
@@ -702,7 +724,7 @@ fn accelerometer_classifiers_train_save_load_and_runs_are_identical() {
         .collect()
         .unwrap();
     let trial = row.column("trial").unwrap().u64().unwrap().get(0).unwrap().to_string();
-    let predicted = row.column("predicted").unwrap().str().unwrap().get(0).unwrap().to_string();
+    let predicted = row.column("isolated").unwrap().str().unwrap().get(0).unwrap().to_string();
     let trace = s(tmp.path().join("trace.csv"));
     let sim = ok(&fdimc(&["simulate", deck, "--trial", &trial, "--classifiers", &file, "--out", &trace]));
     assert!(sim.contains("class gain") && sim.contains(&format!("tree   predicts {predicted}")), "{sim}");
@@ -755,10 +777,13 @@ fn surface_check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
     assert_eq!(out.status.code(), Some(1), "{}", text(&out.stdout));
     let stdout = text(&out.stdout);
     assert!(
-        stdout.contains("REGRESSION emmae | stuck | aileron_left | 2.0 | 1.0 | 0.0: detection probability"),
+        stdout.contains(
+            "REGRESSION thresholds=deck detector=emmae kind=stuck target=aileron_left size_bin=2.0 noise_bin=1.0 \
+             param_error_bin=0.0: detection probability"
+        ),
         "{stdout}"
     );
-    assert!(!stdout.contains("| -15.0 |"), "the large faults are detected as in the baseline: {stdout}");
+    assert!(!stdout.contains("size_bin=-15.0 "), "the large faults are detected as in the baseline: {stdout}");
 }
 
 #[test]
@@ -774,7 +799,7 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
     let all_rows = |path: &Path| -> std::collections::HashMap<String, (f64, f64)> {
         let t = csv_frame(path);
         let col = |c: &str| t.column(c).unwrap().clone();
-        let (det, out, lo, hi) = (col("detector"), col("output"), col("pfa_lo"), col("pfa_hi"));
+        let (det, out, lo, hi) = (col("detector"), col("statistic"), col("pfa_lo"), col("pfa_hi"));
         let (det, out, lo, hi) = (det.str().unwrap(), out.str().unwrap(), lo.f64().unwrap(), hi.f64().unwrap());
         (0..t.height())
             .filter(|&i| out.get(i) == Some("all"))
@@ -784,7 +809,7 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
     let cal_all = all_rows(&cal_thr);
     let t = csv_frame(&val.join("thresholds.csv"));
     let det = t.column("detector").unwrap().str().unwrap().clone();
-    let out = t.column("output").unwrap().str().unwrap().clone();
+    let out = t.column("statistic").unwrap().str().unwrap().clone();
     let (lo, hi) =
         (t.column("pfa_lo").unwrap().f64().unwrap().clone(), t.column("pfa_hi").unwrap().f64().unwrap().clone());
     let n = t.column("calibration_trials").unwrap().i64().unwrap().clone();
@@ -876,7 +901,7 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
     let md = csv_frame(&dir.join("min_detectable.csv"));
     let (det, out, size) = (
         md.column("detector").unwrap().str().unwrap().clone(),
-        md.column("output").unwrap().str().unwrap().clone(),
+        md.column("target").unwrap().str().unwrap().clone(),
         md.column("min_size_pd90").unwrap().f64().unwrap().clone(),
     );
     let legend = |output: &str| -> String {

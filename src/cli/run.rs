@@ -7,7 +7,8 @@ use std::path::{Path, PathBuf};
 use crate::cli::CliError;
 use crate::engine::method::{self, Inputs, Method, Opt, Study};
 use crate::engine::runner::{self, Manifest, RunError, RunOptions, Shard};
-use crate::engine::summary::Calibration;
+use crate::engine::summary;
+use crate::engine::thresholds::Calibration;
 use crate::methods::REGISTRY;
 
 impl From<RunError> for CliError {
@@ -114,7 +115,7 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         return Ok(out_dir);
     }
     if shard == Shard::WHOLE {
-        method.summarize(&out_dir, m, None, !a.quiet)?;
+        summarize(method, &out_dir, None, !a.quiet)?;
     } else if !a.quiet {
         println!("  shard done: join the shards with `fdimc merge <shard dirs>... --out DIR` to get the summary");
     }
@@ -122,7 +123,7 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
 }
 
 pub fn exec_summarize(dir: &Path, target_pfa: Option<f64>, thresholds: Option<&Path>) -> Result<(), CliError> {
-    let (method, manifest) = method_of_run(dir)?;
+    let (method, _) = method_of_run(dir)?;
     let calibration = match (target_pfa, thresholds) {
         (Some(_), Some(_)) => return Err(CliError::Invalid("give --target-pfa or --thresholds, not both".into())),
         (_, Some(f)) => Some(Calibration::File(f.into())),
@@ -134,7 +135,17 @@ pub fn exec_summarize(dir: &Path, target_pfa: Option<f64>, thresholds: Option<&P
         method::require(REGISTRY, method, Opt::Thresholds)
             .map_err(|e| CliError::Invalid(format!("{}: {e}", dir.display())))?;
     }
-    Ok(method.summarize(dir, &manifest, calibration.as_ref(), true)?)
+    summarize(method, dir, calibration.as_ref(), true)
+}
+
+/// The shared summary of the run in `dir`, with what `method` adds; printed unless `print` is false.
+fn summarize(method: &dyn Method, dir: &Path, calibration: Option<&Calibration>, print: bool) -> Result<(), CliError> {
+    let spec = method.summary();
+    let s = summary::summarize(dir, &spec, calibration)?;
+    if print {
+        summary::print(dir, &spec, &s);
+    }
+    Ok(())
 }
 
 pub fn exec_merge(dirs: &[PathBuf], out: &Path, force: bool) -> Result<(), CliError> {
@@ -194,17 +205,16 @@ pub fn exec_merge(dirs: &[PathBuf], out: &Path, force: bool) -> Result<(), CliEr
     };
     merged.write(out)?;
     println!("merged {} shards: {} rows -> {}", manifests.len(), rows, out.join("trials.parquet").display());
-    let method = method::find(REGISTRY, &merged.kind)?;
-    Ok(method.summarize(out, &merged, None, true)?)
+    summarize(method::find(REGISTRY, &merged.kind)?, out, None, true)
 }
 
 pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<usize>) -> Result<bool, CliError> {
     if !(alpha > 0.0 && alpha < 1.0) {
         return Err(CliError::Invalid(format!("--alpha {alpha}: allowed 0 < alpha < 1")));
     }
-    let base = crate::engine::summary::read_summary(baseline)?;
+    let base = crate::engine::tables::read_summary(baseline)?;
     let (current, scratch) = if target.is_dir() {
-        (crate::engine::summary::read_summary(&target.join("summary.csv"))?, None)
+        (crate::engine::tables::read_summary(&target.join("summary.csv"))?, None)
     } else {
         let scratch = std::env::temp_dir().join(format!("fdimc-check-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&scratch);
@@ -222,7 +232,7 @@ pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<us
             classifiers: None,
         };
         let dir = exec_run(args)?;
-        (crate::engine::summary::read_summary(&dir.join("summary.csv"))?, Some(scratch))
+        (crate::engine::tables::read_summary(&dir.join("summary.csv"))?, Some(scratch))
     };
     let verdict = crate::engine::check::compare(&current, &base, alpha);
     if let Some(s) = scratch {

@@ -1,12 +1,9 @@
-//! Baseline comparison: is any group's detection rate (or classification recall) lower, or false-alarm
-//! rate higher, than the committed baseline's, beyond chance?
+//! Baseline comparison: is any group's detection probability or isolation accuracy lower, or
+//! false-alarm rate higher, than the committed baseline's, beyond chance?
 //!
-//! Groups are matched on the key columns the summaries have: (thresholds, detector, kind, output,
-//! size_bin, noise_bin, param_error_bin) for detection filters, (detector, kind, surface, size_bin,
-//! noise_bin, param_error_bin) for surface banks, (detector, kind, sensors, size_bin, noise_bin,
-//! gust_bin) for air-data detectors, (thresholds, detector, kind, engine, size_bin, noise_bin, gust_bin)
-//! for thrust-loss detectors. Flights that did not run to the end (design failures,
-//! or `failed` surface flights) are left out of both rates.
+//! Groups are matched on the key columns of the shared summary ([`super::summary`]): every column before
+//! `trials` (thresholds, detector, kind, target, size, noise and parameter-error bins, and a kind's own
+//! bins). Units that did not run to the end (`failed`) are left out of every rate.
 //! Each rate is tested one-sided with a pooled two-proportion z-test (continuity-corrected) at level
 //! `alpha / m`, m the number of tests (Bonferroni), so a study with hundreds of groups does not flag
 //! regressions by chance. Groups in only one of the two summaries are reported, not failed.
@@ -17,34 +14,16 @@ use polars::prelude::*;
 
 use crate::engine::intervals::p_lower;
 use crate::engine::runner::RunError;
-use crate::engine::schema::col;
-
-const KEYS: [&str; 12] = [
-    "thresholds",
-    col::DETECTOR,
-    col::KIND,
-    col::OUTPUT,
-    "surface",
-    "sensors",
-    "engine",
-    "axis",
-    col::SIZE_BIN,
-    col::NOISE_BIN,
-    col::PARAM_ERROR_BIN,
-    "gust_bin",
-];
-
-/// Per summary kind, the column counting the groups' trials that did not run to the end.
-const FAILURE_COLUMNS: [&str; 2] = ["design_failures", "failed"];
 
 /// One group's counts.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Counts {
-    designed: u64,
+    flown: u64,
     detected: u64,
     false_alarms: u64,
-    /// Trials classified correctly (classification studies).
-    correct: Option<u64>,
+    decided: u64,
+    correct: u64,
+    /// A group with a fault (its `pd` has a value).
     faulty: bool,
 }
 
@@ -86,34 +65,34 @@ pub struct Verdict {
     pub only_in_current: Vec<String>,
 }
 
+/// Per group (its key columns: every column before `trials`, joined), its counts.
 fn groups(df: &DataFrame) -> PolarsResult<HashMap<String, Counts>> {
-    let keys: Vec<&str> = KEYS.iter().copied().filter(|k| df.column(k).is_ok()).collect();
-    let failure_column = FAILURE_COLUMNS.iter().find(|k| df.column(k).is_ok()).copied().unwrap_or(FAILURE_COLUMNS[0]);
-    let df = df
-        .clone()
-        .lazy()
-        .with_columns(keys.iter().map(|k| polars::prelude::col(*k).cast(DataType::String)).collect::<Vec<_>>())
-        .collect()?;
-    let key_cols: Vec<StringChunked> =
-        keys.iter().map(|k| df.column(k).and_then(|c| c.str().cloned())).collect::<PolarsResult<_>>()?;
-    let kind_cols = df.column(col::KIND)?.str()?.clone();
+    let names = df.get_column_names();
+    let keys: Vec<&str> = names.iter().map(|n| n.as_str()).take_while(|n| *n != "trials").collect();
+    if keys.len() == names.len() {
+        polars_bail!(ColumnNotFound: "trials");
+    }
+    let key_cols: Vec<Column> =
+        keys.iter().map(|k| df.column(k).and_then(|c| c.cast(&DataType::String))).collect::<PolarsResult<_>>()?;
+    let key_cols: Vec<&StringChunked> = key_cols.iter().map(|c| c.str()).collect::<PolarsResult<_>>()?;
     let u = |n: &str| -> PolarsResult<UInt64Chunked> { Ok(df.column(n)?.cast(&DataType::UInt64)?.u64()?.clone()) };
-    let (trials, failures, detected, fa) = (u("trials")?, u(failure_column)?, u("detected")?, u("false_alarms")?);
-    // Classification studies also count the trials classified correctly.
-    let correct = df.column("correct").is_ok().then(|| u("correct")).transpose()?;
-    let normal = "normal";
+    let (trials, failed, detected, fa) = (u("trials")?, u("failed")?, u("detected")?, u("false_alarms")?);
+    let (decided, correct) = (u("isolation_decided")?, u("isolated_correctly")?);
+    let pd = df.column("pd")?.cast(&DataType::Float64)?;
+    let pd = pd.f64()?;
     let mut map = HashMap::with_capacity(df.height());
     for i in 0..df.height() {
-        let key: Vec<&str> = key_cols.iter().map(|c| c.get(i).unwrap_or("")).collect();
-        let kind = kind_cols.get(i).unwrap_or("");
+        let key: Vec<String> =
+            keys.iter().zip(&key_cols).map(|(name, c)| format!("{name}={}", c.get(i).unwrap_or("null"))).collect();
         map.insert(
-            key.join(" | "),
+            key.join(" "),
             Counts {
-                designed: trials.get(i).unwrap_or(0) - failures.get(i).unwrap_or(0),
+                flown: trials.get(i).unwrap_or(0) - failed.get(i).unwrap_or(0),
                 detected: detected.get(i).unwrap_or(0),
                 false_alarms: fa.get(i).unwrap_or(0),
-                correct: correct.as_ref().map(|c| c.get(i).unwrap_or(0)),
-                faulty: kind != col::NO_FAULT && kind != normal,
+                decided: decided.get(i).unwrap_or(0),
+                correct: correct.get(i).unwrap_or(0),
+                faulty: pd.get(i).is_some(),
             },
         );
     }
@@ -138,31 +117,31 @@ pub fn compare(current: &DataFrame, baseline: &DataFrame, alpha: f64) -> Result<
             continue;
         };
         verdict.compared_groups += 1;
-        if let (Some(bc), Some(cc)) = (b.correct, c.correct) {
-            candidates.push((
-                key.clone(),
-                "classification recall",
-                (bc, b.designed),
-                (cc, c.designed),
-                p_lower(cc, c.designed, bc, b.designed),
-            ));
-        }
         if b.faulty {
             candidates.push((
                 key.clone(),
                 "detection probability",
-                (b.detected, b.designed),
-                (c.detected, c.designed),
-                p_lower(c.detected, c.designed, b.detected, b.designed),
+                (b.detected, b.flown),
+                (c.detected, c.flown),
+                p_lower(c.detected, c.flown, b.detected, b.flown),
             ));
         }
-        let quiet = |x: Counts| (x.designed - x.false_alarms, x.designed);
+        if b.decided > 0 {
+            candidates.push((
+                key.clone(),
+                "isolation accuracy",
+                (b.correct, b.decided),
+                (c.correct, c.decided),
+                p_lower(c.correct, c.decided, b.correct, b.decided),
+            ));
+        }
+        let quiet = |x: Counts| (x.flown - x.false_alarms, x.flown);
         let (bq, cq) = (quiet(b), quiet(c));
         candidates.push((
             key.clone(),
             "false-alarm rate",
-            (b.false_alarms, b.designed),
-            (c.false_alarms, c.designed),
+            (b.false_alarms, b.flown),
+            (c.false_alarms, c.flown),
             p_lower(cq.0, cq.1, bq.0, bq.1),
         ));
     }

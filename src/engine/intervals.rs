@@ -14,7 +14,10 @@ pub fn wilson(k: u64, n: u64, z: f64) -> (f64, f64) {
     let centre = p + z2 / (2.0 * n_f);
     let half = z * (p * (1.0 - p) / n_f + z2 / (4.0 * n_f * n_f)).sqrt();
     let denom = 1.0 + z2 / n_f;
-    (((centre - half) / denom).max(0.0), ((centre + half) / denom).min(1.0))
+    // At k = 0 and k = n the bound is exactly 0 or 1; the formula leaves rounding dust (1e-19).
+    let lo = if k == 0 { 0.0 } else { ((centre - half) / denom).max(0.0) };
+    let hi = if k == n { 1.0 } else { ((centre + half) / denom).min(1.0) };
+    (lo, hi)
 }
 
 /// Exact two-sided McNemar test: p-value of `b` vs `c` discordant pairs (binomial(b + c, 1/2)).
@@ -76,6 +79,11 @@ mod tests {
         let (lo, hi) = wilson(0, 10, Z95);
         assert_eq!(lo, 0.0);
         assert!((hi - 0.2775).abs() < 1e-4, "{hi}");
+        // The ends are exact, not rounding dust: every k = n interval reaches 1, every k = 0 one 0.
+        for n in 1..2000 {
+            assert_eq!(wilson(n, n, Z95).1, 1.0, "{n}");
+            assert_eq!(wilson(0, n, Z95).0, 0.0, "{n}");
+        }
     }
 
     #[test]

@@ -8,8 +8,7 @@
 use std::path::Path;
 
 use super::deck::{DeckError, read_deck};
-use super::runner::{Manifest, RunError, RunOptions, RunReport};
-use super::summary::Calibration;
+use super::runner::{RunError, RunOptions, RunReport};
 
 /// A kind of study.
 pub trait Method: Sync {
@@ -25,15 +24,8 @@ pub trait Method: Sync {
     }
     /// Parses and validates a deck of this kind; every rejection names the file and the field.
     fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError>;
-    /// Writes the summaries of the complete run in `dir` (`calibration`: [`Opt::Thresholds`] only) and,
-    /// with `print`, shows them.
-    fn summarize(
-        &self,
-        dir: &Path,
-        manifest: &Manifest,
-        calibration: Option<&Calibration>,
-        print: bool,
-    ) -> Result<(), RunError>;
+    /// What the shared summary adds for this kind ([`super::summary`]).
+    fn summary(&self) -> SummarySpec;
     /// `fdimc report` ([`Opt::Report`]): plots and a page in `dir/report/`, traces of `trials`.
     fn report(&self, _dir: &Path, _trials: &[u64]) -> Result<(), RunError> {
         Err(RunError::Internal("this kind lists no report".into()))
@@ -154,4 +146,68 @@ pub fn require(registry: &[&dyn Method], method: &dyn Method, opt: Opt) -> Resul
 /// `[plant] (detection_filter: ...), [vehicle] (...)`.
 fn kinds(registry: &[&dyn Method]) -> String {
     registry.iter().map(|m| format!("[{}] ({}: {})", m.marker(), m.kind(), m.title())).collect::<Vec<_>>().join(", ")
+}
+
+/// What the shared summary ([`super::summary`]) reads of a kind's records beyond the core columns.
+#[derive(Debug, Clone, Copy)]
+pub struct SummarySpec {
+    /// Group keys after the shared ones: bins of the kind's own factors (numbers, e.g. `gust_bin`).
+    pub extra_keys: &'static [&'static str],
+    /// What `isolated` names.
+    pub isolates: Isolates,
+    /// The kind's own aggregates, per group and per detector, at the deck's thresholds.
+    pub extras: &'static [Extra],
+    /// The kind's own delay columns whose median paired difference `comparison.csv` reports.
+    pub paired_delays: &'static [&'static str],
+    /// Columns of `detectors.csv` that `run` prints after the shared ones: (header, column).
+    pub printed: &'static [(&'static str, &'static str)],
+}
+
+/// What a kind's detectors name when they isolate.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Isolates {
+    /// The faulty target (output, sensor set, engine, surface), once a fault is detected.
+    Target,
+    /// The fault's kind, for every unit (a classifier: its classes include the fault-free one).
+    Kind,
+}
+
+/// An aggregate of a kind's own columns over the units of a group that were flown to the end.
+#[derive(Debug, Clone, Copy)]
+pub enum Extra {
+    /// Units on which `column` is true, or a number > 0.
+    Count { name: &'static str, column: &'static str },
+    /// Units on which `column` has a value.
+    Present { name: &'static str, column: &'static str },
+    /// Units on which `column` names the unit's target.
+    NamesTarget { name: &'static str, column: &'static str },
+    /// `k / n` with its 95 % Wilson interval (`name_lo`, `name_hi`): `k` a count above, `n` a count
+    /// above or a core count (`flown`, `isolation_decided`); null where `n` is 0, or for fault-free
+    /// groups when `faulty_only`.
+    Rate { name: &'static str, k: &'static str, n: &'static str, faulty_only: bool },
+    /// The `p` quantile of `column` (of its magnitude with `abs`) over the units where it has a value.
+    Quantile { name: &'static str, column: &'static str, p: f64, abs: bool },
+}
+
+impl Extra {
+    pub fn name(&self) -> &'static str {
+        match *self {
+            Extra::Count { name, .. }
+            | Extra::Present { name, .. }
+            | Extra::NamesTarget { name, .. }
+            | Extra::Rate { name, .. }
+            | Extra::Quantile { name, .. } => name,
+        }
+    }
+
+    /// The record column it reads, if any.
+    pub fn column(&self) -> Option<&'static str> {
+        match *self {
+            Extra::Count { column, .. }
+            | Extra::Present { column, .. }
+            | Extra::NamesTarget { column, .. }
+            | Extra::Quantile { column, .. } => Some(column),
+            Extra::Rate { .. } => None,
+        }
+    }
 }

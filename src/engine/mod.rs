@@ -8,9 +8,12 @@ pub mod method;
 pub mod noise;
 pub mod output;
 pub mod paired;
+pub mod quantiles;
 
 pub mod runner;
 pub mod scenario;
 pub mod schema;
 pub mod streams;
 pub mod summary;
+pub mod tables;
+pub mod thresholds;

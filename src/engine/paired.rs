@@ -1,178 +1,193 @@
-//! Paired comparison of detector configurations that ran on the same trials (common random numbers):
-//! for every pair, on the units both flew to the end (a fault window, or a trial), discordant
-//! detections, correct isolations and false alarms with exact McNemar p-values, and the median paired
-//! difference of detection (and clearing) delays, `b - a`, over the units both detected (cleared).
-
-use std::collections::BTreeMap;
+//! Paired comparison of detector configurations that ran on the same trials (common random numbers),
+//! streamed: the rows of one trial are consecutive, so a trial's units are compared when the next trial
+//! begins and nothing is kept of it afterwards.
+//!
+//! For every pair of detectors, over the units both flew to the end: discordant detections and correct
+//! isolations (among the faulty units; among all units for classifiers, which name a class for every
+//! unit) and discordant false alarms (once per trial, on its first unit), each with an exact McNemar
+//! p-value, and the median paired difference `b - a` of the detection delay and of any other delays a
+//! kind names, over the units both have a value for.
 
 use polars::prelude::*;
 
-use crate::engine::intervals::mcnemar_exact;
+use super::intervals::mcnemar_exact;
+use super::quantiles::Quantiles;
 
 /// One detector's result on one unit.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Outcome {
-    /// Flown to the end (failed flights are left out of every count).
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnitOutcome {
+    /// Flown to the end (failed units are left out of every count).
     pub flown: bool,
     pub faulty: bool,
     pub detected: bool,
     pub isolated: bool,
-    pub delay_s: Option<f64>,
-    pub clearing_s: Option<f64>,
     pub false_alarm: bool,
-    /// The unit that carries the trial's false alarms (a trial with several fault windows counts once).
-    pub first_unit_of_trial: bool,
+    /// The detection delay, then the kind's own delays ([`PairedUnits::new`]'s `delays`).
+    pub delays_s: Vec<Option<f64>>,
 }
 
-/// Outcomes per (trial, unit within the trial) and detector.
+/// Counts of one pair of detectors.
+#[derive(Debug, Clone, Default)]
+struct PairCounts {
+    units: u64,
+    flights: u64,
+    /// detection, isolation, false alarm: [a only, b only]
+    discordant: [[u64; 2]; 3],
+    /// detected, isolated: [a, b]
+    positive: [[u64; 2]; 2],
+    delay_differences: Vec<Quantiles>,
+}
+
+/// Units per (trial, detector) as they stream past, and the pairs' counts so far.
 pub struct PairedUnits {
     detectors: Vec<String>,
-    units: BTreeMap<(u64, Option<u32>), Vec<Option<Outcome>>>,
+    delay_names: Vec<String>,
+    /// Classifiers: isolation is compared on every unit, not only on the faulty ones.
+    isolation_on_all_units: bool,
+    trial: Option<u64>,
+    current: Vec<Vec<UnitOutcome>>,
+    pairs: Vec<PairCounts>,
 }
 
 impl PairedUnits {
-    pub fn new(detectors: &[String]) -> Self {
-        PairedUnits { detectors: detectors.to_vec(), units: BTreeMap::new() }
+    /// `delays`: the names of the kind's own delays after the detection delay (for column names).
+    pub fn new(detectors: &[String], delays: &[&str], isolation_on_all_units: bool) -> Self {
+        let n = detectors.len();
+        let pair = PairCounts { delay_differences: vec![Quantiles::default(); 1 + delays.len()], ..Default::default() };
+        PairedUnits {
+            detectors: detectors.to_vec(),
+            delay_names: delays.iter().map(|s| s.to_string()).collect(),
+            isolation_on_all_units,
+            trial: None,
+            current: vec![Vec::new(); n],
+            pairs: vec![pair; n * n.saturating_sub(1) / 2],
+        }
     }
 
-    /// Records `detector`'s outcome on unit `unit` of trial `trial`; an unknown detector is an error.
-    pub fn insert(&mut self, trial: u64, unit: Option<u32>, detector: &str, outcome: Outcome) -> Result<(), String> {
-        let d = self.detectors.iter().position(|n| n == detector).ok_or_else(|| {
-            format!("unknown detector {detector:?} (the manifest names {})", self.detectors.join(", "))
-        })?;
+    /// The next unit of `detector` (index in the manifest's order) in trial `trial`; rows must come
+    /// in trial order.
+    pub fn push(&mut self, trial: u64, detector: usize, outcome: UnitOutcome) {
+        if self.trial != Some(trial) {
+            self.flush();
+            self.trial = Some(trial);
+        }
+        self.current[detector].push(outcome);
+    }
+
+    /// Compares the units of the trial held, and forgets them.
+    fn flush(&mut self) {
         let n = self.detectors.len();
-        self.units.entry((trial, unit)).or_insert_with(|| vec![None; n])[d] = Some(outcome);
-        Ok(())
-    }
-
-    /// One row per pair of detectors (module docs); the clearing columns only `with_clearing`.
-    pub fn compare(&self, with_clearing: bool) -> PolarsResult<DataFrame> {
-        let mut c = Comparison::default();
-        let n_det = self.detectors.len();
-        for a in 0..n_det {
-            for b in a + 1..n_det {
-                let (mut windows, mut flights) = (0u64, 0u64);
-                let mut disc = [[0u64; 2]; 3]; // detection, isolation, false alarm: [a only, b only]
-                let mut rate = [[0u64; 2]; 2]; // detected, isolated: [a, b]
-                let (mut delay_diff, mut clear_diff) = (Vec::new(), Vec::new());
-                for row in self.units.values() {
-                    let (Some(x), Some(y)) = (row[a], row[b]) else { continue };
+        let mut p = 0;
+        for a in 0..n {
+            for b in a + 1..n {
+                let c = &mut self.pairs[p];
+                p += 1;
+                for (k, (x, y)) in self.current[a].iter().zip(&self.current[b]).enumerate() {
                     if !(x.flown && y.flown) {
                         continue;
                     }
                     if x.faulty {
-                        windows += 1;
-                        for (k, (u, v)) in [(x.detected, y.detected), (x.isolated, y.isolated)].into_iter().enumerate()
-                        {
-                            disc[k][0] += (u && !v) as u64;
-                            disc[k][1] += (v && !u) as u64;
-                            rate[k][0] += u as u64;
-                            rate[k][1] += v as u64;
-                        }
-                        if let (Some(u), Some(v)) = (x.delay_s, y.delay_s) {
-                            delay_diff.push(v - u);
-                        }
-                        if let (Some(u), Some(v)) = (x.clearing_s, y.clearing_s) {
-                            clear_diff.push(v - u);
+                        c.units += 1;
+                        c.discordant[0][0] += (x.detected && !y.detected) as u64;
+                        c.discordant[0][1] += (y.detected && !x.detected) as u64;
+                        c.positive[0][0] += x.detected as u64;
+                        c.positive[0][1] += y.detected as u64;
+                        for (q, (u, v)) in c.delay_differences.iter_mut().zip(x.delays_s.iter().zip(&y.delays_s)) {
+                            if let (Some(u), Some(v)) = (u, v) {
+                                q.push(v - u);
+                            }
                         }
                     }
-                    if x.first_unit_of_trial {
-                        flights += 1;
-                        disc[2][0] += (x.false_alarm && !y.false_alarm) as u64;
-                        disc[2][1] += (y.false_alarm && !x.false_alarm) as u64;
+                    if x.faulty || self.isolation_on_all_units {
+                        c.discordant[1][0] += (x.isolated && !y.isolated) as u64;
+                        c.discordant[1][1] += (y.isolated && !x.isolated) as u64;
+                        c.positive[1][0] += x.isolated as u64;
+                        c.positive[1][1] += y.isolated as u64;
+                    }
+                    if k == 0 {
+                        c.flights += 1;
+                        c.discordant[2][0] += (x.false_alarm && !y.false_alarm) as u64;
+                        c.discordant[2][1] += (y.false_alarm && !x.false_alarm) as u64;
                     }
                 }
-                let share = |k: u64| if windows > 0 { k as f64 / windows as f64 } else { f64::NAN };
-                c.a.push(self.detectors[a].clone());
-                c.b.push(self.detectors[b].clone());
-                c.windows.push(windows);
-                c.pd_a.push(share(rate[0][0]));
-                c.pd_b.push(share(rate[0][1]));
-                c.det_a_only.push(disc[0][0]);
-                c.det_b_only.push(disc[0][1]);
-                c.p_det.push(mcnemar_exact(disc[0][0], disc[0][1]));
-                c.iso_a.push(share(rate[1][0]));
-                c.iso_b.push(share(rate[1][1]));
-                c.iso_a_only.push(disc[1][0]);
-                c.iso_b_only.push(disc[1][1]);
-                c.p_iso.push(mcnemar_exact(disc[1][0], disc[1][1]));
-                c.delay_pairs.push(delay_diff.len() as u64);
-                c.delay_diff.push(median(&mut delay_diff));
-                c.clear_pairs.push(clear_diff.len() as u64);
-                c.clear_diff.push(median(&mut clear_diff));
-                c.flights.push(flights);
-                c.fa_a_only.push(disc[2][0]);
-                c.fa_b_only.push(disc[2][1]);
-                c.p_fa.push(mcnemar_exact(disc[2][0], disc[2][1]));
             }
         }
-        c.into_frame(with_clearing)
+        self.current.iter_mut().for_each(Vec::clear);
     }
-}
 
-/// The median (mean of the two middle values for an even count); `None` when empty.
-pub fn median(v: &mut [f64]) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    let m = v.len() / 2;
-    Some(if v.len() % 2 == 1 { v[m] } else { 0.5 * (v[m - 1] + v[m]) })
-}
-
-#[derive(Default)]
-struct Comparison {
-    a: Vec<String>,
-    b: Vec<String>,
-    windows: Vec<u64>,
-    pd_a: Vec<f64>,
-    pd_b: Vec<f64>,
-    det_a_only: Vec<u64>,
-    det_b_only: Vec<u64>,
-    p_det: Vec<f64>,
-    iso_a: Vec<f64>,
-    iso_b: Vec<f64>,
-    iso_a_only: Vec<u64>,
-    iso_b_only: Vec<u64>,
-    p_iso: Vec<f64>,
-    delay_pairs: Vec<u64>,
-    delay_diff: Vec<Option<f64>>,
-    clear_pairs: Vec<u64>,
-    clear_diff: Vec<Option<f64>>,
-    flights: Vec<u64>,
-    fa_a_only: Vec<u64>,
-    fa_b_only: Vec<u64>,
-    p_fa: Vec<f64>,
-}
-
-impl Comparison {
-    fn into_frame(self, with_clearing: bool) -> PolarsResult<DataFrame> {
+    /// One row per pair of detectors (module docs).
+    pub fn finish(mut self) -> PolarsResult<DataFrame> {
+        self.flush();
+        let n = self.detectors.len();
+        let mut names: [Vec<String>; 2] = Default::default();
+        let mut counts: Vec<Vec<u64>> = vec![Vec::new(); 10];
+        let mut rates: Vec<Vec<Option<f64>>> = vec![Vec::new(); 4];
+        let mut p_values: Vec<Vec<f64>> = vec![Vec::new(); 3];
+        let mut medians: Vec<Vec<Option<f64>>> = vec![Vec::new(); 1 + self.delay_names.len()];
+        let mut pairs = self.pairs.iter();
+        for a in 0..n {
+            for b in a + 1..n {
+                let c = pairs.next().expect("one count per pair");
+                names[0].push(self.detectors[a].clone());
+                names[1].push(self.detectors[b].clone());
+                let isolation_units = if self.isolation_on_all_units { c.flights } else { c.units };
+                let share = |k: u64, n: u64| (n > 0).then(|| k as f64 / n as f64);
+                rates[0].push(share(c.positive[0][0], c.units));
+                rates[1].push(share(c.positive[0][1], c.units));
+                rates[2].push(share(c.positive[1][0], isolation_units));
+                rates[3].push(share(c.positive[1][1], isolation_units));
+                for (k, v) in [
+                    c.units,
+                    c.discordant[0][0],
+                    c.discordant[0][1],
+                    c.discordant[1][0],
+                    c.discordant[1][1],
+                    c.delay_differences[0].count(),
+                    c.flights,
+                    c.discordant[2][0],
+                    c.discordant[2][1],
+                    isolation_units,
+                ]
+                .into_iter()
+                .enumerate()
+                {
+                    counts[k].push(v);
+                }
+                for (k, d) in c.discordant.iter().enumerate() {
+                    p_values[k].push(mcnemar_exact(d[0], d[1]));
+                }
+                for (m, q) in medians.iter_mut().zip(&c.delay_differences) {
+                    m.push(q.median());
+                }
+            }
+        }
+        let [a, b] = names;
         let mut columns = vec![
-            Column::new("detector_a".into(), self.a),
-            Column::new("detector_b".into(), self.b),
-            Column::new("fault_windows".into(), self.windows),
-            Column::new("pd_a".into(), self.pd_a),
-            Column::new("pd_b".into(), self.pd_b),
-            Column::new("detected_by_a_only".into(), self.det_a_only),
-            Column::new("detected_by_b_only".into(), self.det_b_only),
-            Column::new("mcnemar_p_detection".into(), self.p_det),
-            Column::new("isolated_a".into(), self.iso_a),
-            Column::new("isolated_b".into(), self.iso_b),
-            Column::new("isolated_by_a_only".into(), self.iso_a_only),
-            Column::new("isolated_by_b_only".into(), self.iso_b_only),
-            Column::new("mcnemar_p_isolation".into(), self.p_iso),
-            Column::new("delay_pairs".into(), self.delay_pairs),
-            Column::new("median_delay_b_minus_a_s".into(), self.delay_diff),
+            Column::new("detector_a".into(), a),
+            Column::new("detector_b".into(), b),
+            Column::new("faulty_units".into(), std::mem::take(&mut counts[0])),
+            Column::new("pd_a".into(), std::mem::take(&mut rates[0])),
+            Column::new("pd_b".into(), std::mem::take(&mut rates[1])),
+            Column::new("detected_by_a_only".into(), std::mem::take(&mut counts[1])),
+            Column::new("detected_by_b_only".into(), std::mem::take(&mut counts[2])),
+            Column::new("mcnemar_p_detection".into(), std::mem::take(&mut p_values[0])),
+            Column::new("isolation_units".into(), std::mem::take(&mut counts[9])),
+            Column::new("isolated_a".into(), std::mem::take(&mut rates[2])),
+            Column::new("isolated_b".into(), std::mem::take(&mut rates[3])),
+            Column::new("isolated_by_a_only".into(), std::mem::take(&mut counts[3])),
+            Column::new("isolated_by_b_only".into(), std::mem::take(&mut counts[4])),
+            Column::new("mcnemar_p_isolation".into(), std::mem::take(&mut p_values[1])),
+            Column::new("delay_pairs".into(), std::mem::take(&mut counts[5])),
+            Column::new("median_delay_b_minus_a_s".into(), std::mem::take(&mut medians[0])),
         ];
-        if with_clearing {
-            columns.push(Column::new("clearing_pairs".into(), self.clear_pairs));
-            columns.push(Column::new("median_clearing_b_minus_a_s".into(), self.clear_diff));
+        for (name, m) in self.delay_names.iter().zip(medians.iter_mut().skip(1)) {
+            columns.push(Column::new(format!("median_{name}_b_minus_a").into(), std::mem::take(m)));
         }
         columns.extend([
-            Column::new("flights".into(), self.flights),
-            Column::new("false_alarm_a_only".into(), self.fa_a_only),
-            Column::new("false_alarm_b_only".into(), self.fa_b_only),
-            Column::new("mcnemar_p_false_alarm".into(), self.p_fa),
+            Column::new("flights".into(), std::mem::take(&mut counts[6])),
+            Column::new("false_alarm_a_only".into(), std::mem::take(&mut counts[7])),
+            Column::new("false_alarm_b_only".into(), std::mem::take(&mut counts[8])),
+            Column::new("mcnemar_p_false_alarm".into(), std::mem::take(&mut p_values[2])),
         ]);
         DataFrame::new_infer_height(columns)
     }
@@ -182,10 +197,52 @@ impl Comparison {
 mod tests {
     use super::*;
 
+    fn unit(
+        flown: bool,
+        faulty: bool,
+        detected: bool,
+        isolated: bool,
+        false_alarm: bool,
+        delay: Option<f64>,
+    ) -> UnitOutcome {
+        UnitOutcome { flown, faulty, detected, isolated, false_alarm, delays_s: vec![delay] }
+    }
+
+    /// Three detectors on four trials by hand: trial 0 (faulty) a detects at 0.5 s and isolates, b
+    /// detects at 1.0 s without isolating, c misses; trial 1 (fault-free) b alarms; trial 2 a's flight
+    /// failed; trial 3 (faulty) all detect, a at 0.2 s, b at 0.6 s.
     #[test]
-    fn median_of_odd_and_even_counts() {
-        assert_eq!(median(&mut []), None);
-        assert_eq!(median(&mut [3.0, 1.0, 2.0]), Some(2.0));
-        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), Some(2.5));
+    fn pairs_count_discordant_units_on_what_both_flew() {
+        let names: Vec<String> = ["a", "b", "c"].map(String::from).to_vec();
+        let mut p = PairedUnits::new(&names, &[], false);
+        p.push(0, 0, unit(true, true, true, true, false, Some(0.5)));
+        p.push(0, 1, unit(true, true, true, false, false, Some(1.0)));
+        p.push(0, 2, unit(true, true, false, false, false, None));
+        for d in 0..3 {
+            p.push(1, d, unit(true, false, false, false, d == 1, None));
+        }
+        p.push(2, 0, unit(false, true, false, false, false, None));
+        p.push(2, 1, unit(true, true, true, true, false, Some(0.1)));
+        p.push(2, 2, unit(true, true, true, true, false, Some(0.1)));
+        p.push(3, 0, unit(true, true, true, true, false, Some(0.2)));
+        p.push(3, 1, unit(true, true, true, true, false, Some(0.6)));
+        p.push(3, 2, unit(true, true, true, false, false, Some(0.3)));
+        let df = p.finish().unwrap();
+        assert_eq!(df.height(), 3, "a-b, a-c, b-c");
+        let u = |name: &str| -> Vec<u64> { df.column(name).unwrap().u64().unwrap().into_no_null_iter().collect() };
+        assert_eq!(u("faulty_units"), [2, 2, 3], "trial 2 counts only for b-c");
+        assert_eq!(u("detected_by_a_only"), [0, 1, 1]);
+        assert_eq!(u("detected_by_b_only"), [0, 0, 0]);
+        assert_eq!(u("isolated_by_a_only"), [1, 2, 1]);
+        assert_eq!(u("isolated_by_b_only"), [0, 0, 0]);
+        assert_eq!(u("flights"), [3, 3, 4]);
+        assert_eq!(u("false_alarm_b_only"), [1, 0, 0]);
+        assert_eq!(u("false_alarm_a_only"), [0, 0, 1]);
+        let median: Vec<Option<f64>> = df.column("median_delay_b_minus_a_s").unwrap().f64().unwrap().iter().collect();
+        // a-b: 1.0 - 0.5 and 0.6 - 0.2; a-c: 0.3 - 0.2 only; b-c: 0.1 - 0.1 and 0.3 - 0.6.
+        let close = |x: Option<f64>, y: f64| (x.unwrap() - y).abs() < 1e-12;
+        assert!(close(median[0], 0.45) && close(median[1], 0.1) && close(median[2], -0.15), "{median:?}");
+        let p_det: Vec<f64> = df.column("mcnemar_p_detection").unwrap().f64().unwrap().into_no_null_iter().collect();
+        assert_eq!(p_det[1], 1.0, "one discordant pair is no evidence");
     }
 }

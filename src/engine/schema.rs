@@ -1,39 +1,273 @@
-//! Column names of `trials.parquet` that several kinds of study share.
+//! The outcome schema: every kind's `trials.parquet` starts with the same core columns, the same name
+//! and type for the same meaning, then the method's own columns. The summaries, `check`, `merge` and
+//! the paired comparison read the core columns only (and the statistics, where a kind records one).
+//!
+//! One row per trial x detector x unit: a unit is what a detector is scored on within a trial, the
+//! trial itself for most kinds, or one fault window of a trial with several (method 004). The rows of
+//! one trial are consecutive, detectors in deck order, each detector's units in order.
+//!
+//! | column | type | meaning |
+//! |---|---|---|
+//! | `trial` | u64 | trial index (its random streams) |
+//! | `detector` | str | detector configuration |
+//! | `kind` | str | fault kind (`none` when fault-free; a classifier's classes for method 003, `normal` among them) |
+//! | `target` | str | the faulty component: output, sensor set (`+`-joined), engine, axis, surface; null when fault-free |
+//! | `size`, `size_bin` | f64 | fault size and its group label, both in `size_unit` (null for kinds without a size) |
+//! | `size_unit` | str | the unit the deck gives the size in (`multiples of the sensor sigma`, `deg`, `gain factor`, ...) |
+//! | `onset_s` | f64 | fault onset (null when fault-free) |
+//! | `fault_free` | bool | the trial has no fault (its alarms are false alarms) |
+//! | `failure` | str | why the unit was not flown to the end (design failure, left the envelope, ...); null: flown. Failed units are left out of every rate |
+//! | `diverged` | bool | a filter of the detector became non-finite (the unit still counts) |
+//! | `false_alarm`, `false_alarm_s` | bool, f64 | an alarm before the onset (anywhere when fault-free), and the first one's time |
+//! | `detected`, `delay_s` | bool, f64 | the fault detected at or after its onset, and the delay from the onset |
+//! | `isolated`, `isolated_correctly` | str, bool | what the detector named (a target, or a class for classifiers; null: nothing named), and whether it is the truth |
+//! | `noise_scale`, `noise_bin` | f64 | factor on every sensor's noise, and its group label |
+//! | `param_error_bin` | f64 | largest \|group label\| of the trial's parameter errors (0 without any) |
+//! | `perr_<name>` | f64 | each parameter error of the deck, as the deck gives it (relative or absolute) |
+//!
+//! A kind that records a detection statistic per trial (methods 000 and 001) adds, per statistic `s`,
+//! `pre_max_<s>` (its largest value before the onset, the whole trial when fault-free) and the lists
+//! `fp_t_s_<s>`, `fp_v_<s>` (the first-passage profile after the onset: times and values at which its
+//! running maximum rises), so any threshold can be evaluated later without re-simulating.
 
-/// Column names shared by writer and statistics.
+use std::borrow::Cow;
+
+use polars::prelude::*;
+
+/// Column names of the core schema and of recorded statistics.
 pub mod col {
     pub const TRIAL: &str = "trial";
     pub const DETECTOR: &str = "detector";
     pub const KIND: &str = "kind";
-    pub const OUTPUT: &str = "output";
+    pub const TARGET: &str = "target";
     pub const SIZE: &str = "size";
+    pub const SIZE_UNIT: &str = "size_unit";
     pub const SIZE_BIN: &str = "size_bin";
     pub const ONSET_S: &str = "onset_s";
+    pub const FAULT_FREE: &str = "fault_free";
+    pub const FAILURE: &str = "failure";
+    pub const DIVERGED: &str = "diverged";
+    pub const FALSE_ALARM: &str = "false_alarm";
+    pub const FALSE_ALARM_S: &str = "false_alarm_s";
+    pub const DETECTED: &str = "detected";
+    pub const DELAY_S: &str = "delay_s";
+    pub const ISOLATED: &str = "isolated";
+    pub const ISOLATED_CORRECTLY: &str = "isolated_correctly";
     pub const NOISE_SCALE: &str = "noise_scale";
     pub const NOISE_BIN: &str = "noise_bin";
     pub const PARAM_ERROR_BIN: &str = "param_error_bin";
-    pub const DESIGN_ERROR: &str = "design_error";
-    pub const DIVERGED_AT_S: &str = "diverged_at_s";
-    pub const FALSE_ALARM_S: &str = "false_alarm_s";
-    pub const FALSE_ALARM_OUTPUT: &str = "false_alarm_output";
-    pub const ALARM_S: &str = "alarm_s";
-    pub const ALARM_OUTPUT: &str = "alarm_output";
-    pub const DELAY_S: &str = "delay_s";
-    pub const ISOLATED_BY_MAX: &str = "isolated_by_max";
-    pub const ISOLATED_BY_DIRECTION: &str = "isolated_by_direction";
     /// Fault kind of fault-free trials.
     pub const NO_FAULT: &str = "none";
+    /// Prefix of the parameter-error columns.
+    pub const PERR_PREFIX: &str = "perr_";
+    /// Prefix of a recorded statistic's pre-onset maximum.
+    pub const PRE_MAX_PREFIX: &str = "pre_max_";
 
     pub fn perr(name: &str) -> String {
-        format!("perr_{name}")
+        format!("{PERR_PREFIX}{name}")
     }
-    pub fn pre_max(output: &str) -> String {
-        format!("pre_max_{output}")
+    pub fn pre_max(statistic: &str) -> String {
+        format!("{PRE_MAX_PREFIX}{statistic}")
     }
-    pub fn fp_t(output: &str) -> String {
-        format!("fp_t_s_{output}")
+    pub fn fp_t(statistic: &str) -> String {
+        format!("fp_t_s_{statistic}")
     }
-    pub fn fp_v(output: &str) -> String {
-        format!("fp_v_{output}")
+    pub fn fp_v(statistic: &str) -> String {
+        format!("fp_v_{statistic}")
+    }
+}
+
+/// One row's core values; `false_alarm` and `detected` follow from their times.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Outcome<'a> {
+    pub trial: u64,
+    pub detector: &'a str,
+    pub kind: &'a str,
+    pub target: Option<Cow<'a, str>>,
+    pub size: Option<f64>,
+    pub size_unit: &'a str,
+    pub size_bin: Option<f64>,
+    pub onset_s: Option<f64>,
+    pub fault_free: bool,
+    pub failure: Option<String>,
+    pub diverged: bool,
+    pub false_alarm_s: Option<f64>,
+    pub delay_s: Option<f64>,
+    pub isolated: Option<Cow<'a, str>>,
+    pub isolated_correctly: Option<bool>,
+    pub noise_scale: f64,
+    pub noise_bin: f64,
+    pub param_error_bin: f64,
+    /// One per `perr_<name>` column, in the builder's order.
+    pub param_errors: &'a [f64],
+}
+
+/// The core columns while rows are added; a method's frame builder puts its own columns after them.
+pub struct CoreColumns<'a> {
+    perr_names: Vec<String>,
+    trial: Vec<u64>,
+    detector: Vec<&'a str>,
+    kind: Vec<&'a str>,
+    target: Vec<Option<Cow<'a, str>>>,
+    size: Vec<Option<f64>>,
+    size_unit: Vec<&'a str>,
+    size_bin: Vec<Option<f64>>,
+    onset_s: Vec<Option<f64>>,
+    fault_free: Vec<bool>,
+    failure: Vec<Option<String>>,
+    diverged: Vec<bool>,
+    false_alarm: Vec<bool>,
+    false_alarm_s: Vec<Option<f64>>,
+    detected: Vec<bool>,
+    delay_s: Vec<Option<f64>>,
+    isolated: Vec<Option<Cow<'a, str>>>,
+    isolated_correctly: Vec<Option<bool>>,
+    noise_scale: Vec<f64>,
+    noise_bin: Vec<f64>,
+    param_error_bin: Vec<f64>,
+    perr: Vec<Vec<f64>>,
+}
+
+impl<'a> CoreColumns<'a> {
+    /// A builder for about `rows` rows whose parameter errors are named `perr_names` (deck order).
+    pub fn new(perr_names: impl IntoIterator<Item = String>, rows: usize) -> Self {
+        let perr_names: Vec<String> = perr_names.into_iter().collect();
+        CoreColumns {
+            perr: perr_names.iter().map(|_| Vec::with_capacity(rows)).collect(),
+            perr_names,
+            trial: Vec::with_capacity(rows),
+            detector: Vec::with_capacity(rows),
+            kind: Vec::with_capacity(rows),
+            target: Vec::with_capacity(rows),
+            size: Vec::with_capacity(rows),
+            size_unit: Vec::with_capacity(rows),
+            size_bin: Vec::with_capacity(rows),
+            onset_s: Vec::with_capacity(rows),
+            fault_free: Vec::with_capacity(rows),
+            failure: Vec::with_capacity(rows),
+            diverged: Vec::with_capacity(rows),
+            false_alarm: Vec::with_capacity(rows),
+            false_alarm_s: Vec::with_capacity(rows),
+            detected: Vec::with_capacity(rows),
+            delay_s: Vec::with_capacity(rows),
+            isolated: Vec::with_capacity(rows),
+            isolated_correctly: Vec::with_capacity(rows),
+            noise_scale: Vec::with_capacity(rows),
+            noise_bin: Vec::with_capacity(rows),
+            param_error_bin: Vec::with_capacity(rows),
+        }
+    }
+
+    /// Adds one row. Panics if `o.param_errors` does not have one value per parameter-error column
+    /// (a programmer's error).
+    #[track_caller]
+    pub fn push(&mut self, o: Outcome<'a>) {
+        assert_eq!(o.param_errors.len(), self.perr.len(), "one value per parameter-error column");
+        self.trial.push(o.trial);
+        self.detector.push(o.detector);
+        self.kind.push(o.kind);
+        self.target.push(o.target);
+        self.size.push(o.size.filter(|v| v.is_finite()));
+        self.size_unit.push(o.size_unit);
+        self.size_bin.push(o.size_bin.filter(|v| v.is_finite()));
+        self.onset_s.push(o.onset_s.filter(|v| v.is_finite()));
+        self.fault_free.push(o.fault_free);
+        self.failure.push(o.failure);
+        self.diverged.push(o.diverged);
+        self.false_alarm.push(o.false_alarm_s.is_some());
+        self.false_alarm_s.push(o.false_alarm_s);
+        self.detected.push(o.delay_s.is_some());
+        self.delay_s.push(o.delay_s);
+        self.isolated.push(o.isolated);
+        self.isolated_correctly.push(o.isolated_correctly);
+        self.noise_scale.push(o.noise_scale);
+        self.noise_bin.push(o.noise_bin);
+        self.param_error_bin.push(o.param_error_bin);
+        for (column, v) in self.perr.iter_mut().zip(o.param_errors) {
+            column.push(*v);
+        }
+    }
+
+    /// Rows added so far.
+    pub fn len(&self) -> usize {
+        self.trial.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.trial.is_empty()
+    }
+
+    /// The core columns in schema order.
+    pub fn finish(self) -> Vec<Column> {
+        let text = |name: &str, v: &[Option<Cow<'a, str>>]| {
+            Column::new(name.into(), v.iter().map(|s| s.as_deref()).collect::<Vec<Option<&str>>>())
+        };
+        let mut columns = vec![
+            Column::new(col::TRIAL.into(), self.trial),
+            Column::new(col::DETECTOR.into(), self.detector),
+            Column::new(col::KIND.into(), self.kind),
+            text(col::TARGET, &self.target),
+            Column::new(col::SIZE.into(), self.size),
+            Column::new(col::SIZE_UNIT.into(), self.size_unit),
+            Column::new(col::SIZE_BIN.into(), self.size_bin),
+            Column::new(col::ONSET_S.into(), self.onset_s),
+            Column::new(col::FAULT_FREE.into(), self.fault_free),
+            Column::new(col::FAILURE.into(), self.failure),
+            Column::new(col::DIVERGED.into(), self.diverged),
+            Column::new(col::FALSE_ALARM.into(), self.false_alarm),
+            Column::new(col::FALSE_ALARM_S.into(), self.false_alarm_s),
+            Column::new(col::DETECTED.into(), self.detected),
+            Column::new(col::DELAY_S.into(), self.delay_s),
+            text(col::ISOLATED, &self.isolated),
+            Column::new(col::ISOLATED_CORRECTLY.into(), self.isolated_correctly),
+            Column::new(col::NOISE_SCALE.into(), self.noise_scale),
+            Column::new(col::NOISE_BIN.into(), self.noise_bin),
+            Column::new(col::PARAM_ERROR_BIN.into(), self.param_error_bin),
+        ];
+        for (name, v) in self.perr_names.iter().zip(self.perr) {
+            columns.push(Column::new(col::perr(name).into(), v));
+        }
+        columns
+    }
+}
+
+/// Recorded statistics (pre-onset maxima and first-passage profiles), one per name, while rows are
+/// added; a kind that records them puts these columns after its core columns.
+pub struct StatisticColumns {
+    names: Vec<String>,
+    pre_max: Vec<Vec<Option<f64>>>,
+    fp_t: Vec<ListPrimitiveChunkedBuilder<Float64Type>>,
+    fp_v: Vec<ListPrimitiveChunkedBuilder<Float64Type>>,
+}
+
+impl StatisticColumns {
+    pub fn new(names: &[String], rows: usize) -> Self {
+        let list = |name: String| {
+            ListPrimitiveChunkedBuilder::<Float64Type>::new(name.into(), rows, rows * 4, DataType::Float64)
+        };
+        StatisticColumns {
+            names: names.to_vec(),
+            pre_max: names.iter().map(|_| Vec::with_capacity(rows)).collect(),
+            fp_t: names.iter().map(|n| list(col::fp_t(n))).collect(),
+            fp_v: names.iter().map(|n| list(col::fp_v(n))).collect(),
+        }
+    }
+
+    /// Statistic `j` of the next row: its pre-onset maximum and first-passage profile (times, values).
+    pub fn push(&mut self, j: usize, pre_max: Option<f64>, profile_t_s: &[f64], profile_value: &[f64]) {
+        self.pre_max[j].push(pre_max);
+        self.fp_t[j].append_slice(profile_t_s);
+        self.fp_v[j].append_slice(profile_value);
+    }
+
+    /// `pre_max_<s>` for every statistic, then `fp_t_s_<s>`, `fp_v_<s>` for each.
+    pub fn finish(self) -> Vec<Column> {
+        let mut columns: Vec<Column> =
+            self.names.iter().zip(self.pre_max).map(|(n, v)| Column::new(col::pre_max(n).into(), v)).collect();
+        for (mut t, mut v) in self.fp_t.into_iter().zip(self.fp_v) {
+            columns.push(t.finish().into_series().into_column());
+            columns.push(v.finish().into_series().into_column());
+        }
+        columns
     }
 }

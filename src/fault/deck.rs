@@ -80,6 +80,45 @@ pub struct FaultKindSpec {
     pub size: SizeSpec,
 }
 
+/// Units of fault sizes, as records and summaries name them.
+pub mod unit {
+    pub const SENSOR_SIGMA: &str = "multiples of the sensor sigma";
+    pub const GAIN_FACTOR: &str = "gain factor";
+    pub const OUTPUT_UNITS: &str = "output units";
+    /// A fault without a size (stuck at the held reading, total failure), or no fault.
+    pub const NONE: &str = "none";
+}
+
+impl FaultKindSpec {
+    /// The unit the deck gives this population's sizes in.
+    pub fn size_unit(&self) -> &'static str {
+        match (&self.size, self.kind) {
+            (SizeSpec::None, _) => unit::NONE,
+            (SizeSpec::SensorSigma(_), _) => unit::SENSOR_SIGMA,
+            (SizeSpec::Output(_), FaultKind::Gain) => unit::GAIN_FACTOR,
+            (SizeSpec::Output(_), _) => unit::OUTPUT_UNITS,
+        }
+    }
+
+    /// A drawn size, given in [`FaultKindSpec::size_unit`], in the faulty output's units (`sigma`: its
+    /// nominal sensor sigma).
+    pub fn in_output_units(&self, given: f64, sigma: f64) -> f64 {
+        match self.size {
+            SizeSpec::SensorSigma(_) => given * sigma,
+            _ => given,
+        }
+    }
+}
+
+/// The unit of a fixed (`[[faults]]`) fault's size: the output's own, a factor for gain.
+pub fn fixed_size_unit(mode: &FaultMode) -> &'static str {
+    match mode {
+        FaultMode::Gain { .. } => unit::GAIN_FACTOR,
+        m if m.size().is_nan() => unit::NONE,
+        _ => unit::OUTPUT_UNITS,
+    }
+}
+
 impl Validator<'_> {
     /// One `[[monte_carlo.fault]]` population (the same syntax in every deck with sensor faults).
     pub(crate) fn fault_kind_spec(&self, prefix: &str, f: &FaultKindSection) -> Result<FaultKindSpec, DeckError> {

@@ -6,17 +6,15 @@ pub mod ekf_svm;
 pub mod imu;
 pub mod records;
 pub mod study;
-pub mod summary;
 pub mod trial;
 
 use std::path::Path;
 
 use crate::engine::deck::DeckError;
-use crate::engine::method::{Inputs, Method, Opt, Study};
+use crate::engine::method::{Inputs, Isolates, Method, Opt, Study, SummarySpec};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::scenario::{GridDigits, draw};
 use crate::engine::streams::{Substream, noise_rng, trial_rng};
-use crate::engine::summary::Calibration;
 use crate::fault::FaultMode;
 use crate::methods::accelerometer::ekf_svm::{
     FaultClass, ResidualSample, detection_statistics, first_alarm, simulate_trial, window_start,
@@ -46,12 +44,8 @@ impl Method for Accelerometers {
     fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
         Ok(Box::new(AccelerometerStudy::from_toml(text, path)?))
     }
-    fn summarize(&self, dir: &Path, _: &Manifest, _: Option<&Calibration>, print: bool) -> Result<(), RunError> {
-        let s = summary::summarize(dir)?;
-        if print {
-            summary::print(dir, &s)?;
-        }
-        Ok(())
+    fn summary(&self) -> SummarySpec {
+        SummarySpec { extra_keys: &[], isolates: Isolates::Kind, extras: &[], paired_delays: &[], printed: &[] }
     }
 }
 

@@ -1,78 +1,73 @@
-//! The trial-record table of accelerometer studies (`trials.parquet` of method 003): one row per
-//! (trial, classifier), `tree` (the seed's bottom-up SVM decision tree) and `flat` (one-against-one).
+//! The classifiers' `trials.parquet` (method 003): one row per (trial, classifier), `tree` (the seed's
+//! bottom-up SVM decision tree) and `flat` (one-against-one). The core columns of
+//! [`crate::engine::schema`] come first, where `kind` is the true class (`normal`, `bias`, `gain`,
+//! `stuck`; a `normal` trial is fault-free), `target` the faulty axis (`x`, `y`, `z`), `size` the bias
+//! (m/s^2) or the gain factor and `size_bin` the centre of its third of the deck's range of \|bias\|
+//! or \|factor - 1\|, `onset_s` the onset (nominal for normal trials), `noise_bin` the noise scale
+//! itself, `isolated` the class the classifier names from the window after the onset, alarms and delay
+//! those of the residual detector (either classifier's rows), `failure` why the trial could not be
+//! simulated or classified. Then:
 //!
 //! | column | meaning |
 //! |---|---|
-//! | `trial`, `detector` | trial index (its random streams), classifier |
-//! | `kind`, `axis` | the true class (`normal`, `bias`, `gain`, `stuck`) and the faulty axis (`x`, `y`, `z`) |
-//! | `size`, `size_bin` | the bias (m/s^2) or the gain factor; the centre of its third of the deck's range of \|bias\| or \|factor - 1\| |
-//! | `onset_s`, `noise_scale`, `noise_bin` | the onset (nominal for normal trials), the factor on the white-noise sigmas (its own group label) |
-//! | `failure` | why the trial could not be simulated or classified (null: it was) |
-//! | `predicted`, `correct` | the class the classifier names from the window after the onset, whether it is the true one |
-//! | `false_alarm_s`, `alarm_s`, `delay_s` | the residual detector: first alarm before the onset (anywhere for normal trials), first at or after it, and its delay |
+//! | `alarm_s` | the residual detector's first alarm at or after the onset |
 //! | `unusable_accelerometer_samples` | samples the filter could not use (zero or non-finite) |
+
+use std::borrow::Cow;
 
 use polars::prelude::*;
 
-use crate::engine::schema::col as common;
-use crate::methods::accelerometer::ekf_svm::FaultClass;
-use crate::methods::accelerometer::trial::{AccelTrialResult, DETECTORS};
+use super::ekf_svm::FaultClass;
+use super::trial::{AccelTrialResult, DETECTORS};
+use crate::engine::schema::{CoreColumns, Outcome};
 
-/// Column names of this table beyond those it shares with the LTI records.
-pub mod col {
-    pub const AXIS: &str = "axis";
-    pub const FAILURE: &str = "failure";
-    pub const PREDICTED: &str = "predicted";
-    pub const CORRECT: &str = "correct";
+/// The unit of a class's size.
+fn size_unit(class: FaultClass) -> &'static str {
+    match class {
+        FaultClass::Bias => "m/s^2",
+        FaultClass::Gain => crate::fault::deck::unit::GAIN_FACTOR,
+        _ => crate::fault::deck::unit::NONE,
+    }
 }
 
 /// The rows of `results` (trial order); see the module docs.
 pub fn frame(results: &[AccelTrialResult]) -> PolarsResult<DataFrame> {
     let n = results.len() * DETECTORS.len();
-    let mut trial = Vec::with_capacity(n);
-    let mut detector = Vec::with_capacity(n);
-    let (mut kind, mut axis) = (Vec::with_capacity(n), Vec::with_capacity(n));
-    let (mut size, mut size_bin, mut onset, mut noise) = (vec![], vec![], vec![], vec![]);
-    let (mut failure, mut predicted, mut correct) = (vec![], vec![], vec![]);
-    let (mut false_alarm, mut alarm, mut delay, mut unusable) = (vec![], vec![], vec![], vec![]);
+    let mut core = CoreColumns::new(Vec::new(), n);
+    let (mut alarm, mut unusable) = (Vec::with_capacity(n), Vec::with_capacity(n));
     for r in results {
         let s = &r.spec;
+        let fault_free = s.class == FaultClass::Normal;
         for (d, name) in DETECTORS.iter().enumerate() {
             let o = r.outcome.as_ref().ok();
-            trial.push(s.trial);
-            detector.push(*name);
-            kind.push(s.class.name());
-            axis.push(s.axis.map(|a| ["x", "y", "z"][a]));
-            size.push(s.size.is_finite().then_some(s.size));
-            size_bin.push(s.size_bin.is_finite().then_some(s.size_bin));
-            onset.push(s.onset_s);
-            noise.push(s.noise_scale);
-            failure.push(r.outcome.as_ref().err().cloned());
-            let p: Option<FaultClass> = o.map(|o| o.predicted[d]);
-            predicted.push(p.map(FaultClass::name));
-            correct.push(p.map(|p| p == s.class));
-            false_alarm.push(o.and_then(|o| o.false_alarm_s));
+            let predicted: Option<FaultClass> = o.map(|o| o.predicted[d]);
+            core.push(Outcome {
+                trial: s.trial,
+                detector: name,
+                kind: s.class.name(),
+                target: s.axis.map(|a| Cow::Borrowed(["x", "y", "z"][a])),
+                size: Some(s.size),
+                size_unit: size_unit(s.class),
+                size_bin: Some(s.size_bin),
+                onset_s: Some(s.onset_s),
+                fault_free,
+                failure: r.outcome.as_ref().err().cloned(),
+                diverged: o.is_some_and(|o| o.health.filter.non_finite > 0),
+                false_alarm_s: o.and_then(|o| o.false_alarm_s),
+                delay_s: o.and_then(|o| o.alarm_s).filter(|_| !fault_free).map(|a| a - s.onset_s),
+                isolated: predicted.map(|p| Cow::Borrowed(p.name())),
+                isolated_correctly: predicted.map(|p| p == s.class),
+                noise_scale: s.noise_scale,
+                noise_bin: s.noise_scale,
+                param_error_bin: 0.0,
+                param_errors: &[],
+            });
             alarm.push(o.and_then(|o| o.alarm_s));
-            delay.push(o.and_then(|o| o.alarm_s).map(|a| a - s.onset_s));
             unusable.push(o.map(|o| o.health.unusable_measurement));
         }
     }
-    DataFrame::new_infer_height(vec![
-        Column::new(common::TRIAL.into(), trial),
-        Column::new(common::DETECTOR.into(), detector),
-        Column::new(common::KIND.into(), kind),
-        Column::new(col::AXIS.into(), axis),
-        Column::new(common::SIZE.into(), size),
-        Column::new(common::SIZE_BIN.into(), size_bin),
-        Column::new(common::ONSET_S.into(), onset),
-        Column::new(common::NOISE_SCALE.into(), noise.clone()),
-        Column::new(common::NOISE_BIN.into(), noise),
-        Column::new(col::FAILURE.into(), failure),
-        Column::new(col::PREDICTED.into(), predicted),
-        Column::new(col::CORRECT.into(), correct),
-        Column::new(common::FALSE_ALARM_S.into(), false_alarm),
-        Column::new(common::ALARM_S.into(), alarm),
-        Column::new(common::DELAY_S.into(), delay),
-        Column::new("unusable_accelerometer_samples".into(), unusable),
-    ])
+    let mut columns = core.finish();
+    columns.push(Column::new("alarm_s".into(), alarm));
+    columns.push(Column::new("unusable_accelerometer_samples".into(), unusable));
+    DataFrame::new_infer_height(columns)
 }

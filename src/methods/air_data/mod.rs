@@ -6,17 +6,14 @@ pub mod flight;
 pub mod records;
 pub mod scenario;
 pub mod study;
-pub mod summary;
 pub mod trial;
 
 use std::path::Path;
 
 use crate::engine::deck::DeckError;
-use crate::engine::method::{Inputs, Method, Study};
+use crate::engine::method::{Extra, Inputs, Isolates, Method, Study, SummarySpec};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
-use crate::engine::summary::Calibration;
-use crate::fault::deck::SizeSpec;
 use crate::methods::air_data::dual_ukf::DualUkfStep;
 use crate::methods::air_data::flight::{AIR_DATA_CHANNEL_NAMES, AirDataSample};
 use crate::methods::air_data::scenario::AirDataScenarioSampler;
@@ -42,12 +39,24 @@ impl Method for AirDataMethod {
     fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
         Ok(Box::new(AirDataStudy::from_toml(text, path)?))
     }
-    fn summarize(&self, dir: &Path, _: &Manifest, _: Option<&Calibration>, print: bool) -> Result<(), RunError> {
-        let s = summary::summarize(dir)?;
-        if print {
-            summary::print(dir, &s)?;
+    fn summary(&self) -> SummarySpec {
+        use records::col;
+        SummarySpec {
+            extra_keys: &[col::GUST_BIN],
+            isolates: Isolates::Target,
+            extras: &[
+                Extra::Count { name: "repaired", column: col::COVARIANCE_REPAIRS },
+                Extra::Quantile { name: "bias_error_p50_sigma", column: col::BIAS_ERROR_RMS_SIGMA, p: 0.5, abs: false },
+                Extra::Quantile { name: "estimate_rms_p50_sigma", column: col::ESTIMATE_RMS_SIGMA, p: 0.5, abs: false },
+                Extra::Quantile { name: "raw_rms_p50_sigma", column: col::RAW_RMS_SIGMA, p: 0.5, abs: false },
+            ],
+            paired_delays: &[],
+            printed: &[
+                ("bias err σ", "bias_error_p50_sigma"),
+                ("air data σ", "estimate_rms_p50_sigma"),
+                ("raw σ", "raw_rms_p50_sigma"),
+            ],
         }
-        Ok(())
     }
 }
 
@@ -90,15 +99,7 @@ impl<'a> AirDataTrials<'a> {
     /// The study's fields of `manifest.json`.
     pub fn manifest(&self) -> Manifest {
         let s = self.study;
-        let units = s.monte_carlo.faults.iter().map(|f| {
-            let unit = match (&f.size, f.kind.name()) {
-                (SizeSpec::SensorSigma(_), _) => "multiples of the sensor sigma",
-                (_, "gain") => "gain factor",
-                (SizeSpec::Output(_), _) => "output units (m/s, rad)",
-                (SizeSpec::None, _) => "none",
-            };
-            (f.kind.name().to_string(), unit.to_string())
-        });
+        let units = s.monte_carlo.faults.iter().map(|f| (f.kind.name().to_string(), f.size_unit().to_string()));
         Manifest {
             kind: KIND.into(),
             study: s.name.clone(),

@@ -6,7 +6,7 @@
 
 use crate::engine::scenario::{GridDigits, UnitSampler, draw};
 use crate::fault::SensorFault;
-use crate::fault::deck::SizeSpec;
+use crate::fault::deck::{SizeSpec, fixed_size_unit, unit};
 use crate::methods::air_data::flight::ScenarioParams;
 use crate::methods::air_data::study::AirDataStudy;
 
@@ -29,6 +29,8 @@ pub struct AirDataTrialSpec {
     /// The size as the deck gives it (sensor sigmas, or output units, or a gain factor); NaN without one.
     pub size: f64,
     pub size_bin: f64,
+    /// The unit of `size` and `size_bin`.
+    pub size_unit: &'static str,
     pub onset_s: f64,
     pub noise_scale: f64,
     pub noise_bin: f64,
@@ -75,6 +77,7 @@ impl<'a> AirDataScenarioSampler<'a> {
             outputs: Vec::new(),
             size: f64::NAN,
             size_bin: f64::NAN,
+            size_unit: unit::NONE,
             onset_s: f64::NAN,
             noise_scale,
             noise_bin,
@@ -90,16 +93,14 @@ impl<'a> AirDataScenarioSampler<'a> {
                 spec.faults = set
                     .iter()
                     .map(|&j| {
-                        let in_units = match kind_spec.size {
-                            SizeSpec::SensorSigma(_) => size * sigma[j],
-                            _ => size,
-                        };
-                        SensorFault { channel: j, onset_s, mode: kind_spec.kind.mode(in_units) }
+                        let mode = kind_spec.kind.mode(kind_spec.in_output_units(size, sigma[j]));
+                        SensorFault { channel: j, onset_s, mode }
                     })
                     .collect();
                 spec.kind = kind_spec.kind.name();
                 spec.outputs = set.clone();
                 (spec.size, spec.size_bin, spec.onset_s) = (size, size_bin, onset_s);
+                spec.size_unit = kind_spec.size_unit();
             }
             None if !s.faults.is_empty() => {
                 spec.faults = s.faults.clone();
@@ -110,6 +111,7 @@ impl<'a> AirDataScenarioSampler<'a> {
                 spec.outputs = outputs;
                 spec.size = s.faults[0].mode.size();
                 spec.size_bin = spec.size;
+                spec.size_unit = fixed_size_unit(&s.faults[0].mode);
                 spec.onset_s = s.faults.iter().map(|f| f.onset_s).fold(f64::INFINITY, f64::min);
             }
             None => {}

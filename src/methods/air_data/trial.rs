@@ -222,6 +222,7 @@ mod tests {
             outputs: vec![ALPHA],
             size: 10.0,
             size_bin: 10.0,
+            size_unit: crate::fault::deck::unit::SENSOR_SIGMA,
             onset_s: 20.0,
             noise_scale: 1.0,
             noise_bin: 1.0,

@@ -10,7 +10,6 @@ pub mod records;
 pub mod report;
 pub mod scenario;
 pub mod study;
-pub mod summary;
 pub mod trial;
 pub mod trials;
 
@@ -19,9 +18,8 @@ use polars::prelude::*;
 use std::path::Path;
 
 use crate::engine::deck::DeckError;
-use crate::engine::method::{Inputs, Method, Opt, Study};
+use crate::engine::method::{Extra, Inputs, Isolates, Method, Opt, Study, SummarySpec};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
-use crate::engine::summary::Calibration;
 use kernel::LANES;
 use records::RecordBuilder;
 use study::LtiStudy;
@@ -48,19 +46,23 @@ impl Method for DetectionFilters {
     fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
         Ok(Box::new(LtiStudy::from_toml(text, path)?))
     }
-    fn summarize(
-        &self,
-        dir: &Path,
-        manifest: &Manifest,
-        calibration: Option<&Calibration>,
-        print: bool,
-    ) -> Result<(), RunError> {
-        let calibration = calibration.cloned().unwrap_or(Calibration::Target(manifest.target_pfa));
-        let s = summary::summarize(dir, &calibration)?;
-        if print {
-            summary::print(dir, &s)?;
+    fn summary(&self) -> SummarySpec {
+        SummarySpec {
+            extra_keys: &[],
+            isolates: Isolates::Target,
+            // Isolation by the largest threshold-scaled residual, beside the signature rule's `isolated`.
+            extras: &[
+                Extra::NamesTarget { name: "isolated_by_max_correctly", column: "isolated_by_max" },
+                Extra::Rate {
+                    name: "isolation_by_max_accuracy",
+                    k: "isolated_by_max_correctly",
+                    n: "isolation_decided",
+                    faulty_only: false,
+                },
+            ],
+            paired_delays: &[],
+            printed: &[],
         }
-        Ok(())
     }
     fn report(&self, dir: &Path, trials: &[u64]) -> Result<(), RunError> {
         let report = report::write_report(dir, trials)?;
@@ -153,20 +155,13 @@ impl TrialSource for LtiTrials<'_> {
 
 /// The unit of each fault kind's size, as the deck gives it.
 fn fault_size_units(study: &LtiStudy) -> std::collections::BTreeMap<String, String> {
-    use crate::fault::deck::{FaultKind, SizeSpec};
+    use crate::fault::deck::fixed_size_unit;
     let mut units = std::collections::BTreeMap::new();
     for f in &study.monte_carlo.faults {
-        let unit = match (&f.size, f.kind) {
-            (SizeSpec::SensorSigma(_), _) => "multiples of the sensor sigma",
-            (_, FaultKind::Gain) => "gain factor",
-            (SizeSpec::Output(_), _) => "output units",
-            (SizeSpec::None, _) => "none",
-        };
-        units.insert(f.kind.name().to_string(), unit.to_string());
+        units.insert(f.kind.name().to_string(), f.size_unit().to_string());
     }
     for f in &study.faults {
-        let unit = if f.mode.name() == "gain" { "gain factor" } else { "output units" };
-        units.entry(f.mode.name().to_string()).or_insert_with(|| unit.to_string());
+        units.entry(f.mode.name().to_string()).or_insert_with(|| fixed_size_unit(&f.mode).to_string());
     }
     units
 }

@@ -5,7 +5,7 @@ use super::study::LtiStudy;
 use crate::engine::deck::ModelTarget;
 use crate::engine::scenario::{GridDigits, UnitSampler, draw};
 use crate::fault::SensorFault;
-use crate::fault::deck::{FaultKind, SizeSpec};
+use crate::fault::deck::{SizeSpec, fixed_size_unit, unit};
 
 /// Continuous-factor dimensions, fixed so a trial's draws do not depend on which factors are present.
 const DIM_ONSET: usize = 0;
@@ -23,10 +23,12 @@ pub struct TrialSpec {
     pub kind: &'static str,
     /// Faulty output index.
     pub output: Option<usize>,
-    /// Fault size in the output's units (a factor for gain); NaN when the kind has none.
+    /// Fault size as the deck gives it, in `size_unit` (the fault itself is in the output's units); NaN
+    /// when the kind has none.
     pub size: f64,
-    /// Group label of the size, in the unit the deck gives it (output units, or sensor sigmas).
+    /// Group label of the size, in `size_unit`.
     pub size_bin: f64,
+    pub size_unit: &'static str,
     pub onset_s: f64,
     pub noise_scale: f64,
     pub noise_bin: f64,
@@ -60,13 +62,9 @@ impl<'a> ScenarioSampler<'a> {
 
         // Sampled population: kind and output first (the fastest grid digits).
         let sampled = (!mc.faults.is_empty()).then(|| (digit(mc.faults.len()), mc.outputs[digit(mc.outputs.len())]));
-        let size_pick = sampled.map(|(k, output)| match &mc.faults[k].size {
+        let size_pick = sampled.map(|(k, _)| match &mc.faults[k].size {
             SizeSpec::None => (f64::NAN, f64::NAN),
-            SizeSpec::Output(f) => draw(f, units[DIM_SIZE], &mut digit),
-            SizeSpec::SensorSigma(f) => {
-                let (v, bin) = draw(f, units[DIM_SIZE], &mut digit);
-                (v * s.sensor_sigma[output], bin)
-            }
+            SizeSpec::Output(f) | SizeSpec::SensorSigma(f) => draw(f, units[DIM_SIZE], &mut digit),
         });
         let (onset, _) = draw(&mc.onset_s, units[DIM_ONSET], &mut digit);
         let (noise_scale, noise_bin) = draw(&mc.noise_scale, units[DIM_NOISE], &mut digit);
@@ -85,6 +83,7 @@ impl<'a> ScenarioSampler<'a> {
             output: None,
             size: f64::NAN,
             size_bin: f64::NAN,
+            size_unit: unit::NONE,
             onset_s: f64::NAN,
             noise_scale,
             noise_bin,
@@ -96,12 +95,15 @@ impl<'a> ScenarioSampler<'a> {
         }
         match (sampled, size_pick) {
             (Some((k, output)), Some((size, size_bin))) => {
-                let kind: FaultKind = mc.faults[k].kind;
-                spec.faults = vec![SensorFault { channel: output, onset_s: onset, mode: kind.mode(size) }];
-                spec.kind = kind.name();
+                let population = &mc.faults[k];
+                let in_units = population.in_output_units(size, s.sensor_sigma[output]);
+                spec.faults =
+                    vec![SensorFault { channel: output, onset_s: onset, mode: population.kind.mode(in_units) }];
+                spec.kind = population.kind.name();
                 spec.output = Some(output);
                 spec.size = size;
                 spec.size_bin = size_bin;
+                spec.size_unit = population.size_unit();
                 spec.onset_s = onset;
             }
             _ => {
@@ -111,6 +113,7 @@ impl<'a> ScenarioSampler<'a> {
                     spec.output = Some(first.channel);
                     spec.size = first.mode.size();
                     spec.size_bin = first.mode.size();
+                    spec.size_unit = fixed_size_unit(&first.mode);
                     spec.onset_s = s.faults.iter().map(|f| f.onset_s).fold(f64::INFINITY, f64::min);
                 }
             }

@@ -55,6 +55,14 @@ impl ActuatorFaultKind {
         }
     }
 
+    /// The unit of [`ActuatorFaultKind::size`].
+    pub fn size_unit(&self) -> &'static str {
+        match self {
+            ActuatorFaultKind::Stuck { .. } | ActuatorFaultKind::Oscillation { .. } => "deg",
+            ActuatorFaultKind::LossOfEffectiveness { .. } => "effectiveness (fraction)",
+        }
+    }
+
     /// The deck name of the kind.
     pub fn name(&self) -> &'static str {
         match self {

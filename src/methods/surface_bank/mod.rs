@@ -6,17 +6,15 @@ pub mod records;
 pub mod scenario;
 pub mod stmmae;
 pub mod study;
-pub mod summary;
 pub mod trial;
 pub mod uav;
 
 use std::path::Path;
 
 use crate::engine::deck::DeckError;
-use crate::engine::method::{Inputs, Method, Study};
+use crate::engine::method::{Extra, Inputs, Isolates, Method, Study, SummarySpec};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
-use crate::engine::summary::Calibration;
 use crate::methods::surface_bank::scenario::SurfaceScenarioSampler;
 use crate::methods::surface_bank::stmmae::BankParams;
 use crate::methods::surface_bank::study::SurfaceStudy;
@@ -42,12 +40,32 @@ impl Method for SurfaceBanks {
     fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
         Ok(Box::new(SurfaceStudy::from_toml(text, path)?))
     }
-    fn summarize(&self, dir: &Path, _: &Manifest, _: Option<&Calibration>, print: bool) -> Result<(), RunError> {
-        let s = summary::summarize(dir)?;
-        if print {
-            summary::print(dir, &s)?;
+    fn summary(&self) -> SummarySpec {
+        use records::col;
+        SummarySpec {
+            extra_keys: &[],
+            isolates: Isolates::Target,
+            extras: &[
+                Extra::Present { name: "clear_decided", column: col::CLEARED },
+                Extra::Count { name: "cleared", column: col::CLEARED },
+                Extra::Rate { name: "clearing_rate", k: "cleared", n: "clear_decided", faulty_only: true },
+                Extra::Count { name: "post_fault", column: col::POST_FAULT_DECLARATIONS },
+                Extra::Rate { name: "post_fault_rate", k: "post_fault", n: "flown", faulty_only: true },
+                Extra::Count { name: "asymmetric", column: col::ASYMMETRIC_STEPS },
+                Extra::Count { name: "not_positive_definite", column: col::NOT_POSITIVE_DEFINITE_STEPS },
+                Extra::Quantile { name: "isolation_delay_p50_s", column: col::ISOLATION_DELAY_S, p: 0.5, abs: false },
+                Extra::Quantile { name: "clearing_p50_s", column: col::CLEARING_DELAY_S, p: 0.5, abs: false },
+                Extra::Quantile { name: "clearing_p90_s", column: col::CLEARING_DELAY_S, p: 0.9, abs: false },
+                Extra::Quantile {
+                    name: "estimate_rms_p50_deg",
+                    column: col::SURFACE_ESTIMATE_RMS_DEG,
+                    p: 0.5,
+                    abs: false,
+                },
+            ],
+            paired_delays: &[col::CLEARING_DELAY_S],
+            printed: &[("clear p50 s", "clearing_p50_s"), ("relapse", "post_fault_rate")],
         }
-        Ok(())
     }
 }
 

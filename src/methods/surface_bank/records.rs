@@ -1,62 +1,49 @@
-//! The trial-record table of control-surface studies (`trials.parquet` of method 004): one row per
-//! (trial, bank, fault window); a fault-free trial has one row per bank with kind `none`. Trial-level
-//! columns (false alarms, health counters) belong to the trial and bank, and repeat on each of its
-//! window rows (a Monte Carlo fault population gives one window per faulty trial).
+//! The banks' `trials.parquet` (method 004): one row per (trial, bank, fault window); a fault-free
+//! trial has one row per bank. The core columns of [`crate::engine::schema`] come first, where `target`
+//! is the faulty surface, `size` the stuck position or square-wave amplitude (deg) or the effectiveness
+//! (fraction), `failure` why the flight stopped early (no trim, left the envelope), `diverged` a
+//! covariance that became non-finite, `delay_s` from the onset to the first declaration in the window,
+//! `isolated` the first surface declared in it, and `false_alarm_s` the first declaration while no
+//! fault was active and none had ended (trial and bank: it repeats on each window row). Then the banks'
+//! own columns:
 //!
 //! | column | meaning |
 //! |---|---|
-//! | `trial`, `detector` | trial index (its random streams), bank name |
-//! | `kind`, `surface` | fault kind (`stuck`, `oscillation`, `loss_of_effectiveness`; `none`) and faulty surface |
-//! | `size`, `size_bin` | stuck position or square-wave amplitude (deg), or effectiveness (fraction); its group label |
-//! | `onset_s`, `end_s`, `window` | the fault window and its index in the trial (onset order) |
-//! | `noise_scale`, `noise_bin` | factor on every sensor standard deviation, and its group label |
-//! | `perr_<name>`, `param_error_bin` | relative coefficient errors, and the largest \|group label\| |
-//! | `failure` | why the flight stopped early (no trim, left the envelope); null: flown to the end |
-//! | `detected`, `detection_delay_s` | a surface was declared in the window; from the onset to the first declaration |
-//! | `isolated`, `isolated_correctly`, `isolation_delay_s` | the first surface declared in the window (`none`), whether it is the faulty one; from the onset to the first declaration of the faulty surface |
+//! | `end_s`, `window` | the fault window's end and its index in the trial (onset order) |
+//! | `isolation_delay_s` | from the onset to the first declaration of the faulty surface |
 //! | `cleared`, `clearing_delay_s` | the faulty surface, once declared, was cleared after the window ended; from the end to the clearance |
 //! | `surface_estimate_rms_deg` | RMS error of the faulty surface's position estimate over the window's second half |
-//! | `false_alarms`, `first_false_alarm_s` | declarations while no fault was active and none had ended (trial and bank) |
+//! | `false_alarms` | how many such declarations |
 //! | `post_fault_declarations` | declarations while no fault was active after one had ended (relapses during the recovery) |
 //! | `singular_innovation_steps`, `asymmetric_steps`, `not_positive_definite_steps`, `non_finite_steps` | covariance health, filter-steps summed over the bank's six filters |
 //! | `floor_steps` | steps on which the probability floor was applied |
 
+use std::borrow::Cow;
+
 use polars::prelude::*;
 
-use crate::engine::schema::col::{self as common, perr};
-use crate::methods::surface_bank::study::SurfaceStudy;
-use crate::methods::surface_bank::trial::{BankOutcome, SurfaceTrialResult};
-use crate::methods::surface_bank::uav::SURFACE_NAMES;
+use super::study::SurfaceStudy;
+use super::trial::{BankOutcome, SurfaceTrialResult};
+use super::uav::SURFACE_NAMES;
+use crate::engine::schema::col::NO_FAULT;
+use crate::engine::schema::{CoreColumns, Outcome};
 
-/// Column names of this table beyond those it shares with the LTI records.
+/// Column names of this kind's own columns that its summary reads.
 pub mod col {
-    pub const SURFACE: &str = "surface";
-    pub const END_S: &str = "end_s";
-    pub const WINDOW: &str = "window";
-    pub const FAILURE: &str = "failure";
-    pub const DETECTED: &str = "detected";
-    pub const DETECTION_DELAY_S: &str = "detection_delay_s";
-    pub const ISOLATED: &str = "isolated";
-    pub const ISOLATED_CORRECTLY: &str = "isolated_correctly";
     pub const ISOLATION_DELAY_S: &str = "isolation_delay_s";
     pub const CLEARED: &str = "cleared";
     pub const CLEARING_DELAY_S: &str = "clearing_delay_s";
     pub const SURFACE_ESTIMATE_RMS_DEG: &str = "surface_estimate_rms_deg";
-    pub const FALSE_ALARMS: &str = "false_alarms";
-    pub const FIRST_FALSE_ALARM_S: &str = "first_false_alarm_s";
     pub const POST_FAULT_DECLARATIONS: &str = "post_fault_declarations";
-    pub const SINGULAR_INNOVATION_STEPS: &str = "singular_innovation_steps";
     pub const ASYMMETRIC_STEPS: &str = "asymmetric_steps";
     pub const NOT_POSITIVE_DEFINITE_STEPS: &str = "not_positive_definite_steps";
-    pub const NON_FINITE_STEPS: &str = "non_finite_steps";
-    pub const FLOOR_STEPS: &str = "floor_steps";
 }
 
 /// The rows of `results` (trial order); see the module docs.
 pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResult<DataFrame> {
+    let perr = study.monte_carlo.parameter_errors.iter().map(|p| p.name.clone());
+    let mut core = CoreColumns::new(perr, results.len() * study.banks.len());
     let mut t = Columns::default();
-    let n_perr = study.monte_carlo.parameter_errors.len();
-    let mut perrs: Vec<Vec<f64>> = vec![Vec::new(); n_perr];
     for r in results {
         let spec = &r.spec;
         for (b, (bank, _)) in study.banks.iter().enumerate() {
@@ -66,33 +53,36 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
             for w in 0..windows {
                 let fault = spec.faults.get(w);
                 let scored = outcome.and_then(|o| o.windows.get(w));
-                t.trial.push(spec.trial);
-                t.detector.push(bank.clone());
-                t.kind.push(fault.map_or(common::NO_FAULT, |f| f.fault.kind.name()));
-                t.surface.push(fault.map(|f| SURFACE_NAMES[f.fault.surface]));
-                t.size.push(fault.map(|f| f.size));
-                t.size_bin.push(fault.map(|f| f.size_bin));
-                t.onset_s.push(fault.map(|f| f.fault.onset_s));
+                let isolated = scored.and_then(|s| s.first_declared);
+                core.push(Outcome {
+                    trial: spec.trial,
+                    detector: bank,
+                    kind: fault.map_or(NO_FAULT, |f| f.fault.kind.name()),
+                    target: fault.map(|f| Cow::Borrowed(SURFACE_NAMES[f.fault.surface])),
+                    size: fault.map(|f| f.size),
+                    size_unit: fault.map_or(crate::fault::deck::unit::NONE, |f| f.fault.kind.size_unit()),
+                    size_bin: fault.map(|f| f.size_bin),
+                    onset_s: fault.map(|f| f.fault.onset_s),
+                    fault_free: spec.faults.is_empty(),
+                    failure: r.outcome.as_ref().err().map(|e| e.to_string()),
+                    diverged: outcome.is_some_and(|o| o.health.non_finite > 0),
+                    false_alarm_s: outcome.and_then(|o| o.first_false_alarm_s),
+                    delay_s: scored.and_then(|s| s.detection_delay_s),
+                    isolated: isolated.map(|j| Cow::Borrowed(SURFACE_NAMES[j])),
+                    isolated_correctly: scored.filter(|_| isolated.is_some()).map(|s| s.isolated_correctly()),
+                    noise_scale: spec.noise_scale,
+                    noise_bin: spec.noise_bin,
+                    param_error_bin: spec.parameter_error_bin,
+                    param_errors: &spec.parameter_errors,
+                });
                 t.end_s.push(fault.map(|f| f.fault.end_s.unwrap_or(study.duration_s)));
                 t.window.push(fault.map(|_| w as u32));
-                t.noise_scale.push(spec.noise_scale);
-                t.noise_bin.push(spec.noise_bin);
-                for (k, v) in spec.parameter_errors.iter().enumerate() {
-                    perrs[k].push(*v);
-                }
-                t.param_error_bin.push(spec.parameter_error_bin);
-                t.failure.push(r.outcome.as_ref().err().map(|e| e.to_string()));
-                t.detected.push(scored.map(|s| s.detection_delay_s.is_some()));
-                t.detection_delay_s.push(scored.and_then(|s| s.detection_delay_s));
-                t.isolated.push(scored.map(|s| s.first_declared.map_or(common::NO_FAULT, |j| SURFACE_NAMES[j])));
-                t.isolated_correctly.push(scored.map(|s| s.isolated_correctly()));
                 t.isolation_delay_s.push(scored.and_then(|s| s.isolation_delay_s));
                 t.cleared.push(scored.and_then(|s| s.isolation_delay_s.map(|_| s.clearing_delay_s.is_some())));
                 t.clearing_delay_s.push(scored.and_then(|s| s.clearing_delay_s));
                 t.estimate_rms_deg
                     .push(scored.map(|s| s.surface_estimate_rms_rad.to_degrees()).filter(|v: &f64| v.is_finite()));
                 t.false_alarms.push(outcome.map(|o| o.false_alarms));
-                t.first_false_alarm_s.push(outcome.and_then(|o| o.first_false_alarm_s));
                 t.post_fault.push(outcome.map(|o| o.post_fault_declarations));
                 let h = outcome.map(|o| o.health);
                 t.singular.push(h.map(|h| h.singular_innovation));
@@ -103,75 +93,219 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
             }
         }
     }
-    let mut columns = vec![
-        Column::new(common::TRIAL.into(), t.trial),
-        Column::new(common::DETECTOR.into(), t.detector),
-        Column::new(common::KIND.into(), t.kind),
-        Column::new(col::SURFACE.into(), t.surface),
-        Column::new(common::SIZE.into(), t.size),
-        Column::new(common::SIZE_BIN.into(), t.size_bin),
-        Column::new(common::ONSET_S.into(), t.onset_s),
-        Column::new(col::END_S.into(), t.end_s),
-        Column::new(col::WINDOW.into(), t.window),
-        Column::new(common::NOISE_SCALE.into(), t.noise_scale),
-        Column::new(common::NOISE_BIN.into(), t.noise_bin),
-    ];
-    for (pe, v) in study.monte_carlo.parameter_errors.iter().zip(perrs) {
-        columns.push(Column::new(perr(&pe.name).into(), v));
-    }
+    let mut columns = core.finish();
     columns.extend([
-        Column::new(common::PARAM_ERROR_BIN.into(), t.param_error_bin),
-        Column::new(col::FAILURE.into(), t.failure),
-        Column::new(col::DETECTED.into(), t.detected),
-        Column::new(col::DETECTION_DELAY_S.into(), t.detection_delay_s),
-        Column::new(col::ISOLATED.into(), t.isolated),
-        Column::new(col::ISOLATED_CORRECTLY.into(), t.isolated_correctly),
+        Column::new("end_s".into(), t.end_s),
+        Column::new("window".into(), t.window),
         Column::new(col::ISOLATION_DELAY_S.into(), t.isolation_delay_s),
         Column::new(col::CLEARED.into(), t.cleared),
         Column::new(col::CLEARING_DELAY_S.into(), t.clearing_delay_s),
         Column::new(col::SURFACE_ESTIMATE_RMS_DEG.into(), t.estimate_rms_deg),
-        Column::new(col::FALSE_ALARMS.into(), t.false_alarms),
-        Column::new(col::FIRST_FALSE_ALARM_S.into(), t.first_false_alarm_s),
+        Column::new("false_alarms".into(), t.false_alarms),
         Column::new(col::POST_FAULT_DECLARATIONS.into(), t.post_fault),
-        Column::new(col::SINGULAR_INNOVATION_STEPS.into(), t.singular),
+        Column::new("singular_innovation_steps".into(), t.singular),
         Column::new(col::ASYMMETRIC_STEPS.into(), t.asymmetric),
         Column::new(col::NOT_POSITIVE_DEFINITE_STEPS.into(), t.not_pd),
-        Column::new(col::NON_FINITE_STEPS.into(), t.non_finite),
-        Column::new(col::FLOOR_STEPS.into(), t.floor),
+        Column::new("non_finite_steps".into(), t.non_finite),
+        Column::new("floor_steps".into(), t.floor),
     ]);
     DataFrame::new_infer_height(columns)
 }
 
-/// The table's columns while rows are added.
+/// This kind's own columns while rows are added.
 #[derive(Default)]
 struct Columns {
-    trial: Vec<u64>,
-    detector: Vec<String>,
-    kind: Vec<&'static str>,
-    surface: Vec<Option<&'static str>>,
-    size: Vec<Option<f64>>,
-    size_bin: Vec<Option<f64>>,
-    onset_s: Vec<Option<f64>>,
     end_s: Vec<Option<f64>>,
     window: Vec<Option<u32>>,
-    noise_scale: Vec<f64>,
-    noise_bin: Vec<f64>,
-    param_error_bin: Vec<f64>,
-    failure: Vec<Option<String>>,
-    detected: Vec<Option<bool>>,
-    detection_delay_s: Vec<Option<f64>>,
-    isolated: Vec<Option<&'static str>>,
-    isolated_correctly: Vec<Option<bool>>,
     isolation_delay_s: Vec<Option<f64>>,
     cleared: Vec<Option<bool>>,
     clearing_delay_s: Vec<Option<f64>>,
     estimate_rms_deg: Vec<Option<f64>>,
     false_alarms: Vec<Option<u32>>,
-    first_false_alarm_s: Vec<Option<f64>>,
     post_fault: Vec<Option<u32>>,
     singular: Vec<Option<u32>>,
     asymmetric: Vec<Option<u32>>,
     not_pd: Vec<Option<u32>>,
     non_finite: Vec<Option<u32>>,
     floor: Vec<Option<u32>>,
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use polars::prelude::*;
+
+    use super::*;
+    use crate::engine::intervals::{Z95, wilson};
+    use crate::engine::method::Method;
+    use crate::engine::runner::{Manifest, write_parquet};
+    use crate::engine::summary::summarize;
+    use crate::engine::tables::read_summary;
+    use crate::estimation::FilterHealth;
+    use crate::methods::surface_bank::actuator::{ActuatorFault, ActuatorFaultKind};
+    use crate::methods::surface_bank::scenario::{ScenarioFault, SurfaceTrialSpec};
+    use crate::methods::surface_bank::study::SurfaceStudy;
+    use crate::methods::surface_bank::trial::{BankOutcome, SurfaceTrialResult, UavSimError, WindowOutcome};
+
+    /// Two banks on five hand-made trials (a left aileron stuck at -15 deg from 5 s to 15 s, or none):
+    /// trial 0: a isolates (0.5 s), b declares the rudder first (1.0 s); trial 1: a misses, b isolates
+    /// (0.8 s); trial 2: fault-free, a false alarm by a; trial 3: the flight left the envelope; trial 4:
+    /// both isolate (0.4 s, 0.6 s), and b declares twice more after the fault ended.
+    fn hand_made() -> (SurfaceStudy, DataFrame) {
+        let deck =
+            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/studies/seed004_surfaces.toml")).unwrap();
+        let mut study = SurfaceStudy::from_toml(&deck, Path::new("seed004_surfaces.toml")).unwrap();
+        study.banks.truncate(2);
+        study.banks[0].0 = "a".into();
+        study.banks[1].0 = "b".into();
+        let fault = ActuatorFault {
+            surface: 0,
+            kind: ActuatorFaultKind::Stuck { position_rad: (-15f64).to_radians() },
+            onset_s: 5.0,
+            end_s: Some(15.0),
+        };
+        let spec = |trial: u64, faulty: bool| SurfaceTrialSpec {
+            trial,
+            faults: if faulty { vec![ScenarioFault { fault, size: -15.0, size_bin: -15.0 }] } else { vec![] },
+            noise_scale: 1.0,
+            noise_bin: 1.0,
+            parameter_errors: vec![],
+            parameter_error_bin: 0.0,
+        };
+        let window = |detect: Option<f64>, first: Option<usize>, clear: Option<f64>| WindowOutcome {
+            surface: 0,
+            onset_s: 5.0,
+            end_s: 15.0,
+            detection_delay_s: detect,
+            isolation_delay_s: if first == Some(0) { detect } else { None },
+            first_declared: first,
+            clearing_delay_s: clear,
+            surface_estimate_rms_rad: 0.01,
+        };
+        let bank = |w: Option<WindowOutcome>, false_alarms: u32| BankOutcome {
+            windows: w.into_iter().collect(),
+            false_alarms,
+            first_false_alarm_s: (false_alarms > 0).then_some(2.0),
+            post_fault_declarations: 0,
+            health: FilterHealth::default(),
+            floor_steps: 0,
+        };
+        let results = vec![
+            SurfaceTrialResult {
+                spec: spec(0, true),
+                outcome: Ok(vec![
+                    bank(Some(window(Some(0.5), Some(0), Some(0.2))), 0),
+                    bank(Some(window(Some(1.0), Some(4), None)), 0),
+                ]),
+            },
+            SurfaceTrialResult {
+                spec: spec(1, true),
+                outcome: Ok(vec![
+                    bank(Some(window(None, None, None)), 0),
+                    bank(Some(window(Some(0.8), Some(0), Some(4.0))), 0),
+                ]),
+            },
+            SurfaceTrialResult { spec: spec(2, false), outcome: Ok(vec![bank(None, 1), bank(None, 0)]) },
+            SurfaceTrialResult {
+                spec: spec(3, true),
+                outcome: Err(UavSimError::Envelope { t_s: 9.0, what: "altitude below 0".into() }),
+            },
+            SurfaceTrialResult {
+                spec: spec(4, true),
+                outcome: Ok(vec![
+                    bank(Some(window(Some(0.4), Some(0), Some(0.3))), 0),
+                    BankOutcome { post_fault_declarations: 2, ..bank(Some(window(Some(0.6), Some(0), Some(0.5))), 0) },
+                ]),
+            },
+        ];
+        let df = frame(&study, &results).unwrap();
+        (study, df)
+    }
+
+    /// The shared summary of the hand-made trials, read back from the tables it writes.
+    #[test]
+    fn summary_counts_rates_and_paired_differences_of_hand_made_trials() {
+        let (_, mut df) = hand_made();
+        assert_eq!(df.height(), 10, "one row per trial and bank");
+        let dir = tempfile::tempdir().unwrap();
+        write_parquet(&mut df, &dir.path().join("trials.parquet")).unwrap();
+        let manifest = Manifest {
+            kind: super::super::KIND.into(),
+            trials: 5,
+            detectors: vec!["a".into(), "b".into()],
+            complete: true,
+            rows: 10,
+            ..Manifest::unstarted()
+        };
+        manifest.write(dir.path()).unwrap();
+        summarize(dir.path(), &super::super::SurfaceBanks.summary(), None).unwrap();
+        let table = |name: &str| read_summary(&dir.path().join(name)).unwrap();
+
+        let summary = table("summary.csv");
+        let u = |n: &str| -> Vec<u64> {
+            let c = summary.column(n).unwrap().cast(&DataType::UInt64).unwrap();
+            c.u64().unwrap().into_no_null_iter().collect()
+        };
+        let f = |n: &str| -> Vec<Option<f64>> {
+            let c = summary.column(n).unwrap().cast(&DataType::Float64).unwrap();
+            c.f64().unwrap().iter().collect()
+        };
+        // Rows: (a, none), (a, stuck), (b, none), (b, stuck): sorted by detector, then kind.
+        let kinds = summary.column("kind").unwrap().str().unwrap().clone();
+        let kinds: Vec<_> = (0..kinds.len()).map(|i| kinds.get(i).unwrap().to_string()).collect();
+        assert_eq!(kinds, ["none", "stuck", "none", "stuck"]);
+        assert_eq!(u("trials"), [1, 4, 1, 4]);
+        assert_eq!(u("failed"), [0, 1, 0, 1]);
+        assert_eq!(u("detected"), [0, 2, 0, 3]);
+        assert_eq!(u("isolated_correctly"), [0, 2, 0, 2]);
+        assert_eq!(u("false_alarms"), [1, 0, 0, 0]);
+        assert_eq!(u("post_fault"), [0, 0, 0, 1]);
+        assert_eq!(f("post_fault_rate")[3], Some(1.0 / 3.0));
+        assert_eq!(f("post_fault_rate")[2], None, "no fault, nothing after one");
+        assert_eq!(f("pd")[1], Some(2.0 / 3.0));
+        assert_eq!(f("pd")[3], Some(1.0));
+        assert_eq!(f("pd")[0], None, "no detection probability without a fault");
+        assert_eq!(f("isolation_accuracy")[3], Some(2.0 / 3.0));
+        assert_eq!(f("pfa")[0], Some(1.0));
+        assert_eq!(f("delay_p50_s")[1], Some(0.45));
+        assert_eq!(f("clearing_rate")[3], Some(1.0), "b cleared both faults it isolated");
+        let (lo, hi) = wilson(2, 3, Z95);
+        assert_eq!((f("pd_lo")[1], f("pd_hi")[1]), (Some(lo), Some(hi)));
+
+        let c = table("comparison.csv");
+        let cu = |n: &str| c.column(n).unwrap().cast(&DataType::UInt64).unwrap().u64().unwrap().get(0).unwrap();
+        assert_eq!(c.height(), 1);
+        assert_eq!(cu("faulty_units"), 3, "trials 0, 1, 4: trial 3 did not fly to the end");
+        assert_eq!((cu("detected_by_a_only"), cu("detected_by_b_only")), (0, 1));
+        assert_eq!((cu("isolated_by_a_only"), cu("isolated_by_b_only")), (1, 1));
+        assert_eq!((cu("flights"), cu("false_alarm_a_only"), cu("false_alarm_b_only")), (4, 1, 0));
+        assert_eq!(cu("delay_pairs"), 2);
+        let diff = c.column("median_delay_b_minus_a_s").unwrap().f64().unwrap().get(0).unwrap();
+        assert!((diff - 0.35).abs() < 1e-12, "median of 1.0 - 0.5 and 0.6 - 0.4: {diff}");
+        let clearing = c.column("median_clearing_delay_s_b_minus_a").unwrap().f64().unwrap().get(0).unwrap();
+        assert!((clearing - 0.2).abs() < 1e-12, "only trial 4 has both clearing delays: 0.5 - 0.3: {clearing}");
+        let p = c.column("mcnemar_p_detection").unwrap().f64().unwrap().get(0).unwrap();
+        assert_eq!(p, 1.0);
+
+        let v = table("detectors.csv");
+        let vu = |n: &str| -> Vec<u64> {
+            v.column(n).unwrap().cast(&DataType::UInt64).unwrap().u64().unwrap().into_no_null_iter().collect()
+        };
+        assert_eq!(vu("flights"), [5, 5]);
+        assert_eq!(vu("flights_failed"), [1, 1]);
+        assert_eq!(vu("flights_with_false_alarm"), [1, 0]);
+        assert_eq!(vu("detected"), [2, 3]);
+        let pfa: Vec<f64> = v.column("pfa").unwrap().f64().unwrap().into_no_null_iter().collect();
+        assert_eq!(pfa, [0.25, 0.0]);
+
+        let confusion = table("confusion.csv");
+        let cc = |n: &str| -> Vec<String> {
+            let c = confusion.column(n).unwrap().str().unwrap().clone();
+            (0..c.len()).map(|i| c.get(i).unwrap().to_string()).collect()
+        };
+        // a: aileron_left named twice, once nothing; b: twice, the rudder once.
+        assert_eq!(cc("detector"), ["a", "a", "b", "b"]);
+        assert_eq!(cc("isolated"), ["aileron_left", "none", "aileron_left", "rudder"]);
+    }
 }

@@ -5,17 +5,15 @@ pub mod ekf_mhe;
 pub mod records;
 pub mod scenario;
 pub mod study;
-pub mod summary;
 pub mod trial;
 pub mod vehicle;
 
 use std::path::Path;
 
 use crate::engine::deck::DeckError;
-use crate::engine::method::{Inputs, Method, Opt, Study};
+use crate::engine::method::{Extra, Inputs, Isolates, Method, Opt, Study, SummarySpec};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
-use crate::engine::summary::Calibration;
 use crate::methods::thrust_loss::ekf_mhe::MheStep;
 use crate::methods::thrust_loss::scenario::LaunchScenarioSampler;
 use crate::methods::thrust_loss::study::LaunchStudy;
@@ -45,28 +43,27 @@ impl Method for ThrustLoss {
     fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
         Ok(Box::new(LaunchStudy::from_toml(text, path)?))
     }
-    fn summarize(
-        &self,
-        dir: &Path,
-        manifest: &Manifest,
-        calibration: Option<&Calibration>,
-        print: bool,
-    ) -> Result<(), RunError> {
-        let target_pfa = match calibration {
-            None => manifest.target_pfa,
-            Some(Calibration::Target(p)) => *p,
-            Some(Calibration::File(_)) => {
-                return Err(RunError::Invalid(format!(
-                    "{}: --thresholds reads a detection filter's thresholds.csv; use --target-pfa here",
-                    dir.display()
-                )));
-            }
-        };
-        let s = summary::summarize(dir, target_pfa)?;
-        if print {
-            summary::print(dir, &s)?;
+    fn summary(&self) -> SummarySpec {
+        SummarySpec {
+            extra_keys: &[records::col::GUST_BIN],
+            isolates: Isolates::Target,
+            extras: &[
+                Extra::Quantile {
+                    name: "loss_error_p50_percent",
+                    column: records::col::LOSS_ERROR_PERCENT,
+                    p: 0.5,
+                    abs: false,
+                },
+                Extra::Quantile {
+                    name: "loss_abs_error_p50_percent",
+                    column: records::col::LOSS_ERROR_PERCENT,
+                    p: 0.5,
+                    abs: true,
+                },
+            ],
+            paired_delays: &[],
+            printed: &[("loss err %", "loss_abs_error_p50_percent")],
         }
-        Ok(())
     }
 }
 

@@ -21,8 +21,8 @@ use polars::prelude::*;
 
 use crate::engine::runner::{Manifest, RunError, io, write_atomically};
 use crate::engine::schema::col;
-use crate::engine::summary::{alarm_time, f64_col, list_col, read_slice, str_col};
-use crate::methods::detection_filter::summary;
+use crate::engine::tables::{f64_col, list_col, read_slice, read_summary, str_col};
+use crate::engine::thresholds::{alarm_time, read_thresholds};
 
 /// What a report contains, for the CLI and tests.
 #[derive(Debug, Default)]
@@ -40,7 +40,7 @@ struct DetectorData {
     z_faulty: Vec<f64>,
     /// Calibrated-threshold delays per fault kind.
     delays: BTreeMap<String, Vec<f64>>,
-    /// Isolation counts: (faulty output, isolated output or "none") -> trials (deck thresholds, detected).
+    /// Isolation counts: (faulty output, isolated output or "none") -> trials (deck thresholds).
     confusion: BTreeMap<(String, String), u64>,
 }
 
@@ -60,7 +60,7 @@ pub fn write_report(dir: &Path, trials: &[u64]) -> Result<Report, RunError> {
     std::fs::create_dir_all(&out).map_err(io(&out))?;
     plots::register_font();
     let mut report = Report::default();
-    let thresholds = summary::read_thresholds(&dir.join("thresholds.csv"))?;
+    let thresholds = read_thresholds(&dir.join("thresholds.csv"))?;
     let data = gather(dir, &manifest, &thresholds)?;
 
     // Pd against size.
@@ -135,7 +135,7 @@ pub fn write_report(dir: &Path, trials: &[u64]) -> Result<Report, RunError> {
 
     // Warnings from the summary.
     let summary = crate::engine::runner::read_parquet(&dir.join("summary.parquet"))?;
-    report.warnings.extend(summary::health_warnings(&summary));
+    report.warnings.extend(health_warnings(&summary));
     for d in &manifest.detectors {
         let n = data[d].z_fault_free.len();
         if (n as f64) * manifest.target_pfa < 1.0 {
@@ -159,7 +159,27 @@ fn internal(file: &Path) -> impl FnOnce(String) -> RunError + '_ {
 }
 
 fn read_csv(path: &Path) -> Result<DataFrame, RunError> {
-    crate::engine::summary::read_summary(path)
+    read_summary(path)
+}
+
+/// Failed designs and diverged filters, counted once per (trial, detector) from the summary's `deck`
+/// rows (every threshold set holds the same trials).
+fn health_warnings(summary: &DataFrame) -> Vec<String> {
+    let deck_sum = |name: &str| -> u64 {
+        let (Ok(set), Ok(values)) = (summary.column("thresholds"), summary.column(name)) else { return 0 };
+        let (Ok(set), Ok(values)) = (set.str(), values.u64()) else { return 0 };
+        (0..summary.height()).filter(|&i| set.get(i) == Some("deck")).filter_map(|i| values.get(i)).sum()
+    };
+    let mut warnings = Vec::new();
+    let failures = deck_sum("failed");
+    if failures > 0 {
+        warnings.push(format!("{failures} trial x detector designs failed (failure in trials.parquet)"));
+    }
+    let diverged = deck_sum("diverged");
+    if diverged > 0 {
+        warnings.push(format!("{diverged} trial x detector runs diverged (diverged_at_s in trials.parquet)"));
+    }
+    warnings
 }
 
 /// Fault kinds of detector `d` with at least two size bins in the calibrated curves.
@@ -197,11 +217,10 @@ fn gather(
         offset += step;
         let det = str_col(&df, col::DETECTOR, &path)?;
         let kind = str_col(&df, col::KIND, &path)?;
-        let output = str_col(&df, col::OUTPUT, &path)?;
-        let design_error = str_col(&df, col::DESIGN_ERROR, &path)?;
+        let output = str_col(&df, col::TARGET, &path)?;
+        let failure = str_col(&df, col::FAILURE, &path)?;
         let onset = f64_col(&df, col::ONSET_S, &path)?;
-        let alarm = f64_col(&df, col::ALARM_S, &path)?;
-        let iso = str_col(&df, col::ISOLATED_BY_DIRECTION, &path)?;
+        let iso = str_col(&df, col::ISOLATED, &path)?;
         let pre: Vec<&Float64Chunked> =
             m.outputs.iter().map(|o| f64_col(&df, &col::pre_max(o), &path)).collect::<Result<_, _>>()?;
         let fp_t: Vec<Vec<Vec<f64>>> =
@@ -210,7 +229,7 @@ fn gather(
             m.outputs.iter().map(|o| list_col(&df, &col::fp_v(o), &path)).collect::<Result<_, _>>()?;
         for i in 0..df.height() {
             let (Some(d), Some(k)) = (det.get(i), kind.get(i)) else { continue };
-            if design_error.get(i).is_some() {
+            if failure.get(i).is_some() {
                 continue;
             }
             let (Some(th), Some(dd)) = (whole.get(d), data.get_mut(d)) else { continue };
@@ -221,15 +240,15 @@ fn gather(
             }
             let z = (0..m.outputs.len()).map(|j| fp_v[j][i].last().copied().unwrap_or(0.0) / th[j]).fold(0.0, f64::max);
             dd.z_faulty.push(z);
-            let t_alarm = alarm_time(&fp_t, &fp_v, i, th);
+            let t: Vec<&[f64]> = fp_t.iter().map(|c| c[i].as_slice()).collect();
+            let v: Vec<&[f64]> = fp_v.iter().map(|c| c[i].as_slice()).collect();
+            let t_alarm = alarm_time(&t, &v, th);
             if let (Some(t), Some(t0)) = (t_alarm, onset.get(i)) {
                 dd.delays.entry(k.to_string()).or_default().push(t - t0);
             }
-            if alarm.get(i).is_some() {
-                let truth = output.get(i).unwrap_or("").to_string();
-                let named = iso.get(i).unwrap_or("none").to_string();
-                *dd.confusion.entry((truth, named)).or_default() += 1;
-            }
+            let truth = output.get(i).unwrap_or("").to_string();
+            let named = iso.get(i).unwrap_or(col::NO_FAULT).to_string();
+            *dd.confusion.entry((truth, named)).or_default() += 1;
         }
     }
     Ok(data)

@@ -82,7 +82,7 @@ pub fn pd_against_size(
         strs(curves, "thresholds")?,
         strs(curves, col::DETECTOR)?,
         strs(curves, col::KIND)?,
-        strs(curves, col::OUTPUT)?,
+        strs(curves, col::TARGET)?,
     );
     let (size, pd, lo, hi) =
         (floats(curves, col::SIZE_BIN)?, floats(curves, "pd")?, floats(curves, "pd_lo")?, floats(curves, "pd_hi")?);
@@ -101,7 +101,7 @@ pub fn pd_against_size(
         strs(min_det, "thresholds")?,
         strs(min_det, col::DETECTOR)?,
         strs(min_det, col::KIND)?,
-        strs(min_det, col::OUTPUT)?,
+        strs(min_det, col::TARGET)?,
         floats(min_det, "min_size_pd90")?,
     );
     let min_size = |o: &str| {

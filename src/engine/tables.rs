@@ -1,0 +1,134 @@
+//! Reading results back: a complete run's `trials.parquet` (checked against its manifest), slices of it,
+//! typed columns of a frame, summaries (CSV or Parquet), and a table's columns as plain values for
+//! printing.
+
+use std::path::{Path, PathBuf};
+
+use polars::prelude::*;
+
+use super::runner::{Manifest, RunError, io, pol, read_parquet};
+
+/// The manifest and the `trials.parquet` path of the complete run in `dir`; a run that is not complete,
+/// or whose file disagrees with its manifest, is refused (exit 2).
+pub fn complete_run(dir: &Path) -> Result<(Manifest, PathBuf), RunError> {
+    let manifest = Manifest::read(dir)?;
+    let path = dir.join("trials.parquet");
+    if !manifest.complete || !path.exists() {
+        return Err(RunError::Invalid(format!(
+            "{}: the run is not complete: finish it with `fdimc run ... --resume`",
+            dir.display()
+        )));
+    }
+    // A truncated or foreign file is bad input, not an internal error: check its footer first.
+    let rows = std::fs::File::open(&path).map_err(io(&path)).and_then(|f| {
+        ParquetReader::new(f).num_rows().map_err(|e| {
+            RunError::Invalid(format!("{}: not a readable Parquet file ({e}); re-run the study", path.display()))
+        })
+    })?;
+    if rows as u64 != manifest.rows {
+        return Err(RunError::Invalid(format!(
+            "{}: holds {rows} rows, its manifest.json says {}: re-run the study",
+            path.display(),
+            manifest.rows
+        )));
+    }
+    Ok((manifest, path))
+}
+
+/// The column names of a Parquet file.
+pub fn column_names(path: &Path) -> Result<Vec<String>, RunError> {
+    let file = std::fs::File::open(path).map_err(io(path))?;
+    let schema = ParquetReader::new(file).schema().map_err(pol(path))?;
+    Ok(schema.iter_names().map(|n| n.to_string()).collect())
+}
+
+/// Reads rows `[offset, offset + len)` of a Parquet file (only the row groups they touch), optionally
+/// only some columns: memory stays at one slice whatever the file's size.
+pub fn read_slice(path: &Path, offset: usize, len: usize, columns: Option<Vec<String>>) -> Result<DataFrame, RunError> {
+    let file = std::fs::File::open(path).map_err(io(path))?;
+    ParquetReader::new(file).with_columns(columns).with_slice(Some((offset, len))).finish().map_err(pol(path))
+}
+
+pub fn str_col<'a>(df: &'a DataFrame, name: &str, file: &Path) -> Result<&'a StringChunked, RunError> {
+    df.column(name).and_then(|c| c.str()).map_err(pol(file))
+}
+
+pub fn f64_col<'a>(df: &'a DataFrame, name: &str, file: &Path) -> Result<&'a Float64Chunked, RunError> {
+    df.column(name).and_then(|c| c.f64()).map_err(pol(file))
+}
+
+pub fn bool_col<'a>(df: &'a DataFrame, name: &str, file: &Path) -> Result<&'a BooleanChunked, RunError> {
+    df.column(name).and_then(|c| c.bool()).map_err(pol(file))
+}
+
+pub fn u64_col<'a>(df: &'a DataFrame, name: &str, file: &Path) -> Result<&'a UInt64Chunked, RunError> {
+    df.column(name).and_then(|c| c.u64()).map_err(pol(file))
+}
+
+/// A column as numbers whatever its type (booleans as 0 and 1); nulls as NaN.
+pub fn numbers(df: &DataFrame, name: &str, file: &Path) -> Result<Vec<f64>, RunError> {
+    let c = df.column(name).and_then(|c| c.cast(&DataType::Float64)).map_err(pol(file))?;
+    Ok(c.f64().map_err(pol(file))?.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
+}
+
+/// Reads lists of f64 as vectors, row by row.
+pub fn list_col(df: &DataFrame, name: &str, file: &Path) -> Result<Vec<Vec<f64>>, RunError> {
+    let lc = df.column(name).and_then(|c| c.list()).map_err(pol(file))?;
+    let mut out = Vec::with_capacity(lc.len());
+    for s in lc.amortized_iter() {
+        match s {
+            Some(s) => out.push(s.as_ref().f64().map_err(pol(file))?.into_no_null_iter().collect()),
+            None => out.push(Vec::new()),
+        }
+    }
+    Ok(out)
+}
+
+/// Loads `summary.parquet` or `summary.csv` (or any table fdimc writes).
+pub fn read_summary(path: &Path) -> Result<DataFrame, RunError> {
+    if path.extension().is_some_and(|e| e == "parquet") {
+        return read_parquet(path);
+    }
+    CsvReadOptions::default()
+        .with_has_header(true)
+        .try_into_reader_with_file_path(Some(path.into()))
+        .and_then(|r| r.finish())
+        .map_err(|e| RunError::Invalid(format!("{}: cannot read the table ({e})", path.display())))
+}
+
+/// A table's columns as plain values for printing: a missing column or a null prints as NaN (numbers),
+/// 0 (counts) or "" (text).
+pub struct Table<'a>(pub &'a DataFrame);
+
+impl Table<'_> {
+    pub fn f64s(&self, name: &str) -> Vec<f64> {
+        let column = self.0.column(name).and_then(|c| c.cast(&DataType::Float64));
+        let values = column.as_ref().ok().and_then(|c| c.f64().ok());
+        (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or(f64::NAN)).collect()
+    }
+
+    pub fn u64s(&self, name: &str) -> Vec<u64> {
+        let column = self.0.column(name).and_then(|c| c.cast(&DataType::UInt64));
+        let values = column.as_ref().ok().and_then(|c| c.u64().ok());
+        (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or(0)).collect()
+    }
+
+    pub fn strs(&self, name: &str) -> Vec<String> {
+        let values = self.0.column(name).ok().and_then(|c| c.str().ok());
+        (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or("").to_string()).collect()
+    }
+
+    /// `rate [lo, hi]` per row from the columns `name`, `name_lo`, `name_hi`; "-" where there is no rate.
+    pub fn rates(&self, name: &str) -> Vec<String> {
+        let (rate, lo, hi) = (self.f64s(name), self.f64s(&format!("{name}_lo")), self.f64s(&format!("{name}_hi")));
+        (0..rate.len())
+            .map(|i| if rate[i].is_nan() { "-".into() } else { format!("{:.3} [{:.3}, {:.3}]", rate[i], lo[i], hi[i]) })
+            .collect()
+    }
+
+    /// `p50/p90 s` per row from two percentile columns.
+    pub fn delays(&self, p50: &str, p90: &str) -> Vec<String> {
+        let (a, b) = (self.f64s(p50), self.f64s(p90));
+        a.iter().zip(&b).map(|(a, b)| if a.is_nan() { "-".into() } else { format!("{a:.2}/{b:.2} s") }).collect()
+    }
+}

@@ -1,0 +1,416 @@
+//! Thresholds on recorded statistics (kinds whose records carry `pre_max_<s>` and first-passage
+//! profiles, [`super::schema`]), calibrated after the run without re-simulating.
+//!
+//! Per detector (`thresholds.csv`):
+//! - per statistic: the smallest threshold that at most `floor(p n)` of the `n` calibration units'
+//!   pre-onset maxima exceed (so each statistic alone has false-alarm probability <= p on calibration
+//!   data);
+//! - whole detector: those thresholds times one common factor, the smallest at which at most
+//!   `floor(p n)` calibration units alarm on any statistic: the detector's false-alarm probability is p.
+//!
+//! Calibration units are the fault-free ones flown to the end (their whole duration); without any, the
+//! pre-onset windows of all units. `--thresholds F` applies another run's thresholds instead, and the
+//! rates achieved here validate them on fresh trials. Only the `floor(p n) + 1` largest values are kept
+//! per statistic, so memory does not grow with the trial count.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+use std::path::{Path, PathBuf};
+
+use polars::prelude::*;
+
+use super::intervals::{Z95, wilson};
+use super::output::write_table;
+use super::runner::{Manifest, RunError, pol};
+use super::schema::col;
+use super::tables::{bool_col, read_slice, str_col};
+
+/// Rows read at a time.
+pub const SLICE_ROWS: usize = 16_384;
+
+/// Where the calibrated thresholds come from.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Calibration {
+    /// Calibrated here at this false-alarm probability.
+    Target(f64),
+    /// Read from another run's `thresholds.csv`.
+    File(PathBuf),
+}
+
+/// Thresholds of one detector configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DetectorThresholds {
+    pub detector: String,
+    pub deck: Vec<f64>,
+    /// Per statistic, each at the target false-alarm probability alone.
+    pub per_statistic: Vec<f64>,
+    /// Whole-detector thresholds (`per_statistic * scale`).
+    pub whole: Vec<f64>,
+    pub calibration_units: u64,
+    pub per_statistic_false_alarms: Vec<u64>,
+    pub whole_false_alarms: u64,
+}
+
+/// A detector's first post-onset alarm at thresholds `thr`, from the first-passage profiles of one row:
+/// for each statistic the first profile point above its threshold, then the earliest over statistics.
+pub fn alarm_time(profile_t_s: &[&[f64]], profile_value: &[&[f64]], thr: &[f64]) -> Option<f64> {
+    (0..thr.len())
+        .filter_map(|j| profile_t_s[j].iter().zip(profile_value[j]).find(|(_, v)| **v > thr[j]).map(|(t, _)| *t))
+        .reduce(f64::min)
+}
+
+/// The order statistic such that at most `floor(p n)` of the values exceed it; `(threshold,
+/// exceedances)`.
+pub fn calibrate(values: &mut [f64], p: f64) -> (f64, u64) {
+    let mut top = TopValues::new(allowed(values.len() as u64, p) + 1);
+    values.iter().for_each(|&v| top.push(v));
+    let thr = top.threshold();
+    (thr, values.iter().filter(|&&v| v > thr).count() as u64)
+}
+
+/// How many of `n` values may exceed the threshold at false-alarm probability `p` (at least one value
+/// stays at or below it).
+fn allowed(n: u64, p: f64) -> usize {
+    ((p * n as f64).floor() as u64).min(n.saturating_sub(1)) as usize
+}
+
+/// The `k` largest values seen (ordered as `f64::total_cmp`, NaN above everything).
+struct TopValues {
+    k: usize,
+    heap: BinaryHeap<Reverse<Total>>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Total(f64);
+impl Eq for Total {}
+impl PartialOrd for Total {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Total {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0)
+    }
+}
+
+impl TopValues {
+    fn new(k: usize) -> Self {
+        TopValues { k, heap: BinaryHeap::with_capacity(k + 1) }
+    }
+
+    fn push(&mut self, v: f64) {
+        if self.heap.len() < self.k {
+            self.heap.push(Reverse(Total(v)));
+        } else if self.heap.peek().is_some_and(|Reverse(min)| Total(v) > *min) {
+            self.heap.pop();
+            self.heap.push(Reverse(Total(v)));
+        }
+    }
+
+    /// The k-th largest value (NaN without values).
+    fn threshold(&self) -> f64 {
+        self.heap.peek().map_or(f64::NAN, |Reverse(t)| t.0)
+    }
+}
+
+/// The calibration columns of one slice: which rows calibrate which detector, and their pre-onset maxima.
+struct CalibrationRows {
+    /// Per row: the detector's index when the row is a calibration unit.
+    detector: Vec<Option<usize>>,
+    /// `pre[j][row]`, NaN where null.
+    pre: Vec<Vec<f64>>,
+}
+
+/// Reads the calibration rows of `path` slice by slice and hands each slice to `visit`; `fault_free_only`
+/// is `None` on the first pass (every flown row, with its fault-free flag), then whether only the
+/// fault-free rows calibrate.
+fn for_each_slice(
+    path: &Path,
+    rows: u64,
+    manifest: &Manifest,
+    statistics: &[String],
+    fault_free_only: bool,
+    mut visit: impl FnMut(&CalibrationRows),
+) -> Result<(), RunError> {
+    let mut select = vec![col::DETECTOR.to_string(), col::FAULT_FREE.to_string(), col::FAILURE.to_string()];
+    select.extend(statistics.iter().map(|s| col::pre_max(s)));
+    let mut offset = 0;
+    while offset < rows as usize {
+        let df = read_slice(path, offset, SLICE_ROWS, Some(select.clone()))?;
+        let (det, fault_free, failure) = (
+            str_col(&df, col::DETECTOR, path)?,
+            bool_col(&df, col::FAULT_FREE, path)?,
+            str_col(&df, col::FAILURE, path)?,
+        );
+        let mut detector = Vec::with_capacity(df.height());
+        for i in 0..df.height() {
+            let calibrates = failure.get(i).is_none() && (!fault_free_only || fault_free.get(i) == Some(true));
+            let d = det.get(i).and_then(|name| manifest.detectors.iter().position(|n| n == name));
+            detector.push(d.filter(|_| calibrates));
+        }
+        let pre = statistics
+            .iter()
+            .map(|s| {
+                let c = df.column(&col::pre_max(s)).and_then(|c| c.f64().cloned()).map_err(pol(path))?;
+                Ok(c.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
+            })
+            .collect::<Result<Vec<Vec<f64>>, RunError>>()?;
+        visit(&CalibrationRows { detector, pre });
+        offset += SLICE_ROWS;
+    }
+    Ok(())
+}
+
+/// Calibrates (or reads) every detector's thresholds on the run in `path` (module docs); returns them
+/// and where they came from, and adds warnings.
+pub fn thresholds(
+    path: &Path,
+    manifest: &Manifest,
+    statistics: &[String],
+    calibration: &Calibration,
+    warnings: &mut Vec<String>,
+) -> Result<(Vec<DetectorThresholds>, String), RunError> {
+    let nd = manifest.detectors.len();
+    let ns = statistics.len();
+    let rows = manifest.rows;
+
+    // Pass 1: are there fault-free units, and how many calibration units has each detector?
+    let fault_free_rows = {
+        let mut any = false;
+        let select = vec![col::FAULT_FREE.to_string()];
+        let mut offset = 0;
+        while offset < rows as usize && !any {
+            let df = read_slice(path, offset, SLICE_ROWS, Some(select.clone()))?;
+            any = bool_col(&df, col::FAULT_FREE, path)?.any();
+            offset += SLICE_ROWS;
+        }
+        any
+    };
+    let mut n = vec![0u64; nd];
+    for_each_slice(path, rows, manifest, &[], fault_free_rows, |s| {
+        s.detector.iter().flatten().for_each(|&d| n[d] += 1);
+    })?;
+    let source = match calibration {
+        Calibration::File(f) => format!("thresholds from {}", f.display()),
+        Calibration::Target(p) if fault_free_rows => format!("calibrated at Pfa {p} on the fault-free trials"),
+        Calibration::Target(p) => {
+            warnings.push(
+                "no fault-free trials: thresholds calibrated on the pre-onset windows (shorter than a whole trial)"
+                    .into(),
+            );
+            format!("calibrated at Pfa {p} on the pre-onset windows")
+        }
+    };
+
+    let (per, whole): (Vec<Vec<f64>>, Vec<Vec<f64>>) = match calibration {
+        Calibration::File(f) => {
+            let file = read_thresholds(f)?;
+            let mut per = Vec::with_capacity(nd);
+            let mut whole = Vec::with_capacity(nd);
+            for d in &manifest.detectors {
+                let (_, p, w) = file.iter().find(|(name, _, _)| name == d).cloned().ok_or_else(|| {
+                    RunError::Invalid(format!(
+                        "{}: has no detector {d:?}: calibrate on a run of the same deck",
+                        f.display()
+                    ))
+                })?;
+                if p.len() != ns {
+                    return Err(RunError::Invalid(format!(
+                        "{}: has {} statistics for {d:?}, this run {ns}",
+                        f.display(),
+                        p.len()
+                    )));
+                }
+                per.push(p);
+                whole.push(w);
+            }
+            (per, whole)
+        }
+        Calibration::Target(p) => {
+            for (d, name) in manifest.detectors.iter().enumerate() {
+                if (n[d] as f64) * p < 1.0 {
+                    warnings.push(format!(
+                        "detector {name}: {} calibration trials cannot resolve Pfa {p} (needs >= {}): thresholds are the largest values seen",
+                        n[d],
+                        (1.0 / p).ceil()
+                    ));
+                }
+            }
+            // Pass 2: per statistic, the largest values.
+            let k: Vec<usize> = n.iter().map(|&n| allowed(n, *p) + 1).collect();
+            let mut top: Vec<Vec<TopValues>> =
+                k.iter().map(|&k| (0..ns).map(|_| TopValues::new(k)).collect()).collect();
+            for_each_slice(path, rows, manifest, statistics, fault_free_rows, |s| {
+                for (i, d) in s.detector.iter().enumerate() {
+                    if let Some(d) = *d {
+                        for j in 0..ns {
+                            top[d][j].push(s.pre[j][i]);
+                        }
+                    }
+                }
+            })?;
+            let per: Vec<Vec<f64>> = top.iter().map(|t| t.iter().map(TopValues::threshold).collect()).collect();
+            // Pass 3: the common factor, on each unit's largest statistic-to-threshold ratio.
+            let mut scale: Vec<TopValues> = k.iter().map(|&k| TopValues::new(k)).collect();
+            for_each_slice(path, rows, manifest, statistics, fault_free_rows, |s| {
+                for (i, d) in s.detector.iter().enumerate() {
+                    if let Some(d) = *d {
+                        scale[d].push((0..ns).map(|j| s.pre[j][i] / per[d][j]).fold(0.0, f64::max));
+                    }
+                }
+            })?;
+            let whole = per.iter().zip(&scale).map(|(p, s)| p.iter().map(|t| t * s.threshold()).collect()).collect();
+            (per, whole)
+        }
+    };
+
+    // Pass 4: what each threshold set lets through on the calibration units.
+    let mut per_fa = vec![vec![0u64; ns]; nd];
+    let mut whole_fa = vec![0u64; nd];
+    for_each_slice(path, rows, manifest, statistics, fault_free_rows, |s| {
+        for (i, d) in s.detector.iter().enumerate() {
+            if let Some(d) = *d {
+                for j in 0..ns {
+                    per_fa[d][j] += (s.pre[j][i] > per[d][j]) as u64;
+                }
+                whole_fa[d] += (0..ns).any(|j| s.pre[j][i] > whole[d][j]) as u64;
+            }
+        }
+    })?;
+    let thresholds = manifest
+        .detectors
+        .iter()
+        .enumerate()
+        .map(|(d, name)| DetectorThresholds {
+            detector: name.clone(),
+            deck: manifest.deck_thresholds.get(d).cloned().unwrap_or_default(),
+            per_statistic: per[d].clone(),
+            whole: whole[d].clone(),
+            calibration_units: n[d],
+            per_statistic_false_alarms: per_fa[d].clone(),
+            whole_false_alarms: whole_fa[d],
+        })
+        .collect();
+    Ok((thresholds, source))
+}
+
+/// Writes `thresholds.csv`: per detector, one row per statistic and one (`all`) for the whole detector.
+pub fn write_thresholds(
+    dir: &Path,
+    thresholds: &[DetectorThresholds],
+    statistics: &[String],
+    source: &str,
+) -> Result<(), RunError> {
+    let path = dir.join("thresholds.csv");
+    let (mut detector, mut statistic, mut deck, mut per, mut whole) = (vec![], vec![], vec![], vec![], vec![]);
+    let (mut n, mut fa, mut pfa, mut lo, mut hi) = (vec![], vec![], vec![], vec![], vec![]);
+    for t in thresholds {
+        let rows = statistics.iter().enumerate().map(|(j, s)| {
+            (
+                s.clone(),
+                t.deck.get(j).copied(),
+                Some(t.per_statistic[j]),
+                Some(t.whole[j]),
+                t.per_statistic_false_alarms[j],
+            )
+        });
+        let all = std::iter::once(("all".to_string(), None, None, None, t.whole_false_alarms));
+        for (s, dk, p, w, k) in rows.chain(all) {
+            let (l, h) = wilson(k, t.calibration_units, Z95);
+            detector.push(t.detector.clone());
+            statistic.push(s);
+            deck.push(dk);
+            per.push(p);
+            whole.push(w);
+            n.push(t.calibration_units);
+            fa.push(k);
+            pfa.push((t.calibration_units > 0).then(|| k as f64 / t.calibration_units as f64));
+            lo.push(l);
+            hi.push(h);
+        }
+    }
+    let height = detector.len();
+    let mut df = DataFrame::new_infer_height(vec![
+        Column::new(col::DETECTOR.into(), detector),
+        Column::new("statistic".into(), statistic),
+        Column::new("deck_threshold".into(), deck),
+        Column::new("per_statistic_threshold".into(), per),
+        Column::new("detector_threshold".into(), whole),
+        Column::new("calibration_trials".into(), n),
+        Column::new("false_alarms".into(), fa),
+        Column::new("pfa_achieved".into(), pfa),
+        Column::new("pfa_lo".into(), lo),
+        Column::new("pfa_hi".into(), hi),
+        Column::new("source".into(), vec![source; height]),
+    ])
+    .map_err(pol(&path))?;
+    Ok(write_table(&mut df, &path)?)
+}
+
+/// Reads `thresholds.csv`: per detector, (per-statistic thresholds, whole-detector thresholds) in order.
+#[allow(clippy::type_complexity)]
+pub fn read_thresholds(path: &Path) -> Result<Vec<(String, Vec<f64>, Vec<f64>)>, RunError> {
+    let df = CsvReadOptions::default()
+        .with_has_header(true)
+        .try_into_reader_with_file_path(Some(path.into()))
+        .and_then(|r| r.finish())
+        .map_err(|e| RunError::Invalid(format!("{}: cannot read thresholds ({e})", path.display())))?;
+    let bad = |what: &str| RunError::Invalid(format!("{}: not an fdimc thresholds.csv ({what})", path.display()));
+    let det = df.column(col::DETECTOR).and_then(|c| c.str().cloned()).map_err(|_| bad("no detector column"))?;
+    let stat = df.column("statistic").and_then(|c| c.str().cloned()).map_err(|_| bad("no statistic column"))?;
+    let number = |name: &str| {
+        df.column(name).and_then(|c| c.cast(&DataType::Float64)).map_err(|_| bad(&format!("no {name} column")))
+    };
+    let (per, whole) = (number("per_statistic_threshold")?, number("detector_threshold")?);
+    let (per, whole) =
+        (per.f64().map_err(|_| bad("per_statistic_threshold"))?, whole.f64().map_err(|_| bad("detector_threshold"))?);
+    let mut result: Vec<(String, Vec<f64>, Vec<f64>)> = Vec::new();
+    for i in 0..df.height() {
+        if stat.get(i) == Some("all") {
+            continue;
+        }
+        let d = det.get(i).ok_or_else(|| bad("empty detector"))?.to_string();
+        let (p, w) =
+            (per.get(i).ok_or_else(|| bad("empty threshold"))?, whole.get(i).ok_or_else(|| bad("empty threshold"))?);
+        if !(p.is_finite() && w.is_finite() && p > 0.0 && w > 0.0) {
+            return Err(bad(&format!("row {}: thresholds must be finite and > 0", i + 1)));
+        }
+        match result.iter_mut().find(|r| r.0 == d) {
+            Some(r) => {
+                r.1.push(p);
+                r.2.push(w);
+            }
+            None => result.push((d, vec![p], vec![w])),
+        }
+    }
+    Ok(result)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn calibration_allows_floor_p_n_exceedances() {
+        let mut v: Vec<f64> = (1..=1000).map(f64::from).collect();
+        assert_eq!(calibrate(&mut v, 0.01), (990.0, 10));
+        let mut v: Vec<f64> = (1..=50).map(f64::from).collect();
+        assert_eq!(calibrate(&mut v, 0.01), (50.0, 0), "too few trials: the maximum, no exceedance");
+        let mut v = vec![3.0, 1.0, 2.0, 2.0];
+        assert_eq!(calibrate(&mut v, 0.5), (2.0, 1), "ties never give more exceedances than allowed");
+        let mut v = vec![f64::NAN, 1.0, 2.0];
+        assert!(calibrate(&mut v, 0.2).0.is_nan(), "NaN orders above every number, as total_cmp does");
+    }
+
+    #[test]
+    fn the_alarm_is_the_earliest_first_passage_over_any_threshold() {
+        let (t0, v0) = ([1.0, 2.0, 3.0], [0.5, 1.5, 2.5]);
+        let (t1, v1) = ([1.5, 2.5], [0.2, 3.0]);
+        let t: [&[f64]; 2] = [&t0, &t1];
+        let v: [&[f64]; 2] = [&v0, &v1];
+        assert_eq!(alarm_time(&t, &v, &[1.0, 1.0]), Some(2.0));
+        assert_eq!(alarm_time(&t, &v, &[2.0, 1.0]), Some(2.5));
+        assert_eq!(alarm_time(&t, &v, &[3.0, 3.0]), None);
+    }
+}
