@@ -19,6 +19,7 @@ use nalgebra::{SMatrix, SVector};
 use rand::{RngExt, SeedableRng, rngs::Xoshiro256PlusPlus};
 use rand_distr::StandardNormal;
 
+use fdimc::engine::deck::FromDeck;
 use fdimc::methods::detection_filter::kernel::LANES;
 use fdimc::methods::detection_filter::study::LtiStudy;
 use fdimc::methods::detection_filter::trials::Engine;
@@ -54,8 +55,8 @@ fn main() {
         spent[2] += t3 - t2;
     }
     let trials = (ROUNDS as u64 * TRIALS_PER_TURN) as f64;
-    let steps = study.steps as f64;
-    println!("bench_seed000, one core, {trials} trials per loop, {} steps per trial", study.steps);
+    let steps = study.header.steps as f64;
+    println!("bench_seed000, one core, {trials} trials per loop, {} steps per trial", study.header.steps);
     for (name, d) in ["lane path", "general path", "plain nalgebra"].iter().zip(spent) {
         let per_trial_s = d.as_secs_f64() / trials;
         println!(
@@ -82,7 +83,7 @@ struct PlainLoop {
 
 impl PlainLoop {
     fn new(study: &LtiStudy, engine: &Engine) -> Self {
-        let truth = study.plant.discretise(study.dt_s);
+        let truth = study.plant.discretise(study.header.dt_s);
         let filter = engine.nominal_filters()[0].as_ref().expect("bench design");
         PlainLoop {
             ad: SMatrix::from_iterator(truth.Ad.iter().copied()),
@@ -101,8 +102,8 @@ impl PlainLoop {
         let mut rng = Xoshiro256PlusPlus::seed_from_u64(trial);
         let (mut x, mut xhat) = (SVector::<f64, 5>::zeros(), SVector::<f64, 5>::zeros());
         let mut peak = 0.0f64;
-        for k in 0..study.steps {
-            let t = k as f64 * study.dt_s;
+        for k in 0..study.header.steps {
+            let t = k as f64 * study.header.dt_s;
             let r = SVector::<f64, 2>::new(0.0, if (t / 8.0).fract() < 0.5 { 0.25 } else { -0.25 });
             let noise = SVector::<f64, 6>::from_fn(|_, _| rng.sample::<f64, _>(StandardNormal));
             let y = self.c * x + self.sigma.component_mul(&noise);

@@ -5,6 +5,7 @@
 //! [`design`], [`estimation`], [`fault`], [`kinematics`], [`lti`] and [`linalg`] are building blocks the methods share.
 //! The CLI in [`cli`] is a thin layer over these.
 
+pub mod checks;
 pub mod cli;
 pub mod design;
 pub mod engine;

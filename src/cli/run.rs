@@ -36,7 +36,7 @@ pub struct RunArgs<'a> {
 }
 
 /// The deck's method and study, with `--classifiers` checked against what the method takes.
-pub fn load(deck: &Path, classifiers: Option<&Path>) -> Result<(&'static dyn Method, Box<dyn Study>), CliError> {
+pub fn load(deck: &Path, classifiers: Option<&Path>) -> Result<(&'static Method, Box<dyn Study>), CliError> {
     let (method, study) = method::load(REGISTRY, deck)?;
     if classifiers.is_some() {
         method::require(REGISTRY, method, Opt::Classifiers)?;
@@ -45,7 +45,7 @@ pub fn load(deck: &Path, classifiers: Option<&Path>) -> Result<(&'static dyn Met
 }
 
 /// The method of the run in `dir`, from its manifest.
-fn method_of_run(dir: &Path) -> Result<(&'static dyn Method, Manifest), CliError> {
+fn method_of_run(dir: &Path) -> Result<(&'static Method, Manifest), CliError> {
     let manifest = Manifest::read(dir)?;
     let method =
         method::find(REGISTRY, &manifest.kind).map_err(|e| CliError::Invalid(format!("{}: {e}", dir.display())))?;
@@ -65,13 +65,13 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         if n == 0 || n > crate::engine::streams::MAX_TRIAL {
             return Err(CliError::Invalid(format!("--trials {n}: allowed 1 to {}", crate::engine::streams::MAX_TRIAL)));
         }
-        study.set_trials(n);
+        *study.seed_and_trials().1 = n;
     }
     if let Some(seed) = a.seed {
-        study.set_seed(seed);
+        *study.seed_and_trials().0 = seed;
     }
     let out_dir = a.out.clone().unwrap_or_else(|| {
-        let base = PathBuf::from("results").join(study.name());
+        let base = PathBuf::from("results").join(&study.header().name);
         if shard == Shard::WHOLE { base } else { base.join(format!("shard-{}-of-{}", shard.index, shard.count)) }
     });
     let opts = RunOptions {
@@ -139,8 +139,8 @@ pub fn exec_summarize(dir: &Path, target_pfa: Option<f64>, thresholds: Option<&P
 }
 
 /// The shared summary of the run in `dir`, with what `method` adds; printed unless `print` is false.
-fn summarize(method: &dyn Method, dir: &Path, calibration: Option<&Calibration>, print: bool) -> Result<(), CliError> {
-    let spec = method.summary();
+fn summarize(method: &Method, dir: &Path, calibration: Option<&Calibration>, print: bool) -> Result<(), CliError> {
+    let spec = method.summary;
     let s = summary::summarize(dir, &spec, calibration)?;
     if print {
         summary::print(dir, &spec, &s);
@@ -261,7 +261,9 @@ pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<us
 pub fn exec_report(dir: &Path, trials: &[u64]) -> Result<(), CliError> {
     let (method, _) = method_of_run(dir)?;
     method::require(REGISTRY, method, Opt::Report).map_err(|e| CliError::Invalid(format!("{}: {e}", dir.display())))?;
-    Ok(method.report(dir, trials)?)
+    let report =
+        method.report.ok_or_else(|| CliError::Internal(format!("{} lists report but has none", method.kind)))?;
+    Ok(report(dir, trials)?)
 }
 
 pub fn exec_train(deck: &Path, out: Option<&Path>) -> Result<(), CliError> {

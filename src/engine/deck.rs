@@ -80,6 +80,31 @@ pub struct StudySection {
 /// Kept as a raw TOML value and read by `validate`, which can then name the field in every message.
 pub type FactorSpec = toml::Value;
 
+/// A study's `[study]` fields, validated; every kind's study holds one.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StudyHeader {
+    /// The deck file (for messages and the manifest).
+    pub path: PathBuf,
+    /// Names the results folder.
+    pub name: String,
+    pub seed: u64,
+    pub duration_s: f64,
+    pub dt_s: f64,
+    /// `round(duration_s / dt_s)` samples; sample k is at `k dt_s`.
+    pub steps: usize,
+}
+
+/// A study type read from deck text; `load` reads the file first.
+pub trait FromDeck: Sized {
+    /// Parses and validates deck text; `path` names it in messages.
+    fn from_toml(text: &str, path: &Path) -> Result<Self, DeckError>;
+
+    /// Reads, parses and validates a deck file.
+    fn load(path: &Path) -> Result<Self, DeckError> {
+        Self::from_toml(&read_deck(path)?, path)
+    }
+}
+
 /// Checks deck values and names the file and field in every rejection; shared by every kind of deck.
 pub(crate) struct Validator<'a> {
     pub(crate) file: &'a Path,
@@ -165,8 +190,8 @@ impl Validator<'_> {
             .ok_or_else(|| self.err(field, format!("{name:?} is not one of {list}: {}", names.join(", "))))
     }
 
-    /// `[study]`: a name fit for a folder, a positive duration and step; returns (duration, step, samples).
-    pub(crate) fn study_section(&self, s: &StudySection) -> Result<(f64, f64, usize), DeckError> {
+    /// `[study]`: a name fit for a folder, a positive duration and step.
+    pub fn study_section(&self, s: &StudySection) -> Result<StudyHeader, DeckError> {
         if s.name.is_empty() || !s.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
             return Err(self.err(
                 "study.name",
@@ -179,7 +204,14 @@ impl Validator<'_> {
         if steps_f < 1.0 || steps_f > 1e8 {
             return Err(self.err("study.dt_s", format!("duration_s / dt_s = {steps_f} samples; allowed 1 to 1e8")));
         }
-        Ok((duration_s, dt_s, steps_f as usize))
+        Ok(StudyHeader {
+            path: self.file.into(),
+            name: s.name.clone(),
+            seed: s.seed,
+            duration_s,
+            dt_s,
+            steps: steps_f as usize,
+        })
     }
 
     /// Reads a factor (see [`Factor`]); `None` gives `default`.
@@ -311,5 +343,175 @@ impl Validator<'_> {
             other => Err(self
                 .err(field, format!("{other:?}: allowed \"plant\" (the truth) or \"design\" (the detector's model)"))),
         }
+    }
+}
+
+/// `[monte_carlo]` as a deck writes it: the fields every kind shares, and the rest for the kind's own
+/// section type (which refuses unknown fields).
+#[derive(Debug, Deserialize)]
+pub struct MonteCarloSection {
+    pub trials: u64,
+    pub fault_free_fraction: Option<f64>,
+    pub sampler: Option<String>,
+    pub target_pfa: Option<f64>,
+    pub onset_s: Option<FactorSpec>,
+    pub noise_scale: Option<FactorSpec>,
+    #[serde(default)]
+    pub parameter_error: Vec<toml::Table>,
+    #[serde(flatten)]
+    pub rest: toml::Table,
+}
+
+/// The shared fields of `[monte_carlo]`, validated.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MonteCarlo {
+    pub trials: u64,
+    /// Probability that a trial has no fault (its alarms calibrate thresholds).
+    pub fault_free_fraction: f64,
+    pub sampler: Sampler,
+    /// Target false-alarm probability per trial of threshold calibration (kinds with a statistic).
+    pub target_pfa: f64,
+    pub onset_s: Factor,
+    /// Multiplies every sensor's noise standard deviation.
+    pub noise_scale: Factor,
+}
+
+/// A `[[monte_carlo.parameter_error]]`: what every kind shares (a name for its `perr_<name>` column, the
+/// model it perturbs, a relative or absolute error) and what it perturbs, which the kind reads (`P`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParameterError<P> {
+    pub name: String,
+    pub model: ModelTarget,
+    /// An offset in the quantity's units; otherwise a relative error, the quantity scaled by `1 + value`.
+    pub absolute: bool,
+    pub value: Factor,
+    pub what: P,
+}
+
+/// Which of the shared `[monte_carlo]` fields a kind takes (the others are refused by name).
+#[derive(Debug, Clone, Copy)]
+pub struct MonteCarloRules<'a> {
+    /// The kind's decks, in words, for refusals ("accelerometer decks").
+    pub decks: &'a str,
+    pub duration_s: f64,
+    /// Fault-free trials (a classifier's normal class replaces them).
+    pub fault_free_fraction: bool,
+    pub sampler: bool,
+    /// Threshold calibration ([`super::method::Opt::Thresholds`]).
+    pub target_pfa: bool,
+    pub onset_s: bool,
+    /// `noise_scale` may be a range (otherwise a number or listed values).
+    pub noise_ranges: bool,
+    /// Absolute parameter errors (otherwise relative only); `None`: no parameter errors.
+    pub parameter_errors: Option<bool>,
+}
+
+impl Validator<'_> {
+    /// Validates the shared fields of `[monte_carlo]` (defaults without the section: 1000 trials, no
+    /// fault-free ones, random sampling, target Pfa 0.01, onset at a third of the trial, nominal noise),
+    /// then hands the kind its own fields (`None` without the section) and each parameter error's own
+    /// fields (`what`, given the error's TOML path and its table without the shared keys).
+    #[allow(clippy::type_complexity)]
+    pub fn monte_carlo<T: serde::de::DeserializeOwned, P>(
+        &self,
+        section: Option<MonteCarloSection>,
+        rules: &MonteCarloRules,
+        mut what: impl FnMut(&str, toml::Table) -> Result<P, DeckError>,
+    ) -> Result<(MonteCarlo, Option<T>, Vec<ParameterError<P>>), DeckError> {
+        let duration_s = rules.duration_s;
+        let Some(mc) = section else {
+            let defaults = MonteCarlo {
+                trials: 1000,
+                fault_free_fraction: 0.0,
+                sampler: Sampler::Random,
+                target_pfa: 0.01,
+                onset_s: Factor::Fixed(duration_s / 3.0),
+                noise_scale: Factor::Fixed(1.0),
+            };
+            return Ok((defaults, None, Vec::new()));
+        };
+        let refuse = |field: &str, given: bool, taken: bool| -> Result<(), DeckError> {
+            if given && !taken {
+                return Err(self.err(format!("monte_carlo.{field}"), format!("not used by {}: remove it", rules.decks)));
+            }
+            Ok(())
+        };
+        refuse("fault_free_fraction", mc.fault_free_fraction.is_some(), rules.fault_free_fraction)?;
+        refuse("sampler", mc.sampler.is_some(), rules.sampler)?;
+        refuse("target_pfa", mc.target_pfa.is_some(), rules.target_pfa)?;
+        refuse("onset_s", mc.onset_s.is_some(), rules.onset_s)?;
+        refuse("parameter_error", !mc.parameter_error.is_empty(), rules.parameter_errors.is_some())?;
+
+        let trials = self.trials("monte_carlo.trials", mc.trials)?;
+        let fault_free_fraction =
+            self.fraction("monte_carlo.fault_free_fraction", mc.fault_free_fraction.unwrap_or(0.0))?;
+        let sampler = self.sampler("monte_carlo.sampler", mc.sampler.as_deref())?;
+        let target_pfa = mc.target_pfa.unwrap_or(0.01);
+        if !(target_pfa > 0.0 && target_pfa < 1.0) {
+            return Err(self.err("monte_carlo.target_pfa", format!("allowed 0 < p < 1, got {target_pfa}")));
+        }
+        let onset_s = self.factor("monte_carlo.onset_s", mc.onset_s.as_ref(), Factor::Fixed(duration_s / 3.0))?;
+        self.factor_within(
+            "monte_carlo.onset_s",
+            &onset_s,
+            |t| t >= 0.0 && t < duration_s,
+            &format!("0 <= onset_s < duration_s = {duration_s}"),
+        )?;
+        let noise_scale = self.factor("monte_carlo.noise_scale", mc.noise_scale.as_ref(), Factor::Fixed(1.0))?;
+        if !rules.noise_ranges && matches!(noise_scale, Factor::Range { .. }) {
+            return Err(self.err(
+                "monte_carlo.noise_scale",
+                format!("a number or {{ values = [...] }} for {} (their trials are a grid)", rules.decks),
+            ));
+        }
+        self.factor_within("monte_carlo.noise_scale", &noise_scale, |x| x >= 0.0, ">= 0")?;
+
+        let own = T::deserialize(toml::Value::Table(mc.rest))
+            .map_err(|e| self.err("monte_carlo", e.to_string().trim_end().to_string()))?;
+
+        let mut parameter_errors: Vec<ParameterError<P>> = Vec::with_capacity(mc.parameter_error.len());
+        for (i, mut table) in mc.parameter_error.into_iter().enumerate() {
+            let prefix = format!("monte_carlo.parameter_error[{i}]");
+            let field = |name: &str| format!("{prefix}.{name}");
+            let text = |table: &mut toml::Table, name: &str| -> Result<String, DeckError> {
+                match table.remove(name) {
+                    Some(toml::Value::String(s)) => Ok(s),
+                    Some(other) => Err(self.err(field(name), format!("expected text, got {}", other.type_str()))),
+                    None => Err(self.err(field(name), "required")),
+                }
+            };
+            let name = text(&mut table, "name")?;
+            self.column_name(&field("name"), &name, parameter_errors.iter().map(|p| p.name.as_str()))?;
+            let model = self.model_target(&field("model"), &text(&mut table, "model")?)?;
+            let (relative, absolute) = (table.remove("relative"), table.remove("absolute"));
+            let (absolute, value) = match (relative, absolute) {
+                (Some(r), None) => {
+                    let v = self.factor(&field("relative"), Some(&r), Factor::Fixed(0.0))?;
+                    self.factor_within(&field("relative"), &v, |x| x > -1.0 && x < 10.0, "-1 < relative < 10")?;
+                    (false, v)
+                }
+                (None, Some(a)) if rules.parameter_errors == Some(true) => {
+                    (true, self.factor(&field("absolute"), Some(&a), Factor::Fixed(0.0))?)
+                }
+                (None, Some(_)) => {
+                    return Err(self.err(field("absolute"), format!("{} take relative errors only", rules.decks)));
+                }
+                _ => {
+                    let allowed = if rules.parameter_errors == Some(true) {
+                        "give relative (a fraction: -0.1 = -10 %) or absolute (in the entries' units), one of them"
+                    } else {
+                        "give relative (a fraction: -0.1 = -10 %)"
+                    };
+                    return Err(self.err(field("relative"), allowed));
+                }
+            };
+            let what = what(&prefix, table)?;
+            parameter_errors.push(ParameterError { name, model, absolute, value, what });
+        }
+        Ok((
+            MonteCarlo { trials, fault_free_fraction, sampler, target_pfa, onset_s, noise_scale },
+            Some(own),
+            parameter_errors,
+        ))
     }
 }

@@ -7,29 +7,26 @@
 
 use std::path::Path;
 
-use super::deck::{DeckError, read_deck};
+use super::deck::{DeckError, StudyHeader, read_deck};
 use super::runner::{RunError, RunOptions, RunReport};
 
-/// A kind of study.
-pub trait Method: Sync {
-    /// The kind's name: `manifest.json`'s `kind` and the folder under `src/methods/`.
-    fn kind(&self) -> &'static str;
+/// A kind of study: how its decks read, what it adds to the shared summary, which options it takes.
+/// Each method folder defines one as a `static`, listed in `methods::REGISTRY`.
+pub struct Method {
+    /// `manifest.json`'s `kind` and the folder under `src/methods/`.
+    pub kind: &'static str,
     /// The top-level table that marks a deck of this kind (`plant` for `[plant]`).
-    fn marker(&self) -> &'static str;
+    pub marker: &'static str,
     /// What the kind studies, in a few words with the seed method's number, for lists and messages.
-    fn title(&self) -> &'static str;
+    pub title: &'static str,
     /// The options beyond the common ones that this kind takes.
-    fn options(&self) -> &'static [Opt] {
-        &[]
-    }
+    pub options: &'static [Opt],
     /// Parses and validates a deck of this kind; every rejection names the file and the field.
-    fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError>;
+    pub load: fn(&str, &Path) -> Result<Box<dyn Study>, DeckError>,
     /// What the shared summary adds for this kind ([`super::summary`]).
-    fn summary(&self) -> SummarySpec;
-    /// `fdimc report` ([`Opt::Report`]): plots and a page in `dir/report/`, traces of `trials`.
-    fn report(&self, _dir: &Path, _trials: &[u64]) -> Result<(), RunError> {
-        Err(RunError::Internal("this kind lists no report".into()))
-    }
+    pub summary: SummarySpec,
+    /// `fdimc report DIR --trials ...` ([`Opt::Report`]): plots and a page in `DIR/report/`.
+    pub report: Option<fn(&Path, &[u64]) -> Result<(), RunError>>,
 }
 
 /// Options that only some kinds take; a kind that does not list one refuses it (exit 2).
@@ -68,13 +65,10 @@ pub struct Inputs<'a> {
 
 /// A deck its method has validated.
 pub trait Study: Sync {
-    fn name(&self) -> &str;
-    /// Trials of the Monte Carlo study.
-    fn trials(&self) -> u64;
-    /// `run --trials N`.
-    fn set_trials(&mut self, trials: u64);
-    /// `run --seed S`: another seed gives fresh trials.
-    fn set_seed(&mut self, seed: u64);
+    /// The deck's `[study]` fields.
+    fn header(&self) -> &StudyHeader;
+    /// What `run --seed S` and `--trials N` change: the seed and the trial count.
+    fn seed_and_trials(&mut self) -> (&mut u64, &mut u64);
     /// `fdimc validate`: prints the resolved study.
     fn validate(&self) -> Result<(), RunError>;
     /// `fdimc simulate`: writes one trial's per-sample trace to `out` and prints what happened in it.
@@ -92,24 +86,24 @@ pub trait Study: Sync {
 }
 
 /// The method of `kind` (a results folder's), or an error listing the kinds there are.
-pub fn find<'r>(registry: &'r [&'r dyn Method], kind: &str) -> Result<&'r dyn Method, RunError> {
-    registry.iter().copied().find(|m| m.kind() == kind).ok_or_else(|| {
+pub fn find<'r>(registry: &'r [&'r Method], kind: &str) -> Result<&'r Method, RunError> {
+    registry.iter().copied().find(|m| m.kind == kind).ok_or_else(|| {
         RunError::Invalid(format!("unknown kind of study {kind:?}; this fdimc knows {}", kinds(registry)))
     })
 }
 
 /// Reads the deck at `path`, finds its method by the table that marks it, and validates it.
-pub fn load<'r>(registry: &'r [&'r dyn Method], path: &Path) -> Result<(&'r dyn Method, Box<dyn Study>), DeckError> {
+pub fn load<'r>(registry: &'r [&'r Method], path: &Path) -> Result<(&'r Method, Box<dyn Study>), DeckError> {
     let text = read_deck(path)?;
     let method = method_of(registry, &text, path)?;
-    Ok((method, method.load(&text, path)?))
+    Ok((method, (method.load)(&text, path)?))
 }
 
 /// The method whose marker table the deck text has: exactly one must match.
-pub fn method_of<'r>(registry: &'r [&'r dyn Method], text: &str, path: &Path) -> Result<&'r dyn Method, DeckError> {
+pub fn method_of<'r>(registry: &'r [&'r Method], text: &str, path: &Path) -> Result<&'r Method, DeckError> {
     let table: toml::Table = toml::from_str(text)
         .map_err(|e| DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() })?;
-    let matching: Vec<&dyn Method> = registry.iter().copied().filter(|m| table.contains_key(m.marker())).collect();
+    let matching: Vec<&Method> = registry.iter().copied().filter(|m| table.contains_key(m.marker)).collect();
     match matching.as_slice() {
         [one] => Ok(*one),
         [] => Err(DeckError::Invalid {
@@ -122,30 +116,30 @@ pub fn method_of<'r>(registry: &'r [&'r dyn Method], text: &str, path: &Path) ->
             field: "(top level)".into(),
             message: format!(
                 "the tables {} mark different kinds of study: keep one",
-                several.iter().map(|m| format!("[{}]", m.marker())).collect::<Vec<_>>().join(", ")
+                several.iter().map(|m| format!("[{}]", m.marker)).collect::<Vec<_>>().join(", ")
             ),
         }),
     }
 }
 
 /// Refuses an option `method` does not list, naming the kinds that take it.
-pub fn require(registry: &[&dyn Method], method: &dyn Method, opt: Opt) -> Result<(), RunError> {
-    if method.options().contains(&opt) {
+pub fn require(registry: &[&Method], method: &Method, opt: Opt) -> Result<(), RunError> {
+    if method.options.contains(&opt) {
         return Ok(());
     }
-    let takers: Vec<&str> = registry.iter().filter(|m| m.options().contains(&opt)).map(|m| m.kind()).collect();
+    let takers: Vec<&str> = registry.iter().filter(|m| m.options.contains(&opt)).map(|m| m.kind).collect();
     Err(RunError::Invalid(format!(
         "{} applies to {} studies, not to this {} study ({})",
         opt.flag(),
         takers.join(", "),
-        method.kind(),
-        method.title()
+        method.kind,
+        method.title
     )))
 }
 
 /// `[plant] (detection_filter: ...), [vehicle] (...)`.
-fn kinds(registry: &[&dyn Method]) -> String {
-    registry.iter().map(|m| format!("[{}] ({}: {})", m.marker(), m.kind(), m.title())).collect::<Vec<_>>().join(", ")
+fn kinds(registry: &[&Method]) -> String {
+    registry.iter().map(|m| format!("[{}] ({}: {})", m.marker, m.kind, m.title)).collect::<Vec<_>>().join(", ")
 }
 
 /// What the shared summary ([`super::summary`]) reads of a kind's records beyond the core columns.
@@ -210,4 +204,18 @@ impl Extra {
             Extra::Rate { .. } => None,
         }
     }
+}
+
+/// The [`Study`] accessors of a study type with a `header` field and its trial count at the given path
+/// (`monte_carlo.common.trials`).
+#[macro_export]
+macro_rules! study_accessors {
+    ($($trials:ident).+) => {
+        fn header(&self) -> &$crate::engine::deck::StudyHeader {
+            &self.header
+        }
+        fn seed_and_trials(&mut self) -> (&mut u64, &mut u64) {
+            (&mut self.header.seed, &mut self.$($trials).+)
+        }
+    };
 }

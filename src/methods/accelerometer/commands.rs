@@ -11,10 +11,10 @@ use std::path::PathBuf;
 /// The resolved accelerometer study (method 003).
 pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
     let d = &study.design;
-    println!("{}: valid", study.path.display());
+    println!("{}: valid", study.header.path.display());
     println!(
         "study       {} (seed {}, {} s at dt {} s)",
-        study.name, study.seed, d.scenario.duration_s, d.scenario.dt_s
+        study.header.name, study.header.seed, d.scenario.duration_s, d.scenario.dt_s
     );
     let n = &d.scenario.noise;
     println!(
@@ -61,9 +61,8 @@ pub fn simulate(
     use crate::methods::accelerometer::trial::{DETECTORS, TrainedClassifiers};
     let trained = match classifiers {
         Some(file) => TrainedClassifiers::load(file)?,
-        None => {
-            TrainedClassifiers::train(study).map_err(|e| RunError::Invalid(format!("{}: {e}", study.path.display())))?
-        }
+        None => TrainedClassifiers::train(study)
+            .map_err(|e| RunError::Invalid(format!("{}: {e}", study.header.path.display())))?,
     };
     let trials = AccelerometerTrials::new(study, &trained);
     let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
@@ -75,15 +74,16 @@ pub fn simulate(
         }
         floats.push(("detection_statistic".into(), statistics.to_vec()));
     });
-    let outcome =
-        result.outcome.map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.path.display())))?;
+    let outcome = result
+        .outcome
+        .map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.header.path.display())))?;
     let threshold = study.detection.threshold;
     let alarm = floats.last().map(|(_, t)| t.iter().map(|&v| v >= threshold).collect()).unwrap_or_default();
     let trace = Trace { float_columns: floats, bool_columns: vec![("alarm".into(), alarm)] };
     let mut df = trace_frame(&trace).map_err(|e| RunError::Internal(e.to_string()))?;
     write_table(&mut df, out)?;
     let s = &result.spec;
-    println!("{}: trial {trial}, {} samples -> {}", study.name, df.height(), out.display());
+    println!("{}: trial {trial}, {} samples -> {}", study.header.name, df.height(), out.display());
     let axis = s.axis.map_or("-", |a| ["x", "y", "z"][a]);
     println!(
         "  class {} on axis {axis}, size {}, onset {:.3} s, noise scale {}",
@@ -107,10 +107,10 @@ pub fn simulate(
 
 /// `fdimc train`: trains an accelerometer deck's classifiers and writes them.
 pub fn train(study: &AccelerometerStudy, out: Option<&Path>) -> Result<(), RunError> {
-    let deck = &study.path;
+    let deck = &study.header.path;
     let out = out
         .map(Path::to_path_buf)
-        .unwrap_or_else(|| PathBuf::from("results").join(&study.name).join("classifiers.json"));
+        .unwrap_or_else(|| PathBuf::from("results").join(&study.header.name).join("classifiers.json"));
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent).map_err(|e| RunError::Internal(format!("{}: {e}", parent.display())))?;
     }
@@ -120,7 +120,7 @@ pub fn train(study: &AccelerometerStudy, out: Option<&Path>) -> Result<(), RunEr
     trained.save(&out)?;
     println!(
         "{}: trained the SVM decision tree and the one-against-one SVM on {} trials per class (seed {}) in {:.1} s -> {}",
-        study.name,
+        study.header.name,
         study.training.trials_per_class,
         study.training.seed,
         started.elapsed().as_secs_f64(),

@@ -49,6 +49,7 @@ use rand::{Rng, RngExt};
 use rand_distr::{Distribution, StandardNormal};
 use thiserror::Error;
 
+use crate::checks::{ValueError, finite, non_negative, positive, sensor_faults};
 use crate::fault::{ActiveFaults, FaultMode, SensorFault};
 use crate::kinematics::{GRAVITY_MPS2, body_from_ned};
 
@@ -333,34 +334,12 @@ impl Default for AccelFaultRanges {
 /// Why a scenario cannot be built.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum ImuScenarioError {
-    #[error("{field} must be finite, got {value}")]
-    NotFinite { field: &'static str, value: f64 },
-    #[error("{field} must be positive, got {value}")]
-    NotPositive { field: &'static str, value: f64 },
-    #[error("{field} must not be negative, got {value}")]
-    Negative { field: &'static str, value: f64 },
+    #[error(transparent)]
+    Value(#[from] ValueError),
     #[error("the {angle} history needs finite numbers and a positive period: {sinusoid:?}")]
     Manoeuvre { angle: &'static str, sinusoid: EulerSinusoid },
     #[error("the manoeuvre can take pitch to {extreme_rad} rad; the limit is {MAX_PITCH_RAD} rad")]
     PitchEnvelope { extreme_rad: f64 },
-    #[error("fault {index} is on channel {channel}; accelerometer channels are 0 (x), 1 (y), 2 (z)")]
-    FaultChannel { index: usize, channel: usize },
-    #[error("fault {index}: onset {onset_s} s is not finite")]
-    FaultOnset { index: usize, onset_s: f64 },
-}
-
-fn finite(field: &'static str, value: f64) -> Result<(), ImuScenarioError> {
-    if value.is_finite() { Ok(()) } else { Err(ImuScenarioError::NotFinite { field, value }) }
-}
-
-fn positive(field: &'static str, value: f64) -> Result<(), ImuScenarioError> {
-    finite(field, value)?;
-    if value > 0.0 { Ok(()) } else { Err(ImuScenarioError::NotPositive { field, value }) }
-}
-
-fn non_negative(field: &'static str, value: f64) -> Result<(), ImuScenarioError> {
-    finite(field, value)?;
-    if value >= 0.0 { Ok(()) } else { Err(ImuScenarioError::Negative { field, value }) }
 }
 
 /// One sample of a trial.
@@ -408,14 +387,7 @@ impl ImuScenario {
             finite("accel_bias_mps2", value)?;
         }
         params.manoeuvre.validate()?;
-        for (index, f) in params.faults.iter().enumerate() {
-            if f.channel > ACCEL_Z {
-                return Err(ImuScenarioError::FaultChannel { index, channel: f.channel });
-            }
-            if !f.onset_s.is_finite() {
-                return Err(ImuScenarioError::FaultOnset { index, onset_s: f.onset_s });
-            }
-        }
+        sensor_faults(&params.faults, ACCEL_Z + 1, "accelerometer channels are 0 (x), 1 (y), 2 (z)")?;
         let samples = (params.duration_s / params.dt_s).round().max(1.0) as usize;
         Ok(ImuScenario { faults: ActiveFaults::new(params.faults.clone()), params, samples, k: 0 })
     }
@@ -603,15 +575,27 @@ mod tests {
             f(&mut p);
             ImuScenario::new(p).unwrap_err()
         };
-        assert!(matches!(bad(|p| p.dt_s = 0.0), ImuScenarioError::NotPositive { field: "dt_s", .. }));
-        assert!(matches!(bad(|p| p.noise.accel_noise_std_mps2 = -1.0), ImuScenarioError::Negative { .. }));
-        assert!(matches!(bad(|p| p.gyro_bias_rad_s[1] = f64::NAN), ImuScenarioError::NotFinite { .. }));
+        assert!(matches!(
+            bad(|p| p.dt_s = 0.0),
+            ImuScenarioError::Value(ValueError::NotPositive { field: "dt_s", .. })
+        ));
+        assert!(matches!(
+            bad(|p| p.noise.accel_noise_std_mps2 = -1.0),
+            ImuScenarioError::Value(ValueError::Negative { .. })
+        ));
+        assert!(matches!(
+            bad(|p| p.gyro_bias_rad_s[1] = f64::NAN),
+            ImuScenarioError::Value(ValueError::NotFinite { .. })
+        ));
         assert!(matches!(bad(|p| p.manoeuvre.pitch.amplitude_rad = 1.5), ImuScenarioError::PitchEnvelope { .. }));
         assert!(matches!(bad(|p| p.manoeuvre.roll.period_s = 0.0), ImuScenarioError::Manoeuvre { angle: "roll", .. }));
         let fault = SensorFault { channel: 3, onset_s: 1.0, mode: FaultMode::Bias { bias: 1.0 } };
-        assert!(matches!(bad_with(fault), ImuScenarioError::FaultChannel { index: 0, channel: 3 }));
+        assert!(matches!(
+            bad_with(fault),
+            ImuScenarioError::Value(ValueError::FaultChannel { index: 0, channel: 3, .. })
+        ));
         let fault = SensorFault { channel: 0, onset_s: f64::INFINITY, mode: FaultMode::Bias { bias: 1.0 } };
-        assert!(matches!(bad_with(fault), ImuScenarioError::FaultOnset { index: 0, .. }));
+        assert!(matches!(bad_with(fault), ImuScenarioError::Value(ValueError::FaultOnset { index: 0, .. })));
     }
 
     fn bad_with(fault: SensorFault) -> ImuScenarioError {

@@ -10,7 +10,7 @@ pub mod trial;
 
 use std::path::Path;
 
-use crate::engine::deck::DeckError;
+use crate::engine::deck::FromDeck;
 use crate::engine::method::{Inputs, Isolates, Method, Opt, Study, SummarySpec};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::scenario::{GridDigits, draw};
@@ -26,42 +26,18 @@ use trial::*;
 pub const KIND: &str = "accelerometer";
 
 /// Method 003: the registry's entry.
-pub struct Accelerometers;
-
-impl Method for Accelerometers {
-    fn kind(&self) -> &'static str {
-        KIND
-    }
-    fn marker(&self) -> &'static str {
-        "imu"
-    }
-    fn title(&self) -> &'static str {
-        "attitude-EKF residuals and SVM classifiers, accelerometer faults (method 003)"
-    }
-    fn options(&self) -> &'static [Opt] {
-        &[Opt::Classifiers]
-    }
-    fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
-        Ok(Box::new(AccelerometerStudy::from_toml(text, path)?))
-    }
-    fn summary(&self) -> SummarySpec {
-        SummarySpec { extra_keys: &[], isolates: Isolates::Kind, extras: &[], paired_delays: &[], printed: &[] }
-    }
-}
+pub static METHOD: Method = Method {
+    kind: KIND,
+    marker: "imu",
+    title: "attitude-EKF residuals and SVM classifiers, accelerometer faults (method 003)",
+    options: &[Opt::Classifiers],
+    load: |text, path| Ok(Box::new(AccelerometerStudy::from_toml(text, path)?)),
+    summary: SummarySpec { extra_keys: &[], isolates: Isolates::Kind, extras: &[], paired_delays: &[], printed: &[] },
+    report: None,
+};
 
 impl Study for AccelerometerStudy {
-    fn name(&self) -> &str {
-        &self.name
-    }
-    fn trials(&self) -> u64 {
-        self.trials
-    }
-    fn set_trials(&mut self, trials: u64) {
-        self.trials = trials;
-    }
-    fn set_seed(&mut self, seed: u64) {
-        self.seed = seed;
-    }
+    crate::study_accessors!(trials);
     fn validate(&self) -> Result<(), RunError> {
         commands::validate(self)
     }
@@ -89,7 +65,7 @@ impl Study for AccelerometerStudy {
                     );
                 }
                 let trained = TrainedClassifiers::train(self)
-                    .map_err(|e| RunError::Invalid(format!("{}: {e}", self.path.display())))?;
+                    .map_err(|e| RunError::Invalid(format!("{}: {e}", self.header.path.display())))?;
                 (trained, true)
             }
         };
@@ -121,8 +97,8 @@ impl<'a> AccelerometerTrials<'a> {
         let s = self.study;
         Manifest {
             kind: KIND.into(),
-            study: s.name.clone(),
-            seed: s.seed,
+            study: s.header.name.clone(),
+            seed: s.header.seed,
             trials: s.trials,
             detectors: DETECTORS.iter().map(|d| d.to_string()).collect(),
             outputs: ["accel_x", "accel_y", "accel_z"].iter().map(|a| a.to_string()).collect(),
@@ -141,7 +117,7 @@ impl<'a> AccelerometerTrials<'a> {
         let mut grid = GridDigits::new(trial);
         let class = s.classes[grid.next(s.classes.len())];
         let (noise_scale, _) = draw(&s.noise_scale, 0.0, &mut |n| grid.next(n));
-        let mut rng = trial_rng(s.seed, trial, Substream::Fault);
+        let mut rng = trial_rng(s.header.seed, trial, Substream::Fault);
         let (mut scenario, onset_s) = s.design.draw_trial(class, &mut rng);
         scenario.noise_scale = noise_scale;
         let fault = scenario.faults.first();
@@ -165,7 +141,7 @@ impl<'a> AccelerometerTrials<'a> {
         let s = self.study;
         let (spec, scenario) = self.draw(trial);
         let dt_s = scenario.dt_s;
-        let mut rng = noise_rng(s.seed, trial, Substream::SensorNoise);
+        let mut rng = noise_rng(s.header.seed, trial, Substream::SensorNoise);
         let outcome = (|| {
             let trace = simulate_trial(scenario, &s.design.ekf, &mut rng).map_err(|e| e.to_string())?;
             let example = s.design.example(&trace, spec.onset_s, spec.class).map_err(|e| e.to_string())?;

@@ -15,11 +15,11 @@
 //!                    noise_scale (factor on the white-noise sigmas)
 //! ```
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::engine::deck::{DeckError, Factor, Validator, parse_deck, read_deck};
+use crate::engine::deck::{DeckError, Factor, FromDeck, MonteCarloRules, StudyHeader, Validator, parse_deck};
 use crate::engine::deck::{FactorSpec, StudySection};
 use crate::methods::accelerometer::ekf_svm::{DetectionParams, FaultClass, SvmKernel, SvmParams, TrialDesign};
 
@@ -31,7 +31,7 @@ struct AccelerometerDeck {
     faults: Option<FaultsSection>,
     training: Option<TrainingSection>,
     detection: Option<DetectionSection>,
-    monte_carlo: Option<MonteCarloSection>,
+    monte_carlo: Option<crate::engine::deck::MonteCarloSection>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -67,12 +67,11 @@ struct DetectionSection {
     settle_s: Option<f64>,
 }
 
-#[derive(Debug, Deserialize)]
+/// `[monte_carlo]`'s own fields in accelerometer decks.
+#[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct MonteCarloSection {
-    trials: u64,
+struct MonteCarloOwn {
     classes: Option<Vec<String>>,
-    noise_scale: Option<FactorSpec>,
 }
 
 /// How the classifiers are trained.
@@ -89,9 +88,7 @@ pub struct Training {
 /// A validated accelerometer study.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AccelerometerStudy {
-    pub path: PathBuf,
-    pub name: String,
-    pub seed: u64,
+    pub header: StudyHeader,
     /// Scenario, fault ranges, filter, features and window of every trial.
     pub design: TrialDesign,
     pub training: Training,
@@ -104,16 +101,12 @@ pub struct AccelerometerStudy {
     pub noise_scale: Factor,
 }
 
-impl AccelerometerStudy {
-    pub fn load(path: &Path) -> Result<AccelerometerStudy, DeckError> {
-        let text = read_deck(path)?;
-        Self::from_toml(&text, path)
-    }
-
-    pub fn from_toml(text: &str, path: &Path) -> Result<AccelerometerStudy, DeckError> {
+impl FromDeck for AccelerometerStudy {
+    fn from_toml(text: &str, path: &Path) -> Result<AccelerometerStudy, DeckError> {
         let deck: AccelerometerDeck = parse_deck(text, path)?;
         let v = Validator { file: path };
-        let (duration_s, dt_s, _) = v.study_section(&deck.study)?;
+        let header = v.study_section(&deck.study)?;
+        let (duration_s, dt_s) = (header.duration_s, header.dt_s);
         let mut design = TrialDesign::seed();
         design.scenario.duration_s = duration_s;
         design.scenario.dt_s = dt_s;
@@ -217,42 +210,38 @@ impl AccelerometerStudy {
             ));
         }
 
-        let (trials, classes, noise_scale) = match &deck.monte_carlo {
-            None => (1000, FaultClass::ALL.to_vec(), Factor::Fixed(1.0)),
-            Some(mc) => {
-                let trials = v.trials("monte_carlo.trials", mc.trials)?;
-                let classes = match &mc.classes {
-                    None => FaultClass::ALL.to_vec(),
-                    Some(list) if list.is_empty() => return Err(v.err("monte_carlo.classes", "name at least one")),
-                    Some(list) => list
-                        .iter()
-                        .enumerate()
-                        .map(|(k, n)| {
-                            FaultClass::ALL.into_iter().find(|c| c.name() == n).ok_or_else(|| {
-                                v.err(
-                                    format!("monte_carlo.classes[{k}]"),
-                                    format!("{n:?}: allowed \"normal\", \"bias\", \"gain\", \"stuck\""),
-                                )
-                            })
-                        })
-                        .collect::<Result<Vec<_>, _>>()?,
-                };
-                let noise_scale = v.factor("monte_carlo.noise_scale", mc.noise_scale.as_ref(), Factor::Fixed(1.0))?;
-                if matches!(noise_scale, Factor::Range { .. }) {
-                    return Err(v.err(
-                        "monte_carlo.noise_scale",
-                        "a number or { values = [...] }: the classes are a grid, so is the noise",
-                    ));
-                }
-                v.factor_within("monte_carlo.noise_scale", &noise_scale, |x| x >= 0.0, ">= 0")?;
-                (trials, classes, noise_scale)
-            }
+        let rules = MonteCarloRules {
+            decks: "accelerometer decks (their normal class is the fault-free one; onsets come from [faults])",
+            duration_s: design.scenario.duration_s,
+            fault_free_fraction: false,
+            sampler: false,
+            target_pfa: false,
+            onset_s: false,
+            noise_ranges: false,
+            parameter_errors: None,
         };
+        let (common, own, _) = v.monte_carlo(deck.monte_carlo, &rules, |_, _| Ok(()))?;
+        let own: MonteCarloOwn = own.unwrap_or_default();
+        let classes = match &own.classes {
+            None => FaultClass::ALL.to_vec(),
+            Some(list) if list.is_empty() => return Err(v.err("monte_carlo.classes", "name at least one")),
+            Some(list) => list
+                .iter()
+                .enumerate()
+                .map(|(k, n)| {
+                    FaultClass::ALL.into_iter().find(|c| c.name() == n).ok_or_else(|| {
+                        v.err(
+                            format!("monte_carlo.classes[{k}]"),
+                            format!("{n:?}: allowed \"normal\", \"bias\", \"gain\", \"stuck\""),
+                        )
+                    })
+                })
+                .collect::<Result<Vec<_>, _>>()?,
+        };
+        let (trials, noise_scale) = (common.trials, common.noise_scale);
 
         Ok(AccelerometerStudy {
-            path: path.into(),
-            name: deck.study.name.clone(),
-            seed: deck.study.seed,
+            header,
             design,
             training: Training { trials_per_class, seed: training_seed, noise_scales, svm },
             detection,
@@ -277,7 +266,7 @@ mod tests {
         let study = AccelerometerStudy::from_toml(&deck(), Path::new("seed003_accelerometer.toml")).unwrap();
         assert_eq!(study.design, TrialDesign::seed());
         assert_eq!(study.classes, FaultClass::ALL);
-        assert_ne!(study.training.seed, study.seed);
+        assert_ne!(study.training.seed, study.header.seed);
     }
 
     #[test]

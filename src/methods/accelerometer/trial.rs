@@ -71,7 +71,7 @@ impl TrainedClassifiers {
             Classifier::train(scheme, &examples, study.design.features, t.svm).map_err(|e| format!("training: {e}"))
         };
         Ok(TrainedClassifiers {
-            study: study.name.clone(),
+            study: study.header.name.clone(),
             training_seed: t.seed,
             trials_per_class: t.trials_per_class,
             noise_scales: t.noise_scales.clone(),
@@ -136,6 +136,7 @@ pub struct AccelTrialResult {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::engine::deck::FromDeck;
     use crate::fault::FaultMode;
     use crate::methods::accelerometer::AccelerometerTrials;
     use std::path::Path;
@@ -148,7 +149,7 @@ mod tests {
             AccelerometerStudy::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed003_accelerometer.toml"))
                 .unwrap();
         let classifiers = TrainedClassifiers {
-            study: study.name.clone(),
+            study: study.header.name.clone(),
             training_seed: 0,
             trials_per_class: 0,
             noise_scales: vec![1.0],

@@ -8,11 +8,11 @@ use crate::engine::runner::RunError;
 
 /// The resolved air-data study (method 002).
 pub fn validate(study: &AirDataStudy) -> Result<(), RunError> {
-    println!("{}: valid", study.path.display());
-    let samples = (study.duration_s / study.dt_s).round();
+    println!("{}: valid", study.header.path.display());
+    let samples = (study.header.duration_s / study.header.dt_s).round();
     println!(
         "study       {} (seed {}, {} s at dt {} s = {samples} samples)",
-        study.name, study.seed, study.duration_s, study.dt_s
+        study.header.name, study.header.seed, study.header.duration_s, study.header.dt_s
     );
     let p = &study.profile;
     println!(
@@ -62,7 +62,12 @@ pub fn validate(study: &AirDataStudy) -> Result<(), RunError> {
     let mc = &study.monte_carlo;
     println!(
         "monte carlo {} trials, fault-free fraction {}, sampler {:?}, onset {:?} s, noise scale {:?}, gust {:?} m/s",
-        mc.trials, mc.fault_free_fraction, mc.sampler, mc.onset_s, mc.noise_scale, mc.gust_std_mps
+        mc.common.trials,
+        mc.common.fault_free_fraction,
+        mc.common.sampler,
+        mc.common.onset_s,
+        mc.common.noise_scale,
+        mc.gust_std_mps
     );
     let sets: Vec<String> = mc.output_sets.iter().map(|s| crate::methods::air_data::records::sensor_set(s)).collect();
     println!("            sensor sets [{}]", sets.join(", "));
@@ -86,7 +91,7 @@ pub fn simulate(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &
         let d = study.detectors.iter().find(|d| d.name == name).ok_or_else(|| {
             RunError::Invalid(format!(
                 "--detector {name:?}: {} has detectors {}",
-                study.path.display(),
+                study.header.path.display(),
                 names.join(", ")
             ))
         })?;
@@ -129,15 +134,16 @@ pub fn simulate(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &
             col.1.push(v);
         }
     });
-    let outcomes =
-        result.outcome.map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.path.display())))?;
+    let outcomes = result
+        .outcome
+        .map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.header.path.display())))?;
     let trace = Trace { float_columns: floats, bool_columns: bools };
     let mut df = trace_frame(&trace).map_err(|e| RunError::Internal(e.to_string()))?;
     write_table(&mut df, out)?;
     let spec = &result.spec;
     println!(
         "{}: trial {trial}, {} detector(s), {} samples -> {}",
-        study.name,
+        study.header.name,
         selected.detectors.len(),
         df.height(),
         out.display()

@@ -60,6 +60,7 @@ use rand::Rng;
 use rand_distr::{Distribution, StandardNormal};
 use thiserror::Error;
 
+use crate::checks::{ValueError, finite, non_negative, positive, sensor_faults};
 use crate::fault::{ActiveFaults, SensorFault};
 use crate::kinematics::GRAVITY_MPS2;
 pub use crate::kinematics::body_from_ned;
@@ -538,12 +539,8 @@ impl ScenarioParams {
 /// Why a scenario cannot be built.
 #[derive(Debug, Clone, PartialEq, Error)]
 pub enum ScenarioError {
-    #[error("{field} must be finite, got {value}")]
-    NotFinite { field: &'static str, value: f64 },
-    #[error("{field} must be positive, got {value}")]
-    NotPositive { field: &'static str, value: f64 },
-    #[error("{field} must not be negative, got {value}")]
-    Negative { field: &'static str, value: f64 },
+    #[error(transparent)]
+    Value(#[from] ValueError),
     #[error("profile segment {index} needs a finite start and amplitude and a positive duration: {segment:?}")]
     Segment { index: usize, segment: ProfileSegment },
     #[error(
@@ -551,24 +548,6 @@ pub enum ScenarioError {
              within {MAX_ANGLE_RAD} rad"
     )]
     Envelope { field: &'static str, extreme: f64 },
-    #[error("fault {index} is on channel {channel}; air-data channels are 0 (airspeed), 1 (alpha), 2 (beta)")]
-    FaultChannel { index: usize, channel: usize },
-    #[error("fault {index}: onset {onset_s} s is not finite")]
-    FaultOnset { index: usize, onset_s: f64 },
-}
-
-fn finite(field: &'static str, value: f64) -> Result<(), ScenarioError> {
-    if value.is_finite() { Ok(()) } else { Err(ScenarioError::NotFinite { field, value }) }
-}
-
-fn positive(field: &'static str, value: f64) -> Result<(), ScenarioError> {
-    finite(field, value)?;
-    if value > 0.0 { Ok(()) } else { Err(ScenarioError::NotPositive { field, value }) }
-}
-
-fn non_negative(field: &'static str, value: f64) -> Result<(), ScenarioError> {
-    finite(field, value)?;
-    if value >= 0.0 { Ok(()) } else { Err(ScenarioError::Negative { field, value }) }
 }
 
 /// What the generator knows at a sample besides the measurements.
@@ -636,14 +615,7 @@ impl AirDataScenario {
             finite(field, value)?;
         }
         params.profile.validate()?;
-        for (index, f) in params.faults.iter().enumerate() {
-            if f.channel > BETA {
-                return Err(ScenarioError::FaultChannel { index, channel: f.channel });
-            }
-            if !f.onset_s.is_finite() {
-                return Err(ScenarioError::FaultOnset { index, onset_s: f.onset_s });
-            }
-        }
+        sensor_faults(&params.faults, BETA + 1, "air-data channels are 0 (airspeed), 1 (alpha), 2 (beta)")?;
         let samples = (params.duration_s / params.dt_s).round().max(1.0) as usize;
         let heading_rad = params.profile.heading_rad;
         let previous_heading_rate_rad_s = kinematic_state(&params.profile, 0.0).heading_rate_rad_s;
@@ -961,14 +933,23 @@ mod tests {
             edit(&mut p);
             AirDataScenario::new(p).unwrap_err()
         };
-        assert_eq!(with(&|p| p.dt_s = 0.0), ScenarioError::NotPositive { field: "dt_s", value: 0.0 });
+        assert_eq!(
+            with(&|p| p.dt_s = 0.0),
+            ScenarioError::Value(ValueError::NotPositive { field: "dt_s", value: 0.0 })
+        );
         assert!(matches!(
             with(&|p| p.noise.alpha_std_rad = f64::NAN),
-            ScenarioError::NotFinite { field: "noise.alpha_std_rad", .. }
+            ScenarioError::Value(ValueError::NotFinite { field: "noise.alpha_std_rad", .. })
         ));
-        assert!(matches!(with(&|p| p.noise_scale = -1.0), ScenarioError::Negative { field: "noise_scale", .. }));
+        assert!(matches!(
+            with(&|p| p.noise_scale = -1.0),
+            ScenarioError::Value(ValueError::Negative { field: "noise_scale", .. })
+        ));
         let bad_fault = SensorFault { channel: 3, onset_s: 1.0, mode: FaultMode::TotalFailure };
-        assert_eq!(with(&|p| p.faults = vec![bad_fault]), ScenarioError::FaultChannel { index: 0, channel: 3 });
+        assert!(matches!(
+            with(&|p| p.faults = vec![bad_fault]),
+            ScenarioError::Value(ValueError::FaultChannel { index: 0, channel: 3, .. })
+        ));
         assert!(matches!(
             with(&|p| p.profile.airspeed_mps = 14.0),
             ScenarioError::Envelope { field: "airspeed_mps", .. }

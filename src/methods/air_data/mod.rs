@@ -10,7 +10,7 @@ pub mod trial;
 
 use std::path::Path;
 
-use crate::engine::deck::DeckError;
+use crate::engine::deck::FromDeck;
 use crate::engine::method::{Extra, Inputs, Isolates, Method, Study, SummarySpec};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
@@ -24,55 +24,43 @@ use trial::*;
 pub const KIND: &str = "air_data";
 
 /// Method 002: the registry's entry.
-pub struct AirDataMethod;
-
-impl Method for AirDataMethod {
-    fn kind(&self) -> &'static str {
-        KIND
-    }
-    fn marker(&self) -> &'static str {
-        "flight"
-    }
-    fn title(&self) -> &'static str {
-        "dual-model UKF on air-data sensors, chi-square isolation (method 002)"
-    }
-    fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
-        Ok(Box::new(AirDataStudy::from_toml(text, path)?))
-    }
-    fn summary(&self) -> SummarySpec {
-        use records::col;
-        SummarySpec {
-            extra_keys: &[col::GUST_BIN],
-            isolates: Isolates::Target,
-            extras: &[
-                Extra::Count { name: "repaired", column: col::COVARIANCE_REPAIRS },
-                Extra::Quantile { name: "bias_error_p50_sigma", column: col::BIAS_ERROR_RMS_SIGMA, p: 0.5, abs: false },
-                Extra::Quantile { name: "estimate_rms_p50_sigma", column: col::ESTIMATE_RMS_SIGMA, p: 0.5, abs: false },
-                Extra::Quantile { name: "raw_rms_p50_sigma", column: col::RAW_RMS_SIGMA, p: 0.5, abs: false },
-            ],
-            paired_delays: &[],
-            printed: &[
-                ("bias err σ", "bias_error_p50_sigma"),
-                ("air data σ", "estimate_rms_p50_sigma"),
-                ("raw σ", "raw_rms_p50_sigma"),
-            ],
-        }
-    }
-}
+pub static METHOD: Method = Method {
+    kind: KIND,
+    marker: "flight",
+    title: "dual-model UKF on air-data sensors, chi-square isolation (method 002)",
+    options: &[],
+    load: |text, path| Ok(Box::new(AirDataStudy::from_toml(text, path)?)),
+    summary: SummarySpec {
+        extra_keys: &[records::col::GUST_BIN],
+        isolates: Isolates::Target,
+        extras: &[
+            Extra::Count { name: "repaired", column: records::col::COVARIANCE_REPAIRS },
+            Extra::Quantile {
+                name: "bias_error_p50_sigma",
+                column: records::col::BIAS_ERROR_RMS_SIGMA,
+                p: 0.5,
+                abs: false,
+            },
+            Extra::Quantile {
+                name: "estimate_rms_p50_sigma",
+                column: records::col::ESTIMATE_RMS_SIGMA,
+                p: 0.5,
+                abs: false,
+            },
+            Extra::Quantile { name: "raw_rms_p50_sigma", column: records::col::RAW_RMS_SIGMA, p: 0.5, abs: false },
+        ],
+        paired_delays: &[],
+        printed: &[
+            ("bias err σ", "bias_error_p50_sigma"),
+            ("air data σ", "estimate_rms_p50_sigma"),
+            ("raw σ", "raw_rms_p50_sigma"),
+        ],
+    },
+    report: None,
+};
 
 impl Study for AirDataStudy {
-    fn name(&self) -> &str {
-        &self.name
-    }
-    fn trials(&self) -> u64 {
-        self.monte_carlo.trials
-    }
-    fn set_trials(&mut self, trials: u64) {
-        self.monte_carlo.trials = trials;
-    }
-    fn set_seed(&mut self, seed: u64) {
-        self.seed = seed;
-    }
+    crate::study_accessors!(monte_carlo.common.trials);
     fn validate(&self) -> Result<(), RunError> {
         commands::validate(self)
     }
@@ -102,9 +90,9 @@ impl<'a> AirDataTrials<'a> {
         let units = s.monte_carlo.faults.iter().map(|f| (f.kind.name().to_string(), f.size_unit().to_string()));
         Manifest {
             kind: KIND.into(),
-            study: s.name.clone(),
-            seed: s.seed,
-            trials: s.monte_carlo.trials,
+            study: s.header.name.clone(),
+            seed: s.header.seed,
+            trials: s.monte_carlo.common.trials,
             detectors: s.detectors.iter().map(|d| d.name.clone()).collect(),
             outputs: AIR_DATA_CHANNEL_NAMES.iter().map(|n| n.to_string()).collect(),
             fault_size_units: units.collect(),
@@ -125,7 +113,7 @@ impl<'a> AirDataTrials<'a> {
         on_sample: impl FnMut(&AirDataSample, &[DualUkfStep]),
     ) -> AirDataTrialResult {
         let spec = self.sampler.spec(trial);
-        let mut rng = noise_rng(self.study.seed, trial, Substream::SensorNoise);
+        let mut rng = noise_rng(self.study.header.seed, trial, Substream::SensorNoise);
         let outcome = run_detectors(self.sampler.scenario(&spec), &spec, &self.study.detectors, &mut rng, on_sample);
         AirDataTrialResult { spec, outcome }
     }

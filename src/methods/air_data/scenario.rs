@@ -47,14 +47,17 @@ pub struct AirDataScenarioSampler<'a> {
 impl<'a> AirDataScenarioSampler<'a> {
     pub fn new(study: &'a AirDataStudy) -> Self {
         let mc = &study.monte_carlo;
-        AirDataScenarioSampler { study, units: UnitSampler::new(mc.sampler, mc.trials, study.seed, DIMS) }
+        AirDataScenarioSampler {
+            study,
+            units: UnitSampler::new(mc.common.sampler, mc.common.trials, study.header.seed, DIMS),
+        }
     }
 
     /// The scenario of trial `trial`.
     pub fn spec(&self, trial: u64) -> AirDataTrialSpec {
         let s = self.study;
         let mc = &s.monte_carlo;
-        let (fault_free, units) = self.units.draws(trial, mc.fault_free_fraction, DIMS);
+        let (fault_free, units) = self.units.draws(trial, mc.common.fault_free_fraction, DIMS);
         let mut grid = GridDigits::new(trial);
         let mut digit = |n: usize| grid.next(n);
 
@@ -67,8 +70,8 @@ impl<'a> AirDataScenarioSampler<'a> {
             };
             (spec, set, size)
         });
-        let (onset_s, _) = draw(&mc.onset_s, units[DIM_ONSET], &mut digit);
-        let (noise_scale, noise_bin) = draw(&mc.noise_scale, units[DIM_NOISE], &mut digit);
+        let (onset_s, _) = draw(&mc.common.onset_s, units[DIM_ONSET], &mut digit);
+        let (noise_scale, noise_bin) = draw(&mc.common.noise_scale, units[DIM_NOISE], &mut digit);
         let (gust_std_mps, gust_bin) = draw(&mc.gust_std_mps, units[DIM_GUST], &mut digit);
         let mut spec = AirDataTrialSpec {
             trial,
@@ -123,8 +126,8 @@ impl<'a> AirDataScenarioSampler<'a> {
     pub fn scenario(&self, spec: &AirDataTrialSpec) -> ScenarioParams {
         let s = self.study;
         ScenarioParams {
-            dt_s: s.dt_s,
-            duration_s: s.duration_s,
+            dt_s: s.header.dt_s,
+            duration_s: s.header.duration_s,
             profile: s.profile.clone(),
             noise: s.noise,
             noise_scale: spec.noise_scale,
@@ -137,6 +140,7 @@ impl<'a> AirDataScenarioSampler<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::engine::deck::FromDeck;
     use crate::fault::FaultMode;
     use std::path::Path;
 

@@ -25,13 +25,13 @@
 //! (in sigmas, each sensor's own): a common-mode fault when the set has two or three sensors. Faults
 //! last to the end of the flight.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::engine::deck::{FactorSpec, StudySection};
+use crate::engine::deck::{FactorSpec, FromDeck, StudyHeader, StudySection};
 
-use crate::engine::deck::{DeckError, Factor, Sampler, Validator, parse_deck, read_deck};
+use crate::engine::deck::{DeckError, Factor, MonteCarlo, MonteCarloRules, Validator, parse_deck};
 use crate::fault::SensorFault;
 use crate::fault::deck::FaultKindSpec;
 use crate::fault::deck::{FaultKindSection, FaultSection};
@@ -50,7 +50,7 @@ struct AirDataDeck {
     detector: Vec<DetectorSection>,
     #[serde(default)]
     faults: Vec<FaultSection>,
-    monte_carlo: Option<MonteCarloSection>,
+    monte_carlo: Option<crate::engine::deck::MonteCarloSection>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -93,15 +93,10 @@ struct DetectorSection {
     isolation_delay_s: Option<f64>,
 }
 
-#[derive(Debug, Deserialize)]
+/// `[monte_carlo]`'s own fields in air-data decks.
+#[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct MonteCarloSection {
-    trials: u64,
-    #[serde(default)]
-    fault_free_fraction: f64,
-    sampler: Option<String>,
-    onset_s: Option<FactorSpec>,
-    noise_scale: Option<FactorSpec>,
+struct MonteCarloOwn {
     gust_std_mps: Option<FactorSpec>,
     output_sets: Option<Vec<Vec<String>>>,
     #[serde(default)]
@@ -120,12 +115,7 @@ pub struct AirDataDetector {
 /// The Monte Carlo section of an air-data study.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AirDataMonteCarlo {
-    pub trials: u64,
-    pub fault_free_fraction: f64,
-    pub sampler: Sampler,
-    pub onset_s: Factor,
-    /// Factor on every sensor standard deviation.
-    pub noise_scale: Factor,
+    pub common: MonteCarlo,
     /// Stationary standard deviation of the gust (m/s).
     pub gust_std_mps: Factor,
     /// Sensor sets a fault hits together (indices into [`AIR_DATA_CHANNEL_NAMES`], ascending).
@@ -137,11 +127,7 @@ pub struct AirDataMonteCarlo {
 /// A validated air-data study.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AirDataStudy {
-    pub path: PathBuf,
-    pub name: String,
-    pub seed: u64,
-    pub duration_s: f64,
-    pub dt_s: f64,
+    pub header: StudyHeader,
     pub profile_name: String,
     pub profile: FlightProfile,
     pub noise: SensorNoise,
@@ -151,16 +137,12 @@ pub struct AirDataStudy {
     pub monte_carlo: AirDataMonteCarlo,
 }
 
-impl AirDataStudy {
-    pub fn load(path: &Path) -> Result<AirDataStudy, DeckError> {
-        let text = read_deck(path)?;
-        Self::from_toml(&text, path)
-    }
-
-    pub fn from_toml(text: &str, path: &Path) -> Result<AirDataStudy, DeckError> {
+impl FromDeck for AirDataStudy {
+    fn from_toml(text: &str, path: &Path) -> Result<AirDataStudy, DeckError> {
         let deck: AirDataDeck = parse_deck(text, path)?;
         let v = Validator { file: path };
-        let (duration_s, dt_s, _) = v.study_section(&deck.study)?;
+        let header = v.study_section(&deck.study)?;
+        let (duration_s, dt_s) = (header.duration_s, header.dt_s);
 
         let f = &deck.flight;
         let scale = v.finite("flight.manoeuvre_scale", f.manoeuvre_scale.unwrap_or(1.0))?;
@@ -267,10 +249,10 @@ impl AirDataStudy {
         }
 
         let monte_carlo =
-            monte_carlo(&v, deck.monte_carlo.as_ref(), duration_s, &outputs, !faults.is_empty(), wind.gust_std_mps)?;
+            monte_carlo(&v, deck.monte_carlo, duration_s, &outputs, !faults.is_empty(), wind.gust_std_mps)?;
 
         // The scenario checks what the deck cannot see field by field (the profile's envelope).
-        let worst_noise = [&monte_carlo.noise_scale, &monte_carlo.gust_std_mps].map(factor_max);
+        let worst_noise = [&monte_carlo.common.noise_scale, &monte_carlo.gust_std_mps].map(factor_max);
         let params = ScenarioParams {
             dt_s,
             duration_s,
@@ -283,11 +265,7 @@ impl AirDataStudy {
         AirDataScenario::new(params).map_err(|e| v.err("flight", e.to_string()))?;
 
         Ok(AirDataStudy {
-            path: path.into(),
-            name: deck.study.name.clone(),
-            seed: deck.study.seed,
-            duration_s,
-            dt_s,
+            header,
             profile_name: f.profile.clone(),
             profile,
             noise,
@@ -297,7 +275,9 @@ impl AirDataStudy {
             monte_carlo,
         })
     }
+}
 
+impl AirDataStudy {
     /// The output names (channels a fault may hit).
     pub fn output_names(&self) -> Vec<String> {
         AIR_DATA_CHANNEL_NAMES.iter().map(|s| s.to_string()).collect()
@@ -316,40 +296,30 @@ fn factor_max(f: &Factor) -> f64 {
 /// Validates `[monte_carlo]`; without one, 1000 trials of the deck's `[[faults]]`.
 fn monte_carlo(
     v: &Validator,
-    mc: Option<&MonteCarloSection>,
+    mc: Option<crate::engine::deck::MonteCarloSection>,
     duration_s: f64,
     outputs: &[String],
     fixed_faults: bool,
     deck_gust_std_mps: f64,
 ) -> Result<AirDataMonteCarlo, DeckError> {
-    let Some(mc) = mc else {
-        return Ok(AirDataMonteCarlo {
-            trials: 1000,
-            fault_free_fraction: 0.0,
-            sampler: Sampler::Random,
-            onset_s: Factor::Fixed(duration_s / 3.0),
-            noise_scale: Factor::Fixed(1.0),
-            gust_std_mps: Factor::Fixed(deck_gust_std_mps),
-            output_sets: (0..outputs.len()).map(|j| vec![j]).collect(),
-            faults: Vec::new(),
-        });
+    let rules = MonteCarloRules {
+        decks: "air-data decks",
+        duration_s,
+        fault_free_fraction: true,
+        sampler: true,
+        target_pfa: false,
+        onset_s: true,
+        noise_ranges: true,
+        parameter_errors: None,
     };
-    let trials = v.trials("monte_carlo.trials", mc.trials)?;
-    let fault_free_fraction = v.fraction("monte_carlo.fault_free_fraction", mc.fault_free_fraction)?;
-    let sampler = v.sampler("monte_carlo.sampler", mc.sampler.as_deref())?;
-    let onset_s = v.factor("monte_carlo.onset_s", mc.onset_s.as_ref(), Factor::Fixed(duration_s / 3.0))?;
-    v.factor_within(
-        "monte_carlo.onset_s",
-        &onset_s,
-        |t| t >= 0.0 && t < duration_s,
-        &format!("0 <= onset_s < duration_s = {duration_s}"),
-    )?;
-    let noise_scale = v.factor("monte_carlo.noise_scale", mc.noise_scale.as_ref(), Factor::Fixed(1.0))?;
-    v.factor_within("monte_carlo.noise_scale", &noise_scale, |x| x >= 0.0, ">= 0")?;
+    let (common, own, _) = v.monte_carlo(mc, &rules, |_, _| Ok(()))?;
+    // Without [monte_carlo], every faulty trial flies the deck's [[faults]] (or none, if it has none).
+    let section_given = own.is_some();
+    let own: MonteCarloOwn = own.unwrap_or_default();
     let gust_std_mps =
-        v.factor("monte_carlo.gust_std_mps", mc.gust_std_mps.as_ref(), Factor::Fixed(deck_gust_std_mps))?;
+        v.factor("monte_carlo.gust_std_mps", own.gust_std_mps.as_ref(), Factor::Fixed(deck_gust_std_mps))?;
     v.factor_within("monte_carlo.gust_std_mps", &gust_std_mps, |x| x >= 0.0, ">= 0 m/s (0: calm air)")?;
-    let output_sets = match &mc.output_sets {
+    let output_sets = match &own.output_sets {
         None => (0..outputs.len()).map(|j| vec![j]).collect(),
         Some(sets) if sets.is_empty() => return Err(v.err("monte_carlo.output_sets", "list at least one set")),
         Some(sets) => {
@@ -373,28 +343,19 @@ fn monte_carlo(
             out
         }
     };
-    let faults = mc
+    let faults = own
         .fault
         .iter()
         .enumerate()
         .map(|(i, f)| v.fault_kind_spec(&format!("monte_carlo.fault[{i}]"), f))
         .collect::<Result<Vec<_>, _>>()?;
-    if faults.is_empty() && !fixed_faults && fault_free_fraction < 1.0 {
+    if section_given && faults.is_empty() && !fixed_faults && common.fault_free_fraction < 1.0 {
         return Err(v.err(
             "monte_carlo.fault",
             "faulty trials need a fault: add [[monte_carlo.fault]] or [[faults]], or set fault_free_fraction = 1",
         ));
     }
-    Ok(AirDataMonteCarlo {
-        trials,
-        fault_free_fraction,
-        sampler,
-        onset_s,
-        noise_scale,
-        gust_std_mps,
-        output_sets,
-        faults,
-    })
+    Ok(AirDataMonteCarlo { common, gust_std_mps, output_sets, faults })
 }
 
 #[cfg(test)]
@@ -408,7 +369,7 @@ mod tests {
     #[test]
     fn the_seed_deck_reads_as_documented() {
         let study = AirDataStudy::from_toml(&deck(), Path::new("seed002_air_data.toml")).unwrap();
-        assert_eq!((study.duration_s, study.dt_s), (60.0, 0.01));
+        assert_eq!((study.header.duration_s, study.header.dt_s), (60.0, 0.01));
         assert_eq!(study.profile, FlightProfile::seed());
         assert_eq!(study.noise, SensorNoise::seed());
         let mc = &study.monte_carlo;

@@ -18,7 +18,7 @@ fn design_error(deck: &Path, what: &str, e: DesignError) -> RunError {
 
 /// `fdimc design`: gains, closed-loop eigenvalues, conditioning and bias signatures per detector.
 pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
-    let deck = &study.source;
+    let deck = &study.header.path;
     let ranks = study
         .design_plant
         .structural_ranks()
@@ -26,7 +26,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
     let p = &study.design_plant;
     let mut filters = Vec::with_capacity(study.detectors.len());
     for d in &study.detectors {
-        let f = d.params.design(&study.design_plant, study.dt_s).map_err(|e| design_error(deck, &d.name, e))?;
+        let f = d.params.design(&study.design_plant, study.header.dt_s).map_err(|e| design_error(deck, &d.name, e))?;
         filters.push(f);
     }
 
@@ -58,8 +58,8 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
             .collect();
         let doc = json!({
             "deck": deck.display().to_string(),
-            "study": study.name,
-            "dt_s": study.dt_s,
+            "study": study.header.name,
+            "dt_s": study.header.dt_s,
             "states": p.state_names,
             "outputs": p.output_names,
             "ranks": ranks,
@@ -69,7 +69,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
         return Ok(());
     }
 
-    println!("{}: {}", deck.display(), study.name);
+    println!("{}: {}", deck.display(), study.header.name);
     println!(
         "rank ctrb(A, B) = {} of {}, rank obsv(A, C) = {} of {}",
         ranks.controllability_rank, ranks.states, ranks.observability_rank, ranks.states
@@ -80,7 +80,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
             d.name,
             d.params.eigenvalues_per_s.iter().map(|l| format!("{l}")).collect::<Vec<_>>().join(", ")
         );
-        let discrete_label = format!("discrete time, dt = {} s", study.dt_s);
+        let discrete_label = format!("discrete time, dt = {} s", study.header.dt_s);
         for (label, a) in [("continuous time", &filter.continuous), (discrete_label.as_str(), &filter.discrete)] {
             println!(
                 "{label}: K (rows: states {}; columns: outputs {})",
@@ -105,10 +105,11 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
 
 /// `fdimc validate`: the plant, its ranks, the detectors' designs and the Monte Carlo study.
 pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
-    let deck = &study.source;
+    let deck = &study.header.path;
     let mut filters = Vec::with_capacity(study.detectors.len());
     for d in &study.detectors {
-        filters.push(d.params.design(&study.design_plant, study.dt_s).map_err(|e| design_error(deck, &d.name, e))?);
+        filters
+            .push(d.params.design(&study.design_plant, study.header.dt_s).map_err(|e| design_error(deck, &d.name, e))?);
     }
     let p = &study.plant;
     let ranks = p
@@ -120,7 +121,7 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
     println!("{}: valid", deck.display());
     println!(
         "study       {} (seed {}, {} s at dt {} s = {} samples)",
-        study.name, study.seed, study.duration_s, study.dt_s, study.steps
+        study.header.name, study.header.seed, study.header.duration_s, study.header.dt_s, study.header.steps
     );
     println!("plant       {} states [{}]", p.n_states(), list(&p.state_names));
     println!("            {} inputs [{}]", p.n_inputs(), list(&p.input_names));
@@ -181,15 +182,15 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
     let mc = &study.monte_carlo;
     println!(
         "monte carlo {} trials, fault-free fraction {}, sampler {:?}, target Pfa {}",
-        mc.trials, mc.fault_free_fraction, mc.sampler, mc.target_pfa
+        mc.common.trials, mc.common.fault_free_fraction, mc.common.sampler, mc.common.target_pfa
     );
     if !mc.faults.is_empty() {
         let outs: Vec<&str> = mc.outputs.iter().map(|&j| p.output_names[j].as_str()).collect();
         println!(
             "            faults on [{}], onset {:?}, noise scale {:?}",
             outs.join(", "),
-            mc.onset_s,
-            mc.noise_scale
+            mc.common.onset_s,
+            mc.common.noise_scale
         );
         for f in &mc.faults {
             println!("            fault kind {}: size {:?}", f.kind.name(), f.size);
@@ -212,7 +213,7 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
 
 /// `fdimc simulate`: one trial of one detector configuration, every sample.
 pub fn simulate(study: &LtiStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), RunError> {
-    let deck = &study.source;
+    let deck = &study.header.path;
     let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
     let index = match detector {
         None => 0,
@@ -229,7 +230,13 @@ pub fn simulate(study: &LtiStudy, trial: u64, detector: Option<&str>, out: &Path
     write_table(&mut df, out)?;
 
     let outputs = &study.plant.output_names;
-    println!("{}: trial {trial}, detector {}, {} samples -> {}", study.name, names[index], study.steps, out.display());
+    println!(
+        "{}: trial {trial}, detector {}, {} samples -> {}",
+        study.header.name,
+        names[index],
+        study.header.steps,
+        out.display()
+    );
     match spec.output {
         Some(j) => {
             println!("  fault               {} {} size {} from {} s", outputs[j], spec.kind, spec.size, spec.onset_s)

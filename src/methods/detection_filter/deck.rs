@@ -4,8 +4,8 @@
 
 use serde::Deserialize;
 
-use crate::engine::deck::{FactorSpec, StudySection};
-use crate::fault::deck::{FaultKindSection, FaultSection};
+use crate::engine::deck::StudySection;
+use crate::fault::deck::FaultSection;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -20,7 +20,7 @@ pub struct Deck {
     pub detector: Vec<DetectorSection>,
     #[serde(default)]
     pub faults: Vec<FaultSection>,
-    pub monte_carlo: Option<MonteCarloSection>,
+    pub monte_carlo: Option<crate::engine::deck::MonteCarloSection>,
 }
 
 /// Matrices are lists of rows.
@@ -80,32 +80,4 @@ pub struct DetectorSection {
     pub thresholds: Vec<f64>,
     pub isolation_delay_s: Option<f64>,
     pub isolation_window_s: Option<f64>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct MonteCarloSection {
-    pub trials: u64,
-    #[serde(default)]
-    pub fault_free_fraction: f64,
-    pub sampler: Option<String>,
-    pub target_pfa: Option<f64>,
-    pub outputs: Option<Vec<String>>,
-    pub onset_s: Option<FactorSpec>,
-    pub noise_scale: Option<FactorSpec>,
-    #[serde(default)]
-    pub fault: Vec<FaultKindSection>,
-    #[serde(default)]
-    pub parameter_error: Vec<ParameterErrorSection>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ParameterErrorSection {
-    pub name: String,
-    pub model: String,
-    pub matrix: String,
-    pub entries: Vec<(String, String)>,
-    pub relative: Option<FactorSpec>,
-    pub absolute: Option<FactorSpec>,
 }

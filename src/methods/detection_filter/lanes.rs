@@ -79,7 +79,8 @@ fn run_lanes_in(
     // Idle lanes repeat the last trial; their results are dropped.
     let spec = |l: usize| &specs[l.min(specs.len() - 1)];
     let has_process_noise = s.process_sigma_per_step.iter().any(|&v| v > 0.0);
-    let normals = |substream| LaneNormals::new(std::array::from_fn(|l| noise_rng(s.seed, spec(l).trial, substream)));
+    let normals =
+        |substream| LaneNormals::new(std::array::from_fn(|l| noise_rng(s.header.seed, spec(l).trial, substream)));
     let mut sensor_normals = normals(Substream::SensorNoise);
     let mut process_normals = has_process_noise.then(|| normals(Substream::ProcessNoise));
     let mut draws = vec![[0.0; LANES]; ny.max(n)];
@@ -98,8 +99,8 @@ fn run_lanes_in(
         .map(|d| LaneState { filter: FilterState::new(&x0, nu, ny), tracker: LaneTracker::new(d, onset_s, ny) })
         .collect();
 
-    for k in 0..s.steps {
-        let t = k as f64 * s.dt_s;
+    for k in 0..s.header.steps {
+        let t = k as f64 * s.header.dt_s;
         r.fill(0.0);
         for e in &s.excitations {
             r[e.input] += e.value(t);

@@ -17,7 +17,7 @@ use polars::prelude::*;
 
 use std::path::Path;
 
-use crate::engine::deck::DeckError;
+use crate::engine::deck::FromDeck;
 use crate::engine::method::{Extra, Inputs, Isolates, Method, Opt, Study, SummarySpec};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use kernel::LANES;
@@ -28,67 +28,33 @@ use study::LtiStudy;
 pub const KIND: &str = "detection_filter";
 
 /// Method 000: the registry's entry.
-pub struct DetectionFilters;
-
-impl Method for DetectionFilters {
-    fn kind(&self) -> &'static str {
-        KIND
-    }
-    fn marker(&self) -> &'static str {
-        "plant"
-    }
-    fn title(&self) -> &'static str {
-        "eigenstructure-assigned detection filters on an LTI plant, sensor faults (method 000)"
-    }
-    fn options(&self) -> &'static [Opt] {
-        &[Opt::Thresholds, Opt::Design, Opt::Report]
-    }
-    fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
-        Ok(Box::new(LtiStudy::from_toml(text, path)?))
-    }
-    fn summary(&self) -> SummarySpec {
-        SummarySpec {
-            extra_keys: &[],
-            isolates: Isolates::Target,
-            // Isolation by the largest threshold-scaled residual, beside the signature rule's `isolated`.
-            extras: &[
-                Extra::NamesTarget { name: "isolated_by_max_correctly", column: "isolated_by_max" },
-                Extra::Rate {
-                    name: "isolation_by_max_accuracy",
-                    k: "isolated_by_max_correctly",
-                    n: "isolation_decided",
-                    faulty_only: false,
-                },
-            ],
-            paired_delays: &[],
-            printed: &[],
-        }
-    }
-    fn report(&self, dir: &Path, trials: &[u64]) -> Result<(), RunError> {
-        let report = report::write_report(dir, trials)?;
-        for w in &report.warnings {
-            println!("warning: {w}");
-        }
-        if let Some(page) = report.files.last() {
-            println!("{} plots -> {}", report.files.len() - 1, page.display());
-        }
-        Ok(())
-    }
-}
+pub static METHOD: Method = Method {
+    kind: KIND,
+    marker: "plant",
+    title: "eigenstructure-assigned detection filters on an LTI plant, sensor faults (method 000)",
+    options: &[Opt::Thresholds, Opt::Design, Opt::Report],
+    load: |text, path| Ok(Box::new(LtiStudy::from_toml(text, path)?)),
+    summary: SummarySpec {
+        extra_keys: &[],
+        isolates: Isolates::Target,
+        // Isolation by the largest threshold-scaled residual, beside the signature rule's `isolated`.
+        extras: &[
+            Extra::NamesTarget { name: "isolated_by_max_correctly", column: "isolated_by_max" },
+            Extra::Rate {
+                name: "isolation_by_max_accuracy",
+                k: "isolated_by_max_correctly",
+                n: "isolation_decided",
+                faulty_only: false,
+            },
+        ],
+        paired_delays: &[],
+        printed: &[],
+    },
+    report: Some(report_run),
+};
 
 impl Study for LtiStudy {
-    fn name(&self) -> &str {
-        &self.name
-    }
-    fn trials(&self) -> u64 {
-        self.monte_carlo.trials
-    }
-    fn set_trials(&mut self, trials: u64) {
-        self.monte_carlo.trials = trials;
-    }
-    fn set_seed(&mut self, seed: u64) {
-        self.seed = seed;
-    }
+    crate::study_accessors!(monte_carlo.common.trials);
     fn validate(&self) -> Result<(), RunError> {
         commands::validate(self)
     }
@@ -104,6 +70,18 @@ impl Study for LtiStudy {
 }
 use trials::{Engine, TrialResult};
 
+/// `fdimc report`: the plots and page of [`report::write_report`], and what it wrote.
+fn report_run(dir: &Path, trials: &[u64]) -> Result<(), RunError> {
+    let report = report::write_report(dir, trials)?;
+    for w in &report.warnings {
+        println!("warning: {w}");
+    }
+    if let Some(page) = report.files.last() {
+        println!("{} plots -> {}", report.files.len() - 1, page.display());
+    }
+    Ok(())
+}
+
 /// Runs an LTI study (method 000) through [`run`]; a detector that cannot be designed on the nominal
 /// model is the deck's error (with parameter errors, per-trial design failures are rows instead).
 pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunError> {
@@ -117,13 +95,13 @@ pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunEr
     }
     let manifest = Manifest {
         kind: KIND.into(),
-        study: study.name.clone(),
-        seed: study.seed,
-        trials: study.monte_carlo.trials,
+        study: study.header.name.clone(),
+        seed: study.header.seed,
+        trials: study.monte_carlo.common.trials,
         detectors: study.detectors.iter().map(|d| d.name.clone()).collect(),
         outputs: study.plant.output_names.clone(),
         deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
-        target_pfa: study.monte_carlo.target_pfa,
+        target_pfa: study.monte_carlo.common.target_pfa,
         fault_size_units: fault_size_units(study),
         ..Manifest::unstarted()
     };

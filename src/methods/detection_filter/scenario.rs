@@ -48,7 +48,7 @@ impl<'a> ScenarioSampler<'a> {
     pub fn new(study: &'a LtiStudy) -> Self {
         let mc = &study.monte_carlo;
         let dims = DIM_PARAMETERS + mc.parameter_errors.len();
-        ScenarioSampler { study, units: UnitSampler::new(mc.sampler, mc.trials, study.seed, dims) }
+        ScenarioSampler { study, units: UnitSampler::new(mc.common.sampler, mc.common.trials, study.header.seed, dims) }
     }
 
     /// The scenario of trial `trial`.
@@ -56,7 +56,7 @@ impl<'a> ScenarioSampler<'a> {
         let s = self.study;
         let mc = &s.monte_carlo;
         let (fault_free, units) =
-            self.units.draws(trial, mc.fault_free_fraction, DIM_PARAMETERS + mc.parameter_errors.len());
+            self.units.draws(trial, mc.common.fault_free_fraction, DIM_PARAMETERS + mc.parameter_errors.len());
         let mut grid = GridDigits::new(trial);
         let mut digit = |n: usize| grid.next(n);
 
@@ -66,8 +66,8 @@ impl<'a> ScenarioSampler<'a> {
             SizeSpec::None => (f64::NAN, f64::NAN),
             SizeSpec::Output(f) | SizeSpec::SensorSigma(f) => draw(f, units[DIM_SIZE], &mut digit),
         });
-        let (onset, _) = draw(&mc.onset_s, units[DIM_ONSET], &mut digit);
-        let (noise_scale, noise_bin) = draw(&mc.noise_scale, units[DIM_NOISE], &mut digit);
+        let (onset, _) = draw(&mc.common.onset_s, units[DIM_ONSET], &mut digit);
+        let (noise_scale, noise_bin) = draw(&mc.common.noise_scale, units[DIM_NOISE], &mut digit);
         let mut parameter_errors = Vec::with_capacity(mc.parameter_errors.len());
         let mut parameter_error_bin = 0.0f64;
         for (k, pe) in mc.parameter_errors.iter().enumerate() {

@@ -1,11 +1,15 @@
 //! Detection-filter decks (method 000): the `[plant]` deck validated into a [`LtiStudy`] that cannot be invalid.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use nalgebra::{DMatrix, DVector};
 
 use super::deck::Deck;
-use crate::engine::deck::{DeckError, Factor, ModelTarget, Sampler, Validator, parse_deck, read_deck};
+use serde::Deserialize;
+
+use crate::engine::deck::{
+    DeckError, FromDeck, MonteCarlo, MonteCarloRules, MonteCarloSection, StudyHeader, Validator, parse_deck,
+};
 use crate::fault::SensorFault;
 use crate::fault::deck::FaultKindSpec;
 use crate::lti::LtiPlant;
@@ -71,13 +75,7 @@ pub struct DetectionFilterParams {
 /// A validated study: every dimension agrees, every number is finite and in range.
 #[derive(Debug, Clone)]
 pub struct LtiStudy {
-    pub source: PathBuf,
-    pub name: String,
-    pub seed: u64,
-    pub duration_s: f64,
-    pub dt_s: f64,
-    /// Number of samples, `round(duration_s / dt_s)`; sample k is at `k * dt_s`.
-    pub steps: usize,
+    pub header: StudyHeader,
     /// The true plant the trial simulates.
     pub plant: LtiPlant,
     /// The model the detector is designed on (equal to `plant` unless the deck says otherwise).
@@ -92,7 +90,7 @@ pub struct LtiStudy {
     pub detectors: Vec<DetectorConfig>,
     /// Faults of the deck's fixed scenario (`[[faults]]`); used when `monte_carlo.faults` is empty.
     pub faults: Vec<SensorFault>,
-    pub monte_carlo: MonteCarlo,
+    pub monte_carlo: LtiMonteCarlo,
 }
 
 /// A named detector configuration.
@@ -102,45 +100,29 @@ pub struct DetectorConfig {
     pub params: DetectionFilterParams,
 }
 
-/// (relative) or shifted by `value` (absolute, in the entry's units).
+/// What a parameter error perturbs: entries of `A` (or `B`), scaled by `1 + value` (relative) or shifted
+/// by `value` (absolute, in the entry's units).
 #[derive(Debug, Clone, PartialEq)]
-pub struct ParameterError {
-    pub name: String,
-    pub model: ModelTarget,
+pub struct MatrixEntries {
     pub matrix_b: bool,
     pub entries: Vec<(usize, usize)>,
-    pub absolute: bool,
-    pub value: Factor,
 }
+
+pub type ParameterError = crate::engine::deck::ParameterError<MatrixEntries>;
 
 /// The Monte Carlo part of a study.
 #[derive(Debug, Clone, PartialEq)]
-pub struct MonteCarlo {
-    pub trials: u64,
-    /// Probability that a trial has no fault (used to calibrate thresholds).
-    pub fault_free_fraction: f64,
-    pub sampler: Sampler,
-    /// Target false-alarm probability per trial for threshold calibration.
-    pub target_pfa: f64,
+pub struct LtiMonteCarlo {
+    pub common: MonteCarlo,
     /// Outputs a sampled fault may hit.
     pub outputs: Vec<usize>,
-    pub onset_s: Factor,
-    /// Multiplies every sensor sigma.
-    pub noise_scale: Factor,
     /// Sampled fault population; empty: every faulty trial has the deck's fixed `[[faults]]`.
     pub faults: Vec<FaultKindSpec>,
     pub parameter_errors: Vec<ParameterError>,
 }
 
-impl LtiStudy {
-    /// Reads, parses and validates a deck file.
-    pub fn load(path: &Path) -> Result<LtiStudy, DeckError> {
-        let text = read_deck(path)?;
-        LtiStudy::from_toml(&text, path)
-    }
-
-    /// Parses and validates deck text; `path` names it in messages.
-    pub fn from_toml(text: &str, path: &Path) -> Result<LtiStudy, DeckError> {
+impl FromDeck for LtiStudy {
+    fn from_toml(text: &str, path: &Path) -> Result<LtiStudy, DeckError> {
         let deck: Deck = parse_deck(text, path)?;
         study(&Validator { file: path }, deck)
     }
@@ -148,7 +130,8 @@ impl LtiStudy {
 
 fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
     let s = &deck.study;
-    let (duration_s, dt_s, steps) = chk.study_section(s)?;
+    let header = chk.study_section(s)?;
+    let (duration_s, _dt_s) = (header.duration_s, header.dt_s);
 
     let p = &deck.plant;
     chk.names("plant.states", &p.states)?;
@@ -263,7 +246,7 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
     for (i, f) in deck.faults.iter().enumerate() {
         faults.push(chk.fault(i, f, &p.outputs)?);
     }
-    let monte_carlo = monte_carlo(chk, deck.monte_carlo.as_ref(), &plant, duration_s)?;
+    let monte_carlo = monte_carlo(chk, deck.monte_carlo, &plant, duration_s)?;
     if !monte_carlo.faults.is_empty() && !faults.is_empty() {
         return Err(chk.err(
             "faults",
@@ -272,12 +255,7 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
     }
 
     Ok(LtiStudy {
-        source: chk.file.into(),
-        name: s.name.clone(),
-        seed: s.seed,
-        duration_s,
-        dt_s,
-        steps,
+        header,
         plant,
         design_plant,
         initial_state,
@@ -354,63 +332,43 @@ fn detector(
     })
 }
 
+/// `[monte_carlo]`'s own fields in detection-filter decks.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MonteCarloOwn {
+    outputs: Option<Vec<String>>,
+    #[serde(default)]
+    fault: Vec<crate::fault::deck::FaultKindSection>,
+}
+
+/// What a parameter error perturbs, as decks write it.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MatrixEntriesSection {
+    matrix: String,
+    entries: Vec<(String, String)>,
+}
+
 fn monte_carlo(
     chk: &Validator,
-    mc: Option<&super::deck::MonteCarloSection>,
+    mc: Option<MonteCarloSection>,
     plant: &LtiPlant,
     duration_s: f64,
-) -> Result<MonteCarlo, DeckError> {
-    let Some(mc) = mc else {
-        return Ok(MonteCarlo {
-            trials: 1000,
-            fault_free_fraction: 0.0,
-            sampler: Sampler::Random,
-            target_pfa: 0.01,
-            outputs: (0..plant.n_outputs()).collect(),
-            onset_s: Factor::Fixed(0.0),
-            noise_scale: Factor::Fixed(1.0),
-            faults: Vec::new(),
-            parameter_errors: Vec::new(),
-        });
+) -> Result<LtiMonteCarlo, DeckError> {
+    let rules = MonteCarloRules {
+        decks: "detection-filter decks",
+        duration_s,
+        fault_free_fraction: true,
+        sampler: true,
+        target_pfa: true,
+        onset_s: true,
+        noise_ranges: true,
+        parameter_errors: Some(true),
     };
-    chk.trials("monte_carlo.trials", mc.trials)?;
-    let fraction = chk.fraction("monte_carlo.fault_free_fraction", mc.fault_free_fraction)?;
-    let sampler = chk.sampler("monte_carlo.sampler", mc.sampler.as_deref())?;
-    let target_pfa = mc.target_pfa.unwrap_or(0.01);
-    if !(target_pfa > 0.0 && target_pfa < 1.0) {
-        return Err(chk.err("monte_carlo.target_pfa", format!("allowed 0 < p < 1, got {target_pfa}")));
-    }
-    let outputs = match &mc.outputs {
-        None => (0..plant.n_outputs()).collect(),
-        Some(names) if names.is_empty() => return Err(chk.err("monte_carlo.outputs", "name at least one output")),
-        Some(names) => names
-            .iter()
-            .enumerate()
-            .map(|(k, n)| chk.index_of(&format!("monte_carlo.outputs[{k}]"), n, &plant.output_names, "plant.outputs"))
-            .collect::<Result<Vec<_>, _>>()?,
-    };
-    let onset_s = chk.factor("monte_carlo.onset_s", mc.onset_s.as_ref(), Factor::Fixed(duration_s / 3.0))?;
-    chk.factor_within(
-        "monte_carlo.onset_s",
-        &onset_s,
-        |v| v >= 0.0 && v < duration_s,
-        &format!("0 <= onset_s < duration_s = {duration_s}"),
-    )?;
-    let noise_scale = chk.factor("monte_carlo.noise_scale", mc.noise_scale.as_ref(), Factor::Fixed(1.0))?;
-    chk.factor_within("monte_carlo.noise_scale", &noise_scale, |v| v >= 0.0, ">= 0")?;
-
-    let faults = mc
-        .fault
-        .iter()
-        .enumerate()
-        .map(|(i, f)| chk.fault_kind_spec(&format!("monte_carlo.fault[{i}]"), f))
-        .collect::<Result<Vec<_>, _>>()?;
-
-    let mut parameter_errors = Vec::with_capacity(mc.parameter_error.len());
-    for (i, pe) in mc.parameter_error.iter().enumerate() {
-        let field = |name: &str| format!("monte_carlo.parameter_error[{i}].{name}");
-        chk.column_name(&field("name"), &pe.name, mc.parameter_error[..i].iter().map(|o| o.name.as_str()))?;
-        let model = chk.model_target(&field("model"), &pe.model)?;
+    let (common, own, parameter_errors) = chk.monte_carlo(mc, &rules, |prefix, table| {
+        let field = |name: &str| format!("{prefix}.{name}");
+        let pe: MatrixEntriesSection =
+            toml::Value::Table(table).try_into().map_err(|e| chk.err(prefix, e.to_string().trim_end().to_string()))?;
         let (matrix_b, col_names, col_list) = match pe.matrix.as_str() {
             "a" => (false, &plant.state_names, "plant.states"),
             "b" => (true, &plant.input_names, "plant.inputs"),
@@ -426,32 +384,23 @@ fn monte_carlo(
             let c = chk.index_of(&f, col, col_names, col_list)?;
             entries.push((r, c));
         }
-        let (absolute, value) = match (&pe.relative, &pe.absolute) {
-            (Some(r), None) => {
-                let v = chk.factor(&field("relative"), Some(r), Factor::Fixed(0.0))?;
-                chk.factor_within(&field("relative"), &v, |x| x > -1.0 && x < 10.0, "-1 < relative < 10")?;
-                (false, v)
-            }
-            (None, Some(a)) => (true, chk.factor(&field("absolute"), Some(a), Factor::Fixed(0.0))?),
-            _ => {
-                return Err(chk.err(
-                    field("relative"),
-                    "give relative (a fraction: -0.1 = -10 %) or absolute (in the entries' units), one of them",
-                ));
-            }
-        };
-        parameter_errors.push(ParameterError { name: pe.name.clone(), model, matrix_b, entries, absolute, value });
-    }
-
-    Ok(MonteCarlo {
-        trials: mc.trials,
-        fault_free_fraction: fraction,
-        sampler,
-        target_pfa,
-        outputs,
-        onset_s,
-        noise_scale,
-        faults,
-        parameter_errors,
-    })
+        Ok(MatrixEntries { matrix_b, entries })
+    })?;
+    let own: MonteCarloOwn = own.unwrap_or(MonteCarloOwn { outputs: None, fault: Vec::new() });
+    let outputs = match &own.outputs {
+        None => (0..plant.n_outputs()).collect(),
+        Some(names) if names.is_empty() => return Err(chk.err("monte_carlo.outputs", "name at least one output")),
+        Some(names) => names
+            .iter()
+            .enumerate()
+            .map(|(k, n)| chk.index_of(&format!("monte_carlo.outputs[{k}]"), n, &plant.output_names, "plant.outputs"))
+            .collect::<Result<Vec<_>, _>>()?,
+    };
+    let faults = own
+        .fault
+        .iter()
+        .enumerate()
+        .map(|(i, f)| chk.fault_kind_spec(&format!("monte_carlo.fault[{i}]"), f))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(LtiMonteCarlo { common, outputs, faults, parameter_errors })
 }

@@ -165,8 +165,8 @@ pub fn run_trial(
 ) -> Vec<DetectorOutcome> {
     let s = study;
     let (n, nu, ny) = (s.plant.n_states(), s.plant.n_inputs(), s.plant.n_outputs());
-    let mut sensor_rng = noise_rng(s.seed, spec.trial, Substream::SensorNoise);
-    let mut process_rng = noise_rng(s.seed, spec.trial, Substream::ProcessNoise);
+    let mut sensor_rng = noise_rng(s.header.seed, spec.trial, Substream::SensorNoise);
+    let mut process_rng = noise_rng(s.header.seed, spec.trial, Substream::ProcessNoise);
     let has_process_noise = s.process_sigma_per_step.iter().any(|&v| v > 0.0);
     let sensor_sigma = &s.sensor_sigma * spec.noise_scale;
 
@@ -179,8 +179,8 @@ pub fn run_trial(
     let mut trackers: Vec<Tracker> = filters.iter().map(|(design, _)| Tracker::new(design, ny)).collect();
     let mut rec = trace.as_deref_mut().map(|t| TraceWriter::new(t, s, n));
 
-    for k in 0..s.steps {
-        let t = k as f64 * s.dt_s;
+    for k in 0..s.header.steps {
+        let t = k as f64 * s.header.dt_s;
         let r = plant_state.reference_mut();
         r.fill(0.0);
         for e in &s.excitations {
@@ -244,16 +244,16 @@ struct TraceWriter<'t> {
 impl<'t> TraceWriter<'t> {
     fn new(trace: &'t mut Trace, s: &LtiStudy, n: usize) -> Self {
         let p = &s.plant;
-        let cols = |k: usize| vec![Vec::with_capacity(s.steps); k];
+        let cols = |k: usize| vec![Vec::with_capacity(s.header.steps); k];
         TraceWriter {
             trace,
-            t: Vec::with_capacity(s.steps),
+            t: Vec::with_capacity(s.header.steps),
             u: cols(p.n_inputs()),
             y: cols(p.n_outputs()),
             yhat: cols(p.n_outputs()),
             xhat: cols(n),
             r: cols(p.n_outputs()),
-            alarm: cols(p.n_outputs()).into_iter().map(|_| Vec::with_capacity(s.steps)).collect(),
+            alarm: cols(p.n_outputs()).into_iter().map(|_| Vec::with_capacity(s.header.steps)).collect(),
             names: (p.input_names.clone(), p.output_names.clone(), p.state_names.clone()),
             last_y: vec![0.0; p.n_outputs()],
         }
@@ -301,6 +301,7 @@ impl<'t> TraceWriter<'t> {
 mod tests {
     use super::super::trials::Engine;
     use super::*;
+    use crate::engine::deck::FromDeck;
     use std::path::Path;
 
     const SEED000: &str = include_str!("../../../studies/seed000_pitch_rate.toml");
@@ -333,7 +334,7 @@ mod tests {
     fn pitch_rate_bias_moves_pitch_rate_residual_by_about_its_size() {
         let study = seed000(true);
         let (out, trace) = run(&study, 0);
-        let filter = study.detectors[0].params.design(&study.design_plant, study.dt_s).unwrap();
+        let filter = study.detectors[0].params.design(&study.design_plant, study.header.dt_s).unwrap();
         let q = 2;
         let r_q = column(&trace, "r_q_rad_s");
         // Before the fault: noise only. After the transient (slowest mode e^{-t}, 5 s = 0.7 %): shifted.

@@ -47,9 +47,9 @@ impl<'a> Engine<'a> {
         let sampler = ScenarioSampler::new(study);
         let perturb_truth = sampler.perturbs(ModelTarget::Plant);
         let perturb_design = sampler.perturbs(ModelTarget::Design);
-        let nominal_truth = study.plant.discretise(study.dt_s);
+        let nominal_truth = study.plant.discretise(study.header.dt_s);
         let nominal_filters: Vec<_> =
-            study.detectors.iter().map(|d| d.params.design(&study.design_plant, study.dt_s)).collect();
+            study.detectors.iter().map(|d| d.params.design(&study.design_plant, study.header.dt_s)).collect();
         let plant_patterns = PlantPatterns::new(&nominal_truth, &study.output_feedback, perturb_truth);
         let filter_patterns: Vec<FilterPatterns> = nominal_filters
             .iter()
@@ -95,8 +95,8 @@ impl<'a> Engine<'a> {
             if pe.model != target {
                 continue;
             }
-            let m = if pe.matrix_b { &mut p.B } else { &mut p.A };
-            for &(r, c) in &pe.entries {
+            let m = if pe.what.matrix_b { &mut p.B } else { &mut p.A };
+            for &(r, c) in &pe.what.entries {
                 if pe.absolute {
                     m[(r, c)] += rel;
                 } else {
@@ -113,13 +113,13 @@ impl<'a> Engine<'a> {
             return self.nominal_filters.iter().map(|f| f.as_ref().map(Cow::Borrowed).map_err(Clone::clone)).collect();
         }
         let design = self.perturbed(&self.study.design_plant, spec, ModelTarget::Design);
-        self.study.detectors.iter().map(|d| d.params.design(&design, self.study.dt_s).map(Cow::Owned)).collect()
+        self.study.detectors.iter().map(|d| d.params.design(&design, self.study.header.dt_s).map(Cow::Owned)).collect()
     }
 
     fn truth(&self, spec: &TrialSpec) -> Cow<'_, DiscreteLti> {
         if self.perturb_truth {
             let p = self.perturbed(&self.study.plant, spec, ModelTarget::Plant);
-            Cow::Owned(p.discretise(self.study.dt_s))
+            Cow::Owned(p.discretise(self.study.header.dt_s))
         } else {
             Cow::Borrowed(&self.nominal_truth)
         }
@@ -226,6 +226,7 @@ impl<'a> Engine<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::engine::deck::FromDeck;
     use std::path::Path;
 
     const ROBUST: &str = include_str!("../../../studies/seed000_robustness.toml");
@@ -262,7 +263,7 @@ mod tests {
     #[test]
     fn latin_hypercube_puts_one_trial_in_each_stratum() {
         let mut s = study("");
-        s.monte_carlo.trials = 240;
+        s.monte_carlo.common.trials = 240;
         let e = Engine::new(&s);
         let specs: Vec<TrialSpec> = (0..240).map(|t| e.spec(t)).collect();
         // Fault-free trials still draw their units; faulty ones carry the onset. Use all the faulty ones.
@@ -287,7 +288,7 @@ mod tests {
     /// Every trial of `deck` (plus `extra` deck lines), on both paths: identical results.
     fn assert_paths_agree(deck: &str, extra: &str, trials: u64) {
         let mut s = LtiStudy::from_toml(&format!("{deck}\n{extra}"), Path::new("deck.toml")).unwrap();
-        s.monte_carlo.trials = trials;
+        s.monte_carlo.common.trials = trials;
         let e = Engine::new(&s);
         // Groups of 8, then a ragged group of 3 (idle lanes).
         let mut lanes = Vec::new();

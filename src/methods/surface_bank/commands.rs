@@ -14,11 +14,11 @@ use crate::engine::streams::{Substream, noise_rng};
 
 /// The resolved control-surface study (method 004).
 pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
-    println!("{}: valid", study.path.display());
-    let samples = (study.duration_s / study.dt_s).round();
+    println!("{}: valid", study.header.path.display());
+    let samples = (study.header.duration_s / study.header.dt_s).round();
     println!(
         "study       {} (seed {}, {} s at dt {} s = {samples} samples)",
-        study.name, study.seed, study.duration_s, study.dt_s
+        study.header.name, study.header.seed, study.header.duration_s, study.header.dt_s
     );
     println!(
         "airframe    aerosonde trimmed at {} m/s, {} m; wind NED {:?} m/s",
@@ -26,7 +26,7 @@ pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
     );
     // Stuck positions and square-wave centres are absolute: the trim says how far from it they are.
     let (_, surfaces, throttle) = trim(&AerosondeParams::default(), study.trim_airspeed_mps, study.trim_altitude_m)
-        .map_err(|e| RunError::Invalid(format!("{}: airframe: {e}", study.path.display())))?;
+        .map_err(|e| RunError::Invalid(format!("{}: airframe: {e}", study.header.path.display())))?;
     let trim_text: Vec<String> =
         SURFACE_NAMES.iter().zip(surfaces).map(|(n, s)| format!("{n} {:.2}", s.to_degrees())).collect();
     println!("trim        surfaces (deg) {}; throttle {throttle:.3}", trim_text.join(", "));
@@ -66,7 +66,7 @@ pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
     let mc = &study.monte_carlo;
     println!(
         "monte carlo {} trials, fault-free fraction {}, sampler {:?}, noise scale {:?}",
-        mc.trials, mc.fault_free_fraction, mc.sampler, mc.noise_scale
+        mc.common.trials, mc.common.fault_free_fraction, mc.common.sampler, mc.common.noise_scale
     );
     if mc.faults.is_empty() {
         println!("            every faulty trial flies the faults above");
@@ -76,7 +76,7 @@ pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
         println!(
             "            one fault per faulty trial on [{}], onset {:?} s, lasting {lasting}",
             surfaces.join(", "),
-            mc.onset_s
+            mc.common.onset_s
         );
         for f in &mc.faults {
             println!("            fault kind {}: {f:?}", f.name());
@@ -87,8 +87,8 @@ pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
             "            parameter error {} on the {:?} airframe: [{}] scaled by 1 + {:?}",
             pe.name,
             pe.model,
-            pe.coefficients.join(", "),
-            pe.relative
+            pe.what.0.join(", "),
+            pe.value
         );
     }
     Ok(())
@@ -102,7 +102,11 @@ pub fn simulate(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &
         None => study.banks.iter().collect(),
         Some(name) => vec![study.banks.iter().find(|(n, _)| n == name).ok_or_else(|| {
             let names: Vec<_> = study.banks.iter().map(|(n, _)| n.as_str()).collect();
-            RunError::Invalid(format!("--detector {name:?}: {} has banks {}", study.path.display(), names.join(", ")))
+            RunError::Invalid(format!(
+                "--detector {name:?}: {} has banks {}",
+                study.header.path.display(),
+                names.join(", ")
+            ))
         })?],
     };
     let params: Vec<_> = banks.iter().map(|(_, p)| p.clone()).collect();
@@ -110,7 +114,7 @@ pub fn simulate(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &
     let sampler = SurfaceScenarioSampler::new(study);
     let spec = sampler.spec(trial);
     let setup = SurfaceTrial::new(&sampler, &spec);
-    let mut rng = noise_rng(study.seed, trial, Substream::SensorNoise);
+    let mut rng = noise_rng(study.header.seed, trial, Substream::SensorNoise);
     let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
     let mut bools: Vec<(String, Vec<bool>)> = Vec::new();
     let mut push_f = |i: &mut usize, name: &dyn Fn() -> String, v: f64| {
@@ -158,8 +162,9 @@ pub fn simulate(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &
     let mut df = trace_frame(&trace).map_err(|e| RunError::Internal(e.to_string()))?;
     write_table(&mut df, out)?;
     let samples = df.height();
-    let outcomes = outcomes.map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.path.display())))?;
-    println!("{}: trial {trial}, {} bank(s), {samples} samples -> {}", study.name, banks.len(), out.display());
+    let outcomes =
+        outcomes.map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.header.path.display())))?;
+    println!("{}: trial {trial}, {} bank(s), {samples} samples -> {}", study.header.name, banks.len(), out.display());
     if spec.faults.is_empty() {
         println!("  fault-free trial");
     }

@@ -11,7 +11,7 @@ pub mod uav;
 
 use std::path::Path;
 
-use crate::engine::deck::DeckError;
+use crate::engine::deck::FromDeck;
 use crate::engine::method::{Extra, Inputs, Isolates, Method, Study, SummarySpec};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
@@ -25,63 +25,46 @@ use trial::*;
 pub const KIND: &str = "surface_bank";
 
 /// Method 004: the registry's entry.
-pub struct SurfaceBanks;
-
-impl Method for SurfaceBanks {
-    fn kind(&self) -> &'static str {
-        KIND
-    }
-    fn marker(&self) -> &'static str {
-        "airframe"
-    }
-    fn title(&self) -> &'static str {
-        "banks of (strong-tracking) EKFs on a UAV, control-surface faults (method 004)"
-    }
-    fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
-        Ok(Box::new(SurfaceStudy::from_toml(text, path)?))
-    }
-    fn summary(&self) -> SummarySpec {
-        use records::col;
-        SummarySpec {
-            extra_keys: &[],
-            isolates: Isolates::Target,
-            extras: &[
-                Extra::Present { name: "clear_decided", column: col::CLEARED },
-                Extra::Count { name: "cleared", column: col::CLEARED },
-                Extra::Rate { name: "clearing_rate", k: "cleared", n: "clear_decided", faulty_only: true },
-                Extra::Count { name: "post_fault", column: col::POST_FAULT_DECLARATIONS },
-                Extra::Rate { name: "post_fault_rate", k: "post_fault", n: "flown", faulty_only: true },
-                Extra::Count { name: "asymmetric", column: col::ASYMMETRIC_STEPS },
-                Extra::Count { name: "not_positive_definite", column: col::NOT_POSITIVE_DEFINITE_STEPS },
-                Extra::Quantile { name: "isolation_delay_p50_s", column: col::ISOLATION_DELAY_S, p: 0.5, abs: false },
-                Extra::Quantile { name: "clearing_p50_s", column: col::CLEARING_DELAY_S, p: 0.5, abs: false },
-                Extra::Quantile { name: "clearing_p90_s", column: col::CLEARING_DELAY_S, p: 0.9, abs: false },
-                Extra::Quantile {
-                    name: "estimate_rms_p50_deg",
-                    column: col::SURFACE_ESTIMATE_RMS_DEG,
-                    p: 0.5,
-                    abs: false,
-                },
-            ],
-            paired_delays: &[col::CLEARING_DELAY_S],
-            printed: &[("clear p50 s", "clearing_p50_s"), ("relapse", "post_fault_rate")],
-        }
-    }
-}
+pub static METHOD: Method = Method {
+    kind: KIND,
+    marker: "airframe",
+    title: "banks of (strong-tracking) EKFs on a UAV, control-surface faults (method 004)",
+    options: &[],
+    load: |text, path| Ok(Box::new(SurfaceStudy::from_toml(text, path)?)),
+    summary: SummarySpec {
+        extra_keys: &[],
+        isolates: Isolates::Target,
+        extras: &[
+            Extra::Present { name: "clear_decided", column: records::col::CLEARED },
+            Extra::Count { name: "cleared", column: records::col::CLEARED },
+            Extra::Rate { name: "clearing_rate", k: "cleared", n: "clear_decided", faulty_only: true },
+            Extra::Count { name: "post_fault", column: records::col::POST_FAULT_DECLARATIONS },
+            Extra::Rate { name: "post_fault_rate", k: "post_fault", n: "flown", faulty_only: true },
+            Extra::Count { name: "asymmetric", column: records::col::ASYMMETRIC_STEPS },
+            Extra::Count { name: "not_positive_definite", column: records::col::NOT_POSITIVE_DEFINITE_STEPS },
+            Extra::Quantile {
+                name: "isolation_delay_p50_s",
+                column: records::col::ISOLATION_DELAY_S,
+                p: 0.5,
+                abs: false,
+            },
+            Extra::Quantile { name: "clearing_p50_s", column: records::col::CLEARING_DELAY_S, p: 0.5, abs: false },
+            Extra::Quantile { name: "clearing_p90_s", column: records::col::CLEARING_DELAY_S, p: 0.9, abs: false },
+            Extra::Quantile {
+                name: "estimate_rms_p50_deg",
+                column: records::col::SURFACE_ESTIMATE_RMS_DEG,
+                p: 0.5,
+                abs: false,
+            },
+        ],
+        paired_delays: &[records::col::CLEARING_DELAY_S],
+        printed: &[("clear p50 s", "clearing_p50_s"), ("relapse", "post_fault_rate")],
+    },
+    report: None,
+};
 
 impl Study for SurfaceStudy {
-    fn name(&self) -> &str {
-        &self.name
-    }
-    fn trials(&self) -> u64 {
-        self.monte_carlo.trials
-    }
-    fn set_trials(&mut self, trials: u64) {
-        self.monte_carlo.trials = trials;
-    }
-    fn set_seed(&mut self, seed: u64) {
-        self.seed = seed;
-    }
+    crate::study_accessors!(monte_carlo.common.trials);
     fn validate(&self) -> Result<(), RunError> {
         commands::validate(self)
     }
@@ -117,9 +100,9 @@ impl<'a> SurfaceTrials<'a> {
         ];
         Manifest {
             kind: KIND.into(),
-            study: s.name.clone(),
-            seed: s.seed,
-            trials: s.monte_carlo.trials,
+            study: s.header.name.clone(),
+            seed: s.header.seed,
+            trials: s.monte_carlo.common.trials,
             detectors: s.banks.iter().map(|(n, _)| n.clone()).collect(),
             outputs: SURFACE_NAMES.iter().map(|n| n.to_string()).collect(),
             fault_size_units: units.iter().map(|(k, u)| (k.to_string(), u.to_string())).collect(),
@@ -131,7 +114,7 @@ impl<'a> SurfaceTrials<'a> {
     pub fn run_trial(&self, trial: u64) -> SurfaceTrialResult {
         let spec = self.sampler.spec(trial);
         let setup = SurfaceTrial::new(&self.sampler, &spec);
-        let mut rng = noise_rng(self.study.seed, trial, Substream::SensorNoise);
+        let mut rng = noise_rng(self.study.header.seed, trial, Substream::SensorNoise);
         let outcome = run_banks(self.study, &setup, &self.banks, &mut rng, |_, _| ());
         SurfaceTrialResult { spec, outcome }
     }

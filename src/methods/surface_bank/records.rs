@@ -75,7 +75,7 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
                     param_error_bin: spec.parameter_error_bin,
                     param_errors: &spec.parameter_errors,
                 });
-                t.end_s.push(fault.map(|f| f.fault.end_s.unwrap_or(study.duration_s)));
+                t.end_s.push(fault.map(|f| f.fault.end_s.unwrap_or(study.header.duration_s)));
                 t.window.push(fault.map(|_| w as u32));
                 t.isolation_delay_s.push(scored.and_then(|s| s.isolation_delay_s));
                 t.cleared.push(scored.and_then(|s| s.isolation_delay_s.map(|_| s.clearing_delay_s.is_some())));
@@ -137,8 +137,8 @@ mod tests {
     use polars::prelude::*;
 
     use super::*;
+    use crate::engine::deck::FromDeck;
     use crate::engine::intervals::{Z95, wilson};
-    use crate::engine::method::Method;
     use crate::engine::runner::{Manifest, write_parquet};
     use crate::engine::summary::summarize;
     use crate::engine::tables::read_summary;
@@ -239,7 +239,7 @@ mod tests {
             ..Manifest::unstarted()
         };
         manifest.write(dir.path()).unwrap();
-        summarize(dir.path(), &super::super::SurfaceBanks.summary(), None).unwrap();
+        summarize(dir.path(), &super::super::METHOD.summary, None).unwrap();
         let table = |name: &str| read_summary(&dir.path().join(name)).unwrap();
 
         let summary = table("summary.csv");

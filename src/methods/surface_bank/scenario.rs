@@ -56,7 +56,10 @@ impl<'a> SurfaceScenarioSampler<'a> {
     pub fn new(study: &'a SurfaceStudy) -> Self {
         let mc = &study.monte_carlo;
         let dims = DIM_PARAMETERS + mc.parameter_errors.len();
-        SurfaceScenarioSampler { study, units: UnitSampler::new(mc.sampler, mc.trials, study.seed, dims) }
+        SurfaceScenarioSampler {
+            study,
+            units: UnitSampler::new(mc.common.sampler, mc.common.trials, study.header.seed, dims),
+        }
     }
 
     /// The scenario of trial `trial`.
@@ -64,7 +67,7 @@ impl<'a> SurfaceScenarioSampler<'a> {
         let s = self.study;
         let mc = &s.monte_carlo;
         let (fault_free, units) =
-            self.units.draws(trial, mc.fault_free_fraction, DIM_PARAMETERS + mc.parameter_errors.len());
+            self.units.draws(trial, mc.common.fault_free_fraction, DIM_PARAMETERS + mc.parameter_errors.len());
         let mut grid = GridDigits::new(trial);
         let mut digit = |n: usize| grid.next(n);
 
@@ -74,13 +77,13 @@ impl<'a> SurfaceScenarioSampler<'a> {
             let (size, size_bin) = draw(spec.size(), units[DIM_SIZE], &mut digit);
             (spec, surface, size, size_bin)
         });
-        let (onset_s, _) = draw(&mc.onset_s, units[DIM_ONSET], &mut digit);
-        let (noise_scale, noise_bin) = draw(&mc.noise_scale, units[DIM_NOISE], &mut digit);
+        let (onset_s, _) = draw(&mc.common.onset_s, units[DIM_ONSET], &mut digit);
+        let (noise_scale, noise_bin) = draw(&mc.common.noise_scale, units[DIM_NOISE], &mut digit);
         let duration_s = mc.fault_duration_s.as_ref().map(|f| draw(f, units[DIM_DURATION], &mut digit).0);
         let mut parameter_errors = Vec::with_capacity(mc.parameter_errors.len());
         let mut parameter_error_bin = 0.0f64;
         for (k, pe) in mc.parameter_errors.iter().enumerate() {
-            let (v, bin) = draw(&pe.relative, units[DIM_PARAMETERS + k], &mut digit);
+            let (v, bin) = draw(&pe.value, units[DIM_PARAMETERS + k], &mut digit);
             parameter_errors.push(v);
             parameter_error_bin = parameter_error_bin.max(bin.abs());
         }
@@ -130,7 +133,7 @@ impl<'a> SurfaceScenarioSampler<'a> {
                 ModelTarget::Plant => &mut truth,
                 ModelTarget::Design => &mut design,
             };
-            for name in &pe.coefficients {
+            for name in &pe.what.0 {
                 // The deck validated every name and range, so scaling cannot fail.
                 *target = target.scaled(name, 1.0 + relative).expect("validated coefficient");
             }
@@ -142,6 +145,7 @@ impl<'a> SurfaceScenarioSampler<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::engine::deck::FromDeck;
     use std::path::Path;
 
     fn mc_study() -> SurfaceStudy {
@@ -154,7 +158,7 @@ mod tests {
     fn the_grid_cycles_and_the_ranges_are_stratified() {
         let study = mc_study();
         let sampler = SurfaceScenarioSampler::new(&study);
-        let n = study.monte_carlo.trials;
+        let n = study.monte_carlo.common.trials;
         assert_eq!(n, 1200);
         let mut onset_strata = vec![0u32; n as usize];
         let mut fault_free = 0;

@@ -27,12 +27,14 @@
 //! oscillation's centre are absolute deflections, as the seed gives them (its rudder stuck at -1 deg is 1
 //! deg from trim); the actuator's +/-25 deg travel limits every command.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::engine::deck::FactorSpec;
-use crate::engine::deck::{DeckError, Factor, ModelTarget, Sampler, Validator, parse_deck, read_deck};
+use crate::engine::deck::{
+    DeckError, Factor, FromDeck, MonteCarlo, MonteCarloRules, StudyHeader, Validator, parse_deck,
+};
+use crate::engine::deck::{FactorSpec, StudySection};
 use crate::estimation::LikelihoodForm;
 use crate::methods::surface_bank::actuator::DEFAULT_SQUARE_WAVE_PERIOD_S;
 use crate::methods::surface_bank::actuator::{ActuatorFault, ActuatorFaultKind};
@@ -50,24 +52,17 @@ struct SurfaceDeck {
     #[serde(default)]
     surface_fault: Vec<SurfaceFaultSection>,
     bank: Vec<BankSection>,
-    monte_carlo: Option<MonteCarloSection>,
+    monte_carlo: Option<crate::engine::deck::MonteCarloSection>,
 }
 
-#[derive(Debug, Deserialize)]
+/// `[monte_carlo]`'s own fields in control-surface decks.
+#[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct MonteCarloSection {
-    trials: u64,
-    #[serde(default)]
-    fault_free_fraction: f64,
-    sampler: Option<String>,
+struct MonteCarloOwn {
     surfaces: Option<Vec<String>>,
-    onset_s: Option<FactorSpec>,
     fault_duration_s: Option<FactorSpec>,
-    noise_scale: Option<FactorSpec>,
     #[serde(default)]
     fault: Vec<MonteCarloFaultSection>,
-    #[serde(default)]
-    parameter_error: Vec<ParameterErrorSection>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -81,22 +76,11 @@ struct MonteCarloFaultSection {
     effectiveness: Option<FactorSpec>,
 }
 
+/// What a parameter error scales, as decks write it.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct ParameterErrorSection {
-    name: String,
-    model: String,
+struct CoefficientsSection {
     coefficients: Vec<String>,
-    relative: FactorSpec,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct StudySection {
-    name: String,
-    seed: u64,
-    duration_s: f64,
-    dt_s: f64,
 }
 
 #[derive(Debug, Deserialize)]
@@ -209,29 +193,22 @@ impl SurfaceFaultSpec {
     }
 }
 
-/// Relative errors of airframe coefficients, on the truth or on the banks' model.
+/// Airframe coefficients a parameter error scales (names from [`SCALABLE_COEFFICIENTS`]).
 #[derive(Debug, Clone, PartialEq)]
-pub struct CoefficientError {
-    pub name: String,
-    pub model: ModelTarget,
-    /// Names from [`SCALABLE_COEFFICIENTS`]; each is scaled by `1 + relative`.
-    pub coefficients: Vec<String>,
-    pub relative: Factor,
-}
+pub struct CoefficientNames(pub Vec<String>);
+
+/// Relative errors of airframe coefficients, on the truth or on the banks' model.
+
+pub type CoefficientError = crate::engine::deck::ParameterError<CoefficientNames>;
 
 /// The Monte Carlo section of a surface study.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SurfaceMonteCarlo {
-    pub trials: u64,
-    pub fault_free_fraction: f64,
-    pub sampler: Sampler,
+    pub common: MonteCarlo,
     /// Surfaces a sampled fault may hit (indices into [`SURFACE_NAMES`]).
     pub surfaces: Vec<usize>,
-    pub onset_s: Factor,
     /// How long a sampled fault lasts; `None`: to the end of the trial.
     pub fault_duration_s: Option<Factor>,
-    /// Factor on every sensor standard deviation.
-    pub noise_scale: Factor,
     /// Sampled faults; empty: every faulty trial flies the deck's `[[surface_fault]]` scenario.
     pub faults: Vec<SurfaceFaultSpec>,
     pub parameter_errors: Vec<CoefficientError>,
@@ -240,11 +217,7 @@ pub struct SurfaceMonteCarlo {
 /// A validated control-surface study.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SurfaceStudy {
-    pub path: PathBuf,
-    pub name: String,
-    pub seed: u64,
-    pub duration_s: f64,
-    pub dt_s: f64,
+    pub header: StudyHeader,
     pub trim_airspeed_mps: f64,
     pub trim_altitude_m: f64,
     pub wind_ned_mps: [f64; 3],
@@ -255,13 +228,8 @@ pub struct SurfaceStudy {
     pub monte_carlo: SurfaceMonteCarlo,
 }
 
-impl SurfaceStudy {
-    pub fn load(path: &Path) -> Result<SurfaceStudy, DeckError> {
-        let text = read_deck(path)?;
-        Self::from_toml(&text, path)
-    }
-
-    pub fn from_toml(text: &str, path: &Path) -> Result<SurfaceStudy, DeckError> {
+impl FromDeck for SurfaceStudy {
+    fn from_toml(text: &str, path: &Path) -> Result<SurfaceStudy, DeckError> {
         let deck: SurfaceDeck = parse_deck(text, path)?;
         let bad = |field: String, message: String| DeckError::Invalid { file: path.into(), field, message };
         let positive = |field: &str, v: f64| {
@@ -275,15 +243,8 @@ impl SurfaceStudy {
             if v.is_finite() { Ok(v) } else { Err(bad(field, format!("must be a finite number, got {v}"))) }
         };
 
-        let s = &deck.study;
-        if s.name.is_empty() || !s.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
-            return Err(bad(
-                "study.name".into(),
-                format!("must be letters, digits, '_' or '-' (a folder name), got {:?}", s.name),
-            ));
-        }
-        let duration_s = positive("study.duration_s", s.duration_s)?;
-        let dt_s = positive("study.dt_s", s.dt_s)?;
+        let header = Validator { file: path }.study_section(&deck.study)?;
+        let (duration_s, dt_s) = (header.duration_s, header.dt_s);
         if dt_s > 0.05 || dt_s * 10.0 > duration_s {
             return Err(bad(
                 "study.dt_s".into(),
@@ -535,14 +496,10 @@ impl SurfaceStudy {
             banks.push((b.name.clone(), p));
         }
 
-        let monte_carlo = monte_carlo(&Validator { file: path }, deck.monte_carlo.as_ref(), duration_s, &faults)?;
+        let monte_carlo = monte_carlo(&Validator { file: path }, deck.monte_carlo, duration_s, &faults)?;
 
         Ok(SurfaceStudy {
-            path: path.into(),
-            name: s.name.clone(),
-            seed: s.seed,
-            duration_s,
-            dt_s,
+            header,
             trim_airspeed_mps,
             trim_altitude_m,
             wind_ned_mps,
@@ -558,26 +515,39 @@ impl SurfaceStudy {
 /// Validates the `[monte_carlo]` section; without one, 1000 trials of the deck's scenario.
 fn monte_carlo(
     v: &Validator,
-    mc: Option<&MonteCarloSection>,
+    mc: Option<crate::engine::deck::MonteCarloSection>,
     duration_s: f64,
     scenario: &[ActuatorFault],
 ) -> Result<SurfaceMonteCarlo, DeckError> {
-    let Some(mc) = mc else {
-        return Ok(SurfaceMonteCarlo {
-            trials: 1000,
-            fault_free_fraction: 0.0,
-            sampler: Sampler::Random,
-            surfaces: (0..SURFACE_NAMES.len()).collect(),
-            onset_s: Factor::Fixed(0.0),
-            fault_duration_s: None,
-            noise_scale: Factor::Fixed(1.0),
-            faults: Vec::new(),
-            parameter_errors: Vec::new(),
-        });
+    let rules = MonteCarloRules {
+        decks: "control-surface decks",
+        duration_s,
+        fault_free_fraction: true,
+        sampler: true,
+        target_pfa: false,
+        onset_s: true,
+        noise_ranges: true,
+        parameter_errors: Some(false),
     };
-    let trials = v.trials("monte_carlo.trials", mc.trials)?;
-    let fault_free_fraction = v.fraction("monte_carlo.fault_free_fraction", mc.fault_free_fraction)?;
-    let sampler = v.sampler("monte_carlo.sampler", mc.sampler.as_deref())?;
+    let (common, own, parameter_errors) = v.monte_carlo(mc, &rules, |prefix, table| {
+        let field = |name: &str| format!("{prefix}.{name}");
+        let pe: CoefficientsSection =
+            toml::Value::Table(table).try_into().map_err(|e| v.err(prefix, e.to_string().trim_end().to_string()))?;
+        if pe.coefficients.is_empty() {
+            return Err(v.err(field("coefficients"), "name at least one coefficient"));
+        }
+        for (k, c) in pe.coefficients.iter().enumerate() {
+            if !SCALABLE_COEFFICIENTS.contains(&c.as_str()) {
+                return Err(v.err(
+                    field(&format!("coefficients[{k}]")),
+                    format!("{c:?}: allowed {}", SCALABLE_COEFFICIENTS.join(", ")),
+                ));
+            }
+        }
+        Ok(CoefficientNames(pe.coefficients))
+    })?;
+    let section_given = own.is_some();
+    let mc: MonteCarloOwn = own.unwrap_or_default();
     let surfaces = match &mc.surfaces {
         None => (0..SURFACE_NAMES.len()).collect(),
         Some(names) if names.is_empty() => return Err(v.err("monte_carlo.surfaces", "name at least one surface")),
@@ -591,13 +561,6 @@ fn monte_carlo(
             })
             .collect::<Result<Vec<_>, _>>()?,
     };
-    let onset_s = v.factor("monte_carlo.onset_s", mc.onset_s.as_ref(), Factor::Fixed(duration_s / 3.0))?;
-    v.factor_within(
-        "monte_carlo.onset_s",
-        &onset_s,
-        |t| t >= 0.0 && t < duration_s,
-        &format!("0 <= onset_s < duration_s = {duration_s}"),
-    )?;
     let fault_duration_s = match &mc.fault_duration_s {
         None => None,
         Some(spec) => {
@@ -606,8 +569,6 @@ fn monte_carlo(
             Some(f)
         }
     };
-    let noise_scale = v.factor("monte_carlo.noise_scale", mc.noise_scale.as_ref(), Factor::Fixed(1.0))?;
-    v.factor_within("monte_carlo.noise_scale", &noise_scale, |x| x >= 0.0, ">= 0")?;
 
     let mut faults = Vec::with_capacity(mc.fault.len());
     for (i, f) in mc.fault.iter().enumerate() {
@@ -679,50 +640,13 @@ fn monte_carlo(
         }
         faults.push(spec);
     }
-    if faults.is_empty() && scenario.is_empty() && fault_free_fraction < 1.0 {
+    if section_given && faults.is_empty() && scenario.is_empty() && common.fault_free_fraction < 1.0 {
         return Err(v.err(
             "monte_carlo.fault",
             "faulty trials need a fault: add [[monte_carlo.fault]] or [[surface_fault]], or set fault_free_fraction = 1",
         ));
     }
-
-    let mut parameter_errors = Vec::with_capacity(mc.parameter_error.len());
-    for (i, pe) in mc.parameter_error.iter().enumerate() {
-        let field = |name: &str| format!("monte_carlo.parameter_error[{i}].{name}");
-        v.column_name(&field("name"), &pe.name, mc.parameter_error[..i].iter().map(|o| o.name.as_str()))?;
-        let model = v.model_target(&field("model"), &pe.model)?;
-        if pe.coefficients.is_empty() {
-            return Err(v.err(field("coefficients"), "name at least one coefficient"));
-        }
-        for (k, c) in pe.coefficients.iter().enumerate() {
-            if !SCALABLE_COEFFICIENTS.contains(&c.as_str()) {
-                return Err(v.err(
-                    field(&format!("coefficients[{k}]")),
-                    format!("{c:?}: allowed {}", SCALABLE_COEFFICIENTS.join(", ")),
-                ));
-            }
-        }
-        let relative = v.factor(&field("relative"), Some(&pe.relative), Factor::Fixed(0.0))?;
-        v.factor_within(&field("relative"), &relative, |x| x > -1.0 && x < 10.0, "-1 < relative < 10")?;
-        parameter_errors.push(CoefficientError {
-            name: pe.name.clone(),
-            model,
-            coefficients: pe.coefficients.clone(),
-            relative,
-        });
-    }
-
-    Ok(SurfaceMonteCarlo {
-        trials,
-        fault_free_fraction,
-        sampler,
-        surfaces,
-        onset_s,
-        fault_duration_s,
-        noise_scale,
-        faults,
-        parameter_errors,
-    })
+    Ok(SurfaceMonteCarlo { common, surfaces, fault_duration_s, faults, parameter_errors })
 }
 
 #[cfg(test)]
@@ -736,7 +660,7 @@ mod tests {
     #[test]
     fn the_seed_deck_holds_the_seed_scenario_and_four_variants() {
         let study = SurfaceStudy::from_toml(&seed_deck(), Path::new("seed004_surfaces.toml")).unwrap();
-        assert_eq!(study.duration_s, 300.0);
+        assert_eq!(study.header.duration_s, 300.0);
         let expected = [
             (0, 10.0, 40.0, ActuatorFaultKind::Stuck { position_rad: (-15f64).to_radians() }),
             (
@@ -801,7 +725,7 @@ mod tests {
                 "bank[0].likelihood: must be \"gaussian\" or \"euclidean_norm\"",
             ),
             ("covariance = \"ekf\"", "covariance = \"ukf\"", "bank[0].covariance: must be \"ekf\""),
-            ("duration_s = 300.0", "duration_s = nan", "study.duration_s: must be a positive number"),
+            ("duration_s = 300.0", "duration_s = nan", "study.duration_s: must be a finite number > 0, got NaN"),
             ("trim_airspeed_mps = 25.0", "trim_airspeed_mps = 25.0\nflaps = 1", "unknown field `flaps`"),
         ];
         let mc =

@@ -112,13 +112,13 @@ pub fn simulate<R: rand::Rng + ?Sized>(
         n.flow_angle_variance_rad2.sqrt(),
         n.flow_angle_variance_rad2.sqrt(),
     ];
-    let steps = (study.duration_s / study.dt_s).round() as usize;
+    let steps = (study.header.duration_s / study.header.dt_s).round() as usize;
     for k in 0..steps {
-        let t_s = k as f64 * study.dt_s;
+        let t_s = k as f64 * study.header.dt_s;
         let setpoint = study.setpoints.iter().rev().find(|(from, _)| *from <= t_s).map_or(level, |(_, sp)| *sp);
         let (va, alpha, beta) = air_data(&x, &wind);
-        let (commanded_rad, throttle) = autopilot.command(&x, va, alpha, beta, &setpoint, study.dt_s);
-        let positions_rad = actuators.step(&faulty_commands(faults, t_s, &commanded_rad), study.dt_s);
+        let (commanded_rad, throttle) = autopilot.command(&x, va, alpha, beta, &setpoint, study.header.dt_s);
+        let positions_rad = actuators.step(&faulty_commands(faults, t_s, &commanded_rad), study.header.dt_s);
         let effective = effective_positions(faults, t_s, &positions_rad);
         let truth_y = SVector::<f64, 5>::new(x[9], x[10], x[11], alpha, beta);
         let mut draw = |s: f64| s * rng.sample::<f64, _>(StandardNormal);
@@ -138,7 +138,7 @@ pub fn simulate<R: rand::Rng + ?Sized>(
             truth_y,
             altitude_m: -x[2],
         });
-        x = step_rk4(truth, &x, &effective, throttle, &wind, study.dt_s);
+        x = step_rk4(truth, &x, &effective, throttle, &wind, study.header.dt_s);
         let (va, alpha, _) = air_data(&x, &wind);
         let what = if !x.iter().all(|v| v.is_finite()) {
             Some("the state is not finite".to_string())
@@ -152,7 +152,7 @@ pub fn simulate<R: rand::Rng + ?Sized>(
             None
         };
         if let Some(what) = what {
-            return Err(UavSimError::Envelope { t_s: t_s + study.dt_s, what });
+            return Err(UavSimError::Envelope { t_s: t_s + study.header.dt_s, what });
         }
     }
     Ok(())
@@ -227,7 +227,7 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
         .map(|f| WindowOutcome {
             surface: f.surface,
             onset_s: f.onset_s,
-            end_s: f.end_s.unwrap_or(study.duration_s),
+            end_s: f.end_s.unwrap_or(study.header.duration_s),
             detection_delay_s: None,
             isolation_delay_s: None,
             first_declared: None,
@@ -248,7 +248,7 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
         if running.is_empty() {
             running = banks
                 .iter()
-                .map(|p| SurfaceBank::new(p, design.clone(), study.dt_s, &sample.y, &sample.commanded_rad))
+                .map(|p| SurfaceBank::new(p, design.clone(), study.header.dt_s, &sample.y, &sample.commanded_rad))
                 .collect();
         }
         let input = BankInput {
@@ -346,6 +346,7 @@ pub struct SurfaceTrialResult {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::engine::deck::FromDeck;
     use crate::engine::streams::{Substream, noise_rng};
     use std::path::Path;
 
@@ -371,7 +372,7 @@ mod tests {
         let study = seed_study();
         let trial = seed_trial(&study);
         let banks: Vec<BankParams> = study.banks.iter().map(|(_, p)| p.clone()).collect();
-        let mut rng = noise_rng(study.seed, 0, Substream::SensorNoise);
+        let mut rng = noise_rng(study.header.seed, 0, Substream::SensorNoise);
         let mut samples = 0;
         let outcomes = run_banks(&study, &trial, &banks, &mut rng, |_, rows| {
             samples += 1;
@@ -410,7 +411,7 @@ mod tests {
             .iter()
             .map(|(_, p)| BankParams { a: [1.0, 1.0, 1.0, 3.0, 3.0], a_surface: 3.0, ..p.clone() })
             .collect();
-        let mut rng = noise_rng(study.seed, 0, Substream::SensorNoise);
+        let mut rng = noise_rng(study.header.seed, 0, Substream::SensorNoise);
         let outcomes = run_banks(&study, &trial, &banks, &mut rng, |_, _| ()).unwrap();
         let (original, improved) = (&outcomes[0], &outcomes[1]);
         assert!(

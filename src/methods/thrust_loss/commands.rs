@@ -8,15 +8,15 @@ use crate::engine::runner::RunError;
 
 /// The resolved launch-vehicle study (method 001).
 pub fn validate(study: &LaunchStudy) -> Result<(), RunError> {
-    println!("{}: valid", study.path.display());
+    println!("{}: valid", study.header.path.display());
     let c = &study.config;
     println!(
         "study       {} (seed {}, {} s at dt {} s = {} samples)",
-        study.name,
-        study.seed,
-        study.duration_s,
+        study.header.name,
+        study.header.seed,
+        study.header.duration_s,
         c.dt_s,
-        (study.duration_s / c.dt_s).round()
+        (study.header.duration_s / c.dt_s).round()
     );
     let p = &c.params;
     println!(
@@ -51,15 +51,15 @@ pub fn validate(study: &LaunchStudy) -> Result<(), RunError> {
     let mc = &study.monte_carlo;
     println!(
         "monte carlo {} trials, fault-free fraction {}, sampler {:?}, target Pfa {}, engines {:?}",
-        mc.trials,
-        mc.fault_free_fraction,
-        mc.sampler,
-        mc.target_pfa,
+        mc.common.trials,
+        mc.common.fault_free_fraction,
+        mc.common.sampler,
+        mc.common.target_pfa,
         mc.engines.iter().map(|e| e + 1).collect::<Vec<_>>()
     );
     println!(
         "            loss {:?} %, onset {:?} s, noise scale {:?}, gust scale {:?}; detection within {} s of the onset",
-        mc.loss_percent, mc.onset_s, mc.noise_scale, mc.gust_scale, mc.detection_window_s
+        mc.loss_percent, mc.common.onset_s, mc.common.noise_scale, mc.gust_scale, mc.detection_window_s
     );
     Ok(())
 }
@@ -74,14 +74,14 @@ pub fn simulate(study: &LaunchStudy, trial: u64, detector: Option<&str>, out: &P
         let d = study.detectors.iter().find(|d| d.name == name).ok_or_else(|| {
             RunError::Invalid(format!(
                 "--detector {name:?}: {} has detectors {}",
-                study.path.display(),
+                study.header.path.display(),
                 names.join(", ")
             ))
         })?;
         selected.detectors = vec![d.clone()];
     }
     let trials = crate::methods::thrust_loss::LaunchTrials::new(&selected)
-        .map_err(|e| RunError::Invalid(format!("{}: {e}", study.path.display())))?;
+        .map_err(|e| RunError::Invalid(format!("{}: {e}", study.header.path.display())))?;
     let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
     let mut bools: Vec<(String, Vec<bool>)> = Vec::new();
     let result = trials.run_trial_with(trial, |m, steps| {
@@ -114,12 +114,13 @@ pub fn simulate(study: &LaunchStudy, trial: u64, detector: Option<&str>, out: &P
     let trace = Trace { float_columns: floats, bool_columns: bools };
     let mut df = trace_frame(&trace).map_err(|e| RunError::Internal(e.to_string()))?;
     write_table(&mut df, out)?;
-    let outcomes =
-        result.outcome.map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.path.display())))?;
+    let outcomes = result
+        .outcome
+        .map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.header.path.display())))?;
     let spec = &result.spec;
     println!(
         "{}: trial {trial}, {} detector(s), {} samples -> {}",
-        study.name,
+        study.header.name,
         outcomes.len(),
         df.height(),
         out.display()

@@ -10,7 +10,7 @@ pub mod vehicle;
 
 use std::path::Path;
 
-use crate::engine::deck::DeckError;
+use crate::engine::deck::FromDeck;
 use crate::engine::method::{Extra, Inputs, Isolates, Method, Opt, Study, SummarySpec};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
@@ -25,61 +25,37 @@ use trial::*;
 pub const KIND: &str = "thrust_loss";
 
 /// Method 001: the registry's entry.
-pub struct ThrustLoss;
-
-impl Method for ThrustLoss {
-    fn kind(&self) -> &'static str {
-        KIND
-    }
-    fn marker(&self) -> &'static str {
-        "vehicle"
-    }
-    fn title(&self) -> &'static str {
-        "EKF residual and moving-horizon least squares on a launch vehicle, thrust loss (method 001)"
-    }
-    fn options(&self) -> &'static [Opt] {
-        &[Opt::Thresholds]
-    }
-    fn load(&self, text: &str, path: &Path) -> Result<Box<dyn Study>, DeckError> {
-        Ok(Box::new(LaunchStudy::from_toml(text, path)?))
-    }
-    fn summary(&self) -> SummarySpec {
-        SummarySpec {
-            extra_keys: &[records::col::GUST_BIN],
-            isolates: Isolates::Target,
-            extras: &[
-                Extra::Quantile {
-                    name: "loss_error_p50_percent",
-                    column: records::col::LOSS_ERROR_PERCENT,
-                    p: 0.5,
-                    abs: false,
-                },
-                Extra::Quantile {
-                    name: "loss_abs_error_p50_percent",
-                    column: records::col::LOSS_ERROR_PERCENT,
-                    p: 0.5,
-                    abs: true,
-                },
-            ],
-            paired_delays: &[],
-            printed: &[("loss err %", "loss_abs_error_p50_percent")],
-        }
-    }
-}
+pub static METHOD: Method = Method {
+    kind: KIND,
+    marker: "vehicle",
+    title: "EKF residual and moving-horizon least squares on a launch vehicle, thrust loss (method 001)",
+    options: &[Opt::Thresholds],
+    load: |text, path| Ok(Box::new(LaunchStudy::from_toml(text, path)?)),
+    summary: SummarySpec {
+        extra_keys: &[records::col::GUST_BIN],
+        isolates: Isolates::Target,
+        extras: &[
+            Extra::Quantile {
+                name: "loss_error_p50_percent",
+                column: records::col::LOSS_ERROR_PERCENT,
+                p: 0.5,
+                abs: false,
+            },
+            Extra::Quantile {
+                name: "loss_abs_error_p50_percent",
+                column: records::col::LOSS_ERROR_PERCENT,
+                p: 0.5,
+                abs: true,
+            },
+        ],
+        paired_delays: &[],
+        printed: &[("loss err %", "loss_abs_error_p50_percent")],
+    },
+    report: None,
+};
 
 impl Study for LaunchStudy {
-    fn name(&self) -> &str {
-        &self.name
-    }
-    fn trials(&self) -> u64 {
-        self.monte_carlo.trials
-    }
-    fn set_trials(&mut self, trials: u64) {
-        self.monte_carlo.trials = trials;
-    }
-    fn set_seed(&mut self, seed: u64) {
-        self.seed = seed;
-    }
+    crate::study_accessors!(monte_carlo.common.trials);
     fn validate(&self) -> Result<(), RunError> {
         commands::validate(self)
     }
@@ -88,7 +64,8 @@ impl Study for LaunchStudy {
     }
     fn run(&self, opts: &RunOptions, _: Inputs) -> Result<RunReport, RunError> {
         // Designs and loss tables are the deck's: one that cannot be designed is invalid input.
-        let trials = LaunchTrials::new(self).map_err(|e| RunError::Invalid(format!("{}: {e}", self.path.display())))?;
+        let trials =
+            LaunchTrials::new(self).map_err(|e| RunError::Invalid(format!("{}: {e}", self.header.path.display())))?;
         run(&trials, trials.manifest(), opts)
     }
 }
@@ -122,13 +99,13 @@ impl<'a> LaunchTrials<'a> {
         let s = self.study;
         Manifest {
             kind: KIND.into(),
-            study: s.name.clone(),
-            seed: s.seed,
-            trials: s.monte_carlo.trials,
+            study: s.header.name.clone(),
+            seed: s.header.seed,
+            trials: s.monte_carlo.common.trials,
             detectors: s.detectors.iter().map(|d| d.name.clone()).collect(),
             outputs: (1..=4).map(|e| format!("engine_{e}")).collect(),
             deck_thresholds: s.detectors.iter().map(|d| vec![d.params.threshold_fhat]).collect(),
-            target_pfa: s.monte_carlo.target_pfa,
+            target_pfa: s.monte_carlo.common.target_pfa,
             fault_size_units: [("thrust_loss".to_string(), "percent of one engine's thrust".to_string())].into(),
             ..Manifest::unstarted()
         }
@@ -138,8 +115,8 @@ impl<'a> LaunchTrials<'a> {
     pub fn run_trial_with(&self, trial: u64, on_sample: impl FnMut(&Measurement, &[MheStep])) -> LaunchTrialResult {
         let spec = self.sampler.spec(trial);
         let config = self.sampler.config(&spec);
-        let mut rng = noise_rng(self.study.seed, trial, Substream::SensorNoise);
-        let (duration_s, window_s) = (self.study.duration_s, self.study.monte_carlo.detection_window_s);
+        let mut rng = noise_rng(self.study.header.seed, trial, Substream::SensorNoise);
+        let (duration_s, window_s) = (self.study.header.duration_s, self.study.monte_carlo.detection_window_s);
         let outcome = run_detectors(&config, &spec, duration_s, window_s, &self.detectors, &mut rng, on_sample);
         LaunchTrialResult { spec, outcome }
     }

@@ -38,14 +38,17 @@ pub struct LaunchScenarioSampler<'a> {
 impl<'a> LaunchScenarioSampler<'a> {
     pub fn new(study: &'a LaunchStudy) -> Self {
         let mc = &study.monte_carlo;
-        LaunchScenarioSampler { study, units: UnitSampler::new(mc.sampler, mc.trials, study.seed, DIMS) }
+        LaunchScenarioSampler {
+            study,
+            units: UnitSampler::new(mc.common.sampler, mc.common.trials, study.header.seed, DIMS),
+        }
     }
 
     /// The scenario of trial `trial`.
     pub fn spec(&self, trial: u64) -> LaunchTrialSpec {
         let s = self.study;
         let mc = &s.monte_carlo;
-        let (fault_free, units) = self.units.draws(trial, mc.fault_free_fraction, DIMS);
+        let (fault_free, units) = self.units.draws(trial, mc.common.fault_free_fraction, DIMS);
         let mut grid = GridDigits::new(trial);
         let mut digit = |n: usize| grid.next(n);
         let sampled = mc.loss_percent.as_ref().map(|f| {
@@ -53,8 +56,8 @@ impl<'a> LaunchScenarioSampler<'a> {
             let (loss, bin) = draw(f, units[DIM_SIZE], &mut digit);
             (engine, loss, bin)
         });
-        let (onset_s, _) = draw(&mc.onset_s, units[DIM_ONSET], &mut digit);
-        let (noise_scale, noise_bin) = draw(&mc.noise_scale, units[DIM_NOISE], &mut digit);
+        let (onset_s, _) = draw(&mc.common.onset_s, units[DIM_ONSET], &mut digit);
+        let (noise_scale, noise_bin) = draw(&mc.common.noise_scale, units[DIM_NOISE], &mut digit);
         let (gust_scale, gust_bin) = draw(&mc.gust_scale, units[DIM_GUST], &mut digit);
         let (fault, loss_percent, loss_bin) = match (fault_free, sampled, s.fault) {
             (true, _, _) => (None, f64::NAN, f64::NAN),
@@ -85,6 +88,7 @@ impl<'a> LaunchScenarioSampler<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::engine::deck::FromDeck;
     use std::path::Path;
 
     /// The bundled deck: engines (4) fastest, then the gust scale (2 values); losses in 10-60 % with the

@@ -16,11 +16,13 @@
 //!                    (on every sensor sigma), gust_scale (on every gust's amplitude)
 //! ```
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::engine::deck::{DeckError, Factor, Sampler, Validator, parse_deck, read_deck};
+use crate::engine::deck::{
+    DeckError, Factor, FromDeck, MonteCarlo, MonteCarloRules, StudyHeader, Validator, parse_deck,
+};
 use crate::engine::deck::{FactorSpec, StudySection};
 use crate::methods::thrust_loss::ekf_mhe::{DetectorParams, EkfParams, MheParams};
 use crate::methods::thrust_loss::vehicle::{ENGINES, Gust, GustAxis, LaunchVehicleConfig};
@@ -35,7 +37,7 @@ struct LaunchDeck {
     detector: Vec<DetectorSection>,
     #[serde(default)]
     faults: Vec<FaultSection>,
-    monte_carlo: Option<MonteCarloSection>,
+    monte_carlo: Option<crate::engine::deck::MonteCarloSection>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -76,18 +78,12 @@ struct FaultSection {
     onset_s: f64,
 }
 
-#[derive(Debug, Deserialize)]
+/// `[monte_carlo]`'s own fields in launch-vehicle decks.
+#[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
-struct MonteCarloSection {
-    trials: u64,
-    #[serde(default)]
-    fault_free_fraction: f64,
-    sampler: Option<String>,
-    target_pfa: Option<f64>,
+struct MonteCarloOwn {
     engines: Option<Vec<usize>>,
     loss_percent: Option<FactorSpec>,
-    onset_s: Option<FactorSpec>,
-    noise_scale: Option<FactorSpec>,
     gust_scale: Option<FactorSpec>,
     detection_window_s: Option<f64>,
 }
@@ -122,17 +118,11 @@ pub struct LaunchFault {
 /// The Monte Carlo section.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LaunchMonteCarlo {
-    pub trials: u64,
-    pub fault_free_fraction: f64,
-    pub sampler: Sampler,
-    /// False-alarm probability the summary's calibrated thresholds are set to.
-    pub target_pfa: f64,
+    pub common: MonteCarlo,
     /// Engines a sampled loss may hit (indices).
     pub engines: Vec<usize>,
     /// `None`: every faulty trial flies the deck's `[[faults]]`.
     pub loss_percent: Option<Factor>,
-    pub onset_s: Factor,
-    pub noise_scale: Factor,
     pub gust_scale: Factor,
     /// An alarm is the loss's detection only this long after the onset (s): a 10 % loss takes up to
     /// about 1.5 s to alarm, and an alarm seconds later says more of a gust or the noise than of the loss.
@@ -142,10 +132,7 @@ pub struct LaunchMonteCarlo {
 /// A validated launch study.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LaunchStudy {
-    pub path: PathBuf,
-    pub name: String,
-    pub seed: u64,
-    pub duration_s: f64,
+    pub header: StudyHeader,
     /// The vehicle flown and designed on (no gusts, noise x1; trials add their own).
     pub config: LaunchVehicleConfig,
     pub gusts: Vec<Gust>,
@@ -154,16 +141,12 @@ pub struct LaunchStudy {
     pub monte_carlo: LaunchMonteCarlo,
 }
 
-impl LaunchStudy {
-    pub fn load(path: &Path) -> Result<LaunchStudy, DeckError> {
-        let text = read_deck(path)?;
-        Self::from_toml(&text, path)
-    }
-
-    pub fn from_toml(text: &str, path: &Path) -> Result<LaunchStudy, DeckError> {
+impl FromDeck for LaunchStudy {
+    fn from_toml(text: &str, path: &Path) -> Result<LaunchStudy, DeckError> {
         let deck: LaunchDeck = parse_deck(text, path)?;
         let v = Validator { file: path };
-        let (duration_s, dt_s, _) = v.study_section(&deck.study)?;
+        let header = v.study_section(&deck.study)?;
+        let (duration_s, dt_s) = (header.duration_s, header.dt_s);
         if !(0.001..=0.05).contains(&dt_s) {
             return Err(v.err("study.dt_s", format!("allowed 0.001 to 0.05 s (the seed's D is 0.01), got {dt_s}")));
         }
@@ -292,94 +275,55 @@ impl LaunchStudy {
             }),
         };
 
-        let monte_carlo = match &deck.monte_carlo {
-            None => LaunchMonteCarlo {
-                trials: 1000,
-                fault_free_fraction: 0.0,
-                sampler: Sampler::Random,
-                target_pfa: 0.01,
-                engines: (0..ENGINES).collect(),
-                loss_percent: None,
-                onset_s: Factor::Fixed(duration_s / 3.0),
-                noise_scale: Factor::Fixed(1.0),
-                gust_scale: Factor::Fixed(1.0),
-                detection_window_s: 2.0,
-            },
-            Some(mc) => {
-                let trials = v.trials("monte_carlo.trials", mc.trials)?;
-                let fault_free_fraction = v.fraction("monte_carlo.fault_free_fraction", mc.fault_free_fraction)?;
-                let sampler = v.sampler("monte_carlo.sampler", mc.sampler.as_deref())?;
-                let target_pfa = mc.target_pfa.unwrap_or(0.01);
-                if !(target_pfa > 0.0 && target_pfa < 1.0) {
-                    return Err(v.err("monte_carlo.target_pfa", format!("allowed 0 < p < 1, got {target_pfa}")));
-                }
-                let engines = match &mc.engines {
-                    None => (0..ENGINES).collect(),
-                    Some(list) if list.is_empty() => return Err(v.err("monte_carlo.engines", "name at least one")),
-                    Some(list) => list
-                        .iter()
-                        .enumerate()
-                        .map(|(k, e)| engine_index(&v, &format!("monte_carlo.engines[{k}]"), *e))
-                        .collect::<Result<Vec<_>, _>>()?,
-                };
-                let loss_percent = match &mc.loss_percent {
-                    None => None,
-                    Some(spec) => {
-                        let f = v.factor("monte_carlo.loss_percent", Some(spec), Factor::Fixed(0.0))?;
-                        v.factor_within(
-                            "monte_carlo.loss_percent",
-                            &f,
-                            |x| x > 0.0 && x <= 100.0,
-                            "0 < loss <= 100 %",
-                        )?;
-                        Some(f)
-                    }
-                };
-                if loss_percent.is_none() && fault.is_none() && fault_free_fraction < 1.0 {
-                    return Err(v.err(
-                        "monte_carlo.loss_percent",
-                        "faulty trials need a loss: give loss_percent, or [[faults]], or fault_free_fraction = 1",
-                    ));
-                }
-                let onset_s = v.factor("monte_carlo.onset_s", mc.onset_s.as_ref(), Factor::Fixed(duration_s / 3.0))?;
-                v.factor_within(
-                    "monte_carlo.onset_s",
-                    &onset_s,
-                    |t| t > 0.0 && t < duration_s,
-                    &format!("0 < onset_s < duration_s = {duration_s}"),
-                )?;
-                let noise_scale = v.factor("monte_carlo.noise_scale", mc.noise_scale.as_ref(), Factor::Fixed(1.0))?;
-                v.factor_within("monte_carlo.noise_scale", &noise_scale, |x| x >= 0.0, ">= 0")?;
-                let gust_scale = v.factor("monte_carlo.gust_scale", mc.gust_scale.as_ref(), Factor::Fixed(1.0))?;
-                v.factor_within("monte_carlo.gust_scale", &gust_scale, |x| x.is_finite(), "a finite factor")?;
-                let detection_window_s =
-                    v.positive("monte_carlo.detection_window_s", mc.detection_window_s.unwrap_or(2.0))?;
-                LaunchMonteCarlo {
-                    detection_window_s,
-                    trials,
-                    fault_free_fraction,
-                    sampler,
-                    target_pfa,
-                    engines,
-                    loss_percent,
-                    onset_s,
-                    noise_scale,
-                    gust_scale,
-                }
+        let rules = MonteCarloRules {
+            decks: "launch-vehicle decks",
+            duration_s,
+            fault_free_fraction: true,
+            sampler: true,
+            target_pfa: true,
+            onset_s: true,
+            noise_ranges: true,
+            parameter_errors: None,
+        };
+        let (common, own, _) = v.monte_carlo(deck.monte_carlo, &rules, |_, _| Ok(()))?;
+        // A loss at lift-off leaves no window before it to calibrate on.
+        v.factor_within(
+            "monte_carlo.onset_s",
+            &common.onset_s,
+            |t| t > 0.0,
+            &format!("0 < onset_s < duration_s = {duration_s}"),
+        )?;
+        let section_given = own.is_some();
+        let own: MonteCarloOwn = own.unwrap_or_default();
+        let engines = match &own.engines {
+            None => (0..ENGINES).collect(),
+            Some(list) if list.is_empty() => return Err(v.err("monte_carlo.engines", "name at least one")),
+            Some(list) => list
+                .iter()
+                .enumerate()
+                .map(|(k, e)| engine_index(&v, &format!("monte_carlo.engines[{k}]"), *e))
+                .collect::<Result<Vec<_>, _>>()?,
+        };
+        let loss_percent = match &own.loss_percent {
+            None => None,
+            Some(spec) => {
+                let f = v.factor("monte_carlo.loss_percent", Some(spec), Factor::Fixed(0.0))?;
+                v.factor_within("monte_carlo.loss_percent", &f, |x| x > 0.0 && x <= 100.0, "0 < loss <= 100 %")?;
+                Some(f)
             }
         };
+        if section_given && loss_percent.is_none() && fault.is_none() && common.fault_free_fraction < 1.0 {
+            return Err(v.err(
+                "monte_carlo.loss_percent",
+                "faulty trials need a loss: give loss_percent, or [[faults]], or fault_free_fraction = 1",
+            ));
+        }
+        let gust_scale = v.factor("monte_carlo.gust_scale", own.gust_scale.as_ref(), Factor::Fixed(1.0))?;
+        v.factor_within("monte_carlo.gust_scale", &gust_scale, |x| x.is_finite(), "a finite factor")?;
+        let detection_window_s = v.positive("monte_carlo.detection_window_s", own.detection_window_s.unwrap_or(2.0))?;
+        let monte_carlo = LaunchMonteCarlo { common, engines, loss_percent, gust_scale, detection_window_s };
 
-        Ok(LaunchStudy {
-            path: path.into(),
-            name: deck.study.name.clone(),
-            seed: deck.study.seed,
-            duration_s,
-            config,
-            gusts,
-            detectors,
-            fault,
-            monte_carlo,
-        })
+        Ok(LaunchStudy { header, config, gusts, detectors, fault, monte_carlo })
     }
 }
 

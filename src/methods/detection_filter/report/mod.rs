@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 
 use polars::prelude::*;
 
+use crate::engine::deck::FromDeck;
 use crate::engine::runner::{Manifest, RunError, io, write_atomically};
 use crate::engine::schema::col;
 use crate::engine::tables::{f64_col, list_col, read_slice, read_summary, str_col};
@@ -112,8 +113,8 @@ pub fn write_report(dir: &Path, trials: &[u64]) -> Result<Report, RunError> {
         }
         let mut study = crate::methods::detection_filter::study::LtiStudy::load(&deck)
             .map_err(|e| RunError::Invalid(e.to_string()))?;
-        study.seed = manifest.seed;
-        study.monte_carlo.trials = manifest.trials;
+        study.header.seed = manifest.seed;
+        study.monte_carlo.common.trials = manifest.trials;
         let engine = crate::methods::detection_filter::trials::Engine::new(&study);
         let calibrated = &thresholds.iter().find(|t| t.0 == study.detectors[0].name).map(|t| t.2.clone());
         for &trial in trials {

@@ -376,7 +376,7 @@ pub fn trace(
             .margin(8)
             .x_label_area_size(35)
             .y_label_area_size(65)
-            .build_cartesian_2d(0f64..study.duration_s, -lim..lim)
+            .build_cartesian_2d(0f64..study.header.duration_s, -lim..lim)
             .map_err(e)?;
         chart.configure_mesh().x_desc("t (s)").y_desc(format!("r_{name}")).label_style((FONT, 12)).draw().map_err(e)?;
         chart
@@ -386,14 +386,17 @@ pub fn trace(
             .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(0)));
         for sign in [1.0, -1.0] {
             let s = chart
-                .draw_series(LineSeries::new([(0.0, sign * deck[j]), (study.duration_s, sign * deck[j])], color(1)))
+                .draw_series(LineSeries::new(
+                    [(0.0, sign * deck[j]), (study.header.duration_s, sign * deck[j])],
+                    color(1),
+                ))
                 .map_err(e)?;
             if sign > 0.0 {
                 s.label("deck threshold").legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(1)));
             }
             if let Some(c) = calibrated.and_then(|c| c.get(j)) {
                 let s = chart
-                    .draw_series(LineSeries::new([(0.0, sign * c), (study.duration_s, sign * c)], color(2)))
+                    .draw_series(LineSeries::new([(0.0, sign * c), (study.header.duration_s, sign * c)], color(2)))
                     .map_err(e)?;
                 if sign > 0.0 {
                     s.label("calibrated threshold").legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(2)));
