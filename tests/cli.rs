@@ -17,8 +17,16 @@ fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
 }
 
-fn deck_text() -> String {
-    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join(DECK)).unwrap()
+/// `studies/<source>` with each `from` replaced once by its `to`, written to `dir/<name>`.
+fn edited_deck(dir: &Path, source: &str, edits: &[(&str, &str)], name: &str) -> PathBuf {
+    let mut text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("studies").join(source)).unwrap();
+    for (from, to) in edits {
+        assert!(text.contains(from), "{source}: {from}");
+        text = text.replacen(from, to, 1);
+    }
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
 }
 
 #[test]
@@ -84,148 +92,39 @@ fn simulate_writes_a_trace_in_csv_and_parquet() {
     assert_eq!(names.len(), 2, "{names:?}");
 }
 
-/// Each broken deck: (what is wrong, replace this, by this, the message must contain).
-const BAD_DECKS: &[(&str, &str, &str, &str)] = &[
-    ("unknown field", "seed = 20101001", "seed = 20101001\nseeed = 3", "unknown field `seeed`"),
-    (
-        "no kind's table",
-        "[plant]",
-        "[plantt]",
-        "(top level): no kind of study matches: a deck has one of the tables [plant] (detection_filter: ",
-    ),
-    (
-        "two kinds' tables",
-        "[plant]",
-        "[imu]\nx = 1\n[plant]",
-        "the tables [plant], [imu] mark different kinds of study",
-    ),
-    (
-        "matrix row too short",
-        "[0.0,    -7.9101, -3.0241, 0.0,    0.0]",
-        "[0.0, -7.9101, -3.0241, 0.0]",
-        "plant.a[2]: expected 5 numbers",
-    ),
-    ("too few rows", "  [0.0,  0.0, 0.0, 0.0, 1.0],\n]", "]", "plant.c: expected 6 rows"),
-    ("non-finite entry", "[0.0,  -0.2779]", "[0.0, nan]", "plant.b[1][1]: must be a finite number"),
-    ("infinite step", "dt_s = 0.01 ", "dt_s = inf ", "study.dt_s: must be a finite number > 0"),
-    (
-        "unstable eigenvalue",
-        "[-1.0, -2.0, -3.0",
-        "[1.0, -2.0, -3.0",
-        "detector[0].eigenvalues_per_s[0]: must be a finite negative",
-    ),
-    (
-        "repeated eigenvalues",
-        "[-1.0, -2.0, -3.0, -4.0, -5.0]",
-        "[-1.0, -2.0, -2.0, -4.0, -5.0]",
-        "eigenvalues -2 and -2 are not distinct",
-    ),
-    (
-        "too many eigenvalues",
-        "[-1.0, -2.0, -3.0, -4.0, -5.0]",
-        "[-1.0, -2.0, -3.0, -4.0, -5.0, -6.0]",
-        "detector[0].eigenvalues_per_s: expected 1 to 5",
-    ),
-    (
-        "directions not separable",
-        "[-1.0, -2.0, -3.0, -4.0, -5.0]",
-        "[-1.0, -2.0]\nfault_directions = [[0.0, 1.0, 0.0, 0.0, 0.0], [0.0, 2.0, 0.0, 0.0, 0.0]]",
-        "rank(C F) = 1",
-    ),
-    ("unobservable", "  [0.0,  0.0, 0.0, 0.0, 1.0],\n]", "  [0.0,  0.0, 0.0, 0.0, 0.0],\n]", "not observable"),
-    (
-        "threshold count",
-        "thresholds = [0.5, 0.01, 0.05, 0.01, 0.01, 2.5]",
-        "thresholds = [0.5, 0.01]",
-        "detector[0].thresholds: expected 6 numbers",
-    ),
-    (
-        "unknown output",
-        "output = \"q_rad_s\"",
-        "output = \"p_rad_s\"",
-        "faults[0].output: \"p_rad_s\" is not one of plant.outputs",
-    ),
-    ("unknown fault kind", "kind = \"bias\"", "kind = \"biased\"", "faults[0].kind: \"biased\": allowed"),
-    ("negative onset", "onset_s = 10.0", "onset_s = -1.0", "faults[0].onset_s: must be >= 0"),
-    ("wrong type", "amplitude = 0.25", "amplitude = \"big\"", "amplitude"),
-    ("syntax error", "[noise]", "[noise", "TOML parse error"),
-    ("unknown detector", "kind = \"detection_filter\"", "kind = \"kalman\"", "detector[0].kind: \"kalman\""),
-    (
-        "fixed and sampled faults",
-        "onset_s = 10.0",
-        "onset_s = 10.0\n[monte_carlo]\ntrials = 10\n[[monte_carlo.fault]]\nkind = \"bias\"\nsize = 0.1",
-        "faults: give either a fixed scenario",
-    ),
-    (
-        "unknown sampler",
-        "onset_s = 10.0",
-        "onset_s = 10.0\n[monte_carlo]\ntrials = 10\nsampler = \"halton\"",
-        "monte_carlo.sampler: \"halton\": allowed",
-    ),
-    (
-        "empty range",
-        "onset_s = 10.0",
-        "onset_s = 10.0\n[monte_carlo]\ntrials = 10\nnoise_scale = { range = [2.0, 1.0] }",
-        "monte_carlo.noise_scale.range: needs lo < hi",
-    ),
-    (
-        "onset past the end",
-        "onset_s = 10.0",
-        "onset_s = 10.0\n[monte_carlo]\ntrials = 10\nonset_s = { values = [5.0, 31.0] }",
-        "monte_carlo.onset_s: 31 is out of range",
-    ),
-    (
-        "fraction above 1",
-        "onset_s = 10.0",
-        "onset_s = 10.0\n[monte_carlo]\ntrials = 10\nfault_free_fraction = 1.5",
-        "monte_carlo.fault_free_fraction: allowed 0 to 1",
-    ),
-    (
-        "unknown factor key",
-        "onset_s = 10.0",
-        "onset_s = 10.0\n[monte_carlo]\ntrials = 10\nonset_s = { rnage = [1.0, 2.0] }",
-        "monte_carlo.onset_s.rnage: unknown key",
-    ),
-    (
-        "relative and absolute",
-        "onset_s = 10.0",
-        "onset_s = 10.0\n[monte_carlo]\ntrials = 10\n[[monte_carlo.parameter_error]]\nname = \"m\"\nmodel = \"design\"\nmatrix = \"a\"\nentries = [[\"q_rad_s\", \"alpha_rad\"]]\nrelative = 0.1\nabsolute = 0.1",
-        "monte_carlo.parameter_error[0].relative: give relative",
-    ),
-    (
-        "unknown entry",
-        "onset_s = 10.0",
-        "onset_s = 10.0\n[monte_carlo]\ntrials = 10\n[[monte_carlo.parameter_error]]\nname = \"m\"\nmodel = \"design\"\nmatrix = \"b\"\nentries = [[\"q_rad_s\", \"rudder\"]]\nrelative = 0.1",
-        "monte_carlo.parameter_error[0].entries[0]: \"rudder\" is not one of plant.inputs",
-    ),
-    (
-        "gain factor of one",
-        "onset_s = 10.0",
-        "onset_s = 10.0\n[monte_carlo]\ntrials = 10\n[[monte_carlo.fault]]\nkind = \"gain\"\nsize = { values = [0.5, 1.0] }",
-        "monte_carlo.fault[0].size: 1 is out of range",
-    ),
-    (
-        "algebraic loop",
-        "c = [",
-        "d = [[0.0, 1.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]\nc = [",
-        "controller.output_feedback: output feedback with a non-zero plant.d",
-    ),
-];
-
+/// Every case of `tests/data/bad_decks.toml`, every kind: the bundled deck with `from` replaced by `to`
+/// exits 2 from `validate` with a message that names the file and says `want`, never a panic.
 #[test]
 fn bad_decks_exit_2_naming_file_and_field() {
+    #[derive(serde::Deserialize)]
+    struct Case {
+        deck: String,
+        what: Option<String>,
+        from: String,
+        to: String,
+        want: String,
+    }
+    #[derive(serde::Deserialize)]
+    struct Catalogue {
+        case: Vec<Case>,
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let catalogue: Catalogue =
+        toml::from_str(&std::fs::read_to_string(root.join("tests/data/bad_decks.toml")).unwrap()).unwrap();
+    assert_eq!(catalogue.case.len(), 81);
     let dir = tempfile::tempdir().unwrap();
-    let good = deck_text();
-    for (i, (what, from, to, expect)) in BAD_DECKS.iter().enumerate() {
-        assert!(good.contains(from), "case {what:?}: the bundled deck no longer contains {from:?}");
+    for (i, c) in catalogue.case.iter().enumerate() {
+        let what = format!("case {i} ({}, {})", c.deck, c.what.as_deref().unwrap_or(&c.to));
+        let good = std::fs::read_to_string(root.join("studies").join(&c.deck)).unwrap();
+        assert!(good.contains(&c.from), "{what}: the bundled deck no longer contains {:?}", c.from);
         let path = dir.path().join(format!("bad_{i}.toml"));
-        std::fs::write(&path, good.replacen(from, to, 1)).unwrap();
+        std::fs::write(&path, good.replacen(&c.from, &c.to, 1)).unwrap();
         let out = fdimc(&["validate", path.to_str().unwrap()]);
         let stderr = text(&out.stderr);
-        assert_eq!(out.status.code(), Some(2), "case {what:?}: {stderr}");
-        assert!(stderr.contains(&format!("bad_{i}.toml")), "case {what:?} does not name the file: {stderr}");
-        assert!(stderr.contains(expect), "case {what:?}: expected {expect:?} in: {stderr}");
-        assert!(!stderr.contains("panicked"), "case {what:?}: {stderr}");
+        assert_eq!(out.status.code(), Some(2), "{what}: {stderr}");
+        assert!(stderr.contains(&format!("bad_{i}.toml: ")), "{what} does not name the file: {stderr}");
+        assert!(stderr.contains(&c.want), "{what}: expected {:?} in: {stderr}", c.want);
+        assert!(!stderr.contains("panicked"), "{what}: {stderr}");
     }
 }
 
@@ -341,21 +240,17 @@ fn a_surface_deck_validates_simulates_and_design_refuses_it_by_name() {
 
 /// The bundled surface Monte Carlo deck cut to 8 s flights and 130 trials (part files of 64: 64 + 64 + 2).
 fn small_surface_deck(dir: &Path) -> PathBuf {
-    let text = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed004_monte_carlo.toml"))
-        .unwrap();
-    let mut small = text.clone();
-    for (from, to) in [
-        ("duration_s = 40.0", "duration_s = 8.0"),
-        ("onset_s = { range = [5.0, 15.0] }", "onset_s = { range = [2.0, 3.0] }"),
-        ("fault_duration_s = 15.0", "fault_duration_s = 3.0"),
-        ("trials = 1200", "trials = 130"),
-    ] {
-        assert!(small.contains(from), "{from}");
-        small = small.replacen(from, to, 1);
-    }
-    let path = dir.join("small_surfaces.toml");
-    std::fs::write(&path, small).unwrap();
-    path
+    edited_deck(
+        dir,
+        "seed004_monte_carlo.toml",
+        &[
+            ("duration_s = 40.0", "duration_s = 8.0"),
+            ("onset_s = { range = [5.0, 15.0] }", "onset_s = { range = [2.0, 3.0] }"),
+            ("fault_duration_s = 15.0", "fault_duration_s = 3.0"),
+            ("trials = 1200", "trials = 130"),
+        ],
+        "small_surfaces.toml",
+    )
 }
 
 /// Runs `deck` with 1 and 2 threads, as two merged shards, and stopped after its first part file of
@@ -536,19 +431,16 @@ fn check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
 fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
     let tmp = tempfile::tempdir().unwrap();
     // The bundled deck cut to 30 s flights and 300 trials (part files of 256: 256 + 44).
-    let full =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed002_air_data.toml")).unwrap();
-    let mut small = full.clone();
-    for (from, to) in [
-        ("duration_s = 60.0", "duration_s = 30.0"),
-        ("onset_s = { range = [10.0, 40.0] }", "onset_s = { range = [5.0, 20.0] }"),
-        ("trials = 3000", "trials = 300"),
-    ] {
-        assert!(small.contains(from), "{from}");
-        small = small.replacen(from, to, 1);
-    }
-    let deck_path = tmp.path().join("small_air_data.toml");
-    std::fs::write(&deck_path, small).unwrap();
+    let deck_path = edited_deck(
+        tmp.path(),
+        "seed002_air_data.toml",
+        &[
+            ("duration_s = 60.0", "duration_s = 30.0"),
+            ("onset_s = { range = [10.0, 40.0] }", "onset_s = { range = [5.0, 20.0] }"),
+            ("trials = 3000", "trials = 300"),
+        ],
+        "small_air_data.toml",
+    );
     let deck = deck_path.to_str().unwrap();
     let s = |p: PathBuf| p.to_str().unwrap().to_string();
     let tables = ["summary.csv", "detectors.csv", "comparison.csv"];
@@ -607,22 +499,19 @@ fn air_data_check_passes_on_its_baseline() {
 fn launch_records_are_identical_for_any_threads_shards_and_resume() {
     let tmp = tempfile::tempdir().unwrap();
     // The bundled deck cut to 30 s flights and 150 trials (part files of 128: 128 + 22).
-    let full =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed001_thrust.toml")).unwrap();
-    let mut small = full.clone();
-    for (from, to) in [
-        ("duration_s = 90.0", "duration_s = 30.0"),
-        ("onset_s = { range = [15.0, 75.0] }", "onset_s = { range = [5.0, 20.0] }"),
-        ("trials = 2000", "trials = 150"),
-        ("start_s = 40.0", "start_s = 10.0"),
-        ("start_s = 50.0", "start_s = 15.0"),
-        ("threshold_fhat = 1.3e-5", "threshold_fhat = 1.3e-5\nloss_fit_onsets_s = [10.0, 20.0]"),
-    ] {
-        assert!(small.contains(from), "{from}");
-        small = small.replacen(from, to, 1);
-    }
-    let deck_path = tmp.path().join("small_launch.toml");
-    std::fs::write(&deck_path, small).unwrap();
+    let deck_path = edited_deck(
+        tmp.path(),
+        "seed001_thrust.toml",
+        &[
+            ("duration_s = 90.0", "duration_s = 30.0"),
+            ("onset_s = { range = [15.0, 75.0] }", "onset_s = { range = [5.0, 20.0] }"),
+            ("trials = 2000", "trials = 150"),
+            ("start_s = 40.0", "start_s = 10.0"),
+            ("start_s = 50.0", "start_s = 15.0"),
+            ("threshold_fhat = 1.3e-5", "threshold_fhat = 1.3e-5\nloss_fit_onsets_s = [10.0, 20.0]"),
+        ],
+        "small_launch.toml",
+    );
     let deck = deck_path.to_str().unwrap();
     let s = |p: PathBuf| p.to_str().unwrap().to_string();
     let tables = ["thresholds.csv", "summary.csv", "detectors.csv", "confusion.csv"];
@@ -670,14 +559,12 @@ fn launch_check_passes_on_its_baseline() {
 fn accelerometer_classifiers_train_save_load_and_runs_are_identical() {
     let tmp = tempfile::tempdir().unwrap();
     // The CI deck cut to 600 trials (part files of 512: 512 + 88) and 40 training trials per class.
-    let full = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/ci_seed003.toml")).unwrap();
-    let mut small = full.clone();
-    for (from, to) in [("trials = 400", "trials = 600"), ("trials_per_class = 80", "trials_per_class = 40")] {
-        assert!(small.contains(from), "{from}");
-        small = small.replacen(from, to, 1);
-    }
-    let deck_path = tmp.path().join("small_accelerometer.toml");
-    std::fs::write(&deck_path, small).unwrap();
+    let deck_path = edited_deck(
+        tmp.path(),
+        "ci_seed003.toml",
+        &[("trials = 400", "trials = 600"), ("trials_per_class = 80", "trials_per_class = 40")],
+        "small_accelerometer.toml",
+    );
     let deck = deck_path.to_str().unwrap();
     let s = |p: PathBuf| p.to_str().unwrap().to_string();
     // Every run below trains in its own process: identical records say the training is deterministic.
