@@ -326,12 +326,16 @@ fn surface_records_are_identical_for_any_threads_shards_and_resume() {
     // The regression check reads surface summaries; report refuses them by name.
     let check = ok(&fdimc(&["check", &s(dir("two")), "--baseline", &s(dir("one").join("summary.csv"))]));
     assert!(check.contains(": 0 regression(s)"), "{check}");
-    let out = fdimc(&["report", &s(dir("one"))]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(
-        text(&out.stderr).contains("fdimc report applies to detection_filter studies, not to this surface_bank study"),
-        "{}",
-        text(&out.stderr)
+    // The report of a surface study: the shared plots, and the trial re-flown with the banks' probabilities.
+    assert_report(
+        &dir("one"),
+        "3",
+        &[
+            ("delay_improved_stmmae.svg", &["delay after onset (s)"]),
+            ("confusion_improved_stmmae.svg", &["true target", "aileron_left"]),
+            ("false_alarms_emmae.svg", &["noise scale (bin)"]),
+            ("trace_trial3.svg", &["model probabilities", "improved_stmmae_p_no_fault", "surface positions (rad)"]),
+        ],
     );
     let out = fdimc(&["summarize", &s(dir("one")), "--target-pfa", "0.01"]);
     assert_eq!(out.status.code(), Some(2));
@@ -479,12 +483,15 @@ fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
 
     let check = ok(&fdimc(&["check", &s(one.clone()), "--baseline", &s(one.join("summary.csv"))]));
     assert!(check.contains(": 0 regression(s)"), "{check}");
-    let out = fdimc(&["report", &s(one)]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(
-        text(&out.stderr).contains("fdimc report applies to detection_filter studies, not to this air_data study"),
-        "{}",
-        text(&out.stderr)
+    assert_report(
+        &one,
+        "3",
+        &[
+            ("delay_patent.svg", &["delay after onset (s)"]),
+            ("confusion_patent.svg", &["true target", "airspeed_mps"]),
+            ("false_alarms_window10.svg", &["parameter error bin 0"]),
+            ("trace_trial3.svg", &["airspeed (m/s)", "patent_airspeed_mps_estimate", "airspeed_mps_true", "P(fault)"]),
+        ],
     );
 }
 
@@ -532,12 +539,15 @@ fn launch_records_are_identical_for_any_threads_shards_and_resume() {
     assert!(sim.contains(&format!("delay {delay:.2} s, localised {engine},")), "trial {trial}: {sim}");
     assert_eq!(read_frame(Path::new(&trace)).height(), 3000);
 
-    let out = fdimc(&["report", &s(one.clone())]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(
-        text(&out.stderr).contains("fdimc report applies to detection_filter studies, not to this thrust_loss study"),
-        "{}",
-        text(&out.stderr)
+    assert_report(
+        &one,
+        "3",
+        &[
+            ("roc.svg", &["seed calibrated: Pfa"]),
+            ("delay_seed.svg", &["thrust_loss ("]),
+            ("confusion_seed.svg", &["engine_1", "true target"]),
+            ("trace_trial3.svg", &["estimated fault fhat", "seed_fhat", "thrust_true_n"]),
+        ],
     );
     // Thresholds recalibrated at another false-alarm probability: a fifth of the flights may alarm.
     ok(&fdimc(&["summarize", &s(one.clone()), "--target-pfa", "0.2"]));
@@ -624,12 +634,14 @@ fn accelerometer_classifiers_train_save_load_and_runs_are_identical() {
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("junk.json: not classifiers written by `fdimc train`"), "{}", text(&out.stderr));
     assert!(!tmp.path().join("x").exists(), "nothing written for a refused run");
-    let out = fdimc(&["report", &s(one)]);
-    assert_eq!(out.status.code(), Some(2));
-    assert!(
-        text(&out.stderr).contains("fdimc report applies to detection_filter studies, not to this accelerometer study"),
-        "{}",
-        text(&out.stderr)
+    assert_report(
+        &one,
+        "3",
+        &[
+            ("confusion_tree.svg", &["true target", "stuck"]),
+            ("delay_tree.svg", &["delay after onset (s)"]),
+            ("trace_trial3.svg", &["detection statistic", "residual_x"]),
+        ],
     );
 }
 
@@ -765,6 +777,41 @@ fn bad_run_input_exits_2_and_keeps_what_was_written() {
 }
 
 /// The texts of an SVG's `<text>` elements, trimmed.
+/// `scripts/check_report.py` on the report of `dir`: every image loads in headless Chromium and no link
+/// points nowhere. Without Chromium the check is skipped, unless FDIMC_REQUIRE_CHROMIUM is set (as
+/// `.ci/run` sets it, after installing Chromium).
+fn assert_report_loads_in_a_browser(dir: &Path) {
+    let has = Command::new("chromium").arg("--version").output().is_ok_and(|o| o.status.success());
+    if !has {
+        assert!(std::env::var_os("FDIMC_REQUIRE_CHROMIUM").is_none(), "FDIMC_REQUIRE_CHROMIUM set, no chromium");
+        eprintln!("chromium not installed: the browser check of {} is skipped", dir.display());
+        return;
+    }
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/check_report.py");
+    let out = Command::new("python3").arg(script).arg(dir).output().unwrap();
+    assert!(out.status.success(), "{}{}", text(&out.stdout), text(&out.stderr));
+    assert!(text(&out.stdout).contains(" 0 failure(s)"), "{}", text(&out.stdout));
+}
+
+/// `fdimc report DIR --trials N` on a run of a kind: the page, and each of `plots` with the texts it
+/// must hold (legend entries, axis titles), and the page loads in a browser.
+fn assert_report(dir: &Path, trial: &str, plots: &[(&str, &[&str])]) {
+    let d = dir.to_str().unwrap();
+    let stdout = ok(&fdimc(&["report", d, "--trials", trial]));
+    let report = dir.join("report");
+    for (name, texts) in plots {
+        let svg = std::fs::read_to_string(report.join(name)).unwrap_or_else(|e| panic!("{name}: {e}\n{stdout}"));
+        for t in *texts {
+            assert!(svg.contains(t), "{name} lacks {t:?}");
+        }
+    }
+    let html = std::fs::read_to_string(report.join("report.html")).unwrap();
+    for (name, _) in plots {
+        assert!(html.contains(&format!("src=\"{name}\"")), "report.html does not show {name}");
+    }
+    assert_report_loads_in_a_browser(dir);
+}
+
 fn svg_texts(svg: &str) -> Vec<String> {
     svg.split("<text")
         .skip(1)
@@ -779,7 +826,7 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
     let d = dir.to_str().unwrap();
     ok(&fdimc(&["run", CI_DECK, "--quiet", "--trials", "1500", "--out", d]));
     let stdout = ok(&fdimc(&["report", d, "--trials", "3,17"]));
-    assert!(stdout.contains("9 plots"), "{stdout}");
+    assert!(stdout.contains("11 plots"), "{stdout}");
     let report = dir.join("report");
     let svg = |name: &str| std::fs::read_to_string(report.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
     // Each plot names its series (legend entries) and axis titles with units.
@@ -818,14 +865,14 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
     let confusion = svg("confusion_seed.svg");
     let labels = svg_texts(&confusion);
     for s in [
-        "faulty output",
-        "isolated output",
+        "true target",
+        "isolated (named) target",
         "none",
         "alpha_rad",
         "q_rad_s",
         "h_m",
         "correct isolation",
-        "other output, or none",
+        "another target, or none",
     ] {
         assert!(labels.iter().any(|t| t == s), "confusion_seed.svg lacks {s:?}: {labels:?}");
     }
@@ -844,8 +891,14 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
         assert!(report.join(name).is_file(), "report.html references missing {name}");
         refs += 1;
     }
-    assert_eq!(refs, 9);
+    assert_eq!(refs, 11);
     assert!(html.contains("ci_seed000") && html.contains("deck SHA-256"));
+    let fa = svg("false_alarms_seed.svg");
+    assert!(fa.contains("parameter error bin 0") && fa.contains("noise scale (bin)"), "false_alarms_seed.svg");
+    // The tables are for reading: the thresholds' calibration trials an integer, the source said once.
+    assert!(html.contains("<code>calibration_trials</code>: 441; <code>source</code>: calibrated at Pfa"), "{html}");
+    assert!(!html.contains(".00000<"), "numbers padded with zeros");
+    assert_report_loads_in_a_browser(&dir);
     // A trial outside the run is refused.
     let out = fdimc(&["report", d, "--trials", "1500"]);
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));

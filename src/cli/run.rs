@@ -260,10 +260,14 @@ pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<us
 
 pub fn exec_report(dir: &Path, trials: &[u64]) -> Result<(), CliError> {
     let (method, _) = method_of_run(dir)?;
-    method::require(REGISTRY, method, Opt::Report).map_err(|e| CliError::Invalid(format!("{}: {e}", dir.display())))?;
-    let report =
-        method.report.ok_or_else(|| CliError::Internal(format!("{} lists report but has none", method.kind)))?;
-    Ok(report(dir, trials)?)
+    let report = crate::engine::report::write_report(dir, trials, method)?;
+    for w in &report.warnings {
+        println!("warning: {w}");
+    }
+    if let Some(page) = report.files.last() {
+        println!("{} plots -> {}", report.files.len() - 1, page.display());
+    }
+    Ok(())
 }
 
 pub fn exec_train(deck: &Path, out: Option<&Path>) -> Result<(), CliError> {

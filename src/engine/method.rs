@@ -8,6 +8,7 @@
 use std::path::Path;
 
 use super::deck::{DeckError, StudyHeader, read_deck};
+use super::report::{ReportContext, ReportPart};
 use super::runner::{RunError, RunOptions, RunReport};
 
 /// A kind of study: how its decks read, what it adds to the shared summary, which options it takes.
@@ -25,8 +26,18 @@ pub struct Method {
     pub load: fn(&str, &Path) -> Result<Box<dyn Study>, DeckError>,
     /// What the shared summary adds for this kind ([`super::summary`]).
     pub summary: SummarySpec,
-    /// `fdimc report DIR --trials ...` ([`Opt::Report`]): plots and a page in `DIR/report/`.
-    pub report: Option<fn(&Path, &[u64]) -> Result<(), RunError>>,
+    /// What the kind adds to the shared report (`fdimc report`, [`super::report`]): its own plots and
+    /// sections; one that draws `trace_trial<N>.svg` itself replaces the generic traces.
+    pub report: Option<fn(&ReportContext) -> Result<ReportPart, RunError>>,
+    /// The panels of `fdimc report --trials N`: the columns of `simulate`'s trace each one draws.
+    pub trace_panels: &'static [TracePanel],
+}
+
+/// One panel of a report's trace plot: `columns` are names of `simulate`'s trace table, `*` matching
+/// any run of characters.
+pub struct TracePanel {
+    pub title: &'static str,
+    pub columns: &'static [&'static str],
 }
 
 /// Options that only some kinds take; a kind that does not list one refuses it (exit 2).
@@ -39,8 +50,6 @@ pub enum Opt {
     Classifiers,
     /// `fdimc design`: the kind has a gain design to show.
     Design,
-    /// `fdimc report`: the kind draws a report.
-    Report,
 }
 
 impl Opt {
@@ -50,7 +59,6 @@ impl Opt {
             Opt::Thresholds => "--target-pfa / --thresholds",
             Opt::Classifiers => "--classifiers / fdimc train",
             Opt::Design => "fdimc design",
-            Opt::Report => "fdimc report",
         }
     }
 }

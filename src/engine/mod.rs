@@ -9,7 +9,7 @@ pub mod noise;
 pub mod output;
 pub mod paired;
 pub mod quantiles;
-
+pub mod report;
 pub mod runner;
 pub mod scenario;
 pub mod schema;

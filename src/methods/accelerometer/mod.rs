@@ -11,7 +11,7 @@ pub mod trial;
 use std::path::Path;
 
 use crate::engine::deck::FromDeck;
-use crate::engine::method::{Inputs, Isolates, Method, Opt, Study, SummarySpec};
+use crate::engine::method::{Inputs, Isolates, Method, Opt, Study, SummarySpec, TracePanel};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::scenario::{GridDigits, draw};
 use crate::engine::streams::{Substream, noise_rng, trial_rng};
@@ -34,6 +34,11 @@ pub static METHOD: Method = Method {
     load: |text, path| Ok(Box::new(AccelerometerStudy::from_toml(text, path)?)),
     summary: SummarySpec { extra_keys: &[], isolates: Isolates::Kind, extras: &[], paired_delays: &[], printed: &[] },
     report: None,
+    trace_panels: &[
+        TracePanel { title: "attitude-EKF residual (m/s2)", columns: &["residual_*"] },
+        TracePanel { title: "detection statistic", columns: &["detection_statistic"] },
+        TracePanel { title: "alarm", columns: &["alarm"] },
+    ],
 };
 
 impl Study for AccelerometerStudy {

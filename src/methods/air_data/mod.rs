@@ -11,7 +11,7 @@ pub mod trial;
 use std::path::Path;
 
 use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Inputs, Isolates, Method, Study, SummarySpec};
+use crate::engine::method::{Extra, Inputs, Isolates, Method, Study, SummarySpec, TracePanel};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
 use crate::methods::air_data::dual_ukf::DualUkfStep;
@@ -57,6 +57,13 @@ pub static METHOD: Method = Method {
         ],
     },
     report: None,
+    trace_panels: &[
+        TracePanel { title: "airspeed (m/s)", columns: &["airspeed_mps_*", "*_airspeed_mps_estimate"] },
+        TracePanel { title: "angle of attack (rad)", columns: &["alpha_rad_*", "*_alpha_rad_estimate"] },
+        TracePanel { title: "sideslip (rad)", columns: &["beta_rad_*", "*_beta_rad_estimate"] },
+        TracePanel { title: "chi-square statistics", columns: &["*_chi_square"] },
+        TracePanel { title: "P(fault)", columns: &["*_p_fault"] },
+    ],
 };
 
 impl Study for AirDataStudy {

@@ -32,7 +32,7 @@ pub static METHOD: Method = Method {
     kind: KIND,
     marker: "plant",
     title: "eigenstructure-assigned detection filters on an LTI plant, sensor faults (method 000)",
-    options: &[Opt::Thresholds, Opt::Design, Opt::Report],
+    options: &[Opt::Thresholds, Opt::Design],
     load: |text, path| Ok(Box::new(LtiStudy::from_toml(text, path)?)),
     summary: SummarySpec {
         extra_keys: &[],
@@ -50,7 +50,8 @@ pub static METHOD: Method = Method {
         paired_delays: &[],
         printed: &[],
     },
-    report: Some(report_run),
+    report: Some(report::report_part),
+    trace_panels: &[],
 };
 
 impl Study for LtiStudy {
@@ -69,18 +70,6 @@ impl Study for LtiStudy {
     }
 }
 use trials::{Engine, TrialResult};
-
-/// `fdimc report`: the plots and page of [`report::write_report`], and what it wrote.
-fn report_run(dir: &Path, trials: &[u64]) -> Result<(), RunError> {
-    let report = report::write_report(dir, trials)?;
-    for w in &report.warnings {
-        println!("warning: {w}");
-    }
-    if let Some(page) = report.files.last() {
-        println!("{} plots -> {}", report.files.len() - 1, page.display());
-    }
-    Ok(())
-}
 
 /// Runs an LTI study (method 000) through [`run`]; a detector that cannot be designed on the nominal
 /// model is the deck's error (with parameter errors, per-trial design failures are rows instead).

@@ -12,7 +12,7 @@ pub mod uav;
 use std::path::Path;
 
 use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Inputs, Isolates, Method, Study, SummarySpec};
+use crate::engine::method::{Extra, Inputs, Isolates, Method, Study, SummarySpec, TracePanel};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
 use crate::methods::surface_bank::scenario::SurfaceScenarioSampler;
@@ -61,6 +61,12 @@ pub static METHOD: Method = Method {
         printed: &[("clear p50 s", "clearing_p50_s"), ("relapse", "post_fault_rate")],
     },
     report: None,
+    trace_panels: &[
+        TracePanel { title: "surface positions (rad)", columns: &["*_position_rad"] },
+        TracePanel { title: "banks' surface estimates (rad)", columns: &["*_estimate_rad"] },
+        TracePanel { title: "model probabilities", columns: &["*_p_*"] },
+        TracePanel { title: "body rates (rad/s)", columns: &["p_rad_s_*", "q_rad_s_*", "r_rad_s_*"] },
+    ],
 };
 
 impl Study for SurfaceStudy {

@@ -11,7 +11,7 @@ pub mod vehicle;
 use std::path::Path;
 
 use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Inputs, Isolates, Method, Opt, Study, SummarySpec};
+use crate::engine::method::{Extra, Inputs, Isolates, Method, Opt, Study, SummarySpec, TracePanel};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
 use crate::methods::thrust_loss::ekf_mhe::MheStep;
@@ -52,6 +52,13 @@ pub static METHOD: Method = Method {
         printed: &[("loss err %", "loss_abs_error_p50_percent")],
     },
     report: None,
+    trace_panels: &[
+        TracePanel { title: "yaw rate (rad/s)", columns: &["wz_*"] },
+        TracePanel { title: "thrust (N)", columns: &["thrust_true_n"] },
+        TracePanel { title: "EKF residual (rad/s)", columns: &["*_residual_rad_s"] },
+        TracePanel { title: "estimated fault fhat", columns: &["*_fhat"] },
+        TracePanel { title: "alarm", columns: &["*_alarm"] },
+    ],
 };
 
 impl Study for LaunchStudy {

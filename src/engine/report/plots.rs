@@ -7,30 +7,26 @@ use std::sync::Once;
 use plotters::prelude::*;
 use polars::prelude::*;
 
-use crate::engine::output::Trace;
 use crate::engine::schema::col;
-use crate::methods::detection_filter::scenario::TrialSpec;
-use crate::methods::detection_filter::study::LtiStudy;
-use crate::methods::detection_filter::trial::DetectorOutcome;
 
-const FONT: &str = "sans-serif";
+pub const FONT: &str = "sans-serif";
 
 /// Registers the bundled font once per process (plotters' ab_glyph backend needs the bytes).
 pub fn register_font() {
     static ONCE: Once = Once::new();
     ONCE.call_once(|| {
-        let bytes: &'static [u8] = include_bytes!("../../../../assets/fonts/DejaVuSans.ttf");
+        let bytes: &'static [u8] = include_bytes!("../../../assets/fonts/DejaVuSans.ttf");
         // Only fails for a corrupt font file, which is bundled: a programmer error.
         plotters::style::register_font(FONT, FontStyle::Normal, bytes).map_err(|_| ()).expect("bundled font");
     });
 }
 
-fn e<E: std::fmt::Debug>(err: E) -> String {
+pub fn e<E: std::fmt::Debug>(err: E) -> String {
     format!("{err:?}")
 }
 
 /// The legend box every plot uses: its series' labels at `position`, in `size`-point text.
-fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+pub fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
     chart: &mut ChartContext<'a, DB, CT>,
     position: SeriesLabelPosition,
     size: u32,
@@ -45,7 +41,7 @@ fn legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
         .map_err(e)
 }
 
-fn color(i: usize) -> RGBColor {
+pub fn color(i: usize) -> RGBColor {
     // Okabe-Ito: distinguishable, also for colour-blind readers.
     const C: [(u8, u8, u8); 8] = [
         (0, 114, 178),
@@ -74,6 +70,7 @@ pub fn pd_against_size(
     file: &Path,
     curves: &DataFrame,
     min_det: &DataFrame,
+    set_name: &str,
     detector: &str,
     kind: &str,
     unit: &str,
@@ -88,7 +85,7 @@ pub fn pd_against_size(
         (floats(curves, col::SIZE_BIN)?, floats(curves, "pd")?, floats(curves, "pd_lo")?, floats(curves, "pd_hi")?);
     let mut series: BTreeMap<String, Vec<(f64, f64, f64, f64)>> = BTreeMap::new();
     for i in 0..curves.height() {
-        if set.get(i) != Some("calibrated") || det.get(i) != Some(detector) || k.get(i) != Some(kind) {
+        if set.get(i) != Some(set_name) || det.get(i) != Some(detector) || k.get(i) != Some(kind) {
             continue;
         }
         if let (Some(o), Some(s), Some(p), Some(l), Some(h)) =
@@ -107,7 +104,7 @@ pub fn pd_against_size(
     let min_size = |o: &str| {
         (0..min_det.height())
             .find(|&i| {
-                ms.get(i) == Some("calibrated")
+                ms.get(i) == Some(set_name)
                     && md.get(i) == Some(detector)
                     && mk.get(i) == Some(kind)
                     && mo.get(i) == Some(o)
@@ -123,7 +120,7 @@ pub fn pd_against_size(
     let mut chart = ChartBuilder::on(&root)
         .caption(
             format!(
-                "Detection probability vs fault size: {detector}, {kind} (calibrated thresholds; triangles: Pd >= 0.9)"
+                "Detection probability vs fault size: {detector}, {kind} ({set_name} thresholds; triangles: Pd >= 0.9)"
             ),
             (FONT, 18),
         )
@@ -220,7 +217,7 @@ pub fn roc(file: &Path, detectors: &[(String, Vec<f64>, Vec<f64>)]) -> Result<()
 }
 
 /// Detection-delay distributions per fault kind, as frequency polygons over 40 bins.
-pub fn delays(file: &Path, detector: &str, delays: &BTreeMap<String, Vec<f64>>) -> Result<(), String> {
+pub fn delays(file: &Path, detector: &str, set_name: &str, delays: &BTreeMap<String, Vec<f64>>) -> Result<(), String> {
     let mut all: Vec<f64> = delays.values().flatten().copied().filter(|d| d.is_finite()).collect();
     all.sort_by(f64::total_cmp);
     let top = all
@@ -246,7 +243,7 @@ pub fn delays(file: &Path, detector: &str, delays: &BTreeMap<String, Vec<f64>>) 
     root.fill(&WHITE).map_err(e)?;
     let mut chart = ChartBuilder::on(&root)
         .caption(
-            format!("Detection delay by fault kind: {detector} (calibrated thresholds; last bin holds the top 1 %)"),
+            format!("Detection delay by fault kind: {detector} ({set_name} thresholds; last bin holds the top 1 %)"),
             (FONT, 18),
         )
         .margin(12)
@@ -274,16 +271,32 @@ pub fn delays(file: &Path, detector: &str, delays: &BTreeMap<String, Vec<f64>>) 
     root.present().map_err(e)
 }
 
-/// Isolation confusion matrix: rows = faulty output, columns = isolated output (or none).
+/// Isolation (or classification) confusion matrix: rows = true target, columns = the one named (or
+/// none), in the order of `order` (the manifest's outputs), then any other names.
 pub fn confusion(
     file: &Path,
     detector: &str,
-    outputs: &[String],
+    order: &[String],
     counts: &BTreeMap<(String, String), u64>,
 ) -> Result<(), String> {
-    let rows: Vec<&String> = outputs.iter().filter(|o| counts.keys().any(|k| &k.0 == *o)).collect();
-    let mut cols: Vec<String> = outputs.to_vec();
-    cols.push("none".into());
+    let mut names: Vec<String> = order.to_vec();
+    for (t, n) in counts.keys() {
+        for x in [t, n] {
+            if x != col::NO_FAULT && !names.contains(x) {
+                names.push(x.clone());
+            }
+        }
+    }
+    let rows: Vec<&String> = names.iter().filter(|o| counts.keys().any(|k| &k.0 == *o)).collect();
+    // Every listed target is a column when the targets are what `order` lists (a never-named output
+    // is worth seeing as an empty column); otherwise only the names that occur.
+    let listed = counts.keys().all(|k| order.contains(&k.0));
+    let mut cols: Vec<String> = names
+        .iter()
+        .filter(|o| (listed && order.contains(o)) || counts.keys().any(|k| &k.1 == *o || &k.0 == *o))
+        .cloned()
+        .collect();
+    cols.push(col::NO_FAULT.into());
     let (nr, nc) = (rows.len().max(1) as i32, cols.len() as i32);
     let figure = SVGBackend::new(file, (1160, 140 + 70 * nr as u32)).into_drawing_area();
     figure.fill(&WHITE).map_err(e)?;
@@ -292,7 +305,7 @@ pub fn confusion(
     let (green, orange) = (RGBColor(0, 158, 115), RGBColor(213, 94, 0));
     for (k, (fill, text)) in [
         (green.mix(1.0), "correct isolation"),
-        (orange.mix(1.0), "other output, or none"),
+        (orange.mix(1.0), "another target, or none"),
         (orange.mix(0.1), "shade: share of the row"),
     ]
     .into_iter()
@@ -303,7 +316,7 @@ pub fn confusion(
         key.draw(&Text::new(text, (34, y + 3), (FONT, 13))).map_err(e)?;
     }
     let mut chart = ChartBuilder::on(&root)
-        .caption(format!("Isolation confusion: {detector} (deck thresholds, signature direction)"), (FONT, 18))
+        .caption(format!("Isolation confusion: {detector} (deck thresholds; rows: true target)"), (FONT, 18))
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(110)
@@ -320,8 +333,8 @@ pub fn confusion(
         .y_labels(nr as usize)
         .x_label_formatter(&|v| centre(v).and_then(|i| cols.get(i).cloned()).unwrap_or_default())
         .y_label_formatter(&|v| centre(v).and_then(|i| rows.get(i)).map(|s| s.to_string()).unwrap_or_default())
-        .x_desc("isolated output")
-        .y_desc("faulty output")
+        .x_desc("isolated (named) target")
+        .y_desc("true target")
         .label_style((FONT, 13))
         .draw()
         .map_err(e)?;
@@ -345,77 +358,100 @@ pub fn confusion(
     figure.present().map_err(e)
 }
 
-/// Residuals of one trial, one panel per output: residual, +/- deck and calibrated thresholds,
-/// onset and alarm times.
-pub fn trace(
+/// False-alarm probability per trial against the noise scale, one series per parameter-error bin, with
+/// 95 % Wilson intervals as bars. `points`: (noise bin, parameter-error bin, rate, lo, hi, trials).
+pub fn false_alarms(
     file: &Path,
-    study: &LtiStudy,
-    spec: &TrialSpec,
-    outcome: &DetectorOutcome,
-    trace: &Trace,
-    calibrated: Option<&[f64]>,
+    detector: &str,
+    set_name: &str,
+    points: &[(f64, f64, f64, f64, f64, u64)],
 ) -> Result<(), String> {
-    let outputs = &study.plant.output_names;
-    let t = &trace.float_columns.iter().find(|(n, _)| n == "t_s").ok_or("trace without t_s")?.1;
-    let deck = &study.detectors[0].params.thresholds;
-    let rows = outputs.len().div_ceil(2) as u32;
-    let root = SVGBackend::new(file, (1100, 80 + 260 * rows)).into_drawing_area();
+    let (x0, x1) = points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.0), b.max(p.0)));
+    let pad = ((x1 - x0) * 0.08).max(0.05);
+    let top = points.iter().map(|p| p.4).fold(0.0, f64::max).max(0.01) * 1.1;
+    let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
     root.fill(&WHITE).map_err(e)?;
-    let fault = match spec.output {
-        Some(j) => format!("{} {} size {:.4} from {:.2} s", outputs[j], spec.kind, spec.size, spec.onset_s),
-        None => "fault-free".into(),
-    };
-    let root = root
-        .titled(&format!("Trial {}: {fault}; detector {}", spec.trial, study.detectors[0].name), (FONT, 20))
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("False alarms by noise and parameter-error bin: {detector} ({set_name} thresholds)"),
+            (FONT, 18),
+        )
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d((x0 - pad)..(x1 + pad), 0f64..top)
         .map_err(e)?;
-    let panels = root.split_evenly((rows as usize, 2));
-    for (j, name) in outputs.iter().enumerate() {
-        let r = &trace.float_columns.iter().find(|(n, _)| *n == format!("r_{name}")).ok_or("trace without residual")?.1;
-        let lim = r.iter().fold(deck[j], |m, v| m.max(v.abs())) * 1.15;
-        let mut chart = ChartBuilder::on(&panels[j])
+    chart
+        .configure_mesh()
+        .x_desc("noise scale (bin)")
+        .y_desc("false-alarm probability per fault-free trial")
+        .label_style((FONT, 14))
+        .draw()
+        .map_err(e)?;
+    let mut bins: Vec<f64> = points.iter().map(|p| p.1).collect();
+    bins.sort_by(f64::total_cmp);
+    bins.dedup();
+    for (i, b) in bins.iter().enumerate() {
+        let c = color(i);
+        // Bins side by side, so that overlapping intervals stay readable.
+        let shift = (i as f64 - (bins.len() as f64 - 1.0) / 2.0) * pad * 0.25;
+        let mut pts: Vec<_> = points.iter().filter(|p| p.1 == *b).map(|p| (p.0 + shift, p.2, p.3, p.4)).collect();
+        pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        chart
+            .draw_series(LineSeries::new(pts.iter().map(|p| (p.0, p.1)), c.stroke_width(2)))
+            .map_err(e)?
+            .label(format!("parameter error bin {b}"))
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
+        chart
+            .draw_series(pts.iter().map(|p| PathElement::new([(p.0, p.2), (p.0, p.3)], c.stroke_width(2))))
+            .map_err(e)?;
+        chart.draw_series(pts.iter().map(|p| Circle::new((p.0, p.1), 4, c.filled()))).map_err(e)?;
+    }
+    legend(&mut chart, SeriesLabelPosition::UpperLeft, 14)?;
+    root.present().map_err(e)
+}
+
+/// One trial's trace as `simulate` writes it: one panel per (title, columns), against `t_s`; the
+/// fault onset drawn where there is one.
+pub fn trace_panels(
+    file: &Path,
+    title: &str,
+    t_s: &[f64],
+    panels: &[(String, Vec<(String, Vec<f64>)>)],
+    onset_s: Option<f64>,
+) -> Result<(), String> {
+    let (t0, t1) = (t_s.first().copied().unwrap_or(0.0), t_s.last().copied().unwrap_or(1.0).max(1e-9));
+    let root = SVGBackend::new(file, (1100, 80 + 240 * panels.len() as u32)).into_drawing_area();
+    root.fill(&WHITE).map_err(e)?;
+    let root = root.titled(title, (FONT, 20)).map_err(e)?;
+    let areas = root.split_evenly((panels.len().max(1), 1));
+    for ((name, series), area) in panels.iter().zip(&areas) {
+        let finite = series.iter().flat_map(|s| s.1.iter().copied()).filter(|v| v.is_finite());
+        let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+        let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 1.0) };
+        let pad = ((hi - lo) * 0.08).max(1e-9);
+        let mut chart = ChartBuilder::on(area)
             .margin(8)
             .x_label_area_size(35)
-            .y_label_area_size(65)
-            .build_cartesian_2d(0f64..study.header.duration_s, -lim..lim)
+            .y_label_area_size(75)
+            .build_cartesian_2d(t0..t1, (lo - pad)..(hi + pad))
             .map_err(e)?;
-        chart.configure_mesh().x_desc("t (s)").y_desc(format!("r_{name}")).label_style((FONT, 12)).draw().map_err(e)?;
-        chart
-            .draw_series(LineSeries::new(t.iter().copied().zip(r.iter().copied()), color(0)))
-            .map_err(e)?
-            .label(format!("r_{name}"))
-            .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(0)));
-        for sign in [1.0, -1.0] {
-            let s = chart
-                .draw_series(LineSeries::new(
-                    [(0.0, sign * deck[j]), (study.header.duration_s, sign * deck[j])],
-                    color(1),
-                ))
-                .map_err(e)?;
-            if sign > 0.0 {
-                s.label("deck threshold").legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(1)));
-            }
-            if let Some(c) = calibrated.and_then(|c| c.get(j)) {
-                let s = chart
-                    .draw_series(LineSeries::new([(0.0, sign * c), (study.header.duration_s, sign * c)], color(2)))
-                    .map_err(e)?;
-                if sign > 0.0 {
-                    s.label("calibrated threshold").legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(2)));
-                }
-            }
-        }
-        if spec.onset_s.is_finite() {
+        chart.configure_mesh().x_desc("t (s)").y_desc(name.as_str()).label_style((FONT, 12)).draw().map_err(e)?;
+        for (i, (column, v)) in series.iter().enumerate() {
+            let c = color(i);
+            let pts = t_s.iter().copied().zip(v.iter().copied()).filter(|p| p.1.is_finite());
             chart
-                .draw_series(LineSeries::new([(spec.onset_s, -lim), (spec.onset_s, lim)], BLACK.stroke_width(2)))
+                .draw_series(LineSeries::new(pts, c))
                 .map_err(e)?
-                .label("onset")
+                .label(column.as_str())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c));
+        }
+        if let Some(t) = onset_s.filter(|t| t.is_finite()) {
+            chart
+                .draw_series(LineSeries::new([(t, lo - pad), (t, hi + pad)], BLACK.stroke_width(2)))
+                .map_err(e)?
+                .label("fault onset")
                 .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.stroke_width(2)));
-        }
-        if let Some((ta, _)) = outcome.detection.or(outcome.false_alarm) {
-            chart
-                .draw_series(LineSeries::new([(ta, -lim), (ta, lim)], color(3).stroke_width(2)))
-                .map_err(e)?
-                .label("first alarm")
-                .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(3).stroke_width(2)));
         }
         legend(&mut chart, SeriesLabelPosition::UpperLeft, 11)?;
     }

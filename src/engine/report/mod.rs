@@ -1,0 +1,590 @@
+//! `fdimc report DIR` for every kind of study: plots (SVG) and one self-contained HTML page in
+//! `DIR/report/`, drawn from the shared outcome schema and the shared summary tables, then what the
+//! method adds ([`crate::engine::method::Method::report`]).
+//!
+//! - `pd_size_<detector>_<kind>.svg`: Pd against fault size per target with 95 % Wilson bands, the
+//!   minimum size with Pd >= 0.9 marked (calibrated thresholds where the kind calibrates, else the deck's);
+//! - `delay_<detector>.svg`: detection-delay distributions per fault kind;
+//! - `confusion_<detector>.svg`: the isolation (or classification) confusion matrix (`confusion.csv`);
+//! - `false_alarms_<detector>.svg`: Pfa by noise and parameter-error bin with intervals (`summary`);
+//! - `roc.svg` (kinds that record a detection statistic): Pd against Pfa as the whole-detector
+//!   thresholds are scaled, the calibrated point marked;
+//! - `trace_trial<N>.svg` (`--trials N`): the trial re-flown by the method's `simulate`;
+//! - `report.html`: provenance, warnings, the tables for reading, every plot.
+//!
+//! Text is rendered with the bundled DejaVu Sans (`assets/fonts`), so output is the same on any machine.
+
+pub mod html;
+pub mod plots;
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use polars::prelude::*;
+
+use super::intervals::{Z95, wilson};
+use super::method::{Inputs, Method, Opt};
+use super::runner::{Manifest, RunError, io, read_parquet, write_atomically};
+use super::schema::col;
+use super::tables::{column_names, f64_col, list_col, read_slice, read_summary, str_col};
+use super::thresholds::{alarm_time, read_thresholds};
+
+/// What a report wrote, for the CLI and tests.
+#[derive(Debug, Default)]
+pub struct Report {
+    pub files: Vec<PathBuf>,
+    pub warnings: Vec<String>,
+}
+
+/// What a method adds to the shared report: plots it drew into `ReportContext::out` and sections of
+/// the page (title, HTML).
+#[derive(Debug, Default)]
+pub struct ReportPart {
+    pub files: Vec<PathBuf>,
+    pub warnings: Vec<String>,
+    pub sections: Vec<(String, String)>,
+}
+
+/// What a method's report part may read.
+pub struct ReportContext<'a> {
+    /// The results folder.
+    pub dir: &'a Path,
+    /// `dir/report/`, where plots go.
+    pub out: &'a Path,
+    pub manifest: &'a Manifest,
+    /// `--trials`: trials to re-fly and draw.
+    pub trials: &'a [u64],
+}
+
+/// Per detector, from `trials.parquet`.
+#[derive(Default)]
+struct DetectorData {
+    /// Largest statistic over its calibrated threshold on fault-free trials, before the end.
+    z_fault_free: Vec<f64>,
+    /// The same on faulty trials after the onset.
+    z_faulty: Vec<f64>,
+    /// Delays per fault kind at the report's threshold set.
+    delays: BTreeMap<String, Vec<f64>>,
+}
+
+/// Writes the report of the run in `dir`, drawing `trials` from the deck the run used.
+pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Report, RunError> {
+    let manifest = Manifest::read(dir)?;
+    let calibrates = method.options.contains(&Opt::Thresholds);
+    let mut needed = vec!["summary.parquet", "curves.csv", "min_detectable.csv", "detectors.csv"];
+    if calibrates {
+        needed.push("thresholds.csv");
+    }
+    for f in needed {
+        if !dir.join(f).exists() {
+            return Err(RunError::Invalid(format!(
+                "{}: missing {f}: run `fdimc summarize {}` first",
+                dir.display(),
+                dir.display()
+            )));
+        }
+    }
+    let out = dir.join("report");
+    std::fs::create_dir_all(&out).map_err(io(&out))?;
+    plots::register_font();
+    let mut report = Report::default();
+    let set = if calibrates { "calibrated" } else { "deck" };
+    let thresholds = if calibrates { read_thresholds(&dir.join("thresholds.csv"))? } else { Vec::new() };
+    let data = gather(dir, &manifest, &thresholds)?;
+
+    let curves = read_summary(&dir.join("curves.csv"))?;
+    let min_det = read_summary(&dir.join("min_detectable.csv"))?;
+    for d in &manifest.detectors {
+        for kind in kinds_with_sizes(&curves, set, d)? {
+            let file = out.join(format!("pd_size_{d}_{kind}.svg"));
+            let unit = manifest.fault_size_units.get(&kind).cloned().unwrap_or_else(|| "deck units".into());
+            plots::pd_against_size(&file, &curves, &min_det, set, d, &kind, &unit).map_err(internal(&file))?;
+            report.files.push(file);
+        }
+    }
+    if calibrates {
+        let roc: Vec<(String, Vec<f64>, Vec<f64>)> = manifest
+            .detectors
+            .iter()
+            .map(|d| (d.clone(), data[d].z_fault_free.clone(), data[d].z_faulty.clone()))
+            .collect();
+        if roc.iter().any(|(_, ff, f)| !ff.is_empty() && !f.is_empty()) {
+            let file = out.join("roc.svg");
+            plots::roc(&file, &roc).map_err(internal(&file))?;
+            report.files.push(file);
+        } else {
+            report.warnings.push("no ROC: it needs both fault-free and faulty trials".into());
+        }
+    }
+    let confusion = read_confusion(dir)?;
+    let false_alarms = false_alarms_by_bin(dir, set)?;
+    for d in &manifest.detectors {
+        let dd = &data[d];
+        if dd.delays.values().any(|v| !v.is_empty()) {
+            let file = out.join(format!("delay_{d}.svg"));
+            plots::delays(&file, d, set, &dd.delays).map_err(internal(&file))?;
+            report.files.push(file);
+        }
+        if let Some(counts) = confusion.get(d).filter(|c| !c.is_empty()) {
+            let file = out.join(format!("confusion_{d}.svg"));
+            plots::confusion(&file, d, &manifest.outputs, counts).map_err(internal(&file))?;
+            report.files.push(file);
+        }
+        if let Some(points) = false_alarms.get(d).filter(|p| !p.is_empty()) {
+            let file = out.join(format!("false_alarms_{d}.svg"));
+            plots::false_alarms(&file, d, set, points).map_err(internal(&file))?;
+            report.files.push(file);
+        }
+    }
+
+    let context = ReportContext { dir, out: &out, manifest: &manifest, trials };
+    let part = match method.report {
+        Some(own) => own(&context)?,
+        None => ReportPart::default(),
+    };
+    if part.files.iter().all(|f| !f.to_string_lossy().contains("trace_trial")) {
+        report.files.extend(traces(&context, method)?);
+    }
+    report.files.extend(part.files.iter().cloned());
+    report.warnings.extend(part.warnings.iter().cloned());
+
+    let summary = read_parquet(&dir.join("summary.parquet"))?;
+    report.warnings.extend(health_warnings(&summary));
+    for (d, dd) in &data {
+        let n = dd.z_fault_free.len();
+        if calibrates && (n as f64) * manifest.target_pfa < 1.0 {
+            report.warnings.push(format!(
+                "detector {d}: {n} fault-free trials cannot resolve the target Pfa {} (needs {})",
+                manifest.target_pfa,
+                (1.0 / manifest.target_pfa).ceil()
+            ));
+        }
+    }
+
+    let html = out.join("report.html");
+    let page = page(dir, &manifest, &report, &part.sections, set, &false_alarms)?;
+    write_atomically(&html, page.as_bytes())?;
+    report.files.push(html);
+    Ok(report)
+}
+
+fn internal(file: &Path) -> impl FnOnce(String) -> RunError + '_ {
+    move |e| RunError::Internal(format!("{}: {e}", file.display()))
+}
+
+fn polars_error(path: &Path) -> impl Fn(PolarsError) -> RunError + '_ {
+    move |e| RunError::Invalid(format!("{}: {e}", path.display()))
+}
+
+/// Re-flies each of `ctx.trials` with the method's `simulate` (into a table next to the plot) and
+/// draws the columns of the method's trace panels.
+fn traces(ctx: &ReportContext, method: &Method) -> Result<Vec<PathBuf>, RunError> {
+    if ctx.trials.is_empty() {
+        return Ok(Vec::new());
+    }
+    let deck = PathBuf::from(&ctx.manifest.deck);
+    let same = super::runner::deck_sha256(&deck).map(|h| h == ctx.manifest.deck_sha256).unwrap_or(false);
+    if !same {
+        return Err(RunError::Invalid(format!(
+            "--trials: {} is missing or changed since this run (SHA-256 differs): traces need the run's deck",
+            deck.display()
+        )));
+    }
+    if method.trace_panels.is_empty() {
+        return Err(RunError::Invalid(format!("--trials: {} studies list no trace to draw", method.kind)));
+    }
+    let text = super::deck::read_deck(&deck).map_err(|e| RunError::Invalid(e.to_string()))?;
+    let mut study = (method.load)(&text, &deck).map_err(|e| RunError::Invalid(e.to_string()))?;
+    let (seed, n) = study.seed_and_trials();
+    (*seed, *n) = (ctx.manifest.seed, ctx.manifest.trials);
+    let onsets = onsets(ctx.dir, ctx.manifest.rows, ctx.trials)?;
+    let mut files = Vec::new();
+    for &trial in ctx.trials {
+        if trial >= ctx.manifest.trials {
+            return Err(RunError::Invalid(format!(
+                "--trials: trial {trial} is not in this run (0..{})",
+                ctx.manifest.trials
+            )));
+        }
+        let table = ctx.out.join(format!("trace_trial{trial}.parquet"));
+        study.simulate(trial, None, &table, Inputs { classifiers: None, quiet: true })?;
+        let df = read_parquet(&table)?;
+        let t_s = f64_col(&df, "t_s", &table)?.into_no_null_iter().collect::<Vec<_>>();
+        let names: Vec<String> = df.get_column_names().iter().map(|n| n.to_string()).collect();
+        let mut panels = Vec::new();
+        for panel in method.trace_panels {
+            let mut series = Vec::new();
+            for name in names.iter().filter(|n| panel.columns.iter().any(|p| glob(p, n))) {
+                let c = df.column(name).and_then(|c| c.cast(&DataType::Float64)).map_err(polars_error(&table))?;
+                let v = c.f64().map_err(polars_error(&table))?;
+                series.push((name.clone(), (0..v.len()).map(|i| v.get(i).unwrap_or(f64::NAN)).collect()));
+            }
+            if !series.is_empty() {
+                panels.push((panel.title.to_string(), series));
+            }
+        }
+        let file = ctx.out.join(format!("trace_trial{trial}.svg"));
+        let title = format!("{}: trial {trial} as `fdimc simulate` re-flies it", ctx.manifest.study);
+        plots::trace_panels(&file, &title, &t_s, &panels, onsets.get(&trial).copied()).map_err(internal(&file))?;
+        files.push(file);
+    }
+    Ok(files)
+}
+
+/// `pattern` with `*` standing for any run of characters.
+fn glob(pattern: &str, name: &str) -> bool {
+    let parts: Vec<&str> = pattern.split('*').collect();
+    if parts.len() == 1 {
+        return pattern == name;
+    }
+    let (first, last) = (parts[0], parts[parts.len() - 1]);
+    if !name.starts_with(first) || !name[first.len()..].ends_with(last) || name.len() < first.len() + last.len() {
+        return false;
+    }
+    let mut rest = &name[first.len()..name.len() - last.len()];
+    for p in &parts[1..parts.len() - 1] {
+        match rest.find(p) {
+            Some(i) => rest = &rest[i + p.len()..],
+            None => return false,
+        }
+    }
+    true
+}
+
+/// The fault onset of each of `trials` (from its rows in `trials.parquet`).
+fn onsets(dir: &Path, rows: u64, trials: &[u64]) -> Result<BTreeMap<u64, f64>, RunError> {
+    let path = dir.join("trials.parquet");
+    let mut found = BTreeMap::new();
+    let step = 65_536usize;
+    let columns = vec![col::TRIAL.to_string(), col::ONSET_S.to_string()];
+    let mut offset = 0usize;
+    while offset < rows as usize {
+        let df = read_slice(&path, offset, step, Some(columns.clone()))?;
+        offset += step;
+        let t = df.column(col::TRIAL).and_then(|c| c.u64().cloned()).map_err(polars_error(&path))?;
+        let onset = f64_col(&df, col::ONSET_S, &path)?;
+        for i in 0..df.height() {
+            if let (Some(t), Some(o)) = (t.get(i), onset.get(i)) {
+                if trials.contains(&t) {
+                    found.insert(t, o);
+                }
+            }
+        }
+    }
+    Ok(found)
+}
+
+/// Failed designs and diverged runs, counted once per (trial, detector) from one threshold set's rows.
+fn health_warnings(summary: &DataFrame) -> Vec<String> {
+    let first_set = summary.column("thresholds").ok().and_then(|c| c.str().ok()).and_then(|c| c.get(0));
+    let sum = |name: &str| -> u64 {
+        let (Ok(set), Ok(values)) = (summary.column("thresholds"), summary.column(name)) else { return 0 };
+        let (Ok(set), Ok(values)) = (set.str(), values.u64()) else { return 0 };
+        (0..summary.height()).filter(|&i| set.get(i) == first_set).filter_map(|i| values.get(i)).sum()
+    };
+    let mut warnings = Vec::new();
+    let failures = sum("failed");
+    if failures > 0 {
+        warnings.push(format!("{failures} trial x detector runs failed (failure in trials.parquet)"));
+    }
+    let diverged = sum("diverged");
+    if diverged > 0 {
+        warnings.push(format!("{diverged} trial x detector runs diverged (diverged in trials.parquet)"));
+    }
+    warnings
+}
+
+/// Fault kinds of detector `d` with at least two size bins in the curves of threshold set `set`.
+fn kinds_with_sizes(curves: &DataFrame, set: &str, d: &str) -> Result<Vec<String>, RunError> {
+    let f = curves
+        .clone()
+        .lazy()
+        .filter(
+            polars::prelude::col("thresholds")
+                .eq(lit(set))
+                .and(polars::prelude::col(col::DETECTOR).eq(lit(d)))
+                .and(polars::prelude::col(col::SIZE_BIN).is_not_null()),
+        )
+        .group_by_stable([polars::prelude::col(col::KIND)])
+        .agg([polars::prelude::col(col::SIZE_BIN).n_unique().alias("n")])
+        .filter(polars::prelude::col("n").gt_eq(lit(2)))
+        .collect()
+        .map_err(|e| RunError::Internal(e.to_string()))?;
+    let k = f.column(col::KIND).and_then(|c| c.str().cloned()).map_err(|e| RunError::Internal(e.to_string()))?;
+    Ok((0..k.len()).filter_map(|i| k.get(i).map(str::to_string)).collect())
+}
+
+/// `confusion.csv` as counts per detector: (true target, named target) -> units.
+#[allow(clippy::type_complexity)]
+fn read_confusion(dir: &Path) -> Result<BTreeMap<String, BTreeMap<(String, String), u64>>, RunError> {
+    let path = dir.join("confusion.csv");
+    let mut counts: BTreeMap<String, BTreeMap<(String, String), u64>> = BTreeMap::new();
+    if !path.exists() {
+        return Ok(counts);
+    }
+    let df = read_summary(&path)?;
+    let t = super::tables::Table(&df);
+    let (d, truth, named, n) = (t.strs(col::DETECTOR), t.strs("truth"), t.strs(col::ISOLATED), t.u64s("units"));
+    for i in 0..df.height() {
+        *counts.entry(d[i].clone()).or_default().entry((truth[i].clone(), named[i].clone())).or_default() += n[i];
+    }
+    Ok(counts)
+}
+
+/// Per detector: (noise bin, parameter-error bin, Pfa, lo, hi, fault-free trials flown) from the
+/// summary's fault-free rows of threshold set `set`, summed over the kind's own bins.
+#[allow(clippy::type_complexity)]
+fn false_alarms_by_bin(
+    dir: &Path,
+    set: &str,
+) -> Result<BTreeMap<String, Vec<(f64, f64, f64, f64, f64, u64)>>, RunError> {
+    let df = read_parquet(&dir.join("summary.parquet"))?;
+    let t = super::tables::Table(&df);
+    let (sets, d, kind) = (t.strs("thresholds"), t.strs(col::DETECTOR), t.strs(col::KIND));
+    let (noise, perr) = (t.f64s(col::NOISE_BIN), t.f64s(col::PARAM_ERROR_BIN));
+    let (trials, failed, alarms) = (t.u64s("trials"), t.u64s("failed"), t.u64s("false_alarms"));
+    let mut sums: BTreeMap<String, BTreeMap<(u64, u64), (u64, u64)>> = BTreeMap::new();
+    for i in 0..df.height() {
+        if sets[i] != set || kind[i] != col::NO_FAULT {
+            continue;
+        }
+        let key = (noise[i].to_bits(), perr[i].to_bits());
+        let s = sums.entry(d[i].clone()).or_default().entry(key).or_default();
+        s.0 += alarms[i];
+        s.1 += trials[i] - failed[i];
+    }
+    Ok(sums
+        .into_iter()
+        .map(|(d, bins)| {
+            let points = bins
+                .into_iter()
+                .filter(|(_, (_, n))| *n > 0)
+                .map(|((nb, pb), (k, n))| {
+                    let (lo, hi) = wilson(k, n, Z95);
+                    (f64::from_bits(nb), f64::from_bits(pb), k as f64 / n as f64, lo, hi, n)
+                })
+                .collect();
+            (d, points)
+        })
+        .collect())
+}
+
+/// Delays and ROC values per detector, streamed from `trials.parquet`. With calibrated `thresholds`
+/// (kinds that record a statistic) delays are the first passage over them; otherwise the recorded delay.
+fn gather(
+    dir: &Path,
+    m: &Manifest,
+    thresholds: &[(String, Vec<f64>, Vec<f64>)],
+) -> Result<BTreeMap<String, DetectorData>, RunError> {
+    let path = dir.join("trials.parquet");
+    let mut data: BTreeMap<String, DetectorData> =
+        m.detectors.iter().map(|d| (d.clone(), DetectorData::default())).collect();
+    let whole: BTreeMap<&str, &Vec<f64>> = thresholds.iter().map(|t| (t.0.as_str(), &t.2)).collect();
+    let statistics: Vec<String> =
+        column_names(&path)?.iter().filter_map(|n| n.strip_prefix(col::PRE_MAX_PREFIX).map(str::to_string)).collect();
+    let by_statistic = !whole.is_empty() && !statistics.is_empty();
+    let mut columns: Vec<String> =
+        [col::DETECTOR, col::KIND, col::FAILURE, col::ONSET_S, col::DELAY_S].iter().map(|s| s.to_string()).collect();
+    if by_statistic {
+        for s in &statistics {
+            columns.extend([col::pre_max(s), col::fp_t(s), col::fp_v(s)]);
+        }
+    }
+    let step = 8_192usize;
+    let mut offset = 0usize;
+    while offset < m.rows as usize {
+        let df = read_slice(&path, offset, step, Some(columns.clone()))?;
+        offset += step;
+        let det = str_col(&df, col::DETECTOR, &path)?;
+        let kind = str_col(&df, col::KIND, &path)?;
+        let failure = str_col(&df, col::FAILURE, &path)?;
+        let onset = f64_col(&df, col::ONSET_S, &path)?;
+        let delay = f64_col(&df, col::DELAY_S, &path)?;
+        let (mut pre, mut fp_t, mut fp_v) = (Vec::new(), Vec::new(), Vec::new());
+        if by_statistic {
+            for s in &statistics {
+                pre.push(f64_col(&df, &col::pre_max(s), &path)?);
+                fp_t.push(list_col(&df, &col::fp_t(s), &path)?);
+                fp_v.push(list_col(&df, &col::fp_v(s), &path)?);
+            }
+        }
+        for i in 0..df.height() {
+            let (Some(d), Some(k)) = (det.get(i), kind.get(i)) else { continue };
+            if failure.get(i).is_some() {
+                continue;
+            }
+            let Some(dd) = data.get_mut(d) else { continue };
+            if !by_statistic {
+                if let (false, Some(t)) = (k == col::NO_FAULT, delay.get(i)) {
+                    dd.delays.entry(k.to_string()).or_default().push(t);
+                }
+                continue;
+            }
+            let Some(th) = whole.get(d) else { continue };
+            let j_max = statistics.len().min(th.len());
+            if k == col::NO_FAULT {
+                let z = (0..j_max).map(|j| pre[j].get(i).unwrap_or(f64::NAN) / th[j]).fold(0.0, f64::max);
+                dd.z_fault_free.push(z);
+                continue;
+            }
+            let z = (0..j_max).map(|j| fp_v[j][i].last().copied().unwrap_or(0.0) / th[j]).fold(0.0, f64::max);
+            dd.z_faulty.push(z);
+            let t: Vec<&[f64]> = fp_t.iter().take(j_max).map(|c| c[i].as_slice()).collect();
+            let v: Vec<&[f64]> = fp_v.iter().take(j_max).map(|c| c[i].as_slice()).collect();
+            if let (Some(t), Some(t0)) = (alarm_time(&t, &v, &th[..j_max]), onset.get(i)) {
+                dd.delays.entry(k.to_string()).or_default().push(t - t0);
+            }
+        }
+    }
+    Ok(data)
+}
+
+/// A table file of the run for reading, or `None` when the run has none.
+fn table_of(dir: &Path, name: &str, skip: &[&str]) -> Result<Option<String>, RunError> {
+    let path = dir.join(name);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let df = read_summary(&path)?;
+    Ok((df.height() > 0).then(|| html::table(&df, skip)))
+}
+
+fn page(
+    dir: &Path,
+    m: &Manifest,
+    r: &Report,
+    own: &[(String, String)],
+    set: &str,
+    false_alarms: &BTreeMap<String, Vec<(f64, f64, f64, f64, f64, u64)>>,
+) -> Result<String, RunError> {
+    use html::escape;
+    let figure = |f: &PathBuf| {
+        let name = escape(&f.file_name().unwrap_or_default().to_string_lossy());
+        format!("<figure><img src=\"{name}\" alt=\"{name}\"><figcaption>{name}</figcaption></figure>\n")
+    };
+    let figures = |prefix: &str| -> String {
+        r.files
+            .iter()
+            .filter(|f| f.extension().is_some_and(|e| e == "svg"))
+            .filter(|f| f.file_name().is_some_and(|n| n.to_string_lossy().starts_with(prefix)))
+            .map(figure)
+            .collect()
+    };
+    let mut body = String::new();
+    let mut section = |title: &str, intro: &str, content: String| {
+        if !content.trim().is_empty() {
+            body.push_str(&format!("<h2>{title}</h2>\n<p>{intro}</p>\n{content}\n"));
+        }
+    };
+    section(
+        "Detectors",
+        &format!(
+            "Over all fault sizes, per detector and threshold set; rates with 95 % Wilson intervals. \
+             The report's plots use the <b>{set}</b> thresholds. Table: <code>detectors.csv</code>."
+        ),
+        table_of(dir, "detectors.csv", &[])?.unwrap_or_default(),
+    );
+    section(
+        "Thresholds",
+        "Per statistic at the target false-alarm probability, and for the whole detector; achieved rates \
+         with 95 % Wilson intervals. Table: <code>thresholds.csv</code>.",
+        table_of(dir, "thresholds.csv", &[])?.unwrap_or_default(),
+    );
+    section(
+        "Detection probability against fault size",
+        "Per target, 95 % Wilson bands; a triangle marks the smallest size bin from which Pd &ge; 0.9. \
+         Tables: <code>curves.csv</code>, <code>min_detectable.csv</code>.",
+        figures("pd_size_") + &table_of(dir, "min_detectable.csv", &[])?.unwrap_or_default(),
+    );
+    section("ROC", "Calibrated point marked; the thresholds of every statistic scaled together.", figures("roc"));
+    section("Detection delay", "Per fault kind, detected trials only.", figures("delay_"));
+    section(
+        "Isolation",
+        "Units of each true target by the target named (deck thresholds). Table: <code>confusion.csv</code>.",
+        figures("confusion_"),
+    );
+    let mut fa_table = String::new();
+    for (d, points) in false_alarms {
+        let frame = df!(
+            "detector" => vec![d.clone(); points.len()],
+            "noise_bin" => points.iter().map(|p| p.0).collect::<Vec<_>>(),
+            "param_error_bin" => points.iter().map(|p| p.1).collect::<Vec<_>>(),
+            "fault_free_trials" => points.iter().map(|p| p.5).collect::<Vec<_>>(),
+            "pfa" => points.iter().map(|p| p.2).collect::<Vec<_>>(),
+            "pfa_lo" => points.iter().map(|p| p.3).collect::<Vec<_>>(),
+            "pfa_hi" => points.iter().map(|p| p.4).collect::<Vec<_>>(),
+        )
+        .map_err(|e| RunError::Internal(e.to_string()))?;
+        fa_table.push_str(&html::table(&frame, &[]));
+    }
+    section(
+        "False alarms by noise and parameter error",
+        &format!(
+            "Fault-free trials, {set} thresholds, 95 % Wilson intervals. Rows of <code>summary.csv</code> with kind none, summed."
+        ),
+        figures("false_alarms_") + &fa_table,
+    );
+    section(
+        "Paired comparison",
+        "Every pair of detectors on the same trials: exact McNemar tests on the discordant trials, median delay \
+         difference over trials both detected. Table: <code>comparison.csv</code>.",
+        table_of(dir, "comparison.csv", &[])?.unwrap_or_default(),
+    );
+    for (title, content) in own {
+        section(&escape(title), "", content.clone());
+    }
+    section("Traces", "Re-flown from the run's deck with <code>fdimc simulate</code>.", figures("trace_"));
+    let warnings = if r.warnings.is_empty() {
+        "<p>None.</p>".to_string()
+    } else {
+        format!("<ul>{}</ul>", r.warnings.iter().map(|w| format!("<li>{}</li>", escape(w))).collect::<String>())
+    };
+    Ok(format!(
+        r#"<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>fdimc report: {study}</title>
+<style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}}
+table{{border-collapse:collapse;font-size:85%;margin:0.5em 0}}td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}}
+.same{{font-size:85%;color:#444}}.left td{{text-align:left}}figure{{display:inline-block;margin:0.5em}}img{{max-width:100%}}code{{background:#f4f4f4}}</style></head>
+<body>
+<h1>fdimc report: {study}</h1>
+<h2>Provenance</h2>
+<table class="left">
+<tr><th>kind</th><td>{kind}</td></tr>
+<tr><th>deck</th><td><code>{deck}</code></td></tr>
+<tr><th>deck SHA-256</th><td><code>{sha}</code></td></tr>
+<tr><th>seed</th><td>{seed}</td></tr>
+<tr><th>trials</th><td>{trials}</td></tr>
+<tr><th>detectors</th><td>{detectors}</td></tr>
+<tr><th>target Pfa</th><td>{pfa}</td></tr>
+<tr><th>fdimc</th><td>{version}</td></tr>
+<tr><th>command</th><td><code>{cmd}</code></td></tr>
+</table>
+<h2>Warnings</h2>
+{warnings}
+{body}</body></html>
+"#,
+        study = escape(&m.study),
+        kind = escape(&m.kind),
+        deck = escape(&m.deck),
+        sha = m.deck_sha256,
+        seed = m.seed,
+        trials = m.trials,
+        detectors = escape(&m.detectors.join(", ")),
+        pfa = if m.target_pfa > 0.0 { m.target_pfa.to_string() } else { "- (the kind calibrates no threshold)".into() },
+        version = escape(&m.fdimc_version),
+        cmd = escape(&m.command_line.join(" ")),
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::glob;
+
+    #[test]
+    fn trace_column_patterns() {
+        assert!(glob("r_*", "r_alpha_rad") && !glob("r_*", "yhat_alpha"));
+        assert!(glob("*_p_*", "emmae_p_rudder") && !glob("*_p_*", "emmae_rudder_estimate_rad"));
+        assert!(glob("*_chi_square", "patent_alpha_rad_chi_square") && glob("alarm", "alarm"));
+        assert!(!glob("a*a", "a"));
+    }
+}

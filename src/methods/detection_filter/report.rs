@@ -1,0 +1,132 @@
+//! Method 000's own part of `fdimc report`: each `--trials` trial's residuals, one panel per output,
+//! with the deck's and the calibrated thresholds, the onset and the first alarm (the engine's generic
+//! trace has no thresholds to draw).
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use crate::engine::deck::FromDeck;
+use crate::engine::output::Trace;
+use crate::engine::report::plots::{FONT, color, e, legend};
+use crate::engine::report::{ReportContext, ReportPart};
+use crate::engine::runner::RunError;
+use crate::engine::thresholds::read_thresholds;
+use crate::methods::detection_filter::scenario::TrialSpec;
+use crate::methods::detection_filter::study::LtiStudy;
+use crate::methods::detection_filter::trial::DetectorOutcome;
+use crate::methods::detection_filter::trials::Engine;
+
+/// The traces of `ctx.trials`, re-simulated from the run's deck (checked by its SHA-256).
+pub fn report_part(ctx: &ReportContext) -> Result<ReportPart, RunError> {
+    let mut part = ReportPart::default();
+    if ctx.trials.is_empty() {
+        return Ok(part);
+    }
+    let m = ctx.manifest;
+    let deck = Path::new(&m.deck);
+    let same = crate::engine::runner::deck_sha256(deck).map(|h| h == m.deck_sha256).unwrap_or(false);
+    if !same {
+        return Err(RunError::Invalid(format!(
+            "--trials: {} is missing or changed since this run (SHA-256 differs): traces need the run's deck",
+            deck.display()
+        )));
+    }
+    let mut study = LtiStudy::load(deck).map_err(|e| RunError::Invalid(e.to_string()))?;
+    study.header.seed = m.seed;
+    study.monte_carlo.common.trials = m.trials;
+    let engine = Engine::new(&study);
+    let thresholds = read_thresholds(&ctx.dir.join("thresholds.csv"))?;
+    let calibrated = thresholds.iter().find(|t| t.0 == study.detectors[0].name).map(|t| t.2.clone());
+    for &trial in ctx.trials {
+        if trial >= m.trials {
+            return Err(RunError::Invalid(format!("--trials: trial {trial} is not in this run (0..{})", m.trials)));
+        }
+        let mut trace = Trace::default();
+        let (spec, outcome) = engine
+            .simulate(trial, 0, &mut trace)
+            .map_err(|e| RunError::Invalid(format!("trial {trial}: design failed: {e}")))?;
+        let file = ctx.out.join(format!("trace_trial{trial}.svg"));
+        draw(&file, &study, &spec, &outcome, &trace, calibrated.as_deref())
+            .map_err(|e| RunError::Internal(format!("{}: {e}", file.display())))?;
+        part.files.push(file);
+    }
+    Ok(part)
+}
+
+/// Residuals of one trial, one panel per output: residual, +/- deck and calibrated thresholds,
+/// onset and alarm times.
+fn draw(
+    file: &Path,
+    study: &LtiStudy,
+    spec: &TrialSpec,
+    outcome: &DetectorOutcome,
+    trace: &Trace,
+    calibrated: Option<&[f64]>,
+) -> Result<(), String> {
+    let outputs = &study.plant.output_names;
+    let t = &trace.float_columns.iter().find(|(n, _)| n == "t_s").ok_or("trace without t_s")?.1;
+    let deck = &study.detectors[0].params.thresholds;
+    let rows = outputs.len().div_ceil(2) as u32;
+    let root = SVGBackend::new(file, (1100, 80 + 260 * rows)).into_drawing_area();
+    root.fill(&WHITE).map_err(e)?;
+    let fault = match spec.output {
+        Some(j) => format!("{} {} size {:.4} from {:.2} s", outputs[j], spec.kind, spec.size, spec.onset_s),
+        None => "fault-free".into(),
+    };
+    let root = root
+        .titled(&format!("Trial {}: {fault}; detector {}", spec.trial, study.detectors[0].name), (FONT, 20))
+        .map_err(e)?;
+    let panels = root.split_evenly((rows as usize, 2));
+    for (j, name) in outputs.iter().enumerate() {
+        let r = &trace.float_columns.iter().find(|(n, _)| *n == format!("r_{name}")).ok_or("trace without residual")?.1;
+        let lim = r.iter().fold(deck[j], |m, v| m.max(v.abs())) * 1.15;
+        let mut chart = ChartBuilder::on(&panels[j])
+            .margin(8)
+            .x_label_area_size(35)
+            .y_label_area_size(65)
+            .build_cartesian_2d(0f64..study.header.duration_s, -lim..lim)
+            .map_err(e)?;
+        chart.configure_mesh().x_desc("t (s)").y_desc(format!("r_{name}")).label_style((FONT, 12)).draw().map_err(e)?;
+        chart
+            .draw_series(LineSeries::new(t.iter().copied().zip(r.iter().copied()), color(0)))
+            .map_err(e)?
+            .label(format!("r_{name}"))
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(0)));
+        for sign in [1.0, -1.0] {
+            let s = chart
+                .draw_series(LineSeries::new(
+                    [(0.0, sign * deck[j]), (study.header.duration_s, sign * deck[j])],
+                    color(1),
+                ))
+                .map_err(e)?;
+            if sign > 0.0 {
+                s.label("deck threshold").legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(1)));
+            }
+            if let Some(c) = calibrated.and_then(|c| c.get(j)) {
+                let s = chart
+                    .draw_series(LineSeries::new([(0.0, sign * c), (study.header.duration_s, sign * c)], color(2)))
+                    .map_err(e)?;
+                if sign > 0.0 {
+                    s.label("calibrated threshold").legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(2)));
+                }
+            }
+        }
+        if spec.onset_s.is_finite() {
+            chart
+                .draw_series(LineSeries::new([(spec.onset_s, -lim), (spec.onset_s, lim)], BLACK.stroke_width(2)))
+                .map_err(e)?
+                .label("onset")
+                .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.stroke_width(2)));
+        }
+        if let Some((ta, _)) = outcome.detection.or(outcome.false_alarm) {
+            chart
+                .draw_series(LineSeries::new([(ta, -lim), (ta, lim)], color(3).stroke_width(2)))
+                .map_err(e)?
+                .label("first alarm")
+                .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], color(3).stroke_width(2)));
+        }
+        legend(&mut chart, SeriesLabelPosition::UpperLeft, 11)?;
+    }
+    root.present().map_err(e)
+}
