@@ -76,10 +76,12 @@ fn simulate_writes_a_trace_in_csv_and_parquet() {
     let mut lines = body.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     assert_eq!(lines.count(), 3000, "one row per sample: 30 s at 0.01 s");
-    for col in ["t_s", "u_elevator_rad", "y_q_rad_s", "yhat_q_rad_s", "xhat_h_m", "r_q_rad_s", "alarm_q_rad_s"] {
+    for col in
+        ["t_s", "u_elevator_rad", "y_q_rad_s", "yhat_q_rad_s", "xhat_h_m", "r_q_rad_s", "stat_q_rad_s", "alarm_q_rad_s"]
+    {
         assert!(header.contains(&col), "missing {col} in {header:?}");
     }
-    assert_eq!(header.len(), 1 + 2 + 6 + 6 + 5 + 6 + 6);
+    assert_eq!(header.len(), 1 + 2 + 6 + 6 + 5 + 6 + 6 + 6);
 
     let pq = dir.path().join("trace.parquet");
     let out = fdimc(&["simulate", DECK, "--out", pq.to_str().unwrap()]);
@@ -111,7 +113,7 @@ fn bad_decks_exit_2_naming_file_and_field() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let catalogue: Catalogue =
         toml::from_str(&std::fs::read_to_string(root.join("tests/data/bad_decks.toml")).unwrap()).unwrap();
-    assert_eq!(catalogue.case.len(), 81);
+    assert_eq!(catalogue.case.len(), 85);
     let dir = tempfile::tempdir().unwrap();
     for (i, c) in catalogue.case.iter().enumerate() {
         let what = format!("case {i} ({}, {})", c.deck, c.what.as_deref().unwrap_or(&c.to));
@@ -902,4 +904,37 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
     // A trial outside the run is refused.
     let out = fdimc(&["report", d, "--trials", "1500"]);
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+}
+
+/// `examples/custom_detector.rs` (built by `cargo test`): the user's moving-average test runs next to
+/// the deck's detectors on the same trials and gets the same records, summaries and report.
+#[test]
+fn the_custom_detector_example_runs_a_study_with_its_own_test() {
+    // `cargo test` builds examples under a hashed name beside the uplifted one: take the newest.
+    let examples = std::env::current_exe().unwrap().parent().unwrap().parent().unwrap().join("examples");
+    let example = std::fs::read_dir(&examples)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            let name = p.file_name().unwrap().to_string_lossy().to_string();
+            name.starts_with("custom_detector") && p.extension().is_none()
+        })
+        .max_by_key(|p| std::fs::metadata(p).unwrap().modified().unwrap())
+        .expect("cargo test builds examples/custom_detector");
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("custom");
+    let out = Command::new(&example).args(["--out", dir.to_str().unwrap(), "--trials", "600"]).output().unwrap();
+    let stdout = ok(&out);
+    assert!(stdout.contains("600 trials x [\"seed\", \"fast\", \"moving_average\"]"), "{stdout}");
+    let trials = read_frame(&dir.join("trials.parquet"));
+    assert_eq!(trials.height(), 600 * 3, "one row per trial and detector");
+    let names = trials.column("detector").unwrap().str().unwrap().clone();
+    let own = (0..names.len()).filter(|&i| names.get(i) == Some("moving_average"));
+    assert_eq!(own.count(), 600);
+    let detectors = csv_frame(&dir.join("detectors.csv"));
+    assert_eq!(detectors.height(), 6, "deck and calibrated thresholds for each of the three");
+    let comparison = csv_frame(&dir.join("comparison.csv"));
+    assert_eq!(comparison.height(), 6, "every pair of three detectors, at both threshold sets");
+    assert!(dir.join("report/pd_size_moving_average_bias.svg").is_file());
+    assert_report_loads_in_a_browser(&dir);
 }

@@ -156,12 +156,17 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
     for (d, filter) in study.detectors.iter().zip(&filters) {
         let params = &d.params;
         println!(
-            "detector    {}: detection_filter, eigenvalues [{}] 1/s on {} fault directions",
+            "detector    {}: {}, eigenvalues [{}] 1/s on {} fault directions",
             d.name,
+            params.decision.kind(),
             nums(&params.eigenvalues_per_s),
             params.fault_directions.ncols()
         );
-        println!("            thresholds [{}]", nums(params.thresholds.as_slice()));
+        println!(
+            "            alarm when {} exceeds [{}]",
+            params.decision.describe(),
+            nums(params.thresholds.as_slice())
+        );
         println!(
             "            isolation: mean residual {} s to {} s after the alarm",
             params.isolation_delay_s,

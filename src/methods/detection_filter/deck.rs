@@ -78,6 +78,8 @@ pub struct DetectorSection {
     pub eigenvalues_per_s: Vec<f64>,
     pub fault_directions: Option<Vec<Vec<f64>>>,
     pub thresholds: Vec<f64>,
+    /// `kind = "cusum"`: the allowance per sample and output.
+    pub drift: Option<Vec<f64>>,
     pub isolation_delay_s: Option<f64>,
     pub isolation_window_s: Option<f64>,
 }

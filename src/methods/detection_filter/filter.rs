@@ -19,6 +19,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::design::{Assignment, DesignError, Domain, assign_eigenstructure};
 use crate::lti::LtiPlant;
+use crate::methods::detection_filter::decision::Decision;
 use crate::methods::detection_filter::study::DetectionFilterParams;
 
 /// A designed detection filter (`sim::FilterStep` runs it). If it exists, its gains exist and are stable.
@@ -35,6 +36,8 @@ pub struct DetectionFilter {
     /// Steady-state residual per unit bias on each output (column j), see the module docs.
     pub signatures: DMatrix<f64>,
     pub thresholds: DVector<f64>,
+    /// The test the residual meets before its thresholds.
+    pub decision: Decision,
     /// Isolation window after the first alarm: start delay and length (s).
     pub isolation_delay_s: f64,
     pub isolation_window_s: f64,
@@ -66,6 +69,7 @@ impl DetectionFilterParams {
             discrete,
             signatures,
             thresholds: self.thresholds.clone(),
+            decision: self.decision.clone(),
             isolation_delay_s: self.isolation_delay_s,
             isolation_window_s: self.isolation_window_s,
         })

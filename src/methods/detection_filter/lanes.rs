@@ -18,6 +18,7 @@ use nalgebra::DVector;
 
 use crate::engine::streams::{Substream, noise_rng};
 use crate::fault::ActiveFaults;
+use crate::methods::detection_filter::decision::Decision;
 use crate::methods::detection_filter::filter::DetectionFilter;
 use crate::methods::detection_filter::kernel::{FilterState, LANES, Lane, LaneFilter, LanePlant, PlantState};
 use crate::methods::detection_filter::normals::LaneNormals;
@@ -165,6 +166,20 @@ fn abs_and_non_finite(residual: &[Lane], abs: &mut [Lane]) -> [u64; LANES] {
     non_finite
 }
 
+/// `g = max(0, g + |r| - drift)` per output and lane, in the one-trial path's order of operations;
+/// `abs` becomes `g`, the statistic the bookkeeping sees.
+#[inline(always)]
+fn cusum_step(abs: &mut [Lane], drift: &[f64], g: &mut [Lane]) {
+    for ((abs, drift), g) in abs.iter_mut().zip(drift).zip(g) {
+        let (a, mut sum) = (*abs, *g);
+        for l in 0..LANES {
+            let v = sum[l] + a[l] - drift;
+            sum[l] = if v.is_finite() { v.max(0.0) } else { v };
+        }
+        (*g, *abs) = (sum, sum);
+    }
+}
+
 /// Updates the running maximum (and when it was reached) of every output; per lane, 1 if an
 /// |residual| passes an armed threshold or the next profile level.
 #[inline(always)]
@@ -204,6 +219,8 @@ struct LaneTracker<'f> {
     /// Per output: a post-onset |residual| above this adds a profile point (+inf before the onset).
     next_kept: Vec<Lane>,
     abs: Vec<Lane>,
+    /// `kind = "cusum"`: per output the drift and the sums, which replace `abs` as the statistic.
+    cusum: Option<(Vec<f64>, Vec<Lane>)>,
     onset_s: Lane,
     after_onset: [bool; LANES],
     live: [bool; LANES],
@@ -232,6 +249,10 @@ impl<'f> LaneTracker<'f> {
             max_t: vec![[f64::NAN; LANES]; ny],
             next_kept: vec![[f64::INFINITY; LANES]; ny],
             abs: vec![[0.0; LANES]; ny],
+            cusum: match &d.params.decision {
+                Decision::Cusum { drift } => Some((drift.clone(), vec![[0.0; LANES]; ny])),
+                _ => None,
+            },
             onset_s,
             after_onset: [false; LANES],
             live,
@@ -266,6 +287,9 @@ impl<'f> LaneTracker<'f> {
                     self.diverge(l, t);
                 }
             }
+        }
+        if let Some((drift, g)) = self.cusum.as_mut() {
+            cusum_step(&mut self.abs, drift, g);
         }
         let event = running_max_and_events(t, &self.abs, &mut self.max, &mut self.max_t, &self.armed, &self.next_kept);
         if event.iter().any(|&e| e != 0) {

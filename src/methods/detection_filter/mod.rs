@@ -1,6 +1,7 @@
 //! Detection-filter studies (method 000): eigenstructure-assigned detection filters on an LTI plant.
 
 pub mod commands;
+pub mod decision;
 pub mod deck;
 pub mod filter;
 pub mod kernel;
@@ -97,7 +98,7 @@ pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunEr
     run(&LtiTrials { study, engine }, manifest, opts)
 }
 
-/// Method 000's trials: 8 at a time in SIMD lanes.
+/// Method 000's trials: 8 at a time in SIMD lanes (when every test is built in).
 struct LtiTrials<'a> {
     study: &'a LtiStudy,
     engine: Engine<'a>,
@@ -109,7 +110,7 @@ impl TrialSource for LtiTrials<'_> {
         LANES as u64
     }
     fn simulate(&self, first: u64, end: u64) -> Vec<TrialResult> {
-        self.engine.run_lanes(first, end)
+        self.engine.run_group(first, end)
     }
     fn frame(&self, results: &[TrialResult]) -> PolarsResult<DataFrame> {
         let mut builder = RecordBuilder::new(self.study, results.len() * self.study.detectors.len());

@@ -4,6 +4,7 @@ use std::path::Path;
 
 use nalgebra::{DMatrix, DVector};
 
+use super::decision::Decision;
 use super::deck::Deck;
 use serde::Deserialize;
 
@@ -64,8 +65,10 @@ pub struct DetectionFilterParams {
     pub eigenvalues_per_s: Vec<f64>,
     /// Fault directions `F` (n x r), one column per eigenvalue.
     pub fault_directions: DMatrix<f64>,
-    /// Alarm when `|residual_j| > thresholds[j]` (output units).
+    /// Alarm when output j's statistic ([`Decision`]) exceeds `thresholds[j]`.
     pub thresholds: DVector<f64>,
+    /// The test the residual meets: `|residual|` for `kind = "detection_filter"`, a CUSUM for `"cusum"`.
+    pub decision: Decision,
     /// Isolation looks at the mean residual over `[alarm + delay, alarm + delay + window]`, after the
     /// filter's transient (the slowest eigenvalue's time constant sets a sensible delay).
     pub isolation_delay_s: f64,
@@ -276,10 +279,34 @@ fn detector(
     plant: &LtiPlant,
 ) -> Result<DetectionFilterParams, DeckError> {
     let f = |name: &str| format!("detector[{i}].{name}");
-    if d.kind != "detection_filter" {
-        return Err(chk.err(f("kind"), format!("{:?}: allowed \"detection_filter\" (method 000)", d.kind)));
-    }
     let (n, ny) = (plant.n_states(), plant.n_outputs());
+    let decision = match (d.kind.as_str(), &d.drift) {
+        ("detection_filter", None) => Decision::Absolute,
+        ("detection_filter", Some(_)) => {
+            return Err(chk.err(f("drift"), "applies to kind = \"cusum\" only (a CUSUM's allowance per sample)"));
+        }
+        ("cusum", Some(drift)) => {
+            let drift = chk.vector(&f("drift"), drift, ny, "one per output, output units per sample")?;
+            for (k, &v) in drift.iter().enumerate() {
+                if v < 0.0 {
+                    return Err(chk.err(f(&format!("drift[{k}]")), format!("must be >= 0, got {v}")));
+                }
+            }
+            Decision::Cusum { drift: drift.iter().copied().collect() }
+        }
+        ("cusum", None) => {
+            return Err(chk.err(
+                f("drift"),
+                format!("required for kind = \"cusum\": {ny} numbers, the residual each output may carry per sample without counting as evidence"),
+            ));
+        }
+        (other, _) => {
+            return Err(chk.err(
+                f("kind"),
+                format!("{other:?}: allowed \"detection_filter\" (method 000, alarm on |residual|) or \"cusum\" (the same filter, a CUSUM on |residual|)"),
+            ));
+        }
+    };
     let r = d.eigenvalues_per_s.len();
     if r == 0 || r > n {
         return Err(chk
@@ -327,6 +354,7 @@ fn detector(
         eigenvalues_per_s: d.eigenvalues_per_s.clone(),
         fault_directions,
         thresholds,
+        decision,
         isolation_delay_s,
         isolation_window_s,
     })

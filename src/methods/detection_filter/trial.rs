@@ -30,6 +30,7 @@ use crate::methods::detection_filter::filter::DetectionFilter;
 use crate::methods::detection_filter::scenario::TrialSpec;
 use crate::methods::detection_filter::study::LtiStudy;
 
+use super::decision::TestState;
 use super::kernel::{FilterState, FilterStep, PlantState, PlantStep};
 use crate::engine::output::Trace;
 
@@ -65,10 +66,13 @@ struct Tracker {
     iso_count: usize,
     iso_window: Option<(f64, f64)>,
     isolation: (f64, f64),
+    /// The residual test's memory and this sample's statistics.
+    test: Box<dyn TestState>,
+    statistic: Vec<f64>,
 }
 
 impl Tracker {
-    fn new(filter: &DetectionFilter, ny: usize) -> Self {
+    fn new(filter: &DetectionFilter, ny: usize, dt_s: f64) -> Self {
         Tracker {
             out: DetectorOutcome {
                 pre_onset_max_abs_residual: vec![0.0; ny],
@@ -84,6 +88,8 @@ impl Tracker {
             iso_count: 0,
             iso_window: None,
             isolation: (filter.isolation_delay_s, filter.isolation_window_s),
+            test: filter.decision.start(ny, dt_s),
+            statistic: vec![0.0; ny],
         }
     }
 
@@ -95,9 +101,10 @@ impl Tracker {
             self.out.diverged_at_s = Some(t);
             return;
         }
+        self.test.step(residual, &mut self.statistic);
         let mut alarm_channel = None;
         for j in 0..residual.len() {
-            let a = residual[j].abs();
+            let a = self.statistic[j];
             if after_onset {
                 if a > self.running_max[j] || self.running_max_t[j].is_nan() {
                     self.running_max[j] = a;
@@ -176,7 +183,8 @@ pub fn run_trial(
     let mut plant_state = PlantState::new(x0, nu);
     let mut y = vec![0.0; ny];
     let mut states: Vec<FilterState<f64>> = filters.iter().map(|_| FilterState::new(x0, nu, ny)).collect();
-    let mut trackers: Vec<Tracker> = filters.iter().map(|(design, _)| Tracker::new(design, ny)).collect();
+    let mut trackers: Vec<Tracker> =
+        filters.iter().map(|(design, _)| Tracker::new(design, ny, s.header.dt_s)).collect();
     let mut rec = trace.as_deref_mut().map(|t| TraceWriter::new(t, s, n));
 
     for k in 0..s.header.steps {
@@ -207,7 +215,7 @@ pub fn run_trial(
             tracker.observe(t, after_onset, state.residual());
             if i == 0 {
                 if let Some(rec) = rec.as_mut() {
-                    rec.after_step(state.residual(), &tracker.thresholds);
+                    rec.after_step(state.residual(), &tracker.statistic, &tracker.thresholds);
                 }
             }
         }
@@ -227,7 +235,8 @@ pub fn run_trial(
 }
 
 /// Collects trace columns: `t_s`, `u_<input>`, `y_<output>` (measured), `yhat_<output>`,
-/// `xhat_<state>`, `r_<output>` (residual), `alarm_<output>`.
+/// `xhat_<state>`, `r_<output>` (residual), `stat_<output>` (the residual test's statistic),
+/// `alarm_<output>`.
 struct TraceWriter<'t> {
     trace: &'t mut Trace,
     t: Vec<f64>,
@@ -236,6 +245,8 @@ struct TraceWriter<'t> {
     yhat: Vec<Vec<f64>>,
     xhat: Vec<Vec<f64>>,
     r: Vec<Vec<f64>>,
+    /// The residual test's statistic (`|r|` for the seed's test).
+    stat: Vec<Vec<f64>>,
     alarm: Vec<Vec<bool>>,
     names: (Vec<String>, Vec<String>, Vec<String>),
     last_y: Vec<f64>,
@@ -253,6 +264,7 @@ impl<'t> TraceWriter<'t> {
             yhat: cols(p.n_outputs()),
             xhat: cols(n),
             r: cols(p.n_outputs()),
+            stat: cols(p.n_outputs()),
             alarm: cols(p.n_outputs()).into_iter().map(|_| Vec::with_capacity(s.header.steps)).collect(),
             names: (p.input_names.clone(), p.output_names.clone(), p.state_names.clone()),
             last_y: vec![0.0; p.n_outputs()],
@@ -273,11 +285,12 @@ impl<'t> TraceWriter<'t> {
         self.last_y.copy_from_slice(y);
     }
 
-    fn after_step(&mut self, residual: &[f64], thresholds: &DVector<f64>) {
+    fn after_step(&mut self, residual: &[f64], statistic: &[f64], thresholds: &DVector<f64>) {
         for j in 0..residual.len() {
             self.r[j].push(residual[j]);
             self.yhat[j].push(self.last_y[j] - residual[j]);
-            self.alarm[j].push(residual[j].abs() > thresholds[j]);
+            self.stat[j].push(statistic[j]);
+            self.alarm[j].push(statistic[j] > thresholds[j]);
         }
     }
 
@@ -293,6 +306,7 @@ impl<'t> TraceWriter<'t> {
         tr.float_columns.extend(named("yhat", &outputs, self.yhat));
         tr.float_columns.extend(named("xhat", &states, self.xhat));
         tr.float_columns.extend(named("r", &outputs, self.r));
+        tr.float_columns.extend(named("stat", &outputs, self.stat));
         tr.bool_columns.extend(outputs.iter().map(|n| format!("alarm_{n}")).zip(self.alarm));
     }
 }

@@ -151,6 +151,16 @@ impl<'a> Engine<'a> {
         TrialResult { spec, detectors }
     }
 
+    /// Trials `first..end` (at most [`LANES`]): on the lane path when every detector's test is built
+    /// in, else one at a time (a user's test is a trait object); the results are the same.
+    pub fn run_group(&self, first: u64, end: u64) -> Vec<TrialResult> {
+        if self.study.detectors.iter().all(|d| d.params.decision.runs_on_lanes()) {
+            self.run_lanes(first, end)
+        } else {
+            (first..end).map(|t| self.run(t)).collect()
+        }
+    }
+
     /// Runs every detector configuration on trials `first..end` (at most [`LANES`]) together on the
     /// lane path: the same results as [`run`](Self::run) on each trial, several times faster.
     pub fn run_lanes(&self, first: u64, end: u64) -> Vec<TrialResult> {
