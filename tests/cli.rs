@@ -337,6 +337,8 @@ fn surface_records_are_identical_for_any_threads_shards_and_resume() {
             ("confusion_improved_stmmae.svg", &["true target", "aileron_left"]),
             ("false_alarms_emmae.svg", &["noise scale (bin)"]),
             ("trace_trial3.svg", &["model probabilities", "improved_stmmae_p_no_fault", "surface positions (rad)"]),
+            ("clearing_delay.svg", &["Clearing delay after the fault ends", "clearing_delay_s", "improved_stmmae ("]),
+            ("post_fault_declarations.svg", &["post_fault_declarations", "emmae ("]),
         ],
     );
     let out = fdimc(&["summarize", &s(dir("one")), "--target-pfa", "0.01"]);
@@ -493,6 +495,7 @@ fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
             ("confusion_patent.svg", &["true target", "airspeed_mps"]),
             ("false_alarms_window10.svg", &["parameter error bin 0"]),
             ("trace_trial3.svg", &["airspeed (m/s)", "patent_airspeed_mps_estimate", "airspeed_mps_true", "P(fault)"]),
+            ("air_data_error.svg", &["y = x", "raw_rms_sigma", "estimate_rms_sigma", "window10 ("]),
         ],
     );
 }
@@ -549,6 +552,7 @@ fn launch_records_are_identical_for_any_threads_shards_and_resume() {
             ("delay_seed.svg", &["thrust_loss ("]),
             ("confusion_seed.svg", &["engine_1", "true target"]),
             ("trace_trial3.svg", &["estimated fault fhat", "seed_fhat", "thrust_true_n"]),
+            ("loss_error.svg", &["y = 0", "loss_error_percent", "true fault size (percent of one engine", "seed ("]),
         ],
     );
     // Thresholds recalibrated at another false-alarm probability: a fifth of the flights may alarm.

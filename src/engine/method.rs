@@ -31,6 +31,18 @@ pub struct Method {
     pub report: Option<fn(&ReportContext) -> Result<ReportPart, RunError>>,
     /// The panels of `fdimc report --trials N`: the columns of `simulate`'s trace each one draws.
     pub trace_panels: &'static [TracePanel],
+    /// Plots of the kind's own `trials.parquet` columns in its report.
+    pub own_plots: &'static [OwnPlot],
+}
+
+/// A plot of a kind's own record columns, per detector, over the flown faulty trials where they are set.
+pub enum OwnPlot {
+    /// `y` against `x`, one point per row (at most 4,000 per detector), e.g. an estimate's error against
+    /// the true fault size.
+    /// `diagonal`: draw y = x (both axes the same quantity), else y = 0 (y is an error).
+    Scatter { file: &'static str, title: &'static str, x: &'static str, y: &'static str, diagonal: bool },
+    /// The distribution of `column`.
+    Histogram { file: &'static str, title: &'static str, column: &'static str },
 }
 
 /// One panel of a report's trace plot: `columns` are names of `simulate`'s trace table, `*` matching

@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use polars::prelude::*;
 
 use super::intervals::{Z95, wilson};
-use super::method::{Inputs, Method, Opt};
+use super::method::{Inputs, Method, Opt, OwnPlot};
 use super::runner::{Manifest, RunError, io, read_parquet, write_atomically};
 use super::schema::col;
 use super::tables::{column_names, f64_col, list_col, read_slice, read_summary, str_col};
@@ -137,6 +137,12 @@ pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Repor
         }
     }
 
+    let mut own_files = Vec::new();
+    for plot in method.own_plots {
+        own_files.push(own_plot(dir, &manifest, &out, plot)?);
+    }
+    report.files.extend(own_files.iter().cloned());
+
     let context = ReportContext { dir, out: &out, manifest: &manifest, trials };
     let part = match method.report {
         Some(own) => own(&context)?,
@@ -162,7 +168,7 @@ pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Repor
     }
 
     let html = out.join("report.html");
-    let page = page(dir, &manifest, &report, &part.sections, set, &false_alarms)?;
+    let page = page(dir, &manifest, &report, &part.sections, &own_files, set, &false_alarms)?;
     write_atomically(&html, page.as_bytes())?;
     report.files.push(html);
     Ok(report)
@@ -439,6 +445,55 @@ fn gather(
     Ok(data)
 }
 
+/// One of the method's own plots, from the flown faulty rows of `trials.parquet` where its columns are
+/// set (at most 4,000 points per detector in a scatter).
+fn own_plot(dir: &Path, m: &Manifest, out: &Path, plot: &OwnPlot) -> Result<PathBuf, RunError> {
+    let path = dir.join("trials.parquet");
+    let (name, columns): (&str, Vec<&str>) = match plot {
+        OwnPlot::Scatter { file, x, y, .. } => (file, vec![x, y]),
+        OwnPlot::Histogram { file, column, .. } => (file, vec![column]),
+    };
+    let mut select: Vec<String> = [col::DETECTOR, col::KIND, col::FAILURE].iter().map(|s| s.to_string()).collect();
+    select.extend(columns.iter().map(|c| c.to_string()));
+    let mut points: BTreeMap<String, Vec<(f64, f64)>> = m.detectors.iter().map(|d| (d.clone(), Vec::new())).collect();
+    let mut offset = 0usize;
+    while offset < m.rows as usize {
+        let df = read_slice(&path, offset, 65_536, Some(select.clone()))?;
+        offset += 65_536;
+        let (det, kind, failure) =
+            (str_col(&df, col::DETECTOR, &path)?, str_col(&df, col::KIND, &path)?, str_col(&df, col::FAILURE, &path)?);
+        let values: Vec<Vec<f64>> =
+            columns.iter().map(|c| super::tables::numbers(&df, c, &path)).collect::<Result<_, _>>()?;
+        for i in 0..df.height() {
+            let (Some(d), Some(k)) = (det.get(i), kind.get(i)) else { continue };
+            if k == col::NO_FAULT || failure.get(i).is_some() {
+                continue;
+            }
+            let x = values[0][i];
+            let y = values.get(1).map_or(0.0, |v| v[i]);
+            let p = points.entry(d.to_string()).or_default();
+            if x.is_finite() && y.is_finite() && (values.len() == 1 || p.len() < 4_000) {
+                p.push((x, y));
+            }
+        }
+    }
+    let file = out.join(format!("{name}.svg"));
+    let label = |c: &str| match m.fault_size_units.values().next() {
+        Some(unit) if c == col::SIZE => format!("true fault size ({unit})"),
+        _ => c.to_string(),
+    };
+    match plot {
+        OwnPlot::Scatter { title, x, y, diagonal, .. } => {
+            plots::scatter(&file, title, (&label(x), &label(y)), *diagonal, &points).map_err(internal(&file))?;
+        }
+        OwnPlot::Histogram { title, column, .. } => {
+            let values = points.into_iter().map(|(d, p)| (d, p.into_iter().map(|v| v.0).collect())).collect();
+            plots::frequencies(&file, title, column, "faulty", &values).map_err(internal(&file))?;
+        }
+    }
+    Ok(file)
+}
+
 /// A table file of the run for reading, or `None` when the run has none.
 fn table_of(dir: &Path, name: &str, skip: &[&str]) -> Result<Option<String>, RunError> {
     let path = dir.join(name);
@@ -454,6 +509,7 @@ fn page(
     m: &Manifest,
     r: &Report,
     own: &[(String, String)],
+    own_files: &[PathBuf],
     set: &str,
     false_alarms: &BTreeMap<String, Vec<(f64, f64, f64, f64, f64, u64)>>,
 ) -> Result<String, RunError> {
@@ -500,8 +556,9 @@ fn page(
     section("Detection delay", "Per fault kind, detected trials only.", figures("delay_"));
     section(
         "Isolation",
-        "Units of each true target by the target named (deck thresholds). Table: <code>confusion.csv</code>.",
-        figures("confusion_"),
+        "Units of each true target by the target named (deck thresholds); <code>share_of_truth</code> on the \
+         diagonal is each target's recall. Table: <code>confusion.csv</code>.",
+        figures("confusion_") + &table_of(dir, "confusion.csv", &[])?.unwrap_or_default(),
     );
     let mut fa_table = String::new();
     for (d, points) in false_alarms {
@@ -529,6 +586,11 @@ fn page(
         "Every pair of detectors on the same trials: exact McNemar tests on the discordant trials, median delay \
          difference over trials both detected. Table: <code>comparison.csv</code>.",
         table_of(dir, "comparison.csv", &[])?.unwrap_or_default(),
+    );
+    section(
+        &format!("What {} studies add", escape(&m.kind)),
+        "The method's own record columns (<code>trials.parquet</code>), per detector.",
+        own_files.iter().map(figure).collect(),
     );
     for (title, content) in own {
         section(&escape(title), "", content.clone());

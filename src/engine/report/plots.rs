@@ -218,56 +218,120 @@ pub fn roc(file: &Path, detectors: &[(String, Vec<f64>, Vec<f64>)]) -> Result<()
 
 /// Detection-delay distributions per fault kind, as frequency polygons over 40 bins.
 pub fn delays(file: &Path, detector: &str, set_name: &str, delays: &BTreeMap<String, Vec<f64>>) -> Result<(), String> {
-    let mut all: Vec<f64> = delays.values().flatten().copied().filter(|d| d.is_finite()).collect();
+    let caption =
+        format!("Detection delay by fault kind: {detector} ({set_name} thresholds; last bin holds the top 1 %)");
+    frequencies(file, &caption, "delay after onset (s)", "detected", delays)
+}
+
+/// Distributions of a value per series, as frequency polygons over 40 bins from 0 (or the smallest
+/// value, if negative) to the 99th percentile; the last bin holds the top 1 %.
+pub fn frequencies(
+    file: &Path,
+    caption: &str,
+    x_label: &str,
+    counted: &str,
+    series: &BTreeMap<String, Vec<f64>>,
+) -> Result<(), String> {
+    let mut all: Vec<f64> = series.values().flatten().copied().filter(|d| d.is_finite()).collect();
     all.sort_by(f64::total_cmp);
+    let bottom = all.first().copied().unwrap_or(0.0).min(0.0);
     let top = all
         .get(((all.len() as f64 * 0.99) as usize).min(all.len().saturating_sub(1)))
         .copied()
         .unwrap_or(1.0)
-        .max(0.05);
+        .max(bottom + 0.05);
     let bins = 40;
-    let width = top / bins as f64;
-    let hist: Vec<(String, Vec<(f64, f64)>)> = delays
+    let width = (top - bottom) / bins as f64;
+    let hist: Vec<(String, Vec<(f64, f64)>)> = series
         .iter()
         .map(|(k, v)| {
             let mut counts = vec![0u64; bins];
             for &d in v.iter().filter(|d| d.is_finite()) {
-                counts[((d / width) as usize).min(bins - 1)] += 1;
+                counts[(((d - bottom) / width) as usize).min(bins - 1)] += 1;
             }
             let n = v.len().max(1) as f64;
-            (k.clone(), counts.iter().enumerate().map(|(b, c)| ((b as f64 + 0.5) * width, *c as f64 / n)).collect())
+            let pts = counts.iter().enumerate().map(|(b, c)| (bottom + (b as f64 + 0.5) * width, *c as f64 / n));
+            (k.clone(), pts.collect())
         })
         .collect();
     let ymax = hist.iter().flat_map(|h| h.1.iter().map(|p| p.1)).fold(0.0, f64::max).max(1e-3) * 1.1;
     let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
     root.fill(&WHITE).map_err(e)?;
     let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!("Detection delay by fault kind: {detector} ({set_name} thresholds; last bin holds the top 1 %)"),
-            (FONT, 18),
-        )
+        .caption(caption, (FONT, 18))
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(60)
-        .build_cartesian_2d(0f64..top, 0f64..ymax)
+        .build_cartesian_2d(bottom..top, 0f64..ymax)
         .map_err(e)?;
     chart
         .configure_mesh()
-        .x_desc("delay after onset (s)")
-        .y_desc("fraction of detected trials per bin")
+        .x_desc(x_label)
+        .y_desc(format!("fraction of {counted} trials per bin"))
         .label_style((FONT, 14))
         .draw()
         .map_err(e)?;
-    for (i, (kind, pts)) in hist.iter().enumerate() {
+    for (i, (name, pts)) in hist.iter().enumerate() {
         let c = color(i);
-        let n = delays[kind].len();
+        let n = series[name].len();
         chart
             .draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(2)))
             .map_err(e)?
-            .label(format!("{kind} ({n} detected)"))
+            .label(format!("{name} ({n} {counted})"))
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
     }
     legend(&mut chart, SeriesLabelPosition::UpperRight, 14)?;
+    root.present().map_err(e)
+}
+
+/// `y` against `x`, one colour per series (detector), with the line y = 0 or y = x for reference.
+pub fn scatter(
+    file: &Path,
+    caption: &str,
+    (x_label, y_label): (&str, &str),
+    diagonal: bool,
+    series: &BTreeMap<String, Vec<(f64, f64)>>,
+) -> Result<(), String> {
+    let pts = series.values().flatten();
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    for (x, y) in pts {
+        (x0, x1, y0, y1) = (x0.min(*x), x1.max(*x), y0.min(*y), y1.max(*y));
+    }
+    if !x0.is_finite() {
+        (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
+    }
+    if diagonal {
+        (x0, y0) = (x0.min(y0).min(0.0), x0.min(y0).min(0.0));
+        (x1, y1) = (x1.max(y1), x1.max(y1));
+    } else {
+        (y0, y1) = (y0.min(0.0), y1.max(0.0));
+    }
+    let (px, py) = (((x1 - x0) * 0.05).max(1e-9), ((y1 - y0) * 0.05).max(1e-9));
+    let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
+    root.fill(&WHITE).map_err(e)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(caption, (FONT, 17))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d((x0 - px)..(x1 + px), (y0 - py)..(y1 + py))
+        .map_err(e)?;
+    chart.configure_mesh().x_desc(x_label).y_desc(y_label).label_style((FONT, 14)).draw().map_err(e)?;
+    let reference = if diagonal { [(x0, x0), (x1, x1)] } else { [(x0 - px, 0.0), (x1 + px, 0.0)] };
+    chart
+        .draw_series(LineSeries::new(reference, BLACK.mix(0.5)))
+        .map_err(e)?
+        .label(if diagonal { "y = x" } else { "y = 0" })
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.mix(0.5)));
+    for (i, (name, pts)) in series.iter().enumerate() {
+        let c = color(i);
+        chart
+            .draw_series(pts.iter().map(|p| Circle::new(*p, 2, c.mix(0.6).filled())))
+            .map_err(e)?
+            .label(format!("{name} ({} trials)", pts.len()))
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, c.filled()));
+    }
+    legend(&mut chart, SeriesLabelPosition::UpperLeft, 14)?;
     root.present().map_err(e)
 }
 

@@ -39,6 +39,7 @@ pub static METHOD: Method = Method {
         TracePanel { title: "detection statistic", columns: &["detection_statistic"] },
         TracePanel { title: "alarm", columns: &["alarm"] },
     ],
+    own_plots: &[],
 };
 
 impl Study for AccelerometerStudy {

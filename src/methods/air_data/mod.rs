@@ -11,7 +11,7 @@ pub mod trial;
 use std::path::Path;
 
 use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Inputs, Isolates, Method, Study, SummarySpec, TracePanel};
+use crate::engine::method::{Extra, Inputs, Isolates, Method, OwnPlot, Study, SummarySpec, TracePanel};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
 use crate::methods::air_data::dual_ukf::DualUkfStep;
@@ -64,6 +64,13 @@ pub static METHOD: Method = Method {
         TracePanel { title: "chi-square statistics", columns: &["*_chi_square"] },
         TracePanel { title: "P(fault)", columns: &["*_p_fault"] },
     ],
+    own_plots: &[OwnPlot::Scatter {
+        file: "air_data_error",
+        title: "Air-data error after the onset: blended estimate against the raw sensors (sensor sigmas)",
+        x: "raw_rms_sigma",
+        y: "estimate_rms_sigma",
+        diagonal: true,
+    }],
 };
 
 impl Study for AirDataStudy {

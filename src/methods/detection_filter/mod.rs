@@ -53,6 +53,7 @@ pub static METHOD: Method = Method {
     },
     report: Some(report::report_part),
     trace_panels: &[],
+    own_plots: &[],
 };
 
 impl Study for LtiStudy {

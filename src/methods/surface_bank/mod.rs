@@ -12,7 +12,7 @@ pub mod uav;
 use std::path::Path;
 
 use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Inputs, Isolates, Method, Study, SummarySpec, TracePanel};
+use crate::engine::method::{Extra, Inputs, Isolates, Method, OwnPlot, Study, SummarySpec, TracePanel};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
 use crate::methods::surface_bank::scenario::SurfaceScenarioSampler;
@@ -66,6 +66,18 @@ pub static METHOD: Method = Method {
         TracePanel { title: "banks' surface estimates (rad)", columns: &["*_estimate_rad"] },
         TracePanel { title: "model probabilities", columns: &["*_p_*"] },
         TracePanel { title: "body rates (rad/s)", columns: &["p_rad_s_*", "q_rad_s_*", "r_rad_s_*"] },
+    ],
+    own_plots: &[
+        OwnPlot::Histogram {
+            file: "clearing_delay",
+            title: "Clearing delay after the fault ends",
+            column: "clearing_delay_s",
+        },
+        OwnPlot::Histogram {
+            file: "post_fault_declarations",
+            title: "Declarations after the fault cleared, per trial",
+            column: "post_fault_declarations",
+        },
     ],
 };
 

@@ -11,7 +11,7 @@ pub mod vehicle;
 use std::path::Path;
 
 use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Inputs, Isolates, Method, Opt, Study, SummarySpec, TracePanel};
+use crate::engine::method::{Extra, Inputs, Isolates, Method, Opt, OwnPlot, Study, SummarySpec, TracePanel};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::streams::{Substream, noise_rng};
 use crate::methods::thrust_loss::ekf_mhe::MheStep;
@@ -59,6 +59,13 @@ pub static METHOD: Method = Method {
         TracePanel { title: "estimated fault fhat", columns: &["*_fhat"] },
         TracePanel { title: "alarm", columns: &["*_alarm"] },
     ],
+    own_plots: &[OwnPlot::Scatter {
+        file: "loss_error",
+        title: "Loss-estimate error against the true loss (detected trials)",
+        x: "size",
+        y: records::col::LOSS_ERROR_PERCENT,
+        diagonal: false,
+    }],
 };
 
 impl Study for LaunchStudy {
