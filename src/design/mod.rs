@@ -25,6 +25,8 @@ use serde::Serialize;
 
 use crate::linalg::{self, to_faer};
 
+pub mod kalman;
+
 /// Why a gain cannot be designed. Kept as data: a Monte Carlo trial with a failed design is a row.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DesignError {

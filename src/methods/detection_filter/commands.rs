@@ -75,13 +75,19 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
         ranks.controllability_rank, ranks.states, ranks.observability_rank, ranks.states
     );
     for (d, filter) in study.detectors.iter().zip(&filters) {
-        println!(
-            "\ndetector {:?}: detection filter, eigenvalues [{}] 1/s",
-            d.name,
-            d.params.eigenvalues_per_s.iter().map(|l| format!("{l}")).collect::<Vec<_>>().join(", ")
-        );
         let discrete_label = format!("discrete time, dt = {} s", study.header.dt_s);
-        for (label, a) in [("continuous time", &filter.continuous), (discrete_label.as_str(), &filter.discrete)] {
+        let designs = if d.params.kalman.is_some() {
+            println!("\ndetector {:?}: steady-state Kalman filter (kalman_chi2), predictor gain", d.name);
+            vec![(discrete_label.as_str(), &filter.discrete)]
+        } else {
+            println!(
+                "\ndetector {:?}: detection filter, eigenvalues [{}] 1/s",
+                d.name,
+                d.params.eigenvalues_per_s.iter().map(|l| format!("{l}")).collect::<Vec<_>>().join(", ")
+            );
+            vec![("continuous time", &filter.continuous), (discrete_label.as_str(), &filter.discrete)]
+        };
+        for (label, a) in designs {
             println!(
                 "{label}: K (rows: states {}; columns: outputs {})",
                 p.state_names.join(", "),
@@ -155,18 +161,27 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
     }
     for (d, filter) in study.detectors.iter().zip(&filters) {
         let params = &d.params;
-        println!(
-            "detector    {}: {}, eigenvalues [{}] 1/s on {} fault directions",
-            d.name,
-            params.decision.kind(),
-            nums(&params.eigenvalues_per_s),
-            params.fault_directions.ncols()
-        );
-        println!(
-            "            alarm when {} exceeds [{}]",
-            params.decision.describe(),
-            nums(params.thresholds.as_slice())
-        );
+        if params.kalman.is_some() {
+            println!("detector    {}: kalman_chi2, the steady-state Kalman filter of the deck's sensor noise", d.name);
+            println!(
+                "            alarm when {} exceeds the chi-square quantile {}; isolation by the largest normalised innovation",
+                filter.decision.describe(),
+                nums(&params.thresholds.as_slice()[..1])
+            );
+        } else {
+            println!(
+                "detector    {}: {}, eigenvalues [{}] 1/s on {} fault directions",
+                d.name,
+                params.decision.kind(),
+                nums(&params.eigenvalues_per_s),
+                params.fault_directions.ncols()
+            );
+            println!(
+                "            alarm when {} exceeds [{}]",
+                params.decision.describe(),
+                nums(params.thresholds.as_slice())
+            );
+        }
         println!(
             "            isolation: mean residual {} s to {} s after the alarm",
             params.isolation_delay_s,

@@ -6,8 +6,11 @@
 //! profile `fp_*_<out>`), so thresholds calibrate and the report draws its ROC for any test alike.
 //! Isolation stays the filter's: it reads the raw residual after the alarm.
 
+use std::collections::VecDeque;
 use std::fmt;
 use std::sync::Arc;
+
+use nalgebra::{DMatrix, DVector};
 
 /// A decision rule on the residual, designed once per detector.
 pub trait ResidualTest: Send + Sync {
@@ -32,6 +35,10 @@ pub enum Decision {
     Absolute,
     /// Page's one-sided CUSUM on `|residual_j|`: `g_j = max(0, g_j + |r_j| - drift_j)`, starting at 0.
     Cusum { drift: Vec<f64> },
+    /// `kind = "kalman_chi2"`: the normalised innovation squared `r' S^-1 r` summed over the last
+    /// `window` samples, one joint statistic recorded under every output (any output's alarm is the
+    /// joint alarm). `s_inv` is the designed filter's (empty in the deck's parameters).
+    Nis { window: usize, s_inv: DMatrix<f64> },
     /// A test of the user's own.
     Own(Arc<dyn ResidualTest>),
 }
@@ -50,6 +57,7 @@ impl Decision {
                 let d: Vec<String> = drift.iter().map(|v| format!("{v}")).collect();
                 format!("cusum on |residual|, drift [{}]", d.join(", "))
             }
+            Decision::Nis { window, .. } => format!("the normalised innovation squared summed over {window} samples"),
             Decision::Own(t) => t.describe(),
         }
     }
@@ -58,13 +66,18 @@ impl Decision {
         match self {
             Decision::Absolute => Box::new(AbsoluteState),
             Decision::Cusum { drift } => Box::new(CusumState { drift: drift.clone(), g: vec![0.0; outputs] }),
+            Decision::Nis { window, s_inv } => Box::new(NisState {
+                s_inv: s_inv.clone(),
+                recent: VecDeque::with_capacity(*window + 1),
+                window: *window,
+            }),
             Decision::Own(t) => t.start(outputs, dt_s),
         }
     }
 
     /// Whether the lane path can run it (the built-in tests; a user's own runs one trial at a time).
     pub fn runs_on_lanes(&self) -> bool {
-        !matches!(self, Decision::Own(_))
+        matches!(self, Decision::Absolute | Decision::Cusum { .. })
     }
 
     /// The deck's `kind` of a detector with this test.
@@ -72,6 +85,7 @@ impl Decision {
         match self {
             Decision::Absolute => "detection_filter",
             Decision::Cusum { .. } => "cusum",
+            Decision::Nis { .. } => "kalman_chi2",
             Decision::Own(_) => "own test",
         }
     }
@@ -100,6 +114,24 @@ impl TestState for CusumState {
             self.g[j] = if g.is_finite() { g.max(0.0) } else { g };
             statistic[j] = self.g[j];
         }
+    }
+}
+
+struct NisState {
+    s_inv: DMatrix<f64>,
+    recent: VecDeque<f64>,
+    window: usize,
+}
+
+impl TestState for NisState {
+    fn step(&mut self, residual: &[f64], statistic: &mut [f64]) {
+        let r = DVector::from_column_slice(residual);
+        self.recent.push_back(r.dot(&(&self.s_inv * &r)));
+        if self.recent.len() > self.window {
+            self.recent.pop_front();
+        }
+        // Summed anew each sample (a short window), so no rounding accumulates over a long trial.
+        statistic.fill(self.recent.iter().sum());
     }
 }
 

@@ -75,9 +75,14 @@ pub struct NoiseSection {
 pub struct DetectorSection {
     pub name: String,
     pub kind: String,
-    pub eigenvalues_per_s: Vec<f64>,
+    pub eigenvalues_per_s: Option<Vec<f64>>,
     pub fault_directions: Option<Vec<Vec<f64>>>,
-    pub thresholds: Vec<f64>,
+    pub thresholds: Option<Vec<f64>>,
+    /// `kind = "kalman_chi2"`: samples summed, false-alarm probability per window, and the process
+    /// noise per step and state the filter is designed for.
+    pub window: Option<usize>,
+    pub false_alarm_probability: Option<f64>,
+    pub design_process_sigma_per_step: Option<Vec<f64>>,
     /// `kind = "cusum"`: the allowance per sample and output.
     pub drift: Option<Vec<f64>>,
     pub isolation_delay_s: Option<f64>,

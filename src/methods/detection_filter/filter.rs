@@ -17,10 +17,11 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::design::{Assignment, DesignError, Domain, assign_eigenstructure};
+use crate::design::kalman::steady_state_kalman;
+use crate::design::{Assignment, DesignError, Domain, assign_eigenstructure, eigen_report};
 use crate::lti::LtiPlant;
 use crate::methods::detection_filter::decision::Decision;
-use crate::methods::detection_filter::study::DetectionFilterParams;
+use crate::methods::detection_filter::study::{DetectionFilterParams, KalmanParams};
 
 /// A designed detection filter (`sim::FilterStep` runs it). If it exists, its gains exist and are stable.
 #[derive(Debug, Clone)]
@@ -38,6 +39,9 @@ pub struct DetectionFilter {
     pub thresholds: DVector<f64>,
     /// The test the residual meets before its thresholds.
     pub decision: Decision,
+    /// Per output, what isolation divides the mean residual by: the thresholds, or for a Kalman
+    /// filter the innovation standard deviations (isolation by the largest normalised innovation).
+    pub isolation_scale: DVector<f64>,
     /// Isolation window after the first alarm: start delay and length (s).
     pub isolation_delay_s: f64,
     pub isolation_window_s: f64,
@@ -46,6 +50,9 @@ pub struct DetectionFilter {
 impl DetectionFilterParams {
     /// Designs the filter for the `design` plant sampled at `dt_s`.
     pub fn design(&self, design: &LtiPlant, dt_s: f64) -> Result<DetectionFilter, DesignError> {
+        if let Some(k) = &self.kalman {
+            return self.design_kalman(k, design, dt_s);
+        }
         let F = &self.fault_directions;
         let continuous = assign_eigenstructure(&design.A, &design.C, F, &self.eigenvalues_per_s, Domain::Continuous)?;
         let sampled = design.discretise(dt_s);
@@ -70,6 +77,43 @@ impl DetectionFilterParams {
             signatures,
             thresholds: self.thresholds.clone(),
             decision: self.decision.clone(),
+            isolation_scale: self.thresholds.clone(),
+            isolation_delay_s: self.isolation_delay_s,
+            isolation_window_s: self.isolation_window_s,
+        })
+    }
+
+    /// The steady-state Kalman filter on the ZOH design model (`design::kalman`), its chi-square test
+    /// holding the innovation covariance; `continuous` repeats the discrete design (there is none other).
+    fn design_kalman(&self, k: &KalmanParams, design: &LtiPlant, dt_s: f64) -> Result<DetectionFilter, DesignError> {
+        let sampled = design.discretise(dt_s);
+        let steady = steady_state_kalman(&sampled.Ad, &sampled.C, &k.process_covariance, &k.sensor_covariance)?;
+        let phi = &sampled.Ad - &steady.K * &sampled.C;
+        let (closed_loop_eigenvalues, eigenvector_condition) = eigen_report(&phi)?;
+        let discrete =
+            Assignment { K: steady.K.clone(), closed_loop_eigenvalues, eigenvector_condition, relative_residual: 0.0 };
+        let (n, m) = (design.n_states(), design.n_outputs());
+        let solved = (DMatrix::identity(n, n) - phi)
+            .lu()
+            .solve(&steady.K)
+            .ok_or(DesignError::Decomposition { what: "LU of I - (Ad - K C)" })?;
+        let signatures = DMatrix::identity(m, m) - &sampled.C * solved;
+        let s_inv = steady.S.clone().try_inverse().ok_or(DesignError::Decomposition { what: "inverse of S" })?;
+        let window = match self.decision {
+            Decision::Nis { window, .. } => window,
+            _ => 1,
+        };
+        Ok(DetectionFilter {
+            Ad: sampled.Ad,
+            Bd: sampled.Bd,
+            C: sampled.C,
+            D: sampled.D,
+            continuous: discrete.clone(),
+            discrete,
+            signatures,
+            thresholds: self.thresholds.clone(),
+            decision: Decision::Nis { window, s_inv },
+            isolation_scale: steady.S.diagonal().map(f64::sqrt),
             isolation_delay_s: self.isolation_delay_s,
             isolation_window_s: self.isolation_window_s,
         })
@@ -77,18 +121,19 @@ impl DetectionFilterParams {
 }
 
 impl DetectionFilter {
-    /// Output whose threshold-scaled residual is largest.
+    /// Output whose scaled residual is largest (threshold-scaled; innovation-normalised for a Kalman
+    /// filter).
     pub fn isolate_by_max(&self, mean_residual: &DVector<f64>) -> usize {
-        mean_residual.component_div(&self.thresholds).iamax()
+        mean_residual.component_div(&self.isolation_scale).iamax()
     }
 
     /// Output whose bias signature is most parallel to the residual (threshold-scaled, either sign).
     pub fn isolate_by_direction(&self, mean_residual: &DVector<f64>) -> usize {
-        let w = mean_residual.component_div(&self.thresholds);
+        let w = mean_residual.component_div(&self.isolation_scale);
         let w_norm = w.norm().max(f64::MIN_POSITIVE);
         let mut best = (0, f64::NEG_INFINITY);
         for (j, s) in self.signatures.column_iter().enumerate() {
-            let s = s.component_div(&self.thresholds);
+            let s = s.component_div(&self.isolation_scale);
             let cos = w.dot(&s).abs() / (w_norm * s.norm().max(f64::MIN_POSITIVE));
             if cos > best.1 {
                 best = (j, cos);

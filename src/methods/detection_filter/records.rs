@@ -61,7 +61,11 @@ impl<'a> RecordBuilder<'a> {
         for (d, outcome) in s.detectors.iter().zip(&result.detectors) {
             let o = outcome.as_ref().ok();
             let truth = name(spec.output);
-            let isolated = o.and_then(|o| name(o.isolated_by_direction));
+            // The Kalman test isolates by the largest normalised innovation; the filters by direction.
+            let isolated = match d.params.kalman {
+                Some(_) => o.and_then(|o| name(o.isolated_by_max)),
+                None => o.and_then(|o| name(o.isolated_by_direction)),
+            };
             self.core.push(Outcome {
                 trial: spec.trial,
                 detector: &d.name,
