@@ -294,15 +294,16 @@ fn detector(
 ) -> Result<DetectionFilterParams, DeckError> {
     let f = |name: &str| format!("detector[{i}].{name}");
     let (n, ny) = (plant.n_states(), plant.n_outputs());
-    for (field, given) in [
-        ("window", d.window.is_some()),
-        ("false_alarm_probability", d.false_alarm_probability.is_some()),
-        ("design_process_sigma_per_step", d.design_process_sigma_per_step.is_some()),
-    ] {
-        if given {
-            return Err(chk.err(f(field), "applies to kind = \"kalman_chi2\" only"));
-        }
-    }
+    refuse(
+        chk,
+        i,
+        &[
+            ("window", d.window.is_some()),
+            ("false_alarm_probability", d.false_alarm_probability.is_some()),
+            ("design_process_sigma_per_step", d.design_process_sigma_per_step.is_some()),
+        ],
+        "applies to kind = \"kalman_chi2\" only",
+    )?;
     let eigenvalues = d.eigenvalues_per_s.as_ref().ok_or_else(|| {
         chk.err(f("eigenvalues_per_s"), format!("required for kind = {:?}: the filter's eigenvalues (1/s)", d.kind))
     })?;
@@ -390,6 +391,14 @@ fn detector(
     })
 }
 
+/// Refuses, with `why`, the first of detector `i`'s `fields` that is given.
+fn refuse(chk: &Validator, i: usize, fields: &[(&str, bool)], why: &str) -> Result<(), DeckError> {
+    match fields.iter().find(|(_, given)| *given) {
+        Some((field, _)) => Err(chk.err(format!("detector[{i}].{field}"), why)),
+        None => Ok(()),
+    }
+}
+
 /// `kind = "kalman_chi2"`: the textbook innovation test. A steady-state Kalman filter designed from the
 /// deck's sensor noise and the detector's design process noise; alarm when the normalised innovation
 /// squared summed over `window` samples exceeds the chi-square(window x outputs) quantile at
@@ -404,19 +413,17 @@ fn kalman_detector(
     use statrs::distribution::{ChiSquared, ContinuousCDF};
     let f = |name: &str| format!("detector[{i}].{name}");
     let (n, ny) = (plant.n_states(), plant.n_outputs());
-    for (field, given) in [
-        ("eigenvalues_per_s", d.eigenvalues_per_s.is_some()),
-        ("fault_directions", d.fault_directions.is_some()),
-        ("thresholds", d.thresholds.is_some()),
-        ("drift", d.drift.is_some()),
-    ] {
-        if given {
-            return Err(chk.err(
-                f(field),
-                "does not apply to kind = \"kalman_chi2\" (its gain is the Kalman filter's, its threshold the chi-square quantile)",
-            ));
-        }
-    }
+    refuse(
+        chk,
+        i,
+        &[
+            ("eigenvalues_per_s", d.eigenvalues_per_s.is_some()),
+            ("fault_directions", d.fault_directions.is_some()),
+            ("thresholds", d.thresholds.is_some()),
+            ("drift", d.drift.is_some()),
+        ],
+        "does not apply to kind = \"kalman_chi2\" (its gain is the Kalman filter's, its threshold the chi-square quantile)",
+    )?;
     let window = match d.window {
         Some(w) if (1..=10_000).contains(&w) => w,
         Some(w) => return Err(chk.err(f("window"), format!("allowed 1 to 10000 samples, got {w}"))),
