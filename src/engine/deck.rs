@@ -406,6 +406,23 @@ pub struct MonteCarloRules<'a> {
     pub parameter_errors: Option<bool>,
 }
 
+impl<'a> MonteCarloRules<'a> {
+    /// A kind that samples fault-free trials, onsets and noise ranges with any sampler, and calibrates no
+    /// threshold and has no parameter errors; a kind changes what differs (`target_pfa`, ...).
+    pub fn sampled(decks: &'a str, duration_s: f64) -> Self {
+        MonteCarloRules {
+            decks,
+            duration_s,
+            fault_free_fraction: true,
+            sampler: true,
+            target_pfa: false,
+            onset_s: true,
+            noise_ranges: true,
+            parameter_errors: None,
+        }
+    }
+}
+
 impl Validator<'_> {
     /// Validates the shared fields of `[monte_carlo]` (defaults without the section: 1000 trials, no
     /// fault-free ones, random sampling, target Pfa 0.01, onset at a third of the trial, nominal noise),

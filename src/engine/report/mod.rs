@@ -56,6 +56,21 @@ pub struct ReportContext<'a> {
     pub trials: &'a [u64],
 }
 
+impl ReportContext<'_> {
+    /// The run's deck, for re-flying `--trials`: refused when missing or changed since the run.
+    pub fn run_deck(&self) -> Result<PathBuf, RunError> {
+        let deck = PathBuf::from(&self.manifest.deck);
+        let same = super::runner::deck_sha256(&deck).map(|h| h == self.manifest.deck_sha256).unwrap_or(false);
+        if !same {
+            return Err(RunError::Invalid(format!(
+                "--trials: {} is missing or changed since this run (SHA-256 differs): traces need the run's deck",
+                deck.display()
+            )));
+        }
+        Ok(deck)
+    }
+}
+
 /// Per detector, from `trials.parquet`.
 #[derive(Default)]
 struct DetectorData {
@@ -188,14 +203,7 @@ fn traces(ctx: &ReportContext, method: &Method) -> Result<Vec<PathBuf>, RunError
     if ctx.trials.is_empty() {
         return Ok(Vec::new());
     }
-    let deck = PathBuf::from(&ctx.manifest.deck);
-    let same = super::runner::deck_sha256(&deck).map(|h| h == ctx.manifest.deck_sha256).unwrap_or(false);
-    if !same {
-        return Err(RunError::Invalid(format!(
-            "--trials: {} is missing or changed since this run (SHA-256 differs): traces need the run's deck",
-            deck.display()
-        )));
-    }
+    let deck = ctx.run_deck()?;
     if method.trace_panels.is_empty() {
         return Err(RunError::Invalid(format!("--trials: {} studies list no trace to draw", method.kind)));
     }

@@ -302,16 +302,7 @@ fn monte_carlo(
     fixed_faults: bool,
     deck_gust_std_mps: f64,
 ) -> Result<AirDataMonteCarlo, DeckError> {
-    let rules = MonteCarloRules {
-        decks: "air-data decks",
-        duration_s,
-        fault_free_fraction: true,
-        sampler: true,
-        target_pfa: false,
-        onset_s: true,
-        noise_ranges: true,
-        parameter_errors: None,
-    };
+    let rules = MonteCarloRules::sampled("air-data decks", duration_s);
     let (common, own, _) = v.monte_carlo(mc, &rules, |_, _| Ok(()))?;
     // Without [monte_carlo], every faulty trial flies the deck's [[faults]] (or none, if it has none).
     let section_given = own.is_some();

@@ -10,7 +10,7 @@ use std::collections::VecDeque;
 use std::fmt;
 use std::sync::Arc;
 
-use nalgebra::{DMatrix, DVector};
+use nalgebra::DMatrix;
 
 /// A decision rule on the residual, designed once per detector.
 pub trait ResidualTest: Send + Sync {
@@ -125,8 +125,11 @@ struct NisState {
 
 impl TestState for NisState {
     fn step(&mut self, residual: &[f64], statistic: &mut [f64]) {
-        let r = DVector::from_column_slice(residual);
-        self.recent.push_back(r.dot(&(&self.s_inv * &r)));
+        // r' S^-1 r without allocating: this runs every sample of every trial.
+        let m = residual.len();
+        let nis: f64 =
+            (0..m).map(|i| residual[i] * (0..m).map(|j| self.s_inv[(i, j)] * residual[j]).sum::<f64>()).sum();
+        self.recent.push_back(nis);
         if self.recent.len() > self.window {
             self.recent.pop_front();
         }

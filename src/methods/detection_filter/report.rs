@@ -24,15 +24,8 @@ pub fn report_part(ctx: &ReportContext) -> Result<ReportPart, RunError> {
         return Ok(part);
     }
     let m = ctx.manifest;
-    let deck = Path::new(&m.deck);
-    let same = crate::engine::runner::deck_sha256(deck).map(|h| h == m.deck_sha256).unwrap_or(false);
-    if !same {
-        return Err(RunError::Invalid(format!(
-            "--trials: {} is missing or changed since this run (SHA-256 differs): traces need the run's deck",
-            deck.display()
-        )));
-    }
-    let mut study = LtiStudy::load(deck).map_err(|e| RunError::Invalid(e.to_string()))?;
+    let deck = ctx.run_deck()?;
+    let mut study = LtiStudy::load(&deck).map_err(|e| RunError::Invalid(e.to_string()))?;
     study.header.seed = m.seed;
     study.monte_carlo.common.trials = m.trials;
     let engine = Engine::new(&study);

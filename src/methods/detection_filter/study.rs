@@ -505,14 +505,9 @@ fn monte_carlo(
     duration_s: f64,
 ) -> Result<LtiMonteCarlo, DeckError> {
     let rules = MonteCarloRules {
-        decks: "detection-filter decks",
-        duration_s,
-        fault_free_fraction: true,
-        sampler: true,
         target_pfa: true,
-        onset_s: true,
-        noise_ranges: true,
         parameter_errors: Some(true),
+        ..MonteCarloRules::sampled("detection-filter decks", duration_s)
     };
     let (common, own, parameter_errors) = chk.monte_carlo(mc, &rules, |prefix, table| {
         let field = |name: &str| format!("{prefix}.{name}");

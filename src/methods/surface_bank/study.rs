@@ -520,14 +520,8 @@ fn monte_carlo(
     scenario: &[ActuatorFault],
 ) -> Result<SurfaceMonteCarlo, DeckError> {
     let rules = MonteCarloRules {
-        decks: "control-surface decks",
-        duration_s,
-        fault_free_fraction: true,
-        sampler: true,
-        target_pfa: false,
-        onset_s: true,
-        noise_ranges: true,
         parameter_errors: Some(false),
+        ..MonteCarloRules::sampled("control-surface decks", duration_s)
     };
     let (common, own, parameter_errors) = v.monte_carlo(mc, &rules, |prefix, table| {
         let field = |name: &str| format!("{prefix}.{name}");

@@ -275,16 +275,8 @@ impl FromDeck for LaunchStudy {
             }),
         };
 
-        let rules = MonteCarloRules {
-            decks: "launch-vehicle decks",
-            duration_s,
-            fault_free_fraction: true,
-            sampler: true,
-            target_pfa: true,
-            onset_s: true,
-            noise_ranges: true,
-            parameter_errors: None,
-        };
+        let rules =
+            MonteCarloRules { target_pfa: true, ..MonteCarloRules::sampled("launch-vehicle decks", duration_s) };
         let (common, own, _) = v.monte_carlo(deck.monte_carlo, &rules, |_, _| Ok(()))?;
         // A loss at lift-off leaves no window before it to calibrate on.
         v.factor_within(
