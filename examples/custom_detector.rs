@@ -11,7 +11,6 @@
 
 use std::collections::VecDeque;
 use std::path::PathBuf;
-use std::sync::Arc;
 
 use fdimc::engine::deck::FromDeck;
 use fdimc::engine::runner::{RunOptions, Shard};
@@ -80,7 +79,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     //    25 samples (0.25 s) average white noise down by 5; the residual is coloured, so half the
     //    one-sample thresholds (calibration to the deck's Pfa then sets the fair ones).
     let mut params = study.detectors[0].params.clone();
-    params.decision = Decision::Own(Arc::new(MovingAverage { window: 25 }));
+    params.decision = Some(Decision::new(MovingAverage { window: 25 }));
     params.thresholds = params.thresholds.map(|t| t / 2.0);
     study.detectors.push(DetectorConfig { name: "moving_average".into(), params });
 

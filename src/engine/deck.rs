@@ -33,6 +33,21 @@ pub enum Factor {
     Values(Vec<f64>),
 }
 
+/// As `validate` prints it: `3`, `2 to 6 in 4 bins`, `one of [0.5, 1, 2]`.
+impl std::fmt::Display for Factor {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Factor::Fixed(v) => write!(f, "{v}"),
+            Factor::Range { lo, hi, bins: 1 } => write!(f, "{lo} to {hi}"),
+            Factor::Range { lo, hi, bins } => write!(f, "{lo} to {hi} in {bins} bins"),
+            Factor::Values(v) => {
+                let v: Vec<String> = v.iter().map(|x| format!("{x}")).collect();
+                write!(f, "one of [{}]", v.join(", "))
+            }
+        }
+    }
+}
+
 /// How continuous factors are drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Sampler {
@@ -41,7 +56,16 @@ pub enum Sampler {
     Sobol,
 }
 
-/// Sensor fault kinds of a Monte Carlo population (sizes are drawn per trial).
+/// The deck's spelling.
+impl std::fmt::Display for Sampler {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Sampler::Random => "random",
+            Sampler::LatinHypercube => "lhs",
+            Sampler::Sobol => "sobol",
+        })
+    }
+}
 
 /// Which model a parameter error perturbs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -52,17 +76,40 @@ pub enum ModelTarget {
     Design,
 }
 
-/// One uncertain physical coefficient: the listed entries of `A` or `B` scaled by `1 + value`
+/// The deck's spelling.
+impl std::fmt::Display for ModelTarget {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            ModelTarget::Plant => "plant",
+            ModelTarget::Design => "design",
+        })
+    }
+}
 
 /// A deck file's text; a missing or unreadable file names itself.
 pub(crate) fn read_deck(path: &Path) -> Result<String, DeckError> {
     std::fs::read_to_string(path).map_err(|source| DeckError::Read { file: path.into(), source })
 }
 
-/// A deck's text parsed into its serde type; TOML errors (unknown fields among them) name the file.
+/// A deck's text parsed into its serde type; TOML errors (unknown fields among them) name the file. A
+/// table missing from the deck is named as such (TOML reports it at line 1 of the whole document).
 pub(crate) fn parse_deck<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T, DeckError> {
-    toml::from_str(text)
-        .map_err(|e| DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() })
+    toml::from_str(text).map_err(|e| {
+        let missing = e.message().strip_prefix("missing field `").and_then(|m| m.strip_suffix('`'));
+        // The document's own span: empty or one character at its start (a table's spans its text).
+        let whole_document = e.span().is_none_or(|s| s.start == 0 && (s.end <= 1 || s.end >= text.trim_end().len()));
+        match missing {
+            Some(table) if whole_document => DeckError::Invalid {
+                file: path.into(),
+                field: format!("[{table}]"),
+                message: format!(
+                    "the deck has no [{table}] table; a deck of this kind needs one (studies/ holds a \
+                     commented deck of each kind; the README's \"The study deck\" lists the tables)"
+                ),
+            },
+            _ => DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() },
+        }
+    })
 }
 
 /// `[study]`, the same in every deck.
@@ -94,6 +141,19 @@ pub struct StudyHeader {
     pub steps: usize,
 }
 
+/// Copies each field a deck table gives (`Some`) over the default of the same name in `$params`:
+/// `take_given!(params, deck_table, [field_a, field_b])`.
+#[macro_export]
+macro_rules! take_given {
+    ($params:expr, $given:expr, [$($field:ident),+ $(,)?]) => {
+        $(
+            if let Some(x) = $given.$field {
+                $params.$field = x;
+            }
+        )+
+    };
+}
+
 /// A study type read from deck text; `load` reads the file first.
 pub trait FromDeck: Sized {
     /// Parses and validates deck text; `path` names it in messages.
@@ -102,6 +162,12 @@ pub trait FromDeck: Sized {
     /// Reads, parses and validates a deck file.
     fn load(path: &Path) -> Result<Self, DeckError> {
         Self::from_toml(&read_deck(path)?, path)
+    }
+
+    /// A bundled deck (`studies/<file>`), for tests.
+    #[cfg(test)]
+    fn bundled(file: &str) -> Self {
+        Self::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("studies").join(file)).unwrap()
     }
 }
 
@@ -179,6 +245,30 @@ impl Validator<'_> {
             if names[..i].contains(n) {
                 return Err(self.err(format!("{field}[{i}]"), format!("{n:?} appears twice")));
             }
+        }
+        Ok(())
+    }
+
+    /// The names of a deck's `[[table]]` of detectors (or banks): at least one, each names record rows and
+    /// files, so letters, digits, '_' and '-', and none twice.
+    pub(crate) fn detector_names<'n>(
+        &self,
+        table: &str,
+        names: impl ExactSizeIterator<Item = &'n str>,
+    ) -> Result<(), DeckError> {
+        if names.len() == 0 {
+            return Err(self.err(table, format!("at least one [[{table}]] is required")));
+        }
+        let mut seen: Vec<&str> = Vec::new();
+        for (i, n) in names.enumerate() {
+            let field = format!("{table}[{i}].name");
+            if n.is_empty() || !n.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+                return Err(self.err(field, format!("{n:?}: use letters, digits, '_' and '-'")));
+            }
+            if seen.contains(&n) {
+                return Err(self.err(field, format!("{n:?} appears twice")));
+            }
+            seen.push(n);
         }
         Ok(())
     }
@@ -530,5 +620,28 @@ impl Validator<'_> {
             Some(own),
             parameter_errors,
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A missing table is named; a missing field of a table that starts the file keeps TOML's message.
+    #[test]
+    fn a_missing_table_is_named_and_a_missing_field_is_not_taken_for_one() {
+        #[derive(Debug, Deserialize)]
+        #[allow(dead_code)]
+        struct Two {
+            study: StudySection,
+            noise: toml::Table,
+        }
+        let path = Path::new("d.toml");
+        let text = "# a deck\n[study]\nname = \"x\"\nseed = 1\nduration_s = 1.0\ndt_s = 0.1\n";
+        let e = parse_deck::<Two>(text, path).unwrap_err().to_string();
+        assert!(e.starts_with("d.toml: [noise]: the deck has no [noise] table; a deck of this kind needs one"), "{e}");
+        let text = "[study]\nname = \"x\"\nduration_s = 1.0\ndt_s = 0.1\n[noise]\n";
+        let e = parse_deck::<Two>(text, path).unwrap_err().to_string();
+        assert!(e.contains("TOML parse error") && e.contains("missing field `seed`"), "{e}");
     }
 }

@@ -105,6 +105,15 @@ pub trait Study: Sync {
     }
 }
 
+/// `simulate --detector NAME`: the index of `wanted` among the deck's detector `names` (`None` when no
+/// name is given: every detector flies), or an error listing the names.
+pub fn select_detector(header: &StudyHeader, names: &[&str], wanted: Option<&str>) -> Result<Option<usize>, RunError> {
+    let Some(name) = wanted else { return Ok(None) };
+    names.iter().position(|n| *n == name).map(Some).ok_or_else(|| {
+        RunError::Invalid(format!("--detector {name:?}: {} has detectors {}", header.path.display(), names.join(", ")))
+    })
+}
+
 /// The method of `kind` (a results folder's), or an error listing the kinds there are.
 pub fn find<'r>(registry: &'r [&'r Method], kind: &str) -> Result<&'r Method, RunError> {
     registry.iter().copied().find(|m| m.kind == kind).ok_or_else(|| {

@@ -41,6 +41,48 @@ pub struct Trace {
     pub bool_columns: Vec<(String, Vec<bool>)>,
 }
 
+impl Trace {
+    /// The next sample's values, given column by column in the same order every sample: the first
+    /// sample names the columns (the name closures run only then).
+    pub fn row(&mut self) -> TraceRow<'_> {
+        TraceRow { trace: self, float: 0, flag: 0 }
+    }
+
+    /// Writes the trace to `out` (format by extension, atomically); returns the number of samples.
+    pub fn write(&self, out: &Path) -> Result<usize, OutputError> {
+        let mut df = trace_frame(self).map_err(|source| OutputError::Polars { file: out.into(), source })?;
+        write_table(&mut df, out)?;
+        Ok(df.height())
+    }
+}
+
+/// One sample of a [`Trace`] being written, see [`Trace::row`].
+pub struct TraceRow<'t> {
+    trace: &'t mut Trace,
+    float: usize,
+    flag: usize,
+}
+
+impl TraceRow<'_> {
+    pub fn float(&mut self, name: impl FnOnce() -> String, value: f64) -> &mut Self {
+        if self.trace.float_columns.len() <= self.float {
+            self.trace.float_columns.push((name(), Vec::new()));
+        }
+        self.trace.float_columns[self.float].1.push(value);
+        self.float += 1;
+        self
+    }
+
+    pub fn flag(&mut self, name: impl FnOnce() -> String, value: bool) -> &mut Self {
+        if self.trace.bool_columns.len() <= self.flag {
+            self.trace.bool_columns.push((name(), Vec::new()));
+        }
+        self.trace.bool_columns[self.flag].1.push(value);
+        self.flag += 1;
+        self
+    }
+}
+
 /// Turns a trace into a data frame, columns in trace order.
 pub fn trace_frame(trace: &Trace) -> PolarsResult<DataFrame> {
     let mut columns: Vec<Column> =

@@ -32,8 +32,11 @@ pub trait TrialSource: Sync {
     fn chunk_trials(&self) -> u64 {
         CHUNK_TRIALS
     }
-    /// Consecutive trials one worker simulates together (the SIMD lane width for LTI studies).
-    fn group_trials(&self) -> u64;
+    /// Consecutive trials one worker simulates together (the SIMD lane width for LTI studies; 1: each
+    /// trial on its own).
+    fn group_trials(&self) -> u64 {
+        1
+    }
     /// The results of trials `first..end` (at most [`TrialSource::group_trials`]), in trial order.
     fn simulate(&self, first: u64, end: u64) -> Vec<Self::Result>;
     /// The trials.parquet rows of `results` (trial order); `&[]` gives the empty table with its schema.

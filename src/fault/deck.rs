@@ -74,6 +74,17 @@ pub enum SizeSpec {
     SensorSigma(Factor),
 }
 
+/// As `validate` prints it: `none`, `2 to 6 output units`, `1 to 5 sensor sigmas`.
+impl std::fmt::Display for SizeSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SizeSpec::None => f.write_str("none"),
+            SizeSpec::Output(x) => write!(f, "{x} (output units; a factor for gain)"),
+            SizeSpec::SensorSigma(x) => write!(f, "{x} sensor sigmas"),
+        }
+    }
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct FaultKindSpec {
     pub kind: FaultKind,

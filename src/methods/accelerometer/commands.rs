@@ -4,7 +4,7 @@ use std::path::Path;
 
 use super::study::AccelerometerStudy;
 use super::trial::TrainedClassifiers;
-use crate::engine::output::{Trace, trace_frame, write_table};
+use crate::engine::output::Trace;
 use crate::engine::runner::RunError;
 use std::path::PathBuf;
 
@@ -41,7 +41,7 @@ pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
     );
     let classes: Vec<&str> = study.classes.iter().map(|c| c.name()).collect();
     println!(
-        "monte carlo {} trials, classes [{}] cycled, noise scale {:?}",
+        "monte carlo {} trials, classes [{}] cycled, noise scale {}",
         study.trials,
         classes.join(", "),
         study.noise_scale
@@ -79,11 +79,9 @@ pub fn simulate(
         .map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.header.path.display())))?;
     let threshold = study.detection.threshold;
     let alarm = floats.last().map(|(_, t)| t.iter().map(|&v| v >= threshold).collect()).unwrap_or_default();
-    let trace = Trace { float_columns: floats, bool_columns: vec![("alarm".into(), alarm)] };
-    let mut df = trace_frame(&trace).map_err(|e| RunError::Internal(e.to_string()))?;
-    write_table(&mut df, out)?;
+    let samples = Trace { float_columns: floats, bool_columns: vec![("alarm".into(), alarm)] }.write(out)?;
     let s = &result.spec;
-    println!("{}: trial {trial}, {} samples -> {}", study.header.name, df.height(), out.display());
+    println!("{}: trial {trial}, {} samples -> {}", study.header.name, samples, out.display());
     let axis = s.axis.map_or("-", |a| ["x", "y", "z"][a]);
     println!(
         "  class {} on axis {axis}, size {}, onset {:.3} s, noise scale {}",

@@ -181,9 +181,6 @@ impl TrialSource for AccelerometerTrials<'_> {
     fn chunk_trials(&self) -> u64 {
         512
     }
-    fn group_trials(&self) -> u64 {
-        1
-    }
     fn simulate(&self, first: u64, end: u64) -> Vec<AccelTrialResult> {
         (first..end).map(|t| self.run_trial_with(t, |_, _| ())).collect()
     }

@@ -4,7 +4,7 @@
 //!
 //! ```toml
 //! [study]            name, seed, duration_s (20), dt_s (0.01)
-//! [imu]              optional manoeuvre_scale (on the seed manoeuvre's amplitudes; src/plant/imu.rs)
+//! [imu]              optional manoeuvre_scale (on the seed manoeuvre's amplitudes; src/methods/accelerometer/imu.rs)
 //! [faults]           optional ranges: bias_mps2 = [lo, hi] (|bias|), gain_deviation = [lo, hi] (|factor - 1|),
 //!                    onset_s = [lo, hi]; a fault's axis and sign are drawn
 //! [training]         trials_per_class, seed (the training trials' own seed: fresh trials are another),
@@ -257,13 +257,9 @@ impl FromDeck for AccelerometerStudy {
 mod tests {
     use super::*;
 
-    fn deck() -> String {
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/studies/seed003_accelerometer.toml")).unwrap()
-    }
-
     #[test]
     fn the_seed_deck_reads_as_documented() {
-        let study = AccelerometerStudy::from_toml(&deck(), Path::new("seed003_accelerometer.toml")).unwrap();
+        let study = AccelerometerStudy::bundled("seed003_accelerometer.toml");
         assert_eq!(study.design, TrialDesign::seed());
         assert_eq!(study.classes, FaultClass::ALL);
         assert_ne!(study.training.seed, study.header.seed);

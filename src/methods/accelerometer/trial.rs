@@ -139,15 +139,12 @@ mod tests {
     use crate::engine::deck::FromDeck;
     use crate::fault::FaultMode;
     use crate::methods::accelerometer::AccelerometerTrials;
-    use std::path::Path;
 
     /// The bundled deck's grid: the four classes fastest, then the two noise scales; every faulty class
     /// carries its fault on the drawn axis, its size in its third of the range, its onset in the range.
     #[test]
     fn classes_and_noise_cycle_and_faults_match_their_class() {
-        let study =
-            AccelerometerStudy::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed003_accelerometer.toml"))
-                .unwrap();
+        let study = AccelerometerStudy::bundled("seed003_accelerometer.toml");
         let classifiers = TrainedClassifiers {
             study: study.header.name.clone(),
             training_seed: 0,

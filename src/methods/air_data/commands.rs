@@ -3,7 +3,8 @@
 use std::path::Path;
 
 use super::study::AirDataStudy;
-use crate::engine::output::{Trace, trace_frame, write_table};
+use crate::engine::method::select_detector;
+use crate::engine::output::Trace;
 use crate::engine::runner::RunError;
 
 /// The resolved air-data study (method 002).
@@ -61,7 +62,7 @@ pub fn validate(study: &AirDataStudy) -> Result<(), RunError> {
     }
     let mc = &study.monte_carlo;
     println!(
-        "monte carlo {} trials, fault-free fraction {}, sampler {:?}, onset {:?} s, noise scale {:?}, gust {:?} m/s",
+        "monte carlo {} trials, fault-free fraction {}, sampler {}, onset {} s, noise scale {}, gust {} m/s",
         mc.common.trials,
         mc.common.fault_free_fraction,
         mc.common.sampler,
@@ -72,7 +73,7 @@ pub fn validate(study: &AirDataStudy) -> Result<(), RunError> {
     let sets: Vec<String> = mc.output_sets.iter().map(|s| crate::methods::air_data::records::sensor_set(s)).collect();
     println!("            sensor sets [{}]", sets.join(", "));
     for f in &mc.faults {
-        println!("            fault kind {}: size {:?}", f.kind.name(), f.size);
+        println!("            fault kind {}: size {}", f.kind.name(), f.size);
     }
     if mc.faults.is_empty() {
         println!("            every faulty trial flies the faults above");
@@ -87,65 +88,43 @@ pub fn simulate(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &
     use crate::methods::air_data::flight::{AIR_DATA_CHANNEL_NAMES, INERTIAL_CHANNEL_NAMES};
     let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
     let mut selected = study.clone();
-    if let Some(name) = detector {
-        let d = study.detectors.iter().find(|d| d.name == name).ok_or_else(|| {
-            RunError::Invalid(format!(
-                "--detector {name:?}: {} has detectors {}",
-                study.header.path.display(),
-                names.join(", ")
-            ))
-        })?;
-        selected.detectors = vec![d.clone()];
+    if let Some(i) = select_detector(&study.header, &names, detector)? {
+        selected.detectors = vec![study.detectors[i].clone()];
     }
     let trials = crate::methods::air_data::AirDataTrials::new(&selected);
-    let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
-    let mut bools: Vec<(String, Vec<bool>)> = Vec::new();
+    let mut trace = Trace::default();
     let result = trials.run_trial_with(trial, |s, steps| {
-        let mut f = Vec::new();
-        let mut b = Vec::new();
-        f.push(("t_s".to_string(), s.t_s));
+        let mut row = trace.row();
+        row.float(|| "t_s".into(), s.t_s);
         for (name, v) in INERTIAL_CHANNEL_NAMES.iter().zip(s.inertial.to_array()) {
-            f.push((format!("{name}_measured"), v));
+            row.float(|| format!("{name}_measured"), v);
         }
         for ((name, v), truth) in
             AIR_DATA_CHANNEL_NAMES.iter().zip(s.air_data.to_array()).zip(s.truth.air_data.to_array())
         {
-            f.push((format!("{name}_measured"), v));
-            f.push((format!("{name}_true"), truth));
+            row.float(|| format!("{name}_measured"), v).float(|| format!("{name}_true"), truth);
         }
         for (d, step) in selected.detectors.iter().zip(steps) {
-            f.push((format!("{}_p_fault", d.name), step.probabilities[1]));
-            b.push((format!("{}_declared", d.name), step.fault_declared));
+            row.float(|| format!("{}_p_fault", d.name), step.probabilities[1]);
+            row.flag(|| format!("{}_declared", d.name), step.fault_declared);
             for (j, name) in AIR_DATA_CHANNEL_NAMES.iter().enumerate() {
-                f.push((format!("{}_{name}_estimate", d.name), step.air_data.to_array()[j]));
-                f.push((format!("{}_{name}_bias", d.name), step.bias[j]));
-                f.push((format!("{}_{name}_chi_square", d.name), step.chi_square[j]));
-                b.push((format!("{}_{name}_isolated", d.name), step.isolated[j]));
+                row.float(|| format!("{}_{name}_estimate", d.name), step.air_data.to_array()[j])
+                    .float(|| format!("{}_{name}_bias", d.name), step.bias[j])
+                    .float(|| format!("{}_{name}_chi_square", d.name), step.chi_square[j])
+                    .flag(|| format!("{}_{name}_isolated", d.name), step.isolated[j]);
             }
-        }
-        if floats.is_empty() {
-            floats = f.iter().map(|(n, _)| (n.clone(), Vec::new())).collect();
-            bools = b.iter().map(|(n, _)| (n.clone(), Vec::new())).collect();
-        }
-        for (col, (_, v)) in floats.iter_mut().zip(f) {
-            col.1.push(v);
-        }
-        for (col, (_, v)) in bools.iter_mut().zip(b) {
-            col.1.push(v);
         }
     });
     let outcomes = result
         .outcome
         .map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.header.path.display())))?;
-    let trace = Trace { float_columns: floats, bool_columns: bools };
-    let mut df = trace_frame(&trace).map_err(|e| RunError::Internal(e.to_string()))?;
-    write_table(&mut df, out)?;
+    let samples = trace.write(out)?;
     let spec = &result.spec;
     println!(
         "{}: trial {trial}, {} detector(s), {} samples -> {}",
         study.header.name,
         selected.detectors.len(),
-        df.height(),
+        samples,
         out.display()
     );
     if spec.faults.is_empty() {

@@ -139,9 +139,6 @@ impl TrialSource for AirDataTrials<'_> {
     fn chunk_trials(&self) -> u64 {
         256
     }
-    fn group_trials(&self) -> u64 {
-        1
-    }
     fn simulate(&self, first: u64, end: u64) -> Vec<AirDataTrialResult> {
         (first..end).map(|t| self.run_trial(t)).collect()
     }

@@ -142,14 +142,12 @@ mod tests {
     use super::*;
     use crate::engine::deck::FromDeck;
     use crate::fault::FaultMode;
-    use std::path::Path;
 
     /// The bundled deck: kind (1) and sensor sets (5) cycle over the trial index, then noise (2 values)
     /// and gust (2 values); bias sizes in each faulty sensor's own sigmas, one onset for all of them.
     #[test]
     fn sets_cycle_and_common_mode_biases_are_sized_per_sensor() {
-        let study =
-            AirDataStudy::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed002_air_data.toml")).unwrap();
+        let study = AirDataStudy::bundled("seed002_air_data.toml");
         let sampler = AirDataScenarioSampler::new(&study);
         let sigma = study.noise.air_data_std();
         let mut fault_free = 0;

@@ -198,37 +198,26 @@ impl FromDeck for AirDataStudy {
             }
         }
 
-        if deck.detector.is_empty() {
-            return Err(v.err("detector", "at least one [[detector]] is required"));
-        }
+        v.detector_names("detector", deck.detector.iter().map(|d| d.name.as_str()))?;
         let mut detectors: Vec<AirDataDetector> = Vec::new();
         for (i, d) in deck.detector.iter().enumerate() {
             let field = |f: &str| format!("detector[{i}].{f}");
-            if d.name.is_empty() || detectors.iter().any(|o| o.name == d.name) {
-                return Err(v.err(field("name"), format!("must be non-empty and unique, got {:?}", d.name)));
-            }
             if d.kind != "dual_ukf" {
                 return Err(v.err(field("kind"), format!("{:?}: allowed \"dual_ukf\" (method 002)", d.kind)));
             }
             let mut p = DualUkfParams { noise, ..DualUkfParams::seed() };
-            if let Some(x) = d.false_alarm_probability {
-                p.false_alarm_probability = x;
-            }
-            if let Some(n) = d.isolation_window {
-                p.isolation_window = n;
-            }
-            if let Some(x) = d.declare_probability {
-                p.declare_probability = x;
-            }
-            if let Some(x) = d.clear_probability {
-                p.clear_probability = x;
-            }
-            if let Some(x) = d.declare_hold_s {
-                p.declare_hold_s = x;
-            }
-            if let Some(x) = d.prior_fault_probability {
-                p.prior_fault_probability = x;
-            }
+            crate::take_given!(
+                p,
+                d,
+                [
+                    false_alarm_probability,
+                    isolation_window,
+                    declare_probability,
+                    clear_probability,
+                    declare_hold_s,
+                    prior_fault_probability
+                ]
+            );
             // The building blocks name the offending parameter; the deck adds the file and the table.
             p.validate().map_err(|e| v.err(format!("detector[{i}]"), e.to_string()))?;
             let isolation_delay_s = d.isolation_delay_s.unwrap_or(1.0);
@@ -353,13 +342,9 @@ fn monte_carlo(
 mod tests {
     use super::*;
 
-    fn deck() -> String {
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/studies/seed002_air_data.toml")).unwrap()
-    }
-
     #[test]
     fn the_seed_deck_reads_as_documented() {
-        let study = AirDataStudy::from_toml(&deck(), Path::new("seed002_air_data.toml")).unwrap();
+        let study = AirDataStudy::bundled("seed002_air_data.toml");
         assert_eq!((study.header.duration_s, study.header.dt_s), (60.0, 0.01));
         assert_eq!(study.profile, FlightProfile::seed());
         assert_eq!(study.noise, SensorNoise::seed());

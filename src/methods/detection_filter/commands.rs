@@ -5,10 +5,12 @@ use std::path::Path;
 use nalgebra::DMatrix;
 use serde_json::json;
 
+use super::filter::{DetectionFilterParams, Gain, Isolation};
 use super::study::{LtiStudy, Shape};
 use super::trials::Engine;
 use crate::design::{Assignment, DesignError};
-use crate::engine::output::{Trace, trace_frame, write_table};
+use crate::engine::method::select_detector;
+use crate::engine::output::Trace;
 use crate::engine::runner::RunError;
 
 /// A deck whose detector cannot be designed is invalid input.
@@ -46,11 +48,18 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
             .iter()
             .zip(&filters)
             .map(|(d, f)| {
+                let (eigenvalues, directions) = match &d.params.gain {
+                    Gain::Eigenstructure { eigenvalues_per_s, fault_directions } => {
+                        (json!(eigenvalues_per_s), json!(rows(&fault_directions.transpose())))
+                    }
+                    Gain::Own(_) => (json!(null), json!(null)),
+                };
                 json!({
                     "name": d.name,
-                    "eigenvalues_per_s": d.params.eigenvalues_per_s,
-                    "fault_directions": rows(&d.params.fault_directions.transpose()),
-                    "continuous": assignment(&f.continuous),
+                    "kind": d.params.kind(),
+                    "eigenvalues_per_s": eigenvalues,
+                    "fault_directions": directions,
+                    "continuous": f.continuous.as_ref().map(assignment),
                     "discrete": assignment(&f.discrete),
                     "bias_signatures": rows(&f.signatures.transpose()),
                 })
@@ -76,17 +85,11 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
     );
     for (d, filter) in study.detectors.iter().zip(&filters) {
         let discrete_label = format!("discrete time, dt = {} s", study.header.dt_s);
-        let designs = if d.params.kalman.is_some() {
-            println!("\ndetector {:?}: steady-state Kalman filter (kalman_chi2), predictor gain", d.name);
-            vec![(discrete_label.as_str(), &filter.discrete)]
-        } else {
-            println!(
-                "\ndetector {:?}: detection filter, eigenvalues [{}] 1/s",
-                d.name,
-                d.params.eigenvalues_per_s.iter().map(|l| format!("{l}")).collect::<Vec<_>>().join(", ")
-            );
-            vec![("continuous time", &filter.continuous), (discrete_label.as_str(), &filter.discrete)]
-        };
+        println!("\ndetector {:?} ({}): {}", d.name, d.params.kind(), gain_summary(&d.params));
+        let mut designs = vec![(discrete_label.as_str(), &filter.discrete)];
+        if let Some(c) = &filter.continuous {
+            designs.insert(0, ("continuous time", c));
+        }
         for (label, a) in designs {
             println!(
                 "{label}: K (rows: states {}; columns: outputs {})",
@@ -107,6 +110,18 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
         print!("{}", indent(&format!("{:.4}", filter.signatures)));
     }
     Ok(())
+}
+
+/// How a detector's gain is designed, in a few words.
+fn gain_summary(params: &DetectionFilterParams) -> String {
+    match &params.gain {
+        Gain::Eigenstructure { eigenvalues_per_s, fault_directions } => format!(
+            "eigenvalues [{}] 1/s on {} fault directions",
+            eigenvalues_per_s.iter().map(|l| format!("{l}")).collect::<Vec<_>>().join(", "),
+            fault_directions.ncols()
+        ),
+        Gain::Own(g) => g.describe(),
+    }
 }
 
 /// `fdimc validate`: the plant, its ranks, the detectors' designs and the Monte Carlo study.
@@ -161,64 +176,55 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
     }
     for (d, filter) in study.detectors.iter().zip(&filters) {
         let params = &d.params;
-        if params.kalman.is_some() {
-            println!("detector    {}: kalman_chi2, the steady-state Kalman filter of the deck's sensor noise", d.name);
-            println!(
-                "            alarm when {} exceeds the chi-square quantile {}; isolation by the largest normalised innovation",
-                filter.decision.describe(),
-                nums(&params.thresholds.as_slice()[..1])
-            );
-        } else {
-            println!(
-                "detector    {}: {}, eigenvalues [{}] 1/s on {} fault directions",
-                d.name,
-                params.decision.kind(),
-                nums(&params.eigenvalues_per_s),
-                params.fault_directions.ncols()
-            );
-            println!(
+        println!("detector    {}: {}, {}", d.name, params.kind(), gain_summary(params));
+        match params.gain {
+            Gain::Own(_) => println!("            alarm when {}", filter.decision.describe()),
+            Gain::Eigenstructure { .. } => println!(
                 "            alarm when {} exceeds [{}]",
-                params.decision.describe(),
+                filter.decision.describe(),
                 nums(params.thresholds.as_slice())
-            );
+            ),
         }
+        let rule = match params.isolation {
+            Isolation::Signature => "the bias signature nearest the",
+            Isolation::LargestNormalised => "the largest normalised",
+        };
         println!(
-            "            isolation: mean residual {} s to {} s after the alarm",
+            "            isolation: {rule} mean residual {} s to {} s after the alarm",
             params.isolation_delay_s,
             params.isolation_delay_s + params.isolation_window_s
         );
+        // The continuous design's eigenvalues (1/s) where there is one, else the discrete ones.
+        let (a, unit) = match &filter.continuous {
+            Some(c) => (c, "1/s"),
+            None => (&filter.discrete, "discrete"),
+        };
         println!(
-            "            closed-loop eigenvalues [{}], eigenvector condition {:.3}",
-            filter
-                .continuous
-                .closed_loop_eigenvalues
-                .iter()
-                .map(|e| format!("{:.6}", e.re))
-                .collect::<Vec<_>>()
-                .join(", "),
-            filter.continuous.eigenvector_condition
+            "            closed-loop eigenvalues [{}] ({unit}), eigenvector condition {:.3}",
+            a.closed_loop_eigenvalues.iter().map(|e| format!("{:.6}", e.re)).collect::<Vec<_>>().join(", "),
+            a.eigenvector_condition
         );
     }
     let mc = &study.monte_carlo;
     println!(
-        "monte carlo {} trials, fault-free fraction {}, sampler {:?}, target Pfa {}",
+        "monte carlo {} trials, fault-free fraction {}, sampler {}, target Pfa {}",
         mc.common.trials, mc.common.fault_free_fraction, mc.common.sampler, mc.common.target_pfa
     );
     if !mc.faults.is_empty() {
         let outs: Vec<&str> = mc.outputs.iter().map(|&j| p.output_names[j].as_str()).collect();
         println!(
-            "            faults on [{}], onset {:?}, noise scale {:?}",
+            "            faults on [{}], onset {} s, noise scale {}",
             outs.join(", "),
             mc.common.onset_s,
             mc.common.noise_scale
         );
         for f in &mc.faults {
-            println!("            fault kind {}: size {:?}", f.kind.name(), f.size);
+            println!("            fault kind {}: size {}", f.kind.name(), f.size);
         }
     }
     for pe in &mc.parameter_errors {
         let how = if pe.absolute { "absolute" } else { "relative" };
-        println!("            parameter error {} on the {:?} model: {how} {:?}", pe.name, pe.model, pe.value);
+        println!("            parameter error {} on the {} model: {how} {}", pe.name, pe.model, pe.value);
     }
     if study.faults.is_empty() && mc.faults.is_empty() {
         println!("faults      none");
@@ -235,19 +241,13 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
 pub fn simulate(study: &LtiStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), RunError> {
     let deck = &study.header.path;
     let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
-    let index = match detector {
-        None => 0,
-        Some(name) => names.iter().position(|n| *n == name).ok_or_else(|| {
-            RunError::Invalid(format!("--detector {name:?}: {} has detectors {}", deck.display(), names.join(", ")))
-        })?,
-    };
+    let index = select_detector(&study.header, &names, detector)?.unwrap_or(0);
     let engine = Engine::new(&study);
     let mut trace = Trace::default();
     let (spec, outcome) = engine
         .simulate(trial, index, &mut trace)
         .map_err(|e| design_error(deck, &format!("trial {trial}, detector {}", names[index]), e))?;
-    let mut df = trace_frame(&trace).map_err(|e| RunError::Internal(e.to_string()))?;
-    write_table(&mut df, out)?;
+    trace.write(out)?;
 
     let outputs = &study.plant.output_names;
     println!(

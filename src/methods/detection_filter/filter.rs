@@ -15,13 +15,68 @@
 //! coordinates), and, separately, to its largest threshold-scaled channel.
 #![allow(non_snake_case)]
 
+use std::fmt;
+use std::sync::Arc;
+
 use nalgebra::{DMatrix, DVector};
 
-use crate::design::kalman::steady_state_kalman;
-use crate::design::{Assignment, DesignError, Domain, assign_eigenstructure, eigen_report};
+use super::decision::Decision;
+use super::deck::DetectorSection;
+use crate::design::{Assignment, DesignError, Domain, assign_eigenstructure};
+use crate::engine::deck::{DeckError, Validator};
 use crate::lti::LtiPlant;
-use crate::methods::detection_filter::decision::Decision;
-use crate::methods::detection_filter::study::{DetectionFilterParams, KalmanParams};
+
+/// A detector of an LTI deck: how its gain is designed, the test its residual meets and how it
+/// isolates. `kind = "detection_filter"` is the seed's (this file); `cusum.rs` and `kalman_chi2.rs`
+/// are the baselines.
+#[derive(Debug, Clone)]
+pub struct DetectionFilterParams {
+    pub gain: Gain,
+    /// Alarm when output j's statistic exceeds `thresholds[j]`.
+    pub thresholds: DVector<f64>,
+    /// The test the residual meets (`|residual|` for the seed's kind); `None`: the gain design builds
+    /// it from the designed filter (`kalman_chi2`: from the innovation covariance).
+    pub decision: Option<Decision>,
+    pub isolation: Isolation,
+    /// Isolation looks at the mean residual over `[alarm + delay, alarm + delay + window]`, after the
+    /// filter's transient (the slowest eigenvalue's time constant sets a sensible delay).
+    pub isolation_delay_s: f64,
+    pub isolation_window_s: f64,
+}
+
+/// How a detector's gain is designed.
+#[derive(Debug, Clone)]
+pub enum Gain {
+    /// The seed's: continuous-time eigenvalues (1/s, distinct and negative) assigned to the fault
+    /// directions `F` (n x r, one column per eigenvalue), continuous and discrete.
+    Eigenstructure { eigenvalues_per_s: Vec<f64>, fault_directions: DMatrix<f64> },
+    /// A baseline's own design.
+    Own(Arc<dyn GainDesign>),
+}
+
+/// A gain design of a baseline detector (`kalman_chi2.rs`).
+pub trait GainDesign: Send + Sync + fmt::Debug {
+    /// The designed filter on the `design` plant sampled at `dt_s`, for `params`.
+    fn design(
+        &self,
+        params: &DetectionFilterParams,
+        design: &LtiPlant,
+        dt_s: f64,
+    ) -> Result<DetectionFilter, DesignError>;
+    /// What `fdimc validate` says of it.
+    fn describe(&self) -> String;
+    /// The deck's `kind` of a detector with this gain.
+    fn kind(&self) -> &'static str;
+}
+
+/// Which output a detector names after its alarm, from the mean residual in the isolation window.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Isolation {
+    /// The output whose bias signature the residual is most parallel to (the seed's).
+    Signature,
+    /// The output with the largest normalised innovation (`kalman_chi2`).
+    LargestNormalised,
+}
 
 /// A designed detection filter (`sim::FilterStep` runs it). If it exists, its gains exist and are stable.
 #[derive(Debug, Clone)]
@@ -30,8 +85,8 @@ pub struct DetectionFilter {
     pub Bd: DMatrix<f64>,
     pub C: DMatrix<f64>,
     pub D: DMatrix<f64>,
-    /// Continuous-time design (the seed's `K`), for reports.
-    pub continuous: Assignment,
+    /// Continuous-time design (the seed's `K`), for reports; `None` for a design with none (Kalman).
+    pub continuous: Option<Assignment>,
     /// Discrete-time design; `discrete.K` is the gain the filter runs.
     pub discrete: Assignment,
     /// Steady-state residual per unit bias on each output (column j), see the module docs.
@@ -50,13 +105,13 @@ pub struct DetectionFilter {
 impl DetectionFilterParams {
     /// Designs the filter for the `design` plant sampled at `dt_s`.
     pub fn design(&self, design: &LtiPlant, dt_s: f64) -> Result<DetectionFilter, DesignError> {
-        if let Some(k) = &self.kalman {
-            return self.design_kalman(k, design, dt_s);
-        }
-        let F = &self.fault_directions;
-        let continuous = assign_eigenstructure(&design.A, &design.C, F, &self.eigenvalues_per_s, Domain::Continuous)?;
+        let (eigenvalues_per_s, F) = match &self.gain {
+            Gain::Own(g) => return g.design(self, design, dt_s),
+            Gain::Eigenstructure { eigenvalues_per_s, fault_directions } => (eigenvalues_per_s, fault_directions),
+        };
+        let continuous = assign_eigenstructure(&design.A, &design.C, F, eigenvalues_per_s, Domain::Continuous)?;
         let sampled = design.discretise(dt_s);
-        let z: Vec<f64> = self.eigenvalues_per_s.iter().map(|l| (l * dt_s).exp()).collect();
+        let z: Vec<f64> = eigenvalues_per_s.iter().map(|l| (l * dt_s).exp()).collect();
         let discrete = assign_eigenstructure(&sampled.Ad, &sampled.C, F, &z, Domain::Discrete)?;
 
         let n = design.n_states();
@@ -72,51 +127,139 @@ impl DetectionFilterParams {
             Bd: sampled.Bd,
             C: sampled.C,
             D: sampled.D,
-            continuous,
+            continuous: Some(continuous),
             discrete,
             signatures,
             thresholds: self.thresholds.clone(),
-            decision: self.decision.clone(),
+            decision: self.decision.clone().unwrap_or_else(Decision::absolute),
             isolation_scale: self.thresholds.clone(),
             isolation_delay_s: self.isolation_delay_s,
             isolation_window_s: self.isolation_window_s,
         })
     }
 
-    /// The steady-state Kalman filter on the ZOH design model (`design::kalman`), its chi-square test
-    /// holding the innovation covariance; `continuous` repeats the discrete design (there is none other).
-    fn design_kalman(&self, k: &KalmanParams, design: &LtiPlant, dt_s: f64) -> Result<DetectionFilter, DesignError> {
-        let sampled = design.discretise(dt_s);
-        let steady = steady_state_kalman(&sampled.Ad, &sampled.C, &k.process_covariance, &k.sensor_covariance)?;
-        let phi = &sampled.Ad - &steady.K * &sampled.C;
-        let (closed_loop_eigenvalues, eigenvector_condition) = eigen_report(&phi)?;
-        let discrete =
-            Assignment { K: steady.K.clone(), closed_loop_eigenvalues, eigenvector_condition, relative_residual: 0.0 };
-        let (n, m) = (design.n_states(), design.n_outputs());
-        let solved = (DMatrix::identity(n, n) - phi)
-            .lu()
-            .solve(&steady.K)
-            .ok_or(DesignError::Decomposition { what: "LU of I - (Ad - K C)" })?;
-        let signatures = DMatrix::identity(m, m) - &sampled.C * solved;
-        let s_inv = steady.S.clone().try_inverse().ok_or(DesignError::Decomposition { what: "inverse of S" })?;
-        let window = match self.decision {
-            Decision::Nis { window, .. } => window,
-            _ => 1,
-        };
-        Ok(DetectionFilter {
-            Ad: sampled.Ad,
-            Bd: sampled.Bd,
-            C: sampled.C,
-            D: sampled.D,
-            continuous: discrete.clone(),
-            discrete,
-            signatures,
-            thresholds: self.thresholds.clone(),
-            decision: Decision::Nis { window, s_inv },
-            isolation_scale: steady.S.diagonal().map(f64::sqrt),
-            isolation_delay_s: self.isolation_delay_s,
-            isolation_window_s: self.isolation_window_s,
-        })
+    /// The deck's `kind` of the detector.
+    pub fn kind(&self) -> &'static str {
+        match (&self.gain, &self.decision) {
+            (Gain::Own(g), _) => g.kind(),
+            (Gain::Eigenstructure { .. }, Some(d)) => d.kind(),
+            (Gain::Eigenstructure { .. }, None) => Decision::absolute().kind(),
+        }
+    }
+
+    /// Whether the lane path can run it: the seed's gain and a test the lanes compute.
+    pub fn runs_on_lanes(&self) -> bool {
+        matches!(self.gain, Gain::Eigenstructure { .. }) && self.decision.as_ref().is_some_and(Decision::runs_on_lanes)
+    }
+}
+
+/// One `[[detector]]` table being read, with what it is read against.
+#[derive(Clone, Copy)]
+pub(crate) struct DetectorDeck<'a> {
+    pub chk: &'a Validator<'a>,
+    /// Its index in the deck's `[[detector]]` list.
+    pub i: usize,
+    pub d: &'a DetectorSection,
+    /// The true plant (dimensions).
+    pub plant: &'a LtiPlant,
+    pub sensor_sigma: &'a DVector<f64>,
+}
+
+/// Reads a detector of `kind = "detection_filter"`, the seed's test `|residual_j| > thresholds[j]`.
+pub(crate) fn read(r: &DetectorDeck) -> Result<DetectionFilterParams, DeckError> {
+    let DetectorDeck { chk, i, d, .. } = *r;
+    refuse(
+        chk,
+        i,
+        &[("drift", d.drift.is_some())],
+        "applies to kind = \"cusum\" only (a CUSUM's allowance per sample)",
+    )?;
+    read_eigenstructure_filter(r, Decision::absolute())
+}
+
+/// Reads the seed filter's fields of detector `i` (eigenvalues, fault directions, thresholds,
+/// isolation timing) for a kind that runs the seed's filter with `decision` as its test.
+pub(crate) fn read_eigenstructure_filter(
+    r: &DetectorDeck,
+    decision: Decision,
+) -> Result<DetectionFilterParams, DeckError> {
+    let DetectorDeck { chk, i, d, plant, .. } = *r;
+    let f = |name: &str| format!("detector[{i}].{name}");
+    let (n, ny) = (plant.n_states(), plant.n_outputs());
+    refuse(
+        chk,
+        i,
+        &[
+            ("window", d.window.is_some()),
+            ("false_alarm_probability", d.false_alarm_probability.is_some()),
+            ("design_process_sigma_per_step", d.design_process_sigma_per_step.is_some()),
+        ],
+        "applies to kind = \"kalman_chi2\" only",
+    )?;
+    let eigenvalues = d.eigenvalues_per_s.as_ref().ok_or_else(|| {
+        chk.err(f("eigenvalues_per_s"), format!("required for kind = {:?}: the filter's eigenvalues (1/s)", d.kind))
+    })?;
+    let given_thresholds = d.thresholds.as_ref().ok_or_else(|| {
+        chk.err(f("thresholds"), format!("required for kind = {:?}: {ny} numbers, one per output", d.kind))
+    })?;
+    let r = eigenvalues.len();
+    if r == 0 || r > n {
+        return Err(chk
+            .err(f("eigenvalues_per_s"), format!("expected 1 to {n} eigenvalues (one per fault direction), got {r}")));
+    }
+    for (k, &l) in eigenvalues.iter().enumerate() {
+        let field = f(&format!("eigenvalues_per_s[{k}]"));
+        if !(l.is_finite() && l < 0.0) {
+            return Err(chk.err(
+                field,
+                format!("must be a finite negative number (a stable continuous-time eigenvalue, 1/s), got {l}"),
+            ));
+        }
+    }
+    let fault_directions = match &d.fault_directions {
+        // Listed as r vectors f_i of length n: the columns of F.
+        Some(dirs) => chk
+            .matrix(&f("fault_directions"), dirs, r, n, &format!("one direction of {n} numbers per eigenvalue"))?
+            .transpose(),
+        None if r == n => DMatrix::identity(n, n),
+        None => {
+            return Err(chk.err(
+                f("fault_directions"),
+                format!("required when there are fewer eigenvalues ({r}) than states ({n})"),
+            ));
+        }
+    };
+    let thresholds = chk.vector(&f("thresholds"), given_thresholds, ny, "one per output, output units")?;
+    for (k, &t) in thresholds.iter().enumerate() {
+        if t <= 0.0 {
+            return Err(chk.err(f(&format!("thresholds[{k}]")), format!("must be > 0, got {t}")));
+        }
+    }
+    let slowest_time_constant_s = 1.0 / eigenvalues.iter().fold(f64::INFINITY, |m, l| m.min(-l));
+    let isolation_delay_s = match d.isolation_delay_s {
+        Some(v) if v.is_finite() && v >= 0.0 => v,
+        Some(v) => return Err(chk.err(f("isolation_delay_s"), format!("must be a finite number >= 0, got {v}"))),
+        None => 3.0 * slowest_time_constant_s,
+    };
+    let isolation_window_s = match d.isolation_window_s {
+        Some(v) => chk.positive(&f("isolation_window_s"), v)?,
+        None => slowest_time_constant_s,
+    };
+    Ok(DetectionFilterParams {
+        gain: Gain::Eigenstructure { eigenvalues_per_s: eigenvalues.clone(), fault_directions },
+        thresholds,
+        decision: Some(decision),
+        isolation: Isolation::Signature,
+        isolation_delay_s,
+        isolation_window_s,
+    })
+}
+
+/// Refuses, with `why`, the first of detector `i`'s `fields` that is given.
+pub(crate) fn refuse(chk: &Validator, i: usize, fields: &[(&str, bool)], why: &str) -> Result<(), DeckError> {
+    match fields.iter().find(|(_, given)| *given) {
+        Some((field, _)) => Err(chk.err(format!("detector[{i}].{field}"), why)),
+        None => Ok(()),
     }
 }
 

@@ -18,12 +18,12 @@ use nalgebra::DVector;
 
 use crate::engine::streams::{Substream, noise_rng};
 use crate::fault::ActiveFaults;
-use crate::methods::detection_filter::decision::Decision;
-use crate::methods::detection_filter::filter::DetectionFilter;
+use crate::methods::detection_filter::decision::{Decision, LaneStatistic};
+use crate::methods::detection_filter::filter::{DetectionFilter, DetectionFilterParams};
 use crate::methods::detection_filter::kernel::{FilterState, LANES, Lane, LaneFilter, LanePlant, PlantState};
 use crate::methods::detection_filter::normals::LaneNormals;
 use crate::methods::detection_filter::scenario::TrialSpec;
-use crate::methods::detection_filter::study::{DetectionFilterParams, LtiStudy};
+use crate::methods::detection_filter::study::LtiStudy;
 use crate::methods::detection_filter::trial::{DetectorOutcome, PROFILE_RESOLUTION};
 
 /// One detector configuration on a group of lanes: its products and per-lane designs (`None`: no
@@ -249,8 +249,8 @@ impl<'f> LaneTracker<'f> {
             max_t: vec![[f64::NAN; LANES]; ny],
             next_kept: vec![[f64::INFINITY; LANES]; ny],
             abs: vec![[0.0; LANES]; ny],
-            cusum: match &d.params.decision {
-                Decision::Cusum { drift } => Some((drift.clone(), vec![[0.0; LANES]; ny])),
+            cusum: match d.params.decision.as_ref().and_then(Decision::on_lanes) {
+                Some(LaneStatistic::Accumulated { drift }) => Some((drift, vec![[0.0; LANES]; ny])),
                 _ => None,
             },
             onset_s,

@@ -1,9 +1,11 @@
 //! Detection-filter studies (method 000): eigenstructure-assigned detection filters on an LTI plant.
 
 pub mod commands;
+pub mod cusum;
 pub mod decision;
 pub mod deck;
 pub mod filter;
+pub mod kalman_chi2;
 pub mod kernel;
 pub mod lanes;
 pub mod normals;

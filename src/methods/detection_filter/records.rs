@@ -21,6 +21,7 @@ use std::borrow::Cow;
 
 use polars::prelude::*;
 
+use super::filter::Isolation;
 use super::study::LtiStudy;
 use super::trials::TrialResult;
 use crate::engine::schema::{CoreColumns, Outcome, StatisticColumns};
@@ -61,10 +62,9 @@ impl<'a> RecordBuilder<'a> {
         for (d, outcome) in s.detectors.iter().zip(&result.detectors) {
             let o = outcome.as_ref().ok();
             let truth = name(spec.output);
-            // The Kalman test isolates by the largest normalised innovation; the filters by direction.
-            let isolated = match d.params.kalman {
-                Some(_) => o.and_then(|o| name(o.isolated_by_max)),
-                None => o.and_then(|o| name(o.isolated_by_direction)),
+            let isolated = match d.params.isolation {
+                Isolation::LargestNormalised => o.and_then(|o| name(o.isolated_by_max)),
+                Isolation::Signature => o.and_then(|o| name(o.isolated_by_direction)),
             };
             self.core.push(Outcome {
                 trial: spec.trial,

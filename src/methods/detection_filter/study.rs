@@ -4,8 +4,9 @@ use std::path::Path;
 
 use nalgebra::{DMatrix, DVector};
 
-use super::decision::Decision;
 use super::deck::Deck;
+use super::filter::{DetectionFilterParams, DetectorDeck};
+use super::{cusum, filter, kalman_chi2};
 use serde::Deserialize;
 
 use crate::engine::deck::{
@@ -58,31 +59,13 @@ impl Excitation {
     }
 }
 
-/// Detection-filter parameters (method 000).
-#[derive(Debug, Clone)]
-pub struct DetectionFilterParams {
-    /// Continuous-time eigenvalues assigned to the fault directions (1/s), distinct and negative.
-    pub eigenvalues_per_s: Vec<f64>,
-    /// Fault directions `F` (n x r), one column per eigenvalue.
-    pub fault_directions: DMatrix<f64>,
-    /// Alarm when output j's statistic ([`Decision`]) exceeds `thresholds[j]`.
-    pub thresholds: DVector<f64>,
-    /// The test the residual meets: `|residual|` for `kind = "detection_filter"`, a CUSUM for `"cusum"`.
-    pub decision: Decision,
-    /// `kind = "kalman_chi2"`: the gain is the steady-state Kalman filter's, not an eigenstructure.
-    pub kalman: Option<KalmanParams>,
-    /// Isolation looks at the mean residual over `[alarm + delay, alarm + delay + window]`, after the
-    /// filter's transient (the slowest eigenvalue's time constant sets a sensible delay).
-    pub isolation_delay_s: f64,
-    pub isolation_window_s: f64,
-}
-
-/// The noise a `kind = "kalman_chi2"` filter is designed for (covariances per step).
-#[derive(Debug, Clone)]
-pub struct KalmanParams {
-    pub process_covariance: DMatrix<f64>,
-    pub sensor_covariance: DMatrix<f64>,
-}
+/// The detector kinds of LTI decks: the deck's `kind`, what it is, and its reader (in its own file).
+#[allow(clippy::type_complexity)]
+const KINDS: &[(&str, &str, fn(&DetectorDeck) -> Result<DetectionFilterParams, DeckError>)] = &[
+    ("detection_filter", "method 000, alarm on |residual|", filter::read),
+    ("cusum", "the same filter, a CUSUM on |residual|", cusum::read),
+    ("kalman_chi2", "a steady-state Kalman filter's windowed chi-square test", kalman_chi2::read),
+];
 
 /// A validated study: every dimension agrees, every number is finite and in range.
 #[derive(Debug, Clone)]
@@ -239,22 +222,17 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
         }
     }
 
-    if deck.detector.is_empty() {
-        return Err(chk.err("detector", "at least one [[detector]] is required"));
-    }
+    chk.detector_names("detector", deck.detector.iter().map(|d| d.name.as_str()))?;
     let mut detectors = Vec::with_capacity(deck.detector.len());
     for (i, d) in deck.detector.iter().enumerate() {
-        let field = format!("detector[{i}].name");
-        if d.name.is_empty() || !d.name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
-            return Err(chk.err(field, format!("{:?}: use letters, digits, '_' and '-'", d.name)));
-        }
-        if deck.detector[..i].iter().any(|o| o.name == d.name) {
-            return Err(chk.err(field, format!("{:?} appears twice", d.name)));
-        }
-        let params = if d.kind == "kalman_chi2" {
-            kalman_detector(chk, i, d, &plant, &sensor_sigma)?
-        } else {
-            detector(chk, i, d, &plant)?
+        let params = match KINDS.iter().find(|k| k.0 == d.kind) {
+            Some((_, _, read)) => read(&DetectorDeck { chk, i, d, plant: &plant, sensor_sigma: &sensor_sigma })?,
+            None => {
+                let allowed: Vec<String> = KINDS.iter().map(|(k, what, _)| format!("{k:?} ({what})")).collect();
+                return Err(
+                    chk.err(format!("detector[{i}].kind"), format!("{:?}: allowed {}", d.kind, allowed.join(", ")))
+                );
+            }
         };
         detectors.push(DetectorConfig { name: d.name.clone(), params });
     }
@@ -283,201 +261,6 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
         detectors,
         faults,
         monte_carlo,
-    })
-}
-
-fn detector(
-    chk: &Validator,
-    i: usize,
-    d: &super::deck::DetectorSection,
-    plant: &LtiPlant,
-) -> Result<DetectionFilterParams, DeckError> {
-    let f = |name: &str| format!("detector[{i}].{name}");
-    let (n, ny) = (plant.n_states(), plant.n_outputs());
-    refuse(
-        chk,
-        i,
-        &[
-            ("window", d.window.is_some()),
-            ("false_alarm_probability", d.false_alarm_probability.is_some()),
-            ("design_process_sigma_per_step", d.design_process_sigma_per_step.is_some()),
-        ],
-        "applies to kind = \"kalman_chi2\" only",
-    )?;
-    let eigenvalues = d.eigenvalues_per_s.as_ref().ok_or_else(|| {
-        chk.err(f("eigenvalues_per_s"), format!("required for kind = {:?}: the filter's eigenvalues (1/s)", d.kind))
-    })?;
-    let given_thresholds = d.thresholds.as_ref().ok_or_else(|| {
-        chk.err(f("thresholds"), format!("required for kind = {:?}: {ny} numbers, one per output", d.kind))
-    })?;
-    let decision = match (d.kind.as_str(), &d.drift) {
-        ("detection_filter", None) => Decision::Absolute,
-        ("detection_filter", Some(_)) => {
-            return Err(chk.err(f("drift"), "applies to kind = \"cusum\" only (a CUSUM's allowance per sample)"));
-        }
-        ("cusum", Some(drift)) => {
-            let drift = chk.vector(&f("drift"), drift, ny, "one per output, output units per sample")?;
-            for (k, &v) in drift.iter().enumerate() {
-                if v < 0.0 {
-                    return Err(chk.err(f(&format!("drift[{k}]")), format!("must be >= 0, got {v}")));
-                }
-            }
-            Decision::Cusum { drift: drift.iter().copied().collect() }
-        }
-        ("cusum", None) => {
-            return Err(chk.err(
-                f("drift"),
-                format!("required for kind = \"cusum\": {ny} numbers, the residual each output may carry per sample without counting as evidence"),
-            ));
-        }
-        (other, _) => {
-            return Err(chk.err(
-                f("kind"),
-                format!("{other:?}: allowed \"detection_filter\" (method 000, alarm on |residual|), \"cusum\" (the same filter, a CUSUM on |residual|) or \"kalman_chi2\" (a steady-state Kalman filter's windowed chi-square test)"),
-            ));
-        }
-    };
-    let r = eigenvalues.len();
-    if r == 0 || r > n {
-        return Err(chk
-            .err(f("eigenvalues_per_s"), format!("expected 1 to {n} eigenvalues (one per fault direction), got {r}")));
-    }
-    for (k, &l) in eigenvalues.iter().enumerate() {
-        let field = f(&format!("eigenvalues_per_s[{k}]"));
-        if !(l.is_finite() && l < 0.0) {
-            return Err(chk.err(
-                field,
-                format!("must be a finite negative number (a stable continuous-time eigenvalue, 1/s), got {l}"),
-            ));
-        }
-    }
-    let fault_directions = match &d.fault_directions {
-        // Listed as r vectors f_i of length n: the columns of F.
-        Some(dirs) => chk
-            .matrix(&f("fault_directions"), dirs, r, n, &format!("one direction of {n} numbers per eigenvalue"))?
-            .transpose(),
-        None if r == n => DMatrix::identity(n, n),
-        None => {
-            return Err(chk.err(
-                f("fault_directions"),
-                format!("required when there are fewer eigenvalues ({r}) than states ({n})"),
-            ));
-        }
-    };
-    let thresholds = chk.vector(&f("thresholds"), given_thresholds, ny, "one per output, output units")?;
-    for (k, &t) in thresholds.iter().enumerate() {
-        if t <= 0.0 {
-            return Err(chk.err(f(&format!("thresholds[{k}]")), format!("must be > 0, got {t}")));
-        }
-    }
-    let slowest_time_constant_s = 1.0 / eigenvalues.iter().fold(f64::INFINITY, |m, l| m.min(-l));
-    let isolation_delay_s = match d.isolation_delay_s {
-        Some(v) if v.is_finite() && v >= 0.0 => v,
-        Some(v) => return Err(chk.err(f("isolation_delay_s"), format!("must be a finite number >= 0, got {v}"))),
-        None => 3.0 * slowest_time_constant_s,
-    };
-    let isolation_window_s = match d.isolation_window_s {
-        Some(v) => chk.positive(&f("isolation_window_s"), v)?,
-        None => slowest_time_constant_s,
-    };
-    Ok(DetectionFilterParams {
-        eigenvalues_per_s: eigenvalues.clone(),
-        fault_directions,
-        thresholds,
-        decision,
-        kalman: None,
-        isolation_delay_s,
-        isolation_window_s,
-    })
-}
-
-/// Refuses, with `why`, the first of detector `i`'s `fields` that is given.
-fn refuse(chk: &Validator, i: usize, fields: &[(&str, bool)], why: &str) -> Result<(), DeckError> {
-    match fields.iter().find(|(_, given)| *given) {
-        Some((field, _)) => Err(chk.err(format!("detector[{i}].{field}"), why)),
-        None => Ok(()),
-    }
-}
-
-/// `kind = "kalman_chi2"`: the textbook innovation test. A steady-state Kalman filter designed from the
-/// deck's sensor noise and the detector's design process noise; alarm when the normalised innovation
-/// squared summed over `window` samples exceeds the chi-square(window x outputs) quantile at
-/// `false_alarm_probability` per window; isolation by the largest normalised innovation.
-fn kalman_detector(
-    chk: &Validator,
-    i: usize,
-    d: &super::deck::DetectorSection,
-    plant: &LtiPlant,
-    sensor_sigma: &DVector<f64>,
-) -> Result<DetectionFilterParams, DeckError> {
-    use statrs::distribution::{ChiSquared, ContinuousCDF};
-    let f = |name: &str| format!("detector[{i}].{name}");
-    let (n, ny) = (plant.n_states(), plant.n_outputs());
-    refuse(
-        chk,
-        i,
-        &[
-            ("eigenvalues_per_s", d.eigenvalues_per_s.is_some()),
-            ("fault_directions", d.fault_directions.is_some()),
-            ("thresholds", d.thresholds.is_some()),
-            ("drift", d.drift.is_some()),
-        ],
-        "does not apply to kind = \"kalman_chi2\" (its gain is the Kalman filter's, its threshold the chi-square quantile)",
-    )?;
-    let window = match d.window {
-        Some(w) if (1..=10_000).contains(&w) => w,
-        Some(w) => return Err(chk.err(f("window"), format!("allowed 1 to 10000 samples, got {w}"))),
-        None => return Err(chk.err(f("window"), "required for kind = \"kalman_chi2\": the samples summed")),
-    };
-    let pfa = match d.false_alarm_probability {
-        Some(p) if p > 0.0 && p < 1.0 => p,
-        Some(p) => {
-            return Err(chk.err(f("false_alarm_probability"), format!("allowed 0 < p < 1 (per window), got {p}")));
-        }
-        None => {
-            return Err(chk.err(
-                f("false_alarm_probability"),
-                "required for kind = \"kalman_chi2\": the chi-square test's false-alarm probability per window",
-            ));
-        }
-    };
-    let q = d.design_process_sigma_per_step.as_ref().ok_or_else(|| {
-        chk.err(
-            f("design_process_sigma_per_step"),
-            format!(
-                "required for kind = \"kalman_chi2\": {n} numbers >= 0, the process noise per step the filter assumes"
-            ),
-        )
-    })?;
-    let q = chk.vector(&f("design_process_sigma_per_step"), q, n, "one per state, state units per step")?;
-    if let Some(k) = q.iter().position(|v| *v < 0.0) {
-        return Err(chk.err(f(&format!("design_process_sigma_per_step[{k}]")), format!("must be >= 0, got {}", q[k])));
-    }
-    let dof = (window * ny) as f64;
-    let quantile = ChiSquared::new(dof).map(|c| c.inverse_cdf(1.0 - pfa)).unwrap_or(f64::NAN);
-    if !(quantile.is_finite() && quantile > 0.0) {
-        return Err(chk.err(f("false_alarm_probability"), format!("{pfa}: no chi-square({dof}) quantile")));
-    }
-    let isolation_delay_s = match d.isolation_delay_s {
-        Some(v) if v.is_finite() && v >= 0.0 => v,
-        Some(v) => return Err(chk.err(f("isolation_delay_s"), format!("must be a finite number >= 0, got {v}"))),
-        None => 0.0,
-    };
-    let isolation_window_s = match d.isolation_window_s {
-        Some(v) => chk.positive(&f("isolation_window_s"), v)?,
-        None => 1.0,
-    };
-    Ok(DetectionFilterParams {
-        eigenvalues_per_s: Vec::new(),
-        fault_directions: DMatrix::zeros(n, 0),
-        thresholds: DVector::from_element(ny, quantile),
-        decision: Decision::Nis { window, s_inv: DMatrix::zeros(0, 0) },
-        kalman: Some(KalmanParams {
-            process_covariance: DMatrix::from_diagonal(&q.map(|s| s * s)),
-            sensor_covariance: DMatrix::from_diagonal(&sensor_sigma.map(|s| s * s)),
-        }),
-        isolation_delay_s,
-        isolation_window_s,
     })
 }
 

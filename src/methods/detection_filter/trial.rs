@@ -313,6 +313,7 @@ impl<'t> TraceWriter<'t> {
 
 #[cfg(test)]
 mod tests {
+    use super::super::filter::Gain;
     use super::super::trials::Engine;
     use super::*;
     use crate::engine::deck::FromDeck;
@@ -403,7 +404,8 @@ mod tests {
         let mut study = seed000(true);
         let mut other = study.detectors[0].clone();
         other.name = "fast".into();
-        other.params.eigenvalues_per_s = vec![-2.0, -4.0, -6.0, -8.0, -10.0];
+        let Gain::Eigenstructure { eigenvalues_per_s, .. } = &mut other.params.gain else { panic!("the seed's gain") };
+        *eigenvalues_per_s = vec![-2.0, -4.0, -6.0, -8.0, -10.0];
         study.detectors.insert(0, other);
         let mut trace = Trace::default();
         let (_, alone) = Engine::new(&study).simulate(9, 1, &mut trace).unwrap();

@@ -154,7 +154,7 @@ impl<'a> Engine<'a> {
     /// Trials `first..end` (at most [`LANES`]): on the lane path when every detector's test is built
     /// in, else one at a time (a user's test is a trait object); the results are the same.
     pub fn run_group(&self, first: u64, end: u64) -> Vec<TrialResult> {
-        if self.study.detectors.iter().all(|d| d.params.decision.runs_on_lanes()) {
+        if self.study.detectors.iter().all(|d| d.params.runs_on_lanes()) {
             self.run_lanes(first, end)
         } else {
             (first..end).map(|t| self.run(t)).collect()
@@ -165,7 +165,7 @@ impl<'a> Engine<'a> {
     /// lane path: the same results as [`run`](Self::run) on each trial, several times faster.
     pub fn run_lanes(&self, first: u64, end: u64) -> Vec<TrialResult> {
         let s = self.study;
-        assert!(s.detectors.iter().all(|d| d.params.decision.runs_on_lanes()), "a test the lanes do not run");
+        assert!(s.detectors.iter().all(|d| d.params.runs_on_lanes()), "a test the lanes do not run");
         let specs: Vec<TrialSpec> = (first..end).map(|t| self.spec(t)).collect();
         let lane = |l: usize| (l < specs.len()).then_some(l);
         let truths: Vec<Cow<'_, DiscreteLti>> =
@@ -265,8 +265,8 @@ mod tests {
         assert_eq!(truth.A[(2, 1)], -7.9101);
         // The gains follow the design model: recomputed, still assigning -1..-5 on it.
         let filters = e.designs(&spec);
-        let k = &filters[0].as_ref().unwrap().continuous.K;
-        assert!((k - &e.nominal_filters()[0].as_ref().unwrap().continuous.K).amax() > 1.0);
+        let k = &filters[0].as_ref().unwrap().continuous.as_ref().unwrap().K;
+        assert!((k - &e.nominal_filters()[0].as_ref().unwrap().continuous.as_ref().unwrap().K).amax() > 1.0);
         let closed = &design.A - k * &design.C;
         assert!((closed[(2, 2)] + 3.0).abs() < 1e-9 && closed[(2, 1)].abs() < 1e-9);
     }
@@ -336,7 +336,7 @@ mod tests {
         let mut s = LtiStudy::from_toml(&format!("{deck}\n{extra}"), Path::new("deck.toml")).unwrap();
         s.monte_carlo.common.trials = trials;
         // The lanes run the built-in tests only (run_group sends the others one trial at a time).
-        s.detectors.retain(|d| d.params.decision.runs_on_lanes());
+        s.detectors.retain(|d| d.params.runs_on_lanes());
         let e = Engine::new(&s);
         // Groups of 8, then a ragged group of 3 (idle lanes).
         let mut lanes = Vec::new();

@@ -8,7 +8,8 @@ use super::stmmae::{BankParams, MODELS};
 use super::study::SurfaceStudy;
 use super::trial::{SurfaceTrial, run_banks};
 use super::uav::{AerosondeParams, SURFACE_NAMES, trim};
-use crate::engine::output::{Trace, trace_frame, write_table};
+use crate::engine::method::select_detector;
+use crate::engine::output::Trace;
 use crate::engine::runner::RunError;
 use crate::engine::streams::{Substream, noise_rng};
 
@@ -65,16 +66,16 @@ pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
     }
     let mc = &study.monte_carlo;
     println!(
-        "monte carlo {} trials, fault-free fraction {}, sampler {:?}, noise scale {:?}",
+        "monte carlo {} trials, fault-free fraction {}, sampler {}, noise scale {}",
         mc.common.trials, mc.common.fault_free_fraction, mc.common.sampler, mc.common.noise_scale
     );
     if mc.faults.is_empty() {
         println!("            every faulty trial flies the faults above");
     } else {
         let surfaces: Vec<&str> = mc.surfaces.iter().map(|&j| SURFACE_NAMES[j]).collect();
-        let lasting = mc.fault_duration_s.as_ref().map_or("to the end".to_string(), |d| format!("{d:?} s"));
+        let lasting = mc.fault_duration_s.as_ref().map_or("to the end".to_string(), |d| format!("{d} s"));
         println!(
-            "            one fault per faulty trial on [{}], onset {:?} s, lasting {lasting}",
+            "            one fault per faulty trial on [{}], onset {} s, lasting {lasting}",
             surfaces.join(", "),
             mc.common.onset_s
         );
@@ -84,7 +85,7 @@ pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
     }
     for pe in &mc.parameter_errors {
         println!(
-            "            parameter error {} on the {:?} airframe: [{}] scaled by 1 + {:?}",
+            "            parameter error {} on the {} airframe: [{}] scaled by 1 + {}",
             pe.name,
             pe.model,
             pe.what.0.join(", "),
@@ -98,16 +99,10 @@ pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
 /// holds the measurements, commands, true positions, and per bank the model probabilities and the
 /// declared surface.
 pub fn simulate(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), RunError> {
-    let banks: Vec<_> = match detector {
+    let names: Vec<&str> = study.banks.iter().map(|(n, _)| n.as_str()).collect();
+    let banks: Vec<_> = match select_detector(&study.header, &names, detector)? {
         None => study.banks.iter().collect(),
-        Some(name) => vec![study.banks.iter().find(|(n, _)| n == name).ok_or_else(|| {
-            let names: Vec<_> = study.banks.iter().map(|(n, _)| n.as_str()).collect();
-            RunError::Invalid(format!(
-                "--detector {name:?}: {} has banks {}",
-                study.header.path.display(),
-                names.join(", ")
-            ))
-        })?],
+        Some(i) => vec![&study.banks[i]],
     };
     let params: Vec<_> = banks.iter().map(|(_, p)| p.clone()).collect();
     // The trial `fdimc run` flies under this index: its scenario, airframes, noise stream.
@@ -115,53 +110,35 @@ pub fn simulate(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &
     let spec = sampler.spec(trial);
     let setup = SurfaceTrial::new(&sampler, &spec);
     let mut rng = noise_rng(study.header.seed, trial, Substream::SensorNoise);
-    let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
-    let mut bools: Vec<(String, Vec<bool>)> = Vec::new();
-    let mut push_f = |i: &mut usize, name: &dyn Fn() -> String, v: f64| {
-        if floats.len() <= *i {
-            floats.push((name(), Vec::new()));
-        }
-        floats[*i].1.push(v);
-        *i += 1;
-    };
+    let mut trace = Trace::default();
     let measured = ["p_rad_s", "q_rad_s", "r_rad_s", "alpha_rad", "beta_rad"];
     let outcomes = run_banks(study, &setup, &params, &mut rng, |s, rows| {
-        let mut i = 0;
-        push_f(&mut i, &|| "t_s".into(), s.t_s);
+        let mut row = trace.row();
+        row.float(|| "t_s".into(), s.t_s);
         for (j, m) in measured.iter().enumerate() {
-            push_f(&mut i, &|| format!("{m}_measured"), s.y[j]);
-            push_f(&mut i, &|| format!("{m}_true"), s.truth_y[j]);
+            row.float(|| format!("{m}_measured"), s.y[j]).float(|| format!("{m}_true"), s.truth_y[j]);
         }
-        push_f(&mut i, &|| "airspeed_measured_mps".into(), s.va_mps);
-        push_f(&mut i, &|| "altitude_m".into(), s.altitude_m);
+        row.float(|| "airspeed_measured_mps".into(), s.va_mps).float(|| "altitude_m".into(), s.altitude_m);
         for (j, name) in SURFACE_NAMES.iter().enumerate() {
-            push_f(&mut i, &|| format!("{name}_commanded_rad"), s.commanded_rad[j]);
-            push_f(&mut i, &|| format!("{name}_position_rad"), s.positions_rad[j]);
+            row.float(|| format!("{name}_commanded_rad"), s.commanded_rad[j])
+                .float(|| format!("{name}_position_rad"), s.positions_rad[j]);
         }
-        for ((bank, _), row) in banks.iter().zip(rows) {
+        for ((bank, _), r) in banks.iter().zip(rows) {
             for m in 0..MODELS {
                 let model = if m == 0 { "no_fault" } else { SURFACE_NAMES[m - 1] };
-                push_f(&mut i, &|| format!("{bank}_p_{model}"), row.probabilities[m]);
+                row.float(|| format!("{bank}_p_{model}"), r.probabilities[m]);
             }
             for (j, name) in SURFACE_NAMES.iter().enumerate() {
-                push_f(&mut i, &|| format!("{bank}_{name}_estimate_rad"), row.surface_estimates_rad[j]);
+                row.float(|| format!("{bank}_{name}_estimate_rad"), r.surface_estimates_rad[j]);
             }
         }
-        let mut b = 0;
-        for ((bank, _), row) in banks.iter().zip(rows) {
+        for ((bank, _), r) in banks.iter().zip(rows) {
             for (j, name) in SURFACE_NAMES.iter().enumerate() {
-                if bools.len() <= b {
-                    bools.push((format!("{bank}_declared_{name}"), Vec::new()));
-                }
-                bools[b].1.push(row.declared == Some(j));
-                b += 1;
+                row.flag(|| format!("{bank}_declared_{name}"), r.declared == Some(j));
             }
         }
     });
-    let trace = Trace { float_columns: floats, bool_columns: bools };
-    let mut df = trace_frame(&trace).map_err(|e| RunError::Internal(e.to_string()))?;
-    write_table(&mut df, out)?;
-    let samples = df.height();
+    let samples = trace.write(out)?;
     let outcomes =
         outcomes.map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.header.path.display())))?;
     println!("{}: trial {trial}, {} bank(s), {samples} samples -> {}", study.header.name, banks.len(), out.display());

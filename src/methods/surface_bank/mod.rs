@@ -144,9 +144,6 @@ impl TrialSource for SurfaceTrials<'_> {
     fn chunk_trials(&self) -> u64 {
         64
     }
-    fn group_trials(&self) -> u64 {
-        1
-    }
     fn simulate(&self, first: u64, end: u64) -> Vec<SurfaceTrialResult> {
         (first..end).map(|t| self.run_trial(t)).collect()
     }

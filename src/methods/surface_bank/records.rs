@@ -132,7 +132,6 @@ struct Columns {
 
 #[cfg(test)]
 mod tests {
-    use std::path::Path;
 
     use polars::prelude::*;
 
@@ -153,9 +152,7 @@ mod tests {
     /// (0.8 s); trial 2: fault-free, a false alarm by a; trial 3: the flight left the envelope; trial 4:
     /// both isolate (0.4 s, 0.6 s), and b declares twice more after the fault ended.
     fn hand_made() -> (SurfaceStudy, DataFrame) {
-        let deck =
-            std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/studies/seed004_surfaces.toml")).unwrap();
-        let mut study = SurfaceStudy::from_toml(&deck, Path::new("seed004_surfaces.toml")).unwrap();
+        let mut study = SurfaceStudy::bundled("seed004_surfaces.toml");
         study.banks.truncate(2);
         study.banks[0].0 = "a".into();
         study.banks[1].0 = "b".into();

@@ -146,10 +146,9 @@ impl<'a> SurfaceScenarioSampler<'a> {
 mod tests {
     use super::*;
     use crate::engine::deck::FromDeck;
-    use std::path::Path;
 
     fn mc_study() -> SurfaceStudy {
-        SurfaceStudy::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed004_monte_carlo.toml")).unwrap()
+        SurfaceStudy::bundled("seed004_monte_carlo.toml")
     }
 
     /// The bundled Monte Carlo deck: kinds (2) fastest, then surfaces (5), noise (2 values), parameter

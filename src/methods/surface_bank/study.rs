@@ -231,55 +231,40 @@ pub struct SurfaceStudy {
 impl FromDeck for SurfaceStudy {
     fn from_toml(text: &str, path: &Path) -> Result<SurfaceStudy, DeckError> {
         let deck: SurfaceDeck = parse_deck(text, path)?;
-        let bad = |field: String, message: String| DeckError::Invalid { file: path.into(), field, message };
-        let positive = |field: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(v)
-            } else {
-                Err(bad(field.into(), format!("must be a positive number, got {v}")))
-            }
-        };
-        let finite = |field: String, v: f64| {
-            if v.is_finite() { Ok(v) } else { Err(bad(field, format!("must be a finite number, got {v}"))) }
-        };
-
-        let header = Validator { file: path }.study_section(&deck.study)?;
+        let v = Validator { file: path };
+        let header = v.study_section(&deck.study)?;
         let (duration_s, dt_s) = (header.duration_s, header.dt_s);
         if dt_s > 0.05 || dt_s * 10.0 > duration_s {
-            return Err(bad(
-                "study.dt_s".into(),
-                format!("must be at most 0.05 s and a tenth of duration_s, got {dt_s}"),
-            ));
+            return Err(v.err("study.dt_s", format!("must be at most 0.05 s and a tenth of duration_s, got {dt_s}")));
         }
 
         let a = &deck.airframe;
         if a.model != "aerosonde" {
-            return Err(bad(
-                "airframe.model".into(),
+            return Err(v.err(
+                "airframe.model",
                 format!("must be \"aerosonde\" (the only airframe so far), got {:?}", a.model),
             ));
         }
-        let trim_airspeed_mps = positive("airframe.trim_airspeed_mps", a.trim_airspeed_mps)?;
+        let trim_airspeed_mps = v.positive("airframe.trim_airspeed_mps", a.trim_airspeed_mps)?;
         if !(15.0..=45.0).contains(&trim_airspeed_mps) {
-            return Err(bad(
-                "airframe.trim_airspeed_mps".into(),
-                format!("must be within 15..45 m/s, got {trim_airspeed_mps}"),
-            ));
+            return Err(
+                v.err("airframe.trim_airspeed_mps", format!("must be within 15..45 m/s, got {trim_airspeed_mps}"))
+            );
         }
-        let trim_altitude_m = positive("airframe.trim_altitude_m", a.trim_altitude_m)?;
+        let trim_altitude_m = v.positive("airframe.trim_altitude_m", a.trim_altitude_m)?;
         let wind_ned_mps = a.wind_ned_mps.unwrap_or([0.0; 3]);
         for (i, w) in wind_ned_mps.iter().enumerate() {
-            finite(format!("airframe.wind_ned_mps[{i}]"), *w)?;
+            v.finite(&format!("airframe.wind_ned_mps[{i}]"), *w)?;
         }
 
         let sensors = {
             let s = deck.sensors.as_ref();
-            let non_negative = |field: &str, v: Option<f64>, default: f64| {
-                let v = v.unwrap_or(default);
-                if v.is_finite() && v >= 0.0 {
-                    Ok(v)
+            let non_negative = |field: &str, x: Option<f64>, default: f64| {
+                let x = x.unwrap_or(default);
+                if x.is_finite() && x >= 0.0 {
+                    Ok(x)
                 } else {
-                    Err(bad(format!("sensors.{field}"), format!("must be >= 0, got {v}")))
+                    Err(v.err(format!("sensors.{field}"), format!("must be >= 0, got {x}")))
                 }
             };
             SensorNoise {
@@ -305,20 +290,20 @@ impl FromDeck for SurfaceStudy {
         let mut setpoints = Vec::new();
         for (i, sp) in deck.setpoint.iter().enumerate() {
             let field = |f: &str| format!("setpoint[{i}].{f}");
-            let from_s = finite(field("from_s"), sp.from_s)?;
+            let from_s = v.finite(&field("from_s"), sp.from_s)?;
             if let Some(&(last, _)) = setpoints.last()
                 && from_s <= last
             {
-                return Err(bad(
+                return Err(v.err(
                     field("from_s"),
                     format!("must be later than the previous setpoint's {last} s, got {from_s}"),
                 ));
             }
-            let va_mps = positive(&field("airspeed_mps"), sp.airspeed_mps)?;
-            let altitude_m = positive(&field("altitude_m"), sp.altitude_m)?;
-            let roll_deg = finite(field("roll_deg"), sp.roll_deg)?;
+            let va_mps = v.positive(&field("airspeed_mps"), sp.airspeed_mps)?;
+            let altitude_m = v.positive(&field("altitude_m"), sp.altitude_m)?;
+            let roll_deg = v.finite(&field("roll_deg"), sp.roll_deg)?;
             if roll_deg.abs() > 45.0 {
-                return Err(bad(
+                return Err(v.err(
                     field("roll_deg"),
                     format!("must be within -45..45 deg (the autopilot's limit), got {roll_deg}"),
                 ));
@@ -330,11 +315,11 @@ impl FromDeck for SurfaceStudy {
         for (i, f) in deck.surface_fault.iter().enumerate() {
             let field = |f: &str| format!("surface_fault[{i}].{f}");
             let surface = SURFACE_NAMES.iter().position(|n| *n == f.surface).ok_or_else(|| {
-                bad(field("surface"), format!("must be one of {}, got {:?}", SURFACE_NAMES.join(", "), f.surface))
+                v.err(field("surface"), format!("must be one of {}, got {:?}", SURFACE_NAMES.join(", "), f.surface))
             })?;
-            let onset_s = finite(field("onset_s"), f.onset_s)?;
+            let onset_s = v.finite(&field("onset_s"), f.onset_s)?;
             if !(0.0..duration_s).contains(&onset_s) {
-                return Err(bad(
+                return Err(v.err(
                     field("onset_s"),
                     format!("must be within 0..{duration_s} s (study.duration_s), got {onset_s}"),
                 ));
@@ -342,18 +327,18 @@ impl FromDeck for SurfaceStudy {
             if let Some(end) = f.end_s
                 && !(end.is_finite() && end > onset_s)
             {
-                return Err(bad(field("end_s"), format!("must be later than onset_s ({onset_s} s), got {end}")));
+                return Err(v.err(field("end_s"), format!("must be later than onset_s ({onset_s} s), got {end}")));
             }
-            let need = |name: &str, v: Option<f64>| {
-                v.filter(|v| v.is_finite())
-                    .ok_or_else(|| bad(field(name), format!("a finite number is required for kind = {:?}", f.kind)))
+            let need = |name: &str, x: Option<f64>| {
+                x.filter(|x| x.is_finite())
+                    .ok_or_else(|| v.err(field(name), format!("a finite number is required for kind = {:?}", f.kind)))
             };
-            let deflection = |name: &str, v: Option<f64>| {
-                let v = need(name, v)?;
-                if v.abs() <= 25.0 {
-                    Ok(v.to_radians())
+            let deflection = |name: &str, x: Option<f64>| {
+                let x = need(name, x)?;
+                if x.abs() <= 25.0 {
+                    Ok(x.to_radians())
                 } else {
-                    Err(bad(field(name), format!("must be within -25..25 deg (the actuator's travel), got {v}")))
+                    Err(v.err(field(name), format!("must be within -25..25 deg (the actuator's travel), got {x}")))
                 }
             };
             let (kind, used): (_, &[&str]) = match f.kind.as_str() {
@@ -365,9 +350,9 @@ impl FromDeck for SurfaceStudy {
                     let low_rad = deflection("low_deg", f.low_deg)?;
                     let high_rad = deflection("high_deg", f.high_deg)?;
                     if high_rad <= low_rad {
-                        return Err(bad(field("high_deg"), "must be above low_deg".into()));
+                        return Err(v.err(field("high_deg"), "must be above low_deg"));
                     }
-                    let period_s = positive(&field("period_s"), need("period_s", f.period_s)?)?;
+                    let period_s = v.positive(&field("period_s"), need("period_s", f.period_s)?)?;
                     (
                         ActuatorFaultKind::Oscillation { low_rad, high_rad, period_s },
                         &["low_deg", "high_deg", "period_s"],
@@ -376,15 +361,14 @@ impl FromDeck for SurfaceStudy {
                 "loss_of_effectiveness" => {
                     let e = need("effectiveness", f.effectiveness)?;
                     if !(0.0..1.0).contains(&e) {
-                        return Err(bad(
-                            field("effectiveness"),
-                            format!("must be within [0, 1) (1 is no fault), got {e}"),
-                        ));
+                        return Err(
+                            v.err(field("effectiveness"), format!("must be within [0, 1) (1 is no fault), got {e}"))
+                        );
                     }
                     (ActuatorFaultKind::LossOfEffectiveness { effectiveness: e }, &["effectiveness"])
                 }
                 other => {
-                    return Err(bad(
+                    return Err(v.err(
                         field("kind"),
                         format!("must be \"stuck\", \"oscillation\" or \"loss_of_effectiveness\", got {other:?}"),
                     ));
@@ -398,7 +382,7 @@ impl FromDeck for SurfaceStudy {
                 ("effectiveness", f.effectiveness),
             ];
             if let Some((name, _)) = given.iter().find(|(n, v)| v.is_some() && !used.contains(n)) {
-                return Err(bad(
+                return Err(v.err(
                     field(name),
                     format!("does not apply to kind = {:?} (it takes {})", f.kind, used.join(", ")),
                 ));
@@ -408,27 +392,22 @@ impl FromDeck for SurfaceStudy {
         let mut windows: Vec<_> = faults.iter().map(|f| (f.onset_s, f.end_s.unwrap_or(duration_s))).collect();
         windows.sort_by(|a, b| a.0.total_cmp(&b.0));
         if let Some(w) = windows.windows(2).find(|w| w[1].0 < w[0].1) {
-            return Err(bad(
-                "surface_fault".into(),
+            return Err(v.err(
+                "surface_fault",
                 format!("faults must not overlap: one from {} s to {} s, the next from {} s", w[0].0, w[0].1, w[1].0),
             ));
         }
 
-        if deck.bank.is_empty() {
-            return Err(bad("bank".into(), "at least one [[bank]] is required".into()));
-        }
+        v.detector_names("bank", deck.bank.iter().map(|b| b.name.as_str()))?;
         let mut banks: Vec<(String, BankParams)> = Vec::new();
         for (i, b) in deck.bank.iter().enumerate() {
             let field = |f: &str| format!("bank[{i}].{f}");
-            if banks.iter().any(|(n, _)| *n == b.name) || b.name.is_empty() {
-                return Err(bad(field("name"), format!("must be non-empty and unique, got {:?}", b.name)));
-            }
             let covariance = match b.covariance.as_str() {
                 "ekf" => CovarianceForm::Ekf,
                 "strong_tracking" => CovarianceForm::StrongTracking,
                 "symmetric_strong_tracking" => CovarianceForm::SymmetricStrongTracking,
                 other => {
-                    return Err(bad(
+                    return Err(v.err(
                         field("covariance"),
                         format!("must be \"ekf\", \"strong_tracking\" or \"symmetric_strong_tracking\", got {other:?}"),
                     ));
@@ -438,65 +417,64 @@ impl FromDeck for SurfaceStudy {
                 "gaussian" => LikelihoodForm::Gaussian,
                 "euclidean_norm" => LikelihoodForm::EuclideanNorm,
                 other => {
-                    return Err(bad(
+                    return Err(v.err(
                         field("likelihood"),
                         format!("must be \"gaussian\" or \"euclidean_norm\", got {other:?}"),
                     ));
                 }
             };
             let mut p = BankParams::seed(covariance, likelihood);
-            if let Some(v) = b.process_variance_per_s {
-                for (j, x) in v.iter().enumerate() {
-                    positive(&format!("bank[{i}].process_variance_per_s[{j}]"), *x)?;
+            if let Some(given) = b.process_variance_per_s {
+                for (j, x) in given.iter().enumerate() {
+                    v.positive(&format!("bank[{i}].process_variance_per_s[{j}]"), *x)?;
                 }
-                p.process_variance_per_s = v;
+                p.process_variance_per_s = given;
             }
-            if let Some(v) = b.measurement_variance {
-                for (j, x) in v.iter().enumerate() {
-                    positive(&format!("bank[{i}].measurement_variance[{j}]"), *x)?;
+            if let Some(given) = b.measurement_variance {
+                for (j, x) in given.iter().enumerate() {
+                    v.positive(&format!("bank[{i}].measurement_variance[{j}]"), *x)?;
                 }
-                p.measurement_variance = v;
+                p.measurement_variance = given;
             }
-            if let Some(v) = b.surface_process_variance_rad2_per_s {
-                p.surface_process_variance_rad2_per_s = positive(&field("surface_process_variance_rad2_per_s"), v)?;
+            if let Some(x) = b.surface_process_variance_rad2_per_s {
+                p.surface_process_variance_rad2_per_s = v.positive(&field("surface_process_variance_rad2_per_s"), x)?;
             }
             if let Some(rho) = b.rho {
                 if !(rho > 0.0 && rho <= 1.0) {
-                    return Err(bad(field("rho"), format!("must be within (0, 1], got {rho}")));
+                    return Err(v.err(field("rho"), format!("must be within (0, 1], got {rho}")));
                 }
                 p.rho = rho;
             }
             if let Some(beta) = b.beta {
                 if !(beta.is_finite() && beta >= 1.0) {
-                    return Err(bad(field("beta"), format!("must be >= 1 (a weakening factor), got {beta}")));
+                    return Err(v.err(field("beta"), format!("must be >= 1 (a weakening factor), got {beta}")));
                 }
                 p.beta = beta;
             }
             if let Some(a) = b.a {
                 if let Some(j) = a.iter().position(|a| !(a.is_finite() && *a >= 1.0)) {
-                    return Err(bad(
-                        format!("bank[{i}].a[{j}]"),
-                        format!("must be >= 1 (a prior weight), got {}", a[j]),
-                    ));
+                    return Err(
+                        v.err(format!("bank[{i}].a[{j}]"), format!("must be >= 1 (a prior weight), got {}", a[j]))
+                    );
                 }
                 p.a = a;
             }
             if let Some(a) = b.a_surface {
                 if !(a.is_finite() && a >= 1.0) {
-                    return Err(bad(field("a_surface"), format!("must be >= 1 (a prior weight), got {a}")));
+                    return Err(v.err(field("a_surface"), format!("must be >= 1 (a prior weight), got {a}")));
                 }
                 p.a_surface = a;
             }
             if let Some(h) = b.declare_hold_s {
                 if !(h.is_finite() && h >= 0.0) {
-                    return Err(bad(field("declare_hold_s"), format!("must be >= 0, got {h}")));
+                    return Err(v.err(field("declare_hold_s"), format!("must be >= 0, got {h}")));
                 }
                 p.declare_hold_s = h;
             }
             banks.push((b.name.clone(), p));
         }
 
-        let monte_carlo = monte_carlo(&Validator { file: path }, deck.monte_carlo, duration_s, &faults)?;
+        let monte_carlo = monte_carlo(&v, deck.monte_carlo, duration_s, &faults)?;
 
         Ok(SurfaceStudy {
             header,
@@ -647,13 +625,9 @@ fn monte_carlo(
 mod tests {
     use super::*;
 
-    fn seed_deck() -> String {
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/studies/seed004_surfaces.toml")).unwrap()
-    }
-
     #[test]
     fn the_seed_deck_holds_the_seed_scenario_and_four_variants() {
-        let study = SurfaceStudy::from_toml(&seed_deck(), Path::new("seed004_surfaces.toml")).unwrap();
+        let study = SurfaceStudy::bundled("seed004_surfaces.toml");
         assert_eq!(study.header.duration_s, 300.0);
         let expected = [
             (0, 10.0, 40.0, ActuatorFaultKind::Stuck { position_rad: (-15f64).to_radians() }),

@@ -348,10 +348,9 @@ mod tests {
     use super::*;
     use crate::engine::deck::FromDeck;
     use crate::engine::streams::{Substream, noise_rng};
-    use std::path::Path;
 
     fn seed_study() -> SurfaceStudy {
-        SurfaceStudy::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed004_surfaces.toml")).unwrap()
+        SurfaceStudy::bundled("seed004_surfaces.toml")
     }
 
     /// Trial 0 of the seed deck: its five faults, the seed's noise, the default airframe.

@@ -3,7 +3,8 @@
 use std::path::Path;
 
 use super::study::LaunchStudy;
-use crate::engine::output::{Trace, trace_frame, write_table};
+use crate::engine::method::select_detector;
+use crate::engine::output::Trace;
 use crate::engine::runner::RunError;
 
 /// The resolved launch-vehicle study (method 001).
@@ -50,7 +51,7 @@ pub fn validate(study: &LaunchStudy) -> Result<(), RunError> {
     }
     let mc = &study.monte_carlo;
     println!(
-        "monte carlo {} trials, fault-free fraction {}, sampler {:?}, target Pfa {}, engines {:?}",
+        "monte carlo {} trials, fault-free fraction {}, sampler {}, target Pfa {}, engines {:?}",
         mc.common.trials,
         mc.common.fault_free_fraction,
         mc.common.sampler,
@@ -58,8 +59,12 @@ pub fn validate(study: &LaunchStudy) -> Result<(), RunError> {
         mc.engines.iter().map(|e| e + 1).collect::<Vec<_>>()
     );
     println!(
-        "            loss {:?} %, onset {:?} s, noise scale {:?}, gust scale {:?}; detection within {} s of the onset",
-        mc.loss_percent, mc.common.onset_s, mc.common.noise_scale, mc.gust_scale, mc.detection_window_s
+        "            loss {} %, onset {} s, noise scale {}, gust scale {}; detection within {} s of the onset",
+        mc.loss_percent.as_ref().map_or("the deck's [[faults]]".to_string(), |l| l.to_string()),
+        mc.common.onset_s,
+        mc.common.noise_scale,
+        mc.gust_scale,
+        mc.detection_window_s
     );
     Ok(())
 }
@@ -70,50 +75,28 @@ pub fn validate(study: &LaunchStudy) -> Result<(), RunError> {
 pub fn simulate(study: &LaunchStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), RunError> {
     let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
     let mut selected = study.clone();
-    if let Some(name) = detector {
-        let d = study.detectors.iter().find(|d| d.name == name).ok_or_else(|| {
-            RunError::Invalid(format!(
-                "--detector {name:?}: {} has detectors {}",
-                study.header.path.display(),
-                names.join(", ")
-            ))
-        })?;
-        selected.detectors = vec![d.clone()];
+    if let Some(i) = select_detector(&study.header, &names, detector)? {
+        selected.detectors = vec![study.detectors[i].clone()];
     }
     let trials = crate::methods::thrust_loss::LaunchTrials::new(&selected)
         .map_err(|e| RunError::Invalid(format!("{}: {e}", study.header.path.display())))?;
-    let mut floats: Vec<(String, Vec<f64>)> = Vec::new();
-    let mut bools: Vec<(String, Vec<bool>)> = Vec::new();
+    let mut trace = Trace::default();
     let result = trials.run_trial_with(trial, |m, steps| {
         use crate::methods::thrust_loss::vehicle::idx;
-        let mut f = vec![
-            ("t_s".to_string(), m.t_s),
-            ("wz_measured_rad_s".to_string(), m.y[idx::WZ - 1]),
-            ("wz_true_rad_s".to_string(), m.truth[idx::WZ]),
-            ("n_y_measured_g".to_string(), m.n_y_g),
-            ("n_z_measured_g".to_string(), m.n_z_g),
-            ("thrust_true_n".to_string(), m.truth[idx::THRUST]),
-        ];
-        let mut b = Vec::new();
+        let mut row = trace.row();
+        row.float(|| "t_s".into(), m.t_s)
+            .float(|| "wz_measured_rad_s".into(), m.y[idx::WZ - 1])
+            .float(|| "wz_true_rad_s".into(), m.truth[idx::WZ])
+            .float(|| "n_y_measured_g".into(), m.n_y_g)
+            .float(|| "n_z_measured_g".into(), m.n_z_g)
+            .float(|| "thrust_true_n".into(), m.truth[idx::THRUST]);
         for (d, step) in selected.detectors.iter().zip(steps) {
-            f.push((format!("{}_residual_rad_s", d.name), step.residual_rad_s));
-            f.push((format!("{}_fhat", d.name), step.fhat));
-            b.push((format!("{}_alarm", d.name), step.alarm));
-        }
-        if floats.is_empty() {
-            floats = f.iter().map(|(n, _)| (n.clone(), Vec::new())).collect();
-            bools = b.iter().map(|(n, _)| (n.clone(), Vec::new())).collect();
-        }
-        for (col, (_, v)) in floats.iter_mut().zip(f) {
-            col.1.push(v);
-        }
-        for (col, (_, v)) in bools.iter_mut().zip(b) {
-            col.1.push(v);
+            row.float(|| format!("{}_residual_rad_s", d.name), step.residual_rad_s)
+                .float(|| format!("{}_fhat", d.name), step.fhat)
+                .flag(|| format!("{}_alarm", d.name), step.alarm);
         }
     });
-    let trace = Trace { float_columns: floats, bool_columns: bools };
-    let mut df = trace_frame(&trace).map_err(|e| RunError::Internal(e.to_string()))?;
-    write_table(&mut df, out)?;
+    let samples = trace.write(out)?;
     let outcomes = result
         .outcome
         .map_err(|e| RunError::Invalid(format!("{}: trial {trial}: {e}", study.header.path.display())))?;
@@ -122,7 +105,7 @@ pub fn simulate(study: &LaunchStudy, trial: u64, detector: Option<&str>, out: &P
         "{}: trial {trial}, {} detector(s), {} samples -> {}",
         study.header.name,
         outcomes.len(),
-        df.height(),
+        samples,
         out.display()
     );
     match spec.fault {

@@ -143,9 +143,6 @@ impl TrialSource for LaunchTrials<'_> {
     fn chunk_trials(&self) -> u64 {
         128
     }
-    fn group_trials(&self) -> u64 {
-        1
-    }
     fn simulate(&self, first: u64, end: u64) -> Vec<LaunchTrialResult> {
         (first..end).map(|t| self.run_trial_with(t, |_, _| ())).collect()
     }

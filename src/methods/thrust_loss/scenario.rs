@@ -89,14 +89,12 @@ impl<'a> LaunchScenarioSampler<'a> {
 mod tests {
     use super::*;
     use crate::engine::deck::FromDeck;
-    use std::path::Path;
 
     /// The bundled deck: engines (4) fastest, then the gust scale (2 values); losses in 10-60 % with the
     /// onsets a Latin hypercube over 15-75 s; gusts scaled per trial, the vehicle's noise untouched.
     #[test]
     fn engines_and_gusts_cycle_and_losses_stay_in_range() {
-        let study =
-            LaunchStudy::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed001_thrust.toml")).unwrap();
+        let study = LaunchStudy::bundled("seed001_thrust.toml");
         let sampler = LaunchScenarioSampler::new(&study);
         let mut fault_free = 0;
         let mut strata = vec![0u32; 2000];

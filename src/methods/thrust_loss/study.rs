@@ -4,7 +4,7 @@
 //!
 //! ```toml
 //! [study]            name, seed, duration_s, dt_s (0.01 s: the seed's D)
-//! [vehicle]          model = "medium_launcher" (src/plant/launch_vehicle.rs)
+//! [vehicle]          model = "medium_launcher" (src/methods/thrust_loss/vehicle.rs)
 //! [[gust]]           axis = "down_range" | "cross_range", amplitude_mps, start_s, duration_s: 1 - cosine
 //!                    gusts in the truth (the filter knows no wind): residual jumps with no engine at fault
 //! [[detector]]       name, kind = "ekf_mhe", optional: window_n (N), interval_samples (D), fault_intensity
@@ -153,7 +153,7 @@ impl FromDeck for LaunchStudy {
         if deck.vehicle.model != "medium_launcher" {
             return Err(v.err(
                 "vehicle.model",
-                format!("{:?}: allowed \"medium_launcher\" (src/plant/launch_vehicle.rs)", deck.vehicle.model),
+                format!("{:?}: allowed \"medium_launcher\" (src/methods/thrust_loss/vehicle.rs)", deck.vehicle.model),
             ));
         }
         let config = LaunchVehicleConfig { dt_s, ..LaunchVehicleConfig::default() };
@@ -186,31 +186,15 @@ impl FromDeck for LaunchStudy {
             gusts.push(Gust { axis, amplitude_mps, start_s, duration_s: duration });
         }
 
-        if deck.detector.is_empty() {
-            return Err(v.err("detector", "at least one [[detector]] is required"));
-        }
+        v.detector_names("detector", deck.detector.iter().map(|d| d.name.as_str()))?;
         let mut detectors: Vec<LaunchDetector> = Vec::new();
         for (i, d) in deck.detector.iter().enumerate() {
             let field = |f: &str| format!("detector[{i}].{f}");
-            if d.name.is_empty() || detectors.iter().any(|o| o.name == d.name) {
-                return Err(v.err(field("name"), format!("must be non-empty and unique, got {:?}", d.name)));
-            }
             if d.kind != "ekf_mhe" {
                 return Err(v.err(field("kind"), format!("{:?}: allowed \"ekf_mhe\" (method 001)", d.kind)));
             }
             let mut mhe = MheParams::seed();
-            if let Some(n) = d.window_n {
-                mhe.window_n = n;
-            }
-            if let Some(n) = d.interval_samples {
-                mhe.interval_samples = n;
-            }
-            if let Some(f) = d.fault_intensity {
-                mhe.fault_intensity = f;
-            }
-            if let Some(w) = d.window_variance {
-                mhe.window_variance = w;
-            }
+            crate::take_given!(mhe, d, [window_n, interval_samples, fault_intensity, window_variance]);
             let mut params = DetectorParams { mhe, ekf: EkfParams::for_noise(&config.noise), ..DetectorParams::seed() };
             if let Some(t) = d.threshold_fhat {
                 params.threshold_fhat = t;
@@ -348,13 +332,9 @@ fn onset(v: &Validator, field: &str, t: f64, duration_s: f64) -> Result<f64, Dec
 mod tests {
     use super::*;
 
-    fn deck() -> String {
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/studies/seed001_thrust.toml")).unwrap()
-    }
-
     #[test]
     fn the_seed_deck_reads_as_documented() {
-        let study = LaunchStudy::from_toml(&deck(), Path::new("seed001_thrust.toml")).unwrap();
+        let study = LaunchStudy::bundled("seed001_thrust.toml");
         assert_eq!(study.detectors.len(), 1);
         assert_eq!(study.detectors[0].params.mhe, MheParams::seed());
         assert_eq!(study.gusts.len(), 2);
