@@ -74,17 +74,6 @@ pub enum SizeSpec {
     SensorSigma(Factor),
 }
 
-/// As `validate` prints it: `none`, `2 to 6 output units`, `1 to 5 sensor sigmas`.
-impl std::fmt::Display for SizeSpec {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            SizeSpec::None => f.write_str("none"),
-            SizeSpec::Output(x) => write!(f, "{x} (output units; a factor for gain)"),
-            SizeSpec::SensorSigma(x) => write!(f, "{x} sensor sigmas"),
-        }
-    }
-}
-
 #[derive(Debug, Clone, PartialEq)]
 pub struct FaultKindSpec {
     pub kind: FaultKind,
@@ -101,6 +90,14 @@ pub mod unit {
 }
 
 impl FaultKindSpec {
+    /// As `validate` prints it: `none`, `1 to 25 in 6 bins (multiples of the sensor sigma)`.
+    pub fn size_text(&self) -> String {
+        match &self.size {
+            SizeSpec::None => unit::NONE.to_string(),
+            SizeSpec::Output(x) | SizeSpec::SensorSigma(x) => format!("{x} ({})", self.size_unit()),
+        }
+    }
+
     /// The unit the deck gives this population's sizes in.
     pub fn size_unit(&self) -> &'static str {
         match (&self.size, self.kind) {

@@ -73,7 +73,7 @@ pub fn validate(study: &AirDataStudy) -> Result<(), RunError> {
     let sets: Vec<String> = mc.output_sets.iter().map(|s| crate::methods::air_data::records::sensor_set(s)).collect();
     println!("            sensor sets [{}]", sets.join(", "));
     for f in &mc.faults {
-        println!("            fault kind {}: size {}", f.kind.name(), f.size);
+        println!("            fault kind {}: size {}", f.kind.name(), f.size_text());
     }
     if mc.faults.is_empty() {
         println!("            every faulty trial flies the faults above");

@@ -177,14 +177,11 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
     for (d, filter) in study.detectors.iter().zip(&filters) {
         let params = &d.params;
         println!("detector    {}: {}, {}", d.name, params.kind(), gain_summary(params));
-        match params.gain {
-            Gain::Own(_) => println!("            alarm when {}", filter.decision.describe()),
-            Gain::Eigenstructure { .. } => println!(
-                "            alarm when {} exceeds [{}]",
-                filter.decision.describe(),
-                nums(params.thresholds.as_slice())
-            ),
-        }
+        println!(
+            "            alarm when {} exceeds [{}]",
+            filter.decision.describe(),
+            nums(params.thresholds.as_slice())
+        );
         let rule = match params.isolation {
             Isolation::Signature => "the bias signature nearest the",
             Isolation::LargestNormalised => "the largest normalised",
@@ -219,7 +216,7 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
             mc.common.noise_scale
         );
         for f in &mc.faults {
-            println!("            fault kind {}: size {}", f.kind.name(), f.size);
+            println!("            fault kind {}: size {}", f.kind.name(), f.size_text());
         }
     }
     for pe in &mc.parameter_errors {

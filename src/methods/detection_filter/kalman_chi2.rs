@@ -27,9 +27,9 @@ pub struct KalmanChi2 {
     pub process_covariance: DMatrix<f64>,
     pub sensor_covariance: DMatrix<f64>,
     pub window: usize,
-    /// The test's false-alarm probability per window and its threshold, the chi-square quantile.
+    /// The test's false-alarm probability per window (its threshold, the chi-square quantile, is the
+    /// detector's `thresholds`).
     pub false_alarm_probability: f64,
-    pub quantile: f64,
 }
 
 impl GainDesign for KalmanChi2 {
@@ -53,12 +53,7 @@ impl GainDesign for KalmanChi2 {
             .ok_or(DesignError::Decomposition { what: "LU of I - (Ad - K C)" })?;
         let signatures = DMatrix::identity(m, m) - &sampled.C * solved;
         let s_inv = steady.S.clone().try_inverse().ok_or(DesignError::Decomposition { what: "inverse of S" })?;
-        let test = WindowedNis {
-            window: self.window,
-            s_inv,
-            false_alarm_probability: self.false_alarm_probability,
-            quantile: self.quantile,
-        };
+        let test = WindowedNis { window: self.window, s_inv, false_alarm_probability: self.false_alarm_probability };
         Ok(DetectionFilter {
             Ad: sampled.Ad,
             Bd: sampled.Bd,
@@ -90,14 +85,13 @@ struct WindowedNis {
     window: usize,
     s_inv: DMatrix<f64>,
     false_alarm_probability: f64,
-    quantile: f64,
 }
 
 impl ResidualTest for WindowedNis {
     fn describe(&self) -> String {
         format!(
-            "the normalised innovation squared summed over {} samples (the chi-square quantile {:.4} at {} per window)",
-            self.window, self.quantile, self.false_alarm_probability
+            "the normalised innovation squared summed over {} samples (threshold: its chi-square quantile at {} per window)",
+            self.window, self.false_alarm_probability
         )
     }
 
@@ -202,7 +196,6 @@ pub(crate) fn read(r: &DetectorDeck) -> Result<DetectionFilterParams, DeckError>
         sensor_covariance: DMatrix::from_diagonal(&sensor_sigma.map(|s| s * s)),
         window,
         false_alarm_probability: pfa,
-        quantile,
     };
     Ok(DetectionFilterParams {
         gain: Gain::Own(Arc::new(design)),
