@@ -101,7 +101,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // 4. The same summaries (thresholds calibrated to the deck's Pfa, paired comparison) and report.
     let method = &fdimc::methods::detection_filter::METHOD;
     let summary = fdimc::engine::summary::summarize(&out_dir, &method.summary, None)?;
-    fdimc::engine::summary::print(&out_dir, &method.summary, &summary);
+    fdimc::engine::summary::print(&method.summary, &summary);
     let report = fdimc::engine::report::write_report(&out_dir, &[], method)?;
     println!("report: {}", report.files.last().map(|p| p.display().to_string()).unwrap_or_default());
     Ok(())

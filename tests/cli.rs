@@ -403,6 +403,103 @@ fn records_are_identical_for_any_threads_shards_and_resume() {
     assert_eq!(a, std::fs::read_to_string(dir("merged").join("summary.csv")).unwrap());
 }
 
+/// A run whose stderr is not a terminal (a cluster job's log) still says how far it is: plain lines,
+/// here one per finished group of trials (`FDIMC_PROGRESS_EVERY_S=0`); `--quiet` says nothing.
+#[test]
+fn a_run_without_a_terminal_logs_plain_progress_lines() {
+    let tmp = tempfile::tempdir().unwrap();
+    let run = |quiet: bool| {
+        let out_dir = tmp.path().join(if quiet { "quiet" } else { "loud" });
+        let mut args = vec!["run", CI_DECK, "--trials", "600", "--out", out_dir.to_str().unwrap()];
+        if quiet {
+            args.push("--quiet");
+        }
+        Command::new(env!("CARGO_BIN_EXE_fdimc"))
+            .args(&args)
+            .env("FDIMC_PROGRESS_EVERY_S", "0")
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .expect("run fdimc")
+    };
+    let out = run(false);
+    let stderr = text(&out.stderr);
+    let lines: Vec<&str> = stderr.lines().filter(|l| l.starts_with("ci_seed000: ")).collect();
+    assert!(lines.len() >= 2, "{stderr}");
+    assert!(lines.iter().all(|l| l.contains("/600 trials (") && l.contains(" trials/s, about ")), "{stderr}");
+    assert!(lines.last().unwrap().starts_with("ci_seed000: 600/600 trials (100 %)"), "{stderr}");
+    assert!(!stderr.contains('\r'), "no terminal control in a log");
+    let quiet = run(true);
+    assert!(text(&quiet.stderr).lines().all(|l| !l.starts_with("ci_seed000: ")), "{}", text(&quiet.stderr));
+}
+
+/// `baseline` with every faulty group detected in full (`detected` = flown, `pd` = 1 where a fault was
+/// flown), written to `dir`: a reference the current run falls short of.
+fn perfect_detection_baseline(baseline: &str, dir: &Path) -> PathBuf {
+    use polars::prelude::*;
+    let mut base = csv_frame(&Path::new(env!("CARGO_MANIFEST_DIR")).join(baseline));
+    let flown = (base.column("trials").unwrap().as_materialized_series()
+        - base.column("failed").unwrap().as_materialized_series())
+    .unwrap();
+    let faulty = base.column("kind").unwrap().str().unwrap().not_equal("none");
+    let detected = flown.zip_with(&faulty, base.column("detected").unwrap().as_materialized_series()).unwrap();
+    base.with_column(detected.with_name("detected".into()).into_column()).unwrap();
+    // The rate follows its counts (check refuses a baseline whose rates do not).
+    let pd: Float64Chunked = base.column("pd").unwrap().f64().unwrap().iter().map(|v| v.map(|_| 1.0)).collect();
+    base.with_column(pd.with_name("pd".into()).into_column()).unwrap();
+    let doctored = dir.join("perfect.csv");
+    CsvWriter::new(std::fs::File::create(&doctored).unwrap()).finish(&mut base).unwrap();
+    doctored
+}
+
+/// The launch and air-data kinds' checks fail too on a baseline they fall short of (a copy of their own
+/// with every fault detected), naming the group: a check that could only pass would prove nothing.
+#[test]
+fn launch_and_air_data_checks_fail_on_a_baseline_they_fall_short_of() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (deck, baseline, group) in [
+        (
+            "studies/ci_seed001.toml",
+            "results/baselines/ci_seed001.csv",
+            "REGRESSION thresholds=deck detector=seed kind=thrust_loss target=engine_4 ",
+        ),
+        (
+            "studies/ci_seed002.toml",
+            "results/baselines/ci_seed002.csv",
+            "REGRESSION thresholds=deck detector=patent kind=bias target=beta_rad size_bin=3.0 ",
+        ),
+    ] {
+        let dir = tmp.path().join(&deck[8..18]);
+        std::fs::create_dir_all(&dir).unwrap();
+        let perfect = perfect_detection_baseline(baseline, &dir);
+        let out = fdimc(&["check", deck, "--baseline", perfect.to_str().unwrap()]);
+        let stdout = text(&out.stdout);
+        assert_eq!(out.status.code(), Some(1), "{deck}: {stdout}{}", text(&out.stderr));
+        assert!(stdout.contains(group), "{deck}: {stdout}");
+    }
+}
+
+/// Raising `pd` in a copy of the baseline, counts untouched, is refused: check compares counts, and
+/// would otherwise pass in silence.
+#[test]
+fn check_refuses_a_baseline_whose_rates_disagree_with_its_counts() {
+    use polars::prelude::*;
+    let tmp = tempfile::tempdir().unwrap();
+    let mut base = csv_frame(&Path::new(env!("CARGO_MANIFEST_DIR")).join("results/baselines/ci_seed000.csv"));
+    let pd: Float64Chunked = base.column("pd").unwrap().f64().unwrap().iter().map(|v| v.map(|_| 0.999)).collect();
+    base.with_column(pd.with_name("pd".into()).into_column()).unwrap();
+    let edited = tmp.path().join("edited.csv");
+    CsvWriter::new(std::fs::File::create(&edited).unwrap()).finish(&mut base).unwrap();
+    let out = fdimc(&["check", CI_DECK, "--baseline", edited.to_str().unwrap()]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("edited.csv: line ")
+            && stderr.contains(" detector=")
+            && stderr.contains("): pd = 0.999 but detected / (trials - failed) = "),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
     let baseline = "results/baselines/ci_seed000.csv";
@@ -411,17 +508,8 @@ fn check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
     assert!(stdout.contains(": 0 regression(s)") && !stdout.contains("REGRESSION"), "{stdout}");
 
     // A baseline where every faulty trial was detected: the current detector now misses some.
-    use polars::prelude::*;
     let tmp = tempfile::tempdir().unwrap();
-    let mut base = csv_frame(Path::new(env!("CARGO_MANIFEST_DIR")).join(baseline).as_path());
-    let designed = (base.column("trials").unwrap().as_materialized_series()
-        - base.column("failed").unwrap().as_materialized_series())
-    .unwrap();
-    let faulty = base.column("kind").unwrap().str().unwrap().not_equal("none");
-    let detected = designed.zip_with(&faulty, base.column("detected").unwrap().as_materialized_series()).unwrap();
-    base.with_column(detected.with_name("detected".into()).into_column()).unwrap();
-    let doctored = tmp.path().join("perfect.csv");
-    CsvWriter::new(std::fs::File::create(&doctored).unwrap()).finish(&mut base).unwrap();
+    let doctored = perfect_detection_baseline(baseline, tmp.path());
     let run_dir = tmp.path().join("run");
     ok(&fdimc(&["run", CI_DECK, "--quiet", "--out", run_dir.to_str().unwrap()]));
     let out = fdimc(&["check", run_dir.to_str().unwrap(), "--baseline", doctored.to_str().unwrap()]);
@@ -558,10 +646,14 @@ fn launch_records_are_identical_for_any_threads_shards_and_resume() {
     // Thresholds recalibrated at another false-alarm probability: a fifth of the flights may alarm.
     ok(&fdimc(&["summarize", &s(one.clone()), "--target-pfa", "0.2"]));
     let thresholds = csv_frame(&one.join("thresholds.csv"));
-    let pfa = thresholds.column("pfa_achieved").unwrap().f64().unwrap().get(0).unwrap();
+    let pfa = thresholds.column("statistic_pfa").unwrap().f64().unwrap().get(0).unwrap();
     let source = thresholds.column("source").unwrap().str().unwrap().get(0).unwrap().to_string();
     assert_eq!(source, "calibrated at Pfa 0.2 on the fault-free trials");
     assert!(pfa > 0.1 && pfa <= 0.2, "{pfa}");
+    // The report shows what summarize did, not the deck's target.
+    ok(&fdimc(&["report", &s(one.clone())]));
+    let html = std::fs::read_to_string(one.join("report/report.html")).unwrap();
+    assert!(html.contains("<tr><th>target Pfa</th><td>0.2</td></tr>"), "{html}");
 }
 
 #[test]
@@ -668,16 +760,7 @@ fn surface_check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
     assert!(stdout.contains(": 0 regression(s)") && !stdout.contains("REGRESSION"), "{stdout}");
 
     // A baseline in which every fault was detected, the 2 deg ones near trim too: they now are not.
-    use polars::prelude::*;
-    let mut base = csv_frame(Path::new(env!("CARGO_MANIFEST_DIR")).join(baseline).as_path());
-    let flown = (base.column("trials").unwrap().as_materialized_series()
-        - base.column("failed").unwrap().as_materialized_series())
-    .unwrap();
-    let faulty = base.column("kind").unwrap().str().unwrap().not_equal("none");
-    let detected = flown.zip_with(&faulty, base.column("detected").unwrap().as_materialized_series()).unwrap();
-    base.with_column(detected.with_name("detected".into()).into_column()).unwrap();
-    let doctored = tmp.path().join("perfect.csv");
-    CsvWriter::new(std::fs::File::create(&doctored).unwrap()).finish(&mut base).unwrap();
+    let doctored = perfect_detection_baseline(baseline, tmp.path());
     let out = fdimc(&["check", run_dir.to_str().unwrap(), "--baseline", doctored.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1), "{}", text(&out.stdout));
     let stdout = text(&out.stdout);
@@ -698,13 +781,29 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
     let val = tmp.path().join("val");
     ok(&fdimc(&["run", CI_DECK, "--quiet", "--out", cal.to_str().unwrap()]));
     ok(&fdimc(&["run", CI_DECK, "--quiet", "--seed", "12", "--out", val.to_str().unwrap()]));
+    let own = std::fs::read(val.join("thresholds.csv")).unwrap();
+    let own_summary = std::fs::read(val.join("summary.csv")).unwrap();
     let cal_thr = cal.join("thresholds.csv");
     let stdout = ok(&fdimc(&["summarize", val.to_str().unwrap(), "--thresholds", cal_thr.to_str().unwrap()]));
-    assert!(stdout.contains("thresholds from"), "{stdout}");
+    assert!(
+        stdout.contains("thresholds from") && stdout.contains("(calibrated at Pfa 0.01), validated on"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("    seed: applied [") && stdout.contains("on this run's trials"), "{stdout}");
+    assert!(stdout.contains("    validation seed "), "the set is labelled validation: {stdout}");
+    // Written apart: the run's own tables are untouched.
+    assert_eq!(std::fs::read(val.join("thresholds.csv")).unwrap(), own);
+    assert_eq!(std::fs::read(val.join("summary.csv")).unwrap(), own_summary);
+    let validation = val.join("validation");
+    let sets = csv_frame(&validation.join("summary.csv"));
+    let sets = sets.column("thresholds").unwrap().str().unwrap().clone();
+    assert!(
+        sets.iter().all(|v| matches!(v, Some("deck" | "validation"))) && sets.iter().any(|v| v == Some("validation"))
+    );
     let all_rows = |path: &Path| -> std::collections::HashMap<String, (f64, f64)> {
         let t = csv_frame(path);
         let col = |c: &str| t.column(c).unwrap().clone();
-        let (det, out, lo, hi) = (col("detector"), col("statistic"), col("pfa_lo"), col("pfa_hi"));
+        let (det, out, lo, hi) = (col("detector"), col("statistic"), col("detector_pfa_lo"), col("detector_pfa_hi"));
         let (det, out, lo, hi) = (det.str().unwrap(), out.str().unwrap(), lo.f64().unwrap(), hi.f64().unwrap());
         (0..t.height())
             .filter(|&i| out.get(i) == Some("all"))
@@ -712,15 +811,22 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
             .collect()
     };
     let cal_all = all_rows(&cal_thr);
-    let t = csv_frame(&val.join("thresholds.csv"));
+    let t = csv_frame(&validation.join("thresholds.csv"));
     let det = t.column("detector").unwrap().str().unwrap().clone();
     let out = t.column("statistic").unwrap().str().unwrap().clone();
-    let (lo, hi) =
-        (t.column("pfa_lo").unwrap().f64().unwrap().clone(), t.column("pfa_hi").unwrap().f64().unwrap().clone());
-    let n = t.column("calibration_trials").unwrap().i64().unwrap().clone();
+    let (lo, hi) = (
+        t.column("detector_pfa_lo").unwrap().f64().unwrap().clone(),
+        t.column("detector_pfa_hi").unwrap().f64().unwrap().clone(),
+    );
+    let n = t.column("trials").unwrap().i64().unwrap().clone();
+    // Per-statistic rows count each statistic alone; only the `all` row holds the detector's count.
+    let alone = t.column("statistic_false_alarms").unwrap().i64().unwrap().clone();
+    let whole = t.column("detector_false_alarms").unwrap().i64().unwrap().clone();
     let mut seen = 0;
     for i in 0..t.height() {
-        if out.get(i) == Some("all") {
+        let is_all = out.get(i) == Some("all");
+        assert_eq!((alone.get(i).is_none(), whole.get(i).is_some()), (is_all, is_all), "row {i}");
+        if is_all {
             seen += 1;
             // About 900 fresh fault-free trials. The calibration's Pfa is itself an estimate from
             // about 9 alarms (its interval, about [0.005, 0.018]); the validation rate must agree
@@ -737,6 +843,16 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
         }
     }
     assert_eq!(seen, 2, "one whole-detector row per detector");
+    // Thresholds that claim a target the fresh trials contradict are flagged (here a file edited to
+    // say 0.3: about 1 % of the trials alarm).
+    let claimed = tmp.path().join("claimed.csv");
+    let text = std::fs::read_to_string(&cal_thr).unwrap().replace(",0.01,calibrated at", ",0.3,calibrated at");
+    std::fs::write(&claimed, text).unwrap();
+    let stdout = ok(&fdimc(&["summarize", val.to_str().unwrap(), "--thresholds", claimed.to_str().unwrap()]));
+    assert!(
+        stdout.contains("warning: detector seed: the thresholds of") && stdout.contains("were calibrated for Pfa 0.3"),
+        "{stdout}"
+    );
 }
 
 #[test]
@@ -902,9 +1018,18 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
     let fa = svg("false_alarms_seed.svg");
     assert!(fa.contains("parameter error bin 0") && fa.contains("noise scale (bin)"), "false_alarms_seed.svg");
     // The tables are for reading: the thresholds' calibration trials an integer, the source said once.
-    assert!(html.contains("<code>calibration_trials</code>: 441; <code>source</code>: calibrated at Pfa"), "{html}");
+    assert!(html.contains("<code>trials</code>: 441; "), "{html}");
+    assert!(html.contains("<code>target_pfa</code>: 0.01; <code>source</code>: calibrated at Pfa"), "{html}");
     assert!(!html.contains(".00000<"), "numbers padded with zeros");
     assert_report_loads_in_a_browser(&dir);
+    // Without --trials the report picks what a reader looks at first, says why, and draws each.
+    ok(&fdimc(&["report", d]));
+    let html = std::fs::read_to_string(report.join("report.html")).unwrap();
+    let note = html.split("Trials picked for detector seed").nth(1).unwrap_or_else(|| panic!("{html}"));
+    let note = &note[..note.find('.').unwrap()];
+    assert!(note.contains(" (first detected fault)") && note.contains(" (first missed fault)"), "{note}");
+    let drawn = html.matches("src=\"trace_trial").count();
+    assert_eq!(drawn, note.matches(" (first ").count(), "one trace per picked trial: {note}");
     // A trial outside the run is refused.
     let out = fdimc(&["report", d, "--trials", "1500"]);
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
@@ -941,4 +1066,36 @@ fn the_custom_detector_example_runs_a_study_with_its_own_test() {
     assert_eq!(comparison.height(), 6, "every pair of three detectors, at both threshold sets");
     assert!(dir.join("report/pd_size_moving_average_bias.svg").is_file());
     assert_report_loads_in_a_browser(&dir);
+}
+
+/// `fdimc new <kind> FILE` writes, for every registered kind, a deck that validates and runs as
+/// written, its study named after the file; an existing file is kept unless `--force`, an unknown kind
+/// refused with the kinds listed.
+#[test]
+fn new_writes_a_starter_deck_of_every_kind_that_validates_and_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    for method in fdimc::methods::REGISTRY {
+        let deck = tmp.path().join(format!("my {}.toml", method.kind));
+        let d = deck.to_str().unwrap();
+        let stdout = ok(&fdimc(&["new", method.kind, d]));
+        assert!(stdout.contains(&format!("study \"my_{}\"", method.kind)), "{stdout}");
+        let written = std::fs::read_to_string(&deck).unwrap();
+        assert!(written.starts_with(&format!("# A deck of kind {} (", method.kind)), "{written}");
+        assert!(
+            written.contains(&format!("name = \"my_{}\"", method.kind)) && !written.contains("for CI"),
+            "{written}"
+        );
+        ok(&fdimc(&["validate", d]));
+        let out_dir = tmp.path().join(method.kind);
+        let run = ok(&fdimc(&["run", d, "--trials", "8", "--out", out_dir.to_str().unwrap()]));
+        assert!(run.starts_with(&format!("my_{}: trials 0..8 of 8", method.kind)), "{run}");
+        // Written once: a second `new` keeps the user's edits.
+        let again = fdimc(&["new", method.kind, d]);
+        assert_eq!(again.status.code(), Some(2), "{}", text(&again.stderr));
+        assert!(text(&again.stderr).contains("exists; name another file, or --force"));
+        ok(&fdimc(&["new", method.kind, d, "--force"]));
+    }
+    let out = fdimc(&["new", "kalman", tmp.path().join("x.toml").to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("possible values: detection_filter, thrust_loss"), "{}", text(&out.stderr));
 }

@@ -31,6 +31,18 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
+    /// Write a starter deck of a kind of study (commented; it validates and runs as written).
+    #[command(after_help = "Example: fdimc new air_data my_air_data.toml && fdimc run my_air_data.toml")]
+    New {
+        /// The kind of study (the registered methods').
+        #[arg(value_parser = clap::builder::PossibleValuesParser::new(crate::methods::REGISTRY.iter().map(|m| m.kind)))]
+        kind: String,
+        /// The deck to write; its name (without .toml) names the study and its results folder.
+        file: PathBuf,
+        /// Replace an existing file.
+        #[arg(long)]
+        force: bool,
+    },
     /// Parse and validate a deck, design its detector, and print the resolved study.
     Validate {
         /// Study deck (TOML).
@@ -186,6 +198,7 @@ impl From<OutputError> for CliError {
 
 pub fn run(cli: Cli) -> ExitCode {
     let result = match cli.command {
+        Command::New { kind, file, force } => run::exec_new(&kind, &file, force),
         Command::Validate { deck } => run::exec_validate(&deck),
         Command::Design { deck, json } => run::exec_design(&deck, json),
         Command::Simulate { deck, trial, detector, out, classifiers } => {

@@ -1,7 +1,6 @@
 //! `run`, `summarize`, `merge`, `check`, `report`, `train`: each finds the study's method in the registry
 //! (by the deck's marker table or the results folder's kind) and lets the engine do the rest.
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 use crate::cli::CliError;
@@ -81,7 +80,7 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         shard,
         resume: a.resume,
         force: a.force,
-        progress: !a.quiet && std::io::stderr().is_terminal(),
+        progress: !a.quiet,
         stop_after_chunks: a.stop_after,
         command_line: std::env::args().collect(),
     };
@@ -143,7 +142,7 @@ fn summarize(method: &Method, dir: &Path, calibration: Option<&Calibration>, pri
     let spec = method.summary;
     let s = summary::summarize(dir, &spec, calibration)?;
     if print {
-        summary::print(dir, &spec, &s);
+        summary::print(&spec, &s);
     }
     Ok(())
 }
@@ -213,6 +212,7 @@ pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<us
         return Err(CliError::Invalid(format!("--alpha {alpha}: allowed 0 < alpha < 1")));
     }
     let base = crate::engine::tables::read_summary(baseline)?;
+    crate::engine::check::consistent(&base, baseline)?;
     let (current, scratch) = if target.is_dir() {
         (crate::engine::tables::read_summary(&target.join("summary.csv"))?, None)
     } else {
@@ -274,6 +274,32 @@ pub fn exec_train(deck: &Path, out: Option<&Path>) -> Result<(), CliError> {
     let (method, study) = method::load(REGISTRY, deck)?;
     method::require(REGISTRY, method, Opt::Classifiers)?;
     Ok(study.train(out)?)
+}
+
+/// `fdimc new KIND FILE`: the kind's starter deck, its study named after the file.
+pub fn exec_new(kind: &str, file: &Path, force: bool) -> Result<(), CliError> {
+    let method = method::find(REGISTRY, kind)?;
+    if file.exists() && !force {
+        return Err(CliError::Invalid(format!(
+            "{}: exists; name another file, or --force to replace it",
+            file.display()
+        )));
+    }
+    // The study's name is a folder name: the file's stem, other characters made '_'.
+    let stem = file.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+    let study: String =
+        stem.chars().map(|c| if c.is_ascii_alphanumeric() || c == '_' || c == '-' { c } else { '_' }).collect();
+    let study = if study.is_empty() { kind.to_string() } else { study };
+    if let Some(parent) = file.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|e| CliError::Invalid(format!("{}: {e}", parent.display())))?;
+    }
+    crate::engine::runner::write_atomically(file, method.starter_deck(&study).as_bytes())?;
+    println!(
+        "wrote {}: a {kind} deck ({}), study {study:?}\nnext: fdimc validate {0}, then fdimc run {0}",
+        file.display(),
+        method.title
+    );
+    Ok(())
 }
 
 pub fn exec_validate(deck: &Path) -> Result<(), CliError> {

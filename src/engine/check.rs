@@ -65,8 +65,8 @@ pub struct Verdict {
     pub only_in_current: Vec<String>,
 }
 
-/// Per group (its key columns: every column before `trials`, joined), its counts.
-fn groups(df: &DataFrame) -> PolarsResult<HashMap<String, Counts>> {
+/// Each row's group, named by its key columns (every column before `trials`): `detector=seed kind=bias ...`.
+fn group_names(df: &DataFrame) -> PolarsResult<Vec<String>> {
     let names = df.get_column_names();
     let keys: Vec<&str> = names.iter().map(|n| n.as_str()).take_while(|n| *n != "trials").collect();
     if keys.len() == names.len() {
@@ -75,17 +75,62 @@ fn groups(df: &DataFrame) -> PolarsResult<HashMap<String, Counts>> {
     let key_cols: Vec<Column> =
         keys.iter().map(|k| df.column(k).and_then(|c| c.cast(&DataType::String))).collect::<PolarsResult<_>>()?;
     let key_cols: Vec<&StringChunked> = key_cols.iter().map(|c| c.str()).collect::<PolarsResult<_>>()?;
+    Ok((0..df.height())
+        .map(|i| {
+            let key: Vec<String> =
+                keys.iter().zip(&key_cols).map(|(name, c)| format!("{name}={}", c.get(i).unwrap_or("null"))).collect();
+            key.join(" ")
+        })
+        .collect())
+}
+
+/// Refuses a baseline whose rates do not follow from its counts (a hand-edited `pd`, say): `check`
+/// compares counts, so an edited rate would be silently ignored. Names the file, the row and its group.
+pub fn consistent(df: &DataFrame, file: &std::path::Path) -> Result<(), RunError> {
+    let bad = |e: PolarsError| RunError::Invalid(format!("{}: not an fdimc summary.csv ({e})", file.display()));
+    let groups = group_names(df).map_err(bad)?;
+    let u = |n: &str| -> PolarsResult<UInt64Chunked> { Ok(df.column(n)?.cast(&DataType::UInt64)?.u64()?.clone()) };
+    let f = |n: &str| -> PolarsResult<Float64Chunked> { Ok(df.column(n)?.cast(&DataType::Float64)?.f64()?.clone()) };
+    let (trials, failed) = (u("trials").map_err(bad)?, u("failed").map_err(bad)?);
+    let checks = [
+        ("pd", "detected", None),
+        ("pfa", "false_alarms", None),
+        ("isolation_accuracy", "isolated_correctly", Some("isolation_decided")),
+    ];
+    for (rate, count, of) in checks {
+        let (r, k) = (f(rate).map_err(bad)?, u(count).map_err(bad)?);
+        let n = of.map(|c| u(c)).transpose().map_err(bad)?;
+        for i in 0..df.height() {
+            let flown = trials.get(i).unwrap_or(0).saturating_sub(failed.get(i).unwrap_or(0));
+            let (k, n) = (k.get(i).unwrap_or(0), n.as_ref().map_or(flown, |n| n.get(i).unwrap_or(0)));
+            let Some(given) = r.get(i).filter(|v| !v.is_nan()) else { continue };
+            let from_counts = k as f64 / n as f64;
+            if n == 0 || (given - from_counts).abs() > 1e-9 {
+                let denominator = of.unwrap_or("(trials - failed)");
+                return Err(RunError::Invalid(format!(
+                    "{}: line {} ({}): {rate} = {given} but {count} / {denominator} = {k}/{n}: the rates must follow from the counts (check compares counts; renew the baseline from a run instead of editing it)",
+                    file.display(),
+                    i + 2,
+                    groups[i]
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Per group, its counts.
+fn groups(df: &DataFrame) -> PolarsResult<HashMap<String, Counts>> {
+    let names = group_names(df)?;
     let u = |n: &str| -> PolarsResult<UInt64Chunked> { Ok(df.column(n)?.cast(&DataType::UInt64)?.u64()?.clone()) };
     let (trials, failed, detected, fa) = (u("trials")?, u("failed")?, u("detected")?, u("false_alarms")?);
     let (decided, correct) = (u("isolation_decided")?, u("isolated_correctly")?);
     let pd = df.column("pd")?.cast(&DataType::Float64)?;
     let pd = pd.f64()?;
     let mut map = HashMap::with_capacity(df.height());
-    for i in 0..df.height() {
-        let key: Vec<String> =
-            keys.iter().zip(&key_cols).map(|(name, c)| format!("{name}={}", c.get(i).unwrap_or("null"))).collect();
+    for (i, name) in names.into_iter().enumerate() {
         map.insert(
-            key.join(" "),
+            name,
             Counts {
                 flown: trials.get(i).unwrap_or(0) - failed.get(i).unwrap_or(0),
                 detected: detected.get(i).unwrap_or(0),
@@ -156,4 +201,94 @@ pub fn compare(current: &DataFrame, baseline: &DataFrame, alpha: f64) -> Result<
         }
     }
     Ok(verdict)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The one-sided test against SciPy's Yates-corrected chi-square of the 2 x 2 table
+    /// (`scipy.stats.chi2_contingency(..., correction=True)`, z = sqrt(chi2), p = norm.sf(z)), an
+    /// independent implementation of the same statistic.
+    #[test]
+    fn the_one_sided_test_matches_the_yates_corrected_chi_square() {
+        for ((k1, n1, k0, n0), reference) in [
+            ((80, 100, 90, 100), 0.03735296665606522),
+            ((800, 1000, 900, 1000), 2.829973789935477e-10),
+            ((45, 60, 55, 60), 0.013743168055755164),
+            ((970, 1000, 990, 1000), 0.0012040202336439786),
+            ((188, 200, 199, 200), 0.002403431559150862),
+        ] {
+            let p = p_lower(k1, n1, k0, n0);
+            assert!((p - reference).abs() <= 1e-9 * reference, "{k1}/{n1} against {k0}/{n0}: {p}, SciPy {reference}");
+        }
+    }
+
+    /// A summary of hand-made groups: (target, trials, detected, false alarms, isolation decided,
+    /// isolated correctly, faulty).
+    fn summary(rows: &[(&str, u64, u64, u64, u64, u64, bool)]) -> DataFrame {
+        let c = |f: fn(&(&str, u64, u64, u64, u64, u64, bool)) -> u64| rows.iter().map(f).collect::<Vec<u64>>();
+        df!(
+            "thresholds" => vec!["deck"; rows.len()],
+            "detector" => vec!["d"; rows.len()],
+            "target" => rows.iter().map(|r| r.0).collect::<Vec<_>>(),
+            "trials" => c(|r| r.1),
+            "failed" => vec![0u64; rows.len()],
+            "detected" => c(|r| r.2),
+            "false_alarms" => c(|r| r.3),
+            "isolation_decided" => c(|r| r.4),
+            "isolated_correctly" => c(|r| r.5),
+            "pd" => rows.iter().map(|r| r.6.then(|| r.2 as f64 / r.1 as f64)).collect::<Vec<_>>(),
+            "pfa" => rows.iter().map(|r| r.3 as f64 / r.1 as f64).collect::<Vec<_>>(),
+            "isolation_accuracy" => rows.iter().map(|r| (r.4 > 0).then(|| r.5 as f64 / r.4 as f64)).collect::<Vec<_>>(),
+        )
+        .unwrap()
+    }
+
+    /// A detection drop, an isolation drop and a false-alarm rise, each flagged where Bonferroni over
+    /// the 10 tests lets it through: at alpha 0.01 (level 0.001) only the detection drop (p 2.8e-10),
+    /// at 0.05 (level 0.005) also the isolation drop (p 1.2e-3) and the false-alarm rise (p 2.4e-3).
+    #[test]
+    fn drops_and_rises_are_flagged_at_the_bonferroni_level() {
+        let baseline = summary(&[
+            ("a", 1000, 900, 0, 900, 880, true),
+            ("b", 1000, 950, 0, 1000, 990, true),
+            ("c", 200, 0, 1, 0, 0, false),
+            ("d", 500, 400, 2, 400, 390, true),
+        ]);
+        let current = summary(&[
+            ("a", 1000, 800, 0, 900, 880, true),
+            ("b", 1000, 950, 0, 1000, 970, true),
+            ("c", 200, 0, 12, 0, 0, false),
+            ("d", 500, 400, 2, 400, 390, true),
+        ]);
+        let flagged = |alpha: f64| {
+            let v = compare(&current, &baseline, alpha).unwrap();
+            assert_eq!((v.tests, v.compared_groups), (10, 4));
+            v.regressions.iter().map(|r| format!("{} {}", r.group, r.what)).collect::<Vec<_>>()
+        };
+        assert_eq!(flagged(0.01), ["thresholds=deck detector=d target=a detection probability"]);
+        assert_eq!(
+            flagged(0.05),
+            [
+                "thresholds=deck detector=d target=a detection probability",
+                "thresholds=deck detector=d target=b isolation accuracy",
+                "thresholds=deck detector=d target=c false-alarm rate",
+            ]
+        );
+        // The same tables the other way round: improvements are no regression.
+        assert!(compare(&baseline, &current, 0.05).unwrap().regressions.is_empty());
+    }
+
+    #[test]
+    fn a_baseline_whose_rate_disagrees_with_its_counts_is_refused() {
+        let mut edited = summary(&[("a", 1000, 900, 0, 900, 880, true)]);
+        edited.with_column(Column::new("pd".into(), [0.999])).unwrap();
+        let e = consistent(&edited, std::path::Path::new("b.csv")).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "b.csv: line 2 (thresholds=deck detector=d target=a): pd = 0.999 but detected / (trials - failed) = 900/1000: the rates must follow from the counts (check compares counts; renew the baseline from a run instead of editing it)"
+        );
+        assert!(consistent(&summary(&[("a", 1000, 900, 0, 900, 880, true)]), std::path::Path::new("b.csv")).is_ok());
+    }
 }

@@ -103,8 +103,8 @@ pub(crate) fn parse_deck<T: serde::de::DeserializeOwned>(text: &str, path: &Path
                 file: path.into(),
                 field: format!("[{table}]"),
                 message: format!(
-                    "the deck has no [{table}] table; a deck of this kind needs one (studies/ holds a \
-                     commented deck of each kind; the README's \"The study deck\" lists the tables)"
+                    "the deck has no [{table}] table; a deck of this kind needs one (docs/deck.md lists \
+                     every kind's tables and fields; `fdimc new <kind> FILE` writes a deck to start from)"
                 ),
             },
             _ => DeckError::Parse { file: path.into(), message: e.to_string().trim_end().to_string() },

@@ -33,6 +33,45 @@ pub struct Method {
     pub trace_panels: &'static [TracePanel],
     /// Plots of the kind's own `trials.parquet` columns in its report.
     pub own_plots: &'static [OwnPlot],
+    /// `fdimc new <kind> FILE`: a commented deck of this kind that validates and runs as written (the
+    /// kind's CI deck, `include_str!`), and the bundled file it is.
+    pub starter: (&'static str, &'static str),
+}
+
+impl Method {
+    /// `fdimc new`: the starter deck with its study named `study` (results go to `results/<study>/`),
+    /// under a header that says where it came from instead of the bundled deck's own.
+    pub fn starter_deck(&self, study: &str) -> String {
+        let (source, text) = self.starter;
+        // The bundled deck's opening comment (to its first blank line) speaks of its own role (CI); the
+        // comments of its tables stay.
+        let body = match text.split_once("\n\n") {
+            Some((opening, rest)) if opening.lines().all(|l| l.starts_with('#')) => rest,
+            _ => text,
+        };
+        let mut out = format!(
+            "# A deck of kind {kind} ({title}), written by `fdimc new {kind}` from {source}.\n\
+             # `fdimc validate` shows what it resolves to, `fdimc run` writes results/{study}/; every table and\n\
+             # field: the README's \"The study deck\" and the decks in studies/.\n\n",
+            kind = self.kind,
+            title = self.title,
+        );
+        let mut in_study = false;
+        let mut named = false;
+        for line in body.lines() {
+            if line.trim_start().starts_with('[') {
+                in_study = line.trim() == "[study]";
+            }
+            if in_study && !named && line.trim_start().starts_with("name") && line.contains('=') {
+                out.push_str(&format!("name = \"{study}\"\n"));
+                named = true;
+                continue;
+            }
+            out.push_str(line);
+            out.push('\n');
+        }
+        out
+    }
 }
 
 /// A plot of a kind's own record columns, per detector, over the flown faulty trials where they are set.

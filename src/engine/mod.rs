@@ -8,6 +8,7 @@ pub mod method;
 pub mod noise;
 pub mod output;
 pub mod paired;
+pub mod progress;
 pub mod quantiles;
 pub mod report;
 pub mod runner;

@@ -18,12 +18,12 @@ use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use indicatif::{ProgressBar, ProgressStyle};
 use polars::prelude::*;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::engine::output::temporary_sibling;
+use crate::engine::progress::Progress;
 
 /// What the runner needs of a study.
 pub trait TrialSource: Sync {
@@ -193,6 +193,7 @@ pub struct RunOptions {
     pub resume: bool,
     /// Replace an existing results folder.
     pub force: bool,
+    /// Progress on stderr (a bar on a terminal, a plain line every few seconds elsewhere).
     pub progress: bool,
     /// Stop after writing this many part files, as if interrupted (time-boxed or preemptible jobs).
     pub stop_after_chunks: Option<u64>,
@@ -285,10 +286,25 @@ pub fn run<S: TrialSource>(source: &S, study_manifest: Manifest, opts: &RunOptio
             dir.display()
         )));
     } else if existing {
-        for name in ["trials.parquet", "thresholds.csv", "summary.csv", "summary.parquet", "comparison.csv"] {
+        // What the old run's summaries wrote would describe trials that are gone.
+        let summaries = [
+            "trials.parquet",
+            "thresholds.csv",
+            "summary.csv",
+            "summary.parquet",
+            "curves.csv",
+            "min_detectable.csv",
+            "detectors.csv",
+            "confusion.csv",
+            "comparison.csv",
+            "summarize.json",
+        ];
+        for name in summaries {
             let _ = std::fs::remove_file(dir.join(name));
         }
-        let _ = std::fs::remove_dir_all(dir.join("parts"));
+        for sub in ["parts", "validation", "report"] {
+            let _ = std::fs::remove_dir_all(dir.join(sub));
+        }
     }
     std::fs::create_dir_all(dir.join("parts")).map_err(io(dir))?;
     manifest.write(dir)?;
@@ -297,11 +313,7 @@ pub fn run<S: TrialSource>(source: &S, study_manifest: Manifest, opts: &RunOptio
         .num_threads(opts.threads.unwrap_or(0))
         .build()
         .map_err(|e| RunError::Internal(format!("thread pool: {e}")))?;
-    let bar = if opts.progress { ProgressBar::new(end - first) } else { ProgressBar::hidden() };
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} {pos}/{len} trials [{elapsed_precise} < {eta_precise}] {per_sec}")
-            .expect("static template"),
-    );
+    let bar = Progress::new(&manifest.study, end - first, opts.progress);
 
     // Simulation and output overlap: a writer thread encodes chunk k (its part file, then its rows
     // appended to trials.parquet) while the pool simulates chunk k + 1. The channel holds one chunk,
@@ -351,7 +363,7 @@ pub fn run<S: TrialSource>(source: &S, study_manifest: Manifest, opts: &RunOptio
         drop(tx);
         writer.join().map_err(|_| RunError::Internal("the trials writer panicked".into()))?
     });
-    bar.finish_and_clear();
+    bar.finish();
     let rows = match outcome? {
         Some(rows) => rows,
         None if first < end => {

@@ -42,6 +42,12 @@ use super::thresholds::{Calibration, DetectorThresholds, SLICE_ROWS, alarm_time,
 /// The threshold sets' names.
 pub const DECK: &str = "deck";
 pub const CALIBRATED: &str = "calibrated";
+/// Another run's thresholds (`summarize --thresholds`) on this run's trials.
+pub const VALIDATION: &str = "validation";
+/// Where `summarize --thresholds` writes, inside the run's folder: the run's own tables stay.
+pub const VALIDATION_DIR: &str = "validation";
+/// What `summarize` was asked and warned of, for the report (`summarize.json`).
+pub const SETTINGS_FILE: &str = "summarize.json";
 
 /// What `summarize` wrote, for printing.
 #[derive(Debug)]
@@ -54,6 +60,36 @@ pub struct Summary {
     pub confusion: DataFrame,
     pub warnings: Vec<String>,
     pub files: Vec<&'static str>,
+    /// The folder the tables went to: the run's, or its `validation/`.
+    pub out_dir: std::path::PathBuf,
+    /// The threshold set beside `deck`: `calibrated` or `validation` (none for kinds without a statistic).
+    pub set: Option<&'static str>,
+}
+
+/// `summarize.json`: the settings and warnings of the summary in a folder.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Settings {
+    /// The threshold set beside `deck` (`calibrated`, `validation`), if any.
+    pub thresholds: Option<String>,
+    /// The false-alarm probability the thresholds are for.
+    pub target_pfa: Option<f64>,
+    /// Where the thresholds came from, as `thresholds.csv`'s `source` says.
+    pub source: Option<String>,
+    pub warnings: Vec<String>,
+}
+
+impl Settings {
+    /// The settings `summarize` left in `dir`, if it left any.
+    pub fn read(dir: &Path) -> Result<Option<Settings>, RunError> {
+        let path = dir.join(SETTINGS_FILE);
+        if !path.exists() {
+            return Ok(None);
+        }
+        let text = std::fs::read_to_string(&path).map_err(super::runner::io(&path))?;
+        serde_json::from_str(&text)
+            .map(Some)
+            .map_err(|e| RunError::Invalid(format!("{}: not a summarize.json of this fdimc ({e})", path.display())))
+    }
 }
 
 /// Distinct strings of the key columns; keys hold their indices.
@@ -562,7 +598,11 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
         let calibration = calibration.cloned().unwrap_or(Calibration::Target(manifest.target_pfa));
         Some(thresholds(&path, &manifest, &statistics, &calibration, &mut warnings)?)
     };
-    let sets: Vec<&'static str> = if thresholds.is_some() { vec![DECK, CALIBRATED] } else { vec![DECK] };
+    let validating = matches!(calibration, Some(Calibration::File(_)));
+    let set = thresholds.as_ref().map(|_| if validating { VALIDATION } else { CALIBRATED });
+    let sets: Vec<&'static str> = [Some(DECK), set].into_iter().flatten().collect();
+    let dir_out = if validating { dir.join(VALIDATION_DIR) } else { dir.to_path_buf() };
+    std::fs::create_dir_all(&dir_out).map_err(super::runner::io(&dir_out))?;
 
     // Only the columns the tables read.
     let mut select: Vec<String> = [
@@ -655,10 +695,10 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     let mut detectors = detector_table(&agg, &sets, spec).map_err(pol(&path))?;
     let mut confusion = confusion_table(&agg, &names).map_err(pol(&path))?;
 
-    let out = |f: &str| dir.join(f);
+    let out = |f: &str| dir_out.join(f);
     let mut files = Vec::new();
     if let Some((t, source)) = &thresholds {
-        write_thresholds(dir, t, &statistics, source)?;
+        write_thresholds(&dir_out, t, &statistics, source)?;
         files.push("thresholds.csv");
     }
     write_table(&mut summary, &out("summary.csv"))?;
@@ -704,7 +744,17 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     if diverged > 0 {
         warnings.push(format!("{diverged} trial x detector units had a filter diverge (diverged in trials.parquet)"));
     }
-    Ok(Summary { statistics, thresholds, summary, detectors, confusion, warnings, files })
+    let settings = Settings {
+        thresholds: set.map(str::to_string),
+        target_pfa: thresholds.as_ref().and_then(|(t, _)| t.first().and_then(|t| t.target_pfa)),
+        source: thresholds.as_ref().map(|(_, s)| s.clone()),
+        warnings: warnings.clone(),
+    };
+    let json = serde_json::to_string_pretty(&settings).map_err(|e| RunError::Internal(e.to_string()))?;
+    let settings_path = out(SETTINGS_FILE);
+    super::runner::write_atomically(&settings_path, json.as_bytes())?;
+    files.push(SETTINGS_FILE);
+    Ok(Summary { statistics, thresholds, summary, detectors, confusion, warnings, files, out_dir: dir_out, set })
 }
 
 /// `detectors.csv` (module docs), sets in order, detectors in the manifest's order.
@@ -822,7 +872,7 @@ fn min_detectable(curves: &DataFrame) -> PolarsResult<DataFrame> {
 /// What `run`, `summarize` and `merge` print: the thresholds (kinds with a statistic), per threshold set
 /// and detector Pd, isolation, delay and Pfa with the kind's printed aggregates, a classifier's
 /// confusion matrices, warnings and the files written.
-pub fn print(dir: &Path, spec: &SummarySpec, s: &Summary) {
+pub fn print(spec: &SummarySpec, s: &Summary) {
     if let Some((thresholds, source)) = &s.thresholds {
         println!("  thresholds: {source}");
         for t in thresholds {
@@ -831,8 +881,12 @@ pub fn print(dir: &Path, spec: &SummarySpec, s: &Summary) {
                 let named = s.statistics.iter().zip(v).map(|(n, v)| format!("{n} {}", significant(*v)));
                 named.collect::<Vec<_>>().join(", ")
             };
+            let (label, trials) = match s.set {
+                Some(VALIDATION) => ("applied", "this run's trials"),
+                _ => ("calibrated", "the calibration trials"),
+            };
             println!(
-                "    {}: calibrated [{}] (deck [{}]); Pfa achieved {}/{} = {:.4} [{lo:.4}, {hi:.4}] on the calibration trials",
+                "    {}: {label} [{}] (deck [{}]); Pfa achieved {}/{} = {:.4} [{lo:.4}, {hi:.4}] on {trials}",
                 t.detector,
                 list(&t.whole),
                 list(&t.deck),
@@ -906,7 +960,7 @@ pub fn print(dir: &Path, spec: &SummarySpec, s: &Summary) {
     for w in &s.warnings {
         println!("  warning: {w}");
     }
-    println!("  wrote {} in {}", s.files.join(", "), dir.display());
+    println!("  wrote {} in {}", s.files.join(", "), s.out_dir.display());
 }
 
 /// A threshold with four significant digits, in scientific notation when it is very small or large.

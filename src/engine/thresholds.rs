@@ -10,7 +10,8 @@
 //!
 //! Calibration units are the fault-free ones flown to the end (their whole duration); without any, the
 //! pre-onset windows of all units. `--thresholds F` applies another run's thresholds instead, and the
-//! rates achieved here validate them on fresh trials. Only the `floor(p n) + 1` largest values are kept
+//! rates achieved here validate them on fresh trials (a warning when the target Pfa they were
+//! calibrated for lies outside the interval achieved here). Only the `floor(p n) + 1` largest values are kept
 //! per statistic, so memory does not grow with the trial count.
 
 use std::cmp::Reverse;
@@ -46,9 +47,13 @@ pub struct DetectorThresholds {
     pub per_statistic: Vec<f64>,
     /// Whole-detector thresholds (`per_statistic * scale`).
     pub whole: Vec<f64>,
+    /// The fault-free units the thresholds were calibrated on, or (`--thresholds`) validated on.
     pub calibration_units: u64,
     pub per_statistic_false_alarms: Vec<u64>,
     pub whole_false_alarms: u64,
+    /// The false-alarm probability the thresholds were calibrated for (`None`: a thresholds file that
+    /// does not say).
+    pub target_pfa: Option<f64>,
 }
 
 /// A detector's first post-onset alarm at thresholds `thr`, from the first-passage profiles of one row:
@@ -191,8 +196,17 @@ pub fn thresholds(
     for_each_slice(path, rows, manifest, &[], fault_free_rows, |s| {
         s.detector.iter().flatten().for_each(|&d| n[d] += 1);
     })?;
+    let target_pfa = match calibration {
+        Calibration::Target(p) => Some(*p),
+        Calibration::File(f) => read_target_pfa(f)?,
+    };
     let source = match calibration {
-        Calibration::File(f) => format!("thresholds from {}", f.display()),
+        Calibration::File(f) => format!(
+            "thresholds from {}{}, validated on this run's {}",
+            f.display(),
+            target_pfa.map_or(String::new(), |p| format!(" (calibrated at Pfa {p})")),
+            if fault_free_rows { "fault-free trials" } else { "pre-onset windows" }
+        ),
         Calibration::Target(p) if fault_free_rows => format!("calibrated at Pfa {p} on the fault-free trials"),
         Calibration::Target(p) => {
             warnings.push(
@@ -290,8 +304,25 @@ pub fn thresholds(
             calibration_units: n[d],
             per_statistic_false_alarms: per_fa[d].clone(),
             whole_false_alarms: whole_fa[d],
+            target_pfa,
         })
-        .collect();
+        .collect::<Vec<_>>();
+    // Thresholds from elsewhere: does this run bear out the false-alarm probability they were made for?
+    if let (Calibration::File(f), Some(p)) = (calibration, target_pfa) {
+        for t in &thresholds {
+            let (lo, hi) = wilson(t.whole_false_alarms, t.calibration_units, Z95);
+            if !(lo <= p && p <= hi) {
+                warnings.push(format!(
+                    "detector {}: the thresholds of {} were calibrated for Pfa {p}, but here {}/{} trials alarm ({:.4} [{lo:.4}, {hi:.4}]): the target is outside the interval",
+                    t.detector,
+                    f.display(),
+                    t.whole_false_alarms,
+                    t.calibration_units,
+                    t.whole_false_alarms as f64 / t.calibration_units.max(1) as f64
+                ));
+            }
+        }
+    }
     Ok((thresholds, source))
 }
 
@@ -304,7 +335,15 @@ pub fn write_thresholds(
 ) -> Result<(), RunError> {
     let path = dir.join("thresholds.csv");
     let (mut detector, mut statistic, mut deck, mut per, mut whole) = (vec![], vec![], vec![], vec![], vec![]);
-    let (mut n, mut fa, mut pfa, mut lo, mut hi) = (vec![], vec![], vec![], vec![], vec![]);
+    let mut n = vec![];
+    // Per statistic rows: that statistic alone over its own threshold; `all` rows: the whole detector.
+    let (mut alone, mut alone_pfa, mut alone_lo, mut alone_hi) = (vec![], vec![], vec![], vec![]);
+    let (mut whole_fa, mut whole_pfa, mut whole_lo, mut whole_hi) = (vec![], vec![], vec![], vec![]);
+    let mut target = vec![];
+    let rate = |k: u64, n: u64| {
+        let (lo, hi) = wilson(k, n, Z95);
+        (n > 0).then(|| (k as f64 / n as f64, lo, hi))
+    };
     for t in thresholds {
         let rows = statistics.iter().enumerate().map(|(j, s)| {
             (
@@ -312,22 +351,29 @@ pub fn write_thresholds(
                 t.deck.get(j).copied(),
                 Some(t.per_statistic[j]),
                 Some(t.whole[j]),
-                t.per_statistic_false_alarms[j],
+                Some(t.per_statistic_false_alarms[j]),
+                None,
             )
         });
-        let all = std::iter::once(("all".to_string(), None, None, None, t.whole_false_alarms));
-        for (s, dk, p, w, k) in rows.chain(all) {
-            let (l, h) = wilson(k, t.calibration_units, Z95);
+        let all = std::iter::once(("all".to_string(), None, None, None, None, Some(t.whole_false_alarms)));
+        for (s, dk, p, w, k_alone, k_whole) in rows.chain(all) {
             detector.push(t.detector.clone());
             statistic.push(s);
             deck.push(dk);
             per.push(p);
             whole.push(w);
             n.push(t.calibration_units);
-            fa.push(k);
-            pfa.push((t.calibration_units > 0).then(|| k as f64 / t.calibration_units as f64));
-            lo.push(l);
-            hi.push(h);
+            let r = k_alone.and_then(|k| rate(k, t.calibration_units));
+            alone.push(k_alone);
+            alone_pfa.push(r.map(|r| r.0));
+            alone_lo.push(r.map(|r| r.1));
+            alone_hi.push(r.map(|r| r.2));
+            let r = k_whole.and_then(|k| rate(k, t.calibration_units));
+            whole_fa.push(k_whole);
+            whole_pfa.push(r.map(|r| r.0));
+            whole_lo.push(r.map(|r| r.1));
+            whole_hi.push(r.map(|r| r.2));
+            target.push(t.target_pfa);
         }
     }
     let height = detector.len();
@@ -337,15 +383,32 @@ pub fn write_thresholds(
         Column::new("deck_threshold".into(), deck),
         Column::new("per_statistic_threshold".into(), per),
         Column::new("detector_threshold".into(), whole),
-        Column::new("calibration_trials".into(), n),
-        Column::new("false_alarms".into(), fa),
-        Column::new("pfa_achieved".into(), pfa),
-        Column::new("pfa_lo".into(), lo),
-        Column::new("pfa_hi".into(), hi),
+        Column::new("trials".into(), n),
+        Column::new("statistic_false_alarms".into(), alone),
+        Column::new("statistic_pfa".into(), alone_pfa),
+        Column::new("statistic_pfa_lo".into(), alone_lo),
+        Column::new("statistic_pfa_hi".into(), alone_hi),
+        Column::new("detector_false_alarms".into(), whole_fa),
+        Column::new("detector_pfa".into(), whole_pfa),
+        Column::new("detector_pfa_lo".into(), whole_lo),
+        Column::new("detector_pfa_hi".into(), whole_hi),
+        Column::new("target_pfa".into(), target),
         Column::new("source".into(), vec![source; height]),
     ])
     .map_err(pol(&path))?;
     Ok(write_table(&mut df, &path)?)
+}
+
+/// The false-alarm probability a `thresholds.csv` was calibrated for (its `target_pfa` column; `None`
+/// in a file without one).
+pub fn read_target_pfa(path: &Path) -> Result<Option<f64>, RunError> {
+    let df = CsvReadOptions::default()
+        .with_has_header(true)
+        .try_into_reader_with_file_path(Some(path.into()))
+        .and_then(|r| r.finish())
+        .map_err(|e| RunError::Invalid(format!("{}: cannot read thresholds ({e})", path.display())))?;
+    let Ok(c) = df.column("target_pfa").and_then(|c| c.cast(&DataType::Float64)) else { return Ok(None) };
+    Ok(c.f64().ok().and_then(|c| c.iter().flatten().next()).filter(|p| *p > 0.0 && *p < 1.0))
 }
 
 /// Reads `thresholds.csv`: per detector, (per-statistic thresholds, whole-detector thresholds) in order.

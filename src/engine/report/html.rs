@@ -12,7 +12,8 @@ pub fn escape(s: &str) -> String {
 /// Rates and probabilities: shown with 3 decimals.
 fn is_rate(name: &str) -> bool {
     let base = name.trim_end_matches("_lo").trim_end_matches("_hi");
-    ["pd", "pfa", "pd_a", "pd_b", "isolated_a", "isolated_b", "share_of_truth", "pfa_achieved"].contains(&base)
+    ["pd", "pd_a", "pd_b", "isolated_a", "isolated_b", "share_of_truth", "pfa_achieved"].contains(&base)
+        || (base.ends_with("pfa") && base != "target_pfa")
         || base.ends_with("accuracy")
         || base.ends_with("_rate")
         || base.ends_with("_recall")

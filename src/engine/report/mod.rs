@@ -26,7 +26,8 @@ use super::intervals::{Z95, wilson};
 use super::method::{Inputs, Method, Opt, OwnPlot};
 use super::runner::{Manifest, RunError, io, read_parquet, write_atomically};
 use super::schema::col;
-use super::tables::{column_names, f64_col, list_col, read_slice, read_summary, str_col};
+use super::summary::Settings;
+use super::tables::{bool_col, column_names, f64_col, list_col, read_slice, read_summary, str_col, u64_col};
 use super::thresholds::{alarm_time, read_thresholds};
 
 /// What a report wrote, for the CLI and tests.
@@ -34,6 +35,8 @@ use super::thresholds::{alarm_time, read_thresholds};
 pub struct Report {
     pub files: Vec<PathBuf>,
     pub warnings: Vec<String>,
+    /// Which trials the traces show and why, when the report picked them (HTML).
+    pub trace_note: String,
 }
 
 /// What a method adds to the shared report: plots it drew into `ReportContext::out` and sections of
@@ -158,7 +161,22 @@ pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Repor
     }
     report.files.extend(own_files.iter().cloned());
 
-    let context = ReportContext { dir, out: &out, manifest: &manifest, trials };
+    // Without --trials, the trials a reader wants to see first (where the kind can draw traces).
+    let picked = if trials.is_empty() && (!method.trace_panels.is_empty() || method.report.is_some()) {
+        representative_trials(dir, &manifest)?
+    } else {
+        Vec::new()
+    };
+    let chosen: Vec<u64> = if trials.is_empty() { picked.iter().map(|p| p.0).collect() } else { trials.to_vec() };
+    if !picked.is_empty() {
+        let list: Vec<String> = picked.iter().map(|(t, why)| format!("{t} ({why})")).collect();
+        report.trace_note = format!(
+            " Trials picked for detector {} (give <code>--trials</code> for others): {}.",
+            html::escape(&manifest.detectors[0]),
+            list.join(", ")
+        );
+    }
+    let context = ReportContext { dir, out: &out, manifest: &manifest, trials: &chosen };
     let part = match method.report {
         Some(own) => own(&context)?,
         None => ReportPart::default(),
@@ -171,22 +189,78 @@ pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Repor
 
     let summary = read_parquet(&dir.join("summary.parquet"))?;
     report.warnings.extend(health_warnings(&summary));
-    for (d, dd) in &data {
-        let n = dd.z_fault_free.len();
-        if calibrates && (n as f64) * manifest.target_pfa < 1.0 {
-            report.warnings.push(format!(
-                "detector {d}: {n} fault-free trials cannot resolve the target Pfa {} (needs {})",
-                manifest.target_pfa,
-                (1.0 / manifest.target_pfa).ceil()
-            ));
+    // What `summarize` was asked (its target Pfa) and warned of; a folder summarized by an older fdimc
+    // has no settings, and the report checks the deck's target itself.
+    let settings = Settings::read(dir)?;
+    let mut shown = manifest.clone();
+    match &settings {
+        Some(s) => {
+            shown.target_pfa = s.target_pfa.unwrap_or(manifest.target_pfa);
+            report.warnings.extend(s.warnings.iter().map(|w| format!("summarize: {w}")));
+        }
+        None => {
+            for (d, dd) in &data {
+                let n = dd.z_fault_free.len();
+                if calibrates && (n as f64) * manifest.target_pfa < 1.0 {
+                    report.warnings.push(format!(
+                        "detector {d}: {n} fault-free trials cannot resolve the target Pfa {} (needs {})",
+                        manifest.target_pfa,
+                        (1.0 / manifest.target_pfa).ceil()
+                    ));
+                }
+            }
         }
     }
 
     let html = out.join("report.html");
-    let page = page(dir, &manifest, &report, &part.sections, &own_files, set, &false_alarms)?;
+    let page = page(dir, &shown, &report, &part.sections, &own_files, set, &false_alarms)?;
     write_atomically(&html, page.as_bytes())?;
     report.files.push(html);
     Ok(report)
+}
+
+/// The first detector's first detected fault, first missed fault and first false alarm (those the run
+/// has), each with why it was picked; trials in order, each once.
+fn representative_trials(dir: &Path, manifest: &Manifest) -> Result<Vec<(u64, &'static str)>, RunError> {
+    let path = dir.join("trials.parquet");
+    let select: Vec<String> =
+        [col::TRIAL, col::DETECTOR, col::FAULT_FREE, col::DETECTED, col::FALSE_ALARM, col::FAILURE]
+            .iter()
+            .map(|c| c.to_string())
+            .collect();
+    let detector = manifest.detectors.first().map(String::as_str).unwrap_or_default();
+    let mut found: [Option<u64>; 3] = [None; 3];
+    let mut offset = 0;
+    while offset < manifest.rows as usize && found.iter().any(Option::is_none) {
+        let df = read_slice(&path, offset, super::thresholds::SLICE_ROWS, Some(select.clone()))?;
+        let (trial, det) = (u64_col(&df, col::TRIAL, &path)?, str_col(&df, col::DETECTOR, &path)?);
+        let (fault_free, detected) = (bool_col(&df, col::FAULT_FREE, &path)?, bool_col(&df, col::DETECTED, &path)?);
+        let (false_alarm, failure) = (bool_col(&df, col::FALSE_ALARM, &path)?, str_col(&df, col::FAILURE, &path)?);
+        for i in 0..df.height() {
+            if det.get(i) != Some(detector) || failure.get(i).is_some() {
+                continue;
+            }
+            let (Some(t), Some(ff), Some(hit), Some(fa)) =
+                (trial.get(i), fault_free.get(i), detected.get(i), false_alarm.get(i))
+            else {
+                continue;
+            };
+            for (slot, wanted) in found.iter_mut().zip([!ff && hit, !ff && !hit, fa]) {
+                if wanted && slot.is_none() {
+                    *slot = Some(t);
+                }
+            }
+        }
+        offset += super::thresholds::SLICE_ROWS;
+    }
+    let mut picked: Vec<(u64, &'static str)> = Vec::new();
+    for (t, why) in found.into_iter().zip(["first detected fault", "first missed fault", "first false alarm"]) {
+        if let Some(t) = t.filter(|t| !picked.iter().any(|p| p.0 == *t)) {
+            picked.push((t, why));
+        }
+    }
+    picked.sort_unstable();
+    Ok(picked)
 }
 
 fn internal(file: &Path) -> impl FnOnce(String) -> RunError + '_ {
@@ -603,7 +677,11 @@ fn page(
     for (title, content) in own {
         section(&escape(title), "", content.clone());
     }
-    section("Traces", "Re-flown from the run's deck with <code>fdimc simulate</code>.", figures("trace_"));
+    section(
+        "Traces",
+        &format!("Re-flown from the run's deck with <code>fdimc simulate</code>.{}", r.trace_note),
+        figures("trace_"),
+    );
     let warnings = if r.warnings.is_empty() {
         "<p>None.</p>".to_string()
     } else {

@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use super::ekf_svm::SvmKernel;
 use super::study::AccelerometerStudy;
 use super::trial::TrainedClassifiers;
 use crate::engine::output::Trace;
@@ -32,8 +33,15 @@ pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
     println!("features    {} samples from {} s after the onset", d.features.window_len, d.window_delay_s);
     let t = &study.training;
     println!(
-        "training    {} trials per class from seed {} at noise scales {:?}; SVM {:?}, C {}",
-        t.trials_per_class, t.seed, t.noise_scales, t.svm.kernel, t.svm.c
+        "training    {} trials per class from seed {} at noise scales {:?}; SVM kernel {}, C {}",
+        t.trials_per_class,
+        t.seed,
+        t.noise_scales,
+        match t.svm.kernel {
+            SvmKernel::Linear => "linear".to_string(),
+            SvmKernel::Gaussian { gamma } => format!("gaussian (gamma {gamma:.4})"),
+        },
+        t.svm.c
     );
     println!(
         "detection   T over {} samples, threshold {}, counted from {} s",

@@ -40,6 +40,7 @@ pub static METHOD: Method = Method {
         TracePanel { title: "alarm", columns: &["alarm"] },
     ],
     own_plots: &[],
+    starter: ("studies/ci_seed003.toml", include_str!("../../../studies/ci_seed003.toml")),
 };
 
 impl Study for AccelerometerStudy {

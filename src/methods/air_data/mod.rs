@@ -71,6 +71,7 @@ pub static METHOD: Method = Method {
         y: "estimate_rms_sigma",
         diagonal: true,
     }],
+    starter: ("studies/ci_seed002.toml", include_str!("../../../studies/ci_seed002.toml")),
 };
 
 impl Study for AirDataStudy {

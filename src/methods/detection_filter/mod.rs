@@ -56,6 +56,7 @@ pub static METHOD: Method = Method {
     report: Some(report::report_part),
     trace_panels: &[],
     own_plots: &[],
+    starter: ("studies/ci_seed000.toml", include_str!("../../../studies/ci_seed000.toml")),
 };
 
 impl Study for LtiStudy {

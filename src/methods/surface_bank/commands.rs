@@ -4,14 +4,15 @@ use std::path::Path;
 
 use super::actuator::ActuatorFaultKind;
 use super::scenario::SurfaceScenarioSampler;
-use super::stmmae::{BankParams, MODELS};
-use super::study::SurfaceStudy;
+use super::stmmae::{CovarianceForm, MODELS};
+use super::study::{SurfaceFaultSpec, SurfaceStudy};
 use super::trial::{SurfaceTrial, run_banks};
 use super::uav::{AerosondeParams, SURFACE_NAMES, trim};
 use crate::engine::method::select_detector;
 use crate::engine::output::Trace;
 use crate::engine::runner::RunError;
 use crate::engine::streams::{Substream, noise_rng};
+use crate::estimation::bank::LikelihoodForm;
 
 /// The resolved control-surface study (method 004).
 pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
@@ -58,9 +59,18 @@ pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
         println!("fault       {}: {what}, from {} s to {until}", SURFACE_NAMES[f.surface], f.onset_s);
     }
     for (name, p) in &study.banks {
-        let BankParams { covariance, likelihood, .. } = p;
+        // As the deck spells them.
+        let covariance = match p.covariance {
+            CovarianceForm::Ekf => "ekf",
+            CovarianceForm::StrongTracking => "strong_tracking",
+            CovarianceForm::SymmetricStrongTracking => "symmetric_strong_tracking",
+        };
+        let likelihood = match p.likelihood {
+            LikelihoodForm::Gaussian => "gaussian",
+            LikelihoodForm::EuclideanNorm => "euclidean_norm",
+        };
         println!(
-            "bank        {name}: {covariance:?} covariance, {likelihood:?} likelihood, R_W {:?}/s, R_V {:?}, rho {}, beta {}",
+            "bank        {name}: covariance {covariance}, likelihood {likelihood}, R_W {:?}/s, R_V {:?}, rho {}, beta {}",
             p.process_variance_per_s, p.measurement_variance, p.rho, p.beta
         );
     }
@@ -80,7 +90,14 @@ pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
             mc.common.onset_s
         );
         for f in &mc.faults {
-            println!("            fault kind {}: {f:?}", f.name());
+            let what = match f {
+                SurfaceFaultSpec::Stuck { position_deg } => format!("position {position_deg} deg"),
+                SurfaceFaultSpec::Oscillation { amplitude_deg, center_deg, period_s } => {
+                    format!("amplitude {amplitude_deg} deg about {center_deg} deg, period {period_s} s")
+                }
+                SurfaceFaultSpec::LossOfEffectiveness { effectiveness } => format!("effectiveness {effectiveness}"),
+            };
+            println!("            fault kind {}: {what}", f.name());
         }
     }
     for pe in &mc.parameter_errors {

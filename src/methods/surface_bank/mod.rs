@@ -79,6 +79,7 @@ pub static METHOD: Method = Method {
             column: "post_fault_declarations",
         },
     ],
+    starter: ("studies/ci_seed004.toml", include_str!("../../../studies/ci_seed004.toml")),
 };
 
 impl Study for SurfaceStudy {

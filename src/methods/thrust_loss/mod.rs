@@ -66,6 +66,7 @@ pub static METHOD: Method = Method {
         y: records::col::LOSS_ERROR_PERCENT,
         diagonal: false,
     }],
+    starter: ("studies/ci_seed001.toml", include_str!("../../../studies/ci_seed001.toml")),
 };
 
 impl Study for LaunchStudy {
