@@ -398,6 +398,26 @@ fn records_are_identical_for_any_threads_shards_and_resume() {
     args.extend(["--out", merged_tiny.as_str()]);
     ok(&fdimc(&args));
     assert_eq!(read_frame(&dir("tiny").join("trials.parquet")).height(), 6);
+    // A missing, a doubled or a foreign shard is refused, and nothing is written.
+    let other = s(dir("other3"));
+    ok(&fdimc(&["run", CI_DECK, "--trials", "3", "--seed", "99", "--shard", "3/4", "--out", &other]));
+    let bad = s(dir("bad"));
+    for (shards, want) in [
+        (vec![&tiny[0], &tiny[1], &tiny[2]], "need shards 0..4 exactly once each, got [0, 1, 2]"),
+        (vec![&tiny[0], &tiny[1], &tiny[1], &tiny[2], &tiny[3]], "got [0, 1, 1, 2, 3]"),
+        (
+            vec![&tiny[0], &tiny[1], &tiny[2], &other],
+            "other3: from another run (deck, seed, trial count or shard count",
+        ),
+    ] {
+        let mut args = vec!["merge"];
+        args.extend(shards.iter().map(|s| s.as_str()));
+        args.extend(["--out", bad.as_str()]);
+        let out = fdimc(&args);
+        assert_eq!(out.status.code(), Some(2), "{shards:?}");
+        assert!(text(&out.stderr).contains(want), "{}", text(&out.stderr));
+        assert!(!dir("bad").exists(), "a refused merge writes nothing");
+    }
     // The summaries agree too.
     let a = std::fs::read_to_string(dir("one").join("summary.csv")).unwrap();
     assert_eq!(a, std::fs::read_to_string(dir("merged").join("summary.csv")).unwrap());
@@ -708,6 +728,17 @@ fn accelerometer_classifiers_train_save_load_and_runs_are_identical() {
     let loaded = s(tmp.path().join("loaded"));
     ok(&fdimc(&["run", deck, "--classifiers", &file, "--out", &loaded]));
     assert!(reference.equals_missing(&read_frame(&Path::new(&loaded).join("trials.parquet"))));
+    // Classifiers of other features (another sample period) are refused, not applied.
+    let coarse = edited_deck(tmp.path(), "ci_seed003.toml", &[("dt_s = 0.01", "dt_s = 0.02")], "coarse.toml");
+    let out = fdimc(&["run", coarse.to_str().unwrap(), "--classifiers", &file, "--out", &s(tmp.path().join("c"))]);
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("classifiers.json: trained for \"ci_seed003\" on windows of 100 samples every 0.01 s, but ")
+            && stderr.contains("coarse.toml computes windows of 100 samples every 0.02 s: train for this deck"),
+        "{stderr}"
+    );
+    assert!(!tmp.path().join("c").join("trials.parquet").exists());
 
     // `simulate --trial N` classifies trial N as the run did.
     use polars::prelude::*;

@@ -222,9 +222,16 @@ mod tests {
         let lambda = [-1.0, -2.0, -3.0, -4.0, -5.0];
         let printed = seed000_printed_k();
 
-        // As printed, the closed loop is not diag(-1..-5): it even has an unstable eigenvalue near +2.467.
+        // As printed, the closed loop is not diag(-1..-5): it even has an unstable eigenvalue. Reference:
+        // numpy.linalg.eigvals(A - K C) of these matrices (LAPACK dgeev): 2.466879353141456, -1,
+        // -3.882007220087202, -5, -5.747472133054259.
         let (ev, _) = eigen_report(&(&A - &printed * &C)).unwrap();
-        assert!((ev[0].re - 2.4669).abs() < 1e-3 && ev[0].im.abs() < 1e-9, "{ev:?}");
+        let mut re: Vec<f64> = ev.iter().map(|e| e.re).collect();
+        re.sort_by(|a, b| b.total_cmp(a));
+        for (got, want) in re.iter().zip([2.466879353141456, -1.0, -3.882007220087202, -5.0, -5.747472133054259]) {
+            assert!((got - want).abs() < 1e-9, "{re:?}");
+        }
+        assert!(ev.iter().all(|e| e.im.abs() < 1e-9), "{ev:?}");
 
         let ours = assign_eigenstructure(&A, &C, &DMatrix::identity(5, 5), &lambda, Domain::Continuous).unwrap().K;
         let mut swapped = printed.clone();

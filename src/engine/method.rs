@@ -51,8 +51,8 @@ impl Method {
         };
         let mut out = format!(
             "# A deck of kind {kind} ({title}), written by `fdimc new {kind}` from {source}.\n\
-             # `fdimc validate` shows what it resolves to, `fdimc run` writes results/{study}/; every table and\n\
-             # field: the README's \"The study deck\" and the decks in studies/.\n\n",
+             # `fdimc validate` shows what it resolves to, `fdimc run` writes results/{study}/; every table\n\
+             # and field of every kind: docs/deck.md in fdimc's repository.\n\n",
             kind = self.kind,
             title = self.title,
         );

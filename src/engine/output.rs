@@ -17,6 +17,11 @@ pub enum OutputError {
     Polars { file: PathBuf, source: PolarsError },
 }
 
+/// The tables `summarize` writes for every run (beside them, where they apply: thresholds.csv,
+/// comparison.csv; and summarize.json).
+pub const SUMMARY_TABLES: [&str; 6] =
+    ["summary.csv", "summary.parquet", "curves.csv", "min_detectable.csv", "detectors.csv", "confusion.csv"];
+
 /// Table formats fdimc writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TableFormat {

@@ -287,19 +287,8 @@ pub fn run<S: TrialSource>(source: &S, study_manifest: Manifest, opts: &RunOptio
         )));
     } else if existing {
         // What the old run's summaries wrote would describe trials that are gone.
-        let summaries = [
-            "trials.parquet",
-            "thresholds.csv",
-            "summary.csv",
-            "summary.parquet",
-            "curves.csv",
-            "min_detectable.csv",
-            "detectors.csv",
-            "confusion.csv",
-            "comparison.csv",
-            "summarize.json",
-        ];
-        for name in summaries {
+        let summaries = ["trials.parquet", "thresholds.csv", "comparison.csv", "summarize.json"];
+        for name in summaries.into_iter().chain(crate::engine::output::SUMMARY_TABLES) {
             let _ = std::fs::remove_file(dir.join(name));
         }
         for sub in ["parts", "validation", "report"] {

@@ -707,14 +707,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     write_table(&mut min_detectable, &out("min_detectable.csv"))?;
     write_table(&mut detectors, &out("detectors.csv"))?;
     write_table(&mut confusion, &out("confusion.csv"))?;
-    files.extend([
-        "summary.csv",
-        "summary.parquet",
-        "curves.csv",
-        "min_detectable.csv",
-        "detectors.csv",
-        "confusion.csv",
-    ]);
+    files.extend(super::output::SUMMARY_TABLES);
     if manifest.detectors.len() > 1 {
         let mut all: Option<DataFrame> = None;
         for (set, pairs) in sets.iter().zip(std::mem::take(&mut agg.pairs)) {

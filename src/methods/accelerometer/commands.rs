@@ -68,7 +68,7 @@ pub fn simulate(
     use crate::methods::accelerometer::AccelerometerTrials;
     use crate::methods::accelerometer::trial::{DETECTORS, TrainedClassifiers};
     let trained = match classifiers {
-        Some(file) => TrainedClassifiers::load(file)?,
+        Some(file) => TrainedClassifiers::load(file, study)?,
         None => TrainedClassifiers::train(study)
             .map_err(|e| RunError::Invalid(format!("{}: {e}", study.header.path.display())))?,
     };

@@ -62,8 +62,8 @@ impl Study for AccelerometerStudy {
         // results once the run has started, so a refused run leaves the folder as it was.
         let beside = opts.out_dir.join("classifiers.json");
         let (classifiers, write_beside) = match inputs.classifiers {
-            Some(file) => (TrainedClassifiers::load(file)?, true),
-            None if opts.resume && beside.exists() => (TrainedClassifiers::load(&beside)?, false),
+            Some(file) => (TrainedClassifiers::load(file, self)?, true),
+            None if opts.resume && beside.exists() => (TrainedClassifiers::load(&beside, self)?, false),
             None => {
                 if !inputs.quiet {
                     eprintln!(

@@ -23,7 +23,7 @@ use serde::{Deserialize, Serialize};
 use crate::engine::runner::{RunError, write_atomically};
 use crate::engine::streams::{Substream, trial_rng};
 use crate::methods::accelerometer::attitude::AttitudeHealth;
-use crate::methods::accelerometer::ekf_svm::{Classifier, FaultClass, Scheme};
+use crate::methods::accelerometer::ekf_svm::{Classifier, FaultClass, FeatureParams, Scheme};
 use crate::methods::accelerometer::study::AccelerometerStudy;
 
 /// The two classifiers of a study, trained on the same examples, as a file holds them.
@@ -88,12 +88,28 @@ impl TrainedClassifiers {
 
     /// Reads classifiers written by [`TrainedClassifiers::save`]; a file that is not one is the user's
     /// input to fix.
-    pub fn load(path: &Path) -> Result<TrainedClassifiers, RunError> {
+    /// Reads classifiers `fdimc train` wrote, refusing ones whose features are not `study`'s (another
+    /// sample period or window would fail every trial, or worse, classify different features).
+    pub fn load(path: &Path, study: &AccelerometerStudy) -> Result<TrainedClassifiers, RunError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| RunError::Invalid(format!("{}: cannot read the classifiers ({e})", path.display())))?;
-        serde_json::from_str(&text).map_err(|e| {
+        let trained: TrainedClassifiers = serde_json::from_str(&text).map_err(|e| {
             RunError::Invalid(format!("{}: not classifiers written by `fdimc train` ({e})", path.display()))
-        })
+        })?;
+        let wanted = study.design.features;
+        if let Some(c) = [&trained.tree, &trained.flat].into_iter().find(|c| c.features != wanted) {
+            let f = |p: &FeatureParams| format!("{} samples every {} s", p.window_len, p.dt_s);
+            return Err(RunError::Invalid(format!(
+                "{}: trained for {:?} on windows of {}, but {} computes windows of {}: train for this deck (`fdimc train {}`)",
+                path.display(),
+                trained.study,
+                f(&c.features),
+                study.header.path.display(),
+                f(&wanted),
+                study.header.path.display()
+            )));
+        }
+        Ok(trained)
     }
 
     pub(crate) fn get(&self, detector: usize) -> &Classifier {

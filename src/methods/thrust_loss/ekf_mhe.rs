@@ -928,6 +928,17 @@ mod tests {
         let design = seed_design();
         let none = design.peak_fhat(&LaunchVehicleConfig::default(), None, 20.0, 3.0).unwrap();
         assert!(none < 1e-15, "{none:e}");
+        // Losses the fit never saw, between its points and on the other engines: within 1.5 points (measured
+        // -0.41, -0.32, -1.05 on engine 2, -0.42).
+        for (engine, loss) in [(0, 12.5), (2, 27.5), (1, 42.5), (3, 57.5)] {
+            let fault = ThrustFault { engine, loss_fraction: loss / 100.0, onset_s: 20.0 };
+            let peak = design.peak_fhat(&LaunchVehicleConfig::default(), Some(fault), 20.0, 3.0).unwrap();
+            assert!(
+                (fit.loss_percent(peak) - loss).abs() < 1.5,
+                "{loss} % on engine {engine}: {}",
+                fit.loss_percent(peak)
+            );
+        }
     }
 
     /// Each engine, on noisy flights (the seed's 30 % at 25 s, and 50 % at 50 s): no alarm before the
