@@ -183,12 +183,24 @@ impl Validator<'_> {
         Ok(FaultKindSpec { kind, size })
     }
 
-    pub(crate) fn fault(&self, i: usize, f: &FaultSection, outputs: &[String]) -> Result<SensorFault, DeckError> {
+    /// `[[faults]][i]`: its output among `outputs` (named `list` in messages), an onset within the
+    /// trial (a fault after the end would never happen), a size its kind accepts.
+    pub(crate) fn fault(
+        &self,
+        i: usize,
+        f: &FaultSection,
+        outputs: &[String],
+        list: &str,
+        duration_s: f64,
+    ) -> Result<SensorFault, DeckError> {
         let field = |name: &str| format!("faults[{i}].{name}");
-        let channel = self.index_of(&field("output"), &f.output, outputs, "plant.outputs")?;
+        let channel = self.index_of(&field("output"), &f.output, outputs, list)?;
         let onset_s = self.finite(&field("onset_s"), f.onset_s)?;
-        if onset_s < 0.0 {
-            return Err(self.err(field("onset_s"), format!("must be >= 0, got {onset_s}")));
+        if !(0.0..duration_s).contains(&onset_s) {
+            return Err(self.err(
+                field("onset_s"),
+                format!("{onset_s} s: allowed 0 <= onset_s < duration_s = {duration_s} (within the trial)"),
+            ));
         }
         let size = match f.size {
             Some(v) => Some(self.finite(&field("size"), v)?),

@@ -228,14 +228,12 @@ impl FromDeck for AirDataStudy {
         }
 
         let outputs: Vec<String> = AIR_DATA_CHANNEL_NAMES.iter().map(|s| s.to_string()).collect();
-        let faults =
-            deck.faults.iter().enumerate().map(|(i, f)| v.fault(i, f, &outputs)).collect::<Result<Vec<_>, _>>()?;
-        if let Some((i, f)) = faults.iter().enumerate().find(|(_, f)| f.onset_s >= duration_s) {
-            return Err(v.err(
-                format!("faults[{i}].onset_s"),
-                format!("{} s is not within the flight (duration_s = {duration_s})", f.onset_s),
-            ));
-        }
+        let faults = deck
+            .faults
+            .iter()
+            .enumerate()
+            .map(|(i, f)| v.fault(i, f, &outputs, "the air-data outputs", duration_s))
+            .collect::<Result<Vec<_>, _>>()?;
 
         let monte_carlo =
             monte_carlo(&v, deck.monte_carlo, duration_s, &outputs, !faults.is_empty(), wind.gust_std_mps)?;

@@ -239,7 +239,7 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
 
     let mut faults = Vec::with_capacity(deck.faults.len());
     for (i, f) in deck.faults.iter().enumerate() {
-        faults.push(chk.fault(i, f, &p.outputs)?);
+        faults.push(chk.fault(i, f, &p.outputs, "plant.outputs", duration_s)?);
     }
     let monte_carlo = monte_carlo(chk, deck.monte_carlo, &plant, duration_s)?;
     if !monte_carlo.faults.is_empty() && !faults.is_empty() {
