@@ -991,6 +991,12 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
         md.column("target").unwrap().str().unwrap().clone(),
         md.column("min_size_pd90").unwrap().f64().unwrap().clone(),
     );
+    // Each row says its size's unit (the bias sizes of this deck are in sensor sigmas).
+    let (kinds, units) = (md.column("kind").unwrap().str().unwrap(), md.column("size_unit").unwrap().str().unwrap());
+    for i in 0..md.height() {
+        let want = if kinds.get(i) == Some("bias") { "multiples of the sensor sigma" } else { "none" };
+        assert_eq!(units.get(i), Some(want), "row {i} ({:?})", kinds.get(i));
+    }
     let legend = |output: &str| -> String {
         let i = (0..md.height())
             .find(|&i| det.get(i) == Some("seed") && out.get(i) == Some(output))

@@ -691,6 +691,9 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     let curve_keys = KeyColumns { names: keys.names[..5].to_vec(), text: keys.text[..5].to_vec() };
     let mut curves = group_table(&curve_groups, &curve_keys, &names, &sets, spec, false).map_err(pol(&path))?;
     let mut min_detectable = min_detectable(&curves).map_err(pol(&path))?;
+    for df in [&mut summary, &mut curves, &mut min_detectable] {
+        with_size_unit(df, &manifest.fault_size_units).map_err(pol(&path))?;
+    }
 
     let mut detectors = detector_table(&agg, &sets, spec).map_err(pol(&path))?;
     let mut confusion = confusion_table(&agg, &names).map_err(pol(&path))?;
@@ -860,6 +863,15 @@ fn min_detectable(curves: &DataFrame) -> PolarsResult<DataFrame> {
         Column::new("min_size_pd90".into(), rows.iter().map(|r| r.1.map(|x| x.1)).collect::<Vec<_>>()),
         Column::new("min_size_pd90_lower_bound".into(), rows.iter().map(|r| r.2.map(|x| x.1)).collect::<Vec<_>>()),
     ])
+}
+
+/// Appends `size_unit`, the unit of each row's fault size (and `size_bin`, `min_size_pd90`), from the
+/// manifest's units per fault kind: last, so that `check`'s key columns (those before `trials`) stay.
+fn with_size_unit(df: &mut DataFrame, units: &std::collections::BTreeMap<String, String>) -> PolarsResult<()> {
+    let kinds = df.column(col::KIND)?.str()?.clone();
+    let unit: Vec<Option<&str>> = kinds.iter().map(|k| k.and_then(|k| units.get(k)).map(String::as_str)).collect();
+    df.with_column(Column::new("size_unit".into(), unit))?;
+    Ok(())
 }
 
 /// What `run`, `summarize` and `merge` print: the thresholds (kinds with a statistic), per threshold set
