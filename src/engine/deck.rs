@@ -273,6 +273,19 @@ impl Validator<'_> {
         Ok(())
     }
 
+    /// A deck gives faults one way: a fixed scenario (`fixed`, e.g. `[[faults]]`) or a sampled population
+    /// (`sampled`), not both (the population would silently replace the scenario).
+    pub(crate) fn one_fault_source(&self, fixed: &str, sampled: &str, both: bool) -> Result<(), DeckError> {
+        if both {
+            let table = fixed.trim_matches(['[', ']']);
+            return Err(self.err(
+                table,
+                format!("give either a fixed scenario ({fixed}) or a sampled population ({sampled}), not both"),
+            ));
+        }
+        Ok(())
+    }
+
     pub(crate) fn index_of(&self, field: &str, name: &str, names: &[String], list: &str) -> Result<usize, DeckError> {
         names
             .iter()

@@ -251,6 +251,11 @@ impl FromDeck for AirDataStudy {
         };
         AirDataScenario::new(params).map_err(|e| v.err("flight", e.to_string()))?;
 
+        v.one_fault_source(
+            "[[faults]]",
+            "[[monte_carlo.fault]]",
+            !monte_carlo.faults.is_empty() && !faults.is_empty(),
+        )?;
         Ok(AirDataStudy {
             header,
             profile_name: f.profile.clone(),

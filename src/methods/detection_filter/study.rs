@@ -242,12 +242,7 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
         faults.push(chk.fault(i, f, &p.outputs, "plant.outputs", duration_s)?);
     }
     let monte_carlo = monte_carlo(chk, deck.monte_carlo, &plant, duration_s)?;
-    if !monte_carlo.faults.is_empty() && !faults.is_empty() {
-        return Err(chk.err(
-            "faults",
-            "give either a fixed scenario ([[faults]]) or a sampled population ([[monte_carlo.fault]]), not both",
-        ));
-    }
+    chk.one_fault_source("[[faults]]", "[[monte_carlo.fault]]", !monte_carlo.faults.is_empty() && !faults.is_empty())?;
 
     Ok(LtiStudy {
         header,

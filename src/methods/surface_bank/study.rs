@@ -475,6 +475,11 @@ impl FromDeck for SurfaceStudy {
         }
 
         let monte_carlo = monte_carlo(&v, deck.monte_carlo, duration_s, &faults)?;
+        v.one_fault_source(
+            "[[surface_fault]]",
+            "[[monte_carlo.fault]]",
+            !monte_carlo.faults.is_empty() && !faults.is_empty(),
+        )?;
 
         Ok(SurfaceStudy {
             header,
