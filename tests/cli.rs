@@ -1067,6 +1067,17 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
     assert!(note.contains(" (first detected fault)") && note.contains(" (first missed fault)"), "{note}");
     let drawn = html.matches("src=\"trace_trial").count();
     assert_eq!(drawn, note.matches(" (first ").count(), "one trace per picked trial: {note}");
+    // From another folder the run's deck (a relative path) is not there: the report is still written,
+    // without picked traces, and says why.
+    let elsewhere = Command::new(env!("CARGO_BIN_EXE_fdimc"))
+        .args(["report", dir.canonicalize().unwrap().to_str().unwrap()])
+        .current_dir(tmp.path())
+        .output()
+        .unwrap();
+    ok(&elsewhere);
+    let html = std::fs::read_to_string(report.join("report.html")).unwrap();
+    assert!(html.contains("no traces: the run's deck studies/ci_seed000.toml is missing"), "{html}");
+    assert_eq!(html.matches("src=\"trace_trial").count(), 0);
     // A trial outside the run is refused.
     let out = fdimc(&["report", d, "--trials", "1500"]);
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));

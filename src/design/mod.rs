@@ -68,7 +68,8 @@ pub struct Assignment {
     /// 2-norm condition number of the eigenvector matrix of `A - K C` (large = eigenvalues sensitive to
     /// model error, the robustness question the Monte Carlo study answers empirically).
     pub eigenvector_condition: f64,
-    /// `|(A - K C) F - F Lambda|_F / |A F|_F`: how exactly the pairs were assigned.
+    /// `|(A - K C) F - F Lambda|_F / |A F|_F`: how exactly the pairs were assigned (NaN for a gain that
+    /// assigns none, such as a Kalman filter's).
     pub relative_residual: f64,
 }
 

@@ -70,22 +70,23 @@ pub struct TraceRow<'t> {
 
 impl TraceRow<'_> {
     pub fn float(&mut self, name: impl FnOnce() -> String, value: f64) -> &mut Self {
-        if self.trace.float_columns.len() <= self.float {
-            self.trace.float_columns.push((name(), Vec::new()));
-        }
-        self.trace.float_columns[self.float].1.push(value);
-        self.float += 1;
+        push(&mut self.trace.float_columns, &mut self.float, name, value);
         self
     }
 
     pub fn flag(&mut self, name: impl FnOnce() -> String, value: bool) -> &mut Self {
-        if self.trace.bool_columns.len() <= self.flag {
-            self.trace.bool_columns.push((name(), Vec::new()));
-        }
-        self.trace.bool_columns[self.flag].1.push(value);
-        self.flag += 1;
+        push(&mut self.trace.bool_columns, &mut self.flag, name, value);
         self
     }
+}
+
+/// `value` into column `*next` of `columns` (named by `name` the first time), then the next column.
+fn push<T>(columns: &mut Vec<(String, Vec<T>)>, next: &mut usize, name: impl FnOnce() -> String, value: T) {
+    if columns.len() <= *next {
+        columns.push((name(), Vec::new()));
+    }
+    columns[*next].1.push(value);
+    *next += 1;
 }
 
 /// Turns a trace into a data frame, columns in trace order.

@@ -24,7 +24,7 @@ use super::intervals::{Z95, wilson};
 use super::output::write_table;
 use super::runner::{Manifest, RunError, pol};
 use super::schema::col;
-use super::tables::{bool_col, read_slice, str_col};
+use super::tables::{bool_col, read_slice, read_summary, str_col};
 
 /// Rows read at a time.
 pub const SLICE_ROWS: usize = 16_384;
@@ -402,11 +402,7 @@ pub fn write_thresholds(
 /// The false-alarm probability a `thresholds.csv` was calibrated for (its `target_pfa` column; `None`
 /// in a file without one).
 pub fn read_target_pfa(path: &Path) -> Result<Option<f64>, RunError> {
-    let df = CsvReadOptions::default()
-        .with_has_header(true)
-        .try_into_reader_with_file_path(Some(path.into()))
-        .and_then(|r| r.finish())
-        .map_err(|e| RunError::Invalid(format!("{}: cannot read thresholds ({e})", path.display())))?;
+    let df = read_summary(path)?;
     let Ok(c) = df.column("target_pfa").and_then(|c| c.cast(&DataType::Float64)) else { return Ok(None) };
     Ok(c.f64().ok().and_then(|c| c.iter().flatten().next()).filter(|p| *p > 0.0 && *p < 1.0))
 }
@@ -414,11 +410,7 @@ pub fn read_target_pfa(path: &Path) -> Result<Option<f64>, RunError> {
 /// Reads `thresholds.csv`: per detector, (per-statistic thresholds, whole-detector thresholds) in order.
 #[allow(clippy::type_complexity)]
 pub fn read_thresholds(path: &Path) -> Result<Vec<(String, Vec<f64>, Vec<f64>)>, RunError> {
-    let df = CsvReadOptions::default()
-        .with_has_header(true)
-        .try_into_reader_with_file_path(Some(path.into()))
-        .and_then(|r| r.finish())
-        .map_err(|e| RunError::Invalid(format!("{}: cannot read thresholds ({e})", path.display())))?;
+    let df = read_summary(path)?;
     let bad = |what: &str| RunError::Invalid(format!("{}: not an fdimc thresholds.csv ({what})", path.display()));
     let det = df.column(col::DETECTOR).and_then(|c| c.str().cloned()).map_err(|_| bad("no detector column"))?;
     let stat = df.column("statistic").and_then(|c| c.str().cloned()).map_err(|_| bad("no statistic column"))?;

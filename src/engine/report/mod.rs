@@ -161,12 +161,17 @@ pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Repor
     }
     report.files.extend(own_files.iter().cloned());
 
-    // Without --trials, the trials a reader wants to see first (where the kind can draw traces).
-    let picked = if trials.is_empty() && (!method.trace_panels.is_empty() || method.report.is_some()) {
-        representative_trials(dir, &manifest)?
-    } else {
-        Vec::new()
-    };
+    // Without --trials, the trials a reader wants to see first, where the kind can draw traces and the
+    // run's deck is there to re-fly them (asked-for traces refuse a missing deck; picked ones are skipped).
+    let can_trace = !method.trace_panels.is_empty() || method.report.is_some();
+    let deck_there = ReportContext { dir, out: &out, manifest: &manifest, trials: &[] }.run_deck().is_ok();
+    let picked =
+        if trials.is_empty() && can_trace && deck_there { representative_trials(dir, &manifest)? } else { Vec::new() };
+    if trials.is_empty() && can_trace && !deck_there {
+        report
+            .warnings
+            .push(format!("no traces: the run's deck {} is missing or changed since the run", manifest.deck));
+    }
     let chosen: Vec<u64> = if trials.is_empty() { picked.iter().map(|p| p.0).collect() } else { trials.to_vec() };
     if !picked.is_empty() {
         let list: Vec<String> = picked.iter().map(|(t, why)| format!("{t} ({why})")).collect();

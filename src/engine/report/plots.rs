@@ -65,6 +65,24 @@ fn floats(df: &DataFrame, name: &str) -> Result<Float64Chunked, String> {
     df.column(name).and_then(|c| c.cast(&DataType::Float64)).and_then(|c| c.f64().cloned()).map_err(e)
 }
 
+/// A white 900 x 560 SVG canvas, the size of every single-chart plot.
+fn canvas(file: &Path) -> Result<DrawingArea<SVGBackend<'_>, plotters::coord::Shift>, String> {
+    let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
+    root.fill(&WHITE).map_err(e)?;
+    Ok(root)
+}
+
+/// A chart on `root` with the report's caption font, margin and room for the axis labels.
+fn builder<'a, 'b, DB: DrawingBackend>(
+    root: &'a DrawingArea<DB, plotters::coord::Shift>,
+    caption: impl AsRef<str>,
+    font_size: u32,
+) -> ChartBuilder<'a, 'b, DB> {
+    let mut b = ChartBuilder::on(root);
+    b.caption(caption, (FONT, font_size)).margin(12).x_label_area_size(45).y_label_area_size(60);
+    b
+}
+
 /// Pd against size for one detector and kind: one line per faulty output, Wilson band, min size marked.
 pub fn pd_against_size(
     file: &Path,
@@ -115,20 +133,16 @@ pub fn pd_against_size(
     let (x0, x1) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
     let pad = ((x1 - x0) * 0.05).max(1e-9);
 
-    let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
-    root.fill(&WHITE).map_err(e)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!(
-                "Detection probability vs fault size: {detector}, {kind} ({set_name} thresholds; triangles: Pd >= 0.9)"
-            ),
-            (FONT, 18),
-        )
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d((x0 - pad)..(x1 + pad), 0f64..1.05)
-        .map_err(e)?;
+    let root = canvas(file)?;
+    let mut chart = builder(
+        &root,
+        format!(
+            "Detection probability vs fault size: {detector}, {kind} ({set_name} thresholds; triangles: Pd >= 0.9)"
+        ),
+        18,
+    )
+    .build_cartesian_2d((x0 - pad)..(x1 + pad), 0f64..1.05)
+    .map_err(e)?;
     chart
         .configure_mesh()
         .x_desc(format!("fault size ({unit})"))
@@ -169,13 +183,8 @@ pub fn pd_against_size(
 pub fn roc(file: &Path, detectors: &[(String, Vec<f64>, Vec<f64>)]) -> Result<(), String> {
     let n_min = detectors.iter().map(|d| d.1.len()).filter(|&n| n > 0).min().unwrap_or(1) as f64;
     let floor = (0.5 / n_min).min(1e-2);
-    let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
-    root.fill(&WHITE).map_err(e)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption("ROC: thresholds scaled 0.2x to 5x around the calibrated ones", (FONT, 20))
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
+    let root = canvas(file)?;
+    let mut chart = builder(&root, "ROC: thresholds scaled 0.2x to 5x around the calibrated ones", 20)
         .build_cartesian_2d((floor..1.0).log_scale(), 0f64..1.05)
         .map_err(e)?;
     chart
@@ -255,15 +264,8 @@ pub fn frequencies(
         })
         .collect();
     let ymax = hist.iter().flat_map(|h| h.1.iter().map(|p| p.1)).fold(0.0, f64::max).max(1e-3) * 1.1;
-    let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
-    root.fill(&WHITE).map_err(e)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(caption, (FONT, 18))
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d(bottom..top, 0f64..ymax)
-        .map_err(e)?;
+    let root = canvas(file)?;
+    let mut chart = builder(&root, caption, 18).build_cartesian_2d(bottom..top, 0f64..ymax).map_err(e)?;
     chart
         .configure_mesh()
         .x_desc(x_label)
@@ -307,15 +309,9 @@ pub fn scatter(
         (y0, y1) = (y0.min(0.0), y1.max(0.0));
     }
     let (px, py) = (((x1 - x0) * 0.05).max(1e-9), ((y1 - y0) * 0.05).max(1e-9));
-    let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
-    root.fill(&WHITE).map_err(e)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(caption, (FONT, 17))
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d((x0 - px)..(x1 + px), (y0 - py)..(y1 + py))
-        .map_err(e)?;
+    let root = canvas(file)?;
+    let mut chart =
+        builder(&root, caption, 17).build_cartesian_2d((x0 - px)..(x1 + px), (y0 - py)..(y1 + py)).map_err(e)?;
     chart.configure_mesh().x_desc(x_label).y_desc(y_label).label_style((FONT, 14)).draw().map_err(e)?;
     let reference = if diagonal { [(x0, x0), (x1, x1)] } else { [(x0 - px, 0.0), (x1 + px, 0.0)] };
     chart
@@ -433,18 +429,14 @@ pub fn false_alarms(
     let (x0, x1) = points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.0), b.max(p.0)));
     let pad = ((x1 - x0) * 0.08).max(0.05);
     let top = points.iter().map(|p| p.4).fold(0.0, f64::max).max(0.01) * 1.1;
-    let root = SVGBackend::new(file, (900, 560)).into_drawing_area();
-    root.fill(&WHITE).map_err(e)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
-            format!("False alarms by noise and parameter-error bin: {detector} ({set_name} thresholds)"),
-            (FONT, 18),
-        )
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(60)
-        .build_cartesian_2d((x0 - pad)..(x1 + pad), 0f64..top)
-        .map_err(e)?;
+    let root = canvas(file)?;
+    let mut chart = builder(
+        &root,
+        format!("False alarms by noise and parameter-error bin: {detector} ({set_name} thresholds)"),
+        18,
+    )
+    .build_cartesian_2d((x0 - pad)..(x1 + pad), 0f64..top)
+    .map_err(e)?;
     chart
         .configure_mesh()
         .x_desc("noise scale (bin)")

@@ -104,7 +104,9 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                 .collect();
             println!("  eigenvalues of A - K C: [{}]", evs.join(", "));
             println!("  eigenvector condition number: {:.6}", a.eigenvector_condition);
-            println!("  assignment residual |(A - K C) F - F Lambda| / |A F|: {:.3e}", a.relative_residual);
+            if !a.relative_residual.is_nan() {
+                println!("  assignment residual |(A - K C) F - F Lambda| / |A F|: {:.3e}", a.relative_residual);
+            }
         }
         println!("steady residual per unit bias on each output (columns: faulty output; rows: residual)");
         print!("{}", indent(&format!("{:.4}", filter.signatures)));

@@ -165,30 +165,49 @@ pub(crate) struct DetectorDeck<'a> {
     pub sensor_sigma: &'a DVector<f64>,
 }
 
+impl DetectorDeck<'_> {
+    /// Refuses, with `why`, the first of the detector's `fields` that is given.
+    pub(crate) fn refuse(&self, fields: &[(&str, bool)], why: &str) -> Result<(), DeckError> {
+        match fields.iter().find(|(_, given)| *given) {
+            Some((field, _)) => Err(self.chk.err(format!("detector[{}].{field}", self.i), why)),
+            None => Ok(()),
+        }
+    }
+
+    /// `isolation_delay_s` (>= 0) and `isolation_window_s` (> 0), each its kind's default when not given.
+    pub(crate) fn isolation_timing(&self, delay_s: f64, window_s: f64) -> Result<(f64, f64), DeckError> {
+        let field = |name: &str| format!("detector[{}].{name}", self.i);
+        let delay_s = match self.d.isolation_delay_s {
+            Some(v) if v.is_finite() && v >= 0.0 => v,
+            Some(v) => {
+                return Err(self.chk.err(field("isolation_delay_s"), format!("must be a finite number >= 0, got {v}")));
+            }
+            None => delay_s,
+        };
+        let window_s = match self.d.isolation_window_s {
+            Some(v) => self.chk.positive(&field("isolation_window_s"), v)?,
+            None => window_s,
+        };
+        Ok((delay_s, window_s))
+    }
+}
+
 /// Reads a detector of `kind = "detection_filter"`, the seed's test `|residual_j| > thresholds[j]`.
 pub(crate) fn read(r: &DetectorDeck) -> Result<DetectionFilterParams, DeckError> {
-    let DetectorDeck { chk, i, d, .. } = *r;
-    refuse(
-        chk,
-        i,
-        &[("drift", d.drift.is_some())],
-        "applies to kind = \"cusum\" only (a CUSUM's allowance per sample)",
-    )?;
+    r.refuse(&[("drift", r.d.drift.is_some())], "applies to kind = \"cusum\" only (a CUSUM's allowance per sample)")?;
     read_eigenstructure_filter(r, Decision::absolute())
 }
 
 /// Reads the seed filter's fields of detector `i` (eigenvalues, fault directions, thresholds,
 /// isolation timing) for a kind that runs the seed's filter with `decision` as its test.
 pub(crate) fn read_eigenstructure_filter(
-    r: &DetectorDeck,
+    deck: &DetectorDeck,
     decision: Decision,
 ) -> Result<DetectionFilterParams, DeckError> {
-    let DetectorDeck { chk, i, d, plant, .. } = *r;
+    let DetectorDeck { chk, i, d, plant, .. } = *deck;
     let f = |name: &str| format!("detector[{i}].{name}");
     let (n, ny) = (plant.n_states(), plant.n_outputs());
-    refuse(
-        chk,
-        i,
+    deck.refuse(
         &[
             ("window", d.window.is_some()),
             ("false_alarm_probability", d.false_alarm_probability.is_some()),
@@ -236,15 +255,8 @@ pub(crate) fn read_eigenstructure_filter(
         }
     }
     let slowest_time_constant_s = 1.0 / eigenvalues.iter().fold(f64::INFINITY, |m, l| m.min(-l));
-    let isolation_delay_s = match d.isolation_delay_s {
-        Some(v) if v.is_finite() && v >= 0.0 => v,
-        Some(v) => return Err(chk.err(f("isolation_delay_s"), format!("must be a finite number >= 0, got {v}"))),
-        None => 3.0 * slowest_time_constant_s,
-    };
-    let isolation_window_s = match d.isolation_window_s {
-        Some(v) => chk.positive(&f("isolation_window_s"), v)?,
-        None => slowest_time_constant_s,
-    };
+    let (isolation_delay_s, isolation_window_s) =
+        deck.isolation_timing(3.0 * slowest_time_constant_s, slowest_time_constant_s)?;
     Ok(DetectionFilterParams {
         gain: Gain::Eigenstructure { eigenvalues_per_s: eigenvalues.clone(), fault_directions },
         thresholds,
@@ -253,14 +265,6 @@ pub(crate) fn read_eigenstructure_filter(
         isolation_delay_s,
         isolation_window_s,
     })
-}
-
-/// Refuses, with `why`, the first of detector `i`'s `fields` that is given.
-pub(crate) fn refuse(chk: &Validator, i: usize, fields: &[(&str, bool)], why: &str) -> Result<(), DeckError> {
-    match fields.iter().find(|(_, given)| *given) {
-        Some((field, _)) => Err(chk.err(format!("detector[{i}].{field}"), why)),
-        None => Ok(()),
-    }
 }
 
 impl DetectionFilter {

@@ -15,7 +15,7 @@ use std::sync::Arc;
 use nalgebra::{DMatrix, DVector};
 
 use super::decision::{Decision, ResidualTest, TestState};
-use super::filter::{DetectionFilter, DetectionFilterParams, DetectorDeck, Gain, GainDesign, Isolation, refuse};
+use super::filter::{DetectionFilter, DetectionFilterParams, DetectorDeck, Gain, GainDesign, Isolation};
 use crate::design::kalman::steady_state_kalman;
 use crate::design::{Assignment, DesignError, eigen_report};
 use crate::engine::deck::DeckError;
@@ -44,8 +44,13 @@ impl GainDesign for KalmanChi2 {
         let steady = steady_state_kalman(&sampled.Ad, &sampled.C, &self.process_covariance, &self.sensor_covariance)?;
         let phi = &sampled.Ad - &steady.K * &sampled.C;
         let (closed_loop_eigenvalues, eigenvector_condition) = eigen_report(&phi)?;
-        let discrete =
-            Assignment { K: steady.K.clone(), closed_loop_eigenvalues, eigenvector_condition, relative_residual: 0.0 };
+        // No eigenstructure is assigned, so there is no assignment residual (NaN: `design` leaves it out).
+        let discrete = Assignment {
+            K: steady.K.clone(),
+            closed_loop_eigenvalues,
+            eigenvector_condition,
+            relative_residual: f64::NAN,
+        };
         let (n, m) = (design.n_states(), design.n_outputs());
         let solved = (DMatrix::identity(n, n) - phi)
             .lu()
@@ -102,10 +107,6 @@ impl ResidualTest for WindowedNis {
             window: self.window,
         })
     }
-
-    fn kind(&self) -> &'static str {
-        "kalman_chi2"
-    }
 }
 
 struct NisState {
@@ -137,9 +138,7 @@ pub(crate) fn read(r: &DetectorDeck) -> Result<DetectionFilterParams, DeckError>
     use statrs::distribution::{ChiSquared, ContinuousCDF};
     let f = |name: &str| format!("detector[{i}].{name}");
     let (n, ny) = (plant.n_states(), plant.n_outputs());
-    refuse(
-        chk,
-        i,
+    r.refuse(
         &[
             ("eigenvalues_per_s", d.eigenvalues_per_s.is_some()),
             ("fault_directions", d.fault_directions.is_some()),
@@ -182,15 +181,9 @@ pub(crate) fn read(r: &DetectorDeck) -> Result<DetectionFilterParams, DeckError>
     if !(quantile.is_finite() && quantile > 0.0) {
         return Err(chk.err(f("false_alarm_probability"), format!("{pfa}: no chi-square({dof}) quantile")));
     }
-    let isolation_delay_s = match d.isolation_delay_s {
-        Some(v) if v.is_finite() && v >= 0.0 => v,
-        Some(v) => return Err(chk.err(f("isolation_delay_s"), format!("must be a finite number >= 0, got {v}"))),
-        None => 0.0,
-    };
-    let isolation_window_s = match d.isolation_window_s {
-        Some(v) => chk.positive(&f("isolation_window_s"), v)?,
-        None => 1.0,
-    };
+    // Our choice, not a paper's: the innovations carry the fault at once (no filter transient to wait
+    // out), averaged over 1 s.
+    let (isolation_delay_s, isolation_window_s) = r.isolation_timing(0.0, 1.0)?;
     let design = KalmanChi2 {
         process_covariance: DMatrix::from_diagonal(&q.map(|s| s * s)),
         sensor_covariance: DMatrix::from_diagonal(&sensor_sigma.map(|s| s * s)),
