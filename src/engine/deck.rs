@@ -93,6 +93,19 @@ pub(crate) fn read_deck(path: &Path) -> Result<String, DeckError> {
 
 /// A deck's text parsed into its serde type; TOML errors (unknown fields among them) name the file. A
 /// table missing from the deck is named as such (TOML reports it at line 1 of the whole document).
+/// The first steps of every kind's reader: parses deck text into `D` (see [`parse_deck`]) and validates
+/// its `[study]` table (`study` finds it); the validator names `path` in every later rejection.
+pub(crate) fn open_deck<'a, D: serde::de::DeserializeOwned>(
+    text: &str,
+    path: &'a Path,
+    study: impl FnOnce(&D) -> &StudySection,
+) -> Result<(D, Validator<'a>, StudyHeader), DeckError> {
+    let deck: D = parse_deck(text, path)?;
+    let v = Validator { file: path };
+    let header = v.study_section(study(&deck))?;
+    Ok((deck, v, header))
+}
+
 pub(crate) fn parse_deck<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T, DeckError> {
     toml::from_str(text).map_err(|e| {
         let missing = e.message().strip_prefix("missing field `").and_then(|m| m.strip_suffix('`'));

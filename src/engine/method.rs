@@ -287,3 +287,35 @@ macro_rules! study_accessors {
         }
     };
 }
+
+/// `impl Study` for a kind whose folder has `commands::{validate, simulate}` and whose trials are a
+/// [`super::runner::TrialSource`] made from the study by `|study| source` (a `Result`: an error is the
+/// deck's, exit 2). Kinds with more to do (a gain design, trained classifiers) write the impl out.
+#[macro_export]
+macro_rules! plain_study {
+    ($study:ty, $($trials:ident).+, |$s:ident| $source:expr) => {
+        impl $crate::engine::method::Study for $study {
+            $crate::study_accessors!($($trials).+);
+            fn validate(&self) -> Result<(), $crate::engine::runner::RunError> {
+                commands::validate(self)
+            }
+            fn simulate(
+                &self,
+                trial: u64,
+                detector: Option<&str>,
+                out: &std::path::Path,
+                _: $crate::engine::method::Inputs,
+            ) -> Result<(), $crate::engine::runner::RunError> {
+                commands::simulate(self, trial, detector, out)
+            }
+            fn run(
+                &self,
+                opts: &$crate::engine::runner::RunOptions,
+                _: $crate::engine::method::Inputs,
+            ) -> Result<$crate::engine::runner::RunReport, $crate::engine::runner::RunError> {
+                let $s = self;
+                $crate::engine::runner::run(&$source?, opts)
+            }
+        }
+    };
+}

@@ -1,6 +1,6 @@
 //! The Monte Carlo runner: the only parallel code in fdimc.
 //!
-//! Trials are processed in chunks of consecutive indices ([`TrialSource::chunk_trials`]). A chunk runs in parallel on
+//! Trials are processed in chunks of consecutive indices ([`Manifest::chunk_trials`]). A chunk runs in parallel on
 //! rayon, its results are collected in trial order and written as one complete Parquet part file
 //! (`parts/part-<first trial>.parquet`, temporary name then rename), so memory stays at a few chunks
 //! whatever the trial count, and a killed run loses at most the chunks in flight. A writer thread
@@ -22,25 +22,36 @@ use polars::prelude::*;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::engine::deck::StudyHeader;
 use crate::engine::output::temporary_sibling;
 use crate::engine::progress::Progress;
 
 /// What the runner needs of a study.
 pub trait TrialSource: Sync {
     type Result: Send;
-    /// Trials per part file: what a killed run can lose, so a few seconds to a minute of work.
-    fn chunk_trials(&self) -> u64 {
-        CHUNK_TRIALS
-    }
     /// Consecutive trials one worker simulates together (the SIMD lane width for LTI studies; 1: each
     /// trial on its own).
     fn group_trials(&self) -> u64 {
         1
     }
+    /// Trial `trial` on its own.
+    fn trial(&self, trial: u64) -> Self::Result;
     /// The results of trials `first..end` (at most [`TrialSource::group_trials`]), in trial order.
-    fn simulate(&self, first: u64, end: u64) -> Vec<Self::Result>;
+    fn simulate(&self, first: u64, end: u64) -> Vec<Self::Result> {
+        (first..end).map(|t| self.trial(t)).collect()
+    }
+    /// The study's own fields of `manifest.json` (see [`Manifest::of`]); the run fills in the rest.
+    fn manifest(&self) -> Manifest;
     /// The trials.parquet rows of `results` (trial order); `&[]` gives the empty table with its schema.
     fn frame(&self, results: &[Self::Result]) -> PolarsResult<DataFrame>;
+}
+
+/// One trial's scenario and its detectors' outcome, or why the trial could not be flown (a simulation
+/// that stopped); what most kinds' [`TrialSource::Result`] is.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrialResult<Spec, Outcome, Error = String> {
+    pub spec: Spec,
+    pub outcome: Result<Outcome, Error>,
 }
 
 /// Trials per part file of LTI studies (a few seconds of work); a source may choose its own.
@@ -128,6 +139,7 @@ pub struct Manifest {
     /// Trial range written here: `[first_trial, end_trial)`.
     pub first_trial: u64,
     pub end_trial: u64,
+    /// Trials per part file: what a killed run can lose, so a few seconds to a minute of work.
     pub chunk_trials: u64,
     pub detectors: Vec<String>,
     /// The faulty components a study can name: output names (sensors) or surface names.
@@ -214,6 +226,24 @@ fn part_path(dir: &Path, first_trial: u64) -> PathBuf {
 }
 
 impl Manifest {
+    /// A study's fields (kind, name, seed, trial count, detector names) over [`Manifest::unstarted`];
+    /// a kind sets its outputs, thresholds and units on top.
+    pub fn of<'a>(
+        kind: &str,
+        header: &StudyHeader,
+        trials: u64,
+        detectors: impl IntoIterator<Item = &'a str>,
+    ) -> Manifest {
+        Manifest {
+            kind: kind.into(),
+            study: header.name.clone(),
+            seed: header.seed,
+            trials,
+            detectors: detectors.into_iter().map(String::from).collect(),
+            ..Manifest::unstarted()
+        }
+    }
+
     /// Every field a run fills in itself at its defaults; a study sets its own fields on top.
     pub fn unstarted() -> Manifest {
         Manifest {
@@ -240,10 +270,11 @@ impl Manifest {
     }
 }
 
-/// Runs the trials of `opts.shard` of `study_manifest.trials` into `opts.out_dir` (see the module
-/// docs). `study_manifest` carries the study's own fields (kind, name, seed, trials, detectors,
+/// Runs the trials of `opts.shard` of the source's trials into `opts.out_dir` (see the module
+/// docs). The source's manifest carries the study's own fields (kind, name, seed, trials, detectors,
 /// outputs, thresholds, units); the run fills in the deck, its hash, the shard and the progress.
-pub fn run<S: TrialSource>(source: &S, study_manifest: Manifest, opts: &RunOptions) -> Result<RunReport, RunError> {
+pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, RunError> {
+    let study_manifest = source.manifest();
     let started = Instant::now();
     let trials = study_manifest.trials;
     let (first, end) = opts.shard.range(trials);
@@ -254,7 +285,6 @@ pub fn run<S: TrialSource>(source: &S, study_manifest: Manifest, opts: &RunOptio
         shard: opts.shard,
         first_trial: first,
         end_trial: end,
-        chunk_trials: source.chunk_trials(),
         command_line: opts.command_line.clone(),
         complete: false,
         rows: 0,

@@ -11,7 +11,7 @@ use rand::RngExt;
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 
-use crate::engine::deck::{Factor, Sampler};
+use crate::engine::deck::{Factor, MonteCarlo, ParameterError, Sampler};
 use crate::engine::streams::{Substream, trial_rng};
 
 /// Uniform draws in [0, 1) per (trial, dimension) by the deck's sampler: independent uniforms, a Latin
@@ -20,11 +20,22 @@ pub struct UnitSampler {
     sampler: Sampler,
     trials: u64,
     seed: u64,
+    /// Continuous dimensions of a trial and the probability that it is fault-free ([`UnitSampler::trial`]).
+    dims: usize,
+    fault_free_fraction: f64,
     /// Latin-hypercube strata: `lhs[d][i]` for dimension d, trial i.
     lhs: Vec<Vec<u32>>,
 }
 
 impl UnitSampler {
+    /// The sampler of a study's `[monte_carlo]` (seed `seed`) over `dims` continuous dimensions.
+    pub fn for_study(mc: &MonteCarlo, seed: u64, dims: usize) -> Self {
+        UnitSampler {
+            fault_free_fraction: mc.fault_free_fraction,
+            ..UnitSampler::new(mc.sampler, mc.trials, seed, dims)
+        }
+    }
+
     pub fn new(sampler: Sampler, trials: u64, seed: u64, dims: usize) -> Self {
         let lhs = if sampler == Sampler::LatinHypercube {
             let n = trials as usize;
@@ -43,7 +54,7 @@ impl UnitSampler {
         } else {
             Vec::new()
         };
-        UnitSampler { sampler, trials, seed, lhs }
+        UnitSampler { sampler, trials, seed, dims, fault_free_fraction: 0.0, lhs }
     }
 
     /// A trial's scenario draws, in the same order for every kind of study: whether it is fault-free
@@ -53,6 +64,12 @@ impl UnitSampler {
         let mut rng = trial_rng(self.seed, trial, Substream::Scenario);
         let fault_free = rng.random::<f64>() < fault_free_fraction;
         (fault_free, (0..dims).map(|d| self.unit(trial, d, &mut rng)).collect())
+    }
+
+    /// Trial `trial`'s draws ([`UnitSampler::draws`] over the study's dimensions) and its grid digits.
+    pub fn trial(&self, trial: u64) -> TrialDraws {
+        let (fault_free, units) = self.draws(trial, self.fault_free_fraction, self.dims);
+        TrialDraws { fault_free, units, grid: GridDigits::new(trial) }
     }
 
     /// Uniform in [0, 1) for dimension `dim` of trial `trial`; `rng` is the trial's scenario stream
@@ -73,6 +90,41 @@ impl UnitSampler {
                 sobol_burley::sample((trial & 0xffff) as u32, dim as u32, seed) as f64
             }
         }
+    }
+}
+
+/// One trial's scenario draws, taken by a kind's scenario in its own fixed order: whether the trial is
+/// fault-free, then factors by their dimension (ranges) or the next grid digit (lists).
+pub struct TrialDraws {
+    pub fault_free: bool,
+    units: Vec<f64>,
+    grid: GridDigits,
+}
+
+impl TrialDraws {
+    /// The next grid digit, in `0..n` (a listed choice: fault kind, component).
+    pub fn digit(&mut self, n: usize) -> usize {
+        self.grid.next(n)
+    }
+
+    /// Factor `f`'s value and group label ([`draw`]) from dimension `dim`.
+    pub fn factor(&mut self, f: &Factor, dim: usize) -> (f64, f64) {
+        let grid = &mut self.grid;
+        draw(f, self.units[dim], &mut |n| grid.next(n))
+    }
+
+    /// Each parameter error's value (deck order, dimensions from `first_dim` on) and the largest |group
+    /// label| among them (0 without any), the trial's `param_error_bin`.
+    pub fn parameter_errors<P>(&mut self, errors: &[ParameterError<P>], first_dim: usize) -> (Vec<f64>, f64) {
+        let mut bin_max = 0.0f64;
+        let values = (errors.iter().enumerate())
+            .map(|(k, pe)| {
+                let (v, bin) = self.factor(&pe.value, first_dim + k);
+                bin_max = bin_max.max(bin.abs());
+                v
+            })
+            .collect();
+        (values, bin_max)
     }
 }
 

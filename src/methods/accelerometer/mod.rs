@@ -77,7 +77,7 @@ impl Study for AccelerometerStudy {
             }
         };
         let trials = AccelerometerTrials::new(self, &classifiers);
-        let report = run(&trials, trials.manifest(), opts)?;
+        let report = run(&trials, opts)?;
         if write_beside {
             classifiers.save(&beside)?;
         }
@@ -97,25 +97,6 @@ pub struct AccelerometerTrials<'a> {
 impl<'a> AccelerometerTrials<'a> {
     pub fn new(study: &'a AccelerometerStudy, classifiers: &'a TrainedClassifiers) -> Self {
         AccelerometerTrials { study, classifiers }
-    }
-
-    /// The study's fields of `manifest.json`.
-    pub fn manifest(&self) -> Manifest {
-        let s = self.study;
-        Manifest {
-            kind: KIND.into(),
-            study: s.header.name.clone(),
-            seed: s.header.seed,
-            trials: s.trials,
-            detectors: DETECTORS.iter().map(|d| d.to_string()).collect(),
-            outputs: ["accel_x", "accel_y", "accel_z"].iter().map(|a| a.to_string()).collect(),
-            fault_size_units: [
-                ("bias".to_string(), "m/s^2 (bin: |bias|)".to_string()),
-                ("gain".to_string(), "factor (bin: |factor - 1|)".to_string()),
-            ]
-            .into(),
-            ..Manifest::unstarted()
-        }
     }
 
     /// The scenario of trial `trial` and the scenario parameters it flies.
@@ -178,14 +159,24 @@ impl<'a> AccelerometerTrials<'a> {
 
 impl TrialSource for AccelerometerTrials<'_> {
     type Result = AccelTrialResult;
-    /// A 20 s trial costs a few milliseconds: 512 make a part file of about a second.
-    fn chunk_trials(&self) -> u64 {
-        512
+    fn trial(&self, trial: u64) -> AccelTrialResult {
+        self.run_trial_with(trial, |_, _| ())
     }
-    fn simulate(&self, first: u64, end: u64) -> Vec<AccelTrialResult> {
-        (first..end).map(|t| self.run_trial_with(t, |_, _| ())).collect()
+    fn manifest(&self) -> Manifest {
+        let s = self.study;
+        Manifest {
+            // A 20 s trial costs a few milliseconds: 512 make a part file of about a second.
+            chunk_trials: 512,
+            outputs: ["accel_x", "accel_y", "accel_z"].iter().map(|a| a.to_string()).collect(),
+            fault_size_units: [
+                ("bias".to_string(), "m/s^2 (bin: |bias|)".to_string()),
+                ("gain".to_string(), "factor (bin: |factor - 1|)".to_string()),
+            ]
+            .into(),
+            ..Manifest::of(KIND, &s.header, s.trials, DETECTORS.iter().copied())
+        }
     }
     fn frame(&self, results: &[AccelTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {
-        crate::methods::accelerometer::records::frame(results)
+        records::frame(results)
     }
 }

@@ -19,7 +19,7 @@ use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::engine::deck::{DeckError, Factor, FromDeck, MonteCarloRules, StudyHeader, Validator, parse_deck};
+use crate::engine::deck::{DeckError, Factor, FromDeck, MonteCarloRules, StudyHeader, open_deck};
 use crate::engine::deck::{FactorSpec, StudySection};
 use crate::methods::accelerometer::ekf_svm::{DetectionParams, FaultClass, SvmKernel, SvmParams, TrialDesign};
 
@@ -103,9 +103,7 @@ pub struct AccelerometerStudy {
 
 impl FromDeck for AccelerometerStudy {
     fn from_toml(text: &str, path: &Path) -> Result<AccelerometerStudy, DeckError> {
-        let deck: AccelerometerDeck = parse_deck(text, path)?;
-        let v = Validator { file: path };
-        let header = v.study_section(&deck.study)?;
+        let (deck, v, header) = open_deck(text, path, |d: &AccelerometerDeck| &d.study)?;
         let (duration_s, dt_s) = (header.duration_s, header.dt_s);
         let mut design = TrialDesign::seed();
         design.scenario.duration_s = duration_s;

@@ -143,11 +143,8 @@ pub struct AccelOutcome {
     pub health: AttitudeHealth,
 }
 
-#[derive(Debug, Clone, PartialEq)]
-pub struct AccelTrialResult {
-    pub spec: AccelTrialSpec,
-    pub outcome: Result<AccelOutcome, String>,
-}
+/// A trial's scenario and both classifiers' outcome, or why it could not be flown.
+pub type AccelTrialResult = crate::engine::runner::TrialResult<AccelTrialSpec, AccelOutcome>;
 
 #[cfg(test)]
 mod tests {

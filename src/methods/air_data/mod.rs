@@ -8,11 +8,9 @@ pub mod scenario;
 pub mod study;
 pub mod trial;
 
-use std::path::Path;
-
 use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Inputs, Isolates, Method, OwnPlot, Study, SummarySpec, TracePanel};
-use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
+use crate::engine::method::{Extra, Isolates, Method, OwnPlot, SummarySpec, TracePanel};
+use crate::engine::runner::{Manifest, RunError, TrialSource};
 use crate::engine::streams::{Substream, noise_rng};
 use crate::methods::air_data::dual_ukf::DualUkfStep;
 use crate::methods::air_data::flight::{AIR_DATA_CHANNEL_NAMES, AirDataSample};
@@ -74,19 +72,7 @@ pub static METHOD: Method = Method {
     starter: ("studies/ci_seed002.toml", include_str!("../../../studies/ci_seed002.toml")),
 };
 
-impl Study for AirDataStudy {
-    crate::study_accessors!(monte_carlo.common.trials);
-    fn validate(&self) -> Result<(), RunError> {
-        commands::validate(self)
-    }
-    fn simulate(&self, trial: u64, detector: Option<&str>, out: &Path, _: Inputs) -> Result<(), RunError> {
-        commands::simulate(self, trial, detector, out)
-    }
-    fn run(&self, opts: &RunOptions, _: Inputs) -> Result<RunReport, RunError> {
-        let trials = AirDataTrials::new(self);
-        run(&trials, trials.manifest(), opts)
-    }
-}
+crate::plain_study!(AirDataStudy, monte_carlo.common.trials, |s| Ok::<_, RunError>(AirDataTrials::new(s)));
 
 /// The runner's view of an air-data study.
 pub struct AirDataTrials<'a> {
@@ -97,22 +83,6 @@ pub struct AirDataTrials<'a> {
 impl<'a> AirDataTrials<'a> {
     pub fn new(study: &'a AirDataStudy) -> Self {
         AirDataTrials { study, sampler: AirDataScenarioSampler::new(study) }
-    }
-
-    /// The study's fields of `manifest.json`.
-    pub fn manifest(&self) -> Manifest {
-        let s = self.study;
-        let units = s.monte_carlo.faults.iter().map(|f| (f.kind.name().to_string(), f.size_unit().to_string()));
-        Manifest {
-            kind: KIND.into(),
-            study: s.header.name.clone(),
-            seed: s.header.seed,
-            trials: s.monte_carlo.common.trials,
-            detectors: s.detectors.iter().map(|d| d.name.clone()).collect(),
-            outputs: AIR_DATA_CHANNEL_NAMES.iter().map(|n| n.to_string()).collect(),
-            fault_size_units: units.collect(),
-            ..Manifest::unstarted()
-        }
     }
 
     /// Trial `trial`: its scenario from the scenario stream, its sensor noise and gusts from the sensor
@@ -136,14 +106,21 @@ impl<'a> AirDataTrials<'a> {
 
 impl TrialSource for AirDataTrials<'_> {
     type Result = AirDataTrialResult;
-    /// A 60 s flight with two detectors costs about 30 ms: 256 make a part file of a few seconds.
-    fn chunk_trials(&self) -> u64 {
-        256
+    fn trial(&self, trial: u64) -> AirDataTrialResult {
+        self.run_trial(trial)
     }
-    fn simulate(&self, first: u64, end: u64) -> Vec<AirDataTrialResult> {
-        (first..end).map(|t| self.run_trial(t)).collect()
+    fn manifest(&self) -> Manifest {
+        let s = self.study;
+        let units = s.monte_carlo.faults.iter().map(|f| (f.kind.name().to_string(), f.size_unit().to_string()));
+        Manifest {
+            // A 60 s flight with two detectors costs about 30 ms: 256 make a part file of a few seconds.
+            chunk_trials: 256,
+            outputs: AIR_DATA_CHANNEL_NAMES.iter().map(|n| n.to_string()).collect(),
+            fault_size_units: units.collect(),
+            ..Manifest::of(KIND, &s.header, s.monte_carlo.common.trials, s.detectors.iter().map(|d| d.name.as_str()))
+        }
     }
     fn frame(&self, results: &[AirDataTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {
-        crate::methods::air_data::records::frame(self.study, results)
+        records::frame(self.study, results)
     }
 }

@@ -4,7 +4,7 @@
 //! sensor set, size, onset, noise, gust); ranges are drawn by the deck's sampler; whether a trial is
 //! fault-free is the first draw of its scenario stream.
 
-use crate::engine::scenario::{GridDigits, UnitSampler, draw};
+use crate::engine::scenario::UnitSampler;
 use crate::fault::SensorFault;
 use crate::fault::deck::{SizeSpec, fixed_size_unit, unit};
 use crate::methods::air_data::flight::ScenarioParams;
@@ -47,32 +47,27 @@ pub struct AirDataScenarioSampler<'a> {
 impl<'a> AirDataScenarioSampler<'a> {
     pub fn new(study: &'a AirDataStudy) -> Self {
         let mc = &study.monte_carlo;
-        AirDataScenarioSampler {
-            study,
-            units: UnitSampler::new(mc.common.sampler, mc.common.trials, study.header.seed, DIMS),
-        }
+        AirDataScenarioSampler { study, units: UnitSampler::for_study(&mc.common, study.header.seed, DIMS) }
     }
 
     /// The scenario of trial `trial`.
     pub fn spec(&self, trial: u64) -> AirDataTrialSpec {
         let s = self.study;
         let mc = &s.monte_carlo;
-        let (fault_free, units) = self.units.draws(trial, mc.common.fault_free_fraction, DIMS);
-        let mut grid = GridDigits::new(trial);
-        let mut digit = |n: usize| grid.next(n);
+        let mut t = self.units.trial(trial);
 
         let sampled = (!mc.faults.is_empty()).then(|| {
-            let spec = &mc.faults[digit(mc.faults.len())];
-            let set = &mc.output_sets[digit(mc.output_sets.len())];
+            let spec = &mc.faults[t.digit(mc.faults.len())];
+            let set = &mc.output_sets[t.digit(mc.output_sets.len())];
             let size = match &spec.size {
                 SizeSpec::None => (f64::NAN, f64::NAN),
-                SizeSpec::Output(f) | SizeSpec::SensorSigma(f) => draw(f, units[DIM_SIZE], &mut digit),
+                SizeSpec::Output(f) | SizeSpec::SensorSigma(f) => t.factor(f, DIM_SIZE),
             };
             (spec, set, size)
         });
-        let (onset_s, _) = draw(&mc.common.onset_s, units[DIM_ONSET], &mut digit);
-        let (noise_scale, noise_bin) = draw(&mc.common.noise_scale, units[DIM_NOISE], &mut digit);
-        let (gust_std_mps, gust_bin) = draw(&mc.gust_std_mps, units[DIM_GUST], &mut digit);
+        let (onset_s, _) = t.factor(&mc.common.onset_s, DIM_ONSET);
+        let (noise_scale, noise_bin) = t.factor(&mc.common.noise_scale, DIM_NOISE);
+        let (gust_std_mps, gust_bin) = t.factor(&mc.gust_std_mps, DIM_GUST);
         let mut spec = AirDataTrialSpec {
             trial,
             faults: Vec::new(),
@@ -87,7 +82,7 @@ impl<'a> AirDataScenarioSampler<'a> {
             gust_std_mps,
             gust_bin,
         };
-        if fault_free {
+        if t.fault_free {
             return spec;
         }
         match sampled {

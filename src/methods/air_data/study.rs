@@ -31,7 +31,7 @@ use serde::Deserialize;
 
 use crate::engine::deck::{FactorSpec, FromDeck, StudyHeader, StudySection};
 
-use crate::engine::deck::{DeckError, Factor, MonteCarlo, MonteCarloRules, Validator, parse_deck};
+use crate::engine::deck::{DeckError, Factor, MonteCarlo, MonteCarloRules, Validator, open_deck};
 use crate::fault::SensorFault;
 use crate::fault::deck::FaultKindSpec;
 use crate::fault::deck::{FaultKindSection, FaultSection};
@@ -139,9 +139,7 @@ pub struct AirDataStudy {
 
 impl FromDeck for AirDataStudy {
     fn from_toml(text: &str, path: &Path) -> Result<AirDataStudy, DeckError> {
-        let deck: AirDataDeck = parse_deck(text, path)?;
-        let v = Validator { file: path };
-        let header = v.study_section(&deck.study)?;
+        let (deck, v, header) = open_deck(text, path, |d: &AirDataDeck| &d.study)?;
         let (duration_s, dt_s) = (header.duration_s, header.dt_s);
 
         let f = &deck.flight;

@@ -41,11 +41,7 @@ pub struct AirDataOutcome {
 }
 
 /// A trial's scenario and each detector's outcome, or why it could not be flown.
-#[derive(Debug, Clone, PartialEq)]
-pub struct AirDataTrialResult {
-    pub spec: AirDataTrialSpec,
-    pub outcome: Result<Vec<AirDataOutcome>, String>,
-}
+pub type AirDataTrialResult = crate::engine::runner::TrialResult<AirDataTrialSpec, Vec<AirDataOutcome>>;
 
 /// Running sums of one detector.
 struct Score {

@@ -87,19 +87,7 @@ pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunEr
             }
         }
     }
-    let manifest = Manifest {
-        kind: KIND.into(),
-        study: study.header.name.clone(),
-        seed: study.header.seed,
-        trials: study.monte_carlo.common.trials,
-        detectors: study.detectors.iter().map(|d| d.name.clone()).collect(),
-        outputs: study.plant.output_names.clone(),
-        deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
-        target_pfa: study.monte_carlo.common.target_pfa,
-        fault_size_units: fault_size_units(study),
-        ..Manifest::unstarted()
-    };
-    run(&LtiTrials { study, engine }, manifest, opts)
+    run(&LtiTrials { study, engine }, opts)
 }
 
 /// Method 000's trials: 8 at a time in SIMD lanes (when every test is built in).
@@ -112,6 +100,24 @@ impl TrialSource for LtiTrials<'_> {
     type Result = TrialResult;
     fn group_trials(&self) -> u64 {
         LANES as u64
+    }
+    fn trial(&self, trial: u64) -> TrialResult {
+        self.engine.run(trial)
+    }
+    fn manifest(&self) -> Manifest {
+        let study = self.study;
+        Manifest {
+            outputs: study.plant.output_names.clone(),
+            deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
+            target_pfa: study.monte_carlo.common.target_pfa,
+            fault_size_units: fault_size_units(study),
+            ..Manifest::of(
+                KIND,
+                &study.header,
+                study.monte_carlo.common.trials,
+                study.detectors.iter().map(|d| d.name.as_str()),
+            )
+        }
     }
     fn simulate(&self, first: u64, end: u64) -> Vec<TrialResult> {
         self.engine.run_group(first, end)

@@ -3,7 +3,7 @@
 
 use super::study::LtiStudy;
 use crate::engine::deck::ModelTarget;
-use crate::engine::scenario::{GridDigits, UnitSampler, draw};
+use crate::engine::scenario::UnitSampler;
 use crate::fault::SensorFault;
 use crate::fault::deck::{SizeSpec, fixed_size_unit, unit};
 
@@ -48,33 +48,25 @@ impl<'a> ScenarioSampler<'a> {
     pub fn new(study: &'a LtiStudy) -> Self {
         let mc = &study.monte_carlo;
         let dims = DIM_PARAMETERS + mc.parameter_errors.len();
-        ScenarioSampler { study, units: UnitSampler::new(mc.common.sampler, mc.common.trials, study.header.seed, dims) }
+        ScenarioSampler { study, units: UnitSampler::for_study(&mc.common, study.header.seed, dims) }
     }
 
     /// The scenario of trial `trial`.
     pub fn spec(&self, trial: u64) -> TrialSpec {
         let s = self.study;
         let mc = &s.monte_carlo;
-        let (fault_free, units) =
-            self.units.draws(trial, mc.common.fault_free_fraction, DIM_PARAMETERS + mc.parameter_errors.len());
-        let mut grid = GridDigits::new(trial);
-        let mut digit = |n: usize| grid.next(n);
+        let mut t = self.units.trial(trial);
 
         // Sampled population: kind and output first (the fastest grid digits).
-        let sampled = (!mc.faults.is_empty()).then(|| (digit(mc.faults.len()), mc.outputs[digit(mc.outputs.len())]));
+        let sampled =
+            (!mc.faults.is_empty()).then(|| (t.digit(mc.faults.len()), mc.outputs[t.digit(mc.outputs.len())]));
         let size_pick = sampled.map(|(k, _)| match &mc.faults[k].size {
             SizeSpec::None => (f64::NAN, f64::NAN),
-            SizeSpec::Output(f) | SizeSpec::SensorSigma(f) => draw(f, units[DIM_SIZE], &mut digit),
+            SizeSpec::Output(f) | SizeSpec::SensorSigma(f) => t.factor(f, DIM_SIZE),
         });
-        let (onset, _) = draw(&mc.common.onset_s, units[DIM_ONSET], &mut digit);
-        let (noise_scale, noise_bin) = draw(&mc.common.noise_scale, units[DIM_NOISE], &mut digit);
-        let mut parameter_errors = Vec::with_capacity(mc.parameter_errors.len());
-        let mut parameter_error_bin = 0.0f64;
-        for (k, pe) in mc.parameter_errors.iter().enumerate() {
-            let (v, bin) = draw(&pe.value, units[DIM_PARAMETERS + k], &mut digit);
-            parameter_errors.push(v);
-            parameter_error_bin = parameter_error_bin.max(bin.abs());
-        }
+        let (onset, _) = t.factor(&mc.common.onset_s, DIM_ONSET);
+        let (noise_scale, noise_bin) = t.factor(&mc.common.noise_scale, DIM_NOISE);
+        let (parameter_errors, parameter_error_bin) = t.parameter_errors(&mc.parameter_errors, DIM_PARAMETERS);
 
         let mut spec = TrialSpec {
             trial,
@@ -90,7 +82,7 @@ impl<'a> ScenarioSampler<'a> {
             parameter_errors,
             parameter_error_bin,
         };
-        if fault_free {
+        if t.fault_free {
             return spec;
         }
         match (sampled, size_pick) {

@@ -9,11 +9,9 @@ pub mod study;
 pub mod trial;
 pub mod uav;
 
-use std::path::Path;
-
 use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Inputs, Isolates, Method, OwnPlot, Study, SummarySpec, TracePanel};
-use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
+use crate::engine::method::{Extra, Isolates, Method, OwnPlot, SummarySpec, TracePanel};
+use crate::engine::runner::{Manifest, RunError, TrialSource};
 use crate::engine::streams::{Substream, noise_rng};
 use crate::methods::surface_bank::scenario::SurfaceScenarioSampler;
 use crate::methods::surface_bank::stmmae::BankParams;
@@ -82,19 +80,7 @@ pub static METHOD: Method = Method {
     starter: ("studies/ci_seed004.toml", include_str!("../../../studies/ci_seed004.toml")),
 };
 
-impl Study for SurfaceStudy {
-    crate::study_accessors!(monte_carlo.common.trials);
-    fn validate(&self) -> Result<(), RunError> {
-        commands::validate(self)
-    }
-    fn simulate(&self, trial: u64, detector: Option<&str>, out: &Path, _: Inputs) -> Result<(), RunError> {
-        commands::simulate(self, trial, detector, out)
-    }
-    fn run(&self, opts: &RunOptions, _: Inputs) -> Result<RunReport, RunError> {
-        let trials = SurfaceTrials::new(self);
-        run(&trials, trials.manifest(), opts)
-    }
-}
+crate::plain_study!(SurfaceStudy, monte_carlo.common.trials, |s| Ok::<_, RunError>(SurfaceTrials::new(s)));
 
 /// The runner's view of a surface study: every bank of the deck on each trial's one flight.
 pub struct SurfaceTrials<'a> {
@@ -109,26 +95,6 @@ impl<'a> SurfaceTrials<'a> {
         SurfaceTrials { study, sampler: SurfaceScenarioSampler::new(study), banks }
     }
 
-    /// The study's fields of `manifest.json`.
-    pub fn manifest(&self) -> Manifest {
-        let s = self.study;
-        let units = [
-            ("stuck", "deg (the stuck position)"),
-            ("oscillation", "deg (the square wave's amplitude)"),
-            ("loss_of_effectiveness", "fraction of the deflection still acting"),
-        ];
-        Manifest {
-            kind: KIND.into(),
-            study: s.header.name.clone(),
-            seed: s.header.seed,
-            trials: s.monte_carlo.common.trials,
-            detectors: s.banks.iter().map(|(n, _)| n.clone()).collect(),
-            outputs: SURFACE_NAMES.iter().map(|n| n.to_string()).collect(),
-            fault_size_units: units.iter().map(|(k, u)| (k.to_string(), u.to_string())).collect(),
-            ..Manifest::unstarted()
-        }
-    }
-
     /// Trial `trial`: its scenario from the scenario stream, its sensor noise from the sensor stream.
     pub fn run_trial(&self, trial: u64) -> SurfaceTrialResult {
         let spec = self.sampler.spec(trial);
@@ -141,14 +107,25 @@ impl<'a> SurfaceTrials<'a> {
 
 impl TrialSource for SurfaceTrials<'_> {
     type Result = SurfaceTrialResult;
-    /// A flight costs 0.1-2 s, so 64 of them make a part file of seconds to a minute on 2 cores.
-    fn chunk_trials(&self) -> u64 {
-        64
+    fn trial(&self, trial: u64) -> SurfaceTrialResult {
+        self.run_trial(trial)
     }
-    fn simulate(&self, first: u64, end: u64) -> Vec<SurfaceTrialResult> {
-        (first..end).map(|t| self.run_trial(t)).collect()
+    fn manifest(&self) -> Manifest {
+        let s = self.study;
+        let units = [
+            ("stuck", "deg (the stuck position)"),
+            ("oscillation", "deg (the square wave's amplitude)"),
+            ("loss_of_effectiveness", "fraction of the deflection still acting"),
+        ];
+        Manifest {
+            // A flight costs 0.1-2 s, so 64 of them make a part file of seconds to a minute on 2 cores.
+            chunk_trials: 64,
+            outputs: SURFACE_NAMES.iter().map(|n| n.to_string()).collect(),
+            fault_size_units: units.iter().map(|(k, u)| (k.to_string(), u.to_string())).collect(),
+            ..Manifest::of(KIND, &s.header, s.monte_carlo.common.trials, s.banks.iter().map(|(n, _)| n.as_str()))
+        }
     }
     fn frame(&self, results: &[SurfaceTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {
-        crate::methods::surface_bank::records::frame(self.study, results)
+        records::frame(self.study, results)
     }
 }

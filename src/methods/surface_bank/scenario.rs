@@ -6,7 +6,7 @@
 //! draw of its scenario stream.
 
 use crate::engine::deck::ModelTarget;
-use crate::engine::scenario::{GridDigits, UnitSampler, draw};
+use crate::engine::scenario::UnitSampler;
 use crate::methods::surface_bank::actuator::{ActuatorFault, ActuatorFaultKind};
 use crate::methods::surface_bank::study::{SensorNoise, SurfaceFaultSpec, SurfaceStudy};
 use crate::methods::surface_bank::uav::AerosondeParams;
@@ -56,39 +56,27 @@ impl<'a> SurfaceScenarioSampler<'a> {
     pub fn new(study: &'a SurfaceStudy) -> Self {
         let mc = &study.monte_carlo;
         let dims = DIM_PARAMETERS + mc.parameter_errors.len();
-        SurfaceScenarioSampler {
-            study,
-            units: UnitSampler::new(mc.common.sampler, mc.common.trials, study.header.seed, dims),
-        }
+        SurfaceScenarioSampler { study, units: UnitSampler::for_study(&mc.common, study.header.seed, dims) }
     }
 
     /// The scenario of trial `trial`.
     pub fn spec(&self, trial: u64) -> SurfaceTrialSpec {
         let s = self.study;
         let mc = &s.monte_carlo;
-        let (fault_free, units) =
-            self.units.draws(trial, mc.common.fault_free_fraction, DIM_PARAMETERS + mc.parameter_errors.len());
-        let mut grid = GridDigits::new(trial);
-        let mut digit = |n: usize| grid.next(n);
+        let mut t = self.units.trial(trial);
 
         let sampled = (!mc.faults.is_empty()).then(|| {
-            let spec = &mc.faults[digit(mc.faults.len())];
-            let surface = mc.surfaces[digit(mc.surfaces.len())];
-            let (size, size_bin) = draw(spec.size(), units[DIM_SIZE], &mut digit);
+            let spec = &mc.faults[t.digit(mc.faults.len())];
+            let surface = mc.surfaces[t.digit(mc.surfaces.len())];
+            let (size, size_bin) = t.factor(spec.size(), DIM_SIZE);
             (spec, surface, size, size_bin)
         });
-        let (onset_s, _) = draw(&mc.common.onset_s, units[DIM_ONSET], &mut digit);
-        let (noise_scale, noise_bin) = draw(&mc.common.noise_scale, units[DIM_NOISE], &mut digit);
-        let duration_s = mc.fault_duration_s.as_ref().map(|f| draw(f, units[DIM_DURATION], &mut digit).0);
-        let mut parameter_errors = Vec::with_capacity(mc.parameter_errors.len());
-        let mut parameter_error_bin = 0.0f64;
-        for (k, pe) in mc.parameter_errors.iter().enumerate() {
-            let (v, bin) = draw(&pe.value, units[DIM_PARAMETERS + k], &mut digit);
-            parameter_errors.push(v);
-            parameter_error_bin = parameter_error_bin.max(bin.abs());
-        }
+        let (onset_s, _) = t.factor(&mc.common.onset_s, DIM_ONSET);
+        let (noise_scale, noise_bin) = t.factor(&mc.common.noise_scale, DIM_NOISE);
+        let duration_s = mc.fault_duration_s.as_ref().map(|f| t.factor(f, DIM_DURATION).0);
+        let (parameter_errors, parameter_error_bin) = t.parameter_errors(&mc.parameter_errors, DIM_PARAMETERS);
 
-        let faults = match (fault_free, sampled) {
+        let faults = match (t.fault_free, sampled) {
             (true, _) => Vec::new(),
             (false, Some((spec, surface, size, size_bin))) => {
                 let kind = match *spec {

@@ -32,7 +32,7 @@ use std::path::Path;
 use serde::Deserialize;
 
 use crate::engine::deck::{
-    DeckError, Factor, FromDeck, MonteCarlo, MonteCarloRules, StudyHeader, Validator, parse_deck,
+    DeckError, Factor, FromDeck, MonteCarlo, MonteCarloRules, StudyHeader, Validator, open_deck,
 };
 use crate::engine::deck::{FactorSpec, StudySection};
 use crate::estimation::LikelihoodForm;
@@ -230,9 +230,7 @@ pub struct SurfaceStudy {
 
 impl FromDeck for SurfaceStudy {
     fn from_toml(text: &str, path: &Path) -> Result<SurfaceStudy, DeckError> {
-        let deck: SurfaceDeck = parse_deck(text, path)?;
-        let v = Validator { file: path };
-        let header = v.study_section(&deck.study)?;
+        let (deck, v, header) = open_deck(text, path, |d: &SurfaceDeck| &d.study)?;
         let (duration_s, dt_s) = (header.duration_s, header.dt_s);
         if dt_s > 0.05 || dt_s * 10.0 > duration_s {
             return Err(v.err("study.dt_s", format!("must be at most 0.05 s and a tenth of duration_s, got {dt_s}")));

@@ -337,11 +337,7 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
 }
 
 /// One trial's scenario and what each bank made of it, or why the flight stopped.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SurfaceTrialResult {
-    pub spec: SurfaceTrialSpec,
-    pub outcome: Result<Vec<BankOutcome>, UavSimError>,
-}
+pub type SurfaceTrialResult = crate::engine::runner::TrialResult<SurfaceTrialSpec, Vec<BankOutcome>, UavSimError>;
 
 #[cfg(test)]
 mod tests {

@@ -8,11 +8,9 @@ pub mod study;
 pub mod trial;
 pub mod vehicle;
 
-use std::path::Path;
-
 use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Inputs, Isolates, Method, Opt, OwnPlot, Study, SummarySpec, TracePanel};
-use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
+use crate::engine::method::{Extra, Isolates, Method, Opt, OwnPlot, SummarySpec, TracePanel};
+use crate::engine::runner::{Manifest, RunError, TrialSource};
 use crate::engine::streams::{Substream, noise_rng};
 use crate::methods::thrust_loss::ekf_mhe::MheStep;
 use crate::methods::thrust_loss::scenario::LaunchScenarioSampler;
@@ -69,21 +67,9 @@ pub static METHOD: Method = Method {
     starter: ("studies/ci_seed001.toml", include_str!("../../../studies/ci_seed001.toml")),
 };
 
-impl Study for LaunchStudy {
-    crate::study_accessors!(monte_carlo.common.trials);
-    fn validate(&self) -> Result<(), RunError> {
-        commands::validate(self)
-    }
-    fn simulate(&self, trial: u64, detector: Option<&str>, out: &Path, _: Inputs) -> Result<(), RunError> {
-        commands::simulate(self, trial, detector, out)
-    }
-    fn run(&self, opts: &RunOptions, _: Inputs) -> Result<RunReport, RunError> {
-        // Designs and loss tables are the deck's: one that cannot be designed is invalid input.
-        let trials =
-            LaunchTrials::new(self).map_err(|e| RunError::Invalid(format!("{}: {e}", self.header.path.display())))?;
-        run(&trials, trials.manifest(), opts)
-    }
-}
+// Designs and loss tables are the deck's: one that cannot be designed is invalid input.
+crate::plain_study!(LaunchStudy, monte_carlo.common.trials, |s| LaunchTrials::new(s)
+    .map_err(|e| RunError::Invalid(format!("{}: {e}", s.header.path.display()))));
 
 /// The runner's view of a launch study: designs built once, every trial flown once.
 pub struct LaunchTrials<'a> {
@@ -109,23 +95,6 @@ impl<'a> LaunchTrials<'a> {
         Ok(LaunchTrials { study, sampler: LaunchScenarioSampler::new(study), detectors })
     }
 
-    /// The study's fields of `manifest.json`.
-    pub fn manifest(&self) -> Manifest {
-        let s = self.study;
-        Manifest {
-            kind: KIND.into(),
-            study: s.header.name.clone(),
-            seed: s.header.seed,
-            trials: s.monte_carlo.common.trials,
-            detectors: s.detectors.iter().map(|d| d.name.clone()).collect(),
-            outputs: (1..=4).map(|e| format!("engine_{e}")).collect(),
-            deck_thresholds: s.detectors.iter().map(|d| vec![d.params.threshold_fhat]).collect(),
-            target_pfa: s.monte_carlo.common.target_pfa,
-            fault_size_units: [("thrust_loss".to_string(), "percent of one engine's thrust".to_string())].into(),
-            ..Manifest::unstarted()
-        }
-    }
-
     /// Trial `trial`, handing each sample and the detectors' steps to `on_sample`.
     pub fn run_trial_with(&self, trial: u64, on_sample: impl FnMut(&Measurement, &[MheStep])) -> LaunchTrialResult {
         let spec = self.sampler.spec(trial);
@@ -139,15 +108,23 @@ impl<'a> LaunchTrials<'a> {
 
 impl TrialSource for LaunchTrials<'_> {
     type Result = LaunchTrialResult;
-    /// A 90 s flight costs about 0.12 s per detector (measured on the bundled deck): 128 make a part
-    /// file of seconds.
-    fn chunk_trials(&self) -> u64 {
-        128
+    fn trial(&self, trial: u64) -> LaunchTrialResult {
+        self.run_trial_with(trial, |_, _| ())
     }
-    fn simulate(&self, first: u64, end: u64) -> Vec<LaunchTrialResult> {
-        (first..end).map(|t| self.run_trial_with(t, |_, _| ())).collect()
+    fn manifest(&self) -> Manifest {
+        let s = self.study;
+        Manifest {
+            // A 90 s flight costs about 0.12 s per detector (measured on the bundled deck): 128 make a part
+            // file of seconds.
+            chunk_trials: 128,
+            outputs: (1..=4).map(|e| format!("engine_{e}")).collect(),
+            deck_thresholds: s.detectors.iter().map(|d| vec![d.params.threshold_fhat]).collect(),
+            target_pfa: s.monte_carlo.common.target_pfa,
+            fault_size_units: [("thrust_loss".to_string(), "percent of one engine's thrust".to_string())].into(),
+            ..Manifest::of(KIND, &s.header, s.monte_carlo.common.trials, s.detectors.iter().map(|d| d.name.as_str()))
+        }
     }
     fn frame(&self, results: &[LaunchTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {
-        crate::methods::thrust_loss::records::frame(self.study, results)
+        records::frame(self.study, results)
     }
 }

@@ -4,7 +4,7 @@
 //! onset, noise, gust scale); ranges are drawn by the deck's sampler; whether a trial is fault-free is
 //! the first draw of its scenario stream.
 
-use crate::engine::scenario::{GridDigits, UnitSampler, draw};
+use crate::engine::scenario::UnitSampler;
 use crate::methods::thrust_loss::study::LaunchStudy;
 use crate::methods::thrust_loss::vehicle::{Gust, LaunchVehicleConfig, ThrustFault};
 
@@ -38,28 +38,23 @@ pub struct LaunchScenarioSampler<'a> {
 impl<'a> LaunchScenarioSampler<'a> {
     pub fn new(study: &'a LaunchStudy) -> Self {
         let mc = &study.monte_carlo;
-        LaunchScenarioSampler {
-            study,
-            units: UnitSampler::new(mc.common.sampler, mc.common.trials, study.header.seed, DIMS),
-        }
+        LaunchScenarioSampler { study, units: UnitSampler::for_study(&mc.common, study.header.seed, DIMS) }
     }
 
     /// The scenario of trial `trial`.
     pub fn spec(&self, trial: u64) -> LaunchTrialSpec {
         let s = self.study;
         let mc = &s.monte_carlo;
-        let (fault_free, units) = self.units.draws(trial, mc.common.fault_free_fraction, DIMS);
-        let mut grid = GridDigits::new(trial);
-        let mut digit = |n: usize| grid.next(n);
+        let mut t = self.units.trial(trial);
         let sampled = mc.loss_percent.as_ref().map(|f| {
-            let engine = mc.engines[digit(mc.engines.len())];
-            let (loss, bin) = draw(f, units[DIM_SIZE], &mut digit);
+            let engine = mc.engines[t.digit(mc.engines.len())];
+            let (loss, bin) = t.factor(f, DIM_SIZE);
             (engine, loss, bin)
         });
-        let (onset_s, _) = draw(&mc.common.onset_s, units[DIM_ONSET], &mut digit);
-        let (noise_scale, noise_bin) = draw(&mc.common.noise_scale, units[DIM_NOISE], &mut digit);
-        let (gust_scale, gust_bin) = draw(&mc.gust_scale, units[DIM_GUST], &mut digit);
-        let (fault, loss_percent, loss_bin) = match (fault_free, sampled, s.fault) {
+        let (onset_s, _) = t.factor(&mc.common.onset_s, DIM_ONSET);
+        let (noise_scale, noise_bin) = t.factor(&mc.common.noise_scale, DIM_NOISE);
+        let (gust_scale, gust_bin) = t.factor(&mc.gust_scale, DIM_GUST);
+        let (fault, loss_percent, loss_bin) = match (t.fault_free, sampled, s.fault) {
             (true, _, _) => (None, f64::NAN, f64::NAN),
             (false, Some((engine, loss, bin)), _) => {
                 (Some(ThrustFault { engine, loss_fraction: loss / 100.0, onset_s }), loss, bin)

@@ -21,7 +21,7 @@ use std::path::Path;
 use serde::Deserialize;
 
 use crate::engine::deck::{
-    DeckError, Factor, FromDeck, MonteCarlo, MonteCarloRules, StudyHeader, Validator, parse_deck,
+    DeckError, Factor, FromDeck, MonteCarlo, MonteCarloRules, StudyHeader, Validator, open_deck,
 };
 use crate::engine::deck::{FactorSpec, StudySection};
 use crate::methods::thrust_loss::ekf_mhe::{DetectorParams, EkfParams, MheParams};
@@ -143,9 +143,7 @@ pub struct LaunchStudy {
 
 impl FromDeck for LaunchStudy {
     fn from_toml(text: &str, path: &Path) -> Result<LaunchStudy, DeckError> {
-        let deck: LaunchDeck = parse_deck(text, path)?;
-        let v = Validator { file: path };
-        let header = v.study_section(&deck.study)?;
+        let (deck, v, header) = open_deck(text, path, |d: &LaunchDeck| &d.study)?;
         let (duration_s, dt_s) = (header.duration_s, header.dt_s);
         if !(0.001..=0.05).contains(&dt_s) {
             return Err(v.err("study.dt_s", format!("allowed 0.001 to 0.05 s (the seed's D is 0.01), got {dt_s}")));

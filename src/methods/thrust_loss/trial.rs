@@ -86,11 +86,7 @@ pub struct LaunchOutcome {
 }
 
 /// A trial's scenario and each detector's outcome, or why the flight ended early.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LaunchTrialResult {
-    pub spec: LaunchTrialSpec,
-    pub outcome: Result<Vec<LaunchOutcome>, String>,
-}
+pub type LaunchTrialResult = crate::engine::runner::TrialResult<LaunchTrialSpec, Vec<LaunchOutcome>>;
 
 struct Score {
     outcome: LaunchOutcome,
