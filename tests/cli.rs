@@ -561,6 +561,19 @@ fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
     let s = |p: PathBuf| p.to_str().unwrap().to_string();
     let tables = ["summary.csv", "detectors.csv", "comparison.csv"];
     let (one, stdout) = assert_identical_runs(deck, tmp.path(), 300, 256, &tables);
+    // Size bins carry their edges: the deck's 2-20 sigma in 3 bins of 6.
+    let summary = csv_frame(&one.join("summary.csv"));
+    let f = |name: &str| summary.column(name).unwrap().f64().unwrap().clone();
+    let (centre, lo, hi) = (f("size_bin"), f("size_bin_lo"), f("size_bin_hi"));
+    let kind = summary.column("kind").unwrap().str().unwrap().clone();
+    let mut binned = 0;
+    for i in (0..summary.height()).filter(|&i| kind.get(i) == Some("bias")) {
+        let c = centre.get(i).unwrap();
+        assert!([5.0, 11.0, 17.0].contains(&c), "row {i}: centre {c}");
+        assert_eq!((lo.get(i), hi.get(i)), (Some(c - 3.0), Some(c + 3.0)), "row {i}");
+        binned += 1;
+    }
+    assert!(binned >= 3, "{binned} bias rows");
     for detector in ["patent", "window10"] {
         assert_eq!(
             stdout.lines().filter(|l| l.starts_with(&format!("    deck       {detector} "))).count(),
@@ -996,6 +1009,12 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
     for i in 0..md.height() {
         let want = if kinds.get(i) == Some("bias") { "multiples of the sensor sigma" } else { "none" };
         assert_eq!(units.get(i), Some(want), "row {i} ({:?})", kinds.get(i));
+    }
+    // Listed sizes are their own bins: both edges are the size.
+    let lo = md.column("min_size_pd90_lo").unwrap().f64().unwrap().clone();
+    let hi = md.column("min_size_pd90_hi").unwrap().f64().unwrap().clone();
+    for i in (0..md.height()).filter(|&i| size.get(i).is_some()) {
+        assert_eq!((lo.get(i), hi.get(i)), (size.get(i), size.get(i)), "row {i}");
     }
     let legend = |output: &str| -> String {
         let i = (0..md.height())

@@ -33,6 +33,31 @@ pub enum Factor {
     Values(Vec<f64>),
 }
 
+/// Size bins of fault kinds as `[low, high)` edges ([`Factor::bin_edges`]), for the manifest and the
+/// summary tables.
+pub type SizeBins = std::collections::BTreeMap<String, Vec<[f64; 2]>>;
+
+impl Factor {
+    /// The `[low, high)` edges of each of a range's bins (a listed or fixed value is its own bin: none).
+    pub fn bin_edges(&self) -> Vec<[f64; 2]> {
+        match self {
+            Factor::Range { lo, hi, bins } => {
+                let edge = |b: usize| lo + b as f64 * (hi - lo) / *bins as f64;
+                (0..*bins).map(|b| [edge(b), if b + 1 == *bins { *hi } else { edge(b + 1) }]).collect()
+            }
+            Factor::Fixed(_) | Factor::Values(_) => Vec::new(),
+        }
+    }
+
+    /// Adds this factor's bins to fault kind `kind`'s in `bins`.
+    pub fn add_bins_to(&self, kind: &str, bins: &mut SizeBins) {
+        let edges = self.bin_edges();
+        if !edges.is_empty() {
+            bins.entry(kind.to_string()).or_default().extend(edges);
+        }
+    }
+}
+
 /// As `validate` prints it: `3`, `2 to 6 in 4 bins`, `one of [0.5, 1, 2]`.
 impl std::fmt::Display for Factor {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {

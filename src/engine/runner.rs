@@ -151,6 +151,10 @@ pub struct Manifest {
     /// Unit of each fault kind's size bins (for plot axes).
     #[serde(default)]
     pub fault_size_units: std::collections::BTreeMap<String, String>,
+    /// Each fault kind's size bins as `[low, high)` edges where the deck draws sizes from a range (a
+    /// listed or fixed size is its own bin); the summary tables give each bin centre its edges.
+    #[serde(default)]
+    pub fault_size_bins: crate::engine::deck::SizeBins,
     pub command_line: Vec<String>,
     pub complete: bool,
     pub rows: u64,
@@ -263,6 +267,7 @@ impl Manifest {
             deck_thresholds: Vec::new(),
             target_pfa: 0.0,
             fault_size_units: Default::default(),
+            fault_size_bins: Default::default(),
             command_line: Vec::new(),
             complete: false,
             rows: 0,

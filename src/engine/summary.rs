@@ -694,6 +694,13 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     for df in [&mut summary, &mut curves, &mut min_detectable] {
         with_size_unit(df, &manifest.fault_size_units).map_err(pol(&path))?;
     }
+    let bins = &manifest.fault_size_bins;
+    for df in [&mut summary, &mut curves] {
+        with_bin_edges(df, col::SIZE_BIN, bins).map_err(pol(&path))?;
+    }
+    for centre in ["min_size_pd90", "min_size_pd90_lower_bound"] {
+        with_bin_edges(&mut min_detectable, centre, bins).map_err(pol(&path))?;
+    }
 
     let mut detectors = detector_table(&agg, &sets, spec).map_err(pol(&path))?;
     let mut confusion = confusion_table(&agg, &names).map_err(pol(&path))?;
@@ -874,6 +881,28 @@ fn with_size_unit(df: &mut DataFrame, units: &std::collections::BTreeMap<String,
     Ok(())
 }
 
+/// Appends `<centre>_lo` and `<centre>_hi`, the edges of the size bin whose centre is in column
+/// `centre`, from the manifest's bins per fault kind: the bin with that centre (to rounding), or the
+/// value itself where the size was listed or fixed (or the folder predates recorded bins). Last, as
+/// [`with_size_unit`].
+fn with_bin_edges(df: &mut DataFrame, centre: &str, bins: &crate::engine::deck::SizeBins) -> PolarsResult<()> {
+    let kinds = df.column(col::KIND)?.str()?.clone();
+    let centres = df.column(centre)?.f64()?.clone();
+    let edges: Vec<Option<[f64; 2]>> = (kinds.iter().zip(centres.iter()))
+        .map(|(kind, c)| {
+            let c = c?;
+            let of_kind = kind.and_then(|k| bins.get(k)).map(Vec::as_slice).unwrap_or_default();
+            let near = |e: &&[f64; 2]| (0.5 * (e[0] + e[1]) - c).abs() <= 1e-9 * (e[1] - e[0]).abs().max(1e-300);
+            Some(of_kind.iter().find(near).copied().unwrap_or([c, c]))
+        })
+        .collect();
+    for (side, name) in [(0, "lo"), (1, "hi")] {
+        let values: Vec<Option<f64>> = edges.iter().map(|e| e.map(|e| e[side])).collect();
+        df.with_column(Column::new(format!("{centre}_{name}").into(), values))?;
+    }
+    Ok(())
+}
+
 /// What `run`, `summarize` and `merge` print: the thresholds (kinds with a statistic), per threshold set
 /// and detector Pd, isolation, delay and Pfa with the kind's printed aggregates, a classifier's
 /// confusion matrices, warnings and the files written.
@@ -971,4 +1000,31 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
 /// A threshold with four significant digits, in scientific notation when it is very small or large.
 fn significant(v: f64) -> String {
     if v != 0.0 && (v.abs() < 1e-3 || v.abs() >= 1e5) { format!("{v:.3e}") } else { format!("{v:.4}") }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::deck::Factor;
+
+    /// Each centre gets the edges of its kind's bin: a range of 2-20 in 3 bins, a second population of
+    /// the same kind in 0-1 in 2 bins, a listed size (its own bin), a kind without bins, a fault-free row.
+    #[test]
+    fn bin_centres_get_their_kinds_edges() {
+        let mut bins = Default::default();
+        Factor::Range { lo: 2.0, hi: 20.0, bins: 3 }.add_bins_to("bias", &mut bins);
+        Factor::Range { lo: 0.0, hi: 1.0, bins: 2 }.add_bins_to("bias", &mut bins);
+        Factor::Values(vec![4.0]).add_bins_to("drift", &mut bins);
+        assert_eq!(bins["bias"], vec![[2.0, 8.0], [8.0, 14.0], [14.0, 20.0], [0.0, 0.5], [0.5, 1.0]]);
+        assert!(!bins.contains_key("drift"), "a listed size has no bins");
+        let mut df = df!(
+            col::KIND => ["bias", "bias", "bias", "drift", "stuck", "none"],
+            col::SIZE_BIN => [Some(11.0), Some(0.25), Some(17.0 + 1e-14), Some(4.0), Some(3.0), None],
+        )
+        .unwrap();
+        with_bin_edges(&mut df, col::SIZE_BIN, &bins).unwrap();
+        let edges = |name: &str| df.column(name).unwrap().f64().unwrap().iter().collect::<Vec<_>>();
+        assert_eq!(edges("size_bin_lo"), [Some(8.0), Some(0.0), Some(14.0), Some(4.0), Some(3.0), None]);
+        assert_eq!(edges("size_bin_hi"), [Some(14.0), Some(0.5), Some(20.0), Some(4.0), Some(3.0), None]);
+    }
 }

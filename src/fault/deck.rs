@@ -98,6 +98,17 @@ impl FaultKindSpec {
         }
     }
 
+    /// The size bins of these populations, per fault kind (ranges only).
+    pub fn size_bins(populations: &[FaultKindSpec]) -> crate::engine::deck::SizeBins {
+        let mut bins = Default::default();
+        for f in populations {
+            if let SizeSpec::Output(x) | SizeSpec::SensorSigma(x) = &f.size {
+                x.add_bins_to(f.kind.name(), &mut bins);
+            }
+        }
+        bins
+    }
+
     /// The unit the deck gives this population's sizes in.
     pub fn size_unit(&self) -> &'static str {
         match (&self.size, self.kind) {

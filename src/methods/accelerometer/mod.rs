@@ -10,6 +10,7 @@ pub mod trial;
 
 use std::path::Path;
 
+use crate::engine::deck::Factor;
 use crate::engine::deck::FromDeck;
 use crate::engine::method::{Inputs, Isolates, Method, Opt, Study, SummarySpec, TracePanel};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
@@ -164,6 +165,7 @@ impl TrialSource for AccelerometerTrials<'_> {
     }
     fn manifest(&self) -> Manifest {
         let s = self.study;
+        let ranges = &s.design.ranges;
         Manifest {
             // A 20 s trial costs a few milliseconds: 512 make a part file of about a second.
             chunk_trials: 512,
@@ -173,6 +175,10 @@ impl TrialSource for AccelerometerTrials<'_> {
                 ("gain".to_string(), "factor (bin: |factor - 1|)".to_string()),
             ]
             .into(),
+            // Thirds of the deck's ranges of |bias| and |factor - 1| (see `draw`).
+            fault_size_bins: [("bias", ranges.bias_mps2), ("gain", ranges.gain_deviation)]
+                .map(|(kind, [lo, hi])| (kind.to_string(), Factor::Range { lo, hi, bins: 3 }.bin_edges()))
+                .into(),
             ..Manifest::of(KIND, &s.header, s.trials, DETECTORS.iter().copied())
         }
     }

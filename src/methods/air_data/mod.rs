@@ -117,6 +117,7 @@ impl TrialSource for AirDataTrials<'_> {
             chunk_trials: 256,
             outputs: AIR_DATA_CHANNEL_NAMES.iter().map(|n| n.to_string()).collect(),
             fault_size_units: units.collect(),
+            fault_size_bins: crate::fault::deck::FaultKindSpec::size_bins(&s.monte_carlo.faults),
             ..Manifest::of(KIND, &s.header, s.monte_carlo.common.trials, s.detectors.iter().map(|d| d.name.as_str()))
         }
     }

@@ -117,7 +117,12 @@ impl TrialSource for SurfaceTrials<'_> {
             ("oscillation", "deg (the square wave's amplitude)"),
             ("loss_of_effectiveness", "fraction of the deflection still acting"),
         ];
+        let mut bins = Default::default();
+        for f in &s.monte_carlo.faults {
+            f.size().add_bins_to(f.name(), &mut bins);
+        }
         Manifest {
+            fault_size_bins: bins,
             // A flight costs 0.1-2 s, so 64 of them make a part file of seconds to a minute on 2 cores.
             chunk_trials: 64,
             outputs: SURFACE_NAMES.iter().map(|n| n.to_string()).collect(),

@@ -121,6 +121,10 @@ impl TrialSource for LaunchTrials<'_> {
             deck_thresholds: s.detectors.iter().map(|d| vec![d.params.threshold_fhat]).collect(),
             target_pfa: s.monte_carlo.common.target_pfa,
             fault_size_units: [("thrust_loss".to_string(), "percent of one engine's thrust".to_string())].into(),
+            fault_size_bins: (s.monte_carlo.loss_percent.iter())
+                .map(|f| ("thrust_loss".to_string(), f.bin_edges()))
+                .filter(|(_, e)| !e.is_empty())
+                .collect(),
             ..Manifest::of(KIND, &s.header, s.monte_carlo.common.trials, s.detectors.iter().map(|d| d.name.as_str()))
         }
     }
