@@ -84,21 +84,3 @@ pub fn eigenvalues(m: &DMatrix<f64>) -> Option<Vec<(f64, f64)>> {
     ev.sort_by(|x, y| y.0.total_cmp(&x.0).then(y.1.total_cmp(&x.1)));
     Some(ev)
 }
-
-/// Controllability matrix `[B, AB, ..., A^(n-1) B]`.
-pub fn controllability_matrix(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
-    let n = a.nrows();
-    let mut blocks = Vec::with_capacity(n);
-    let mut block = b.clone();
-    for _ in 0..n {
-        let next = a * &block;
-        blocks.push(block);
-        block = next;
-    }
-    DMatrix::from_columns(&blocks.iter().flat_map(|m| m.column_iter().map(|c| c.into_owned())).collect::<Vec<_>>())
-}
-
-/// Observability matrix `[C; CA; ...; C A^(n-1)]`.
-pub fn observability_matrix(a: &DMatrix<f64>, c: &DMatrix<f64>) -> DMatrix<f64> {
-    controllability_matrix(&a.transpose(), &c.transpose()).transpose()
-}

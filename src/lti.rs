@@ -66,12 +66,14 @@ impl LtiPlant {
         }
     }
 
-    /// Ranks of the controllability and observability matrices (`None` for non-finite matrices).
+    /// Dimensions of the controllable and observable subspaces, the ranks of the controllability and
+    /// observability matrices in exact arithmetic, by the orthogonal staircase (`None` for non-finite
+    /// matrices).
     pub fn structural_ranks(&self) -> Option<StructuralRanks> {
         Some(StructuralRanks {
             states: self.n_states(),
-            controllability_rank: linalg::rank(&linalg::controllability_matrix(&self.A, &self.B))?,
-            observability_rank: linalg::rank(&linalg::observability_matrix(&self.A, &self.C))?,
+            controllability_rank: linalg::staircase(&self.A, &self.B)?.controllable,
+            observability_rank: linalg::staircase(&self.A.transpose(), &self.C.transpose())?.controllable,
         })
     }
 }

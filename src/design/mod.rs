@@ -30,8 +30,12 @@ pub mod kalman;
 /// Why a gain cannot be designed. Kept as data: a Monte Carlo trial with a failed design is a row.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum DesignError {
-    #[error("the pair (A, C) is not observable: rank of the observability matrix is {rank}, needs {states}")]
-    Unobservable { rank: usize, states: usize },
+    #[error(
+        "the pair (A, C) is not observable: no output sees the mode(s) at {}; the observable subspace has \
+         dimension {rank} of {states}",
+        modes_text(.modes)
+    )]
+    Unobservable { rank: usize, states: usize, modes: Vec<Eigenvalue> },
     #[error("rank(C F) = {rank} but there are {directions} fault directions: their outputs cannot be told apart")]
     FaultDirectionsNotSeparable { rank: usize, directions: usize },
     #[error("eigenvalues {first} and {second} are not distinct: each fault direction needs its own eigenvalue")]
@@ -88,11 +92,7 @@ pub fn assign_eigenstructure(
     let r = F.ncols();
     assert!(A.is_square() && C.ncols() == n && F.nrows() == n && lambda.len() == r, "dimension mismatch");
 
-    let obs_rank = linalg::rank(&linalg::observability_matrix(A, C))
-        .ok_or(DesignError::Decomposition { what: "SVD of the observability matrix" })?;
-    if obs_rank < n {
-        return Err(DesignError::Unobservable { rank: obs_rank, states: n });
-    }
+    unobservable_modes(A, C)?;
     let CF = C * F;
     let cf_rank = linalg::rank(&CF).ok_or(DesignError::Decomposition { what: "SVD of C F" })?;
     if cf_rank < r {
@@ -136,6 +136,31 @@ pub fn assign_eigenstructure(
     Ok(Assignment { K, closed_loop_eigenvalues, eigenvector_condition, relative_residual })
 }
 
+/// Refuses a pair `(A, C)` with modes no output sees, naming them: the orthogonal staircase of the
+/// dual pair (`linalg::staircase`), sound at any size where the Kalman observability matrix is not.
+pub fn unobservable_modes(A: &DMatrix<f64>, C: &DMatrix<f64>) -> Result<(), DesignError> {
+    let failed = DesignError::Decomposition { what: "staircase reduction of (A, C)" };
+    let stairs = linalg::staircase(&A.transpose(), &C.transpose()).ok_or(failed.clone())?;
+    if stairs.controllable == A.nrows() {
+        return Ok(());
+    }
+    // The uncontrollable block of the dual pair is A's unobservable part, transposed: same eigenvalues.
+    let modes = linalg::eigenvalues(&stairs.uncontrollable_block).ok_or(failed)?;
+    Err(DesignError::Unobservable {
+        rank: stairs.controllable,
+        states: A.nrows(),
+        modes: modes.into_iter().map(|(re, im)| Eigenvalue { re, im }).collect(),
+    })
+}
+
+/// Eigenvalues as a message lists them: `-0.7, -1.2+0.5i`.
+fn modes_text(modes: &[Eigenvalue]) -> String {
+    let one = |e: &Eigenvalue| {
+        if e.im == 0.0 { format!("{:.6}", e.re) } else { format!("{:.6}{:+.6}i", e.re, e.im) }
+    };
+    modes.iter().map(one).collect::<Vec<_>>().join(", ")
+}
+
 /// Eigenvalues (sorted by real part, descending) and the eigenvector matrix's condition number.
 pub fn eigen_report(M: &DMatrix<f64>) -> Result<(Vec<Eigenvalue>, f64), DesignError> {
     let evd = to_faer(M).eigen().map_err(|_| DesignError::Decomposition { what: "eigendecomposition" })?;
@@ -155,7 +180,6 @@ pub fn eigen_report(M: &DMatrix<f64>) -> Result<(Vec<Eigenvalue>, f64), DesignEr
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::linalg::observability_matrix;
 
     /// Seed 000: longitudinal model at Mach 0.8, H = 50 m.
     fn seed000() -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>) {
@@ -195,8 +219,83 @@ mod tests {
     #[test]
     fn seed000_ranks_are_4_and_5() {
         let (A, B, C) = seed000();
-        assert_eq!(linalg::rank(&linalg::controllability_matrix(&A, &B)), Some(4));
-        assert_eq!(linalg::rank(&observability_matrix(&A, &C)), Some(5));
+        assert_eq!(linalg::staircase(&A, &B).unwrap().controllable, 4);
+        assert_eq!(linalg::staircase(&A.transpose(), &C.transpose()).unwrap().controllable, 5);
+        // The mode no input reaches: the first state's integrator (its row and column of A are zero).
+        let stairs = linalg::staircase(&A, &B).unwrap();
+        let modes = linalg::eigenvalues(&stairs.uncontrollable_block).unwrap();
+        assert!(modes.len() == 1 && modes[0].0.abs() < 1e-12 && modes[0].1 == 0.0, "{modes:?}");
+    }
+
+    /// A random stable plant of `n` states: `A = Q (D + N) Q^T` with `Q` a random orthogonal matrix, `D`
+    /// real eigenvalues log-uniform in [-50, -0.05] (slow phugoid-like modes to fast actuators) and `N`
+    /// strictly upper triangular (non-normal, as aircraft models are), so its eigenvalues are those of `D`.
+    fn random_stable(n: usize, seed: u64) -> (DMatrix<f64>, DMatrix<f64>, Vec<f64>) {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
+        let g = DMatrix::from_fn(n, n, |_, _| rng.random::<f64>() - 0.5);
+        let q = g.qr().q();
+        let eig: Vec<f64> = (0..n).map(|_| -0.05 * 1000f64.powf(rng.random::<f64>())).collect();
+        let t = DMatrix::from_fn(n, n, |i, j| {
+            if i == j {
+                eig[i]
+            } else if j > i {
+                rng.random::<f64>() - 0.5
+            } else {
+                0.0
+            }
+        });
+        (&q * t * q.transpose(), q, eig)
+    }
+
+    /// Issue 19: the Kalman observability matrix refused most random 20-state plants measured by C = I.
+    #[test]
+    fn random_stable_plants_with_all_states_measured_are_observable_up_to_100_states() {
+        for n in [5, 12, 16, 20, 24, 50, 100] {
+            for seed in 0..if n <= 24 { 20 } else { 3 } {
+                let (A, _, _) = random_stable(n, seed);
+                unobservable_modes(&A, &DMatrix::identity(n, n))
+                    .unwrap_or_else(|e| panic!("{n} states, seed {seed}: {e}"));
+            }
+        }
+        // One output (a random combination of the states) sees every mode of a generic plant as well.
+        for seed in 0..5 {
+            let (A, _, _) = random_stable(24, seed);
+            let c = DMatrix::from_fn(1, 24, |_, j| 1.0 + 0.1 * j as f64);
+            unobservable_modes(&A, &c).unwrap_or_else(|e| panic!("24 states, one output, seed {seed}: {e}"));
+        }
+    }
+
+    /// A plant with one mode hidden from the outputs (`C` orthogonal to its eigenvector's direction in the
+    /// Schur basis) is refused with that mode named, at 5 and at 50 states.
+    #[test]
+    fn an_unobservable_mode_is_named_at_5_and_50_states() {
+        for n in [5, 50] {
+            let (_, q, eig) = random_stable(n, 7);
+            // Block-triangular in the basis q: the last Schur vector's mode -0.7 feeds nothing the
+            // outputs see (row n-1 of the Schur form holds only its eigenvalue; C reads the others).
+            let mut t = DMatrix::from_fn(n, n, |i, j| {
+                if i == j {
+                    eig[i]
+                } else if j > i {
+                    0.3
+                } else {
+                    0.0
+                }
+            });
+            t[(n - 1, n - 1)] = -0.7;
+            for i in 0..n - 1 {
+                t[(i, n - 1)] = 0.0;
+            }
+            let A = &q * t * q.transpose();
+            let C = DMatrix::from_fn(n - 1, n, |i, j| q[(j, i)]);
+            let e = unobservable_modes(&A, &C).unwrap_err();
+            let DesignError::Unobservable { rank, states, modes } = &e else { panic!("{e:?}") };
+            assert_eq!((*rank, *states), (n - 1, n));
+            assert_eq!(modes.len(), 1, "{modes:?}");
+            assert!((modes[0].re + 0.7).abs() < 1e-9 && modes[0].im == 0.0, "{modes:?}");
+            assert!(e.to_string().contains("no output sees the mode(s) at -0.700000"), "{e}");
+        }
     }
 
     #[test]
@@ -279,7 +378,10 @@ mod tests {
         // Altitude not measured and nothing feeds it back: unobservable.
         let C_no_h = C.columns(0, 4).into_owned().insert_column(4, 0.0);
         let e = assign_eigenstructure(&A, &C_no_h, &I, &lambda, Domain::Continuous);
-        assert!(matches!(e, Err(DesignError::Unobservable { rank: 4, states: 5 })), "{e:?}");
+        let Err(DesignError::Unobservable { rank: 4, states: 5, modes }) = &e else { panic!("{e:?}") };
+        assert_eq!(modes.len(), 1, "{modes:?}");
+        assert!(modes[0].re.abs() < 1e-12 && modes[0].im == 0.0, "altitude's integrator: {modes:?}");
+        assert!(e.unwrap_err().to_string().contains("no output sees the mode(s) at 0.000000"));
         // Two fault directions that look the same at the outputs.
         let F = DMatrix::from_row_slice(5, 2, &[1.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
         let e = assign_eigenstructure(&A, &C, &F, &[-1.0, -2.0], Domain::Continuous);

@@ -21,10 +21,9 @@ fn design_error(deck: &Path, what: &str, e: DesignError) -> RunError {
 /// `fdimc design`: gains, closed-loop eigenvalues, conditioning and bias signatures per detector.
 pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
     let deck = &study.header.path;
-    let ranks = study
-        .design_plant
-        .structural_ranks()
-        .ok_or_else(|| RunError::Internal("SVD of the controllability/observability matrix failed".into()))?;
+    let ranks = study.design_plant.structural_ranks().ok_or_else(|| {
+        RunError::Internal("staircase reduction of the design plant failed (non-finite matrices?)".into())
+    })?;
     let p = &study.design_plant;
     let mut filters = Vec::with_capacity(study.detectors.len());
     for d in &study.detectors {
@@ -135,9 +134,9 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
             .push(d.params.design(&study.design_plant, study.header.dt_s).map_err(|e| design_error(deck, &d.name, e))?);
     }
     let p = &study.plant;
-    let ranks = p
-        .structural_ranks()
-        .ok_or_else(|| RunError::Internal("SVD of the controllability/observability matrix failed".into()))?;
+    let ranks = p.structural_ranks().ok_or_else(|| {
+        RunError::Internal("staircase reduction of the design plant failed (non-finite matrices?)".into())
+    })?;
     let list = |v: &[String]| v.join(", ");
     let nums = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(", ");
 
