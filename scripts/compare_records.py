@@ -5,7 +5,8 @@ compares trials.parquet column by column, through the renames of the one outcome
     pip install polars
     python3 scripts/compare_records.py OLD_FDIMC NEW_FDIMC [--trials N] [--keep DIR] [decks ...]
 
-Both binaries run the same deck, seed and trial count (--trials caps slow decks: a trial's records depend
+Binaries that write the same schema are compared column for column; across the issue-16 schema change,
+through the renames. Both binaries run the same deck, seed and trial count (--trials caps slow decks: a trial's records depend
 only on (deck, seed, trial index), so a prefix of a study is compared exactly). Every column of the old
 table must be in the new one under its name or its new name, with identical values, except where the
 schema changed a representation on purpose (listed in RULES, each checked by its own rule); every new
@@ -68,6 +69,13 @@ def compare(kind, old, new):
     problems = []
     if old.height != new.height:
         return [f"rows: {old.height} before, {new.height} now"]
+    if old.columns == new.columns:
+        # Both binaries write the one outcome schema: every column identical (NaN equal to NaN).
+        for c in old.columns:
+            bad = [i for i, e in enumerate(same(old[c], new[c])) if not e]
+            if bad:
+                problems.append(f"{c!r}: {len(bad)} rows differ, first row {bad[0]}: {old[c][bad[0]]!r} vs {new[c][bad[0]]!r}")
+        return problems
     renames = RENAMES[kind]
     for c in old.columns:
         n = renames.get(c, c)

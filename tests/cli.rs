@@ -62,6 +62,63 @@ fn design_json_has_the_assigned_eigenvalues() {
     assert_eq!(doc["detectors"][0]["continuous"]["K"][0].as_array().unwrap().len(), 6);
 }
 
+/// Issue 19: a 24-state plant measured at 8 states (`tests/data/plant24_outputs8.toml`, written by
+/// `scripts/plant_deck.py --states 24 --outputs 8 --seed 1 --trials 256`) with `fault_directions` (r = 8 < n)
+/// is observable, designs (the 8 assigned eigenvalues among the 24, residual and conditioning reported,
+/// no warning) and runs.
+#[test]
+fn a_24_state_plant_with_8_outputs_designs_and_runs() {
+    let deck = "tests/data/plant24_outputs8.toml";
+    let out = fdimc(&["design", deck, "--json"]);
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+    assert!(!text(&out.stderr).contains("warning"), "{}", text(&out.stderr));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        (doc["ranks"]["controllability_rank"].as_u64(), doc["ranks"]["observability_rank"].as_u64()),
+        (Some(24), Some(24))
+    );
+    let design = &doc["detectors"][0]["continuous"];
+    let re: Vec<f64> =
+        design["closed_loop_eigenvalues"].as_array().unwrap().iter().map(|e| e["re"].as_f64().unwrap()).collect();
+    assert_eq!(re.len(), 24);
+    for l in 1..=8 {
+        assert!(re.iter().any(|r| (r + l as f64).abs() < 1e-9), "-{l} assigned: {re:?}");
+    }
+    assert!(re.iter().all(|&r| r < 0.0), "{re:?}");
+    assert!(design["relative_residual"].as_f64().unwrap() < 1e-8);
+    let cond = design["eigenvector_condition"].as_f64().unwrap();
+    assert!(cond.is_finite() && cond < 1e6, "{cond}");
+    assert_eq!(design["K"].as_array().unwrap().len(), 24);
+    assert_eq!(design["K"][0].as_array().unwrap().len(), 8);
+
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("run");
+    ok(&fdimc(&["run", deck, "--quiet", "--out", dir.to_str().unwrap()]));
+    assert_eq!(read_frame(&dir.join("trials.parquet")).height(), 256);
+}
+
+/// Fault directions 1e-7 apart make the eigenvectors nearly parallel: validate and design warn.
+#[test]
+fn nearly_parallel_fault_directions_are_warned_about() {
+    let tmp = tempfile::tempdir().unwrap();
+    let deck = edited_deck(
+        tmp.path(),
+        "seed000_pitch_rate.toml",
+        &[(
+            "eigenvalues_per_s = [-1.0, -2.0, -3.0, -4.0, -5.0]",
+            "eigenvalues_per_s = [-1.0, -2.0, -3.0, -4.0, -5.0]\nfault_directions = [[1.0, 0.0, 0.0, 0.0, 0.0], \
+             [0.0, 1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 1e-7, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 0.0, 1.0]]",
+        )],
+        "parallel.toml",
+    );
+    for command in ["validate", "design"] {
+        let out = fdimc(&[command, deck.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
+        let stderr = text(&out.stderr);
+        assert!(stderr.contains("warning:") && stderr.contains("exceeds 1e6"), "{command}: {stderr}");
+    }
+}
+
 #[test]
 fn simulate_writes_a_trace_in_csv_and_parquet() {
     let dir = tempfile::tempdir().unwrap();

@@ -77,6 +77,26 @@ pub struct Assignment {
     pub relative_residual: f64,
 }
 
+/// Eigenvector condition number above which a design is warned about: a relative model error of 1e-6
+/// can then move the closed-loop eigenvalues by their own size, so the assigned directions (what
+/// isolation relies on) no longer hold on the true plant. A choice, not the seed's.
+pub const EIGENVECTOR_CONDITION_WARNING: f64 = 1e6;
+
+impl Assignment {
+    /// Why this design's isolation directions may be meaningless, if they may.
+    pub fn conditioning_warning(&self) -> Option<String> {
+        (self.eigenvector_condition > EIGENVECTOR_CONDITION_WARNING).then(|| {
+            format!(
+                "eigenvector condition number {:.3e} exceeds {EIGENVECTOR_CONDITION_WARNING:.0e}: a relative model \
+                 error of 1e-6 can move the closed-loop eigenvalues by their own size, so the assigned fault \
+                 directions (and isolation by them) do not hold on the true plant; choose eigenvalues or \
+                 directions that keep the eigenvectors apart",
+                self.eigenvector_condition
+            )
+        })
+    }
+}
+
 /// Assigns eigenvalue `lambda[i]` to direction `F[:, i]` (see the module docs).
 ///
 /// Panics only on inconsistent dimensions (a programmer error: decks are validated before this).
@@ -167,8 +187,12 @@ pub fn eigen_report(M: &DMatrix<f64>) -> Result<(Vec<Eigenvalue>, f64), DesignEr
     let mut eigenvalues: Vec<Eigenvalue> =
         evd.S().column_vector().iter().map(|z| Eigenvalue { re: z.re, im: z.im }).collect();
     eigenvalues.sort_by(|a, b| b.re.total_cmp(&a.re).then(b.im.total_cmp(&a.im)));
+    // faer's eigenvectors are not normalised (one may be 1e7 long): unit columns, the usual definition,
+    // so the number measures how close the directions are, not their lengths.
     let U = evd.U();
-    let V: Mat<faer::c64> = Mat::from_fn(U.nrows(), U.ncols(), |i, j| U[(i, j)]);
+    let norms: Vec<f64> =
+        (0..U.ncols()).map(|j| (0..U.nrows()).map(|i| U[(i, j)].norm_sqr()).sum::<f64>().sqrt()).collect();
+    let V: Mat<faer::c64> = Mat::from_fn(U.nrows(), U.ncols(), |i, j| U[(i, j)] / norms[j]);
     let sigma = V.singular_values().map_err(|_| DesignError::Decomposition { what: "SVD of the eigenvectors" })?;
     let condition = match (sigma.first(), sigma.last()) {
         (Some(&hi), Some(&lo)) if lo > 0.0 => hi / lo,
@@ -264,6 +288,56 @@ mod tests {
             let c = DMatrix::from_fn(1, 24, |_, j| 1.0 + 0.1 * j as f64);
             unobservable_modes(&A, &c).unwrap_or_else(|e| panic!("24 states, one output, seed {seed}: {e}"));
         }
+    }
+
+    /// Issue 19.2: with r < n (16 measured states of 50, `F = [I; 0]`) the minimum-norm gain assigns the
+    /// 16 pairs and leaves the unmeasured block's eigenvalues: closed loop `[Lambda, A12; 0, A22]`, so its
+    /// spectrum is `Lambda` and that of `A22`, computed here on `A22` alone. Well conditioned: no warning.
+    #[test]
+    fn fifty_states_with_sixteen_outputs_assign_lambda_and_keep_the_unmeasured_block() {
+        use rand::{RngExt, SeedableRng};
+        let (n, m) = (50, 16);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(3);
+        // Diagonally dominant (Gershgorin): every principal block is stable.
+        let d: Vec<f64> = (0..n).map(|_| 0.5 * 100f64.powf(rng.random::<f64>())).collect();
+        let A = DMatrix::from_fn(n, n, |i, j| {
+            if i == j { -d[i] } else { 0.9 * d[i] / (n - 1) as f64 * (2.0 * rng.random::<f64>() - 1.0) }
+        });
+        let C = DMatrix::from_fn(m, n, |i, j| if i == j { 1.0 } else { 0.0 });
+        let F = C.transpose();
+        let lambda: Vec<f64> = (1..=m).map(|i| -(i as f64)).collect();
+        let a = assign_eigenstructure(&A, &C, &F, &lambda, Domain::Continuous).unwrap();
+        assert!(a.relative_residual < 1e-12, "{}", a.relative_residual);
+        let mut want: Vec<(f64, f64)> = lambda.iter().map(|&l| (l, 0.0)).collect();
+        want.extend(linalg::eigenvalues(&A.view((m, m), (n - m, n - m)).into_owned()).unwrap());
+        want.sort_by(|x, y| y.0.total_cmp(&x.0).then(y.1.total_cmp(&x.1)));
+        assert_eq!(a.closed_loop_eigenvalues.len(), n);
+        for (got, w) in a.closed_loop_eigenvalues.iter().zip(&want) {
+            assert!(
+                (got.re - w.0).abs() < 1e-8 * w.0.abs().max(1.0) && (got.im - w.1).abs() < 1e-8,
+                "{got:?} vs {w:?}"
+            );
+        }
+        assert!(
+            a.eigenvector_condition.is_finite() && a.conditioning_warning().is_none(),
+            "{}",
+            a.eigenvector_condition
+        );
+    }
+
+    /// With `C = I` the closed loop is `F Lambda F^-1`: its eigenvector matrix is `F`, whose condition
+    /// number (about 2e7 for directions 1e-7 apart) the design reports and warns about.
+    #[test]
+    fn nearly_parallel_directions_are_warned_about() {
+        let A = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, 0.0, 0.0]);
+        let F = DMatrix::from_row_slice(2, 2, &[1.0, 1.0, 0.0, 1e-7]);
+        let a = assign_eigenstructure(&A, &DMatrix::identity(2, 2), &F, &[-1.0, -2.0], Domain::Continuous).unwrap();
+        let cond_f = {
+            let s = F.clone().svd(false, false).singular_values;
+            s.max() / s.min()
+        };
+        assert!((a.eigenvector_condition / cond_f - 1.0).abs() < 1e-3, "{} vs {cond_f}", a.eigenvector_condition);
+        assert!(a.conditioning_warning().unwrap().contains("exceeds 1e6"));
     }
 
     /// A plant with one mode hidden from the outputs (`C` orthogonal to its eigenvector's direction in the

@@ -103,6 +103,9 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                 .collect();
             println!("  eigenvalues of A - K C: [{}]", evs.join(", "));
             println!("  eigenvector condition number: {:.6}", a.eigenvector_condition);
+            if let Some(w) = a.conditioning_warning() {
+                eprintln!("warning: detector {:?} ({label}): {w}", d.name);
+            }
             if !a.relative_residual.is_nan() {
                 println!("  assignment residual |(A - K C) F - F Lambda| / |A F|: {:.3e}", a.relative_residual);
             }
@@ -202,6 +205,9 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
             a.closed_loop_eigenvalues.iter().map(|e| format!("{:.6}", e.re)).collect::<Vec<_>>().join(", "),
             a.eigenvector_condition
         );
+        if let Some(w) = a.conditioning_warning() {
+            eprintln!("warning: {}: detector {:?}: {w}", deck.display(), d.name);
+        }
     }
     let mc = &study.monte_carlo;
     println!(

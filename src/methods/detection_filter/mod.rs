@@ -82,10 +82,16 @@ use trials::{Engine, TrialResult};
 pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunError> {
     let engine = Engine::new(study);
     for (d, f) in study.detectors.iter().zip(engine.nominal_filters()) {
-        if let Err(e) = f {
-            if study.monte_carlo.parameter_errors.is_empty() {
+        match f {
+            Err(e) if study.monte_carlo.parameter_errors.is_empty() => {
                 return Err(RunError::Invalid(format!("{}: detector {}: {e}", opts.deck.display(), d.name)));
             }
+            Ok(filter) if opts.progress => {
+                if let Some(w) = filter.discrete.conditioning_warning() {
+                    eprintln!("warning: {}: detector {:?}: {w}", opts.deck.display(), d.name);
+                }
+            }
+            _ => {}
         }
     }
     run(&LtiTrials { study, engine }, opts)
