@@ -170,7 +170,7 @@ fn bad_decks_exit_2_naming_file_and_field() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let catalogue: Catalogue =
         toml::from_str(&std::fs::read_to_string(root.join("tests/data/bad_decks.toml")).unwrap()).unwrap();
-    assert_eq!(catalogue.case.len(), 99);
+    assert_eq!(catalogue.case.len(), 100);
     let dir = tempfile::tempdir().unwrap();
     for (i, c) in catalogue.case.iter().enumerate() {
         let what = format!("case {i} ({}, {})", c.deck, c.what.as_deref().unwrap_or(&c.to));
@@ -552,6 +552,35 @@ fn launch_and_air_data_checks_fail_on_a_baseline_they_fall_short_of() {
         let stdout = text(&out.stdout);
         assert_eq!(out.status.code(), Some(1), "{deck}: {stdout}{}", text(&out.stderr));
         assert!(stdout.contains(group), "{deck}: {stdout}");
+    }
+}
+
+/// The accelerometer kind detects every fault of its CI deck (Pd 1 in every group), so its check is
+/// shown to fail where it can: on a copy of its baseline without false alarms (counts and rates), the
+/// normal class's 39 of 50 misclassified trials per classifier are a false-alarm rise, named by group.
+#[test]
+fn accelerometer_check_fails_on_a_baseline_without_false_alarms() {
+    use polars::prelude::*;
+    let tmp = tempfile::tempdir().unwrap();
+    let base = csv_frame(&Path::new(env!("CARGO_MANIFEST_DIR")).join("results/baselines/ci_seed003.csv"));
+    let flown = base.column("pfa").unwrap().is_not_null();
+    let zero = |name: &str, value: AnyValue| {
+        let c = base.column(name).unwrap().as_materialized_series().clone();
+        let zeros = Series::new(name.into(), vec![value; c.len()]).cast(c.dtype()).unwrap();
+        zeros.zip_with(&flown, &c).unwrap().into_column()
+    };
+    let mut doctored = base.clone();
+    doctored.with_column(zero("false_alarms", AnyValue::Int64(0))).unwrap();
+    doctored.with_column(zero("pfa", AnyValue::Float64(0.0))).unwrap();
+    let file = tmp.path().join("no_false_alarms.csv");
+    CsvWriter::new(std::fs::File::create(&file).unwrap()).finish(&mut doctored).unwrap();
+    let out = fdimc(&["check", "studies/ci_seed003.toml", "--baseline", file.to_str().unwrap()]);
+    let stdout = text(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}{}", text(&out.stderr));
+    for detector in ["flat", "tree"] {
+        let group = format!("REGRESSION thresholds=deck detector={detector} kind=normal ");
+        let line = stdout.lines().find(|l| l.starts_with(&group)).unwrap_or_else(|| panic!("{group}: {stdout}"));
+        assert!(line.contains("false-alarm rate 0.0000 (0/50) -> 0.7800 (39/50)"), "{line}");
     }
 }
 

@@ -225,8 +225,8 @@ pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Repor
 }
 
 /// The first detector's first detected fault, first missed fault and first false alarm (those the run
-/// has), each with why it was picked; trials in order, each once.
-fn representative_trials(dir: &Path, manifest: &Manifest) -> Result<Vec<(u64, &'static str)>, RunError> {
+/// has), each with why it was picked (all its reasons); trials in order, each once.
+fn representative_trials(dir: &Path, manifest: &Manifest) -> Result<Vec<(u64, String)>, RunError> {
     let path = dir.join("trials.parquet");
     let select: Vec<String> =
         [col::TRIAL, col::DETECTOR, col::FAULT_FREE, col::DETECTED, col::FALSE_ALARM, col::FAILURE]
@@ -258,10 +258,14 @@ fn representative_trials(dir: &Path, manifest: &Manifest) -> Result<Vec<(u64, &'
         }
         offset += super::thresholds::SLICE_ROWS;
     }
-    let mut picked: Vec<(u64, &'static str)> = Vec::new();
+    // One trial can be two of them (a detected fault that also alarmed before its onset): listed once,
+    // with both reasons.
+    let mut picked: Vec<(u64, String)> = Vec::new();
     for (t, why) in found.into_iter().zip(["first detected fault", "first missed fault", "first false alarm"]) {
-        if let Some(t) = t.filter(|t| !picked.iter().any(|p| p.0 == *t)) {
-            picked.push((t, why));
+        let Some(t) = t else { continue };
+        match picked.iter_mut().find(|p| p.0 == t) {
+            Some(p) => p.1 = format!("{}, {why}", p.1),
+            None => picked.push((t, why.to_string())),
         }
     }
     picked.sort_unstable();
@@ -291,6 +295,11 @@ fn traces(ctx: &ReportContext, method: &Method) -> Result<Vec<PathBuf>, RunError
     let (seed, n) = study.seed_and_trials();
     (*seed, *n) = (ctx.manifest.seed, ctx.manifest.trials);
     let onsets = onsets(ctx.dir, ctx.manifest.rows, ctx.trials)?;
+    // The classifiers the run used (written beside its results), not ones trained anew from the deck:
+    // they differ when the run took `--classifiers` from another deck.
+    let run_classifiers = (method.options.contains(&super::method::Opt::Classifiers))
+        .then(|| ctx.dir.join("classifiers.json"))
+        .filter(|f| f.exists());
     let mut files = Vec::new();
     for &trial in ctx.trials {
         if trial >= ctx.manifest.trials {
@@ -300,7 +309,7 @@ fn traces(ctx: &ReportContext, method: &Method) -> Result<Vec<PathBuf>, RunError
             )));
         }
         let table = ctx.out.join(format!("trace_trial{trial}.parquet"));
-        study.simulate(trial, None, &table, Inputs { classifiers: None, quiet: true })?;
+        study.simulate(trial, None, &table, Inputs { classifiers: run_classifiers.as_deref(), quiet: true })?;
         let df = read_parquet(&table)?;
         let t_s = f64_col(&df, "t_s", &table)?.into_no_null_iter().collect::<Vec<_>>();
         let names: Vec<String> = df.get_column_names().iter().map(|n| n.to_string()).collect();
@@ -732,6 +741,30 @@ table{{border-collapse:collapse;font-size:85%;margin:0.5em 0}}td,th{{border:1px 
 #[cfg(test)]
 mod tests {
     use super::glob;
+
+    /// Trial 1 is both the first detected fault and the first false alarm of detector "a": listed once
+    /// with both reasons; detector "b"'s rows and a failed row are passed over.
+    #[test]
+    fn representative_trials_merge_the_reasons_of_one_trial() {
+        use super::*;
+        let mut df = df!(
+            col::TRIAL => [0u64, 0, 1, 1, 2, 3],
+            col::DETECTOR => ["a", "b", "a", "b", "a", "a"],
+            col::FAULT_FREE => [false, false, false, true, false, false],
+            col::DETECTED => [true, true, true, false, false, false],
+            col::FALSE_ALARM => [false, true, true, false, false, false],
+            col::FAILURE => [Some("diverged"), None, None, None, None, None],
+        )
+        .unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        crate::engine::runner::write_parquet(&mut df, &dir.path().join("trials.parquet")).unwrap();
+        let manifest = Manifest { rows: 6, detectors: vec!["a".into(), "b".into()], ..Manifest::unstarted() };
+        let picked = representative_trials(dir.path(), &manifest).unwrap();
+        assert_eq!(
+            picked,
+            [(1, "first detected fault, first false alarm".to_string()), (2, "first missed fault".to_string())]
+        );
+    }
 
     #[test]
     fn trace_column_patterns() {

@@ -293,7 +293,8 @@ impl FromDeck for LaunchStudy {
             ));
         }
         let gust_scale = v.factor("monte_carlo.gust_scale", own.gust_scale.as_ref(), Factor::Fixed(1.0))?;
-        v.factor_within("monte_carlo.gust_scale", &gust_scale, |x| x.is_finite(), "a finite factor")?;
+        // Negative would reverse every gust: refused rather than read as a sign convention.
+        v.factor_within("monte_carlo.gust_scale", &gust_scale, |x| x >= 0.0, ">= 0 (0: no gusts)")?;
         let detection_window_s = v.positive("monte_carlo.detection_window_s", own.detection_window_s.unwrap_or(2.0))?;
         v.one_fault_source("[[faults]]", "monte_carlo.loss_percent", loss_percent.is_some() && fault.is_some())?;
         let monte_carlo = LaunchMonteCarlo { common, engines, loss_percent, gust_scale, detection_window_s };
