@@ -97,6 +97,17 @@ fn a_24_state_plant_with_8_outputs_designs_and_runs() {
     assert_eq!(read_frame(&dir.join("trials.parquet")).height(), 256);
 }
 
+/// The bundled 24-state 747 deck (scripts/b747_deck.py): the 5 Dryden states are not reached by the
+/// commands, every state is seen by the 10 sensors, and the design needs no warning.
+#[test]
+fn the_bundled_747_deck_validates_with_its_ranks() {
+    let out = fdimc(&["validate", "studies/b747_cruise24.toml"]);
+    let stdout = ok(&out);
+    assert!(stdout.contains("plant       24 states") && stdout.contains("10 outputs"), "{stdout}");
+    assert!(stdout.contains("rank ctrb(A, B) = 19 of 24, rank obsv(A, C) = 24 of 24"), "{stdout}");
+    assert!(!text(&out.stderr).contains("warning"), "{}", text(&out.stderr));
+}
+
 /// Fault directions 1e-7 apart make the eigenvectors nearly parallel: validate and design warn.
 #[test]
 fn nearly_parallel_fault_directions_are_warned_about() {
@@ -855,6 +866,15 @@ fn accelerometer_classifiers_train_save_load_and_runs_are_identical() {
     assert!(sim.contains("class gain") && sim.contains(&format!("tree   predicts {predicted}")), "{sim}");
     assert_eq!(csv_frame(Path::new(&trace)).height(), 2000);
 
+    // An --out under a regular file is refused before training, naming it (exit 2).
+    let under_file = s(tmp.path().join("classifiers.json").join("x.json"));
+    let out = fdimc(&["train", deck, "--out", &under_file]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains(&format!("--out {under_file}: cannot create the folder")),
+        "{}",
+        text(&out.stderr)
+    );
     // A file that is not classifiers is the user's error, named.
     std::fs::write(tmp.path().join("junk.json"), "{}").unwrap();
     let out =

@@ -118,7 +118,10 @@ pub fn train(study: &AccelerometerStudy, out: Option<&Path>) -> Result<(), RunEr
         .map(Path::to_path_buf)
         .unwrap_or_else(|| PathBuf::from("results").join(&study.header.name).join("classifiers.json"));
     if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(|e| RunError::Internal(format!("{}: {e}", parent.display())))?;
+        // The folder is the user's choice (--out): one that cannot be made is their input to fix.
+        std::fs::create_dir_all(parent).map_err(|e| {
+            RunError::Invalid(format!("--out {}: cannot create the folder {} ({e})", out.display(), parent.display()))
+        })?;
     }
     let started = std::time::Instant::now();
     let trained =
