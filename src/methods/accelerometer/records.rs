@@ -71,3 +71,99 @@ pub fn frame(results: &[AccelTrialResult]) -> PolarsResult<DataFrame> {
     columns.push(Column::new("unusable_accelerometer_samples".into(), unusable));
     DataFrame::new_infer_height(columns)
 }
+
+#[cfg(test)]
+mod tests {
+    use polars::prelude::*;
+
+    use super::*;
+    use crate::engine::runner::{Manifest, write_parquet};
+    use crate::engine::summary::summarize;
+    use crate::engine::tables::read_summary;
+    use crate::methods::accelerometer::trial::{AccelOutcome, AccelTrialSpec};
+
+    /// Both classifiers on four hand-made trials. Trial 0: a bias on x (0.3 m/s^2) alarmed after 0.2 s,
+    /// "flat" calls it bias, "tree" gain; trial 1: normal, an alarm at 5 s (a false alarm of both), "flat"
+    /// calls it normal, "tree" bias; trial 2: y stuck, alarmed after 0.5 s, both call it stuck; trial 3: a
+    /// bias on x that could not be flown.
+    #[test]
+    fn summary_of_hand_made_accelerometer_trials() {
+        use FaultClass::*;
+        let spec = |trial: u64, class: FaultClass, axis: Option<usize>, size: f64| AccelTrialSpec {
+            trial,
+            class,
+            axis,
+            size,
+            size_bin: if class == Bias { 0.275 } else { f64::NAN },
+            onset_s: 10.0,
+            noise_scale: 1.0,
+        };
+        // `predicted` is in DETECTORS order: tree, flat.
+        let out = |tree, flat, alarm: Option<f64>, false_alarm: Option<f64>| AccelOutcome {
+            predicted: [tree, flat],
+            false_alarm_s: false_alarm,
+            alarm_s: alarm,
+            health: Default::default(),
+        };
+        let results = vec![
+            AccelTrialResult { spec: spec(0, Bias, Some(0), 0.3), outcome: Ok(out(Gain, Bias, Some(10.2), None)) },
+            AccelTrialResult {
+                spec: spec(1, Normal, None, f64::NAN),
+                outcome: Ok(out(Bias, Normal, Some(5.0), Some(5.0))),
+            },
+            AccelTrialResult {
+                spec: spec(2, Stuck, Some(1), f64::NAN),
+                outcome: Ok(out(Stuck, Stuck, Some(10.5), None)),
+            },
+            AccelTrialResult { spec: spec(3, Bias, Some(0), 0.3), outcome: Err("unusable".into()) },
+        ];
+        let mut df = frame(&results).unwrap();
+        assert_eq!(df.height(), 8);
+        let dir = tempfile::tempdir().unwrap();
+        write_parquet(&mut df, &dir.path().join("trials.parquet")).unwrap();
+        let manifest = Manifest {
+            kind: super::super::KIND.into(),
+            trials: 4,
+            detectors: DETECTORS.iter().map(|d| d.to_string()).collect(),
+            complete: true,
+            rows: 8,
+            ..Manifest::unstarted()
+        };
+        manifest.write(dir.path()).unwrap();
+        summarize(dir.path(), &super::super::METHOD.summary, None).unwrap();
+
+        let summary = read_summary(&dir.path().join("summary.csv")).unwrap();
+        let text = |n: &str, i: usize| summary.column(n).unwrap().str().unwrap().get(i).map(String::from);
+        let row = |detector: &str, kind: &str| {
+            (0..summary.height())
+                .find(|&i| text("detector", i).as_deref() == Some(detector) && text("kind", i).as_deref() == Some(kind))
+                .unwrap_or_else(|| panic!("no row {detector}/{kind}"))
+        };
+        let u = |n: &str, i: usize| summary.column(n).unwrap().cast(&DataType::UInt64).unwrap().u64().unwrap().get(i);
+        let f = |n: &str, i: usize| summary.column(n).unwrap().cast(&DataType::Float64).unwrap().f64().unwrap().get(i);
+        assert_eq!(summary.height(), 6, "3 kinds x 2 classifiers");
+        for detector in ["flat", "tree"] {
+            let (bias, normal, stuck) = (row(detector, "bias"), row(detector, "normal"), row(detector, "stuck"));
+            assert_eq!((u("trials", bias), u("failed", bias), u("detected", bias)), (Some(2), Some(1), Some(1)));
+            assert_eq!(f("pd", bias), Some(1.0));
+            assert_eq!((u("false_alarms", normal), f("pfa", normal)), (Some(1), Some(1.0)));
+            assert_eq!(f("pd", normal), None, "no detection probability of the normal class");
+            assert!(f("delay_p50_s", stuck).is_some_and(|d| (d - 0.5).abs() < 1e-12), "{:?}", f("delay_p50_s", stuck));
+            assert_eq!(u("isolated_correctly", stuck), Some(1), "both call the stuck axis stuck");
+        }
+        // Classification: flat is right on every flown trial, tree on the stuck one only.
+        for (detector, bias_ok, normal_ok) in [("flat", 1, 1), ("tree", 0, 0)] {
+            assert_eq!(u("isolated_correctly", row(detector, "bias")), Some(bias_ok), "{detector}");
+            assert_eq!(u("isolated_correctly", row(detector, "normal")), Some(normal_ok), "{detector}");
+            assert_eq!(u("isolation_decided", row(detector, "normal")), Some(1), "a classifier always names a class");
+        }
+        let confusion = read_summary(&dir.path().join("confusion.csv")).unwrap();
+        let tree_bias = (0..confusion.height()).find(|&i| {
+            let t = |n: &str| confusion.column(n).unwrap().str().unwrap().get(i).map(String::from);
+            t("detector").as_deref() == Some("tree")
+                && t("truth").as_deref() == Some("bias")
+                && t("isolated").as_deref() == Some("gain")
+        });
+        assert!(tree_bias.is_some(), "tree's bias-as-gain in confusion.csv: {confusion}");
+    }
+}

@@ -137,3 +137,127 @@ struct Columns {
     floor: Vec<Option<u32>>,
     both: Vec<Option<u32>>,
 }
+
+#[cfg(test)]
+mod tests {
+    use polars::prelude::*;
+
+    use super::*;
+    use crate::engine::deck::FromDeck;
+    use crate::engine::runner::{Manifest, write_parquet};
+    use crate::engine::summary::summarize;
+    use crate::engine::tables::read_summary;
+    use crate::fault::{FaultMode, SensorFault};
+    use crate::methods::air_data::dual_ukf::DualUkfHealth;
+    use crate::methods::air_data::scenario::AirDataTrialSpec;
+    use crate::methods::air_data::trial::AirDataOutcome;
+
+    /// Two detectors on three hand-made flights, a common-mode bias of 5 sigmas on airspeed and alpha at
+    /// 30 s, or none. Trial 0: a isolates both after 0.5 s, b only airspeed after 1.0 s (and repaired a
+    /// covariance); trial 1: a misses, b isolates both after 0.4 s; trial 2: fault-free, a false alarm by a.
+    #[test]
+    fn summary_of_hand_made_air_data_flights() {
+        let mut study = AirDataStudy::bundled("ci_seed002.toml");
+        study.detectors.truncate(1);
+        study.detectors.push(study.detectors[0].clone());
+        study.detectors[0].name = "a".into();
+        study.detectors[1].name = "b".into();
+        let fault = |channel| SensorFault { channel, onset_s: 30.0, mode: FaultMode::Bias { bias: 5.0 } };
+        let spec = |trial: u64, faulty: bool| AirDataTrialSpec {
+            trial,
+            faults: if faulty { vec![fault(0), fault(1)] } else { vec![] },
+            kind: if faulty { "bias" } else { NO_FAULT },
+            outputs: if faulty { vec![0, 1] } else { vec![] },
+            size: if faulty { 5.0 } else { f64::NAN },
+            size_bin: if faulty { 5.0 } else { f64::NAN },
+            size_unit: if faulty { crate::fault::deck::unit::SENSOR_SIGMA } else { crate::fault::deck::unit::NONE },
+            onset_s: 30.0,
+            noise_scale: 1.0,
+            noise_bin: 1.0,
+            gust_std_mps: 0.0,
+            gust_bin: 0.0,
+        };
+        let out = |detection: Option<f64>, isolated: Option<Vec<usize>>, bias_err: Option<f64>, est: Option<f64>| {
+            AirDataOutcome {
+                false_alarm_s: None,
+                detection_s: detection,
+                isolated,
+                bias_error_rms_sigma: bias_err,
+                estimate_rms: [0.1; 3],
+                raw_rms: [0.2; 3],
+                estimate_rms_sigma: est,
+                raw_rms_sigma: est.map(|_| 3.0),
+                health: DualUkfHealth::default(),
+            }
+        };
+        let mut repaired = out(Some(31.0), Some(vec![0]), Some(0.6), Some(1.5));
+        repaired.health.fault.covariance_repairs = 2;
+        let results = vec![
+            AirDataTrialResult {
+                spec: spec(0, true),
+                outcome: Ok(vec![out(Some(30.5), Some(vec![0, 1]), Some(0.2), Some(0.5)), repaired]),
+            },
+            AirDataTrialResult {
+                spec: spec(1, true),
+                outcome: Ok(vec![
+                    out(None, None, None, Some(2.8)),
+                    out(Some(30.4), Some(vec![0, 1]), Some(0.4), Some(0.7)),
+                ]),
+            },
+            AirDataTrialResult {
+                spec: spec(2, false),
+                outcome: Ok(vec![
+                    AirDataOutcome { false_alarm_s: Some(12.0), ..out(None, None, None, None) },
+                    out(None, None, None, None),
+                ]),
+            },
+        ];
+        let mut df = frame(&study, &results).unwrap();
+        assert_eq!(df.height(), 6);
+        let targets: Vec<Option<&str>> = df.column("target").unwrap().str().unwrap().iter().collect();
+        assert_eq!(targets[0], Some("airspeed_mps+alpha_rad"), "a set of sensors is one target");
+        let dir = tempfile::tempdir().unwrap();
+        write_parquet(&mut df, &dir.path().join("trials.parquet")).unwrap();
+        let manifest = Manifest {
+            kind: super::super::KIND.into(),
+            trials: 3,
+            detectors: vec!["a".into(), "b".into()],
+            complete: true,
+            rows: 6,
+            ..Manifest::unstarted()
+        };
+        manifest.write(dir.path()).unwrap();
+        summarize(dir.path(), &super::super::METHOD.summary, None).unwrap();
+
+        let summary = read_summary(&dir.path().join("summary.csv")).unwrap();
+        let u = |n: &str| -> Vec<u64> {
+            let c = summary.column(n).unwrap().cast(&DataType::UInt64).unwrap();
+            c.u64().unwrap().into_no_null_iter().collect()
+        };
+        let f = |n: &str| -> Vec<Option<f64>> {
+            let c = summary.column(n).unwrap().cast(&DataType::Float64).unwrap();
+            c.f64().unwrap().iter().collect()
+        };
+        let kinds: Vec<String> =
+            summary.column("kind").unwrap().str().unwrap().iter().map(|k| k.unwrap_or_default().to_string()).collect();
+        assert_eq!(kinds, ["bias", "none", "bias", "none"], "(a, bias), (a, none), (b, bias), (b, none)");
+        assert_eq!(u("trials"), [2, 1, 2, 1]);
+        assert_eq!(u("false_alarms"), [0, 1, 0, 0]);
+        assert_eq!(u("detected"), [1, 0, 2, 0]);
+        assert_eq!(u("isolation_decided"), [1, 0, 2, 0]);
+        assert_eq!(u("isolated_correctly"), [1, 0, 1, 0], "b named airspeed alone in trial 0: wrong set");
+        assert_eq!(f("pd")[0], Some(0.5));
+        assert_eq!(f("isolation_accuracy")[2], Some(0.5));
+        assert_eq!(u("repaired"), [0, 0, 1, 0], "rows with a covariance repair");
+        let close = |got: Option<f64>, want: f64| got.is_some_and(|g| (g - want).abs() < 1e-12);
+        assert!(close(f("delay_p50_s")[2], 0.7), "median of 1.0 and 0.4: {:?}", f("delay_p50_s"));
+        assert!(close(f("bias_error_p50_sigma")[0], 0.2), "a's one estimate: {:?}", f("bias_error_p50_sigma"));
+        assert!(close(f("bias_error_p50_sigma")[2], 0.5), "median of 0.6 and 0.4");
+        assert!(
+            close(f("estimate_rms_p50_sigma")[0], 1.65),
+            "median of 0.5 and 2.8: {:?}",
+            f("estimate_rms_p50_sigma")
+        );
+        assert!(close(f("raw_rms_p50_sigma")[2], 3.0));
+    }
+}

@@ -120,3 +120,130 @@ impl<'a> RecordBuilder<'a> {
         DataFrame::new_infer_height(columns)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use polars::prelude::*;
+
+    use super::*;
+    use crate::design::DesignError;
+    use crate::engine::deck::FromDeck;
+    use crate::engine::runner::{Manifest, write_parquet};
+    use crate::engine::summary::summarize;
+    use crate::engine::tables::read_summary;
+    use crate::fault::{FaultMode, SensorFault};
+    use crate::methods::detection_filter::scenario::TrialSpec;
+    use crate::methods::detection_filter::trial::DetectorOutcome;
+
+    /// The CI deck's two detectors ("seed", "fast") on four hand-made trials, a q_rad_s bias of 3 sigmas
+    /// at 5 s or none. Trial 0: seed alarms after 0.2 s and isolates q both ways; fast after 0.1 s, its
+    /// signature names alpha, its largest residual q. Trial 1: seed misses; fast after 0.3 s, signature q,
+    /// largest residual theta. Trial 2: fault-free, a false alarm of seed. Trial 3: seed's design failed
+    /// for this trial; fast after 0.4 s, q both ways.
+    #[test]
+    fn summary_of_hand_made_lti_trials() {
+        let study = LtiStudy::bundled("ci_seed000.toml");
+        let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
+        assert_eq!(names, ["seed", "fast"]);
+        let q = 2;
+        let spec = |trial: u64, faulty: bool| TrialSpec {
+            trial,
+            faults: if faulty {
+                vec![SensorFault { channel: q, onset_s: 5.0, mode: FaultMode::Bias { bias: 0.015 } }]
+            } else {
+                vec![]
+            },
+            kind: if faulty { "bias" } else { "none" },
+            output: faulty.then_some(q),
+            size: if faulty { 3.0 } else { f64::NAN },
+            size_bin: if faulty { 3.0 } else { f64::NAN },
+            size_unit: crate::fault::deck::unit::SENSOR_SIGMA,
+            onset_s: 5.0,
+            noise_scale: 1.0,
+            noise_bin: 1.0,
+            parameter_errors: vec![],
+            parameter_error_bin: 0.0,
+        };
+        let out =
+            |detection: Option<f64>, by_direction: Option<usize>, by_max: Option<usize>, false_alarm: Option<f64>| {
+                Ok(DetectorOutcome {
+                    pre_onset_max_abs_residual: vec![0.0; 6],
+                    profile_t_s: vec![vec![]; 6],
+                    profile_value: vec![vec![]; 6],
+                    false_alarm: false_alarm.map(|t| (t, 0)),
+                    detection: detection.map(|t| (t, q)),
+                    isolated_by_max: by_max,
+                    isolated_by_direction: by_direction,
+                    diverged_at_s: None,
+                })
+            };
+        let results = [
+            TrialResult {
+                spec: spec(0, true),
+                detectors: vec![out(Some(5.2), Some(q), Some(q), None), out(Some(5.1), Some(1), Some(q), None)],
+            },
+            TrialResult {
+                spec: spec(1, true),
+                detectors: vec![out(None, None, None, None), out(Some(5.3), Some(q), Some(3), None)],
+            },
+            TrialResult {
+                spec: spec(2, false),
+                detectors: vec![out(None, None, None, Some(2.0)), out(None, None, None, None)],
+            },
+            TrialResult {
+                spec: spec(3, true),
+                detectors: vec![
+                    Err(DesignError::RepeatedEigenvalues { first: -1.0, second: -1.0 }),
+                    out(Some(5.4), Some(q), Some(q), None),
+                ],
+            },
+        ];
+        let mut builder = RecordBuilder::new(&study, 8);
+        for r in &results {
+            builder.push(r);
+        }
+        let mut df = builder.finish().unwrap();
+        assert_eq!(df.height(), 8);
+        let dir = tempfile::tempdir().unwrap();
+        write_parquet(&mut df, &dir.path().join("trials.parquet")).unwrap();
+        let manifest = Manifest {
+            kind: super::super::KIND.into(),
+            trials: 4,
+            detectors: names.iter().map(|n| n.to_string()).collect(),
+            outputs: study.plant.output_names.clone(),
+            deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
+            complete: true,
+            rows: 8,
+            ..Manifest::unstarted()
+        };
+        manifest.write(dir.path()).unwrap();
+        summarize(dir.path(), &super::super::METHOD.summary, None).unwrap();
+
+        let summary = read_summary(&dir.path().join("summary.csv")).unwrap();
+        let text = |n: &str, i: usize| summary.column(n).unwrap().str().unwrap().get(i).map(String::from);
+        let row = |detector: &str, kind: &str| {
+            (0..summary.height())
+                .find(|&i| {
+                    text("thresholds", i).as_deref() == Some("deck")
+                        && text("detector", i).as_deref() == Some(detector)
+                        && text("kind", i).as_deref() == Some(kind)
+                })
+                .unwrap_or_else(|| panic!("no row {detector}/{kind}: {summary}"))
+        };
+        let u = |n: &str, i: usize| summary.column(n).unwrap().cast(&DataType::UInt64).unwrap().u64().unwrap().get(i);
+        let f = |n: &str, i: usize| summary.column(n).unwrap().cast(&DataType::Float64).unwrap().f64().unwrap().get(i);
+        let (seed, fast) = (row("seed", "bias"), row("fast", "bias"));
+        let counts = |i| {
+            ["trials", "failed", "detected", "isolation_decided", "isolated_correctly", "isolated_by_max_correctly"]
+                .map(|n| u(n, i).unwrap())
+        };
+        assert_eq!(counts(seed), [3, 1, 1, 1, 1, 1], "trial 3's failed design is a failed unit");
+        assert_eq!(counts(fast), [3, 0, 3, 3, 2, 2]);
+        assert_eq!(f("pd", seed), Some(0.5));
+        assert_eq!(f("isolation_by_max_accuracy", fast), Some(2.0 / 3.0));
+        assert!(f("delay_p50_s", fast).is_some_and(|d| (d - 0.3).abs() < 1e-12), "{:?}", f("delay_p50_s", fast));
+        let none = row("seed", "none");
+        assert_eq!((u("false_alarms", none), f("pfa", none)), (Some(1), Some(1.0)));
+        assert_eq!(u("false_alarms", row("fast", "none")), Some(0));
+    }
+}

@@ -134,3 +134,134 @@ struct Columns {
     clamped: Vec<Option<u32>>,
     gls_failed: Vec<Option<u32>>,
 }
+
+#[cfg(test)]
+mod tests {
+    use polars::prelude::*;
+
+    use super::*;
+    use crate::engine::deck::FromDeck;
+    use crate::engine::intervals::{Z95, wilson};
+    use crate::engine::runner::{Manifest, write_parquet};
+    use crate::engine::summary::summarize;
+    use crate::engine::tables::read_summary;
+    use crate::methods::thrust_loss::ekf_mhe::DetectorHealth;
+    use crate::methods::thrust_loss::scenario::LaunchTrialSpec;
+    use crate::methods::thrust_loss::trial::LaunchOutcome;
+    use crate::methods::thrust_loss::vehicle::ThrustFault;
+
+    /// Two detectors on five hand-made flights (engine 2 losing 40 % at 20 s, or none). Trial 0: a names
+    /// engine 2 after 0.5 s (loss estimate 38 %), b names engine 4 after 1.0 s (45 %); trial 1: a misses, b
+    /// names engine 2 after 0.8 s (41 %); trial 2: fault-free, a false alarm by a at 10 s; trial 3: the
+    /// flight ended early; trial 4: a names engine 2 after 0.3 s (44 %), b alarms after 0.4 s but names no
+    /// engine (39 %).
+    #[test]
+    fn summary_of_hand_made_launch_flights() {
+        let mut study = LaunchStudy::bundled("ci_seed001.toml");
+        study.detectors.truncate(1);
+        study.detectors.push(study.detectors[0].clone());
+        study.detectors[0].name = "a".into();
+        study.detectors[1].name = "b".into();
+        let fault = ThrustFault { engine: 1, loss_fraction: 0.4, onset_s: 20.0 };
+        let spec = |trial: u64, faulty: bool| LaunchTrialSpec {
+            trial,
+            fault: faulty.then_some(fault),
+            loss_percent: if faulty { 40.0 } else { f64::NAN },
+            loss_bin: if faulty { 40.0 } else { f64::NAN },
+            noise_scale: 1.0,
+            noise_bin: 1.0,
+            gust_scale: 1.0,
+            gust_bin: 1.0,
+        };
+        let out = |alarm: Option<f64>, engine: Option<Option<usize>>, loss: Option<f64>, false_alarm: Option<f64>| {
+            LaunchOutcome {
+                pre_max_fhat: 0.1,
+                profile_t_s: vec![],
+                profile_fhat: vec![],
+                false_alarm_s: false_alarm,
+                alarm_s: alarm,
+                localised: engine,
+                onset_estimate_s: alarm.map(|a| a - 0.2),
+                fhat_peak: loss.map(|l| l / 100.0),
+                loss_estimate_percent: loss,
+                health: DetectorHealth::default(),
+            }
+        };
+        let results = vec![
+            LaunchTrialResult {
+                spec: spec(0, true),
+                outcome: Ok(vec![
+                    out(Some(20.5), Some(Some(1)), Some(38.0), None),
+                    out(Some(21.0), Some(Some(3)), Some(45.0), None),
+                ]),
+            },
+            LaunchTrialResult {
+                spec: spec(1, true),
+                outcome: Ok(vec![out(None, None, None, None), out(Some(20.8), Some(Some(1)), Some(41.0), None)]),
+            },
+            LaunchTrialResult {
+                spec: spec(2, false),
+                outcome: Ok(vec![out(None, None, None, Some(10.0)), out(None, None, None, None)]),
+            },
+            LaunchTrialResult { spec: spec(3, true), outcome: Err("the flight ended early".into()) },
+            LaunchTrialResult {
+                spec: spec(4, true),
+                outcome: Ok(vec![
+                    out(Some(20.3), Some(Some(1)), Some(44.0), None),
+                    out(Some(20.4), Some(None), Some(39.0), None),
+                ]),
+            },
+        ];
+        let mut df = frame(&study, &results).unwrap();
+        assert_eq!(df.height(), 10, "one row per flight and detector");
+        let dir = tempfile::tempdir().unwrap();
+        write_parquet(&mut df, &dir.path().join("trials.parquet")).unwrap();
+        let manifest = Manifest {
+            kind: super::super::KIND.into(),
+            trials: 5,
+            detectors: vec!["a".into(), "b".into()],
+            deck_thresholds: vec![vec![0.5], vec![0.5]],
+            complete: true,
+            rows: 10,
+            ..Manifest::unstarted()
+        };
+        manifest.write(dir.path()).unwrap();
+        summarize(dir.path(), &super::super::METHOD.summary, None).unwrap();
+
+        let summary = read_summary(&dir.path().join("summary.csv")).unwrap();
+        let summary = summary.filter(&summary.column("thresholds").unwrap().str().unwrap().equal("deck")).unwrap();
+        let u = |n: &str| -> Vec<u64> {
+            let c = summary.column(n).unwrap().cast(&DataType::UInt64).unwrap();
+            c.u64().unwrap().into_no_null_iter().collect()
+        };
+        let f = |n: &str| -> Vec<Option<f64>> {
+            let c = summary.column(n).unwrap().cast(&DataType::Float64).unwrap();
+            c.f64().unwrap().iter().collect()
+        };
+        // Rows: (a, none), (a, thrust_loss), (b, none), (b, thrust_loss).
+        let kinds: Vec<String> =
+            summary.column("kind").unwrap().str().unwrap().iter().map(|k| k.unwrap_or_default().to_string()).collect();
+        assert_eq!(kinds, ["none", "thrust_loss", "none", "thrust_loss"]);
+        assert_eq!(u("trials"), [1, 4, 1, 4]);
+        assert_eq!(u("failed"), [0, 1, 0, 1]);
+        assert_eq!(u("false_alarms"), [1, 0, 0, 0]);
+        assert_eq!(u("detected"), [0, 2, 0, 3]);
+        assert_eq!(u("isolation_decided"), [0, 2, 0, 3], "b's 'no engine' is a decision, and a wrong one");
+        assert_eq!(u("isolated_correctly"), [0, 2, 0, 1]);
+        assert_eq!(f("pd")[1], Some(2.0 / 3.0));
+        assert_eq!(f("pd")[3], Some(1.0));
+        let (lo, hi) = wilson(2, 3, Z95);
+        assert_eq!((f("pd_lo")[1], f("pd_hi")[1]), (Some(lo), Some(hi)));
+        assert_eq!(f("pfa")[0], Some(1.0));
+        assert_eq!(f("isolation_accuracy")[3], Some(1.0 / 3.0));
+        let close = |got: Option<f64>, want: f64| got.is_some_and(|g| (g - want).abs() < 1e-12);
+        assert!(close(f("delay_p50_s")[1], 0.4), "median of 0.5 and 0.3: {:?}", f("delay_p50_s"));
+        assert!(close(f("delay_p50_s")[3], 0.8), "median of 1.0, 0.8, 0.4: {:?}", f("delay_p50_s"));
+        // The kind's own aggregates: the loss estimates' errors, signed and absolute.
+        assert!(close(f("loss_error_p50_percent")[1], 1.0), "median of -2 and +4: {:?}", f("loss_error_p50_percent"));
+        assert!(close(f("loss_abs_error_p50_percent")[1], 3.0), "{:?}", f("loss_abs_error_p50_percent"));
+        assert!(close(f("loss_error_p50_percent")[3], 1.0), "median of +5, +1, -1");
+        assert!(close(f("loss_abs_error_p50_percent")[3], 1.0), "median of 5, 1, 1");
+        assert_eq!(f("loss_error_p50_percent")[0], None, "no loss without a fault");
+    }
+}
