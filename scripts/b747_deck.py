@@ -30,6 +30,8 @@ states is stable (the minimum-norm detection filter leaves its eigenvalues in pl
 
 import numpy as np
 
+from plant_deck import toml_matrix, toml_strings  # the same TOML writing (this folder)
+
 V_FT_S = 774.0
 L_FT = 1750.0
 
@@ -151,12 +153,6 @@ def main():
     assert ev.real.max() < 0, f"unmeasured block not stable: {sorted(ev.real)[-3:]}"
     q = process_sigma_per_step(T, dt_s)
 
-    def rows(M, fmt="{:.6g}"):
-        return "[\n" + "".join("  [" + ", ".join(fmt.format(x) for x in r) + "],\n" for r in M) + "]"
-
-    def names(v):
-        return "[" + ", ".join(f'"{x}"' for x in v) + "]"
-
     m = C.shape[0]
     print(f"""# Boeing 747 in cruise, both axes, 24 states: written by scripts/b747_deck.py (sources and every
 # choice in its docstring). Airframe: Bryson (1994) longitudinal at 40,000 ft, Mach 0.8, and the
@@ -172,12 +168,12 @@ duration_s = 60.0
 dt_s = {dt_s}
 
 [plant]
-states = {names(STATES)}
-inputs = {names(INPUTS)}
-outputs = {names(MEASURED)}
-a = {rows(A)}
-b = {rows(B)}
-c = {rows(C)}
+states = {toml_strings(STATES)}
+inputs = {toml_strings(INPUTS)}
+outputs = {toml_strings(MEASURED)}
+a = {toml_matrix(A)}
+b = {toml_matrix(B)}
+c = {toml_matrix(C)}
 
 # Doublets on elevator and aileron (choice): excite both axes.
 [[excitation]]
@@ -201,7 +197,7 @@ process_sigma_per_step = [{", ".join(f"{x:.6g}" for x in q)}]
 name = "df"
 kind = "detection_filter"
 eigenvalues_per_s = [{", ".join(f"{-(k + 1):.1f}" for k in range(m))}]
-fault_directions = {rows(C, "{:.0f}")}
+fault_directions = {toml_matrix(C, "{:.0f}")}
 thresholds = {THRESHOLDS}
 
 [monte_carlo]
@@ -209,7 +205,7 @@ trials = 4000
 fault_free_fraction = 0.2
 sampler = "lhs"
 onset_s = {{ range = [10.0, 50.0] }}
-outputs = {names(MEASURED)}
+outputs = {toml_strings(MEASURED)}
 
 [[monte_carlo.fault]]
 kind = "bias"

@@ -21,6 +21,16 @@ import argparse
 import numpy as np
 
 
+def toml_matrix(M, fmt="{:.6g}"):
+    """A matrix as a TOML array of rows, one row per line."""
+    return "[\n" + "".join("  [" + ", ".join(fmt.format(x) for x in r) + "],\n" for r in M) + "]"
+
+
+def toml_strings(v):
+    """Strings as a TOML array."""
+    return "[" + ", ".join(f'"{x}"' for x in v) + "]"
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--states", type=int, required=True, help="number of states n (>= 2)")
@@ -41,11 +51,8 @@ def main():
     B = rng.uniform(-1.0, 1.0, (n, 2))
     C = np.eye(m, n)
 
-    def rows(M):
-        return "[\n" + "".join("  [" + ", ".join(f"{x:.6g}" for x in r) + "],\n" for r in M) + "]"
-
     def names(prefix, k):
-        return "[" + ", ".join(f'"{prefix}{i + 1}"' for i in range(k)) + "]"
+        return toml_strings(f"{prefix}{i + 1}" for i in range(k))
 
     lam = ", ".join(f"{-(i + 1):.1f}" for i in range(m))
     F = np.eye(n, m).T  # one direction per row, as the deck gives them
@@ -63,9 +70,9 @@ dt_s = 0.01
 states = {names("x", n)}
 inputs = ["u1", "u2"]
 outputs = {names("y", m)}
-a = {rows(A)}
-b = {rows(B)}
-c = {rows(C)}
+a = {toml_matrix(A)}
+b = {toml_matrix(B)}
+c = {toml_matrix(C)}
 
 [[excitation]]
 input = "u1"
@@ -80,7 +87,7 @@ sensor_sigma = [{", ".join(["0.01"] * m)}]
 name = "df"
 kind = "detection_filter"
 eigenvalues_per_s = [{lam}]
-fault_directions = {rows(F)}
+fault_directions = {toml_matrix(F)}
 thresholds = [{", ".join(["0.05"] * m)}]
 
 [monte_carlo]

@@ -162,33 +162,26 @@ pub fn compare(current: &DataFrame, baseline: &DataFrame, alpha: f64) -> Result<
             continue;
         };
         verdict.compared_groups += 1;
-        if b.faulty {
-            candidates.push((
-                key.clone(),
-                "detection probability",
-                (b.detected, b.flown),
-                (c.detected, c.flown),
-                p_lower(c.detected, c.flown, b.detected, b.flown),
-            ));
-        }
-        if b.decided > 0 {
-            candidates.push((
-                key.clone(),
-                "isolation accuracy",
-                (b.correct, b.decided),
-                (c.correct, c.decided),
-                p_lower(c.correct, c.decided, b.correct, b.decided),
-            ));
-        }
+        // Each rate as (successes, trials) where a drop is the regression; the false-alarm rate through
+        // its complement, the quiet flights.
         let quiet = |x: Counts| (x.flown - x.false_alarms, x.flown);
-        let (bq, cq) = (quiet(b), quiet(c));
-        candidates.push((
-            key.clone(),
-            "false-alarm rate",
-            (b.false_alarms, b.flown),
-            (c.false_alarms, c.flown),
-            p_lower(cq.0, cq.1, bq.0, bq.1),
-        ));
+        let tests = [
+            (b.faulty, "detection probability", (b.detected, b.flown), (c.detected, c.flown), None),
+            (b.decided > 0, "isolation accuracy", (b.correct, b.decided), (c.correct, c.decided), None),
+            (
+                true,
+                "false-alarm rate",
+                (b.false_alarms, b.flown),
+                (c.false_alarms, c.flown),
+                Some((quiet(b), quiet(c))),
+            ),
+        ];
+        for (applies, what, baseline, current, complement) in tests {
+            if applies {
+                let ((bk, bn), (ck, cn)) = complement.unwrap_or((baseline, current));
+                candidates.push((key.clone(), what, baseline, current, p_lower(ck, cn, bk, bn)));
+            }
+        }
     }
     let mut only_current: Vec<String> = cur.keys().filter(|k| !base.contains_key(*k)).cloned().collect();
     only_current.sort();

@@ -1002,6 +1002,65 @@ fn significant(v: f64) -> String {
     if v != 0.0 && (v.abs() < 1e-3 || v.abs() >= 1e5) { format!("{v:.3e}") } else { format!("{v:.4}") }
 }
 
+/// Summaries of hand-made records for the kinds' tests: written, summarised and read back.
+#[cfg(test)]
+pub mod hand_made {
+    use polars::prelude::*;
+
+    use crate::engine::method::SummarySpec;
+    use crate::engine::runner::{Manifest, write_parquet};
+    use crate::engine::tables::read_summary;
+
+    /// A results folder with `trials.parquet` from hand-made rows and the tables `summarize` wrote.
+    pub struct Summarized {
+        pub dir: tempfile::TempDir,
+        pub summary: DataFrame,
+    }
+
+    impl Summarized {
+        /// Writes `records` under `manifest` (its rows and completeness set here), summarises them by
+        /// `spec` and reads `summary.csv` back.
+        pub fn new(mut records: DataFrame, manifest: Manifest, spec: &SummarySpec) -> Self {
+            let dir = tempfile::tempdir().unwrap();
+            write_parquet(&mut records, &dir.path().join("trials.parquet")).unwrap();
+            Manifest { rows: records.height() as u64, complete: true, ..manifest }.write(dir.path()).unwrap();
+            super::summarize(dir.path(), spec, None).unwrap();
+            let summary = read_summary(&dir.path().join("summary.csv")).unwrap();
+            Summarized { dir, summary }
+        }
+
+        pub fn table(&self, name: &str) -> DataFrame {
+            read_summary(&self.dir.path().join(name)).unwrap()
+        }
+
+        fn text(&self, column: &str, i: usize) -> Option<String> {
+            self.summary.column(column).unwrap().str().unwrap().get(i).map(String::from)
+        }
+
+        /// The row of `detector` and fault kind `kind` at the deck's thresholds (one per pair in these tests).
+        pub fn row(&self, detector: &str, kind: &str) -> usize {
+            let at = |i: usize, c: &str, v: &str| self.text(c, i).as_deref() == Some(v);
+            (0..self.summary.height())
+                .find(|&i| at(i, "thresholds", "deck") && at(i, "detector", detector) && at(i, "kind", kind))
+                .unwrap_or_else(|| panic!("no row {detector}/{kind}: {}", self.summary))
+        }
+
+        pub fn count(&self, column: &str, row: usize) -> Option<u64> {
+            self.summary.column(column).unwrap().cast(&DataType::UInt64).unwrap().u64().unwrap().get(row)
+        }
+
+        pub fn value(&self, column: &str, row: usize) -> Option<f64> {
+            self.summary.column(column).unwrap().cast(&DataType::Float64).unwrap().f64().unwrap().get(row)
+        }
+
+        /// `column` at `row` is `want` to rounding (a median, an interpolated quantile).
+        pub fn assert_close(&self, column: &str, row: usize, want: f64) {
+            let got = self.value(column, row);
+            assert!(got.is_some_and(|g| (g - want).abs() < 1e-12), "{column} row {row}: {got:?}, want {want}");
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

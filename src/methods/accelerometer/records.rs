@@ -74,12 +74,9 @@ pub fn frame(results: &[AccelTrialResult]) -> PolarsResult<DataFrame> {
 
 #[cfg(test)]
 mod tests {
-    use polars::prelude::*;
-
     use super::*;
-    use crate::engine::runner::{Manifest, write_parquet};
-    use crate::engine::summary::summarize;
-    use crate::engine::tables::read_summary;
+    use crate::engine::runner::Manifest;
+    use crate::engine::summary::hand_made::Summarized;
     use crate::methods::accelerometer::trial::{AccelOutcome, AccelTrialSpec};
 
     /// Both classifiers on four hand-made trials. Trial 0: a bias on x (0.3 m/s^2) alarmed after 0.2 s,
@@ -117,47 +114,36 @@ mod tests {
             },
             AccelTrialResult { spec: spec(3, Bias, Some(0), 0.3), outcome: Err("unusable".into()) },
         ];
-        let mut df = frame(&results).unwrap();
+        let df = frame(&results).unwrap();
         assert_eq!(df.height(), 8);
-        let dir = tempfile::tempdir().unwrap();
-        write_parquet(&mut df, &dir.path().join("trials.parquet")).unwrap();
         let manifest = Manifest {
             kind: super::super::KIND.into(),
             trials: 4,
             detectors: DETECTORS.iter().map(|d| d.to_string()).collect(),
-            complete: true,
-            rows: 8,
             ..Manifest::unstarted()
         };
-        manifest.write(dir.path()).unwrap();
-        summarize(dir.path(), &super::super::METHOD.summary, None).unwrap();
-
-        let summary = read_summary(&dir.path().join("summary.csv")).unwrap();
-        let text = |n: &str, i: usize| summary.column(n).unwrap().str().unwrap().get(i).map(String::from);
-        let row = |detector: &str, kind: &str| {
-            (0..summary.height())
-                .find(|&i| text("detector", i).as_deref() == Some(detector) && text("kind", i).as_deref() == Some(kind))
-                .unwrap_or_else(|| panic!("no row {detector}/{kind}"))
-        };
-        let u = |n: &str, i: usize| summary.column(n).unwrap().cast(&DataType::UInt64).unwrap().u64().unwrap().get(i);
-        let f = |n: &str, i: usize| summary.column(n).unwrap().cast(&DataType::Float64).unwrap().f64().unwrap().get(i);
-        assert_eq!(summary.height(), 6, "3 kinds x 2 classifiers");
+        let s = Summarized::new(df, manifest, &super::super::METHOD.summary);
+        assert_eq!(s.summary.height(), 6, "3 kinds x 2 classifiers");
         for detector in ["flat", "tree"] {
-            let (bias, normal, stuck) = (row(detector, "bias"), row(detector, "normal"), row(detector, "stuck"));
-            assert_eq!((u("trials", bias), u("failed", bias), u("detected", bias)), (Some(2), Some(1), Some(1)));
-            assert_eq!(f("pd", bias), Some(1.0));
-            assert_eq!((u("false_alarms", normal), f("pfa", normal)), (Some(1), Some(1.0)));
-            assert_eq!(f("pd", normal), None, "no detection probability of the normal class");
-            assert!(f("delay_p50_s", stuck).is_some_and(|d| (d - 0.5).abs() < 1e-12), "{:?}", f("delay_p50_s", stuck));
-            assert_eq!(u("isolated_correctly", stuck), Some(1), "both call the stuck axis stuck");
+            let (bias, normal, stuck) = (s.row(detector, "bias"), s.row(detector, "normal"), s.row(detector, "stuck"));
+            assert_eq!(["trials", "failed", "detected"].map(|c| s.count(c, bias)), [Some(2), Some(1), Some(1)]);
+            assert_eq!(s.value("pd", bias), Some(1.0));
+            assert_eq!((s.count("false_alarms", normal), s.value("pfa", normal)), (Some(1), Some(1.0)));
+            assert_eq!(s.value("pd", normal), None, "no detection probability of the normal class");
+            s.assert_close("delay_p50_s", stuck, 0.5);
+            assert_eq!(s.count("isolated_correctly", stuck), Some(1), "both call the stuck axis stuck");
         }
         // Classification: flat is right on every flown trial, tree on the stuck one only.
         for (detector, bias_ok, normal_ok) in [("flat", 1, 1), ("tree", 0, 0)] {
-            assert_eq!(u("isolated_correctly", row(detector, "bias")), Some(bias_ok), "{detector}");
-            assert_eq!(u("isolated_correctly", row(detector, "normal")), Some(normal_ok), "{detector}");
-            assert_eq!(u("isolation_decided", row(detector, "normal")), Some(1), "a classifier always names a class");
+            assert_eq!(s.count("isolated_correctly", s.row(detector, "bias")), Some(bias_ok), "{detector}");
+            assert_eq!(s.count("isolated_correctly", s.row(detector, "normal")), Some(normal_ok), "{detector}");
+            assert_eq!(
+                s.count("isolation_decided", s.row(detector, "normal")),
+                Some(1),
+                "a classifier always names a class"
+            );
         }
-        let confusion = read_summary(&dir.path().join("confusion.csv")).unwrap();
+        let confusion = s.table("confusion.csv");
         let tree_bias = (0..confusion.height()).find(|&i| {
             let t = |n: &str| confusion.column(n).unwrap().str().unwrap().get(i).map(String::from);
             t("detector").as_deref() == Some("tree")

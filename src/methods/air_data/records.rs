@@ -140,13 +140,10 @@ struct Columns {
 
 #[cfg(test)]
 mod tests {
-    use polars::prelude::*;
-
     use super::*;
     use crate::engine::deck::FromDeck;
-    use crate::engine::runner::{Manifest, write_parquet};
-    use crate::engine::summary::summarize;
-    use crate::engine::tables::read_summary;
+    use crate::engine::runner::Manifest;
+    use crate::engine::summary::hand_made::Summarized;
     use crate::fault::{FaultMode, SensorFault};
     use crate::methods::air_data::dual_ukf::DualUkfHealth;
     use crate::methods::air_data::scenario::AirDataTrialSpec;
@@ -212,52 +209,31 @@ mod tests {
                 ]),
             },
         ];
-        let mut df = frame(&study, &results).unwrap();
+        let df = frame(&study, &results).unwrap();
         assert_eq!(df.height(), 6);
         let targets: Vec<Option<&str>> = df.column("target").unwrap().str().unwrap().iter().collect();
         assert_eq!(targets[0], Some("airspeed_mps+alpha_rad"), "a set of sensors is one target");
-        let dir = tempfile::tempdir().unwrap();
-        write_parquet(&mut df, &dir.path().join("trials.parquet")).unwrap();
         let manifest = Manifest {
             kind: super::super::KIND.into(),
             trials: 3,
             detectors: vec!["a".into(), "b".into()],
-            complete: true,
-            rows: 6,
             ..Manifest::unstarted()
         };
-        manifest.write(dir.path()).unwrap();
-        summarize(dir.path(), &super::super::METHOD.summary, None).unwrap();
-
-        let summary = read_summary(&dir.path().join("summary.csv")).unwrap();
-        let u = |n: &str| -> Vec<u64> {
-            let c = summary.column(n).unwrap().cast(&DataType::UInt64).unwrap();
-            c.u64().unwrap().into_no_null_iter().collect()
+        let s = Summarized::new(df, manifest, &super::super::METHOD.summary);
+        let counts = |row| {
+            ["trials", "false_alarms", "detected", "isolation_decided", "isolated_correctly", "repaired"]
+                .map(|c| s.count(c, row).unwrap())
         };
-        let f = |n: &str| -> Vec<Option<f64>> {
-            let c = summary.column(n).unwrap().cast(&DataType::Float64).unwrap();
-            c.f64().unwrap().iter().collect()
-        };
-        let kinds: Vec<String> =
-            summary.column("kind").unwrap().str().unwrap().iter().map(|k| k.unwrap_or_default().to_string()).collect();
-        assert_eq!(kinds, ["bias", "none", "bias", "none"], "(a, bias), (a, none), (b, bias), (b, none)");
-        assert_eq!(u("trials"), [2, 1, 2, 1]);
-        assert_eq!(u("false_alarms"), [0, 1, 0, 0]);
-        assert_eq!(u("detected"), [1, 0, 2, 0]);
-        assert_eq!(u("isolation_decided"), [1, 0, 2, 0]);
-        assert_eq!(u("isolated_correctly"), [1, 0, 1, 0], "b named airspeed alone in trial 0: wrong set");
-        assert_eq!(f("pd")[0], Some(0.5));
-        assert_eq!(f("isolation_accuracy")[2], Some(0.5));
-        assert_eq!(u("repaired"), [0, 0, 1, 0], "rows with a covariance repair");
-        let close = |got: Option<f64>, want: f64| got.is_some_and(|g| (g - want).abs() < 1e-12);
-        assert!(close(f("delay_p50_s")[2], 0.7), "median of 1.0 and 0.4: {:?}", f("delay_p50_s"));
-        assert!(close(f("bias_error_p50_sigma")[0], 0.2), "a's one estimate: {:?}", f("bias_error_p50_sigma"));
-        assert!(close(f("bias_error_p50_sigma")[2], 0.5), "median of 0.6 and 0.4");
-        assert!(
-            close(f("estimate_rms_p50_sigma")[0], 1.65),
-            "median of 0.5 and 2.8: {:?}",
-            f("estimate_rms_p50_sigma")
-        );
-        assert!(close(f("raw_rms_p50_sigma")[2], 3.0));
+        let (a, b) = (s.row("a", "bias"), s.row("b", "bias"));
+        assert_eq!(counts(a), [2, 0, 1, 1, 1, 0]);
+        assert_eq!(counts(b), [2, 0, 2, 2, 1, 1], "b named airspeed alone in trial 0: wrong set; it repaired once");
+        assert_eq!(counts(s.row("a", "none"))[..2], [1, 1]);
+        assert_eq!(counts(s.row("b", "none"))[..2], [1, 0]);
+        assert_eq!((s.value("pd", a), s.value("isolation_accuracy", b)), (Some(0.5), Some(0.5)));
+        s.assert_close("delay_p50_s", b, 0.7); // median of 1.0 and 0.4
+        s.assert_close("bias_error_p50_sigma", a, 0.2); // a's one estimate
+        s.assert_close("bias_error_p50_sigma", b, 0.5); // median of 0.6 and 0.4
+        s.assert_close("estimate_rms_p50_sigma", a, 1.65); // of 0.5 and 2.8
+        s.assert_close("raw_rms_p50_sigma", b, 3.0);
     }
 }

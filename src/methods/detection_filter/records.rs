@@ -123,14 +123,11 @@ impl<'a> RecordBuilder<'a> {
 
 #[cfg(test)]
 mod tests {
-    use polars::prelude::*;
-
     use super::*;
     use crate::design::DesignError;
     use crate::engine::deck::FromDeck;
-    use crate::engine::runner::{Manifest, write_parquet};
-    use crate::engine::summary::summarize;
-    use crate::engine::tables::read_summary;
+    use crate::engine::runner::Manifest;
+    use crate::engine::summary::hand_made::Summarized;
     use crate::fault::{FaultMode, SensorFault};
     use crate::methods::detection_filter::scenario::TrialSpec;
     use crate::methods::detection_filter::trial::DetectorOutcome;
@@ -202,48 +199,29 @@ mod tests {
         for r in &results {
             builder.push(r);
         }
-        let mut df = builder.finish().unwrap();
+        let df = builder.finish().unwrap();
         assert_eq!(df.height(), 8);
-        let dir = tempfile::tempdir().unwrap();
-        write_parquet(&mut df, &dir.path().join("trials.parquet")).unwrap();
         let manifest = Manifest {
             kind: super::super::KIND.into(),
             trials: 4,
             detectors: names.iter().map(|n| n.to_string()).collect(),
             outputs: study.plant.output_names.clone(),
             deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
-            complete: true,
-            rows: 8,
             ..Manifest::unstarted()
         };
-        manifest.write(dir.path()).unwrap();
-        summarize(dir.path(), &super::super::METHOD.summary, None).unwrap();
-
-        let summary = read_summary(&dir.path().join("summary.csv")).unwrap();
-        let text = |n: &str, i: usize| summary.column(n).unwrap().str().unwrap().get(i).map(String::from);
-        let row = |detector: &str, kind: &str| {
-            (0..summary.height())
-                .find(|&i| {
-                    text("thresholds", i).as_deref() == Some("deck")
-                        && text("detector", i).as_deref() == Some(detector)
-                        && text("kind", i).as_deref() == Some(kind)
-                })
-                .unwrap_or_else(|| panic!("no row {detector}/{kind}: {summary}"))
-        };
-        let u = |n: &str, i: usize| summary.column(n).unwrap().cast(&DataType::UInt64).unwrap().u64().unwrap().get(i);
-        let f = |n: &str, i: usize| summary.column(n).unwrap().cast(&DataType::Float64).unwrap().f64().unwrap().get(i);
-        let (seed, fast) = (row("seed", "bias"), row("fast", "bias"));
+        let s = Summarized::new(df, manifest, &super::super::METHOD.summary);
+        let (seed, fast) = (s.row("seed", "bias"), s.row("fast", "bias"));
         let counts = |i| {
             ["trials", "failed", "detected", "isolation_decided", "isolated_correctly", "isolated_by_max_correctly"]
-                .map(|n| u(n, i).unwrap())
+                .map(|n| s.count(n, i).unwrap())
         };
         assert_eq!(counts(seed), [3, 1, 1, 1, 1, 1], "trial 3's failed design is a failed unit");
         assert_eq!(counts(fast), [3, 0, 3, 3, 2, 2]);
-        assert_eq!(f("pd", seed), Some(0.5));
-        assert_eq!(f("isolation_by_max_accuracy", fast), Some(2.0 / 3.0));
-        assert!(f("delay_p50_s", fast).is_some_and(|d| (d - 0.3).abs() < 1e-12), "{:?}", f("delay_p50_s", fast));
-        let none = row("seed", "none");
-        assert_eq!((u("false_alarms", none), f("pfa", none)), (Some(1), Some(1.0)));
-        assert_eq!(u("false_alarms", row("fast", "none")), Some(0));
+        assert_eq!(s.value("pd", seed), Some(0.5));
+        assert_eq!(s.value("isolation_by_max_accuracy", fast), Some(2.0 / 3.0));
+        s.assert_close("delay_p50_s", fast, 0.3);
+        let none = s.row("seed", "none");
+        assert_eq!((s.count("false_alarms", none), s.value("pfa", none)), (Some(1), Some(1.0)));
+        assert_eq!(s.count("false_alarms", s.row("fast", "none")), Some(0));
     }
 }

@@ -138,9 +138,8 @@ mod tests {
     use super::*;
     use crate::engine::deck::FromDeck;
     use crate::engine::intervals::{Z95, wilson};
-    use crate::engine::runner::{Manifest, write_parquet};
-    use crate::engine::summary::summarize;
-    use crate::engine::tables::read_summary;
+    use crate::engine::runner::Manifest;
+    use crate::engine::summary::hand_made::Summarized;
     use crate::estimation::FilterHealth;
     use crate::methods::surface_bank::actuator::{ActuatorFault, ActuatorFaultKind};
     use crate::methods::surface_bank::scenario::{ScenarioFault, SurfaceTrialSpec};
@@ -223,21 +222,16 @@ mod tests {
     /// The shared summary of the hand-made trials, read back from the tables it writes.
     #[test]
     fn summary_counts_rates_and_paired_differences_of_hand_made_trials() {
-        let (_, mut df) = hand_made();
+        let (_, df) = hand_made();
         assert_eq!(df.height(), 10, "one row per trial and bank");
-        let dir = tempfile::tempdir().unwrap();
-        write_parquet(&mut df, &dir.path().join("trials.parquet")).unwrap();
         let manifest = Manifest {
             kind: super::super::KIND.into(),
             trials: 5,
             detectors: vec!["a".into(), "b".into()],
-            complete: true,
-            rows: 10,
             ..Manifest::unstarted()
         };
-        manifest.write(dir.path()).unwrap();
-        summarize(dir.path(), &super::super::METHOD.summary, None).unwrap();
-        let table = |name: &str| read_summary(&dir.path().join(name)).unwrap();
+        let summarized = Summarized::new(df, manifest, &super::super::METHOD.summary);
+        let table = |name: &str| summarized.table(name);
 
         let summary = table("summary.csv");
         let u = |n: &str| -> Vec<u64> {

@@ -137,14 +137,11 @@ struct Columns {
 
 #[cfg(test)]
 mod tests {
-    use polars::prelude::*;
-
     use super::*;
     use crate::engine::deck::FromDeck;
     use crate::engine::intervals::{Z95, wilson};
-    use crate::engine::runner::{Manifest, write_parquet};
-    use crate::engine::summary::summarize;
-    use crate::engine::tables::read_summary;
+    use crate::engine::runner::Manifest;
+    use crate::engine::summary::hand_made::Summarized;
     use crate::methods::thrust_loss::ekf_mhe::DetectorHealth;
     use crate::methods::thrust_loss::scenario::LaunchTrialSpec;
     use crate::methods::thrust_loss::trial::LaunchOutcome;
@@ -212,56 +209,39 @@ mod tests {
                 ]),
             },
         ];
-        let mut df = frame(&study, &results).unwrap();
+        let df = frame(&study, &results).unwrap();
         assert_eq!(df.height(), 10, "one row per flight and detector");
-        let dir = tempfile::tempdir().unwrap();
-        write_parquet(&mut df, &dir.path().join("trials.parquet")).unwrap();
         let manifest = Manifest {
             kind: super::super::KIND.into(),
             trials: 5,
             detectors: vec!["a".into(), "b".into()],
             deck_thresholds: vec![vec![0.5], vec![0.5]],
-            complete: true,
-            rows: 10,
             ..Manifest::unstarted()
         };
-        manifest.write(dir.path()).unwrap();
-        summarize(dir.path(), &super::super::METHOD.summary, None).unwrap();
-
-        let summary = read_summary(&dir.path().join("summary.csv")).unwrap();
-        let summary = summary.filter(&summary.column("thresholds").unwrap().str().unwrap().equal("deck")).unwrap();
-        let u = |n: &str| -> Vec<u64> {
-            let c = summary.column(n).unwrap().cast(&DataType::UInt64).unwrap();
-            c.u64().unwrap().into_no_null_iter().collect()
+        let s = Summarized::new(df, manifest, &super::super::METHOD.summary);
+        let counts = |row| {
+            ["trials", "failed", "detected", "isolation_decided", "isolated_correctly"]
+                .map(|c| s.count(c, row).unwrap())
         };
-        let f = |n: &str| -> Vec<Option<f64>> {
-            let c = summary.column(n).unwrap().cast(&DataType::Float64).unwrap();
-            c.f64().unwrap().iter().collect()
-        };
-        // Rows: (a, none), (a, thrust_loss), (b, none), (b, thrust_loss).
-        let kinds: Vec<String> =
-            summary.column("kind").unwrap().str().unwrap().iter().map(|k| k.unwrap_or_default().to_string()).collect();
-        assert_eq!(kinds, ["none", "thrust_loss", "none", "thrust_loss"]);
-        assert_eq!(u("trials"), [1, 4, 1, 4]);
-        assert_eq!(u("failed"), [0, 1, 0, 1]);
-        assert_eq!(u("false_alarms"), [1, 0, 0, 0]);
-        assert_eq!(u("detected"), [0, 2, 0, 3]);
-        assert_eq!(u("isolation_decided"), [0, 2, 0, 3], "b's 'no engine' is a decision, and a wrong one");
-        assert_eq!(u("isolated_correctly"), [0, 2, 0, 1]);
-        assert_eq!(f("pd")[1], Some(2.0 / 3.0));
-        assert_eq!(f("pd")[3], Some(1.0));
+        let (a, b) = (s.row("a", "thrust_loss"), s.row("b", "thrust_loss"));
+        assert_eq!(counts(a), [4, 1, 2, 2, 2]);
+        assert_eq!(counts(b), [4, 1, 3, 3, 1], "b's 'no engine' is a decision, and a wrong one");
+        assert_eq!(
+            (s.count("false_alarms", s.row("a", "none")), s.value("pfa", s.row("a", "none"))),
+            (Some(1), Some(1.0))
+        );
+        assert_eq!(s.count("false_alarms", s.row("b", "none")), Some(0));
+        assert_eq!((s.value("pd", a), s.value("pd", b)), (Some(2.0 / 3.0), Some(1.0)));
         let (lo, hi) = wilson(2, 3, Z95);
-        assert_eq!((f("pd_lo")[1], f("pd_hi")[1]), (Some(lo), Some(hi)));
-        assert_eq!(f("pfa")[0], Some(1.0));
-        assert_eq!(f("isolation_accuracy")[3], Some(1.0 / 3.0));
-        let close = |got: Option<f64>, want: f64| got.is_some_and(|g| (g - want).abs() < 1e-12);
-        assert!(close(f("delay_p50_s")[1], 0.4), "median of 0.5 and 0.3: {:?}", f("delay_p50_s"));
-        assert!(close(f("delay_p50_s")[3], 0.8), "median of 1.0, 0.8, 0.4: {:?}", f("delay_p50_s"));
+        assert_eq!((s.value("pd_lo", a), s.value("pd_hi", a)), (Some(lo), Some(hi)));
+        assert_eq!(s.value("isolation_accuracy", b), Some(1.0 / 3.0));
+        s.assert_close("delay_p50_s", a, 0.4); // median of 0.5 and 0.3
+        s.assert_close("delay_p50_s", b, 0.8); // of 1.0, 0.8, 0.4
         // The kind's own aggregates: the loss estimates' errors, signed and absolute.
-        assert!(close(f("loss_error_p50_percent")[1], 1.0), "median of -2 and +4: {:?}", f("loss_error_p50_percent"));
-        assert!(close(f("loss_abs_error_p50_percent")[1], 3.0), "{:?}", f("loss_abs_error_p50_percent"));
-        assert!(close(f("loss_error_p50_percent")[3], 1.0), "median of +5, +1, -1");
-        assert!(close(f("loss_abs_error_p50_percent")[3], 1.0), "median of 5, 1, 1");
-        assert_eq!(f("loss_error_p50_percent")[0], None, "no loss without a fault");
+        s.assert_close("loss_error_p50_percent", a, 1.0); // median of -2 and +4
+        s.assert_close("loss_abs_error_p50_percent", a, 3.0);
+        s.assert_close("loss_error_p50_percent", b, 1.0); // of +5, +1, -1
+        s.assert_close("loss_abs_error_p50_percent", b, 1.0); // of 5, 1, 1
+        assert_eq!(s.value("loss_error_p50_percent", s.row("a", "none")), None, "no loss without a fault");
     }
 }
