@@ -435,7 +435,14 @@ impl FromDeck for SurfaceStudy {
                 p.measurement_variance = given;
             }
             if let Some(x) = b.surface_process_variance_rad2_per_s {
-                p.surface_process_variance_rad2_per_s = v.positive(&field("surface_process_variance_rad2_per_s"), x)?;
+                // 0 is the seed's own reading (its R_W has no surface entry): no random walk at all.
+                if !(x.is_finite() && x >= 0.0) {
+                    return Err(v.err(
+                        field("surface_process_variance_rad2_per_s"),
+                        format!("must be >= 0 (0: no random walk, the seed's reading), got {x}"),
+                    ));
+                }
+                p.surface_process_variance_rad2_per_s = x;
             }
             if let Some(rho) = b.rho {
                 if !(rho > 0.0 && rho <= 1.0) {
