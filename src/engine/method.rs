@@ -219,8 +219,9 @@ pub struct SummarySpec {
     pub isolates: Isolates,
     /// The kind's own aggregates, per group and per detector, at the deck's thresholds.
     pub extras: &'static [Extra],
-    /// The kind's own delay columns whose median paired difference `comparison.csv` reports.
-    pub paired_delays: &'static [&'static str],
+    /// The kind's own columns (delays, estimation errors) whose median paired difference, with its 95 %
+    /// interval, `comparison.csv` reports (`median_<column>_b_minus_a`, `_lo`, `_hi`).
+    pub paired_medians: &'static [&'static str],
     /// Columns of `detectors.csv` that `run` prints after the shared ones: (header, column).
     pub printed: &'static [(&'static str, &'static str)],
 }

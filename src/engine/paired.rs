@@ -123,7 +123,8 @@ impl PairedUnits {
         let mut counts: Vec<Vec<u64>> = vec![Vec::new(); 10];
         let mut rates: Vec<Vec<Option<f64>>> = vec![Vec::new(); 4];
         let mut p_values: Vec<Vec<f64>> = vec![Vec::new(); 3];
-        let mut medians: Vec<Vec<Option<f64>>> = vec![Vec::new(); 1 + self.delay_names.len()];
+        // Per paired column: the median difference and its 95 % interval.
+        let mut medians: Vec<[Vec<Option<f64>>; 3]> = vec![Default::default(); 1 + self.delay_names.len()];
         let mut pairs = self.pairs.iter();
         for a in 0..n {
             for b in a + 1..n {
@@ -157,7 +158,10 @@ impl PairedUnits {
                     p_values[k].push(mcnemar_exact(d[0], d[1]));
                 }
                 for (m, q) in medians.iter_mut().zip(&c.delay_differences) {
-                    m.push(q.median());
+                    let interval = q.median_interval(super::intervals::Z95);
+                    m[0].push(q.median());
+                    m[1].push(interval.map(|i| i.0));
+                    m[2].push(interval.map(|i| i.1));
                 }
             }
         }
@@ -178,10 +182,13 @@ impl PairedUnits {
             Column::new("isolated_by_b_only".into(), std::mem::take(&mut counts[4])),
             Column::new("mcnemar_p_isolation".into(), std::mem::take(&mut p_values[1])),
             Column::new("delay_pairs".into(), std::mem::take(&mut counts[5])),
-            Column::new("median_delay_b_minus_a_s".into(), std::mem::take(&mut medians[0])),
         ];
-        for (name, m) in self.delay_names.iter().zip(medians.iter_mut().skip(1)) {
-            columns.push(Column::new(format!("median_{name}_b_minus_a").into(), std::mem::take(m)));
+        let names = std::iter::once("median_delay_b_minus_a_s".to_string())
+            .chain(self.delay_names.iter().map(|name| format!("median_{name}_b_minus_a")));
+        for (name, m) in names.zip(medians.iter_mut()) {
+            for (suffix, values) in ["", "_lo", "_hi"].iter().zip(m.iter_mut()) {
+                columns.push(Column::new(format!("{name}{suffix}").into(), std::mem::take(values)));
+            }
         }
         columns.extend([
             Column::new("flights".into(), std::mem::take(&mut counts[6])),

@@ -157,11 +157,41 @@ impl Quantiles {
     pub fn median(&self) -> Option<f64> {
         self.quantile(0.5)
     }
+
+    /// A distribution-free interval for the median (the sign test's, normal approximation of the
+    /// binomial): order statistics `floor(n/2 - z sqrt(n)/2)` and `ceil(1 + n/2 + z sqrt(n)/2)`, clamped
+    /// to 1..n (exact values while the group is exact, the sketch's otherwise); `None` without values.
+    pub fn median_interval(&self, z: f64) -> Option<(f64, f64)> {
+        let n = self.count();
+        if n == 0 {
+            return None;
+        }
+        let half = z * (n as f64).sqrt() / 2.0;
+        let lo = ((n as f64 / 2.0 - half).floor() as u64).clamp(1, n);
+        let hi = ((1.0 + n as f64 / 2.0 + half).ceil() as u64).clamp(1, n);
+        let at = |rank: u64| self.quantile(if n == 1 { 0.0 } else { (rank - 1) as f64 / (n - 1) as f64 });
+        Some((at(lo)?, at(hi)?))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// n = 100: the 95 % sign-test interval of the median is the 40th to 61st order statistic (its exact
+    /// binomial coverage 0.965); n = 1 gives the value itself; none without values.
+    #[test]
+    fn median_interval_by_order_statistics() {
+        let mut q = Quantiles::default();
+        assert_eq!(q.median_interval(1.96), None);
+        q.push(7.0);
+        assert_eq!(q.median_interval(1.96), Some((7.0, 7.0)));
+        let mut q = Quantiles::default();
+        for v in (1..=100).rev() {
+            q.push(v as f64);
+        }
+        assert_eq!(q.median_interval(1.96), Some((40.0, 61.0)));
+    }
 
     /// Exact quantiles interpolate between order statistics like polars' `QuantileMethod::Linear`.
     #[test]

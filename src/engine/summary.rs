@@ -278,7 +278,7 @@ impl<'s> Aggregates<'s> {
         let isolation_on_all = spec.isolates == Isolates::Kind;
         Aggregates {
             spec,
-            pairs: sets.iter().map(|_| PairedUnits::new(detectors, spec.paired_delays, isolation_on_all)).collect(),
+            pairs: sets.iter().map(|_| PairedUnits::new(detectors, spec.paired_medians, isolation_on_all)).collect(),
             per_detector: vec![(Counts::new(n_extras), Counts::new(n_extras), Counts::new(n_extras)); sets.len() * nd],
             sets,
             detectors: detectors.to_vec(),
@@ -318,8 +318,8 @@ impl<'s> Aggregates<'s> {
         let extra_keys =
             spec.extra_keys.iter().map(|k| numbers(df, k, file)).collect::<Result<Vec<Vec<f64>>, RunError>>()?;
         let extras = Extras::read(df, spec, file)?;
-        let paired_delays =
-            spec.paired_delays.iter().map(|c| numbers(df, c, file)).collect::<Result<Vec<Vec<f64>>, RunError>>()?;
+        let paired_medians =
+            spec.paired_medians.iter().map(|c| numbers(df, c, file)).collect::<Result<Vec<Vec<f64>>, RunError>>()?;
         let profiles = match calibrated {
             Some((_, statistics)) => {
                 let mut pre = Vec::new();
@@ -427,7 +427,7 @@ impl<'s> Aggregates<'s> {
                     *self.confusion.entry((d, truth, unit.isolated.unwrap_or(NO_NAME))).or_insert(0) += 1;
                 }
                 let mut delays_s = vec![unit.delay_s];
-                delays_s.extend(paired_delays.iter().map(|c| Some(c[i]).filter(|v| !v.is_nan())));
+                delays_s.extend(paired_medians.iter().map(|c| Some(c[i]).filter(|v| !v.is_nan())));
                 self.pairs[s].push(
                     t,
                     d,
@@ -631,7 +631,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
         .iter()
         .copied()
         .chain(spec.extras.iter().filter_map(Extra::column))
-        .chain(spec.paired_delays.iter().copied());
+        .chain(spec.paired_medians.iter().copied());
     for c in own {
         if !select.iter().any(|s| s == c) {
             select.push(c.to_string());

@@ -33,7 +33,7 @@ pub static METHOD: Method = Method {
     title: "attitude-EKF residuals and SVM classifiers, accelerometer faults (method 003)",
     options: &[Opt::Classifiers],
     load: |text, path| Ok(Box::new(AccelerometerStudy::from_toml(text, path)?)),
-    summary: SummarySpec { extra_keys: &[], isolates: Isolates::Kind, extras: &[], paired_delays: &[], printed: &[] },
+    summary: SummarySpec { extra_keys: &[], isolates: Isolates::Kind, extras: &[], paired_medians: &[], printed: &[] },
     report: None,
     trace_panels: &[
         TracePanel { title: "attitude-EKF residual (m/s2)", columns: &["residual_*"] },

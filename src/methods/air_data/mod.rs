@@ -47,7 +47,7 @@ pub static METHOD: Method = Method {
             },
             Extra::Quantile { name: "raw_rms_p50_sigma", column: records::col::RAW_RMS_SIGMA, p: 0.5, abs: false },
         ],
-        paired_delays: &[],
+        paired_medians: &[],
         printed: &[
             ("bias err σ", "bias_error_p50_sigma"),
             ("air data σ", "estimate_rms_p50_sigma"),

@@ -50,7 +50,7 @@ pub static METHOD: Method = Method {
                 faulty_only: false,
             },
         ],
-        paired_delays: &[],
+        paired_medians: &[],
         printed: &[],
     },
     report: Some(report::report_part),

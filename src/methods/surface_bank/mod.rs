@@ -55,7 +55,7 @@ pub static METHOD: Method = Method {
                 abs: false,
             },
         ],
-        paired_delays: &[records::col::CLEARING_DELAY_S],
+        paired_medians: &[records::col::CLEARING_DELAY_S, records::col::SURFACE_ESTIMATE_RMS_DEG],
         printed: &[("clear p50 s", "clearing_p50_s"), ("relapse", "post_fault_rate")],
     },
     report: None,

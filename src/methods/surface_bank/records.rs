@@ -274,6 +274,11 @@ mod tests {
         assert_eq!(cu("delay_pairs"), 2);
         let diff = c.column("median_delay_b_minus_a_s").unwrap().f64().unwrap().get(0).unwrap();
         assert!((diff - 0.35).abs() < 1e-12, "median of 1.0 - 0.5 and 0.6 - 0.4: {diff}");
+        // With two pairs the sign-test interval is their range.
+        let bound = |n: &str| c.column(n).unwrap().f64().unwrap().get(0).unwrap();
+        let (lo, hi) = (bound("median_delay_b_minus_a_s_lo"), bound("median_delay_b_minus_a_s_hi"));
+        assert!((lo - 0.2).abs() < 1e-12 && (hi - 0.5).abs() < 1e-12, "[{lo}, {hi}]");
+        assert_eq!(bound("median_surface_estimate_rms_deg_b_minus_a"), 0.0, "the same estimate error in every window");
         let clearing = c.column("median_clearing_delay_s_b_minus_a").unwrap().f64().unwrap().get(0).unwrap();
         assert!((clearing - 0.2).abs() < 1e-12, "only trial 4 has both clearing delays: 0.5 - 0.3: {clearing}");
         let p = c.column("mcnemar_p_detection").unwrap().f64().unwrap().get(0).unwrap();

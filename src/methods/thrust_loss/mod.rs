@@ -46,7 +46,7 @@ pub static METHOD: Method = Method {
                 abs: true,
             },
         ],
-        paired_delays: &[],
+        paired_medians: &[],
         printed: &[("loss err %", "loss_abs_error_p50_percent")],
     },
     report: None,
