@@ -73,7 +73,7 @@ impl LtiPlant {
         Some(StructuralRanks {
             states: self.n_states(),
             controllability_rank: linalg::staircase(&self.A, &self.B)?.controllable,
-            observability_rank: linalg::staircase(&self.A.transpose(), &self.C.transpose())?.controllable,
+            observability_rank: linalg::observable(&self.A, &self.C)?.controllable,
         })
     }
 }

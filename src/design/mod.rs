@@ -62,6 +62,14 @@ pub struct Eigenvalue {
     pub im: f64,
 }
 
+/// `-0.7` or `-1.2+0.5i`, both parts at the formatter's precision (`{:.6}`).
+impl std::fmt::Display for Eigenvalue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let p = f.precision().unwrap_or(6);
+        if self.im == 0.0 { write!(f, "{:.p$}", self.re) } else { write!(f, "{:.p$}{:+.p$}i", self.re, self.im) }
+    }
+}
+
 /// A designed gain with the evidence that it does what was asked.
 #[derive(Debug, Clone)]
 pub struct Assignment {
@@ -156,15 +164,14 @@ pub fn assign_eigenstructure(
     Ok(Assignment { K, closed_loop_eigenvalues, eigenvector_condition, relative_residual })
 }
 
-/// Refuses a pair `(A, C)` with modes no output sees, naming them: the orthogonal staircase of the
-/// dual pair (`linalg::staircase`), sound at any size where the Kalman observability matrix is not.
+/// Refuses a pair `(A, C)` with modes no output sees, naming them: the orthogonal staircase
+/// (`linalg::observable`), sound at any size where the Kalman observability matrix is not.
 pub fn unobservable_modes(A: &DMatrix<f64>, C: &DMatrix<f64>) -> Result<(), DesignError> {
     let failed = DesignError::Decomposition { what: "staircase reduction of (A, C)" };
-    let stairs = linalg::staircase(&A.transpose(), &C.transpose()).ok_or(failed.clone())?;
+    let stairs = linalg::observable(A, C).ok_or(failed.clone())?;
     if stairs.controllable == A.nrows() {
         return Ok(());
     }
-    // The uncontrollable block of the dual pair is A's unobservable part, transposed: same eigenvalues.
     let modes = linalg::eigenvalues(&stairs.uncontrollable_block).ok_or(failed)?;
     Err(DesignError::Unobservable {
         rank: stairs.controllable,
@@ -173,12 +180,9 @@ pub fn unobservable_modes(A: &DMatrix<f64>, C: &DMatrix<f64>) -> Result<(), Desi
     })
 }
 
-/// Eigenvalues as a message lists them: `-0.7, -1.2+0.5i`.
+/// Eigenvalues as a message lists them: `-0.700000, -1.200000+0.500000i`.
 fn modes_text(modes: &[Eigenvalue]) -> String {
-    let one = |e: &Eigenvalue| {
-        if e.im == 0.0 { format!("{:.6}", e.re) } else { format!("{:.6}{:+.6}i", e.re, e.im) }
-    };
-    modes.iter().map(one).collect::<Vec<_>>().join(", ")
+    modes.iter().map(|e| format!("{e:.6}")).collect::<Vec<_>>().join(", ")
 }
 
 /// Eigenvalues (sorted by real part, descending) and the eigenvector matrix's condition number.
@@ -244,7 +248,7 @@ mod tests {
     fn seed000_ranks_are_4_and_5() {
         let (A, B, C) = seed000();
         assert_eq!(linalg::staircase(&A, &B).unwrap().controllable, 4);
-        assert_eq!(linalg::staircase(&A.transpose(), &C.transpose()).unwrap().controllable, 5);
+        assert_eq!(linalg::observable(&A, &C).unwrap().controllable, 5);
         // The mode no input reaches: the first state's integrator (its row and column of A are zero).
         let stairs = linalg::staircase(&A, &B).unwrap();
         let modes = linalg::eigenvalues(&stairs.uncontrollable_block).unwrap();

@@ -116,8 +116,6 @@ pub(crate) fn read_deck(path: &Path) -> Result<String, DeckError> {
     std::fs::read_to_string(path).map_err(|source| DeckError::Read { file: path.into(), source })
 }
 
-/// A deck's text parsed into its serde type; TOML errors (unknown fields among them) name the file. A
-/// table missing from the deck is named as such (TOML reports it at line 1 of the whole document).
 /// The first steps of every kind's reader: parses deck text into `D` (see [`parse_deck`]) and validates
 /// its `[study]` table (`study` finds it); the validator names `path` in every later rejection.
 pub(crate) fn open_deck<'a, D: serde::de::DeserializeOwned>(
@@ -131,6 +129,8 @@ pub(crate) fn open_deck<'a, D: serde::de::DeserializeOwned>(
     Ok((deck, v, header))
 }
 
+/// A deck's text parsed into its serde type; TOML errors (unknown fields among them) name the file. A
+/// table missing from the deck is named as such (TOML reports it at line 1 of the whole document).
 pub(crate) fn parse_deck<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T, DeckError> {
     toml::from_str(text).map_err(|e| {
         let missing = e.message().strip_prefix("missing field `").and_then(|m| m.strip_suffix('`'));
@@ -228,6 +228,14 @@ impl Validator<'_> {
             Ok(v)
         } else {
             Err(self.err(field, format!("must be a finite number > 0, got {v}")))
+        }
+    }
+
+    pub(crate) fn non_negative(&self, field: &str, v: f64) -> Result<f64, DeckError> {
+        if v.is_finite() && v >= 0.0 {
+            Ok(v)
+        } else {
+            Err(self.err(field, format!("must be a finite number >= 0, got {v}")))
         }
     }
 

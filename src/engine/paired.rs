@@ -5,8 +5,9 @@
 //! For every pair of detectors, over the units both flew to the end: discordant detections and correct
 //! isolations (among the faulty units; among all units for classifiers, which name a class for every
 //! unit) and discordant false alarms (once per trial, on its first unit), each with an exact McNemar
-//! p-value, and the median paired difference `b - a` of the detection delay and of any other delays a
-//! kind names, over the units both have a value for.
+//! p-value, and the median paired difference `b - a`, with its 95 % sign-test interval, of the
+//! detection delay and of any other per-unit value a kind names (a delay, an estimation error), over
+//! the units both have a value for.
 
 use polars::prelude::*;
 
@@ -22,8 +23,8 @@ pub struct UnitOutcome {
     pub detected: bool,
     pub isolated: bool,
     pub false_alarm: bool,
-    /// The detection delay, then the kind's own delays ([`PairedUnits::new`]'s `delays`).
-    pub delays_s: Vec<Option<f64>>,
+    /// The detection delay, then the kind's own paired columns ([`PairedUnits::new`]'s `paired`).
+    pub paired: Vec<Option<f64>>,
 }
 
 /// Counts of one pair of detectors.
@@ -35,13 +36,14 @@ struct PairCounts {
     discordant: [[u64; 2]; 3],
     /// detected, isolated: [a, b]
     positive: [[u64; 2]; 2],
-    delay_differences: Vec<Quantiles>,
+    /// Per paired value (the detection delay first): the differences b - a where both have one.
+    differences: Vec<Quantiles>,
 }
 
 /// Units per (trial, detector) as they stream past, and the pairs' counts so far.
 pub struct PairedUnits {
     detectors: Vec<String>,
-    delay_names: Vec<String>,
+    paired_names: Vec<String>,
     /// Classifiers: isolation is compared on every unit, not only on the faulty ones.
     isolation_on_all_units: bool,
     trial: Option<u64>,
@@ -50,13 +52,13 @@ pub struct PairedUnits {
 }
 
 impl PairedUnits {
-    /// `delays`: the names of the kind's own delays after the detection delay (for column names).
-    pub fn new(detectors: &[String], delays: &[&str], isolation_on_all_units: bool) -> Self {
+    /// `paired`: the kind's own columns compared after the detection delay (for column names).
+    pub fn new(detectors: &[String], paired: &[&str], isolation_on_all_units: bool) -> Self {
         let n = detectors.len();
-        let pair = PairCounts { delay_differences: vec![Quantiles::default(); 1 + delays.len()], ..Default::default() };
+        let pair = PairCounts { differences: vec![Quantiles::default(); 1 + paired.len()], ..Default::default() };
         PairedUnits {
             detectors: detectors.to_vec(),
-            delay_names: delays.iter().map(|s| s.to_string()).collect(),
+            paired_names: paired.iter().map(|s| s.to_string()).collect(),
             isolation_on_all_units,
             trial: None,
             current: vec![Vec::new(); n],
@@ -92,7 +94,7 @@ impl PairedUnits {
                         c.discordant[0][1] += (y.detected && !x.detected) as u64;
                         c.positive[0][0] += x.detected as u64;
                         c.positive[0][1] += y.detected as u64;
-                        for (q, (u, v)) in c.delay_differences.iter_mut().zip(x.delays_s.iter().zip(&y.delays_s)) {
+                        for (q, (u, v)) in c.differences.iter_mut().zip(x.paired.iter().zip(&y.paired)) {
                             if let (Some(u), Some(v)) = (u, v) {
                                 q.push(v - u);
                             }
@@ -124,7 +126,7 @@ impl PairedUnits {
         let mut rates: Vec<Vec<Option<f64>>> = vec![Vec::new(); 4];
         let mut p_values: Vec<Vec<f64>> = vec![Vec::new(); 3];
         // Per paired column: the median difference and its 95 % interval.
-        let mut medians: Vec<[Vec<Option<f64>>; 3]> = vec![Default::default(); 1 + self.delay_names.len()];
+        let mut medians: Vec<[Vec<Option<f64>>; 3]> = vec![Default::default(); 1 + self.paired_names.len()];
         let mut pairs = self.pairs.iter();
         for a in 0..n {
             for b in a + 1..n {
@@ -143,7 +145,7 @@ impl PairedUnits {
                     c.discordant[0][1],
                     c.discordant[1][0],
                     c.discordant[1][1],
-                    c.delay_differences[0].count(),
+                    c.differences[0].count(),
                     c.flights,
                     c.discordant[2][0],
                     c.discordant[2][1],
@@ -157,7 +159,7 @@ impl PairedUnits {
                 for (k, d) in c.discordant.iter().enumerate() {
                     p_values[k].push(mcnemar_exact(d[0], d[1]));
                 }
-                for (m, q) in medians.iter_mut().zip(&c.delay_differences) {
+                for (m, q) in medians.iter_mut().zip(&c.differences) {
                     let interval = q.median_interval(super::intervals::Z95);
                     m[0].push(q.median());
                     m[1].push(interval.map(|i| i.0));
@@ -184,7 +186,7 @@ impl PairedUnits {
             Column::new("delay_pairs".into(), std::mem::take(&mut counts[5])),
         ];
         let names = std::iter::once("median_delay_b_minus_a_s".to_string())
-            .chain(self.delay_names.iter().map(|name| format!("median_{name}_b_minus_a")));
+            .chain(self.paired_names.iter().map(|name| format!("median_{name}_b_minus_a")));
         for (name, m) in names.zip(medians.iter_mut()) {
             for (suffix, values) in ["", "_lo", "_hi"].iter().zip(m.iter_mut()) {
                 columns.push(Column::new(format!("{name}{suffix}").into(), std::mem::take(values)));
@@ -212,7 +214,7 @@ mod tests {
         false_alarm: bool,
         delay: Option<f64>,
     ) -> UnitOutcome {
-        UnitOutcome { flown, faulty, detected, isolated, false_alarm, delays_s: vec![delay] }
+        UnitOutcome { flown, faulty, detected, isolated, false_alarm, paired: vec![delay] }
     }
 
     /// Three detectors on four trials by hand: trial 0 (faulty) a detects at 0.5 s and isolates, b

@@ -30,13 +30,7 @@ pub struct UnitSampler {
 impl UnitSampler {
     /// The sampler of a study's `[monte_carlo]` (seed `seed`) over `dims` continuous dimensions.
     pub fn for_study(mc: &MonteCarlo, seed: u64, dims: usize) -> Self {
-        UnitSampler {
-            fault_free_fraction: mc.fault_free_fraction,
-            ..UnitSampler::new(mc.sampler, mc.trials, seed, dims)
-        }
-    }
-
-    pub fn new(sampler: Sampler, trials: u64, seed: u64, dims: usize) -> Self {
+        let (sampler, trials) = (mc.sampler, mc.trials);
         let lhs = if sampler == Sampler::LatinHypercube {
             let n = trials as usize;
             (0..dims)
@@ -54,27 +48,22 @@ impl UnitSampler {
         } else {
             Vec::new()
         };
-        UnitSampler { sampler, trials, seed, dims, fault_free_fraction: 0.0, lhs }
+        UnitSampler { sampler, trials, seed, dims, fault_free_fraction: mc.fault_free_fraction, lhs }
     }
 
-    /// A trial's scenario draws, in the same order for every kind of study: whether it is fault-free
-    /// (the first draw of its scenario stream, true with probability `fault_free_fraction`), then one
-    /// unit draw per dimension `0..dims`.
-    pub fn draws(&self, trial: u64, fault_free_fraction: f64, dims: usize) -> (bool, Vec<f64>) {
-        let mut rng = trial_rng(self.seed, trial, Substream::Scenario);
-        let fault_free = rng.random::<f64>() < fault_free_fraction;
-        (fault_free, (0..dims).map(|d| self.unit(trial, d, &mut rng)).collect())
-    }
-
-    /// Trial `trial`'s draws ([`UnitSampler::draws`] over the study's dimensions) and its grid digits.
+    /// Trial `trial`'s draws, in the same order for every kind of study: whether it is fault-free (the
+    /// first draw of its scenario stream, true with probability `fault_free_fraction`), then one unit
+    /// draw per dimension; and its grid digits.
     pub fn trial(&self, trial: u64) -> TrialDraws {
-        let (fault_free, units) = self.draws(trial, self.fault_free_fraction, self.dims);
+        let mut rng = trial_rng(self.seed, trial, Substream::Scenario);
+        let fault_free = rng.random::<f64>() < self.fault_free_fraction;
+        let units = (0..self.dims).map(|d| self.unit(trial, d, &mut rng)).collect();
         TrialDraws { fault_free, units, grid: GridDigits::new(trial) }
     }
 
     /// Uniform in [0, 1) for dimension `dim` of trial `trial`; `rng` is the trial's scenario stream
     /// (one draw per call, whatever the sampler, so later draws do not depend on it).
-    pub fn unit(&self, trial: u64, dim: usize, rng: &mut ChaCha8Rng) -> f64 {
+    fn unit(&self, trial: u64, dim: usize, rng: &mut ChaCha8Rng) -> f64 {
         let jitter: f64 = rng.random();
         match self.sampler {
             Sampler::Random => jitter,

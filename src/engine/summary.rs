@@ -426,8 +426,8 @@ impl<'s> Aggregates<'s> {
                 if let (DECK, Some(truth), true) = (set, truth, flown) {
                     *self.confusion.entry((d, truth, unit.isolated.unwrap_or(NO_NAME))).or_insert(0) += 1;
                 }
-                let mut delays_s = vec![unit.delay_s];
-                delays_s.extend(paired_medians.iter().map(|c| Some(c[i]).filter(|v| !v.is_nan())));
+                let mut paired = vec![unit.delay_s];
+                paired.extend(paired_medians.iter().map(|c| Some(c[i]).filter(|v| !v.is_nan())));
                 self.pairs[s].push(
                     t,
                     d,
@@ -437,7 +437,7 @@ impl<'s> Aggregates<'s> {
                         detected: faulty && unit.detected,
                         isolated: unit.correct && unit.isolated.is_some(),
                         false_alarm: unit.false_alarm,
-                        delays_s,
+                        paired,
                     },
                 );
             }

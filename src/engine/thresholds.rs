@@ -196,9 +196,13 @@ pub fn thresholds(
     for_each_slice(path, rows, manifest, &[], fault_free_rows, |s| {
         s.detector.iter().flatten().for_each(|&d| n[d] += 1);
     })?;
-    let target_pfa = match calibration {
-        Calibration::Target(p) => Some(*p),
-        Calibration::File(f) => read_target_pfa(f)?,
+    let file = match calibration {
+        Calibration::File(f) => Some(read_thresholds(f)?),
+        Calibration::Target(_) => None,
+    };
+    let target_pfa = match (calibration, &file) {
+        (Calibration::Target(p), _) => Some(*p),
+        (_, file) => file.as_ref().and_then(|f| f.target_pfa),
     };
     let source = match calibration {
         Calibration::File(f) => format!(
@@ -219,7 +223,7 @@ pub fn thresholds(
 
     let (per, whole): (Vec<Vec<f64>>, Vec<Vec<f64>>) = match calibration {
         Calibration::File(f) => {
-            let file = read_thresholds(f)?;
+            let file = file.as_ref().map(|f| f.detectors.as_slice()).unwrap_or_default();
             let mut per = Vec::with_capacity(nd);
             let mut whole = Vec::with_capacity(nd);
             for d in &manifest.detectors {
@@ -399,17 +403,15 @@ pub fn write_thresholds(
     Ok(write_table(&mut df, &path)?)
 }
 
-/// The false-alarm probability a `thresholds.csv` was calibrated for (its `target_pfa` column; `None`
-/// in a file without one).
-pub fn read_target_pfa(path: &Path) -> Result<Option<f64>, RunError> {
-    let df = read_summary(path)?;
-    let Ok(c) = df.column("target_pfa").and_then(|c| c.cast(&DataType::Float64)) else { return Ok(None) };
-    Ok(c.f64().ok().and_then(|c| c.iter().flatten().next()).filter(|p| *p > 0.0 && *p < 1.0))
+/// A `thresholds.csv` as read back: per detector (per-statistic thresholds, whole-detector thresholds) in
+/// order, and the false-alarm probability they were calibrated for (`None` in a file without one).
+pub struct ThresholdsFile {
+    pub detectors: Vec<(String, Vec<f64>, Vec<f64>)>,
+    pub target_pfa: Option<f64>,
 }
 
-/// Reads `thresholds.csv`: per detector, (per-statistic thresholds, whole-detector thresholds) in order.
-#[allow(clippy::type_complexity)]
-pub fn read_thresholds(path: &Path) -> Result<Vec<(String, Vec<f64>, Vec<f64>)>, RunError> {
+/// Reads `thresholds.csv` (see [`ThresholdsFile`]).
+pub fn read_thresholds(path: &Path) -> Result<ThresholdsFile, RunError> {
     let df = read_summary(path)?;
     let bad = |what: &str| RunError::Invalid(format!("{}: not an fdimc thresholds.csv ({what})", path.display()));
     let det = df.column(col::DETECTOR).and_then(|c| c.str().cloned()).map_err(|_| bad("no detector column"))?;
@@ -420,6 +422,9 @@ pub fn read_thresholds(path: &Path) -> Result<Vec<(String, Vec<f64>, Vec<f64>)>,
     let (per, whole) = (number("per_statistic_threshold")?, number("detector_threshold")?);
     let (per, whole) =
         (per.f64().map_err(|_| bad("per_statistic_threshold"))?, whole.f64().map_err(|_| bad("detector_threshold"))?);
+    let target_pfa = (number("target_pfa").ok())
+        .and_then(|c| c.f64().ok().and_then(|c| c.iter().flatten().next()))
+        .filter(|p| *p > 0.0 && *p < 1.0);
     let mut result: Vec<(String, Vec<f64>, Vec<f64>)> = Vec::new();
     for i in 0..df.height() {
         if stat.get(i) == Some("all") {
@@ -439,7 +444,7 @@ pub fn read_thresholds(path: &Path) -> Result<Vec<(String, Vec<f64>, Vec<f64>)>,
             None => result.push((d, vec![p], vec![w])),
         }
     }
-    Ok(result)
+    Ok(ThresholdsFile { detectors: result, target_pfa })
 }
 
 #[cfg(test)]

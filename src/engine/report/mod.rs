@@ -107,7 +107,7 @@ pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Repor
     plots::register_font();
     let mut report = Report::default();
     let set = if calibrates { "calibrated" } else { "deck" };
-    let thresholds = if calibrates { read_thresholds(&dir.join("thresholds.csv"))? } else { Vec::new() };
+    let thresholds = if calibrates { read_thresholds(&dir.join("thresholds.csv"))?.detectors } else { Vec::new() };
     let data = gather(dir, &manifest, &thresholds)?;
 
     let curves = read_summary(&dir.join("curves.csv"))?;

@@ -96,11 +96,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                 p.output_names.join(", ")
             );
             print!("{}", indent(&format!("{:.6}", a.K)));
-            let evs: Vec<String> = a
-                .closed_loop_eigenvalues
-                .iter()
-                .map(|e| if e.im == 0.0 { format!("{:.9}", e.re) } else { format!("{:.9}{:+.9}i", e.re, e.im) })
-                .collect();
+            let evs: Vec<String> = a.closed_loop_eigenvalues.iter().map(|e| format!("{e:.9}")).collect();
             println!("  eigenvalues of A - K C: [{}]", evs.join(", "));
             println!("  eigenvector condition number: {:.6}", a.eigenvector_condition);
             if let Some(w) = a.conditioning_warning() {

@@ -178,10 +178,7 @@ impl DetectorDeck<'_> {
     pub(crate) fn isolation_timing(&self, delay_s: f64, window_s: f64) -> Result<(f64, f64), DeckError> {
         let field = |name: &str| format!("detector[{}].{name}", self.i);
         let delay_s = match self.d.isolation_delay_s {
-            Some(v) if v.is_finite() && v >= 0.0 => v,
-            Some(v) => {
-                return Err(self.chk.err(field("isolation_delay_s"), format!("must be a finite number >= 0, got {v}")));
-            }
+            Some(v) => self.chk.non_negative(&field("isolation_delay_s"), v)?,
             None => delay_s,
         };
         let window_s = match self.d.isolation_window_s {

@@ -74,7 +74,6 @@ impl Study for LtiStudy {
         run_study(self, opts)
     }
 }
-use crate::fault::deck::FaultKindSpec;
 use trials::{Engine, TrialResult};
 
 /// Runs an LTI study (method 000) through [`run`]; a detector that cannot be designed on the nominal
@@ -118,7 +117,7 @@ impl TrialSource for LtiTrials<'_> {
             deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
             target_pfa: study.monte_carlo.common.target_pfa,
             fault_size_units: fault_size_units(study),
-            fault_size_bins: FaultKindSpec::size_bins(&study.monte_carlo.faults),
+            fault_size_bins: crate::fault::deck::FaultKindSpec::size_bins(&study.monte_carlo.faults),
             ..Manifest::of(
                 KIND,
                 &study.header,

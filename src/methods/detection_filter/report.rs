@@ -29,7 +29,7 @@ pub fn report_part(ctx: &ReportContext) -> Result<ReportPart, RunError> {
     study.header.seed = m.seed;
     study.monte_carlo.common.trials = m.trials;
     let engine = Engine::new(&study);
-    let thresholds = read_thresholds(&ctx.dir.join("thresholds.csv"))?;
+    let thresholds = read_thresholds(&ctx.dir.join("thresholds.csv"))?.detectors;
     let calibrated = thresholds.iter().find(|t| t.0 == study.detectors[0].name).map(|t| t.2.clone());
     for &trial in ctx.trials {
         if trial >= m.trials {

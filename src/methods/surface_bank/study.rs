@@ -258,12 +258,7 @@ impl FromDeck for SurfaceStudy {
         let sensors = {
             let s = deck.sensors.as_ref();
             let non_negative = |field: &str, x: Option<f64>, default: f64| {
-                let x = x.unwrap_or(default);
-                if x.is_finite() && x >= 0.0 {
-                    Ok(x)
-                } else {
-                    Err(v.err(format!("sensors.{field}"), format!("must be >= 0, got {x}")))
-                }
+                v.non_negative(&format!("sensors.{field}"), x.unwrap_or(default))
             };
             SensorNoise {
                 gyro_variance_rad2_s2: non_negative(
@@ -436,13 +431,8 @@ impl FromDeck for SurfaceStudy {
             }
             if let Some(x) = b.surface_process_variance_rad2_per_s {
                 // 0 is the seed's own reading (its R_W has no surface entry): no random walk at all.
-                if !(x.is_finite() && x >= 0.0) {
-                    return Err(v.err(
-                        field("surface_process_variance_rad2_per_s"),
-                        format!("must be >= 0 (0: no random walk, the seed's reading), got {x}"),
-                    ));
-                }
-                p.surface_process_variance_rad2_per_s = x;
+                p.surface_process_variance_rad2_per_s =
+                    v.non_negative(&field("surface_process_variance_rad2_per_s"), x)?;
             }
             if let Some(rho) = b.rho {
                 if !(rho > 0.0 && rho <= 1.0) {
@@ -471,10 +461,7 @@ impl FromDeck for SurfaceStudy {
                 p.a_surface = a;
             }
             if let Some(h) = b.declare_hold_s {
-                if !(h.is_finite() && h >= 0.0) {
-                    return Err(v.err(field("declare_hold_s"), format!("must be >= 0, got {h}")));
-                }
-                p.declare_hold_s = h;
+                p.declare_hold_s = v.non_negative(&field("declare_hold_s"), h)?;
             }
             banks.push((b.name.clone(), p));
         }
