@@ -13,9 +13,11 @@
 //!   never declared a stuck surface within 10 s on the bank's isolation test.)
 //!
 //! Computed in logarithms (the Gaussian exponent of a wrong model easily underflows), normalised, then
-//! floored: every probability below the floor (0.001 in the seed, which resets a probability that
-//! "reaches 0") is set to the floor and the others are scaled down so the sum stays exactly 1. A filter
-//! whose innovation covariance is singular gets likelihood 0 that step.
+//! floored by a [`FloorRule`]: by default every probability below the floor (0.001 in the seed) is set
+//! to the floor at every step; [`FloorRule::ResetAtZero`] is the seed's literal rule, resetting only a
+//! probability that has reached 0 (underflowed past the smallest double). Either way the others are
+//! scaled down so the sum stays exactly 1. A filter whose innovation covariance is singular gets
+//! likelihood 0 that step.
 #![allow(non_snake_case)]
 
 use nalgebra::{Const, DimMin, SMatrix};
@@ -59,11 +61,22 @@ impl LikelihoodForm {
     }
 }
 
+/// When the floor applies; see the module docs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum FloorRule {
+    /// Every probability below the floor is raised to it at every step (a lower bound).
+    #[default]
+    EveryStep,
+    /// The seed's words: a probability that reaches 0 is reset to the floor; others may sink below it.
+    ResetAtZero,
+}
+
 /// The probabilities of K models (model 0: no fault) with the floor; see the module docs.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModelProbabilities<const K: usize> {
     p: [f64; K],
     floor: f64,
+    floor_rule: FloorRule,
     /// Steps on which at least one probability was raised to the floor.
     pub floor_steps: u32,
     /// Steps on which no model had a usable likelihood (probabilities kept).
@@ -75,7 +88,12 @@ impl<const K: usize> ModelProbabilities<K> {
     pub fn new(prior: [f64; K], floor: f64) -> Self {
         assert!((prior.iter().sum::<f64>() - 1.0).abs() < 1e-12 && prior.iter().all(|&p| p >= floor));
         assert!(floor >= 0.0 && floor * K as f64 <= 1.0);
-        ModelProbabilities { p: prior, floor, floor_steps: 0, skipped_steps: 0 }
+        ModelProbabilities { p: prior, floor, floor_rule: FloorRule::EveryStep, floor_steps: 0, skipped_steps: 0 }
+    }
+
+    /// The same probabilities floored by `rule`.
+    pub fn with_floor_rule(self, floor_rule: FloorRule) -> Self {
+        ModelProbabilities { floor_rule, ..self }
     }
 
     pub fn probabilities(&self) -> &[f64; K] {
@@ -96,9 +114,13 @@ impl<const K: usize> ModelProbabilities<K> {
         self.apply_floor();
     }
 
-    /// Raises probabilities below the floor to it and scales the rest so the sum is 1.
+    /// Raises probabilities below the floor (or, reset at zero, those at 0) to it and scales the rest so
+    /// the sum is 1.
     fn apply_floor(&mut self) {
-        let low = self.p.map(|p| p < self.floor);
+        let low = match self.floor_rule {
+            FloorRule::EveryStep => self.p.map(|p| p < self.floor),
+            FloorRule::ResetAtZero => self.p.map(|p| p == 0.0),
+        };
         if !low.contains(&true) {
             return;
         }
@@ -118,15 +140,19 @@ impl<const K: usize> ModelProbabilities<K> {
 }
 
 /// The seed's decision: model i (i >= 1) is declared faulty when its probability has stayed above
-/// `declare` (0.9) for `hold_steps` consecutive samples; the declaration is cleared when it falls
-/// below `clear` (0.05). Another model above `declare` for `hold_steps` replaces the declared one.
+/// `declare` (0.9) for `hold_steps` consecutive samples; the declaration is cleared when it has stayed
+/// below `clear` (0.05) for `clear_hold_steps` (the seed says "within a certain time" for both; 1 step
+/// clears at the first sample below). Another model above `declare` for `hold_steps` replaces the
+/// declared one.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DeclareClear {
     pub declare: f64,
     pub clear: f64,
     pub hold_steps: u32,
+    pub clear_hold_steps: u32,
     declared: Option<usize>,
     candidate: Option<(usize, u32)>,
+    below_clear: u32,
 }
 
 /// What changed at a step.
@@ -139,9 +165,15 @@ pub enum Decision {
 }
 
 impl DeclareClear {
-    pub fn new(declare: f64, clear: f64, hold_steps: u32) -> Self {
+    pub fn new(declare: f64, clear: f64, hold_steps: u32, clear_hold_steps: u32) -> Self {
         assert!(0.0 < clear && clear < declare && declare < 1.0);
-        DeclareClear { declare, clear, hold_steps, declared: None, candidate: None }
+        DeclareClear { declare, clear, hold_steps, clear_hold_steps, declared: None, candidate: None, below_clear: 0 }
+    }
+
+    /// The rule with its holds given in seconds at the sample period `dt_s` (at least one sample each).
+    pub fn with_holds_s(declare: f64, clear: f64, declare_hold_s: f64, clear_hold_s: f64, dt_s: f64) -> Self {
+        let steps = |hold_s: f64| (hold_s / dt_s).round().max(1.0) as u32;
+        DeclareClear::new(declare, clear, steps(declare_hold_s), steps(clear_hold_s))
     }
 
     pub fn declared(&self) -> Option<usize> {
@@ -151,11 +183,13 @@ impl DeclareClear {
     /// Feeds one step's probabilities (index 0: no fault); returns what changed, if anything.
     pub fn observe(&mut self, p: &[f64]) -> Option<Decision> {
         let mut cleared = None;
-        if let Some(i) = self.declared
-            && p[i] < self.clear
-        {
-            self.declared = None;
-            cleared = Some(Decision::Cleared(i));
+        if let Some(i) = self.declared {
+            self.below_clear = if p[i] < self.clear { self.below_clear + 1 } else { 0 };
+            if self.below_clear >= self.clear_hold_steps.max(1) {
+                self.declared = None;
+                self.below_clear = 0;
+                cleared = Some(Decision::Cleared(i));
+            }
         }
         let leader = (1..p.len()).find(|&i| p[i] > self.declare && Some(i) != self.declared);
         self.candidate = match (leader, self.candidate) {
@@ -167,6 +201,7 @@ impl DeclareClear {
             Some((i, n)) if n >= self.hold_steps.max(1) => {
                 self.declared = Some(i);
                 self.candidate = None;
+                self.below_clear = 0;
                 Some(Decision::Declared(i))
             }
             _ => cleared,
@@ -229,8 +264,31 @@ mod tests {
     }
 
     #[test]
+    fn reset_at_zero_lets_a_loser_sink_until_it_underflows() {
+        let mut every = ModelProbabilities::new([0.5, 0.5], 0.001);
+        let mut reset = every.clone().with_floor_rule(FloorRule::ResetAtZero);
+        // A likelihood ratio of e^-400: 1.9e-174, below the floor but not 0.
+        every.update(&[0.0, -400.0]);
+        reset.update(&[0.0, -400.0]);
+        assert_eq!(every.probabilities()[1], 0.001);
+        let sunk = reset.probabilities()[1];
+        assert!(sunk > 0.0 && (sunk.ln() + 400.0).abs() < 1e-9, "{sunk:e}");
+        assert_eq!(reset.floor_steps, 0);
+        // Another e^-400: exp(-800) underflows to exactly 0, which is reset to the floor.
+        reset.update(&[0.0, -400.0]);
+        assert_eq!(*reset.probabilities(), [0.999, 0.001]);
+        assert_eq!(reset.floor_steps, 1);
+        // Climbing back above 0.9 from e^-400 takes (400 + ln 9) / 5 = 80.4, so 81 steps of e^5; from
+        // the floor (ln 999 + ln 9) / 5 = 1.8, so 2.
+        let mut sunk = ModelProbabilities::new([0.5, 0.5], 0.001).with_floor_rule(FloorRule::ResetAtZero);
+        sunk.update(&[0.0, -400.0]);
+        let steps_to_lead = |p: &mut ModelProbabilities<2>| (1..).find(|_| { p.update(&[0.0, 5.0]); p.probabilities()[1] > 0.9 }).unwrap();
+        assert_eq!((steps_to_lead(&mut sunk), steps_to_lead(&mut every)), (81, 2));
+    }
+
+    #[test]
     fn declare_after_the_hold_and_clear_below_the_lower_level() {
-        let mut rule = DeclareClear::new(0.9, 0.05, 3);
+        let mut rule = DeclareClear::new(0.9, 0.05, 3, 1);
         let healthy = [0.99, 0.005, 0.005];
         let faulty = [0.02, 0.96, 0.02];
         let fading = [0.5, 0.3, 0.2];
@@ -250,5 +308,27 @@ mod tests {
         rule.observe(&faulty);
         assert_eq!(rule.observe(&faulty), None);
         assert_eq!(rule.observe(&faulty), Some(Decision::Declared(1)));
+    }
+
+    #[test]
+    fn clearing_waits_for_its_hold() {
+        // 0.05 s at 100 Hz: five samples below 0.05 in a row; one above restarts the count.
+        let mut rule = DeclareClear::with_holds_s(0.9, 0.05, 0.02, 0.05, 0.01);
+        assert_eq!((rule.hold_steps, rule.clear_hold_steps), (2, 5));
+        let faulty = [0.02, 0.96, 0.02];
+        let gone = [0.97, 0.02, 0.01];
+        let between = [0.8, 0.1, 0.1];
+        rule.observe(&faulty);
+        assert_eq!(rule.observe(&faulty), Some(Decision::Declared(1)));
+        for _ in 0..4 {
+            assert_eq!(rule.observe(&gone), None);
+        }
+        assert_eq!(rule.observe(&between), None, "0.1 is above 0.05: the count restarts");
+        for _ in 0..4 {
+            assert_eq!(rule.observe(&gone), None);
+        }
+        assert_eq!(rule.declared(), Some(1));
+        assert_eq!(rule.observe(&gone), Some(Decision::Cleared(1)));
+        assert_eq!(rule.declared(), None);
     }
 }

@@ -10,5 +10,5 @@ pub mod bank;
 pub mod stekf;
 pub mod ukf;
 
-pub use bank::{LikelihoodForm, ModelProbabilities};
+pub use bank::{FloorRule, LikelihoodForm, ModelProbabilities};
 pub use stekf::{DiscreteModel, Fading, FilterHealth, Innovation, Stekf};

@@ -360,14 +360,20 @@ impl DualUkf {
         let R = SMatrix::<f64, 3, 3>::from_diagonal(&Vector3::from(params.noise.air_data_std().map(|s| s * s)));
         let no_fault = Ukf::new(Vector3::zeros(), SMatrix::identity(), SMatrix::zeros(), R, &params.unscented)?;
         let fault = Ukf::new(SVector::zeros(), SMatrix::identity(), SMatrix::zeros(), R, &params.unscented)?;
-        let hold_steps = (params.declare_hold_s / dt_s).round().max(1.0) as u32;
         let prior = params.prior_fault_probability;
         Ok(DualUkf {
             dt_s,
             no_fault,
             fault,
             probabilities: ModelProbabilities::new([1.0 - prior, prior], params.probability_floor),
-            rule: DeclareClear::new(params.declare_probability, params.clear_probability, hold_steps),
+            // Cleared at the first sample below the lower level: the patent names no clearing hold.
+            rule: DeclareClear::with_holds_s(
+                params.declare_probability,
+                params.clear_probability,
+                params.declare_hold_s,
+                0.0,
+                dt_s,
+            ),
             history: vec![[0.0; COMPONENTS]; params.isolation_window],
             thresholds,
             history_next: 0,

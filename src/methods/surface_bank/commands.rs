@@ -170,18 +170,19 @@ pub fn simulate(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &
     }
     let secs = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
     println!(
-        "  {:<16} {:<15} {:>9} {:>8} {:>10} {:>9} {:>12}",
-        "bank", "fault", "onset_s", "delay_s", "isolated", "clear_s", "estimate_rms"
+        "  {:<16} {:<15} {:>9} {:>8} {:>10} {:>9} {:>10} {:>12}",
+        "bank", "fault", "onset_s", "delay_s", "isolated", "clear_s", "recover_s", "estimate_rms"
     );
     for ((bank, _), o) in banks.iter().zip(&outcomes) {
         for w in &o.windows {
             let isolated = w.first_declared.map_or("-", |j| SURFACE_NAMES[j]);
             println!(
-                "  {bank:<16} {:<15} {:>9} {:>8} {isolated:>10} {:>9} {:>9.2} deg",
+                "  {bank:<16} {:<15} {:>9} {:>8} {isolated:>10} {:>9} {:>10} {:>9.2} deg",
                 SURFACE_NAMES[w.surface],
                 w.onset_s,
                 secs(w.detection_delay_s),
                 secs(w.clearing_delay_s),
+                secs(w.recovery_delay_s),
                 w.surface_estimate_rms_rad.to_degrees()
             );
         }

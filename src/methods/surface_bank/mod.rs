@@ -36,6 +36,9 @@ pub static METHOD: Method = Method {
             Extra::Present { name: "clear_decided", column: records::col::CLEARED },
             Extra::Count { name: "cleared", column: records::col::CLEARED },
             Extra::Rate { name: "clearing_rate", k: "cleared", n: "clear_decided", faulty_only: true },
+            Extra::Present { name: "recovery_decided", column: records::col::RECOVERED },
+            Extra::Count { name: "recovered", column: records::col::RECOVERED },
+            Extra::Rate { name: "recovery_rate", k: "recovered", n: "recovery_decided", faulty_only: true },
             Extra::Count { name: "post_fault", column: records::col::POST_FAULT_DECLARATIONS },
             Extra::Rate { name: "post_fault_rate", k: "post_fault", n: "flown", faulty_only: true },
             Extra::Count { name: "asymmetric", column: records::col::ASYMMETRIC_STEPS },
@@ -48,6 +51,8 @@ pub static METHOD: Method = Method {
             },
             Extra::Quantile { name: "clearing_p50_s", column: records::col::CLEARING_DELAY_S, p: 0.5, abs: false },
             Extra::Quantile { name: "clearing_p90_s", column: records::col::CLEARING_DELAY_S, p: 0.9, abs: false },
+            Extra::Quantile { name: "recovery_p50_s", column: records::col::RECOVERY_DELAY_S, p: 0.5, abs: false },
+            Extra::Quantile { name: "recovery_p90_s", column: records::col::RECOVERY_DELAY_S, p: 0.9, abs: false },
             Extra::Quantile {
                 name: "estimate_rms_p50_deg",
                 column: records::col::SURFACE_ESTIMATE_RMS_DEG,
@@ -55,8 +60,16 @@ pub static METHOD: Method = Method {
                 abs: false,
             },
         ],
-        paired_medians: &[records::col::CLEARING_DELAY_S, records::col::SURFACE_ESTIMATE_RMS_DEG],
-        printed: &[("clear p50 s", "clearing_p50_s"), ("relapse", "post_fault_rate")],
+        paired_medians: &[
+            records::col::CLEARING_DELAY_S,
+            records::col::RECOVERY_DELAY_S,
+            records::col::SURFACE_ESTIMATE_RMS_DEG,
+        ],
+        printed: &[
+            ("clear p50 s", "clearing_p50_s"),
+            ("recover p50 s", "recovery_p50_s"),
+            ("relapse", "post_fault_rate"),
+        ],
     },
     report: None,
     trace_panels: &[

@@ -12,6 +12,7 @@
 //! | `end_s`, `window` | the fault window's end and its index in the trial (onset order) |
 //! | `isolation_delay_s` | from the onset to the first declaration of the faulty surface |
 //! | `cleared`, `clearing_delay_s` | the faulty surface, once declared, was cleared after the window ended; from the end to the clearance |
+//! | `recovered`, `recovery_delay_s` | the seed's clearing event: the fault detected, the no-fault model's probability came back to 0.9 after the window ended; from the end to that step |
 //! | `surface_estimate_rms_deg` | RMS error of the faulty surface's position estimate over the window's second half |
 //! | `false_alarms` | how many such declarations |
 //! | `post_fault_declarations` | declarations while no fault was active after one had ended (relapses during the recovery) |
@@ -33,6 +34,8 @@ pub mod col {
     pub const ISOLATION_DELAY_S: &str = "isolation_delay_s";
     pub const CLEARED: &str = "cleared";
     pub const CLEARING_DELAY_S: &str = "clearing_delay_s";
+    pub const RECOVERED: &str = "recovered";
+    pub const RECOVERY_DELAY_S: &str = "recovery_delay_s";
     pub const SURFACE_ESTIMATE_RMS_DEG: &str = "surface_estimate_rms_deg";
     pub const POST_FAULT_DECLARATIONS: &str = "post_fault_declarations";
     pub const ASYMMETRIC_STEPS: &str = "asymmetric_steps";
@@ -80,6 +83,8 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
                 t.isolation_delay_s.push(scored.and_then(|s| s.isolation_delay_s));
                 t.cleared.push(scored.and_then(|s| s.isolation_delay_s.map(|_| s.clearing_delay_s.is_some())));
                 t.clearing_delay_s.push(scored.and_then(|s| s.clearing_delay_s));
+                t.recovered.push(scored.and_then(|s| s.detection_delay_s.map(|_| s.recovery_delay_s.is_some())));
+                t.recovery_delay_s.push(scored.and_then(|s| s.recovery_delay_s));
                 t.estimate_rms_deg
                     .push(scored.map(|s| s.surface_estimate_rms_rad.to_degrees()).filter(|v: &f64| v.is_finite()));
                 t.false_alarms.push(outcome.map(|o| o.false_alarms));
@@ -100,6 +105,8 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
         Column::new(col::ISOLATION_DELAY_S.into(), t.isolation_delay_s),
         Column::new(col::CLEARED.into(), t.cleared),
         Column::new(col::CLEARING_DELAY_S.into(), t.clearing_delay_s),
+        Column::new(col::RECOVERED.into(), t.recovered),
+        Column::new(col::RECOVERY_DELAY_S.into(), t.recovery_delay_s),
         Column::new(col::SURFACE_ESTIMATE_RMS_DEG.into(), t.estimate_rms_deg),
         Column::new("false_alarms".into(), t.false_alarms),
         Column::new(col::POST_FAULT_DECLARATIONS.into(), t.post_fault),
@@ -120,6 +127,8 @@ struct Columns {
     isolation_delay_s: Vec<Option<f64>>,
     cleared: Vec<Option<bool>>,
     clearing_delay_s: Vec<Option<f64>>,
+    recovered: Vec<Option<bool>>,
+    recovery_delay_s: Vec<Option<f64>>,
     estimate_rms_deg: Vec<Option<f64>>,
     false_alarms: Vec<Option<u32>>,
     post_fault: Vec<Option<u32>>,
@@ -177,6 +186,8 @@ mod tests {
             isolation_delay_s: if first == Some(0) { detect } else { None },
             first_declared: first,
             clearing_delay_s: clear,
+            // The no-fault model comes back 1 s after the declaration clears (none without a clearance).
+            recovery_delay_s: clear.map(|c| c + 1.0),
             surface_estimate_rms_rad: 0.01,
         };
         let bank = |w: Option<WindowOutcome>, false_alarms: u32| BankOutcome {
@@ -261,6 +272,9 @@ mod tests {
         assert_eq!(f("pfa")[0], Some(1.0));
         assert_eq!(f("delay_p50_s")[1], Some(0.45));
         assert_eq!(f("clearing_rate")[3], Some(1.0), "b cleared both faults it isolated");
+        assert_eq!(u("recovery_decided"), [0, 2, 0, 3], "detected windows");
+        assert_eq!(f("recovery_rate")[3], Some(2.0 / 3.0), "b detected three, recovered after two");
+        assert_eq!(f("recovery_p50_s")[1], Some(1.25), "a: 1.2 and 1.3 s");
         let (lo, hi) = wilson(2, 3, Z95);
         assert_eq!((f("pd_lo")[1], f("pd_hi")[1]), (Some(lo), Some(hi)));
 
@@ -281,6 +295,8 @@ mod tests {
         assert_eq!(bound("median_surface_estimate_rms_deg_b_minus_a"), 0.0, "the same estimate error in every window");
         let clearing = c.column("median_clearing_delay_s_b_minus_a").unwrap().f64().unwrap().get(0).unwrap();
         assert!((clearing - 0.2).abs() < 1e-12, "only trial 4 has both clearing delays: 0.5 - 0.3: {clearing}");
+        let recovery = bound("median_recovery_delay_s_b_minus_a");
+        assert!((recovery - 0.2).abs() < 1e-12, "only trial 4 has both recoveries: 1.5 - 1.3: {recovery}");
         let p = c.column("mcnemar_p_detection").unwrap().f64().unwrap().get(0).unwrap();
         assert_eq!(p, 1.0);
 

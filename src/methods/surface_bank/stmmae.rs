@@ -19,7 +19,7 @@
 //! original multiple-fading-factor STF, the improved symmetric one); their innovations feed the Bayes
 //! recursion of [`crate::estimation::ModelProbabilities`] with the Gaussian or the Euclidean-norm
 //! likelihood and the floor 0.001; [`crate::estimation::bank::DeclareClear`] turns probabilities into
-//! declarations (0.9, held) and clearances (0.05). The seed's four variants are combinations:
+//! declarations (0.9, held) and clearances (0.05, optionally held). The seed's four variants are combinations:
 //!
 //! | variant | covariance | likelihood |
 //! |---|---|---|
@@ -37,7 +37,7 @@ use nalgebra::{SMatrix, SVector};
 
 use crate::estimation::bank::{Decision, DeclareClear};
 use crate::estimation::stekf::{FadingParams, FilterHealth};
-use crate::estimation::{DiscreteModel, Fading, LikelihoodForm, ModelProbabilities, Stekf};
+use crate::estimation::{DiscreteModel, Fading, FloorRule, LikelihoodForm, ModelProbabilities, Stekf};
 use crate::methods::surface_bank::uav::{AerosondeParams, ReducedInputs, SURFACES, reduced_derivatives};
 
 /// Models in the bank: no fault, then one per surface.
@@ -75,6 +75,11 @@ pub struct BankParams {
     pub clear_probability: f64,
     /// A probability must stay above `declare_probability` this long before a declaration.
     pub declare_hold_s: f64,
+    /// The declared model's probability must stay below `clear_probability` this long before the
+    /// declaration clears (0: the first sample below).
+    pub clear_hold_s: f64,
+    /// Which probabilities the floor raises: all below it at every step, or only those at 0 (the seed's words).
+    pub floor_rule: FloorRule,
 }
 
 impl BankParams {
@@ -84,7 +89,8 @@ impl BankParams {
     ///   models' different dynamics hardly show in their innovations;
     /// - surface random walk 0.01 rad^2/s (0.1 rad per square-root second, so a filter can follow a
     ///   30 deg surface jump in about a second), initial surface variance (10 deg)^2;
-    /// - `beta = 1`, `a_j = 1`, declaration held 0.1 s.
+    /// - `beta = 1`, `a_j = 1`, declaration held 0.1 s, clearance not held;
+    /// - the floor raises every probability below it at every step (README: "The floor").
     pub fn seed(covariance: CovarianceForm, likelihood: LikelihoodForm) -> Self {
         BankParams {
             covariance,
@@ -101,6 +107,8 @@ impl BankParams {
             declare_probability: 0.9,
             clear_probability: 0.05,
             declare_hold_s: 0.1,
+            clear_hold_s: 0.0,
+            floor_rule: FloorRule::EveryStep,
         }
     }
 
@@ -216,15 +224,21 @@ impl SurfaceBank {
             Q[(5, 5)] = params.surface_process_variance_rad2_per_s * dt_s;
             Stekf::new(x0, P0, Q, R, params.fading())
         });
-        let hold_steps = (params.declare_hold_s / dt_s).round().max(1.0) as u32;
         SurfaceBank {
             airframe,
             dt_s,
             likelihood: params.likelihood,
             no_fault,
             surfaces,
-            probabilities: ModelProbabilities::new([1.0 / MODELS as f64; MODELS], params.probability_floor),
-            rule: DeclareClear::new(params.declare_probability, params.clear_probability, hold_steps),
+            probabilities: ModelProbabilities::new([1.0 / MODELS as f64; MODELS], params.probability_floor)
+                .with_floor_rule(params.floor_rule),
+            rule: DeclareClear::with_holds_s(
+                params.declare_probability,
+                params.clear_probability,
+                params.declare_hold_s,
+                params.clear_hold_s,
+                dt_s,
+            ),
         }
     }
 

@@ -18,7 +18,8 @@
 //! [[monte_carlo.fault]]            kind = "stuck" (position_deg) | "oscillation" (amplitude_deg,
 //!                    optional center_deg = 0, period_s = 2) | "loss_of_effectiveness" (effectiveness)
 //! [[monte_carlo.parameter_error]]  name, model = "plant" | "design", coefficients (names of
-//!                    `AerosondeParams` coefficients), relative (factor: each scaled by 1 + relative)
+//!                    `AerosondeParams` coefficients; a book coefficient scales the split surfaces'
+//!                    terms derived from it too), relative (factor: each scaled by 1 + relative)
 //! ```
 //!
 //! Without `[[monte_carlo.fault]]` every faulty trial flies the deck's `[[surface_fault]]` scenario and
@@ -35,11 +36,11 @@ use crate::engine::deck::{
     DeckError, Factor, FromDeck, MonteCarlo, MonteCarloRules, StudyHeader, Validator, open_deck,
 };
 use crate::engine::deck::{FactorSpec, StudySection};
-use crate::estimation::LikelihoodForm;
+use crate::estimation::{FloorRule, LikelihoodForm};
 use crate::methods::surface_bank::actuator::DEFAULT_SQUARE_WAVE_PERIOD_S;
 use crate::methods::surface_bank::actuator::{ActuatorFault, ActuatorFaultKind};
 use crate::methods::surface_bank::stmmae::{BankParams, CovarianceForm};
-use crate::methods::surface_bank::uav::{SCALABLE_COEFFICIENTS, SURFACE_NAMES, Setpoints};
+use crate::methods::surface_bank::uav::{DERIVED_COEFFICIENTS, SCALABLE_COEFFICIENTS, SURFACE_NAMES, Setpoints};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -138,6 +139,8 @@ struct BankSection {
     a: Option<[f64; 5]>,
     a_surface: Option<f64>,
     declare_hold_s: Option<f64>,
+    clear_hold_s: Option<f64>,
+    probability_floor_rule: Option<String>,
 }
 
 /// Sensor noise of the truth simulation.
@@ -463,6 +466,21 @@ impl FromDeck for SurfaceStudy {
             if let Some(h) = b.declare_hold_s {
                 p.declare_hold_s = v.non_negative(&field("declare_hold_s"), h)?;
             }
+            if let Some(h) = b.clear_hold_s {
+                p.clear_hold_s = v.non_negative(&field("clear_hold_s"), h)?;
+            }
+            if let Some(rule) = &b.probability_floor_rule {
+                p.floor_rule = match rule.as_str() {
+                    "every_step" => FloorRule::EveryStep,
+                    "reset_at_zero" => FloorRule::ResetAtZero,
+                    other => {
+                        return Err(v.err(
+                            field("probability_floor_rule"),
+                            format!("{other:?}: allowed \"every_step\" (default), \"reset_at_zero\""),
+                        ));
+                    }
+                };
+            }
             banks.push((b.name.clone(), p));
         }
 
@@ -510,6 +528,12 @@ fn monte_carlo(
                 return Err(v.err(
                     field(&format!("coefficients[{k}]")),
                     format!("{c:?}: allowed {}", SCALABLE_COEFFICIENTS.join(", ")),
+                ));
+            }
+            if let Some((parent, _)) = DERIVED_COEFFICIENTS.iter().find(|(p, d)| d == c && pe.coefficients.iter().any(|n| n == p)) {
+                return Err(v.err(
+                    field(&format!("coefficients[{k}]")),
+                    format!("{c} is derived from {parent} and scales with it; name one of the two"),
                 ));
             }
         }

@@ -276,6 +276,14 @@ pub const SCALABLE_COEFFICIENTS: [&str; 33] = [
     "C_prop",
 ];
 
+/// Terms of the split-surface model derived from a book coefficient (module docs): `(parent, derived)`.
+/// [`AerosondeParams::scaled`] scales them with their parent.
+pub const DERIVED_COEFFICIENTS: [(&str, &str); 3] = [
+    ("C_l_delta_a", "C_L_delta_a_sym"),
+    ("C_l_delta_a", "C_m_delta_a_sym"),
+    ("C_m_delta_e", "C_l_delta_e_diff"),
+];
+
 impl AerosondeParams {
     fn coefficient_mut(&mut self, name: &str) -> Option<&mut f64> {
         Some(match name {
@@ -318,21 +326,29 @@ impl AerosondeParams {
 
     /// The same airframe with aerodynamic derivatives scaled: used for model-parameter errors. `name` is a field
     /// name like "C_m_delta_e" (one of [`SCALABLE_COEFFICIENTS`]); returns Err(String listing allowed names) for an
-    /// unknown name or a non-finite factor.
+    /// unknown name or a non-finite factor. Scaling a book coefficient scales the terms derived from it
+    /// ([`DERIVED_COEFFICIENTS`]) too, so a model 20 % off on `C_l_delta_a` is 20 % off on the aileron halves'
+    /// common lift and pitch as well; naming a derived term scales that term alone.
     pub fn scaled(&self, name: &str, factor: f64) -> Result<Self, String> {
         if !factor.is_finite() {
             return Err(format!("scale factor for {name} must be finite, got {factor}"));
         }
         let mut out = self.clone();
-        match out.coefficient_mut(name) {
-            Some(c) => {
-                *c *= factor;
-                Ok(out)
-            }
-            None => {
-                Err(format!("unknown aerodynamic coefficient {name:?}; allowed: {}", SCALABLE_COEFFICIENTS.join(", ")))
+        let Some(c) = out.coefficient_mut(name) else {
+            return Err(format!(
+                "unknown aerodynamic coefficient {name:?}; allowed: {}",
+                SCALABLE_COEFFICIENTS.join(", ")
+            ));
+        };
+        *c *= factor;
+        for (parent, derived) in DERIVED_COEFFICIENTS {
+            if parent == name {
+                // C_l_delta_e_diff is built from |C_m_delta_e|; the aileron terms from C_l_delta_a itself.
+                let by = if derived == "C_l_delta_e_diff" { factor.abs() } else { factor };
+                *out.coefficient_mut(derived).expect("derived names are scalable") *= by;
             }
         }
+        Ok(out)
     }
 
     /// The book's inertia combinations Gamma_1..Gamma_8 (chapter 3), index 0..7.
@@ -1204,7 +1220,7 @@ mod tests {
         let q = p.scaled("C_m_delta_e", 1.3).unwrap();
         assert!((q.C_m_delta_e - 1.3 * p.C_m_delta_e).abs() < 1e-15);
         assert!(((dq(&q) / dq(&p)) - 1.3).abs() < 1e-10, "{} {}", dq(&q), dq(&p));
-        assert_eq!(AerosondeParams { C_m_delta_e: p.C_m_delta_e, ..q.clone() }, p);
+        assert_eq!(AerosondeParams { C_m_delta_e: p.C_m_delta_e, C_l_delta_e_diff: p.C_l_delta_e_diff, ..q.clone() }, p);
         for name in SCALABLE_COEFFICIENTS {
             assert!(p.scaled(name, 2.0).is_ok(), "{name}");
         }
@@ -1214,6 +1230,29 @@ mod tests {
             "{err}"
         );
         assert!(p.scaled("C_m_delta_e", f64::NAN).is_err());
+    }
+
+    /// A model error on a book coefficient keeps the split surfaces' derived terms what the module docs
+    /// derive them from (the scaled parent), for either sign of the factor; a derived term named alone
+    /// moves alone.
+    #[test]
+    fn scaling_a_parent_scales_its_derived_terms() {
+        let p = AerosondeParams::default();
+        for factor in [1.2, 0.8, -1.3] {
+            let q = p.scaled("C_l_delta_a", factor).unwrap();
+            assert!((q.C_l_delta_a - 0.08 * factor).abs() < 1e-15);
+            assert!((q.C_L_delta_a_sym - q.C_l_delta_a / AILERON_CENTROID_SPAN_FRACTION).abs() < 1e-15);
+            assert!((q.C_m_delta_a_sym + 0.25 * q.C_l_delta_a / AILERON_CENTROID_SPAN_FRACTION).abs() < 1e-15);
+            assert_eq!(q.C_l_delta_e_diff, p.C_l_delta_e_diff);
+            let r = p.scaled("C_m_delta_e", factor).unwrap();
+            let from_tail = r.C_m_delta_e.abs() * (r.c_m / r.b_m) * (TAIL_HALF_CENTROID_M / TAIL_ARM_M);
+            assert!((r.C_l_delta_e_diff - from_tail).abs() < 1e-15, "{factor}: {} vs {from_tail}", r.C_l_delta_e_diff);
+            assert!((r.C_l_delta_e_diff - 0.5 * 0.18994 / 2.8956 * 0.115).abs() > 1e-4, "moved with its parent");
+            assert_eq!((r.C_L_delta_a_sym, r.C_m_delta_a_sym), (p.C_L_delta_a_sym, p.C_m_delta_a_sym));
+        }
+        let alone = p.scaled("C_L_delta_a_sym", 2.0).unwrap();
+        assert_eq!(AerosondeParams { C_L_delta_a_sym: p.C_L_delta_a_sym, ..alone.clone() }, p);
+        assert!((alone.C_L_delta_a_sym - 2.0 * p.C_L_delta_a_sym).abs() < 1e-15);
     }
 
     #[test]
