@@ -770,7 +770,7 @@ mod tests {
     fn trace_column_patterns() {
         assert!(glob("r_*", "r_alpha_rad") && !glob("r_*", "yhat_alpha"));
         assert!(glob("*_p_*", "emmae_p_rudder") && !glob("*_p_*", "emmae_rudder_estimate_rad"));
-        assert!(glob("*_chi_square", "patent_alpha_rad_chi_square") && glob("alarm", "alarm"));
+        assert!(glob("*_test_statistic", "patent_alpha_rad_test_statistic") && glob("alarm", "alarm"));
         assert!(!glob("a*a", "a"));
     }
 }

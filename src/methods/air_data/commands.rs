@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use super::study::AirDataStudy;
+use super::study::{AirDataStudy, DetectorKind};
 use crate::engine::method::select_detector;
 use crate::engine::output::Trace;
 use crate::engine::runner::RunError;
@@ -16,14 +16,21 @@ pub fn validate(study: &AirDataStudy) -> Result<(), RunError> {
         study.header.name, study.header.seed, study.header.duration_s, study.header.dt_s
     );
     let p = &study.profile;
-    println!(
-        "flight      profile {:?}: {} m/s, alpha {:.1} deg, pitch {:.1} deg, {} manoeuvre segments",
-        study.profile_name,
-        p.airspeed_mps,
-        p.alpha_rad.to_degrees(),
-        p.pitch_rad.to_degrees(),
-        p.segments.len()
-    );
+    match study.airframe {
+        crate::methods::air_data::flight::Airframe::Kinematic => println!(
+            "flight      profile {:?}: {} m/s, alpha {:.1} deg, pitch {:.1} deg, {} manoeuvre segments",
+            study.profile_name,
+            p.airspeed_mps,
+            p.alpha_rad.to_degrees(),
+            p.pitch_rad.to_degrees(),
+            p.segments.len()
+        ),
+        crate::methods::air_data::flight::Airframe::Aerosonde { manoeuvre_scale } => println!(
+            "flight      the Aerosonde 6-DoF (method 004's airframe and autopilot) from trim at {} m/s, {} m: climb, bank, speed step, sideslip doublet, scaled by {manoeuvre_scale}",
+            crate::methods::air_data::airframe::TRIM_AIRSPEED_MPS,
+            crate::methods::air_data::airframe::TRIM_ALTITUDE_M
+        ),
+    }
     let n = &study.noise;
     println!(
         "sensors     gyro {:.3} deg/s, accelerometer {} m/s^2, attitude {:.3} deg; airspeed {} m/s, alpha {:.3} deg, beta {:.3} deg",
@@ -39,22 +46,47 @@ pub fn validate(study: &AirDataStudy) -> Result<(), RunError> {
         "wind        steady NED {:?} m/s, gust {} m/s (time constant {:.1} s)",
         w.steady_ned_mps, w.gust_std_mps, w.gust_time_constant_s
     );
-    for d in &study.detectors {
-        let q = &d.params;
+    let e = &study.sensor_errors;
+    if study.lanes > 1 || *e != crate::methods::air_data::flight::SensorErrors::default() {
         println!(
-            "detector    {}: dual_ukf, isolation P_fa {} over {} sample(s) (threshold {:.3}), declare {} held {} s, clear {}, isolated set read {} s after a declaration",
-            d.name,
-            q.false_alarm_probability,
-            q.isolation_window,
-            crate::methods::air_data::dual_ukf::chi_square_threshold(
-                q.isolation_window as u32,
-                q.false_alarm_probability
-            ),
-            q.declare_probability,
-            q.declare_hold_s,
-            q.clear_probability,
-            d.isolation_delay_s
+            "sensor errors {} air-data lane(s); lag airspeed {} s, flow angles {} s; scale factor airspeed {}, flow angles {}; misalignment alpha {:.3} deg, beta {:.3} deg, IMU {:.3} deg; noise correlation {} s",
+            study.lanes,
+            e.airspeed_lag_s,
+            e.flow_angle_lag_s,
+            e.airspeed_scale_factor,
+            e.flow_angle_scale_factor,
+            e.alpha_misalignment_rad.to_degrees(),
+            e.beta_misalignment_rad.to_degrees(),
+            e.imu_misalignment_rad.to_degrees(),
+            e.noise_correlation_s
         );
+    }
+    for d in &study.detectors {
+        match &d.kind {
+            DetectorKind::DualUkf(q) => println!(
+                "detector    {}: dual_ukf on lane 0, isolation P_fa {} over {} sample(s) (threshold {:.3}), declare {} held {} s, clear {}, {}, isolated set read {} s after a declaration",
+                d.name,
+                q.false_alarm_probability,
+                q.isolation_window,
+                crate::methods::air_data::dual_ukf::chi_square_threshold(
+                    q.isolation_window as u32,
+                    q.false_alarm_probability
+                ),
+                q.declare_probability,
+                q.declare_hold_s,
+                q.clear_probability,
+                if q.keep_significant_biases {
+                    "faulty set kept while its bias is significant (Wald test, not the patent's)"
+                } else {
+                    "faulty set from each step's isolation (the patent's)"
+                },
+                d.isolation_delay_s
+            ),
+            DetectorKind::TriplexVoting(q) => println!(
+                "detector    {}: triplex_voting, mid-value select, miscompare beyond {} sigma for {} s fails a lane, isolated set read {} s after a declaration",
+                d.name, q.miscompare_sigma, q.persistence_s, d.isolation_delay_s
+            ),
+        }
     }
     let names = study.output_names();
     for f in &study.faults {
@@ -72,6 +104,9 @@ pub fn validate(study: &AirDataStudy) -> Result<(), RunError> {
     );
     let sets: Vec<String> = mc.output_sets.iter().map(|s| crate::methods::air_data::records::sensor_set(s)).collect();
     println!("            sensor sets [{}]", sets.join(", "));
+    if study.lanes > 1 {
+        println!("            faulty lanes per faulty sensor {:?} (of {})", mc.faulty_lanes, study.lanes);
+    }
     for f in &mc.faults {
         println!("            fault kind {}: size {}", f.kind.name(), f.size_text());
     }
@@ -105,13 +140,13 @@ pub fn simulate(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &
             row.float(|| format!("{name}_measured"), v).float(|| format!("{name}_true"), truth);
         }
         for (d, step) in selected.detectors.iter().zip(steps) {
-            row.float(|| format!("{}_p_fault", d.name), step.probabilities[1]);
+            row.float(|| format!("{}_p_fault", d.name), step.p_fault);
             row.flag(|| format!("{}_declared", d.name), step.fault_declared);
             for (j, name) in AIR_DATA_CHANNEL_NAMES.iter().enumerate() {
                 row.float(|| format!("{}_{name}_estimate", d.name), step.air_data.to_array()[j])
-                    .float(|| format!("{}_{name}_bias", d.name), step.bias[j])
-                    .float(|| format!("{}_{name}_chi_square", d.name), step.chi_square[j])
-                    .flag(|| format!("{}_{name}_isolated", d.name), step.isolated[j]);
+                    .float(|| format!("{}_{name}_bias", d.name), step.bias.map_or(f64::NAN, |b| b[j]))
+                    .float(|| format!("{}_{name}_test_statistic", d.name), step.statistic[j])
+                    .flag(|| format!("{}_{name}_isolated", d.name), step.flagged[j]);
             }
         }
     });

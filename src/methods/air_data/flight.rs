@@ -63,6 +63,7 @@ use thiserror::Error;
 use crate::checks::{ValueError, finite, non_negative, positive, sensor_faults};
 use crate::fault::{ActiveFaults, SensorFault};
 use crate::kinematics::GRAVITY_MPS2;
+use crate::methods::air_data::airframe::AerosondeFlight;
 pub use crate::kinematics::body_from_ned;
 
 /// Air-data channel indices (the `channel` of a [`SensorFault`]).
@@ -505,6 +506,41 @@ impl Default for WindParams {
     }
 }
 
+/// What flies the trial.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Airframe {
+    /// The profile's kinematics: the filters' own model (the best case).
+    #[default]
+    Kinematic,
+    /// The Aerosonde 6-DoF of method 004 flying its manoeuvres ([`crate::methods::air_data::airframe`]),
+    /// scaled by the factor.
+    Aerosonde { manoeuvre_scale: f64 },
+}
+
+/// Sensor imperfections the filters do not model (all zero: ideal sensors, the best case). Every air-data
+/// lane has the same (one part number, one installation); each has its own noise.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SensorErrors {
+    /// First-order lag of the airspeed (pneumatic) and of the flow angles (vanes), s.
+    pub airspeed_lag_s: f64,
+    pub flow_angle_lag_s: f64,
+    /// Relative scale-factor errors: airspeed, and alpha and beta (local flow against free stream).
+    pub airspeed_scale_factor: f64,
+    pub flow_angle_scale_factor: f64,
+    /// Mounting offsets of the alpha and beta vanes (rad).
+    pub alpha_misalignment_rad: f64,
+    pub beta_misalignment_rad: f64,
+    /// Small rotation of the inertial unit about each body axis (rad): rates and specific forces
+    /// rotated, roll and pitch offset by it.
+    pub imu_misalignment_rad: f64,
+    /// Correlation time of the air-data noise (s): first-order Gauss-Markov with the white noise's
+    /// variance; 0: white.
+    pub noise_correlation_s: f64,
+}
+
+/// Most air-data lanes a scenario simulates (a triplex system).
+pub const MAX_LANES: usize = 3;
+
 /// Everything that defines a scenario, as plain numbers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ScenarioParams {
@@ -519,6 +555,13 @@ pub struct ScenarioParams {
     pub wind: WindParams,
     /// Air-data faults; `channel` is [`AIRSPEED`], [`ALPHA`] or [`BETA`].
     pub faults: Vec<SensorFault>,
+    pub airframe: Airframe,
+    pub sensor_errors: SensorErrors,
+    /// Redundant air-data sensors per quantity (1 to [`MAX_LANES`]); lane 0 is the one a single-string
+    /// detector reads.
+    pub lanes: usize,
+    /// How many lanes the faults hit, from lane 0 (1: a single sensor; all lanes: common mode).
+    pub faulty_lanes: usize,
 }
 
 impl ScenarioParams {
@@ -532,6 +575,10 @@ impl ScenarioParams {
             noise_scale: 1.0,
             wind: WindParams::seed(),
             faults: Vec::new(),
+            airframe: Airframe::Kinematic,
+            sensor_errors: SensorErrors::default(),
+            lanes: 1,
+            faulty_lanes: 1,
         }
     }
 }
@@ -548,6 +595,10 @@ pub enum ScenarioError {
              within {MAX_ANGLE_RAD} rad"
     )]
     Envelope { field: &'static str, extreme: f64 },
+    #[error("{lanes} lane(s) with {faulty} faulty: allowed 1 to {MAX_LANES} lanes, 1 to that many faulty")]
+    Lanes { lanes: usize, faulty: usize },
+    #[error("the airframe: {0}")]
+    Airframe(String),
 }
 
 /// What the generator knows at a sample besides the measurements.
@@ -571,8 +622,10 @@ pub struct AirDataSample {
     pub t_s: f64,
     /// Measured (noisy) inertial data.
     pub inertial: Inertial,
-    /// Measured air data: noisy, then faulted.
+    /// Measured air data of lane 0: noisy, then faulted.
     pub air_data: AirData,
+    /// Every lane's (lane 0 is `air_data`; lanes beyond the scenario's count repeat lane 0).
+    pub lanes: [AirData; MAX_LANES],
     pub truth: FlightTruth,
 }
 
@@ -580,12 +633,19 @@ pub struct AirDataSample {
 #[derive(Debug, Clone)]
 pub struct AirDataScenario {
     params: ScenarioParams,
-    faults: ActiveFaults,
+    /// The faults' run-time state, one per faulty lane.
+    faults: Vec<ActiveFaults>,
     samples: usize,
     k: usize,
     heading_rad: f64,
     previous_heading_rate_rad_s: f64,
     gust_ned_mps: Vector3<f64>,
+    airframe: Option<AerosondeFlight>,
+    /// The lagged air data (after the first sample).
+    lagged: Option<[f64; 3]>,
+    /// Each lane's coloured-noise state, in sigmas.
+    coloured: [[f64; 3]; MAX_LANES],
+    failure: Option<String>,
 }
 
 impl AirDataScenario {
@@ -616,17 +676,48 @@ impl AirDataScenario {
         }
         params.profile.validate()?;
         sensor_faults(&params.faults, BETA + 1, "air-data channels are 0 (airspeed), 1 (alpha), 2 (beta)")?;
+        if !(1..=MAX_LANES).contains(&params.lanes) || !(1..=params.lanes).contains(&params.faulty_lanes) {
+            return Err(ScenarioError::Lanes { lanes: params.lanes, faulty: params.faulty_lanes });
+        }
+        let e = &params.sensor_errors;
+        for (field, value) in [
+            ("sensor_errors.airspeed_lag_s", e.airspeed_lag_s),
+            ("sensor_errors.flow_angle_lag_s", e.flow_angle_lag_s),
+            ("sensor_errors.noise_correlation_s", e.noise_correlation_s),
+        ] {
+            non_negative(field, value)?;
+        }
+        for (field, value) in [
+            ("sensor_errors.airspeed_scale_factor", e.airspeed_scale_factor),
+            ("sensor_errors.flow_angle_scale_factor", e.flow_angle_scale_factor),
+            ("sensor_errors.alpha_misalignment_rad", e.alpha_misalignment_rad),
+            ("sensor_errors.beta_misalignment_rad", e.beta_misalignment_rad),
+            ("sensor_errors.imu_misalignment_rad", e.imu_misalignment_rad),
+        ] {
+            finite(field, value)?;
+        }
+        let airframe = match params.airframe {
+            Airframe::Kinematic => None,
+            Airframe::Aerosonde { manoeuvre_scale } => {
+                finite("manoeuvre_scale", manoeuvre_scale)?;
+                Some(AerosondeFlight::new(manoeuvre_scale, params.dt_s).map_err(ScenarioError::Airframe)?)
+            }
+        };
         let samples = (params.duration_s / params.dt_s).round().max(1.0) as usize;
         let heading_rad = params.profile.heading_rad;
         let previous_heading_rate_rad_s = kinematic_state(&params.profile, 0.0).heading_rate_rad_s;
         Ok(AirDataScenario {
-            faults: ActiveFaults::new(params.faults.clone()),
+            faults: vec![ActiveFaults::new(params.faults.clone()); params.faulty_lanes],
             params,
             samples,
             k: 0,
             heading_rad,
             previous_heading_rate_rad_s,
             gust_ned_mps: Vector3::zeros(),
+            airframe,
+            lagged: None,
+            coloured: [[0.0; 3]; MAX_LANES],
+            failure: None,
         })
     }
 
@@ -644,50 +735,142 @@ impl AirDataScenario {
         self.k
     }
 
-    /// The next sample, drawing exactly [`DRAWS_PER_SAMPLE`] standard normals from `rng` in the order of
-    /// the module docs; `None` (and no draw) after the last.
+    /// Why the flight stopped before its end (the airframe left the envelope), if it did.
+    pub fn failure(&self) -> Option<&str> {
+        self.failure.as_deref()
+    }
+
+    /// The next sample, drawing [`DRAWS_PER_SAMPLE`] standard normals from `rng` in the order of the
+    /// module docs, then 3 per extra lane; `None` (and no draw) after the last, or once the airframe
+    /// has left the envelope ([`AirDataScenario::failure`]).
     pub fn next_sample<R: Rng + ?Sized>(&mut self, rng: &mut R) -> Option<AirDataSample> {
-        if self.k >= self.samples {
+        if self.k >= self.samples || self.failure.is_some() {
             return None;
         }
         let p = &self.params;
         let t_s = self.k as f64 * p.dt_s;
-        let state = kinematic_state(&p.profile, t_s);
-        // Heading by the trapezoidal rule on the analytic rate; it only orients the gust and the
-        // ground velocity.
-        if self.k > 0 {
-            self.heading_rad += 0.5 * p.dt_s * (self.previous_heading_rate_rad_s + state.heading_rate_rad_s);
-        }
-        self.previous_heading_rate_rad_s = state.heading_rate_rad_s;
-        let (phi, theta) = (state.inertial.roll_rad, state.inertial.pitch_rad);
-        let C_bn = body_from_ned(phi, theta, self.heading_rad);
-        let velocity = state.velocity_body_mps - C_bn * self.gust_ned_mps;
-        let truth = FlightTruth {
-            air_data: air_data_from_velocity(&velocity),
-            velocity_body_mps: velocity,
-            inertial: state.inertial,
-            heading_rad: self.heading_rad,
-            gust_ned_mps: self.gust_ned_mps,
-            ground_velocity_ned_mps: C_bn.transpose() * state.velocity_body_mps + Vector3::from(p.wind.steady_ned_mps),
+        let steady = Vector3::from(p.wind.steady_ned_mps);
+        let truth = match &mut self.airframe {
+            None => {
+                let state = kinematic_state(&p.profile, t_s);
+                // Heading by the trapezoidal rule on the analytic rate; it only orients the gust and the
+                // ground velocity.
+                if self.k > 0 {
+                    self.heading_rad += 0.5 * p.dt_s * (self.previous_heading_rate_rad_s + state.heading_rate_rad_s);
+                }
+                self.previous_heading_rate_rad_s = state.heading_rate_rad_s;
+                let (phi, theta) = (state.inertial.roll_rad, state.inertial.pitch_rad);
+                let C_bn = body_from_ned(phi, theta, self.heading_rad);
+                let velocity = state.velocity_body_mps - C_bn * self.gust_ned_mps;
+                FlightTruth {
+                    air_data: air_data_from_velocity(&velocity),
+                    velocity_body_mps: velocity,
+                    inertial: state.inertial,
+                    heading_rad: self.heading_rad,
+                    gust_ned_mps: self.gust_ned_mps,
+                    ground_velocity_ned_mps: C_bn.transpose() * state.velocity_body_mps + steady,
+                }
+            }
+            Some(airframe) => match airframe.sample_and_step(t_s, &(steady + self.gust_ned_mps)) {
+                Ok(a) => FlightTruth {
+                    air_data: a.air_data(),
+                    velocity_body_mps: a.velocity_air_body_mps,
+                    inertial: a.inertial,
+                    heading_rad: a.heading_rad,
+                    gust_ned_mps: self.gust_ned_mps,
+                    ground_velocity_ned_mps: a.ground_velocity_ned_mps,
+                },
+                Err(e) => {
+                    self.failure = Some(e);
+                    return None;
+                }
+            },
         };
 
+        let e = p.sensor_errors;
         let mut draw = || -> f64 { StandardNormal.sample(&mut *rng) };
         let scale = p.noise_scale;
         let inertial_std = p.noise.inertial_std();
-        let clean = truth.inertial.to_array();
+        let clean = misaligned(&truth.inertial, e.imu_misalignment_rad).to_array();
         let inertial = Inertial::from_array(std::array::from_fn(|i| clean[i] + scale * inertial_std[i] * draw()));
+        let sensed = sensed_air_data(&e, p.dt_s, &mut self.lagged, &truth.air_data);
         let air_std = p.noise.air_data_std();
-        let clean = truth.air_data.to_array();
-        let mut air = std::array::from_fn::<f64, 3, _>(|i| clean[i] + scale * air_std[i] * draw());
-        self.faults.apply(t_s, &mut air);
+        let decay = (-p.dt_s / e.noise_correlation_s).exp(); // 0 when white
+        let first = self.k == 0;
+        let coloured = &mut self.coloured;
+        let mut lane_noise = |lane: usize, white: f64, j: usize| -> f64 {
+            if e.noise_correlation_s == 0.0 {
+                return white;
+            }
+            let c = &mut coloured[lane][j];
+            *c = if first { white } else { decay * *c + (1.0 - decay * decay).sqrt() * white };
+            *c
+        };
+        let mut lanes = [[0.0; 3]; MAX_LANES];
+        lanes[0] = std::array::from_fn(|j| sensed[j] + scale * air_std[j] * lane_noise(0, draw(), j));
         let gust_noise = Vector3::new(draw(), draw(), draw());
+        for lane in 1..p.lanes {
+            lanes[lane] = std::array::from_fn(|j| sensed[j] + scale * air_std[j] * lane_noise(lane, draw(), j));
+        }
+        for (lane, faults) in self.faults.iter_mut().enumerate() {
+            faults.apply(t_s, &mut lanes[lane]);
+        }
+        for lane in p.lanes..MAX_LANES {
+            lanes[lane] = lanes[0];
+        }
 
         let decay = (-p.dt_s / p.wind.gust_time_constant_s).exp();
         self.gust_ned_mps =
             self.gust_ned_mps * decay + gust_noise * (p.wind.gust_std_mps * (1.0 - decay * decay).sqrt());
         self.k += 1;
-        Some(AirDataSample { t_s, inertial, air_data: AirData::from_array(air), truth })
+        let lanes = lanes.map(AirData::from_array);
+        Some(AirDataSample { t_s, inertial, air_data: lanes[0], lanes, truth })
     }
+}
+
+/// The true air data through the sensors' lag (`lagged`: the lag's state, `None` before the first
+/// sample), scale factor and misalignment (before noise).
+fn sensed_air_data(e: &SensorErrors, dt_s: f64, lagged: &mut Option<[f64; 3]>, truth: &AirData) -> [f64; 3] {
+    let truth = truth.to_array();
+    let lags = [e.airspeed_lag_s, e.flow_angle_lag_s, e.flow_angle_lag_s];
+    let now = match *lagged {
+        None => truth,
+        Some(previous) => std::array::from_fn(|j| {
+            if lags[j] == 0.0 {
+                truth[j]
+            } else {
+                let a = (-dt_s / lags[j]).exp();
+                a * previous[j] + (1.0 - a) * truth[j]
+            }
+        }),
+    };
+    *lagged = Some(now);
+    let scale = [e.airspeed_scale_factor, e.flow_angle_scale_factor, e.flow_angle_scale_factor];
+    let offset = [0.0, e.alpha_misalignment_rad, e.beta_misalignment_rad];
+    std::array::from_fn(|j| if scale[j] == 0.0 && offset[j] == 0.0 { now[j] } else { now[j] * (1.0 + scale[j]) + offset[j] })
+}
+
+/// What an inertial unit rotated by `angle_rad` about each body axis measures: rates and specific
+/// forces through the small rotation `I + [e]x`, `e = (angle, angle, angle)`, roll and pitch offset by it.
+fn misaligned(ideal: &Inertial, angle_rad: f64) -> Inertial {
+    if angle_rad == 0.0 {
+        return *ideal;
+    }
+    let e = Vector3::repeat(angle_rad);
+    let rotate = |v: Vector3<f64>| v + e.cross(&v);
+    let a = ideal.to_array();
+    let rates = rotate(Vector3::new(a[0], a[1], a[2]));
+    let forces = rotate(Vector3::new(a[3], a[4], a[5]));
+    Inertial::from_array([
+        rates[0],
+        rates[1],
+        rates[2],
+        forces[0],
+        forces[1],
+        forces[2],
+        a[6] + angle_rad,
+        a[7] + angle_rad,
+    ])
 }
 
 #[cfg(test)]
@@ -923,6 +1106,83 @@ mod tests {
         for axis in 0..3 {
             let ratio = rms(&|s| s.truth.gust_ned_mps[axis]);
             assert!((ratio - 1.0).abs() < 0.1, "gust axis {axis}: {ratio}");
+        }
+    }
+
+    /// The sensor errors, noise-free: the air data are the truth through a first-order lag (the step
+    /// response of a lag at one sample), scale factor and mounting offset; the inertial data rotated by
+    /// the IMU's misalignment. With noise, the coloured air-data noise keeps the white noise's size and
+    /// has the Gauss-Markov autocorrelation `exp(-dt / tau)` at one sample.
+    #[test]
+    fn sensor_errors_are_lag_scale_offset_rotation_and_coloured_noise() {
+        let errors = SensorErrors {
+            airspeed_lag_s: 0.1,
+            flow_angle_lag_s: 0.05,
+            airspeed_scale_factor: 0.02,
+            flow_angle_scale_factor: 0.05,
+            alpha_misalignment_rad: 0.3f64.to_radians(),
+            beta_misalignment_rad: 0.2f64.to_radians(),
+            imu_misalignment_rad: 0.1f64.to_radians(),
+            noise_correlation_s: 0.0,
+        };
+        let ideal = run(noise_free(0.01), 1);
+        let imperfect = run(ScenarioParams { sensor_errors: errors, ..noise_free(0.01) }, 1);
+        let (mut lagged, a) = (ideal[0].truth.air_data.to_array(), [(-0.1f64).exp(), (-0.2f64).exp(), (-0.2f64).exp()]);
+        for (i, e) in ideal.iter().zip(&imperfect) {
+            let truth = i.truth.air_data.to_array();
+            if i.t_s > 0.0 {
+                lagged = std::array::from_fn(|j| a[j] * lagged[j] + (1.0 - a[j]) * truth[j]);
+            }
+            let want = [
+                lagged[0] * 1.02,
+                lagged[1] * 1.05 + errors.alpha_misalignment_rad,
+                lagged[2] * 1.05 + errors.beta_misalignment_rad,
+            ];
+            let got = e.air_data.to_array();
+            assert!((0..3).all(|j| (got[j] - want[j]).abs() < 1e-12), "{} {got:?} {want:?}", i.t_s);
+            let (x, y) = (i.inertial.to_array(), e.inertial.to_array());
+            let rates = Vector3::new(x[0], x[1], x[2]);
+            let rotated = rates + Vector3::repeat(errors.imu_misalignment_rad).cross(&rates);
+            assert!((Vector3::new(y[0], y[1], y[2]) - rotated).amax() < 1e-15);
+            assert!((y[6] - x[6] - errors.imu_misalignment_rad).abs() < 1e-15);
+        }
+        // Through the 30 deg bank the lagged airspeed trails the truth.
+        assert!(imperfect.iter().any(|s| (s.air_data.airspeed_mps / 1.02 - s.truth.air_data.airspeed_mps).abs() > 0.01));
+
+        let coloured = ScenarioParams {
+            duration_s: 200.0,
+            sensor_errors: SensorErrors { noise_correlation_s: 0.5, ..SensorErrors::default() },
+            ..ScenarioParams::seed()
+        };
+        let sigma = coloured.noise.airspeed_std_mps;
+        let samples = run(coloured, 8);
+        let e: Vec<f64> = samples.iter().map(|s| (s.air_data.airspeed_mps - s.truth.air_data.airspeed_mps) / sigma).collect();
+        let n = e.len() as f64;
+        let variance = e.iter().map(|v| v * v).sum::<f64>() / n;
+        let lag1 = e.windows(2).map(|w| w[0] * w[1]).sum::<f64>() / (n - 1.0) / variance;
+        // 200 s is 400 correlation times: the variance is known to about 7 %.
+        assert!((variance - 1.0).abs() < 0.2, "{variance}");
+        assert!((lag1 - (-0.02f64).exp()).abs() < 0.005, "{lag1}");
+    }
+
+    /// Three lanes: lane 0 draws exactly what a single-lane scenario draws (same samples, same gusts),
+    /// the others their own noise after the gust; a fault hits the first `faulty_lanes` lanes only.
+    #[test]
+    fn lanes_share_the_truth_and_the_fault_hits_the_first_ones() {
+        let fault = SensorFault { channel: ALPHA, onset_s: 1.0, mode: FaultMode::Bias { bias: 0.05 } };
+        let one = run(ScenarioParams { faults: vec![fault], ..ScenarioParams::seed() }, 5);
+        for faulty_lanes in [1, 3] {
+            let three = run(ScenarioParams { faults: vec![fault], lanes: 3, faulty_lanes, ..ScenarioParams::seed() }, 5);
+            assert_eq!((one[0].air_data, one[0].inertial), (three[0].air_data, three[0].inertial));
+            assert_eq!(one[0].truth, three[0].truth);
+            for s in &three[200..] {
+                let alpha = s.lanes.map(|l| l.alpha_rad - s.truth.air_data.alpha_rad);
+                for (lane, error) in alpha.iter().enumerate() {
+                    let faulty = lane < faulty_lanes;
+                    assert_eq!(error.abs() > 0.03, faulty, "lane {lane} of {faulty_lanes}: {error}");
+                }
+                assert_ne!(s.lanes[1].airspeed_mps, s.lanes[2].airspeed_mps, "independent noise");
+            }
         }
     }
 

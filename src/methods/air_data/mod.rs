@@ -1,5 +1,6 @@
 //! Air-data studies (method 002): the dual-model UKF detector of air-data sensor faults.
 
+pub mod airframe;
 pub mod commands;
 pub mod dual_ukf;
 pub mod flight;
@@ -7,12 +8,12 @@ pub mod records;
 pub mod scenario;
 pub mod study;
 pub mod trial;
+pub mod voting;
 
 use crate::engine::deck::FromDeck;
 use crate::engine::method::{Extra, Isolates, Method, OwnPlot, SummarySpec, TracePanel};
 use crate::engine::runner::{Manifest, RunError, TrialSource};
 use crate::engine::streams::{Substream, noise_rng};
-use crate::methods::air_data::dual_ukf::DualUkfStep;
 use crate::methods::air_data::flight::{AIR_DATA_CHANNEL_NAMES, AirDataSample};
 use crate::methods::air_data::scenario::AirDataScenarioSampler;
 use crate::methods::air_data::study::AirDataStudy;
@@ -29,7 +30,7 @@ pub static METHOD: Method = Method {
     options: &[],
     load: |text, path| Ok(Box::new(AirDataStudy::from_toml(text, path)?)),
     summary: SummarySpec {
-        extra_keys: &[records::col::GUST_BIN],
+        extra_keys: &[records::col::GUST_BIN, records::col::FAULTY_LANES],
         isolates: Isolates::Target,
         extras: &[
             Extra::Count { name: "repaired", column: records::col::COVARIANCE_REPAIRS },
@@ -59,7 +60,10 @@ pub static METHOD: Method = Method {
         TracePanel { title: "airspeed (m/s)", columns: &["airspeed_mps_*", "*_airspeed_mps_estimate"] },
         TracePanel { title: "angle of attack (rad)", columns: &["alpha_rad_*", "*_alpha_rad_estimate"] },
         TracePanel { title: "sideslip (rad)", columns: &["beta_rad_*", "*_beta_rad_estimate"] },
-        TracePanel { title: "chi-square statistics", columns: &["*_chi_square"] },
+        TracePanel {
+            title: "isolation statistics (chi-square; voting: lane miscompare, sigmas)",
+            columns: &["*_test_statistic"],
+        },
         TracePanel { title: "P(fault)", columns: &["*_p_fault"] },
     ],
     own_plots: &[OwnPlot::Scatter {
@@ -95,7 +99,7 @@ impl<'a> AirDataTrials<'a> {
     pub fn run_trial_with(
         &self,
         trial: u64,
-        on_sample: impl FnMut(&AirDataSample, &[DualUkfStep]),
+        on_sample: impl FnMut(&AirDataSample, &[DetectorStep]),
     ) -> AirDataTrialResult {
         let spec = self.sampler.spec(trial);
         let mut rng = noise_rng(self.study.header.seed, trial, Substream::SensorNoise);

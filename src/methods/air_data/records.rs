@@ -9,6 +9,7 @@
 //! |---|---|
 //! | `faulty_sensors` | how many sensors the fault hits |
 //! | `gust_std_mps`, `gust_bin` | turbulence intensity and its group label |
+//! | `faulty_lanes` | how many redundant lanes of each faulty sensor the fault hits (0: fault-free); a group key |
 //! | `bias_error_rms_sigma` | bias and drift faults: RMS error of the bias estimate over the fault's second half, in sigmas |
 //! | `estimate_rms_sigma`, `raw_rms_sigma` | over the same period, RMS error of the blended air data and of the raw faulty sensors against the truth, pooled over the faulty sensors, in sigmas |
 //! | `<channel>_estimate_rms`, `<channel>_raw_rms` | the same per channel, in its units (`airspeed_mps`, `alpha_deg`, `beta_deg`) |
@@ -28,6 +29,7 @@ use crate::engine::schema::{CoreColumns, Outcome};
 /// Column names of this kind's own columns that its summary reads.
 pub mod col {
     pub const GUST_BIN: &str = "gust_bin";
+    pub const FAULTY_LANES: &str = "faulty_lanes";
     pub const BIAS_ERROR_RMS_SIGMA: &str = "bias_error_rms_sigma";
     pub const ESTIMATE_RMS_SIGMA: &str = "estimate_rms_sigma";
     pub const RAW_RMS_SIGMA: &str = "raw_rms_sigma";
@@ -83,6 +85,7 @@ pub fn frame(study: &AirDataStudy, results: &[AirDataTrialResult]) -> PolarsResu
             t.faulty_sensors.push(s.outputs.len() as u32);
             t.gust.push(s.gust_std_mps);
             t.gust_bin.push(s.gust_bin);
+            t.faulty_lanes.push(s.faulty_lanes as u32);
             t.bias_error.push(o.and_then(|o| o.bias_error_rms_sigma));
             t.estimate_sigma.push(o.and_then(|o| o.estimate_rms_sigma));
             t.raw_sigma.push(o.and_then(|o| o.raw_rms_sigma));
@@ -102,6 +105,7 @@ pub fn frame(study: &AirDataStudy, results: &[AirDataTrialResult]) -> PolarsResu
         Column::new("faulty_sensors".into(), t.faulty_sensors),
         Column::new("gust_std_mps".into(), t.gust),
         Column::new(col::GUST_BIN.into(), t.gust_bin),
+        Column::new(col::FAULTY_LANES.into(), t.faulty_lanes),
         Column::new(col::BIAS_ERROR_RMS_SIGMA.into(), t.bias_error),
         Column::new(col::ESTIMATE_RMS_SIGMA.into(), t.estimate_sigma),
         Column::new(col::RAW_RMS_SIGMA.into(), t.raw_sigma),
@@ -126,6 +130,7 @@ struct Columns {
     faulty_sensors: Vec<u32>,
     gust: Vec<f64>,
     gust_bin: Vec<f64>,
+    faulty_lanes: Vec<u32>,
     bias_error: Vec<Option<f64>>,
     estimate_sigma: Vec<Option<f64>>,
     raw_sigma: Vec<Option<f64>>,
@@ -173,6 +178,7 @@ mod tests {
             noise_bin: 1.0,
             gust_std_mps: 0.0,
             gust_bin: 0.0,
+            faulty_lanes: 1,
         };
         let out = |detection: Option<f64>, isolated: Option<Vec<usize>>, bias_err: Option<f64>, est: Option<f64>| {
             AirDataOutcome {

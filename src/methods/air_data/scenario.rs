@@ -36,6 +36,8 @@ pub struct AirDataTrialSpec {
     pub noise_bin: f64,
     pub gust_std_mps: f64,
     pub gust_bin: f64,
+    /// How many air-data lanes the faults hit, from lane 0 (0 in a fault-free trial).
+    pub faulty_lanes: usize,
 }
 
 /// Draws the trial scenarios of one air-data study.
@@ -68,6 +70,8 @@ impl<'a> AirDataScenarioSampler<'a> {
         let (onset_s, _) = t.factor(&mc.common.onset_s, DIM_ONSET);
         let (noise_scale, noise_bin) = t.factor(&mc.common.noise_scale, DIM_NOISE);
         let (gust_std_mps, gust_bin) = t.factor(&mc.gust_std_mps, DIM_GUST);
+        // The last grid digit: a deck without redundancy lists one count, which leaves the others as they were.
+        let faulty_lanes = mc.faulty_lanes[t.digit(mc.faulty_lanes.len())];
         let mut spec = AirDataTrialSpec {
             trial,
             faults: Vec::new(),
@@ -81,8 +85,10 @@ impl<'a> AirDataScenarioSampler<'a> {
             noise_bin,
             gust_std_mps,
             gust_bin,
+            faulty_lanes,
         };
         if t.fault_free {
+            spec.faulty_lanes = 0;
             return spec;
         }
         match sampled {
@@ -128,6 +134,10 @@ impl<'a> AirDataScenarioSampler<'a> {
             noise_scale: spec.noise_scale,
             wind: crate::methods::air_data::flight::WindParams { gust_std_mps: spec.gust_std_mps, ..s.wind },
             faults: spec.faults.clone(),
+            airframe: s.airframe,
+            sensor_errors: s.sensor_errors,
+            lanes: s.lanes,
+            faulty_lanes: spec.faulty_lanes.max(1), // 0 in a fault-free trial: nothing to hit
         }
     }
 }

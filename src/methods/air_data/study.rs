@@ -3,20 +3,30 @@
 //!
 //! ```toml
 //! [study]            name, seed, duration_s, dt_s
-//! [flight]           profile = "seed" (level flight at 70 m/s and four manoeuvres) | "steady",
-//!                    optional manoeuvre_scale (every manoeuvre's amplitude times it)
+//! [flight]           profile = "seed" (level flight at 70 m/s and four manoeuvres) | "steady" |
+//!                    "aerosonde" (method 004's 6-DoF airframe flying manoeuvres: a truth the filters do
+//!                    not share), optional manoeuvre_scale (every manoeuvre's amplitude times it)
 //! [sensors]          optional standard deviations: gyro_std_deg_s, accelerometer_std_mps2,
-//!                    attitude_std_deg, airspeed_std_mps, alpha_std_deg, beta_std_deg
+//!                    attitude_std_deg, airspeed_std_mps, alpha_std_deg, beta_std_deg; air_data_lanes
+//!                    (redundant air-data sensors per quantity, 1 or 3; default 1)
+//! [sensor_errors]    optional, what the filters do not model (default none): airspeed_lag_s,
+//!                    flow_angle_lag_s, airspeed_scale_factor, flow_angle_scale_factor,
+//!                    alpha_misalignment_deg, beta_misalignment_deg, imu_misalignment_deg,
+//!                    noise_correlation_s
 //! [wind]             optional: steady_ned_mps, gust_std_mps, gust_time_constant_s
-//! [[detector]]       name, kind = "dual_ukf", optional: false_alarm_probability, isolation_window,
+//! [[detector]]       name, kind = "dual_ukf" (optional: false_alarm_probability, isolation_window,
 //!                    declare_probability, clear_probability, declare_hold_s, prior_fault_probability,
-//!                    isolation_delay_s (when the isolated set is read after a declaration; default 1 s)
+//!                    keep_significant_biases) | "triplex_voting" (three lanes; optional:
+//!                    miscompare_sigma, persistence_s); isolation_delay_s (when the isolated set is read
+//!                    after a declaration; default 1 s)
 //! [[faults]]         a fixed scenario, as in the LTI decks: output (airspeed_mps, alpha_rad, beta_rad),
 //!                    kind (stuck, gain, bias, total_failure, drift, oscillation), size (the output's
 //!                    units), onset_s, frequency_hz
 //! [monte_carlo]      trials, fault_free_fraction, sampler, onset_s, noise_scale, gust_std_mps (factors;
 //!                    the gust defaults to [wind]'s),
-//!                    output_sets: the sets of sensors a fault hits together (default: each alone)
+//!                    output_sets: the sets of sensors a fault hits together (default: each alone),
+//!                    faulty_lanes: how many lanes of each faulty sensor it hits, from lane 0 (a list
+//!                    cycled over the trials; default [1]; all lanes: common mode across the lanes)
 //! [[monte_carlo.fault]]  kind with size (the outputs' units; a factor for gain) or size_sigma (multiples
 //!                    of each faulty sensor's noise standard deviation), as in the LTI decks
 //! ```
@@ -37,8 +47,10 @@ use crate::fault::deck::FaultKindSpec;
 use crate::fault::deck::{FaultKindSection, FaultSection};
 use crate::methods::air_data::dual_ukf::DualUkfParams;
 use crate::methods::air_data::flight::{
-    AIR_DATA_CHANNEL_NAMES, AirDataScenario, FlightProfile, ScenarioParams, SensorNoise, WindParams,
+    AIR_DATA_CHANNEL_NAMES, AirDataScenario, Airframe, FlightProfile, MAX_LANES, ScenarioParams, SensorErrors,
+    SensorNoise, WindParams,
 };
+use crate::methods::air_data::voting::TriplexParams;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -46,6 +58,7 @@ struct AirDataDeck {
     study: StudySection,
     flight: FlightSection,
     sensors: Option<SensorsSection>,
+    sensor_errors: Option<SensorErrorsSection>,
     wind: Option<WindSection>,
     detector: Vec<DetectorSection>,
     #[serde(default)]
@@ -69,6 +82,20 @@ struct SensorsSection {
     airspeed_std_mps: Option<f64>,
     alpha_std_deg: Option<f64>,
     beta_std_deg: Option<f64>,
+    air_data_lanes: Option<usize>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SensorErrorsSection {
+    airspeed_lag_s: Option<f64>,
+    flow_angle_lag_s: Option<f64>,
+    airspeed_scale_factor: Option<f64>,
+    flow_angle_scale_factor: Option<f64>,
+    alpha_misalignment_deg: Option<f64>,
+    beta_misalignment_deg: Option<f64>,
+    imu_misalignment_deg: Option<f64>,
+    noise_correlation_s: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -91,6 +118,9 @@ struct DetectorSection {
     declare_hold_s: Option<f64>,
     prior_fault_probability: Option<f64>,
     isolation_delay_s: Option<f64>,
+    keep_significant_biases: Option<bool>,
+    miscompare_sigma: Option<f64>,
+    persistence_s: Option<f64>,
 }
 
 /// `[monte_carlo]`'s own fields in air-data decks.
@@ -99,15 +129,25 @@ struct DetectorSection {
 struct MonteCarloOwn {
     gust_std_mps: Option<FactorSpec>,
     output_sets: Option<Vec<Vec<String>>>,
+    faulty_lanes: Option<Vec<usize>>,
     #[serde(default)]
     fault: Vec<FaultKindSection>,
+}
+
+/// What a detector of an air-data study is.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DetectorKind {
+    /// The patent's dual-model UKF, on air-data lane 0.
+    DualUkf(DualUkfParams),
+    /// Mid-value select and miscompare monitoring of three lanes.
+    TriplexVoting(TriplexParams),
 }
 
 /// One detector configuration of an air-data study.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AirDataDetector {
     pub name: String,
-    pub params: DualUkfParams,
+    pub kind: DetectorKind,
     /// The isolated set is the detector's faulty set this long after its declaration (s).
     pub isolation_delay_s: f64,
 }
@@ -122,6 +162,8 @@ pub struct AirDataMonteCarlo {
     pub output_sets: Vec<Vec<usize>>,
     /// Sampled fault populations; empty: every faulty trial flies the deck's `[[faults]]`.
     pub faults: Vec<FaultKindSpec>,
+    /// How many lanes a fault hits (cycled over the trials).
+    pub faulty_lanes: Vec<usize>,
 }
 
 /// A validated air-data study.
@@ -132,6 +174,10 @@ pub struct AirDataStudy {
     pub profile: FlightProfile,
     pub noise: SensorNoise,
     pub wind: WindParams,
+    pub airframe: Airframe,
+    pub sensor_errors: SensorErrors,
+    /// Air-data lanes per quantity (1 or 3).
+    pub lanes: usize,
     pub detectors: Vec<AirDataDetector>,
     pub faults: Vec<SensorFault>,
     pub monte_carlo: AirDataMonteCarlo,
@@ -144,18 +190,23 @@ impl FromDeck for AirDataStudy {
 
         let f = &deck.flight;
         let scale = v.finite("flight.manoeuvre_scale", f.manoeuvre_scale.unwrap_or(1.0))?;
-        let profile = match f.profile.as_str() {
-            "seed" => FlightProfile::seed().scaled(scale),
+        let (profile, airframe) = match f.profile.as_str() {
+            "seed" => (FlightProfile::seed().scaled(scale), Airframe::Kinematic),
             "steady" => {
                 if f.manoeuvre_scale.is_some() {
                     return Err(v.err("flight.manoeuvre_scale", "a steady flight has no manoeuvres: remove it"));
                 }
-                FlightProfile::seed().scaled(0.0)
+                (FlightProfile::seed().scaled(0.0), Airframe::Kinematic)
             }
+            // The kinematic profile is not flown; it stays for what prints it.
+            "aerosonde" => (FlightProfile::seed(), Airframe::Aerosonde { manoeuvre_scale: scale }),
             other => {
                 return Err(v.err(
                     "flight.profile",
-                    format!("{other:?}: allowed \"seed\" (70 m/s and four manoeuvres) or \"steady\""),
+                    format!(
+                        "{other:?}: allowed \"seed\" (70 m/s and four manoeuvres), \"steady\" or \"aerosonde\" \
+                         (method 004's 6-DoF airframe flying manoeuvres)"
+                    ),
                 ));
             }
         };
@@ -173,6 +224,31 @@ impl FromDeck for AirDataStudy {
             ] {
                 if let Some(x) = given {
                     *target = convert(v.positive(&format!("sensors.{field}"), x)?);
+                }
+            }
+        }
+        let lanes = deck.sensors.as_ref().and_then(|s| s.air_data_lanes).unwrap_or(1);
+        if lanes != 1 && lanes != MAX_LANES {
+            return Err(v.err("sensors.air_data_lanes", format!("{lanes}: allowed 1 or {MAX_LANES} (triplex)")));
+        }
+
+        let mut sensor_errors = SensorErrors::default();
+        if let Some(e) = &deck.sensor_errors {
+            let deg = |d: f64| d.to_radians();
+            let same = |x: f64| x;
+            for (field, given, target, convert, non_negative) in [
+                ("airspeed_lag_s", e.airspeed_lag_s, &mut sensor_errors.airspeed_lag_s, same as fn(f64) -> f64, true),
+                ("flow_angle_lag_s", e.flow_angle_lag_s, &mut sensor_errors.flow_angle_lag_s, same, true),
+                ("airspeed_scale_factor", e.airspeed_scale_factor, &mut sensor_errors.airspeed_scale_factor, same, false),
+                ("flow_angle_scale_factor", e.flow_angle_scale_factor, &mut sensor_errors.flow_angle_scale_factor, same, false),
+                ("alpha_misalignment_deg", e.alpha_misalignment_deg, &mut sensor_errors.alpha_misalignment_rad, deg, false),
+                ("beta_misalignment_deg", e.beta_misalignment_deg, &mut sensor_errors.beta_misalignment_rad, deg, false),
+                ("imu_misalignment_deg", e.imu_misalignment_deg, &mut sensor_errors.imu_misalignment_rad, deg, false),
+                ("noise_correlation_s", e.noise_correlation_s, &mut sensor_errors.noise_correlation_s, same, true),
+            ] {
+                if let Some(x) = given {
+                    let name = format!("sensor_errors.{field}");
+                    *target = convert(if non_negative { v.non_negative(&name, x)? } else { v.finite(&name, x)? });
                 }
             }
         }
@@ -200,29 +276,71 @@ impl FromDeck for AirDataStudy {
         let mut detectors: Vec<AirDataDetector> = Vec::new();
         for (i, d) in deck.detector.iter().enumerate() {
             let field = |f: &str| format!("detector[{i}].{f}");
-            if d.kind != "dual_ukf" {
-                return Err(v.err(field("kind"), format!("{:?}: allowed \"dual_ukf\" (method 002)", d.kind)));
-            }
-            let mut p = DualUkfParams { noise, ..DualUkfParams::seed() };
-            crate::take_given!(
-                p,
-                d,
-                [
-                    false_alarm_probability,
-                    isolation_window,
-                    declare_probability,
-                    clear_probability,
-                    declare_hold_s,
-                    prior_fault_probability
-                ]
-            );
-            // The building blocks name the offending parameter; the deck adds the file and the table.
-            p.validate().map_err(|e| v.err(format!("detector[{i}]"), e.to_string()))?;
+            let dual_fields = [
+                ("false_alarm_probability", d.false_alarm_probability.is_some()),
+                ("isolation_window", d.isolation_window.is_some()),
+                ("declare_probability", d.declare_probability.is_some()),
+                ("clear_probability", d.clear_probability.is_some()),
+                ("declare_hold_s", d.declare_hold_s.is_some()),
+                ("prior_fault_probability", d.prior_fault_probability.is_some()),
+                ("keep_significant_biases", d.keep_significant_biases.is_some()),
+            ];
+            let voting_fields =
+                [("miscompare_sigma", d.miscompare_sigma.is_some()), ("persistence_s", d.persistence_s.is_some())];
+            let refuse = |given: &[(&str, bool)], kind: &str| match given.iter().find(|(_, g)| *g) {
+                Some((name, _)) => Err(v.err(field(name), format!("does not apply to kind = {kind:?}"))),
+                None => Ok(()),
+            };
+            let kind = match d.kind.as_str() {
+                "dual_ukf" => {
+                    refuse(&voting_fields, "dual_ukf")?;
+                    let mut p = DualUkfParams { noise, ..DualUkfParams::seed() };
+                    crate::take_given!(
+                        p,
+                        d,
+                        [
+                            false_alarm_probability,
+                            isolation_window,
+                            declare_probability,
+                            clear_probability,
+                            declare_hold_s,
+                            prior_fault_probability,
+                            keep_significant_biases
+                        ]
+                    );
+                    // The building blocks name the offending parameter; the deck adds the file and the table.
+                    p.validate().map_err(|e| v.err(format!("detector[{i}]"), e.to_string()))?;
+                    DetectorKind::DualUkf(p)
+                }
+                "triplex_voting" => {
+                    refuse(&dual_fields, "triplex_voting")?;
+                    if lanes != MAX_LANES {
+                        return Err(v.err(
+                            field("kind"),
+                            format!("\"triplex_voting\" needs sensors.air_data_lanes = {MAX_LANES}, got {lanes}"),
+                        ));
+                    }
+                    let mut p = TriplexParams::seed();
+                    if let Some(x) = d.miscompare_sigma {
+                        p.miscompare_sigma = v.positive(&field("miscompare_sigma"), x)?;
+                    }
+                    if let Some(x) = d.persistence_s {
+                        p.persistence_s = v.non_negative(&field("persistence_s"), x)?;
+                    }
+                    DetectorKind::TriplexVoting(p)
+                }
+                other => {
+                    return Err(v.err(
+                        field("kind"),
+                        format!("{other:?}: allowed \"dual_ukf\" (method 002) or \"triplex_voting\" (the voting baseline)"),
+                    ));
+                }
+            };
             let isolation_delay_s = d.isolation_delay_s.unwrap_or(1.0);
             if !(isolation_delay_s.is_finite() && isolation_delay_s >= 0.0) {
                 return Err(v.err(field("isolation_delay_s"), format!("must be >= 0 s, got {isolation_delay_s}")));
             }
-            detectors.push(AirDataDetector { name: d.name.clone(), params: p, isolation_delay_s });
+            detectors.push(AirDataDetector { name: d.name.clone(), kind, isolation_delay_s });
         }
 
         let outputs: Vec<String> = AIR_DATA_CHANNEL_NAMES.iter().map(|s| s.to_string()).collect();
@@ -234,7 +352,7 @@ impl FromDeck for AirDataStudy {
             .collect::<Result<Vec<_>, _>>()?;
 
         let monte_carlo =
-            monte_carlo(&v, deck.monte_carlo, duration_s, &outputs, !faults.is_empty(), wind.gust_std_mps)?;
+            monte_carlo(&v, deck.monte_carlo, duration_s, &outputs, !faults.is_empty(), wind.gust_std_mps, lanes)?;
 
         // The scenario checks what the deck cannot see field by field (the profile's envelope).
         let worst_noise = [&monte_carlo.common.noise_scale, &monte_carlo.gust_std_mps].map(factor_max);
@@ -246,6 +364,10 @@ impl FromDeck for AirDataStudy {
             noise_scale: worst_noise[0],
             wind: WindParams { gust_std_mps: wind.gust_std_mps.max(worst_noise[1]), ..wind },
             faults: faults.clone(),
+            airframe,
+            sensor_errors,
+            lanes,
+            faulty_lanes: 1,
         };
         AirDataScenario::new(params).map_err(|e| v.err("flight", e.to_string()))?;
 
@@ -260,6 +382,9 @@ impl FromDeck for AirDataStudy {
             profile,
             noise,
             wind,
+            airframe,
+            sensor_errors,
+            lanes,
             detectors,
             faults,
             monte_carlo,
@@ -291,6 +416,7 @@ fn monte_carlo(
     outputs: &[String],
     fixed_faults: bool,
     deck_gust_std_mps: f64,
+    lanes: usize,
 ) -> Result<AirDataMonteCarlo, DeckError> {
     let rules = MonteCarloRules::sampled("air-data decks", duration_s);
     let (common, own, _) = v.monte_carlo(mc, &rules, |_, _| Ok(()))?;
@@ -336,7 +462,17 @@ fn monte_carlo(
             "faulty trials need a fault: add [[monte_carlo.fault]] or [[faults]], or set fault_free_fraction = 1",
         ));
     }
-    Ok(AirDataMonteCarlo { common, gust_std_mps, output_sets, faults })
+    let faulty_lanes = own.faulty_lanes.clone().unwrap_or_else(|| vec![1]);
+    if faulty_lanes.is_empty() {
+        return Err(v.err("monte_carlo.faulty_lanes", "list at least one count"));
+    }
+    if let Some(n) = faulty_lanes.iter().find(|n| !(1..=lanes).contains(*n)) {
+        return Err(v.err(
+            "monte_carlo.faulty_lanes",
+            format!("{n}: allowed 1 to sensors.air_data_lanes = {lanes}"),
+        ));
+    }
+    Ok(AirDataMonteCarlo { common, gust_std_mps, output_sets, faults, faulty_lanes })
 }
 
 #[cfg(test)]
@@ -351,7 +487,24 @@ mod tests {
         assert_eq!(study.noise, SensorNoise::seed());
         let mc = &study.monte_carlo;
         assert_eq!(mc.output_sets, [vec![0], vec![1], vec![2], vec![0, 1], vec![0, 1, 2]]);
-        assert_eq!(study.detectors.len(), 2);
-        assert_eq!(study.detectors[0].params.isolation_window, 1);
+        assert_eq!(study.detectors.len(), 3);
+        let DetectorKind::DualUkf(patent) = &study.detectors[0].kind else { panic!("{:?}", study.detectors[0]) };
+        assert_eq!((patent.isolation_window, patent.keep_significant_biases), (1, false));
+        assert!(matches!(&study.detectors[1].kind, DetectorKind::DualUkf(p) if p.keep_significant_biases));
+        assert_eq!((study.airframe, study.lanes, study.sensor_errors), (Airframe::Kinematic, 1, SensorErrors::default()));
+        assert_eq!(mc.faulty_lanes, [1]);
+    }
+
+    #[test]
+    fn the_hifi_deck_flies_the_aerosonde_on_imperfect_triplex_sensors() {
+        let study = AirDataStudy::bundled("seed002_hifi_truth.toml");
+        assert_eq!((study.airframe, study.lanes), (Airframe::Aerosonde { manoeuvre_scale: 1.0 }, 3));
+        let e = study.sensor_errors;
+        assert_eq!((e.airspeed_lag_s, e.flow_angle_scale_factor, e.noise_correlation_s), (0.05, 0.05, 0.2));
+        assert!((e.alpha_misalignment_rad - 0.3f64.to_radians()).abs() < 1e-15);
+        assert_eq!(study.monte_carlo.faulty_lanes, [1, 3]);
+        let kinds: Vec<_> = study.detectors.iter().map(|d| std::mem::discriminant(&d.kind)).collect();
+        assert_eq!(kinds[2], std::mem::discriminant(&DetectorKind::TriplexVoting(TriplexParams::seed())));
+        assert_ne!(kinds[0], kinds[2]);
     }
 }

@@ -533,6 +533,20 @@ pub fn air_data(x: &State, wind_ned_mps: &Vector3<f64>) -> (f64, f64, f64) {
     (va, alpha, beta)
 }
 
+/// Specific force (m/s^2, body axes): what ideal accelerometers at the CG measure, the aerodynamic and
+/// propulsive force over the mass (gravity excluded), with the wind the air data see.
+pub fn specific_force(
+    p: &AerosondeParams,
+    x: &State,
+    surfaces_rad: &[f64; 5],
+    throttle: f64,
+    wind_ned_mps: &Vector3<f64>,
+) -> Vector3<f64> {
+    let (va, alpha, beta) = air_data(x, wind_ned_mps);
+    let f = aero_propulsion(p, va, alpha, beta, [x[9], x[10], x[11]], surfaces_rad, throttle);
+    Vector3::new(f[0], f[1], f[2]) / p.mass_kg
+}
+
 /// dx/dt of the 12-state rigid body, surfaces in rad [5], throttle in [0, 1], steady wind in NED m/s.
 pub fn derivatives(
     p: &AerosondeParams,
