@@ -282,7 +282,14 @@ mod tests {
         // the floor (ln 999 + ln 9) / 5 = 1.8, so 2.
         let mut sunk = ModelProbabilities::new([0.5, 0.5], 0.001).with_floor_rule(FloorRule::ResetAtZero);
         sunk.update(&[0.0, -400.0]);
-        let steps_to_lead = |p: &mut ModelProbabilities<2>| (1..).find(|_| { p.update(&[0.0, 5.0]); p.probabilities()[1] > 0.9 }).unwrap();
+        let steps_to_lead = |p: &mut ModelProbabilities<2>| {
+            (1..)
+                .find(|_| {
+                    p.update(&[0.0, 5.0]);
+                    p.probabilities()[1] > 0.9
+                })
+                .unwrap()
+        };
         assert_eq!((steps_to_lead(&mut sunk), steps_to_lead(&mut every)), (81, 2));
     }
 

@@ -555,7 +555,8 @@ impl DualUkf {
         let (mut x, mut P) = (*self.fault.state(), *self.fault.covariance());
         let faulty: [bool; COMPONENTS] = std::array::from_fn(|j| {
             let significant = x[3 + j].powi(2) / P[(3 + j, 3 + j)] > wald_threshold;
-            isolated[j] || (self.params.keep_significant_biases && self.bias_modes[j] == BiasMode::Estimated && significant)
+            isolated[j]
+                || (self.params.keep_significant_biases && self.bias_modes[j] == BiasMode::Estimated && significant)
         });
         let any_faulty = faulty.contains(&true);
         let modes: [BiasMode; COMPONENTS] = std::array::from_fn(|j| match (faulty[j], self.bias_modes[j]) {

@@ -63,8 +63,8 @@ use thiserror::Error;
 use crate::checks::{ValueError, finite, non_negative, positive, sensor_faults};
 use crate::fault::{ActiveFaults, SensorFault};
 use crate::kinematics::GRAVITY_MPS2;
-use crate::methods::air_data::airframe::AerosondeFlight;
 pub use crate::kinematics::body_from_ned;
+use crate::methods::air_data::airframe::{AerosondeFlight, AirframeSample};
 
 /// Air-data channel indices (the `channel` of a [`SensorFault`]).
 pub const AIRSPEED: usize = 0;
@@ -773,9 +773,9 @@ impl AirDataScenario {
             }
             Some(airframe) => match airframe.sample_and_step(t_s, &(steady + self.gust_ned_mps)) {
                 Ok(a) => FlightTruth {
-                    air_data: a.air_data(),
+                    air_data: air_data_from_velocity(&a.velocity_air_body_mps),
                     velocity_body_mps: a.velocity_air_body_mps,
-                    inertial: a.inertial,
+                    inertial: inertial_of(&a),
                     heading_rad: a.heading_rad,
                     gust_ned_mps: self.gust_ned_mps,
                     ground_velocity_ned_mps: a.ground_velocity_ned_mps,
@@ -847,7 +847,15 @@ fn sensed_air_data(e: &SensorErrors, dt_s: f64, lagged: &mut Option<[f64; 3]>, t
     *lagged = Some(now);
     let scale = [e.airspeed_scale_factor, e.flow_angle_scale_factor, e.flow_angle_scale_factor];
     let offset = [0.0, e.alpha_misalignment_rad, e.beta_misalignment_rad];
-    std::array::from_fn(|j| if scale[j] == 0.0 && offset[j] == 0.0 { now[j] } else { now[j] * (1.0 + scale[j]) + offset[j] })
+    std::array::from_fn(|j| {
+        if scale[j] == 0.0 && offset[j] == 0.0 { now[j] } else { now[j] * (1.0 + scale[j]) + offset[j] }
+    })
+}
+
+/// What perfect inertial sensors read on the airframe.
+fn inertial_of(a: &AirframeSample) -> Inertial {
+    let (w, f) = (a.rates_rad_s, a.specific_force_mps2);
+    Inertial::from_array([w[0], w[1], w[2], f[0], f[1], f[2], a.roll_rad, a.pitch_rad])
 }
 
 /// What an inertial unit rotated by `angle_rad` about each body axis measures: rates and specific
@@ -1147,7 +1155,9 @@ mod tests {
             assert!((y[6] - x[6] - errors.imu_misalignment_rad).abs() < 1e-15);
         }
         // Through the 30 deg bank the lagged airspeed trails the truth.
-        assert!(imperfect.iter().any(|s| (s.air_data.airspeed_mps / 1.02 - s.truth.air_data.airspeed_mps).abs() > 0.01));
+        assert!(
+            imperfect.iter().any(|s| (s.air_data.airspeed_mps / 1.02 - s.truth.air_data.airspeed_mps).abs() > 0.01)
+        );
 
         let coloured = ScenarioParams {
             duration_s: 200.0,
@@ -1156,7 +1166,8 @@ mod tests {
         };
         let sigma = coloured.noise.airspeed_std_mps;
         let samples = run(coloured, 8);
-        let e: Vec<f64> = samples.iter().map(|s| (s.air_data.airspeed_mps - s.truth.air_data.airspeed_mps) / sigma).collect();
+        let e: Vec<f64> =
+            samples.iter().map(|s| (s.air_data.airspeed_mps - s.truth.air_data.airspeed_mps) / sigma).collect();
         let n = e.len() as f64;
         let variance = e.iter().map(|v| v * v).sum::<f64>() / n;
         let lag1 = e.windows(2).map(|w| w[0] * w[1]).sum::<f64>() / (n - 1.0) / variance;
@@ -1172,7 +1183,8 @@ mod tests {
         let fault = SensorFault { channel: ALPHA, onset_s: 1.0, mode: FaultMode::Bias { bias: 0.05 } };
         let one = run(ScenarioParams { faults: vec![fault], ..ScenarioParams::seed() }, 5);
         for faulty_lanes in [1, 3] {
-            let three = run(ScenarioParams { faults: vec![fault], lanes: 3, faulty_lanes, ..ScenarioParams::seed() }, 5);
+            let three =
+                run(ScenarioParams { faults: vec![fault], lanes: 3, faulty_lanes, ..ScenarioParams::seed() }, 5);
             assert_eq!((one[0].air_data, one[0].inertial), (three[0].air_data, three[0].inertial));
             assert_eq!(one[0].truth, three[0].truth);
             for s in &three[200..] {
@@ -1184,6 +1196,43 @@ mod tests {
                 assert_ne!(s.lanes[1].airspeed_mps, s.lanes[2].airspeed_mps, "independent noise");
             }
         }
+    }
+
+    /// The Aerosonde's 60 s manoeuvres in calm air at 100 Hz.
+    fn fly_aerosonde(scale: f64) -> Vec<AirframeSample> {
+        let mut flight = AerosondeFlight::new(scale, 0.01).unwrap();
+        (0..6000).map(|k| flight.sample_and_step(k as f64 * 0.01, &Vector3::zeros()).unwrap()).collect()
+    }
+
+    /// The manoeuvres happen (bank, speed, sideslip), and in calm air a rigid body obeys the patent's
+    /// kinematics: the filters' one-step prediction (Heun on the inertial samples) misses the next
+    /// air-relative velocity only between samples. Measured: bank 29.9 deg, 30.0 m/s, sideslip 2.5 deg
+    /// (the autopilot's sideslip loop does not reach the 4 deg commanded in 2 s); one-step error 3e-5 m/s
+    /// in steady flight, 2.8e-3 at most through the manoeuvres, and 0.053 m/s once: at the speed step
+    /// the throttle jumps within a sample (5 m/s^2 more thrust) and the prediction averages the jump.
+    #[test]
+    fn the_airframe_flies_the_manoeuvres_and_obeys_the_kinematics() {
+        let samples = fly_aerosonde(1.0);
+        let max_by = |f: &dyn Fn(&AirframeSample) -> f64| samples.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
+        assert!((29.0..31.0).contains(&max_by(&|s| s.roll_rad.to_degrees())));
+        assert!((29.9..30.5).contains(&max_by(&|s| air_data_from_velocity(&s.velocity_air_body_mps).airspeed_mps)));
+        assert!(
+            (2.0..4.0).contains(&max_by(&|s| air_data_from_velocity(&s.velocity_air_body_mps).beta_rad.to_degrees()))
+        );
+        let mut errors: Vec<f64> = samples
+            .windows(2)
+            .map(|w| {
+                let predicted =
+                    propagate_velocity(&w[0].velocity_air_body_mps, &inertial_of(&w[0]), &inertial_of(&w[1]), 0.01);
+                (predicted - w[1].velocity_air_body_mps).amax()
+            })
+            .collect();
+        assert!(errors[..700].iter().all(|e| *e < 1e-4), "steady flight before the climb");
+        let (at, worst) = errors.iter().enumerate().fold((0, 0.0), |m, (k, e)| if *e > m.1 { (k, *e) } else { m });
+        assert_eq!(at, 3599, "the sample before the speed step at 36 s");
+        assert!((0.04..0.06).contains(&worst), "{worst}");
+        errors[at] = 0.0;
+        assert!(errors.iter().all(|e| *e < 3e-3));
     }
 
     #[test]

@@ -239,10 +239,34 @@ impl FromDeck for AirDataStudy {
             for (field, given, target, convert, non_negative) in [
                 ("airspeed_lag_s", e.airspeed_lag_s, &mut sensor_errors.airspeed_lag_s, same as fn(f64) -> f64, true),
                 ("flow_angle_lag_s", e.flow_angle_lag_s, &mut sensor_errors.flow_angle_lag_s, same, true),
-                ("airspeed_scale_factor", e.airspeed_scale_factor, &mut sensor_errors.airspeed_scale_factor, same, false),
-                ("flow_angle_scale_factor", e.flow_angle_scale_factor, &mut sensor_errors.flow_angle_scale_factor, same, false),
-                ("alpha_misalignment_deg", e.alpha_misalignment_deg, &mut sensor_errors.alpha_misalignment_rad, deg, false),
-                ("beta_misalignment_deg", e.beta_misalignment_deg, &mut sensor_errors.beta_misalignment_rad, deg, false),
+                (
+                    "airspeed_scale_factor",
+                    e.airspeed_scale_factor,
+                    &mut sensor_errors.airspeed_scale_factor,
+                    same,
+                    false,
+                ),
+                (
+                    "flow_angle_scale_factor",
+                    e.flow_angle_scale_factor,
+                    &mut sensor_errors.flow_angle_scale_factor,
+                    same,
+                    false,
+                ),
+                (
+                    "alpha_misalignment_deg",
+                    e.alpha_misalignment_deg,
+                    &mut sensor_errors.alpha_misalignment_rad,
+                    deg,
+                    false,
+                ),
+                (
+                    "beta_misalignment_deg",
+                    e.beta_misalignment_deg,
+                    &mut sensor_errors.beta_misalignment_rad,
+                    deg,
+                    false,
+                ),
                 ("imu_misalignment_deg", e.imu_misalignment_deg, &mut sensor_errors.imu_misalignment_rad, deg, false),
                 ("noise_correlation_s", e.noise_correlation_s, &mut sensor_errors.noise_correlation_s, same, true),
             ] {
@@ -332,7 +356,9 @@ impl FromDeck for AirDataStudy {
                 other => {
                     return Err(v.err(
                         field("kind"),
-                        format!("{other:?}: allowed \"dual_ukf\" (method 002) or \"triplex_voting\" (the voting baseline)"),
+                        format!(
+                            "{other:?}: allowed \"dual_ukf\" (method 002) or \"triplex_voting\" (the voting baseline)"
+                        ),
                     ));
                 }
             };
@@ -467,10 +493,7 @@ fn monte_carlo(
         return Err(v.err("monte_carlo.faulty_lanes", "list at least one count"));
     }
     if let Some(n) = faulty_lanes.iter().find(|n| !(1..=lanes).contains(*n)) {
-        return Err(v.err(
-            "monte_carlo.faulty_lanes",
-            format!("{n}: allowed 1 to sensors.air_data_lanes = {lanes}"),
-        ));
+        return Err(v.err("monte_carlo.faulty_lanes", format!("{n}: allowed 1 to sensors.air_data_lanes = {lanes}")));
     }
     Ok(AirDataMonteCarlo { common, gust_std_mps, output_sets, faults, faulty_lanes })
 }
@@ -491,7 +514,10 @@ mod tests {
         let DetectorKind::DualUkf(patent) = &study.detectors[0].kind else { panic!("{:?}", study.detectors[0]) };
         assert_eq!((patent.isolation_window, patent.keep_significant_biases), (1, false));
         assert!(matches!(&study.detectors[1].kind, DetectorKind::DualUkf(p) if p.keep_significant_biases));
-        assert_eq!((study.airframe, study.lanes, study.sensor_errors), (Airframe::Kinematic, 1, SensorErrors::default()));
+        assert_eq!(
+            (study.airframe, study.lanes, study.sensor_errors),
+            (Airframe::Kinematic, 1, SensorErrors::default())
+        );
         assert_eq!(mc.faulty_lanes, [1]);
     }
 

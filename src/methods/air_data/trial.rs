@@ -54,9 +54,9 @@ enum Running {
 impl Running {
     fn new(d: &AirDataDetector, scenario: &ScenarioParams) -> Result<Self, String> {
         Ok(match &d.kind {
-            DetectorKind::DualUkf(p) => {
-                Running::Dual(Box::new(DualUkf::new(p, scenario.dt_s).map_err(|e| format!("detector {}: {e}", d.name))?))
-            }
+            DetectorKind::DualUkf(p) => Running::Dual(Box::new(
+                DualUkf::new(p, scenario.dt_s).map_err(|e| format!("detector {}: {e}", d.name))?,
+            )),
             // The voter's threshold is in the sigmas the deck states, as the filters' noise model is.
             DetectorKind::TriplexVoting(p) => {
                 Running::Voting(TriplexVoter::new(p, scenario.noise.air_data_std(), scenario.dt_s))
@@ -341,13 +341,22 @@ mod tests {
     fn voting_catches_a_single_lane_and_misses_a_common_mode_bias() {
         use crate::methods::air_data::voting::TriplexParams;
         let detectors = [
-            AirDataDetector { name: "patent".into(), kind: DetectorKind::DualUkf(DualUkfParams::seed()), isolation_delay_s: 1.0 },
-            AirDataDetector { name: "voting".into(), kind: DetectorKind::TriplexVoting(TriplexParams::seed()), isolation_delay_s: 1.0 },
+            AirDataDetector {
+                name: "patent".into(),
+                kind: DetectorKind::DualUkf(DualUkfParams::seed()),
+                isolation_delay_s: 1.0,
+            },
+            AirDataDetector {
+                name: "voting".into(),
+                kind: DetectorKind::TriplexVoting(TriplexParams::seed()),
+                isolation_delay_s: 1.0,
+            },
         ];
         for faulty_lanes in [1, 3] {
             let mut scenario = ScenarioParams { lanes: 3, faulty_lanes, ..ScenarioParams::seed() };
             let bias_rad = 10.0 * scenario.noise.alpha_std_rad;
-            scenario.faults = vec![SensorFault { channel: ALPHA, onset_s: 20.0, mode: FaultMode::Bias { bias: bias_rad } }];
+            scenario.faults =
+                vec![SensorFault { channel: ALPHA, onset_s: 20.0, mode: FaultMode::Bias { bias: bias_rad } }];
             let spec = AirDataTrialSpec {
                 trial: 0,
                 faults: scenario.faults.clone(),

@@ -530,7 +530,9 @@ fn monte_carlo(
                     format!("{c:?}: allowed {}", SCALABLE_COEFFICIENTS.join(", ")),
                 ));
             }
-            if let Some((parent, _)) = DERIVED_COEFFICIENTS.iter().find(|(p, d)| d == c && pe.coefficients.iter().any(|n| n == p)) {
+            if let Some((parent, _)) =
+                DERIVED_COEFFICIENTS.iter().find(|(p, d)| d == c && pe.coefficients.iter().any(|n| n == p))
+            {
                 return Err(v.err(
                     field(&format!("coefficients[{k}]")),
                     format!("{c} is derived from {parent} and scales with it; name one of the two"),

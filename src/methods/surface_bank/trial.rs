@@ -432,7 +432,10 @@ mod tests {
             assert!((got - want).abs() < 0.005, "{recovery:?}");
         }
         for (free, held) in isolated(0).iter().zip(isolated(1)) {
-            assert_eq!((held.detection_delay_s, held.recovery_delay_s), (free.detection_delay_s, free.recovery_delay_s));
+            assert_eq!(
+                (held.detection_delay_s, held.recovery_delay_s),
+                (free.detection_delay_s, free.recovery_delay_s)
+            );
             assert!(held.clearing_delay_s.unwrap() >= free.clearing_delay_s.unwrap() + 0.985, "{held:?} {free:?}");
         }
         let literal = &outcomes[2];

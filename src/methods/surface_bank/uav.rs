@@ -278,11 +278,8 @@ pub const SCALABLE_COEFFICIENTS: [&str; 33] = [
 
 /// Terms of the split-surface model derived from a book coefficient (module docs): `(parent, derived)`.
 /// [`AerosondeParams::scaled`] scales them with their parent.
-pub const DERIVED_COEFFICIENTS: [(&str, &str); 3] = [
-    ("C_l_delta_a", "C_L_delta_a_sym"),
-    ("C_l_delta_a", "C_m_delta_a_sym"),
-    ("C_m_delta_e", "C_l_delta_e_diff"),
-];
+pub const DERIVED_COEFFICIENTS: [(&str, &str); 3] =
+    [("C_l_delta_a", "C_L_delta_a_sym"), ("C_l_delta_a", "C_m_delta_a_sym"), ("C_m_delta_e", "C_l_delta_e_diff")];
 
 impl AerosondeParams {
     fn coefficient_mut(&mut self, name: &str) -> Option<&mut f64> {
@@ -1234,7 +1231,10 @@ mod tests {
         let q = p.scaled("C_m_delta_e", 1.3).unwrap();
         assert!((q.C_m_delta_e - 1.3 * p.C_m_delta_e).abs() < 1e-15);
         assert!(((dq(&q) / dq(&p)) - 1.3).abs() < 1e-10, "{} {}", dq(&q), dq(&p));
-        assert_eq!(AerosondeParams { C_m_delta_e: p.C_m_delta_e, C_l_delta_e_diff: p.C_l_delta_e_diff, ..q.clone() }, p);
+        assert_eq!(
+            AerosondeParams { C_m_delta_e: p.C_m_delta_e, C_l_delta_e_diff: p.C_l_delta_e_diff, ..q.clone() },
+            p
+        );
         for name in SCALABLE_COEFFICIENTS {
             assert!(p.scaled(name, 2.0).is_ok(), "{name}");
         }
