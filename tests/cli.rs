@@ -761,7 +761,7 @@ fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
         binned += 1;
     }
     assert!(binned >= 3, "{binned} bias rows");
-    for detector in ["patent", "window10"] {
+    for detector in ["patent", "patent_wald", "window10"] {
         assert_eq!(
             stdout.lines().filter(|l| l.starts_with(&format!("    deck       {detector} "))).count(),
             1,
@@ -769,9 +769,9 @@ fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
         );
     }
     let reference = read_frame(&one.join("trials.parquet"));
-    assert_eq!(reference.height(), 300 * 2, "one row per trial and detector");
-    assert_eq!(csv_frame(&one.join("detectors.csv")).height(), 2);
-    assert_eq!(csv_frame(&one.join("comparison.csv")).height(), 1);
+    assert_eq!(reference.height(), 300 * 3, "one row per trial and detector");
+    assert_eq!(csv_frame(&one.join("detectors.csv")).height(), 3);
+    assert_eq!(csv_frame(&one.join("comparison.csv")).height(), 3, "one row per pair of detectors");
 
     // `simulate --trial N` flies trial N of the run: the same detection delay and isolated set.
     use polars::prelude::*;

@@ -282,14 +282,8 @@ mod tests {
     use crate::methods::air_data::dual_ukf::DualUkfParams;
     use crate::methods::air_data::flight::ALPHA;
 
-    /// The seed flight with an alpha bias of 10 sigma (2 deg) from 20 s, the patent's detector matched
-    /// to the noise: declared as soon as the 0.1 s hold allows, alpha alone isolated, the bias estimated
-    /// to a fraction of a sigma, and the blended alpha far closer to the truth than the faulty vane.
-    /// Measured: delay 0.09 s (ten samples, the first at the onset), bias error 0.27 sigma, air data 0.27
-    /// against raw 10.06 sigma (alpha 0.00096 rad against the 0.035 rad bias).
-    #[test]
-    fn an_alpha_bias_is_detected_isolated_and_estimated_and_the_air_data_stay_accurate() {
-        let mut scenario = ScenarioParams::seed();
+    /// `scenario` with an alpha bias of 10 sigma from 20 s on its faulty lanes, and the trial's spec.
+    fn alpha_bias(mut scenario: ScenarioParams) -> (ScenarioParams, AirDataTrialSpec) {
         let bias_rad = 10.0 * scenario.noise.alpha_std_rad;
         scenario.faults = vec![SensorFault { channel: ALPHA, onset_s: 20.0, mode: FaultMode::Bias { bias: bias_rad } }];
         let spec = AirDataTrialSpec {
@@ -305,8 +299,20 @@ mod tests {
             noise_bin: 1.0,
             gust_std_mps: 0.0,
             gust_bin: 0.0,
-            faulty_lanes: 1,
+            faulty_lanes: scenario.faulty_lanes,
         };
+        (scenario, spec)
+    }
+
+    /// The seed flight with an alpha bias of 10 sigma (2 deg) from 20 s, the patent's detector matched
+    /// to the noise: declared as soon as the 0.1 s hold allows, alpha alone isolated, the bias estimated
+    /// to a fraction of a sigma, and the blended alpha far closer to the truth than the faulty vane.
+    /// Measured: delay 0.09 s (ten samples, the first at the onset), bias error 0.27 sigma, air data 0.27
+    /// against raw 10.06 sigma (alpha 0.00096 rad against the 0.035 rad bias).
+    #[test]
+    fn an_alpha_bias_is_detected_isolated_and_estimated_and_the_air_data_stay_accurate() {
+        let (scenario, spec) = alpha_bias(ScenarioParams::seed());
+        let bias_rad = 10.0 * scenario.noise.alpha_std_rad;
         let detector = AirDataDetector {
             name: "patent".into(),
             kind: DetectorKind::DualUkf(DualUkfParams::seed()),
@@ -353,25 +359,7 @@ mod tests {
             },
         ];
         for faulty_lanes in [1, 3] {
-            let mut scenario = ScenarioParams { lanes: 3, faulty_lanes, ..ScenarioParams::seed() };
-            let bias_rad = 10.0 * scenario.noise.alpha_std_rad;
-            scenario.faults =
-                vec![SensorFault { channel: ALPHA, onset_s: 20.0, mode: FaultMode::Bias { bias: bias_rad } }];
-            let spec = AirDataTrialSpec {
-                trial: 0,
-                faults: scenario.faults.clone(),
-                kind: "bias",
-                outputs: vec![ALPHA],
-                size: 10.0,
-                size_bin: 10.0,
-                size_unit: crate::fault::deck::unit::SENSOR_SIGMA,
-                onset_s: 20.0,
-                noise_scale: 1.0,
-                noise_bin: 1.0,
-                gust_std_mps: 0.0,
-                gust_bin: 0.0,
-                faulty_lanes,
-            };
+            let (scenario, spec) = alpha_bias(ScenarioParams { lanes: 3, faulty_lanes, ..ScenarioParams::seed() });
             let mut rng = noise_rng(7, 0, Substream::SensorNoise);
             let o = run_detectors(scenario, &spec, &detectors, &mut rng, |_, _| ()).unwrap();
             let (dual, voting) = (&o[0], &o[1]);
