@@ -59,8 +59,9 @@
 //! # Detection, loss, localisation
 //! An alarm is `|fhat| >= threshold` ([`DetectorParams::threshold_fhat`]). From the first alarm on, the
 //! running peak of `|fhat|` is converted to a loss percentage by the linear fit `loss = a + b fhat_peak`
-//! ([`LossFit`], fitted from calibration runs by [`MheDesign::calibrate_loss_fit`], the seed's eq. 27; its
-//! table over onset time and loss is not built). At the first alarm the onset is located as the largest
+//! ([`LossFit`], fitted from calibration runs by [`MheDesign::calibrate_loss_fit`], the seed's eq. 27; the
+//! seed's table over onset time is `trial.rs`'s `LossTable`, one fit per onset). At the first alarm the
+//! onset is located as the largest
 //! step of the overloads within the last second, the jumps are
 //! `mean(n over post samples after the onset) - mean(n over pre samples up to it)`
 //! ([`LocalisationParams`]), and their signs name the engine ([`localise`]): `n_y` alike for {1, 4} and
@@ -481,7 +482,7 @@ impl MheDesign {
     /// of each of `losses_percent` on the reference engine at `onset_s`, the peak of `|fhat|` taken over
     /// `horizon_s` after the onset; returns the fit and the `(loss %, peak |fhat|)` pairs. The fit holds
     /// for onsets near `onset_s` (`S` and so `fhat` grow by about 50 % from 20 s to 50 s as the inertia
-    /// falls); the seed's table over onset time is left to the caller (one fit per onset).
+    /// falls); `LossTable` (`trial.rs`) builds the seed's table over onset time from one fit per onset.
     pub fn calibrate_loss_fit(
         self: &Arc<Self>,
         config: &LaunchVehicleConfig,
