@@ -198,6 +198,44 @@ fn voting_is_blind_to_common_mode_and_the_dual_ukf_is_not() {
     assert!(summary.column("faulty_lanes").is_ok(), "a group key");
 }
 
+/// Online classification (issue 21.5): a classifier of the alarm's window calls every trial without an
+/// alarm normal (here the healthy flights without a false alarm: every fault is detected) and classifies
+/// the others; on the alarmed trials the onset-window tree, on another window, disagrees somewhere;
+/// the reversed tree is a detector of its own.
+#[test]
+fn online_classifiers_classify_only_what_the_detector_alarmed_on() {
+    use polars::prelude::*;
+    let tmp = tempfile::tempdir().unwrap();
+    let classifiers = "[[classifier]]\nname = \"tree\"\nscheme = \"tree\"\n\n[[classifier]]\nname = \"tree_online\"\nscheme = \"tree\"\nwindow = \"alarm\"\n\n[[classifier]]\nname = \"tree_reversed\"\nscheme = \"tree_most_separable_first\"\n\n[monte_carlo]";
+    let deck = edited_deck(tmp.path(), "ci_seed003.toml", &[("[monte_carlo]", classifiers)], "online.toml");
+    let dir = tmp.path().join("run");
+    ok(&fdimc(&["run", deck.to_str().unwrap(), "--trials", "160", "--quiet", "--out", dir.to_str().unwrap()]));
+    let df = read_frame(&dir.join("trials.parquet"));
+    assert_eq!(df.height(), 480, "three classifiers per trial");
+    let rows = |detector: &str, alarmed: bool| {
+        let alarm = col("alarm_s").is_not_null().or(col("false_alarm_s").is_not_null());
+        df.clone()
+            .lazy()
+            .filter(col("detector").eq(lit(detector)).and(if alarmed { alarm } else { alarm.not() }))
+            .select([col("isolated")])
+            .collect()
+            .unwrap()
+    };
+    let names = |f: DataFrame| -> Vec<String> {
+        let c = f.column("isolated").unwrap().str().unwrap().clone();
+        (0..c.len()).map(|i| c.get(i).unwrap_or("-").to_string()).collect()
+    };
+    let quiet = names(rows("tree_online", false));
+    assert!(quiet.len() >= 15 && quiet.iter().all(|c| c == "normal"), "{quiet:?}");
+    let alarmed = names(rows("tree_online", true));
+    assert!(alarmed.len() >= 100 && alarmed.iter().any(|c| c != "normal"), "{alarmed:?}");
+    // Another window: somewhere the two trees disagree.
+    let (onset, online) = (names(rows("tree", true)), alarmed);
+    assert!(onset.iter().zip(&online).any(|(a, b)| a != b), "{onset:?}");
+    let detectors = csv_frame(&dir.join("detectors.csv"));
+    assert_eq!(detectors.height(), 3);
+}
+
 /// Fault directions 1e-7 apart make the eigenvectors nearly parallel: validate and design warn.
 #[test]
 fn nearly_parallel_fault_directions_are_warned_about() {
@@ -271,7 +309,7 @@ fn bad_decks_exit_2_naming_file_and_field() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let catalogue: Catalogue =
         toml::from_str(&std::fs::read_to_string(root.join("tests/data/bad_decks.toml")).unwrap()).unwrap();
-    assert_eq!(catalogue.case.len(), 109);
+    assert_eq!(catalogue.case.len(), 112);
     let dir = tempfile::tempdir().unwrap();
     for (i, c) in catalogue.case.iter().enumerate() {
         let what = format!("case {i} ({}, {})", c.deck, c.what.as_deref().unwrap_or(&c.to));
@@ -953,7 +991,11 @@ fn accelerometer_classifiers_train_save_load_and_runs_are_identical() {
     let predicted = row.column("isolated").unwrap().str().unwrap().get(0).unwrap().to_string();
     let trace = s(tmp.path().join("trace.csv"));
     let sim = ok(&fdimc(&["simulate", deck, "--trial", &trial, "--classifiers", &file, "--out", &trace]));
-    assert!(sim.contains("class gain") && sim.contains(&format!("tree   predicts {predicted}")), "{sim}");
+    let tree_line = sim.lines().find(|l| l.trim_start().starts_with("tree ")).unwrap_or_else(|| panic!("{sim}"));
+    assert!(
+        sim.contains("class gain") && tree_line.ends_with(&format!("(onset window) predicts {predicted}")),
+        "{sim}"
+    );
     assert_eq!(csv_frame(Path::new(&trace)).height(), 2000);
 
     // An --out under a regular file is refused before training, naming it (exit 2).

@@ -47,6 +47,15 @@ pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
         "detection   T over {} samples, threshold {}, counted from {} s",
         study.detection.window, study.detection.threshold, study.settle_s
     );
+    for c in &study.classifiers {
+        println!(
+            "classifier  {}: {} on the {} window{}",
+            c.name,
+            c.scheme.name(),
+            c.window.name(),
+            if c.balanced { ", classes weighted by the inverse of their size" } else { "" }
+        );
+    }
     let classes: Vec<&str> = study.classes.iter().map(|c| c.name()).collect();
     println!(
         "monte carlo {} trials, classes [{}] cycled, noise scale {}",
@@ -66,7 +75,7 @@ pub fn simulate(
     classifiers: Option<&Path>,
 ) -> Result<(), RunError> {
     use crate::methods::accelerometer::AccelerometerTrials;
-    use crate::methods::accelerometer::trial::{DETECTORS, TrainedClassifiers};
+    use crate::methods::accelerometer::trial::TrainedClassifiers;
     let trained = match classifiers {
         Some(file) => TrainedClassifiers::load(file, study)?,
         None => TrainedClassifiers::train(study)
@@ -98,8 +107,8 @@ pub fn simulate(
         s.onset_s,
         s.noise_scale
     );
-    for (d, name) in DETECTORS.iter().enumerate() {
-        println!("  {name:<6} predicts {}", outcome.predicted[d].name());
+    for (c, predicted) in trained.classifiers.iter().zip(&outcome.predicted) {
+        println!("  {:<12} ({} window) predicts {}", c.name, c.window.name(), predicted.name());
     }
     let secs = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
     println!(
@@ -128,20 +137,27 @@ pub fn train(study: &AccelerometerStudy, out: Option<&Path>) -> Result<(), RunEr
         TrainedClassifiers::train(&study).map_err(|e| RunError::Invalid(format!("{}: {e}", deck.display())))?;
     trained.save(&out)?;
     println!(
-        "{}: trained the SVM decision tree and the one-against-one SVM on {} trials per class (seed {}) in {:.1} s -> {}",
+        "{}: trained {} on {} trials per class (seed {}) in {:.1} s -> {}",
         study.header.name,
+        trained
+            .classifiers
+            .iter()
+            .map(|c| format!("{} ({} window)", c.name, c.window.name()))
+            .collect::<Vec<_>>()
+            .join(", "),
         study.training.trials_per_class,
         study.training.seed,
         started.elapsed().as_secs_f64(),
         out.display()
     );
-    if let Some(tree) = trained.tree.tree() {
+    for (c, tree) in trained.classifiers.iter().filter_map(|c| c.classifier.tree().map(|t| (c, t))) {
+        println!("  {}:", c.name);
         for (k, m) in tree.merges.iter().enumerate() {
             let names = |c: &[crate::methods::accelerometer::ekf_svm::FaultClass]| {
                 c.iter().map(|c| c.name()).collect::<Vec<_>>().join("+")
             };
             println!(
-                "  merge {}: {} | {} (separability {:.3}, the least of the {} pairs)",
+                "    merge {}: {} | {} (separability {:.3}, of {} candidate pairs)",
                 k + 1,
                 names(&m.positive),
                 names(&m.negative),

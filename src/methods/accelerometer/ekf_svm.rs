@@ -450,12 +450,27 @@ impl TrialDesign {
         (scenario, onset_s)
     }
 
-    /// The example of a simulated trial: the features of its window.
+    /// The example of a simulated trial: the features of its window after the onset.
     pub fn example(&self, trace: &ResidualTrace, onset_s: f64, class: FaultClass) -> Result<Example, ClassifierError> {
+        self.example_from(trace, window_start(onset_s, self.window_delay_s, trace.dt_s), class)
+    }
+
+    /// The example of the window starting at sample `start`; a window that would run past the trial's
+    /// end is moved back to end with it (an alarm near the end is classified on its last samples).
+    pub fn example_at(
+        &self,
+        trace: &ResidualTrace,
+        start: usize,
+        class: FaultClass,
+    ) -> Result<Example, ClassifierError> {
+        let start = start.min(trace.samples.len().saturating_sub(self.features.window_len));
+        self.example_from(trace, start, class)
+    }
+
+    fn example_from(&self, trace: &ResidualTrace, start: usize, class: FaultClass) -> Result<Example, ClassifierError> {
         if (trace.dt_s - self.features.dt_s).abs() > 1e-9 * self.features.dt_s {
             return Err(ClassifierError::SamplePeriod { trace_dt_s: trace.dt_s, features_dt_s: self.features.dt_s });
         }
-        let start = window_start(onset_s, self.window_delay_s, trace.dt_s);
         let end = start + self.features.window_len;
         let window = trace
             .samples
@@ -494,6 +509,10 @@ pub struct SvmParams {
     pub c: f64,
     /// SMO stopping tolerance.
     pub tolerance: f64,
+    /// Weigh each side of a binary SVM by the inverse of its size (`C n / (2 n_side)`), so a merged
+    /// group of three classes does not outvote the one class against it; false: `C` on both sides.
+    #[serde(default)]
+    pub balanced: bool,
 }
 
 impl SvmParams {
@@ -505,7 +524,12 @@ impl SvmParams {
     /// larger pairs fit the training set exactly and lose on fresh trials). A linear kernel reached
     /// 0.63: the classes are not convex (each is a fault on one of three axes, of either sign).
     pub fn seed() -> Self {
-        SvmParams { kernel: SvmKernel::Gaussian { gamma: 1.0 / FEATURE_COUNT as f64 }, c: 10.0, tolerance: 1e-3 }
+        SvmParams {
+            kernel: SvmKernel::Gaussian { gamma: 1.0 / FEATURE_COUNT as f64 },
+            c: 10.0,
+            tolerance: 1e-3,
+            balanced: false,
+        }
     }
 
     fn validate(&self) -> Result<(), ClassifierError> {
@@ -550,7 +574,13 @@ impl BinarySvm {
         }
         let targets = Array1::from_iter((0..rows).map(|i| i < positive.len()));
         let dataset = Dataset::new(records, targets);
-        let builder = Svm::<f64, bool>::params().pos_neg_weights(params.c, params.c).eps(params.tolerance);
+        let (c_positive, c_negative) = if params.balanced {
+            let half = 0.5 * rows as f64;
+            (params.c * half / positive.len() as f64, params.c * half / negative.len() as f64)
+        } else {
+            (params.c, params.c)
+        };
+        let builder = Svm::<f64, bool>::params().pos_neg_weights(c_positive, c_negative).eps(params.tolerance);
         let builder = match params.kernel {
             SvmKernel::Linear => builder.linear_kernel(),
             SvmKernel::Gaussian { gamma } => builder.gaussian_kernel(1.0 / gamma),
@@ -714,15 +744,17 @@ type ClassRows<'a> = Vec<(FaultClass, Vec<&'a [f64]>)>;
 type Group<'a> = (Vec<FaultClass>, Vec<&'a [f64]>, TreeNode);
 
 impl SvmTree {
-    /// Bottom-up training on standardised rows grouped by class (module docs). Ties in separability go
-    /// to the pair met first (groups in class order, merged groups where their first member was).
-    fn train(rows: &ClassRows, params: &SvmParams) -> Result<Self, ClassifierError> {
+    /// Bottom-up training on standardised rows grouped by class (module docs), merging the least
+    /// separable pair first (the patent's order) or, for comparison, the most separable. Ties in
+    /// separability go to the pair met first (groups in class order, merged groups where their first
+    /// member was).
+    fn train(rows: &ClassRows, params: &SvmParams, least_first: bool) -> Result<Self, ClassifierError> {
         let mut groups: Vec<Group> =
             rows.iter().map(|(c, r)| (vec![*c], r.clone(), TreeNode::Leaf { class: *c })).collect();
         let mut merges = Vec::new();
         while groups.len() > 1 {
             let mut candidates = Vec::new();
-            let mut best = (0, 1, f64::INFINITY);
+            let mut best = (0, 1, if least_first { f64::INFINITY } else { f64::NEG_INFINITY });
             for i in 0..groups.len() {
                 for j in i + 1..groups.len() {
                     let s = separability(&groups[i].1, &groups[j].1);
@@ -731,7 +763,7 @@ impl SvmTree {
                         second: groups[j].0.clone(),
                         separability: s,
                     });
-                    if s < best.2 {
+                    if (least_first && s < best.2) || (!least_first && s > best.2) {
                         best = (i, j, s);
                     }
                 }
@@ -829,10 +861,66 @@ pub struct Classifier {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Scheme {
-    /// The seed's bottom-up decision tree.
+    /// The seed's bottom-up decision tree (least separable pair merged first).
     Tree,
+    /// The same tree built in the opposite order, the most separable pair first (comparison).
+    TreeMostSeparableFirst,
     /// Flat one-against-one (comparison).
     OneVsOne,
+}
+
+/// Which window a classifier is trained on and classifies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClassifierWindow {
+    /// The window after the true onset, for every trial detected or not: an oracle.
+    Onset,
+    /// The window from the residual detector's alarm, as the patent classifies online; no alarm, no
+    /// classification (the trial is called normal).
+    Alarm,
+}
+
+impl Scheme {
+    /// The deck's spelling.
+    pub fn name(self) -> &'static str {
+        match self {
+            Scheme::Tree => "tree",
+            Scheme::TreeMostSeparableFirst => "tree_most_separable_first",
+            Scheme::OneVsOne => "flat",
+        }
+    }
+}
+
+impl ClassifierWindow {
+    pub fn name(self) -> &'static str {
+        match self {
+            ClassifierWindow::Onset => "onset",
+            ClassifierWindow::Alarm => "alarm",
+        }
+    }
+}
+
+/// One classifier of a study: its name (the detector column), scheme, window and class weighting.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClassifierSpec {
+    pub name: String,
+    pub scheme: Scheme,
+    pub window: ClassifierWindow,
+    pub balanced: bool,
+}
+
+impl ClassifierSpec {
+    /// The classifiers of a deck without `[[classifier]]`: the tree and the flat SVM on the onset window.
+    pub fn defaults() -> Vec<ClassifierSpec> {
+        [("tree", Scheme::Tree), ("flat", Scheme::OneVsOne)]
+            .map(|(name, scheme)| ClassifierSpec {
+                name: name.into(),
+                scheme,
+                window: ClassifierWindow::Onset,
+                balanced: false,
+            })
+            .into()
+    }
 }
 
 impl Classifier {
@@ -871,7 +959,8 @@ impl Classifier {
             return Err(ClassifierError::TooFewExamples { class, count: 0 });
         }
         let model = match scheme {
-            Scheme::Tree => ClassifierModel::Tree(SvmTree::train(&rows, &svm)?),
+            Scheme::Tree => ClassifierModel::Tree(SvmTree::train(&rows, &svm, true)?),
+            Scheme::TreeMostSeparableFirst => ClassifierModel::Tree(SvmTree::train(&rows, &svm, false)?),
             Scheme::OneVsOne => ClassifierModel::OneVsOne(OneVsOne::train(&rows, &svm)?),
         };
         Ok(Classifier {
@@ -1145,7 +1234,7 @@ mod tests {
             })
             .collect();
         let rows: ClassRows = owned.iter().map(|(c, r)| (*c, r.iter().map(|x| &x[..]).collect())).collect();
-        let tree = SvmTree::train(&rows, &SvmParams::seed()).unwrap();
+        let tree = SvmTree::train(&rows, &SvmParams::seed(), true).unwrap();
         let merges = &tree.merges;
         assert_eq!((sorted(&merges[0].positive), sorted(&merges[0].negative)), (vec![Bias], vec![Gain]));
         assert_eq!((sorted(&merges[1].positive), sorted(&merges[1].negative)), (vec![Bias, Gain], vec![Stuck]));
@@ -1167,6 +1256,51 @@ mod tests {
             x[0] = centre(class);
             assert_eq!(tree.classify(&x), class);
         }
+        // The opposite order merges the farthest pair first (normal at 20 with bias at 0), each merge the
+        // most separable candidate; it still classifies the centres.
+        let reversed = SvmTree::train(&rows, &SvmParams::seed(), false).unwrap();
+        let first = &reversed.merges[0];
+        assert_eq!((sorted(&first.positive), sorted(&first.negative)), (vec![Normal], vec![Bias]));
+        for merge in &reversed.merges {
+            let most = merge.candidates.iter().map(|c| c.separability).fold(f64::NEG_INFINITY, f64::max);
+            assert_eq!(merge.separability, most);
+        }
+        for class in FaultClass::ALL {
+            let mut x = vec![0.0; FEATURE_COUNT];
+            x[0] = centre(class);
+            assert_eq!(reversed.classify(&x), class);
+        }
+    }
+
+    /// Balanced weights at a node of one class against three: on overlapping clusters (centres 0 and 1.5,
+    /// unit spread) with 40 examples against 360, equal `C` gives the boundary to the large side and the
+    /// small class's examples are voted away; weighted by the inverse of each side's size they are kept.
+    /// Measured: 2 of the 40 on their own side with equal `C`, 35 balanced.
+    #[test]
+    fn balanced_weights_keep_the_small_side_of_a_merged_node() {
+        let mut rng = ChaCha8Rng::seed_from_u64(8);
+        let mut draw = |centre: f64, n: usize| -> Vec<Vec<f64>> {
+            (0..n)
+                .map(|_| {
+                    (0..2)
+                        .map(|j| {
+                            let e: f64 = rand_distr::Distribution::sample(&rand_distr::StandardNormal, &mut rng);
+                            if j == 0 { centre + e } else { e }
+                        })
+                        .collect()
+                })
+                .collect()
+        };
+        let (small, large) = (draw(0.0, 40), draw(1.5, 360));
+        let (small, large): (Vec<&[f64]>, Vec<&[f64]>) =
+            (small.iter().map(|x| &x[..]).collect(), large.iter().map(|x| &x[..]).collect());
+        let recall = |balanced: bool| {
+            let params = SvmParams { balanced, ..SvmParams::seed() };
+            let svm = BinarySvm::train(&small, &large, &params, "test".into()).unwrap();
+            small.iter().filter(|x| svm.decision(x) >= 0.0).count()
+        };
+        let (equal, balanced) = (recall(false), recall(true));
+        assert!(equal < 10 && balanced > 30, "small-side examples kept: equal C {equal}, balanced {balanced} of 40");
     }
 
     /// On residual features (150 trials per class, RNG seed 11) the tree merges the least separable

@@ -17,9 +17,7 @@ use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSour
 use crate::engine::scenario::{GridDigits, draw};
 use crate::engine::streams::{Substream, noise_rng, trial_rng};
 use crate::fault::FaultMode;
-use crate::methods::accelerometer::ekf_svm::{
-    FaultClass, ResidualSample, detection_statistics, first_alarm, simulate_trial, window_start,
-};
+use crate::methods::accelerometer::ekf_svm::{ClassifierWindow, FaultClass, ResidualSample, simulate_trial};
 use crate::methods::accelerometer::study::AccelerometerStudy;
 use trial::*;
 
@@ -52,8 +50,8 @@ impl Study for AccelerometerStudy {
     fn simulate(&self, trial: u64, detector: Option<&str>, out: &Path, inputs: Inputs) -> Result<(), RunError> {
         if let Some(name) = detector {
             return Err(RunError::Invalid(format!(
-                "--detector {name:?}: an accelerometer trial is classified by both classifiers ({}) at once; leave it out",
-                DETECTORS.join(", ")
+                "--detector {name:?}: an accelerometer trial is classified by every classifier ({}) at once; leave it out",
+                self.classifiers.iter().map(|c| c.name.as_str()).collect::<Vec<_>>().join(", ")
             )));
         }
         commands::simulate(self, trial, out, inputs.classifiers)
@@ -134,25 +132,31 @@ impl<'a> AccelerometerTrials<'a> {
         let outcome = (|| {
             let trace = simulate_trial(scenario, &s.design.ekf, &mut rng).map_err(|e| e.to_string())?;
             let example = s.design.example(&trace, spec.onset_s, spec.class).map_err(|e| e.to_string())?;
-            let mut predicted = [FaultClass::Normal; 2];
-            for (d, p) in predicted.iter_mut().enumerate() {
-                *p = self.classifiers.get(d).classify(&example.features).map_err(|e| e.to_string())?;
-            }
-            let statistics = detection_statistics(&trace.samples, &s.detection);
-            on_trace(&trace.samples, &statistics);
-            let threshold = s.detection.threshold;
-            let settle = window_start(s.settle_s, 0.0, dt_s);
-            let onset = window_start(spec.onset_s, 0.0, dt_s);
-            let at = |k: usize| k as f64 * dt_s;
-            let (false_alarm_s, alarm_s) = if spec.class == FaultClass::Normal {
-                (first_alarm(&statistics, threshold, settle).map(at), None)
-            } else {
-                (
-                    first_alarm(&statistics, threshold, settle).filter(|&k| k < onset).map(at),
-                    first_alarm(&statistics, threshold, onset).map(at),
-                )
+            let alarms = Alarms::of(s, &trace, spec.class, spec.onset_s);
+            on_trace(&trace.samples, &alarms.statistics);
+            let online = match alarms.online_window(spec.class) {
+                Some(k) => Some(s.design.example_at(&trace, k, spec.class).map_err(|e| e.to_string())?),
+                None => None,
             };
-            Ok(AccelOutcome { predicted, false_alarm_s, alarm_s, health: trace.health })
+            let predicted = self
+                .classifiers
+                .classifiers
+                .iter()
+                .map(|c| match (c.window, &online) {
+                    (ClassifierWindow::Onset, _) => c.classifier.classify(&example.features),
+                    (ClassifierWindow::Alarm, Some(at_alarm)) => c.classifier.classify(&at_alarm.features),
+                    // No alarm, nothing to classify: the system carries on as healthy.
+                    (ClassifierWindow::Alarm, None) => Ok(FaultClass::Normal),
+                })
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|e| e.to_string())?;
+            let at = |k: usize| k as f64 * dt_s;
+            Ok(AccelOutcome {
+                predicted,
+                false_alarm_s: alarms.false_alarm.map(at),
+                alarm_s: alarms.alarm.map(at),
+                health: trace.health,
+            })
         })();
         AccelTrialResult { spec, outcome }
     }
@@ -179,10 +183,10 @@ impl TrialSource for AccelerometerTrials<'_> {
             fault_size_bins: [("bias", ranges.bias_mps2), ("gain", ranges.gain_deviation)]
                 .map(|(kind, [lo, hi])| (kind.to_string(), Factor::Range { lo, hi, bins: 3 }.bin_edges()))
                 .into(),
-            ..Manifest::of(KIND, &s.header, s.trials, DETECTORS.iter().copied())
+            ..Manifest::of(KIND, &s.header, s.trials, s.classifiers.iter().map(|c| c.name.as_str()))
         }
     }
     fn frame(&self, results: &[AccelTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {
-        records::frame(results)
+        records::frame(results, &self.classifiers.classifiers.iter().map(|c| c.name.as_str()).collect::<Vec<_>>())
     }
 }

@@ -1,10 +1,12 @@
-//! The classifiers' `trials.parquet` (method 003): one row per (trial, classifier), `tree` (the seed's
-//! bottom-up SVM decision tree) and `flat` (one-against-one). The core columns of
+//! The classifiers' `trials.parquet` (method 003): one row per (trial, classifier), by default `tree`
+//! (the seed's bottom-up SVM decision tree) and `flat` (one-against-one), else the deck's
+//! `[[classifier]]`s. The core columns of
 //! [`crate::engine::schema`] come first, where `kind` is the true class (`normal`, `bias`, `gain`,
 //! `stuck`; a `normal` trial is fault-free), `target` the faulty axis (`x`, `y`, `z`), `size` the bias
 //! (m/s^2) or the gain factor and `size_bin` the centre of its third of the deck's range of \|bias\|
 //! or \|factor - 1\|, `onset_s` the onset (nominal for normal trials), `noise_bin` the noise scale
-//! itself, `isolated` the class the classifier names from the window after the onset, alarms and delay
+//! itself, `isolated` the class the classifier names from its window (after the onset, or from the
+//! alarm; an online classifier without an alarm names `normal`), alarms and delay
 //! those of the residual detector (either classifier's rows), `failure` why the trial could not be
 //! simulated or classified. Then:
 //!
@@ -18,7 +20,7 @@ use std::borrow::Cow;
 use polars::prelude::*;
 
 use super::ekf_svm::FaultClass;
-use super::trial::{AccelTrialResult, DETECTORS};
+use super::trial::AccelTrialResult;
 use crate::engine::schema::{CoreColumns, Outcome};
 
 /// The unit of a class's size.
@@ -30,15 +32,16 @@ fn size_unit(class: FaultClass) -> &'static str {
     }
 }
 
-/// The rows of `results` (trial order); see the module docs.
-pub fn frame(results: &[AccelTrialResult]) -> PolarsResult<DataFrame> {
-    let n = results.len() * DETECTORS.len();
+/// The rows of `results` (trial order) for the classifiers `names` (the outcomes' order); see the
+/// module docs.
+pub fn frame(results: &[AccelTrialResult], names: &[&str]) -> PolarsResult<DataFrame> {
+    let n = results.len() * names.len();
     let mut core = CoreColumns::new(Vec::new(), n);
     let (mut alarm, mut unusable) = (Vec::with_capacity(n), Vec::with_capacity(n));
     for r in results {
         let s = &r.spec;
         let fault_free = s.class == FaultClass::Normal;
-        for (d, name) in DETECTORS.iter().enumerate() {
+        for (d, name) in names.iter().enumerate() {
             let o = r.outcome.as_ref().ok();
             let predicted: Option<FaultClass> = o.map(|o| o.predicted[d]);
             core.push(Outcome {
@@ -95,9 +98,9 @@ mod tests {
             onset_s: 10.0,
             noise_scale: 1.0,
         };
-        // `predicted` is in DETECTORS order: tree, flat.
+        // `predicted` is in the classifiers' order: tree, flat.
         let out = |tree, flat, alarm: Option<f64>, false_alarm: Option<f64>| AccelOutcome {
-            predicted: [tree, flat],
+            predicted: vec![tree, flat],
             false_alarm_s: false_alarm,
             alarm_s: alarm,
             health: Default::default(),
@@ -114,12 +117,12 @@ mod tests {
             },
             AccelTrialResult { spec: spec(3, Bias, Some(0), 0.3), outcome: Err("unusable".into()) },
         ];
-        let df = frame(&results).unwrap();
+        let df = frame(&results, &["tree", "flat"]).unwrap();
         assert_eq!(df.height(), 8);
         let manifest = Manifest {
             kind: super::super::KIND.into(),
             trials: 4,
-            detectors: DETECTORS.iter().map(|d| d.to_string()).collect(),
+            detectors: vec!["tree".into(), "flat".into()],
             ..Manifest::unstarted()
         };
         let s = Summarized::new(df, manifest, &super::super::METHOD.summary);

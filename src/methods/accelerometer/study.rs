@@ -11,6 +11,10 @@
 //!                    noise_scale (a number or { values }: the training trials cycle through them),
 //!                    kernel = "gaussian" (gamma) | "linear", c
 //! [detection]        window_samples, threshold (on T = n |mean residual|^2 / sigma_z^2), settle_s
+//! [[classifier]]     optional, each a detector: name, scheme = "tree" (the patent's order) |
+//!                    "tree_most_separable_first" | "flat", window = "onset" (the true onset: an oracle,
+//!                    default) | "alarm" (the residual detector's: online), balanced (class weights)
+//!                    (default: "tree" and "flat" on the onset window)
 //! [monte_carlo]      trials, classes (default normal, bias, gain, stuck: cycled over the trial index),
 //!                    noise_scale (factor on the white-noise sigmas)
 //! ```
@@ -21,7 +25,9 @@ use serde::Deserialize;
 
 use crate::engine::deck::{DeckError, Factor, FromDeck, MonteCarloRules, StudyHeader, open_deck};
 use crate::engine::deck::{FactorSpec, StudySection};
-use crate::methods::accelerometer::ekf_svm::{DetectionParams, FaultClass, SvmKernel, SvmParams, TrialDesign};
+use crate::methods::accelerometer::ekf_svm::{
+    ClassifierSpec, ClassifierWindow, DetectionParams, FaultClass, Scheme, SvmKernel, SvmParams, TrialDesign,
+};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -31,7 +37,18 @@ struct AccelerometerDeck {
     faults: Option<FaultsSection>,
     training: Option<TrainingSection>,
     detection: Option<DetectionSection>,
+    #[serde(default)]
+    classifier: Vec<ClassifierSection>,
     monte_carlo: Option<crate::engine::deck::MonteCarloSection>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ClassifierSection {
+    name: String,
+    scheme: String,
+    window: Option<String>,
+    balanced: Option<bool>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -98,6 +115,8 @@ pub struct AccelerometerStudy {
     pub trials: u64,
     /// Classes of the evaluation trials, cycled over the trial index.
     pub classes: Vec<FaultClass>,
+    /// The classifiers (the study's detectors), in deck order.
+    pub classifiers: Vec<ClassifierSpec>,
     pub noise_scale: Factor,
 }
 
@@ -238,6 +257,41 @@ impl FromDeck for AccelerometerStudy {
         };
         let (trials, noise_scale) = (common.trials, common.noise_scale);
 
+        let classifiers = if deck.classifier.is_empty() {
+            ClassifierSpec::defaults()
+        } else {
+            v.detector_names("classifier", deck.classifier.iter().map(|c| c.name.as_str()))?;
+            let mut specs = Vec::with_capacity(deck.classifier.len());
+            for (i, c) in deck.classifier.iter().enumerate() {
+                let field = |f: &str| format!("classifier[{i}].{f}");
+                let scheme = match c.scheme.as_str() {
+                    "tree" => Scheme::Tree,
+                    "tree_most_separable_first" => Scheme::TreeMostSeparableFirst,
+                    "flat" => Scheme::OneVsOne,
+                    other => {
+                        return Err(v.err(
+                            field("scheme"),
+                            format!("{other:?}: allowed \"tree\", \"tree_most_separable_first\", \"flat\""),
+                        ));
+                    }
+                };
+                let window = match c.window.as_deref() {
+                    None | Some("onset") => ClassifierWindow::Onset,
+                    Some("alarm") => ClassifierWindow::Alarm,
+                    Some(other) => {
+                        return Err(v.err(field("window"), format!("{other:?}: allowed \"onset\", \"alarm\"")));
+                    }
+                };
+                specs.push(ClassifierSpec {
+                    name: c.name.clone(),
+                    scheme,
+                    window,
+                    balanced: c.balanced.unwrap_or(false),
+                });
+            }
+            specs
+        };
+
         Ok(AccelerometerStudy {
             header,
             design,
@@ -246,6 +300,7 @@ impl FromDeck for AccelerometerStudy {
             settle_s,
             trials,
             classes,
+            classifiers,
             noise_scale,
         })
     }

@@ -3,18 +3,21 @@
 //!
 //! Training ([`TrainedClassifiers::train`]): `trials_per_class` trials of each class from the training
 //! seed (trial j, of class `j mod 4` and the `(j / 4) mod n`-th of the n training noise scales, draws
-//! everything from stream j of that seed), the features of each
-//! trial's window after its onset, then the bottom-up SVM decision tree and the flat one-against-one SVM
-//! on the same examples. Both are saved together to a JSON file and loaded from it, so a study can be
-//! evaluated on fresh trials (the study's seed) with exactly the classifiers a file holds.
+//! everything from stream j of that seed), the features of each trial's window after its onset (and,
+//! for classifiers of the alarm's window, of the window from the residual detector's alarm), then each
+//! classifier of the deck (by default the bottom-up SVM decision tree and the flat one-against-one SVM)
+//! on its window's examples. All are saved together to a JSON file and loaded from it, so a study can
+//! be evaluated on fresh trials (the study's seed) with exactly the classifiers a file holds.
 //!
 //! An evaluation trial: its class from the grid (the deck's classes cycled over the trial index, then the
 //! noise scale), its fault, onset and sensor biases from the trial's fault stream, its sensor noise from
 //! the sensor stream; the attitude EKF over the whole flight; then
-//! - classification: both classifiers on the features of the window the training used;
 //! - detection: the statistic `T` of the residual's windowed mean against the deck's threshold, from
 //!   `settle_s` on: a false alarm before the onset (anywhere when the class is normal), a detection at
-//!   or after it.
+//!   or after it;
+//! - classification: each classifier on the features of its window: after the true onset (an oracle),
+//!   or from the alarm (online: a faulty trial's alarm at or after the onset, a normal trial's false
+//!   alarm; without one the trial is called normal, as a system that classifies on alarm would).
 
 use std::path::Path;
 
@@ -23,10 +26,13 @@ use serde::{Deserialize, Serialize};
 use crate::engine::runner::{RunError, write_atomically};
 use crate::engine::streams::{Substream, trial_rng};
 use crate::methods::accelerometer::attitude::AttitudeHealth;
-use crate::methods::accelerometer::ekf_svm::{Classifier, FaultClass, FeatureParams, Scheme};
+use crate::methods::accelerometer::ekf_svm::{
+    Classifier, ClassifierWindow, Example, FaultClass, FeatureParams, ResidualTrace, SvmParams, detection_statistics,
+    first_alarm, simulate_trial, window_start,
+};
 use crate::methods::accelerometer::study::AccelerometerStudy;
 
-/// The two classifiers of a study, trained on the same examples, as a file holds them.
+/// The classifiers of a study, trained on examples of the same training trials, as a file holds them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TrainedClassifiers {
     /// The study they were trained for, and on what.
@@ -34,20 +40,59 @@ pub struct TrainedClassifiers {
     pub training_seed: u64,
     pub trials_per_class: usize,
     pub noise_scales: Vec<f64>,
-    /// The bottom-up SVM decision tree (the seed's method).
-    pub tree: Classifier,
-    /// One binary SVM per pair of classes, majority vote.
-    pub flat: Classifier,
+    /// In the deck's `[[classifier]]` order.
+    pub classifiers: Vec<TrainedClassifier>,
 }
 
-/// The detectors of a study: the classifier schemes.
-pub const DETECTORS: [&str; 2] = ["tree", "flat"];
+/// One trained classifier with its name and window.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrainedClassifier {
+    pub name: String,
+    pub window: ClassifierWindow,
+    pub classifier: Classifier,
+}
+
+/// The residual detector on one trial: its statistic per sample, the first alarm before the onset (a
+/// false alarm; anywhere after `settle_s` for the normal class) and the first at or after it, as sample
+/// indices.
+pub struct Alarms {
+    pub statistics: Vec<f64>,
+    pub false_alarm: Option<usize>,
+    pub alarm: Option<usize>,
+}
+
+impl Alarms {
+    pub fn of(study: &AccelerometerStudy, trace: &ResidualTrace, class: FaultClass, onset_s: f64) -> Alarms {
+        let statistics = detection_statistics(&trace.samples, &study.detection);
+        let threshold = study.detection.threshold;
+        let settle = window_start(study.settle_s, 0.0, trace.dt_s);
+        let onset = window_start(onset_s, 0.0, trace.dt_s);
+        let (false_alarm, alarm) = if class == FaultClass::Normal {
+            (first_alarm(&statistics, threshold, settle), None)
+        } else {
+            (
+                first_alarm(&statistics, threshold, settle).filter(|&k| k < onset),
+                first_alarm(&statistics, threshold, onset),
+            )
+        };
+        Alarms { statistics, false_alarm, alarm }
+    }
+
+    /// Where an online classifier's window starts: the alarm (a normal trial's false alarm); none
+    /// without one.
+    pub fn online_window(&self, class: FaultClass) -> Option<usize> {
+        if class == FaultClass::Normal { self.false_alarm } else { self.alarm }
+    }
+}
 
 impl TrainedClassifiers {
-    /// Trains both classifiers on the study's training trials (module docs).
+    /// Trains every classifier of the study on its training trials (module docs): the onset window of
+    /// each trial, and for online classifiers the window from the alarm (a faulty trial the detector
+    /// misses gives none; a normal trial its false alarm's window, or without one its nominal onset's).
     pub fn train(study: &AccelerometerStudy) -> Result<TrainedClassifiers, String> {
         let t = &study.training;
-        let mut examples = Vec::with_capacity(4 * t.trials_per_class);
+        let online = study.classifiers.iter().any(|c| c.window == ClassifierWindow::Alarm);
+        let (mut at_onset, mut at_alarm) = (Vec::with_capacity(4 * t.trials_per_class), Vec::new());
         let classes = FaultClass::ALL.len() as u64;
         let designs: Vec<_> = t
             .noise_scales
@@ -62,21 +107,48 @@ impl TrainedClassifiers {
             let class = FaultClass::ALL[(j % classes) as usize];
             let design = &designs[((j / classes) % designs.len() as u64) as usize];
             let mut rng = trial_rng(t.seed, j, Substream::Scenario);
-            let example = design
-                .draw_example(class, &mut rng)
-                .map_err(|e| format!("training trial {j} ({}): {e}", class.name()))?;
-            examples.push(example);
+            let what = |e: String| format!("training trial {j} ({}): {e}", class.name());
+            let (scenario, onset_s) = design.draw_trial(class, &mut rng);
+            let trace = simulate_trial(scenario, &design.ekf, &mut rng).map_err(|e| what(e.to_string()))?;
+            at_onset.push(design.example(&trace, onset_s, class).map_err(|e| what(e.to_string()))?);
+            if online {
+                let alarms = Alarms::of(study, &trace, class, onset_s);
+                let start = match (alarms.online_window(class), class) {
+                    (Some(k), _) => Some(k),
+                    (None, FaultClass::Normal) => Some(window_start(onset_s, 0.0, trace.dt_s)),
+                    (None, _) => None,
+                };
+                if let Some(k) = start {
+                    at_alarm.push(design.example_at(&trace, k, class).map_err(|e| what(e.to_string()))?);
+                }
+            }
         }
-        let train = |scheme| {
-            Classifier::train(scheme, &examples, study.design.features, t.svm).map_err(|e| format!("training: {e}"))
+        let train = |examples: &[Example], spec: &crate::methods::accelerometer::ekf_svm::ClassifierSpec| {
+            let svm = SvmParams { balanced: spec.balanced, ..t.svm };
+            Classifier::train(spec.scheme, examples, study.design.features, svm)
+                .map_err(|e| format!("training {} ({} window): {e}", spec.name, spec.window.name()))
         };
+        let classifiers = study
+            .classifiers
+            .iter()
+            .map(|spec| {
+                let examples = match spec.window {
+                    ClassifierWindow::Onset => &at_onset,
+                    ClassifierWindow::Alarm => &at_alarm,
+                };
+                Ok(TrainedClassifier {
+                    name: spec.name.clone(),
+                    window: spec.window,
+                    classifier: train(examples, spec)?,
+                })
+            })
+            .collect::<Result<Vec<_>, String>>()?;
         Ok(TrainedClassifiers {
             study: study.header.name.clone(),
             training_seed: t.seed,
             trials_per_class: t.trials_per_class,
             noise_scales: t.noise_scales.clone(),
-            tree: train(Scheme::Tree)?,
-            flat: train(Scheme::OneVsOne)?,
+            classifiers,
         })
     }
 
@@ -96,8 +168,20 @@ impl TrainedClassifiers {
         let trained: TrainedClassifiers = serde_json::from_str(&text).map_err(|e| {
             RunError::Invalid(format!("{}: not classifiers written by `fdimc train` ({e})", path.display()))
         })?;
+        let names: Vec<&str> = trained.classifiers.iter().map(|c| c.name.as_str()).collect();
+        let deck_names: Vec<&str> = study.classifiers.iter().map(|c| c.name.as_str()).collect();
+        if names != deck_names {
+            return Err(RunError::Invalid(format!(
+                "{}: holds the classifiers [{}], but {} declares [{}]: train for this deck (`fdimc train {}`)",
+                path.display(),
+                names.join(", "),
+                study.header.path.display(),
+                deck_names.join(", "),
+                study.header.path.display()
+            )));
+        }
         let wanted = study.design.features;
-        if let Some(c) = [&trained.tree, &trained.flat].into_iter().find(|c| c.features != wanted) {
+        if let Some(c) = trained.classifiers.iter().map(|c| &c.classifier).find(|c| c.features != wanted) {
             let f = |p: &FeatureParams| format!("{} samples every {} s", p.window_len, p.dt_s);
             return Err(RunError::Invalid(format!(
                 "{}: trained for {:?} on windows of {}, but {} computes windows of {}: train for this deck (`fdimc train {}`)",
@@ -110,10 +194,6 @@ impl TrainedClassifiers {
             )));
         }
         Ok(trained)
-    }
-
-    pub(crate) fn get(&self, detector: usize) -> &Classifier {
-        if detector == 0 { &self.tree } else { &self.flat }
     }
 }
 
@@ -136,8 +216,8 @@ pub struct AccelTrialSpec {
 /// How one trial went.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AccelOutcome {
-    /// Predicted class per detector ([`DETECTORS`] order).
-    pub predicted: [FaultClass; 2],
+    /// Predicted class per classifier (the deck's order).
+    pub predicted: Vec<FaultClass>,
     pub false_alarm_s: Option<f64>,
     pub alarm_s: Option<f64>,
     pub health: AttitudeHealth,
@@ -163,8 +243,13 @@ mod tests {
             training_seed: 0,
             trials_per_class: 0,
             noise_scales: vec![1.0],
-            tree: empty_classifier(),
-            flat: empty_classifier(),
+            classifiers: ["tree", "flat"]
+                .map(|name| TrainedClassifier {
+                    name: name.into(),
+                    window: ClassifierWindow::Onset,
+                    classifier: empty_classifier(),
+                })
+                .into(),
         };
         let trials = AccelerometerTrials::new(&study, &classifiers);
         let r = &study.design.ranges;
@@ -204,6 +289,7 @@ mod tests {
                 class: if k < 4 { FaultClass::Normal } else { FaultClass::Bias },
             })
             .collect();
+        use crate::methods::accelerometer::ekf_svm::Scheme;
         Classifier::train(Scheme::OneVsOne, &examples, FeatureParams::seed(), SvmParams::seed()).unwrap()
     }
 }
