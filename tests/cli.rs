@@ -236,6 +236,45 @@ fn online_classifiers_classify_only_what_the_detector_alarmed_on() {
     assert_eq!(detectors.height(), 3);
 }
 
+/// A filter tuned to the noise it meets (issue 21.6): on 200 trials of the noise-tuned deck, at twice the
+/// nominal noise the detector raises no false alarm and the tree, trained on nominal sensors only,
+/// classifies most trials; the nominal deck on the same trials alarms on most healthy flights and
+/// classifies fewer than half.
+#[test]
+fn a_filter_tuned_to_the_noise_keeps_the_classes_apart_at_twice_the_noise() {
+    use polars::prelude::*;
+    let tmp = tempfile::tempdir().unwrap();
+    let at_twice_the_noise = |deck: &str| -> (f64, u32) {
+        let dir = tmp.path().join(deck);
+        ok(&fdimc(&[
+            "run",
+            &format!("studies/{deck}.toml"),
+            "--trials",
+            "200",
+            "--quiet",
+            "--out",
+            dir.to_str().unwrap(),
+        ]));
+        let df = read_frame(&dir.join("trials.parquet"))
+            .lazy()
+            .filter(col("detector").eq(lit("tree")).and(col("noise_bin").eq(lit(2.0))))
+            .select([
+                col("isolated_correctly").cast(DataType::Float64).mean().alias("accuracy"),
+                col("false_alarm_s").is_not_null().cast(DataType::UInt32).sum().alias("false_alarms"),
+                len().alias("n"),
+            ])
+            .collect()
+            .unwrap();
+        assert_eq!(df.column("n").unwrap().u32().unwrap().get(0), Some(100));
+        let accuracy = df.column("accuracy").unwrap().f64().unwrap().get(0).unwrap();
+        (accuracy, df.column("false_alarms").unwrap().u32().unwrap().get(0).unwrap())
+    };
+    let (tuned, tuned_alarms) = at_twice_the_noise("seed003_noise_tuned");
+    let (nominal, nominal_alarms) = at_twice_the_noise("seed003_online");
+    assert!(tuned > 0.75 && tuned_alarms == 0, "tuned: accuracy {tuned}, false alarms {tuned_alarms}");
+    assert!(nominal < 0.5 && nominal_alarms > 20, "nominal: accuracy {nominal}, false alarms {nominal_alarms}");
+}
+
 /// Fault directions 1e-7 apart make the eigenvectors nearly parallel: validate and design warn.
 #[test]
 fn nearly_parallel_fault_directions_are_warned_about() {
@@ -309,7 +348,7 @@ fn bad_decks_exit_2_naming_file_and_field() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let catalogue: Catalogue =
         toml::from_str(&std::fs::read_to_string(root.join("tests/data/bad_decks.toml")).unwrap()).unwrap();
-    assert_eq!(catalogue.case.len(), 112);
+    assert_eq!(catalogue.case.len(), 114);
     let dir = tempfile::tempdir().unwrap();
     for (i, c) in catalogue.case.iter().enumerate() {
         let what = format!("case {i} ({}, {})", c.deck, c.what.as_deref().unwrap_or(&c.to));

@@ -178,6 +178,10 @@ pub struct FeatureParams {
     pub window_len: usize,
     /// Floor of the gravity-share swing in `sensitivity_j` (module docs).
     pub sensitivity_floor: f64,
+    /// `noise_j` over the same RMS of the window before (each trial's own pre-fault level) rather than
+    /// in absolute units, so that noisier sensors do not read as a fault's signature.
+    #[serde(default)]
+    pub relative_noise: bool,
 }
 
 impl FeatureParams {
@@ -187,7 +191,7 @@ impl FeatureParams {
     /// seed manoeuvre turns the gravity direction by up to some 30 deg in a second (roll and pitch rates
     /// peak at 24-25 deg/s), enough for the slope and sensitivity features.
     pub fn seed() -> Self {
-        FeatureParams { dt_s: 0.01, window_len: 100, sensitivity_floor: 0.02 }
+        FeatureParams { dt_s: 0.01, window_len: 100, sensitivity_floor: 0.02, relative_noise: false }
     }
 }
 
@@ -263,6 +267,31 @@ pub fn features(window: &[ResidualSample], params: &FeatureParams) -> Result<Fea
         let (sensitivity, _) = regression(&g, &e, params.sensitivity_floor);
         let f = &mut out[axis * FEATURES_PER_AXIS..(axis + 1) * FEATURES_PER_AXIS];
         f.copy_from_slice(&[e.iter().sum::<f64>() / n, slope, noise, sensitivity]);
+    }
+    Ok(out)
+}
+
+/// [`features`] of `window`, with `noise_j` over the RMS about its own line of `reference` (the samples
+/// before the window) when `params.relative_noise`.
+pub fn features_with_reference(
+    window: &[ResidualSample],
+    reference: &[ResidualSample],
+    params: &FeatureParams,
+) -> Result<Features, ClassifierError> {
+    let mut out = features(window, params)?;
+    if params.relative_noise {
+        if reference.len() < 3 {
+            return Err(ClassifierError::WindowLength { expected: 3, got: reference.len() });
+        }
+        let t: Vec<f64> = (0..reference.len()).map(|i| i as f64 * params.dt_s).collect();
+        for axis in 0..3 {
+            let e: Vec<f64> = reference.iter().map(|s| s.residual[axis]).collect();
+            let (_, level) = regression(&t, &e, 0.0);
+            // A reference with no noise at all (a stuck sensor before the window) leaves the value as it is.
+            if level > 0.0 {
+                out[axis * FEATURES_PER_AXIS + 2] /= level;
+            }
+        }
     }
     Ok(out)
 }
@@ -424,6 +453,9 @@ pub struct TrialDesign {
     pub features: FeatureParams,
     /// The classification window starts this long after the onset (s).
     pub window_delay_s: f64,
+    /// The filter's `Q` and `R` (and the detector's `sigma_z`) follow the trial's noise scale, as the
+    /// patent sets them from the actual sensor noise; false: nominal whatever the noise.
+    pub filter_knows_noise: bool,
 }
 
 impl TrialDesign {
@@ -436,6 +468,7 @@ impl TrialDesign {
             ekf: AttitudeEkfParams::seed(),
             features: FeatureParams::seed(),
             window_delay_s: 0.0,
+            filter_knows_noise: false,
         }
     }
 
@@ -476,13 +509,34 @@ impl TrialDesign {
             .samples
             .get(start..end)
             .ok_or(ClassifierError::TrialTooShort { end, samples: trace.samples.len() })?;
-        Ok(Example { features: features(window, &self.features)?, class })
+        let reference = &trace.samples[start.saturating_sub(self.features.window_len)..start];
+        Ok(Example { features: features_with_reference(window, reference, &self.features)?, class })
+    }
+
+    /// The filter of a trial at `noise_scale`: nominal, or scaled with the noise when the filter knows it.
+    pub fn ekf_for(&self, noise_scale: f64) -> AttitudeEkfParams {
+        if !self.filter_knows_noise {
+            return self.ekf;
+        }
+        AttitudeEkfParams {
+            gyro_noise_std_rad_s: self.ekf.gyro_noise_std_rad_s * noise_scale,
+            accel_noise_std_mps2: self.ekf.accel_noise_std_mps2 * noise_scale,
+            ..self.ekf
+        }
+    }
+
+    /// The detector of a trial at `noise_scale`: its `sigma_z` follows the filter's `R`.
+    pub fn detection_for(&self, detection: &DetectionParams, noise_scale: f64) -> DetectionParams {
+        if !self.filter_knows_noise {
+            return *detection;
+        }
+        DetectionParams { residual_std: detection.residual_std * noise_scale, ..*detection }
     }
 
     /// [`Self::draw_trial`], [`simulate_trial`] and [`Self::example`] with one RNG, in that order.
     pub fn draw_example<R: Rng + ?Sized>(&self, class: FaultClass, rng: &mut R) -> Result<Example, TrialError> {
         let (scenario, onset_s) = self.draw_trial(class, rng);
-        let trace = simulate_trial(scenario, &self.ekf, rng)?;
+        let trace = simulate_trial(scenario, &self.ekf_for(self.scenario.noise_scale), rng)?;
         Ok(self.example(&trace, onset_s, class)?)
     }
 }
@@ -1093,7 +1147,7 @@ mod tests {
 
     #[test]
     fn features_follow_their_definitions() {
-        let params = FeatureParams { dt_s: 0.1, window_len: 50, sensitivity_floor: 0.0 };
+        let params = FeatureParams { dt_s: 0.1, window_len: 50, sensitivity_floor: 0.0, relative_noise: false };
         // x: a line 0.01 + 0.2 t; y: -0.5 times the gravity share plus 0.3; z: alternating +-0.01.
         let window: Vec<ResidualSample> = (0..50)
             .map(|i| {
@@ -1117,6 +1171,20 @@ mod tests {
         let mut bad = window.clone();
         bad[7].residual[1] = f64::NAN;
         assert_eq!(features(&bad, &params), Err(ClassifierError::NonFiniteSample { index: 7 }));
+        // Relative noise: z's 0.01 over the same alternation of 0.04 before the window is 0.25; x's
+        // reference is a line (no noise), which leaves x's value; without the option nothing changes.
+        let reference: Vec<ResidualSample> = (0..20)
+            .map(|i| ResidualSample {
+                residual: [0.1 * i as f64, 0.0, if i % 2 == 0 { 0.04 } else { -0.04 }],
+                predicted: [0.0; 3],
+            })
+            .collect();
+        let relative = FeatureParams { relative_noise: true, ..params };
+        let r = features_with_reference(&window, &reference, &relative).unwrap();
+        assert!((r[10] - 0.25).abs() < 0.01, "{}", r[10]);
+        assert_eq!((r[2], r[0], r[1]), (f[2], f[0], f[1]));
+        assert_eq!(features_with_reference(&window, &reference, &params).unwrap(), f);
+        assert!(features_with_reference(&window, &reference[..2], &relative).is_err());
         assert_eq!(window_start(8.0, 0.0, 0.01), 800);
         assert_eq!(window_start(8.001, 0.5, 0.01), 851);
     }

@@ -130,9 +130,10 @@ impl<'a> AccelerometerTrials<'a> {
         let dt_s = scenario.dt_s;
         let mut rng = noise_rng(s.header.seed, trial, Substream::SensorNoise);
         let outcome = (|| {
-            let trace = simulate_trial(scenario, &s.design.ekf, &mut rng).map_err(|e| e.to_string())?;
+            let ekf = s.design.ekf_for(spec.noise_scale);
+            let trace = simulate_trial(scenario, &ekf, &mut rng).map_err(|e| e.to_string())?;
             let example = s.design.example(&trace, spec.onset_s, spec.class).map_err(|e| e.to_string())?;
-            let alarms = Alarms::of(s, &trace, spec.class, spec.onset_s);
+            let alarms = Alarms::of(s, &trace, spec.class, spec.onset_s, spec.noise_scale);
             on_trace(&trace.samples, &alarms.statistics);
             let online = match alarms.online_window(spec.class) {
                 Some(k) => Some(s.design.example_at(&trace, k, spec.class).map_err(|e| e.to_string())?),

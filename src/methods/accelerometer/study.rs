@@ -9,8 +9,10 @@
 //!                    onset_s = [lo, hi]; a fault's axis and sign are drawn
 //! [training]         trials_per_class, seed (the training trials' own seed: fresh trials are another),
 //!                    noise_scale (a number or { values }: the training trials cycle through them),
-//!                    kernel = "gaussian" (gamma) | "linear", c
-//! [detection]        window_samples, threshold (on T = n |mean residual|^2 / sigma_z^2), settle_s
+//!                    kernel = "gaussian" (gamma) | "linear", c, noise_features = "absolute" |
+//!                    "relative" (to the window before)
+//! [detection]        window_samples, threshold (on T = n |mean residual|^2 / sigma_z^2), settle_s,
+//!                    filter_noise = "nominal" | "actual" (the filter's Q, R and sigma_z follow the noise)
 //! [[classifier]]     optional, each a detector: name, scheme = "tree" (the patent's order) |
 //!                    "tree_most_separable_first" | "flat", window = "onset" (the true onset: an oracle,
 //!                    default) | "alarm" (the residual detector's: online), balanced (class weights)
@@ -69,6 +71,7 @@ struct FaultsSection {
 #[serde(deny_unknown_fields)]
 struct TrainingSection {
     trials_per_class: Option<usize>,
+    noise_features: Option<String>,
     seed: Option<u64>,
     kernel: Option<String>,
     gamma: Option<f64>,
@@ -80,6 +83,7 @@ struct TrainingSection {
 #[serde(deny_unknown_fields)]
 struct DetectionSection {
     window_samples: Option<usize>,
+    filter_noise: Option<String>,
     threshold: Option<f64>,
     settle_s: Option<f64>,
 }
@@ -208,8 +212,29 @@ impl FromDeck for AccelerometerStudy {
             ));
         }
 
+        match t.and_then(|t| t.noise_features.as_deref()) {
+            None | Some("absolute") => {}
+            Some("relative") => design.features.relative_noise = true,
+            Some(other) => {
+                return Err(v.err(
+                    "training.noise_features",
+                    format!("{other:?}: allowed \"absolute\" (default) or \"relative\" (to the window before)"),
+                ));
+            }
+        }
+
         let mut detection = DetectionParams::seed();
         let d = deck.detection.as_ref();
+        match d.and_then(|d| d.filter_noise.as_deref()) {
+            None | Some("nominal") => {}
+            Some("actual") => design.filter_knows_noise = true,
+            Some(other) => {
+                return Err(v.err(
+                    "detection.filter_noise",
+                    format!("{other:?}: allowed \"nominal\" (default) or \"actual\" (Q, R and sigma_z follow the noise scale)"),
+                ));
+            }
+        }
         if let Some(n) = d.and_then(|d| d.window_samples) {
             if n == 0 {
                 return Err(v.err("detection.window_samples", "allowed at least 1"));
@@ -316,5 +341,23 @@ mod tests {
         assert_eq!(study.design, TrialDesign::seed());
         assert_eq!(study.classes, FaultClass::ALL);
         assert_ne!(study.training.seed, study.header.seed);
+    }
+
+    /// The noise-tuned deck: the filter and the detector follow the noise scale, the noise features are
+    /// relative; everything else as the online deck.
+    #[test]
+    fn the_noise_tuned_deck_scales_the_filter_and_the_detector() {
+        let tuned = AccelerometerStudy::bundled("seed003_noise_tuned.toml");
+        let online = AccelerometerStudy::bundled("seed003_online.toml");
+        assert!(tuned.design.filter_knows_noise && tuned.design.features.relative_noise);
+        assert!(!online.design.filter_knows_noise && !online.design.features.relative_noise);
+        assert_eq!(tuned.classifiers, online.classifiers);
+        let (ekf, nominal) = (tuned.design.ekf_for(2.0), tuned.design.ekf);
+        assert_eq!(ekf.accel_noise_std_mps2, 2.0 * nominal.accel_noise_std_mps2);
+        assert_eq!(ekf.gyro_noise_std_rad_s, 2.0 * nominal.gyro_noise_std_rad_s);
+        let detection = tuned.design.detection_for(&tuned.detection, 2.0);
+        assert_eq!(detection.residual_std, 2.0 * tuned.detection.residual_std);
+        assert_eq!(online.design.ekf_for(2.0), online.design.ekf);
+        assert_eq!(online.design.detection_for(&online.detection, 2.0), online.detection);
     }
 }

@@ -62,8 +62,16 @@ pub struct Alarms {
 }
 
 impl Alarms {
-    pub fn of(study: &AccelerometerStudy, trace: &ResidualTrace, class: FaultClass, onset_s: f64) -> Alarms {
-        let statistics = detection_statistics(&trace.samples, &study.detection);
+    /// The alarms of `trace`, a trial of `class` at `noise_scale` with its fault from `onset_s`.
+    pub fn of(
+        study: &AccelerometerStudy,
+        trace: &ResidualTrace,
+        class: FaultClass,
+        onset_s: f64,
+        noise_scale: f64,
+    ) -> Alarms {
+        let statistics =
+            detection_statistics(&trace.samples, &study.design.detection_for(&study.detection, noise_scale));
         let threshold = study.detection.threshold;
         let settle = window_start(study.settle_s, 0.0, trace.dt_s);
         let onset = window_start(onset_s, 0.0, trace.dt_s);
@@ -109,10 +117,11 @@ impl TrainedClassifiers {
             let mut rng = trial_rng(t.seed, j, Substream::Scenario);
             let what = |e: String| format!("training trial {j} ({}): {e}", class.name());
             let (scenario, onset_s) = design.draw_trial(class, &mut rng);
-            let trace = simulate_trial(scenario, &design.ekf, &mut rng).map_err(|e| what(e.to_string()))?;
+            let ekf = design.ekf_for(design.scenario.noise_scale);
+            let trace = simulate_trial(scenario, &ekf, &mut rng).map_err(|e| what(e.to_string()))?;
             at_onset.push(design.example(&trace, onset_s, class).map_err(|e| what(e.to_string()))?);
             if online {
-                let alarms = Alarms::of(study, &trace, class, onset_s);
+                let alarms = Alarms::of(study, &trace, class, onset_s, design.scenario.noise_scale);
                 let start = match (alarms.online_window(class), class) {
                     (Some(k), _) => Some(k),
                     (None, FaultClass::Normal) => Some(window_start(onset_s, 0.0, trace.dt_s)),
