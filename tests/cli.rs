@@ -275,6 +275,36 @@ fn a_filter_tuned_to_the_noise_keeps_the_classes_apart_at_twice_the_noise() {
     assert!(nominal < 0.5 && nominal_alarms > 20, "nominal: accuracy {nominal}, false alarms {nominal_alarms}");
 }
 
+/// Seed 001's unrelated jumps as a curve (issue 21.3), noise-free: the down-range gust's peak `|fhat|` is
+/// linear in its amplitude and equals the 10 % loss's at about 12.6 m/s; the cross-range gust hardly
+/// moves the pitch-rate residual. Trial 40 of the gust-sweep deck is the loss without gusts, 14 the full
+/// 15 m/s gusts and 37 half of them, both fault-free.
+#[test]
+fn a_down_range_gust_of_about_13_m_s_looks_like_a_10_percent_loss() {
+    use polars::prelude::*;
+    let tmp = tempfile::tempdir().unwrap();
+    let deck = "studies/seed001_gust_sweep.toml";
+    let peak = |trial: &str, from_s: f64, to_s: f64, want: &str| -> f64 {
+        let out = tmp.path().join(format!("t{trial}.parquet"));
+        let stdout = ok(&fdimc(&["simulate", deck, "--trial", trial, "--out", out.to_str().unwrap()]));
+        assert!(stdout.contains(want), "{stdout}");
+        let df = read_frame(&out)
+            .lazy()
+            .filter(col("t_s").gt_eq(lit(from_s)).and(col("t_s").lt(lit(to_s))))
+            .select([col("seed_fhat").max().alias("hi"), col("seed_fhat").min().alias("lo")])
+            .collect()
+            .unwrap();
+        let get = |c: &str| df.column(c).unwrap().f64().unwrap().get(0).unwrap();
+        get("hi").abs().max(get("lo").abs())
+    };
+    let loss = peak("40", 40.0, 48.0, "engine 1 loses 10.0 % from 40.000 s");
+    let (full, half) = (peak("14", 40.0, 48.0, "gust scale 1"), peak("37", 40.0, 48.0, "gust scale 0.5"));
+    assert!((full / half - 2.0).abs() < 0.02, "linear in the amplitude: {full:e} / {half:e}");
+    let equal_mps = 15.0 * loss / full;
+    assert!((12.0..13.2).contains(&equal_mps), "{equal_mps} m/s");
+    assert!(peak("14", 50.0, 58.0, "gust scale 1") < 1e-3 * loss, "the cross-range gust");
+}
+
 /// Fault directions 1e-7 apart make the eigenvectors nearly parallel: validate and design warn.
 #[test]
 fn nearly_parallel_fault_directions_are_warned_about() {

@@ -28,8 +28,11 @@ pub fn validate(study: &LaunchStudy) -> Result<(), RunError> {
     );
     for g in &study.gusts {
         println!(
-            "gust        {:?} {} m/s from {} s for {} s (1 - cosine; the filter knows no wind)",
-            g.axis, g.amplitude_mps, g.start_s, g.duration_s
+            "gust        {} {} m/s from {} s for {} s (1 - cosine; the filter knows no wind)",
+            g.axis.name(),
+            g.amplitude_mps,
+            g.start_s,
+            g.duration_s
         );
     }
     for d in &study.detectors {

@@ -307,6 +307,16 @@ pub enum GustAxis {
     CrossRange,
 }
 
+impl GustAxis {
+    /// The deck's spelling.
+    pub fn name(self) -> &'static str {
+        match self {
+            GustAxis::DownRange => "down_range",
+            GustAxis::CrossRange => "cross_range",
+        }
+    }
+}
+
 /// A discrete "1 - cosine" gust in the truth (the filter knows no wind): the air moves at
 /// `amplitude (1 - cos(2 pi (t - start) / duration)) / 2` along `axis` over `[start, start + duration)`.
 /// The aerodynamic moment it brings moves the pitch-rate residual with no engine at fault: the seed's
