@@ -875,6 +875,29 @@ mod tests {
         assert_eq!(ks, [13, 15, 17, 19]);
     }
 
+    /// How much the data weigh against the prior in the seed's estimator (issue 21.2): `R S'S / v` for
+    /// the window's `S` (per unit fault) at a 20 s onset. Measured `S'S` = 2.62e-10 (rad/s)^2, 8.59e-7
+    /// (deg/s)^2; it grows with the onset (1e-10 at lift-off, 1.8e-9 at 130 s) as the inertia falls. So for
+    /// the seed's F of 1 to 100 the prior dominates in either unit (`R S'S / v` at most 2.6e-6 in rad/s,
+    /// 8.6e-3 in deg/s), and `fhat` is `R` times a correlation of the window with `S`: its shape cannot
+    /// change with `R` there. The data weigh as much as the prior only from F = 1,100 in deg/s (62,000
+    /// in rad/s).
+    #[test]
+    fn the_prior_dominates_in_rad_s_and_not_in_deg_s() {
+        let design = seed_design();
+        let (onsets, table) = design.sensitivity_table();
+        let at = onsets.iter().position(|t| *t == 20.0).unwrap();
+        let sts: f64 = table[at].iter().map(|s| s * s).sum();
+        assert!((2.55e-10..2.7e-10).contains(&sts), "{sts:e}");
+        let deg2 = (180.0 / std::f64::consts::PI).powi(2);
+        let weight = |f: f64, v: f64| f * f * sts / v;
+        assert!(weight(100.0, 1.0) < 3e-6 && weight(100.0, 1.0 / deg2) < 0.01);
+        assert!(weight(1100.0, 1.0 / deg2) > 1.0 && weight(1000.0, 1.0 / deg2) < 1.0);
+        let first_onset = table[0].iter().map(|s| s * s).sum::<f64>();
+        let last_onset = table[table.len() - 1].iter().map(|s| s * s).sum::<f64>();
+        assert!(first_onset < sts && sts < last_onset);
+    }
+
     /// On a real noisy run with a 30 % loss, every `fhat` the detector reports from 0.5 s before to 1 s
     /// after the onset is the closed-form GLS of its own residual window, with `S` and `Y0` from the
     /// design, to 1e-12 relative (measured worst 2.1e-16).
