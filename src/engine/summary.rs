@@ -38,6 +38,7 @@ use super::tables::{
     Table, bool_col, column_names, complete_run, f64_col, list_col, numbers, read_slice, str_col, u64_col,
 };
 use super::thresholds::{Calibration, DetectorThresholds, SLICE_ROWS, alarm_time, thresholds, write_thresholds};
+use crate::fault::deck::unit;
 
 /// The threshold sets' names.
 pub const DECK: &str = "deck";
@@ -690,7 +691,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     let curve_groups: Vec<(Vec<u64>, Counts)> = curves_map.into_iter().collect();
     let curve_keys = KeyColumns { names: keys.names[..5].to_vec(), text: keys.text[..5].to_vec() };
     let mut curves = group_table(&curve_groups, &curve_keys, &names, &sets, spec, false).map_err(pol(&path))?;
-    let mut min_detectable = min_detectable(&curves).map_err(pol(&path))?;
+    let mut min_detectable = min_detectable(&curves, &manifest.fault_size_units).map_err(pol(&path))?;
     for df in [&mut summary, &mut curves, &mut min_detectable] {
         with_size_unit(df, &manifest.fault_size_units).map_err(pol(&path))?;
     }
@@ -828,8 +829,9 @@ fn confusion_table(agg: &Aggregates, names: &Names) -> PolarsResult<DataFrame> {
 }
 
 /// Smallest fault (by magnitude: |size|, or |factor - 1| for gain) whose size bin has Pd >= 0.9 (point
-/// estimate, and with the Wilson lower bound >= 0.9), per (thresholds, detector, kind, target).
-fn min_detectable(curves: &DataFrame) -> PolarsResult<DataFrame> {
+/// estimate, and with the Wilson lower bound >= 0.9), per (thresholds, detector, kind, target). A gain
+/// whose bins are already deviations (`units` says [`unit::GAIN_DEVIATION_BINS`]) is ordered by them.
+fn min_detectable(curves: &DataFrame, units: &std::collections::BTreeMap<String, String>) -> PolarsResult<DataFrame> {
     let s = |n: &str| curves.column(n).and_then(|c| c.str().cloned());
     let (set, det, kind, target) = (s("thresholds")?, s(col::DETECTOR)?, s(col::KIND)?, s(col::TARGET)?);
     let size = curves.column(col::SIZE_BIN)?.f64()?.clone();
@@ -852,7 +854,8 @@ fn min_detectable(curves: &DataFrame) -> PolarsResult<DataFrame> {
                 rows.len() - 1
             }
         };
-        let magnitude = if k == "gain" { (sz - 1.0).abs() } else { sz.abs() };
+        let factor_bins = k == "gain" && units.get(k).is_none_or(|u| u != unit::GAIN_DEVIATION_BINS);
+        let magnitude = if factor_bins { (sz - 1.0).abs() } else { sz.abs() };
         let better = |cur: Option<(f64, f64)>| cur.is_none_or(|(m, _)| magnitude < m);
         if pd.get(i).is_some_and(|p| p >= 0.9) && better(rows[idx].1) {
             rows[idx].1 = Some((magnitude, sz));
@@ -1065,6 +1068,36 @@ pub mod hand_made {
 mod tests {
     use super::*;
     use crate::engine::deck::Factor;
+
+    /// A gain's smallest detectable fault: by `|factor - 1|` where the bins are factors (0.9 is missed,
+    /// 1.3 is nearer 1 than 0.6), by the bin itself where the bins are already deviations (the
+    /// accelerometer's: every bin detected, the smallest wins).
+    #[test]
+    fn a_gains_smallest_detectable_bin_follows_what_its_bins_are() {
+        let curves = |bins: [f64; 3], pd: [f64; 3]| {
+            df!(
+                "thresholds" => ["deck"; 3],
+                col::DETECTOR => ["d"; 3],
+                col::KIND => ["gain"; 3],
+                col::TARGET => ["x"; 3],
+                col::SIZE_BIN => bins,
+                "pd" => pd,
+                "pd_lo" => pd,
+            )
+            .unwrap()
+        };
+        let smallest = |df: &DataFrame, units: &std::collections::BTreeMap<String, String>| {
+            let m = min_detectable(df, units).unwrap();
+            m.column("min_size_pd90").unwrap().f64().unwrap().get(0)
+        };
+        let factors = curves([0.6, 0.9, 1.3], [1.0, 0.5, 1.0]);
+        let none = Default::default();
+        assert_eq!(smallest(&factors, &none), Some(1.3));
+        let deviations = curves([0.0917, 0.175, 0.2583], [1.0, 1.0, 1.0]);
+        let units = [("gain".to_string(), unit::GAIN_DEVIATION_BINS.to_string())].into();
+        assert_eq!(smallest(&deviations, &units), Some(0.0917));
+        assert_eq!(smallest(&deviations, &none), Some(0.2583), "read as factors, the largest is nearest 1");
+    }
 
     /// Each centre gets the edges of its kind's bin: a range of 2-20 in 3 bins, a second population of
     /// the same kind in 0-1 in 2 bins, a listed size (its own bin), a kind without bins, a fault-free row.

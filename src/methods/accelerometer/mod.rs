@@ -177,7 +177,7 @@ impl TrialSource for AccelerometerTrials<'_> {
             outputs: ["accel_x", "accel_y", "accel_z"].iter().map(|a| a.to_string()).collect(),
             fault_size_units: [
                 ("bias".to_string(), "m/s^2 (bin: |bias|)".to_string()),
-                ("gain".to_string(), "factor (bin: |factor - 1|)".to_string()),
+                ("gain".to_string(), crate::fault::deck::unit::GAIN_DEVIATION_BINS.to_string()),
             ]
             .into(),
             // Thirds of the deck's ranges of |bias| and |factor - 1| (see `draw`).
