@@ -305,6 +305,29 @@ fn a_down_range_gust_of_about_13_m_s_looks_like_a_10_percent_loss() {
     assert!(peak("14", 50.0, 58.0, "gust scale 1") < 1e-3 * loss, "the cross-range gust");
 }
 
+/// The seed's localisation case (issue 21.4): a 30 % loss on each engine at 25 s, every engine named in
+/// every noise draw, as the seed's table reports (16 flights: 4 per engine).
+#[test]
+fn the_seeds_localisation_case_names_every_engine() {
+    use polars::prelude::*;
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("run");
+    let deck = "studies/seed001_localisation.toml";
+    ok(&fdimc(&["run", deck, "--trials", "16", "--quiet", "--out", dir.to_str().unwrap()]));
+    let df = read_frame(&dir.join("trials.parquet"))
+        .lazy()
+        .group_by([col("target")])
+        .agg([col("isolated_correctly").cast(DataType::UInt32).sum().alias("named"), len().alias("flights")])
+        .sort(["target"], Default::default())
+        .collect()
+        .unwrap();
+    assert_eq!(df.height(), 4, "{df}");
+    let named: Vec<u32> = df.column("named").unwrap().u32().unwrap().into_no_null_iter().collect();
+    let flights: Vec<u32> = df.column("flights").unwrap().u32().unwrap().into_no_null_iter().collect();
+    assert_eq!(named, flights, "{df}");
+    assert_eq!(flights.iter().sum::<u32>(), 16);
+}
+
 /// Fault directions 1e-7 apart make the eigenvectors nearly parallel: validate and design warn.
 #[test]
 fn nearly_parallel_fault_directions_are_warned_about() {
