@@ -1010,7 +1010,7 @@ fn significant(v: f64) -> String {
 pub mod hand_made {
     use polars::prelude::*;
 
-    use crate::engine::method::SummarySpec;
+    use crate::engine::method::{Method, SummarySpec};
     use crate::engine::runner::{Manifest, write_parquet};
     use crate::engine::tables::read_summary;
 
@@ -1020,7 +1020,22 @@ pub mod hand_made {
         pub summary: DataFrame,
     }
 
+    /// The manifest of a hand-made run of `method`: `trials` trials flown by `detectors`.
+    pub fn manifest(method: &Method, trials: u64, detectors: &[&str]) -> Manifest {
+        Manifest {
+            kind: method.kind.into(),
+            trials,
+            detectors: detectors.iter().map(|d| d.to_string()).collect(),
+            ..Manifest::unstarted()
+        }
+    }
+
     impl Summarized {
+        /// [`Summarized::new`] under [`manifest`], by `method`'s summary.
+        pub fn of(records: DataFrame, method: &Method, trials: u64, detectors: &[&str]) -> Self {
+            Summarized::new(records, manifest(method, trials, detectors), &method.summary)
+        }
+
         /// Writes `records` under `manifest` (its rows and completeness set here), summarises them by
         /// `spec` and reads `summary.csv` back.
         pub fn new(mut records: DataFrame, manifest: Manifest, spec: &SummarySpec) -> Self {

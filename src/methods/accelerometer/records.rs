@@ -78,7 +78,6 @@ pub fn frame(results: &[AccelTrialResult], names: &[&str]) -> PolarsResult<DataF
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::runner::Manifest;
     use crate::engine::summary::hand_made::Summarized;
     use crate::methods::accelerometer::trial::{AccelOutcome, AccelTrialSpec};
 
@@ -119,13 +118,7 @@ mod tests {
         ];
         let df = frame(&results, &["tree", "flat"]).unwrap();
         assert_eq!(df.height(), 8);
-        let manifest = Manifest {
-            kind: super::super::KIND.into(),
-            trials: 4,
-            detectors: vec!["tree".into(), "flat".into()],
-            ..Manifest::unstarted()
-        };
-        let s = Summarized::new(df, manifest, &super::super::METHOD.summary);
+        let s = Summarized::of(df, &super::super::METHOD, 4, &["tree", "flat"]);
         assert_eq!(s.summary.height(), 6, "3 kinds x 2 classifiers");
         for detector in ["flat", "tree"] {
             let (bias, normal, stuck) = (s.row(detector, "bias"), s.row(detector, "normal"), s.row(detector, "stuck"));

@@ -167,10 +167,10 @@ impl TrainedClassifiers {
         write_atomically(path, text.as_bytes())
     }
 
-    /// Reads classifiers written by [`TrainedClassifiers::save`]; a file that is not one is the user's
-    /// input to fix.
-    /// Reads classifiers `fdimc train` wrote, refusing ones whose features are not `study`'s (another
-    /// sample period or window would fail every trial, or worse, classify different features).
+    /// Reads classifiers `fdimc train` wrote ([`TrainedClassifiers::save`]), refusing a file that is not
+    /// one, one for another list of classifiers, or one whose features are not `study`'s (another sample
+    /// period or window would fail every trial, or worse, classify different features): the user's input
+    /// to fix.
     pub fn load(path: &Path, study: &AccelerometerStudy) -> Result<TrainedClassifiers, RunError> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| RunError::Invalid(format!("{}: cannot read the classifiers ({e})", path.display())))?;

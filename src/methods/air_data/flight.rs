@@ -641,8 +641,12 @@ pub struct AirDataScenario {
     previous_heading_rate_rad_s: f64,
     gust_ned_mps: Vector3<f64>,
     airframe: Option<AerosondeFlight>,
-    /// The lagged air data (after the first sample).
+    /// The lagged air data (after the first sample), and each channel's lag over one sample,
+    /// `exp(-dt / lag)` (0 without a lag).
     lagged: Option<[f64; 3]>,
+    lag_decay: [f64; 3],
+    /// The coloured noise's correlation over one sample, `exp(-dt / tau)` (0 when white).
+    noise_decay: f64,
     /// Each lane's coloured-noise state, in sigmas.
     coloured: [[f64; 3]; MAX_LANES],
     failure: Option<String>,
@@ -706,6 +710,9 @@ impl AirDataScenario {
         let samples = (params.duration_s / params.dt_s).round().max(1.0) as usize;
         let heading_rad = params.profile.heading_rad;
         let previous_heading_rate_rad_s = kinematic_state(&params.profile, 0.0).heading_rate_rad_s;
+        let per_sample = |tau: f64| if tau > 0.0 { (-params.dt_s / tau).exp() } else { 0.0 };
+        let lag_decay = [e.airspeed_lag_s, e.flow_angle_lag_s, e.flow_angle_lag_s].map(per_sample);
+        let noise_decay = per_sample(e.noise_correlation_s);
         Ok(AirDataScenario {
             faults: vec![ActiveFaults::new(params.faults.clone()); params.faulty_lanes],
             params,
@@ -716,6 +723,8 @@ impl AirDataScenario {
             gust_ned_mps: Vector3::zeros(),
             airframe,
             lagged: None,
+            lag_decay,
+            noise_decay,
             coloured: [[0.0; 3]; MAX_LANES],
             failure: None,
         })
@@ -793,9 +802,9 @@ impl AirDataScenario {
         let inertial_std = p.noise.inertial_std();
         let clean = misaligned(&truth.inertial, e.imu_misalignment_rad).to_array();
         let inertial = Inertial::from_array(std::array::from_fn(|i| clean[i] + scale * inertial_std[i] * draw()));
-        let sensed = sensed_air_data(&e, p.dt_s, &mut self.lagged, &truth.air_data);
+        let sensed = sensed_air_data(&e, &self.lag_decay, &mut self.lagged, &truth.air_data);
         let air_std = p.noise.air_data_std();
-        let decay = (-p.dt_s / e.noise_correlation_s).exp(); // 0 when white
+        let decay = self.noise_decay;
         let first = self.k == 0;
         let coloured = &mut self.coloured;
         let mut lane_noise = |lane: usize, white: f64, j: usize| -> f64 {
@@ -828,21 +837,14 @@ impl AirDataScenario {
     }
 }
 
-/// The true air data through the sensors' lag (`lagged`: the lag's state, `None` before the first
-/// sample), scale factor and misalignment (before noise).
-fn sensed_air_data(e: &SensorErrors, dt_s: f64, lagged: &mut Option<[f64; 3]>, truth: &AirData) -> [f64; 3] {
+/// The true air data through the sensors' lag (`decay` per sample; `lagged`: the lag's state, `None`
+/// before the first sample), scale factor and misalignment (before noise).
+fn sensed_air_data(e: &SensorErrors, decay: &[f64; 3], lagged: &mut Option<[f64; 3]>, truth: &AirData) -> [f64; 3] {
     let truth = truth.to_array();
-    let lags = [e.airspeed_lag_s, e.flow_angle_lag_s, e.flow_angle_lag_s];
     let now = match *lagged {
         None => truth,
-        Some(previous) => std::array::from_fn(|j| {
-            if lags[j] == 0.0 {
-                truth[j]
-            } else {
-                let a = (-dt_s / lags[j]).exp();
-                a * previous[j] + (1.0 - a) * truth[j]
-            }
-        }),
+        // Without a lag the decay is 0 and the truth passes exactly.
+        Some(previous) => std::array::from_fn(|j| decay[j] * previous[j] + (1.0 - decay[j]) * truth[j]),
     };
     *lagged = Some(now);
     let scale = [e.airspeed_scale_factor, e.flow_angle_scale_factor, e.flow_angle_scale_factor];

@@ -147,7 +147,6 @@ struct Columns {
 mod tests {
     use super::*;
     use crate::engine::deck::FromDeck;
-    use crate::engine::runner::Manifest;
     use crate::engine::summary::hand_made::Summarized;
     use crate::fault::{FaultMode, SensorFault};
     use crate::methods::air_data::dual_ukf::DualUkfHealth;
@@ -219,13 +218,7 @@ mod tests {
         assert_eq!(df.height(), 6);
         let targets: Vec<Option<&str>> = df.column("target").unwrap().str().unwrap().iter().collect();
         assert_eq!(targets[0], Some("airspeed_mps+alpha_rad"), "a set of sensors is one target");
-        let manifest = Manifest {
-            kind: super::super::KIND.into(),
-            trials: 3,
-            detectors: vec!["a".into(), "b".into()],
-            ..Manifest::unstarted()
-        };
-        let s = Summarized::new(df, manifest, &super::super::METHOD.summary);
+        let s = Summarized::of(df, &super::super::METHOD, 3, &["a", "b"]);
         let counts = |row| {
             ["trials", "false_alarms", "detected", "isolation_decided", "isolated_correctly", "repaired"]
                 .map(|c| s.count(c, row).unwrap())

@@ -91,10 +91,15 @@ impl TriplexVoter {
         let mut miscompares = [false; COMPONENTS];
         let mut newly_failed = false;
         for j in 0..COMPONENTS {
-            let working: Vec<usize> = (0..MAX_LANES).filter(|&i| self.working[j][i]).collect();
-            let y: Vec<f64> = working.iter().map(|&i| values[i][j]).collect();
+            // The working lanes and their values, without allocating on every sample.
+            let (mut working, mut y, mut n) = ([0usize; MAX_LANES], [0.0; MAX_LANES], 0);
+            for i in (0..MAX_LANES).filter(|&i| self.working[j][i]) {
+                (working[n], y[n]) = (i, values[i][j]);
+                n += 1;
+            }
+            let (working, y) = (&working[..n], &y[..n]);
             let threshold = self.threshold[j];
-            match y.len() {
+            match n {
                 3 => {
                     let mut sorted = [y[0], y[1], y[2]];
                     sorted.sort_by(f64::total_cmp);

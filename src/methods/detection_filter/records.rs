@@ -127,7 +127,7 @@ mod tests {
     use crate::design::DesignError;
     use crate::engine::deck::FromDeck;
     use crate::engine::runner::Manifest;
-    use crate::engine::summary::hand_made::Summarized;
+    use crate::engine::summary::hand_made::{Summarized, manifest};
     use crate::fault::{FaultMode, SensorFault};
     use crate::methods::detection_filter::scenario::TrialSpec;
     use crate::methods::detection_filter::trial::DetectorOutcome;
@@ -202,12 +202,9 @@ mod tests {
         let df = builder.finish().unwrap();
         assert_eq!(df.height(), 8);
         let manifest = Manifest {
-            kind: super::super::KIND.into(),
-            trials: 4,
-            detectors: names.iter().map(|n| n.to_string()).collect(),
             outputs: study.plant.output_names.clone(),
             deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
-            ..Manifest::unstarted()
+            ..manifest(&super::super::METHOD, 4, &names)
         };
         let s = Summarized::new(df, manifest, &super::super::METHOD.summary);
         let (seed, fast) = (s.row("seed", "bias"), s.row("fast", "bias"));

@@ -147,7 +147,6 @@ mod tests {
     use super::*;
     use crate::engine::deck::FromDeck;
     use crate::engine::intervals::{Z95, wilson};
-    use crate::engine::runner::Manifest;
     use crate::engine::summary::hand_made::Summarized;
     use crate::estimation::FilterHealth;
     use crate::methods::surface_bank::actuator::{ActuatorFault, ActuatorFaultKind};
@@ -235,13 +234,7 @@ mod tests {
     fn summary_counts_rates_and_paired_differences_of_hand_made_trials() {
         let (_, df) = hand_made();
         assert_eq!(df.height(), 10, "one row per trial and bank");
-        let manifest = Manifest {
-            kind: super::super::KIND.into(),
-            trials: 5,
-            detectors: vec!["a".into(), "b".into()],
-            ..Manifest::unstarted()
-        };
-        let summarized = Summarized::new(df, manifest, &super::super::METHOD.summary);
+        let summarized = Summarized::of(df, &super::super::METHOD, 5, &["a", "b"]);
         let table = |name: &str| summarized.table(name);
 
         let summary = table("summary.csv");

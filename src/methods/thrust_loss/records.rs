@@ -141,7 +141,7 @@ mod tests {
     use crate::engine::deck::FromDeck;
     use crate::engine::intervals::{Z95, wilson};
     use crate::engine::runner::Manifest;
-    use crate::engine::summary::hand_made::Summarized;
+    use crate::engine::summary::hand_made::{Summarized, manifest};
     use crate::methods::thrust_loss::ekf_mhe::DetectorHealth;
     use crate::methods::thrust_loss::scenario::LaunchTrialSpec;
     use crate::methods::thrust_loss::trial::LaunchOutcome;
@@ -211,13 +211,8 @@ mod tests {
         ];
         let df = frame(&study, &results).unwrap();
         assert_eq!(df.height(), 10, "one row per flight and detector");
-        let manifest = Manifest {
-            kind: super::super::KIND.into(),
-            trials: 5,
-            detectors: vec!["a".into(), "b".into()],
-            deck_thresholds: vec![vec![0.5], vec![0.5]],
-            ..Manifest::unstarted()
-        };
+        let manifest =
+            Manifest { deck_thresholds: vec![vec![0.5], vec![0.5]], ..manifest(&super::super::METHOD, 5, &["a", "b"]) };
         let s = Summarized::new(df, manifest, &super::super::METHOD.summary);
         let counts = |row| {
             ["trials", "failed", "detected", "isolation_decided", "isolated_correctly"]
