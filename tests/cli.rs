@@ -401,7 +401,7 @@ fn bad_decks_exit_2_naming_file_and_field() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let catalogue: Catalogue =
         toml::from_str(&std::fs::read_to_string(root.join("tests/data/bad_decks.toml")).unwrap()).unwrap();
-    assert_eq!(catalogue.case.len(), 114);
+    assert_eq!(catalogue.case.len(), 116);
     let dir = tempfile::tempdir().unwrap();
     for (i, c) in catalogue.case.iter().enumerate() {
         let what = format!("case {i} ({}, {})", c.deck, c.what.as_deref().unwrap_or(&c.to));
@@ -959,6 +959,8 @@ fn launch_records_are_identical_for_any_threads_shards_and_resume() {
             ("start_s = 40.0", "start_s = 10.0"),
             ("start_s = 50.0", "start_s = 15.0"),
             ("threshold_fhat = 1.3e-5", "threshold_fhat = 1.3e-5\nloss_fit_onsets_s = [10.0, 20.0]"),
+            ("loss_fit_onsets_s = [15.0, 30.0, 45.0, 60.0, 75.0]", "loss_fit_onsets_s = [10.0, 20.0]"),
+            ("loss_fit_noisy_flights = 4", "loss_fit_noisy_flights = 2"),
         ],
         "small_launch.toml",
     );
@@ -968,8 +970,8 @@ fn launch_records_are_identical_for_any_threads_shards_and_resume() {
     let (one, stdout) = assert_identical_runs(deck, tmp.path(), 150, 128, &tables);
     assert!(stdout.contains("    seed: calibrated [fhat ") && stdout.contains("(deck [fhat 1.300e-5])"), "{stdout}");
     let reference = read_frame(&one.join("trials.parquet"));
-    assert_eq!(reference.height(), 150, "one row per trial and detector");
-    assert_eq!(csv_frame(&one.join("detectors.csv")).height(), 2, "deck and calibrated thresholds");
+    assert_eq!(reference.height(), 300, "one row per trial and detector");
+    assert_eq!(csv_frame(&one.join("detectors.csv")).height(), 4, "deck and calibrated thresholds, two detectors");
 
     // `simulate --trial N` flies trial N of the run: the same delay and engine.
     use polars::prelude::*;

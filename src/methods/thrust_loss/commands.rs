@@ -37,16 +37,26 @@ pub fn validate(study: &LaunchStudy) -> Result<(), RunError> {
     }
     for d in &study.detectors {
         let m = &d.params.mhe;
+        let filter = match d.params.ekf.moment_bias_sigma_rad_s2_per_sqrt_s {
+            None => "plain filter".to_string(),
+            Some(s) => format!("recovering filter (moment biases at {s} rad/s^2/sqrt(s))"),
+        };
+        let t = &d.loss_table;
+        let flights = match t.noisy_flights_per_loss {
+            0 => "noise-free flights".to_string(),
+            n => format!("{n} noisy flights per loss"),
+        };
         println!(
-            "detector    {}: ekf_mhe, N {}, D {} sample(s), F {} (R = F^2), V = {} I, threshold |fhat| {:e}; loss table at {:?} s from losses {:?} %",
+            "detector    {}: ekf_mhe, {filter}, N {}, D {} sample(s), F {} (R = F^2), V = {} I, threshold |fhat| {:e}; loss table at {:?} s from losses {:?} % ({flights}, peak over {} s)",
             d.name,
             m.window_n,
             m.interval_samples,
             m.fault_intensity,
             m.window_variance,
             d.params.threshold_fhat,
-            d.loss_table.onsets_s,
-            d.loss_table.losses_percent
+            t.onsets_s,
+            t.losses_percent,
+            t.horizon_s,
         );
     }
     if let Some(f) = &study.fault {

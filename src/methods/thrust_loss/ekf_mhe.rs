@@ -13,6 +13,12 @@
 //! `x(k|k)` (a quarter of the cost of differencing the RK4 map, exact to second order in `dt`). The
 //! residual is the innovation of the pitch rate, `r(k) = wz_measured(k) - wz(k|k-1)` (rad/s).
 //!
+//! That filter has no state for a loss's moment (its model holds the four engines equal), so a loss
+//! leaves a lasting step in the residual. The seed's residual recovers ("after the detection the jump
+//! returns to normal"): [`EkfParams::moment_bias_sigma_rad_s2_per_sqrt_s`] adds an angular-acceleration
+//! bias per body axis ([`AUGMENTED`] states, random walks), which follows the moment, so the jump
+//! clears within a time set by the walk's rate (about 0.05 s at 0.1 rad/s^2/sqrt(s), 0.15 s at 0.01).
+//!
 //! # Moving-horizon GLS
 //! The window `Y(k) = [r(k - N D), r(k - (N-1) D), ..., r(k)]'` (N + 1 samples at interval D). The
 //! seed linearises `Y(f) = Y(0) + S f` with the sensitivity `S` obtained by finite difference with a
@@ -47,11 +53,13 @@
 //! # What comes out of the seed's findings here
 //! (measured; tests `window_length_and_fault_intensity_as_they_come_out_here`,
 //! `fhat_peak_grows_linearly_with_the_loss`)
-//! - The residual of a permanent loss is a step that ramps up over ~0.3 s and stays (the plain EKF has
-//!   no state for the fault's moment, so it keeps predicting the moment-free motion), not a spike that
-//!   the controller clears: `fhat` plateaus near its peak instead of recovering, for every `N`.
-//! - `N` = 1, 5, 10: the peak-to-noise ratio grows with `N` (11.9, 19.8, 27.3), so a longer window is
-//!   better here; the seed's "N = 5 best" does not reproduce.
+//! - With the plain filter the residual of a permanent loss is a step that ramps up over ~0.3 s and
+//!   stays: `fhat` plateaus near its peak instead of recovering, for every `N`, and the peak-to-noise
+//!   ratio grows with `N` (11.9, 19.8, 27.3 for 1, 5, 10).
+//! - With the recovering filter (`the_recovering_residual_clears_and_shows_the_seeds_window_trade`) the
+//!   jump clears, and the seed's "a smaller N loses amplitude" appears (peak-to-noise 0.59, 1.16, 1.17
+//!   at 0.1 rad/s^2/sqrt(s)); its "a larger N recovers in fewer beats" does not; and a jump that clears
+//!   carries a twentieth of the step's peak-to-noise.
 //! - `R`: with `V = I` it only scales `fhat` (same peak-to-noise); with `V` the residual variance, the
 //!   peak grows with `R` and saturates, with no second rise.
 //! - The peak of `fhat` is linear in the loss (R^2 = 0.9995 over 10-60 %), as the seed reports.
@@ -75,6 +83,8 @@ use std::sync::Arc;
 
 use nalgebra::{SMatrix, SVector};
 
+use crate::engine::noise::NoiseRng;
+use crate::engine::streams::{Substream, noise_rng};
 use crate::estimation::stekf::central_difference;
 use crate::estimation::{DiscreteModel, Fading, FilterHealth, Stekf};
 use crate::methods::thrust_loss::vehicle::{
@@ -124,6 +134,81 @@ impl DiscreteModel<STATES, MEASURED> for FilterModel {
     }
 }
 
+/// States of the recovering filter: the vehicle's 13 and an angular-acceleration bias per body axis
+/// (`[.., bx, by, bz]`, rad/s^2), random walks added to the body rates' derivatives.
+pub const AUGMENTED: usize = STATES + 3;
+
+/// The filter model with the angular-acceleration biases ([`AUGMENTED`]): a thrust loss's moment, which
+/// the plain model cannot express (it holds the four engines equal), is followed by the biases, so the
+/// pitch-rate innovation returns to zero once they have converged (the seed's recovering jump).
+struct WithMomentStates<'a>(&'a FilterModel);
+
+impl WithMomentStates<'_> {
+    fn derivatives(
+        &self,
+        x: &SVector<f64, AUGMENTED>,
+        t_s: f64,
+        gimbal_rad: &[f64; ENGINES],
+    ) -> SVector<f64, AUGMENTED> {
+        let vehicle: State = x.fixed_rows::<STATES>(0).into_owned();
+        let mut dx = SVector::<f64, AUGMENTED>::zeros();
+        dx.fixed_rows_mut::<STATES>(0).copy_from(&filter_derivatives(&self.0.params, &vehicle, t_s, gimbal_rad));
+        for axis in 0..3 {
+            dx[idx::WX + axis] += x[STATES + axis];
+        }
+        dx
+    }
+}
+
+impl DiscreteModel<AUGMENTED, MEASURED> for WithMomentStates<'_> {
+    type Input = FilterInput;
+
+    fn transition(&self, x: &SVector<f64, AUGMENTED>, u: &FilterInput) -> SVector<f64, AUGMENTED> {
+        rk4(x, u.t_s, self.0.dt_s, |t_s, x| self.derivatives(x, t_s, &u.gimbal_rad))
+    }
+
+    fn measurement(&self, x: &SVector<f64, AUGMENTED>) -> Measured {
+        x.fixed_rows::<MEASURED>(1).into_owned()
+    }
+
+    fn transition_jacobian(&self, x: &SVector<f64, AUGMENTED>, u: &FilterInput) -> SMatrix<f64, AUGMENTED, AUGMENTED> {
+        let A = central_difference(x, |x| self.derivatives(x, u.t_s, &u.gimbal_rad));
+        let Adt = A * self.0.dt_s;
+        SMatrix::identity() + Adt + Adt * Adt * 0.5
+    }
+
+    fn measurement_jacobian(&self, _x: &SVector<f64, AUGMENTED>) -> SMatrix<f64, MEASURED, AUGMENTED> {
+        SMatrix::from_fn(|i, j| if j == i + 1 { 1.0 } else { 0.0 })
+    }
+}
+
+/// The filter whose pitch-rate innovation is the residual: the plain 13-state EKF (a loss leaves a
+/// lasting step) or the one with angular-acceleration biases (the step recovers).
+#[derive(Debug, Clone)]
+enum ResidualFilter {
+    Plain(Stekf<STATES, MEASURED>),
+    Recovering(Stekf<AUGMENTED, MEASURED>),
+}
+
+impl ResidualFilter {
+    /// The pitch-rate innovation of one filter step (rad/s).
+    fn pitch_rate_residual(&mut self, model: &FilterModel, m: &Measurement) -> f64 {
+        let input = FilterInput { t_s: m.t_s, gimbal_rad: m.gimbal_rad };
+        let gamma = match self {
+            ResidualFilter::Plain(f) => f.step(model, &m.y, &input).gamma,
+            ResidualFilter::Recovering(f) => f.step(&WithMomentStates(model), &m.y, &input).gamma,
+        };
+        gamma[PITCH_RATE_MEASUREMENT]
+    }
+
+    fn health(&self) -> FilterHealth {
+        match self {
+            ResidualFilter::Plain(f) => f.health(),
+            ResidualFilter::Recovering(f) => f.health(),
+        }
+    }
+}
+
 /// EKF tuning: standard deviations per state (process noise as intensities per square-root second, so
 /// that a step of `dt` adds `sigma^2 dt`), per measurement, and of the initial estimate.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -142,6 +227,10 @@ pub struct EkfParams {
     pub initial_sigma: [f64; STATES],
     /// Joseph-form covariance update (the seed's eq. 11); on by default.
     pub joseph: bool,
+    /// `None` (default): the plain 13-state filter, whose residual keeps a lasting step after a loss.
+    /// `Some(sigma)`: the recovering filter ([`AUGMENTED`]) with angular-acceleration biases walking at
+    /// `sigma` rad/s^2 per square-root second, initially zero with that standard deviation over 1 s.
+    pub moment_bias_sigma_rad_s2_per_sqrt_s: Option<f64>,
 }
 
 impl EkfParams {
@@ -157,15 +246,27 @@ impl EkfParams {
             measurement_sigma,
             initial_sigma,
             joseph: true,
+            moment_bias_sigma_rad_s2_per_sqrt_s: None,
         }
     }
 
-    fn filter(&self, x0: State, dt_s: f64) -> Stekf<STATES, MEASURED> {
-        let P0 = SMatrix::from_diagonal(&SVector::from(self.initial_sigma.map(|s| s * s)));
-        let Q = SMatrix::from_diagonal(&SVector::from(self.process_sigma_per_sqrt_s.map(|s| s * s * dt_s)));
+    fn filter(&self, x0: State, dt_s: f64) -> ResidualFilter {
         let R = SMatrix::from_diagonal(&SVector::from(self.measurement_sigma.map(|s| s * s)));
-        let f = Stekf::new(x0, P0, Q, R, Fading::None);
-        if self.joseph { f.with_joseph_update() } else { f }
+        let Some(bias_sigma) = self.moment_bias_sigma_rad_s2_per_sqrt_s else {
+            let P0 = SMatrix::from_diagonal(&SVector::from(self.initial_sigma.map(|s| s * s)));
+            let Q = SMatrix::from_diagonal(&SVector::from(self.process_sigma_per_sqrt_s.map(|s| s * s * dt_s)));
+            let f = Stekf::new(x0, P0, Q, R, Fading::None);
+            return ResidualFilter::Plain(if self.joseph { f.with_joseph_update() } else { f });
+        };
+        let augmented = |vehicle: &[f64; STATES], bias: f64| {
+            SVector::<f64, AUGMENTED>::from_fn(|i, _| if i < STATES { vehicle[i] } else { bias })
+        };
+        let mut x = SVector::<f64, AUGMENTED>::zeros();
+        x.fixed_rows_mut::<STATES>(0).copy_from(&x0);
+        let P0 = SMatrix::from_diagonal(&augmented(&self.initial_sigma, bias_sigma).map(|s| s * s));
+        let Q = SMatrix::from_diagonal(&augmented(&self.process_sigma_per_sqrt_s, bias_sigma).map(|s| s * s * dt_s));
+        let f = Stekf::new(x, P0, Q, R, Fading::None);
+        ResidualFilter::Recovering(if self.joseph { f.with_joseph_update() } else { f })
     }
 }
 
@@ -333,12 +434,6 @@ pub struct MheDesign {
     nominal_residual: Vec<f64>,
 }
 
-/// The residual of one filter step.
-fn pitch_rate_residual(ekf: &mut Stekf<STATES, MEASURED>, model: &FilterModel, m: &Measurement) -> f64 {
-    let input = FilterInput { t_s: m.t_s, gimbal_rad: m.gimbal_rad };
-    ekf.step(model, &m.y, &input).gamma[PITCH_RATE_MEASUREMENT]
-}
-
 impl DetectorParams {
     fn validate(&self, config: &LaunchVehicleConfig) -> Result<(), DesignError> {
         let invalid = |field, value, allowed| Err(DesignError::Invalid { field, value, allowed });
@@ -406,11 +501,11 @@ impl DetectorParams {
                 branches.push((vehicle.with_fault(fault)?, ekf.clone(), Vec::with_capacity(span + 1)));
             }
             let m = vehicle.step_exact()?;
-            nominal_residual.push(pitch_rate_residual(&mut ekf, &model, &m));
+            nominal_residual.push(ekf.pitch_rate_residual(&model, &m));
             for (branch_vehicle, branch_ekf, residuals) in branches.iter_mut() {
                 if residuals.len() <= span {
                     let mb = branch_vehicle.step_exact()?;
-                    residuals.push((mb.k, pitch_rate_residual(branch_ekf, &model, &mb)));
+                    residuals.push((mb.k, branch_ekf.pitch_rate_residual(&model, &mb)));
                 }
             }
         }
@@ -434,6 +529,12 @@ impl DetectorParams {
 impl MheDesign {
     pub fn params(&self) -> &DetectorParams {
         &self.params
+    }
+
+    /// Whether `other`'s filter computes this design's residual, sample for sample: the same filter
+    /// tuning, model and initial state.
+    pub fn same_residual(&self, other: &MheDesign) -> bool {
+        self.params.ekf == other.params.ekf && self.model == other.model && self.x0 == other.x0
     }
 
     /// The grid onsets (s) and their sensitivities (per unit fault, rad/s).
@@ -478,24 +579,52 @@ impl MheDesign {
         clamped
     }
 
-    /// Calibrates the linear loss fit (the seed's eq. 27) from noise-free flights of `config` with a loss
-    /// of each of `losses_percent` on the reference engine at `onset_s`, the peak of `|fhat|` taken over
-    /// `horizon_s` after the onset; returns the fit and the `(loss %, peak |fhat|)` pairs. The fit holds
-    /// for onsets near `onset_s` (`S` and so `fhat` grow by about 50 % from 20 s to 50 s as the inertia
-    /// falls); `LossTable` (`trial.rs`) builds the seed's table over onset time from one fit per onset.
+    /// Calibrates the linear loss fit (the seed's eq. 27) from flights of `config` with a loss of each of
+    /// `losses_percent` at `onset_s`, the peak of `|fhat|` taken over `horizon_s` after the onset;
+    /// returns the fit and the `(loss %, peak |fhat|)` pairs. Noise-free (`noise: None`): one flight per
+    /// loss on the reference engine. Noisy: `flights_per_loss` flights per loss with the deck's sensor
+    /// noise, on engines 1, 2, 3, 4, 1, .. in turn, flight `j` of loss `i` drawing its noise from stream
+    /// `first_stream + i * flights_per_loss + j` of `seed` (flown in parallel; the pairs keep that
+    /// order, so the fit is the same for any thread count). A noisy peak is the noise-free one plus the
+    /// largest noise excursion near it, so a noise-free fit reads noisy flights high; a noisy fit absorbs
+    /// that. The fit holds for onsets near `onset_s` (`S` and so `fhat` grow by about 50 % from 20 s to
+    /// 50 s as the inertia falls); `LossTable` (`trial.rs`) builds the seed's table over onset time from
+    /// one fit per onset.
     pub fn calibrate_loss_fit(
         self: &Arc<Self>,
         config: &LaunchVehicleConfig,
         onset_s: f64,
         losses_percent: &[f64],
         horizon_s: f64,
+        noise: Option<NoisyCalibration>,
     ) -> Result<(LossFit, Vec<(f64, f64)>), DesignError> {
-        let mut pairs = Vec::with_capacity(losses_percent.len());
-        for &loss in losses_percent {
-            let fault = ThrustFault { engine: self.params.mhe.reference_engine, loss_fraction: loss / 100.0, onset_s };
-            let peak = self.peak_fhat(config, Some(fault), onset_s, horizon_s)?;
-            pairs.push((loss, peak));
-        }
+        use rayon::prelude::*;
+        let reference = self.params.mhe.reference_engine;
+        let flights: Vec<(f64, usize, Option<u64>)> = match noise {
+            None => losses_percent.iter().map(|&loss| (loss, reference, None)).collect(),
+            Some(n) => (losses_percent.iter().enumerate())
+                .flat_map(|(i, &loss)| {
+                    (0..n.flights_per_loss).map(move |j| {
+                        let stream = n.first_stream + (i * n.flights_per_loss + j) as u64;
+                        (loss, (reference + j) % ENGINES, Some(stream))
+                    })
+                })
+                .collect(),
+        };
+        let pairs = flights
+            .par_iter()
+            .map(|&(loss, engine, stream)| {
+                let fault = ThrustFault { engine, loss_fraction: loss / 100.0, onset_s };
+                let peak = match (stream, noise) {
+                    (Some(stream), Some(n)) => {
+                        let mut rng = noise_rng(n.seed, stream, Substream::SensorNoise);
+                        self.peak_fhat_flown(config, Some(fault), onset_s, horizon_s, Some(&mut rng))?
+                    }
+                    _ => self.peak_fhat(config, Some(fault), onset_s, horizon_s)?,
+                };
+                Ok((loss, peak))
+            })
+            .collect::<Result<Vec<_>, DesignError>>()?;
         Ok((LossFit::fit(&pairs)?, pairs))
     }
 
@@ -508,13 +637,31 @@ impl MheDesign {
         from_s: f64,
         horizon_s: f64,
     ) -> Result<f64, DesignError> {
-        let mut exact = config.clone();
-        exact.noise = SensorNoise::none();
-        let mut vehicle = Vehicle::new(&exact, fault)?;
+        self.peak_fhat_flown(config, fault, from_s, horizon_s, None::<&mut NoiseRng>)
+    }
+
+    /// [`MheDesign::peak_fhat`] with the sensor noise of `config` drawn from `rng` (noise-free when
+    /// `None`).
+    fn peak_fhat_flown<R: rand::Rng + ?Sized>(
+        self: &Arc<Self>,
+        config: &LaunchVehicleConfig,
+        fault: Option<ThrustFault>,
+        from_s: f64,
+        horizon_s: f64,
+        mut rng: Option<&mut R>,
+    ) -> Result<f64, DesignError> {
+        let mut flown = config.clone();
+        if rng.is_none() {
+            flown.noise = SensorNoise::none();
+        }
+        let mut vehicle = Vehicle::new(&flown, fault)?;
         let mut detector = EkfMhe::new(Arc::clone(self), None);
         let mut peak = 0.0f64;
         while vehicle.time_s() <= from_s + horizon_s + 1e-9 {
-            let m = vehicle.step_exact()?;
+            let m = match rng.as_deref_mut() {
+                Some(rng) => vehicle.step(rng)?,
+                None => vehicle.step_exact()?,
+            };
             let out = detector.step(&m);
             if m.t_s >= from_s - 1e-9 {
                 peak = peak.max(out.fhat.abs());
@@ -522,6 +669,15 @@ impl MheDesign {
         }
         Ok(peak)
     }
+}
+
+/// Noisy flights for a loss fit ([`MheDesign::calibrate_loss_fit`]): how many per loss, and the seed
+/// and first stream their sensor noise is drawn from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoisyCalibration {
+    pub flights_per_loss: usize,
+    pub seed: u64,
+    pub first_stream: u64,
 }
 
 /// The GLS estimate `fhat = (S' V^-1 S + R^-1)^-1 S' V^-1 (Y - Y0)` for `V = v I` and scalar `R`; `None`
@@ -660,7 +816,7 @@ fn window_indices(len: usize, mhe: &MheParams) -> impl Iterator<Item = usize> + 
 pub struct EkfMhe {
     design: Arc<MheDesign>,
     loss_fit: Option<LossFit>,
-    ekf: Stekf<STATES, MEASURED>,
+    ekf: ResidualFilter,
     /// The latest samples, oldest first: the window, the look-back and the pre-onset average.
     history: VecDeque<Past>,
     capacity: usize,
@@ -698,16 +854,18 @@ impl EkfMhe {
         DetectorHealth { filter: self.ekf.health(), ..self.health }
     }
 
-    /// The filter's estimate `x(k|k)` after the last sample.
-    pub fn estimate(&self) -> &State {
-        self.ekf.estimate()
-    }
-
     /// One sample (the plant's step k, at the design's `dt`).
     pub fn step(&mut self, m: &Measurement) -> MheStep {
+        let residual_rad_s = self.ekf.pitch_rate_residual(&self.design.model, m);
+        self.step_residual(m, residual_rad_s)
+    }
+
+    /// [`EkfMhe::step`] with the residual of another detector whose design has the same filter
+    /// ([`MheDesign::same_residual`]): one filter serves a sweep of windows and intensities. This
+    /// detector's own filter is not stepped, so its health is the other's.
+    pub fn step_residual(&mut self, m: &Measurement, residual_rad_s: f64) -> MheStep {
         let design = Arc::clone(&self.design);
         let p = &design.params;
-        let residual_rad_s = pitch_rate_residual(&mut self.ekf, &design.model, m);
         if self.history.len() == self.capacity {
             self.history.pop_front();
         }
@@ -809,7 +967,7 @@ mod tests {
         static FIT: OnceLock<(LossFit, Vec<(f64, f64)>)> = OnceLock::new();
         FIT.get_or_init(|| {
             let losses: Vec<f64> = (0..11).map(|i| 10.0 + 5.0 * i as f64).collect();
-            seed_design().calibrate_loss_fit(&LaunchVehicleConfig::default(), 20.0, &losses, 3.0).unwrap()
+            seed_design().calibrate_loss_fit(&LaunchVehicleConfig::default(), 20.0, &losses, 3.0, None).unwrap()
         })
     }
 
@@ -1027,10 +1185,23 @@ mod tests {
     /// standard deviation over 5-60 s of one noisy flight) and returns (peak, fhat 5 s after the onset,
     /// noise standard deviation).
     fn compare(window_n: usize, fault_intensity: f64, window_variance: f64) -> (f64, f64, f64) {
-        let params = DetectorParams {
+        let (peak, late, sd, _) = compare_filters(window_n, fault_intensity, window_variance, None);
+        (peak, late, sd)
+    }
+
+    /// [`compare`] with the filter's angular-acceleration biases at `moment_bias_sigma` (the plain filter
+    /// when `None`); also returns the samples at which `|fhat|` is at least half its peak.
+    fn compare_filters(
+        window_n: usize,
+        fault_intensity: f64,
+        window_variance: f64,
+        moment_bias_sigma: Option<f64>,
+    ) -> (f64, f64, f64, usize) {
+        let mut params = DetectorParams {
             mhe: MheParams { window_n, fault_intensity, window_variance, ..MheParams::seed() },
             ..DetectorParams::seed()
         };
+        params.ekf.moment_bias_sigma_rad_s2_per_sqrt_s = moment_bias_sigma;
         let design = Arc::new(params.design(&LaunchVehicleConfig::default()).unwrap());
         let fault = ThrustFault { engine: 0, loss_fraction: 0.5, onset_s: 50.0 };
         let trace = run(&design, Some(fault), 55.0, None, None);
@@ -1039,7 +1210,8 @@ mod tests {
         let quiet: Vec<f64> =
             run(&design, None, 60.0, Some(3), None).iter().filter(|(m, _)| m.t_s > 5.0).map(|(_, s)| s.fhat).collect();
         let sd = (quiet.iter().map(|f| f * f).sum::<f64>() / quiet.len() as f64).sqrt();
-        (peak, late, sd)
+        let half = trace.iter().filter(|(m, s)| m.t_s >= 50.0 && s.fhat.abs() >= 0.5 * peak).count();
+        (peak, late, sd, half)
     }
 
     /// The seed's N and R findings, as they come out on this model (measured numbers; the seed's do not
@@ -1069,6 +1241,46 @@ mod tests {
         assert!(map[0].0 < map[1].0 && map[1].0 < map[2].0, "{map:?}");
         assert!(map[2].0 / map[1].0 < 1.15, "{map:?}");
         assert!(map[2].0 / map[2].2 < map[0].0 / map[0].2, "{map:?}");
+    }
+
+    /// The recovering residual (issue 21.1) on the seed's N experiment (50 % at 50 s, noise-free, R = 20^2,
+    /// V = I; noise from one fault-free noisy flight), with angular-acceleration biases walking at 0.1
+    /// rad/s^2/sqrt(s) (this project's choice: the jump then clears within about 0.05 s, the seed's
+    /// "controlled within about 10 ms" scale) and at 0.01 (clears within about 0.15 s). Measured:
+    /// - the jump recovers: `fhat` 5 s after the onset is at most 1e-3 of its peak (0.9 with the plain filter);
+    /// - the seed's "a smaller N loses amplitude" holds: at 0.1, peak-to-noise 0.59, 1.16, 1.17 for N = 1, 5,
+    ///   10; its "a larger N recovers in fewer beats" does not: `|fhat|` stays above half its peak for
+    ///   4, 5, 5 samples; at 0.01 N = 10 is best (1.60, 2.98, 4.73);
+    /// - a jump that clears costs the detector most of its signal: peak-to-noise 1.16 against the plain
+    ///   filter's 21.2 at N = 5;
+    /// - the prior still dominates: the recovering `S` is smaller than the plain one's, so `R S'S / v`
+    ///   is below 0.01 even at F = 100 in deg/s and `R` only scales `fhat`.
+    #[test]
+    fn the_recovering_residual_clears_and_shows_the_seeds_window_trade() {
+        let fast = [1, 5, 10].map(|n| compare_filters(n, 20.0, 1.0, Some(0.1)));
+        let slow = [1, 5, 10].map(|n| compare_filters(n, 20.0, 1.0, Some(0.01)));
+        let plain = compare_filters(5, 20.0, 1.0, None);
+        let ratio = |r: &(f64, f64, f64, usize)| r.0 / r.2;
+        for r in fast.iter().chain(&slow) {
+            assert!(r.1.abs() < 2e-3 * r.0, "{r:?}");
+        }
+        assert!(ratio(&fast[0]) < 0.6 * ratio(&fast[1]), "{fast:?}");
+        assert!((ratio(&fast[2]) / ratio(&fast[1]) - 1.0).abs() < 0.05, "{fast:?}");
+        assert!(fast.iter().all(|r| (3..=6).contains(&r.3)) && fast[2].3 >= fast[1].3, "{fast:?}");
+        assert!(ratio(&slow[0]) < ratio(&slow[1]) && ratio(&slow[1]) < ratio(&slow[2]), "{slow:?}");
+        assert!(ratio(&fast[1]) < 0.1 * ratio(&plain), "{plain:?}");
+
+        let mut params = DetectorParams::seed();
+        params.ekf.moment_bias_sigma_rad_s2_per_sqrt_s = Some(0.1);
+        let design = params.design(&LaunchVehicleConfig::default()).unwrap();
+        let (onsets, table) = design.sensitivity_table();
+        let sts = |onset_s: f64| {
+            let at = onsets.iter().position(|t| *t == onset_s).unwrap();
+            table[at].iter().map(|s| s * s).sum::<f64>()
+        };
+        let deg2 = (180.0 / std::f64::consts::PI).powi(2);
+        assert!((1.3e-11..1.42e-11).contains(&sts(20.0)) && (1.9e-11..2.07e-11).contains(&sts(50.0)));
+        assert!(100.0f64.powi(2) * sts(50.0) * deg2 < 0.01, "{:e}", sts(50.0));
     }
 
     /// The seed's table: `n_y` alike for engines {1, 4} and {2, 3}, `n_z` for {1, 2} and {3, 4}.

@@ -45,6 +45,12 @@ pub static METHOD: Method = Method {
                 p: 0.5,
                 abs: true,
             },
+            Extra::Quantile {
+                name: "above_threshold_p50_s",
+                column: records::col::ABOVE_THRESHOLD_S,
+                p: 0.5,
+                abs: false,
+            },
         ],
         paired_medians: &[],
         printed: &[("loss err %", "loss_abs_error_p50_percent")],

@@ -10,6 +10,7 @@
 //! | `gust_scale`, `gust_bin` | factor on the deck's gusts and its group label |
 //! | `alarm_s` | first alarm at or after the onset (deck threshold) |
 //! | `onset_estimate_s`, `fhat_peak`, `loss_estimate_percent`, `loss_error_percent` | the detector's onset estimate, the peak `\|fhat\|` over the loss table's horizon after the alarm, the loss it means, minus the true loss |
+//! | `fhat_above_threshold_s` | when detected: the time `\|fhat\|` spends at or above the deck's threshold in the detection window after the onset (the seed's "beats" the estimate shows the loss) |
 //! | `singular_innovation_steps`, `asymmetric_steps`, `not_positive_definite_steps`, `non_finite_steps` | EKF health |
 //! | `sensitivity_clamped`, `gls_failed` | samples outside the sensitivity grid; non-finite estimates |
 //! | `pre_max_fhat`, `fp_t_s_fhat`, `fp_v_fhat` | the recorded statistic `\|fhat\|`: evaluate any threshold |
@@ -27,6 +28,7 @@ use crate::engine::schema::{CoreColumns, Outcome, StatisticColumns};
 pub mod col {
     pub const GUST_BIN: &str = "gust_bin";
     pub const LOSS_ERROR_PERCENT: &str = "loss_error_percent";
+    pub const ABOVE_THRESHOLD_S: &str = "fhat_above_threshold_s";
     /// Fault kind of a thrust loss.
     pub const THRUST_LOSS: &str = "thrust_loss";
     /// The recorded statistic: `|fhat|`.
@@ -89,6 +91,7 @@ pub fn frame(study: &LaunchStudy, results: &[LaunchTrialResult]) -> PolarsResult
             let estimate = o.and_then(|o| o.loss_estimate_percent);
             t.loss_estimate.push(estimate);
             t.loss_error.push(estimate.filter(|_| s.fault.is_some()).map(|e| e - s.loss_percent));
+            t.above_threshold.push(o.and_then(|o| o.above_threshold_s));
             t.singular.push(h.map(|h| h.filter.singular_innovation));
             t.asymmetric.push(h.map(|h| h.filter.asymmetric));
             t.not_pd.push(h.map(|h| h.filter.not_positive_definite));
@@ -106,6 +109,7 @@ pub fn frame(study: &LaunchStudy, results: &[LaunchTrialResult]) -> PolarsResult
         Column::new("fhat_peak".into(), t.fhat_peak),
         Column::new("loss_estimate_percent".into(), t.loss_estimate),
         Column::new(col::LOSS_ERROR_PERCENT.into(), t.loss_error),
+        Column::new(col::ABOVE_THRESHOLD_S.into(), t.above_threshold),
         Column::new("singular_innovation_steps".into(), t.singular),
         Column::new("asymmetric_steps".into(), t.asymmetric),
         Column::new("not_positive_definite_steps".into(), t.not_pd),
@@ -127,6 +131,7 @@ struct Columns {
     fhat_peak: Vec<Option<f64>>,
     loss_estimate: Vec<Option<f64>>,
     loss_error: Vec<Option<f64>>,
+    above_threshold: Vec<Option<f64>>,
     singular: Vec<Option<u32>>,
     asymmetric: Vec<Option<u32>>,
     not_pd: Vec<Option<u32>>,
@@ -181,6 +186,7 @@ mod tests {
                 onset_estimate_s: alarm.map(|a| a - 0.2),
                 fhat_peak: loss.map(|l| l / 100.0),
                 loss_estimate_percent: loss,
+                above_threshold_s: alarm.map(|a| a - 19.0),
                 health: DetectorHealth::default(),
             }
         };
@@ -238,5 +244,8 @@ mod tests {
         s.assert_close("loss_error_p50_percent", b, 1.0); // of +5, +1, -1
         s.assert_close("loss_abs_error_p50_percent", b, 1.0); // of 5, 1, 1
         assert_eq!(s.value("loss_error_p50_percent", s.row("a", "none")), None, "no loss without a fault");
+        // How long fhat stays above the threshold after the detection (alarm - 19 s here).
+        s.assert_close("above_threshold_p50_s", a, 1.4); // median of 1.5 and 1.3
+        s.assert_close("above_threshold_p50_s", b, 1.8); // of 2.0, 1.8, 1.4
     }
 }

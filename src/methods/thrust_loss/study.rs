@@ -9,7 +9,10 @@
 //!                    gusts in the truth (the filter knows no wind): residual jumps with no engine at fault
 //! [[detector]]       name, kind = "ekf_mhe", optional: window_n (N), interval_samples (D), fault_intensity
 //!                    (F, R = F^2), window_variance (v, V = v I), threshold_fhat, loss_fit_onsets_s,
-//!                    loss_fit_losses_percent, loss_fit_horizon_s
+//!                    loss_fit_losses_percent, loss_fit_horizon_s, loss_fit_noisy_flights (0: one
+//!                    noise-free flight per loss; n >= 2: n noisy flights per loss and onset),
+//!                    moment_bias_sigma_rad_s2_per_sqrt_s (the recovering residual: a filter with
+//!                    angular-acceleration biases walking at this rate; absent: the plain filter)
 //! [[faults]]         one thrust loss for every faulty trial: engine (1-4), loss_percent, onset_s
 //! [monte_carlo]      trials, fault_free_fraction, sampler, target_pfa, engines (default 1-4),
 //!                    detection_window_s (default 2 s), and the factors loss_percent, onset_s, noise_scale
@@ -68,6 +71,8 @@ struct DetectorSection {
     loss_fit_onsets_s: Option<Vec<f64>>,
     loss_fit_losses_percent: Option<Vec<f64>>,
     loss_fit_horizon_s: Option<f64>,
+    loss_fit_noisy_flights: Option<usize>,
+    moment_bias_sigma_rad_s2_per_sqrt_s: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -89,13 +94,29 @@ struct MonteCarloOwn {
 }
 
 /// The loss-percentage table of a detector: linear fits of the loss against the peak `|fhat|` at each
-/// of `onsets_s` (the seed's table over onset time and loss), from noise-free flights with
-/// `losses_percent`, the peak taken over `horizon_s`.
+/// of `onsets_s` (the seed's table over onset time and loss), from flights with `losses_percent`, the
+/// peak taken over `horizon_s`: one noise-free flight per loss, or `noisy_flights_per_loss` flights with
+/// the sensor noise drawn from `noise_seed` (the study's seed + 1, never the trials' streams).
 #[derive(Debug, Clone, PartialEq)]
 pub struct LossTableSpec {
     pub onsets_s: Vec<f64>,
     pub losses_percent: Vec<f64>,
     pub horizon_s: f64,
+    pub noisy_flights_per_loss: usize,
+    pub noise_seed: u64,
+}
+
+impl Default for LossTableSpec {
+    /// Onsets 10 to 110 s every 20 s, losses 10, 30, 50 %, peaks over 3 s, noise-free.
+    fn default() -> Self {
+        LossTableSpec {
+            onsets_s: vec![10.0, 30.0, 50.0, 70.0, 90.0, 110.0],
+            losses_percent: vec![10.0, 30.0, 50.0],
+            horizon_s: 3.0,
+            noisy_flights_per_loss: 0,
+            noise_seed: 0,
+        }
+    }
 }
 
 /// One detector configuration.
@@ -224,7 +245,12 @@ impl FromDeck for LaunchStudy {
                     return Err(v.err(field(name), format!("{value}: allowed {allowed}")));
                 }
             }
-            let onsets_s = d.loss_fit_onsets_s.clone().unwrap_or_else(|| vec![10.0, 30.0, 50.0, 70.0, 90.0, 110.0]);
+            if let Some(sigma) = d.moment_bias_sigma_rad_s2_per_sqrt_s {
+                v.positive(&field("moment_bias_sigma_rad_s2_per_sqrt_s"), sigma)?;
+                params.ekf.moment_bias_sigma_rad_s2_per_sqrt_s = Some(sigma);
+            }
+            let defaults = LossTableSpec::default();
+            let onsets_s = d.loss_fit_onsets_s.clone().unwrap_or(defaults.onsets_s);
             if onsets_s.is_empty() || onsets_s.windows(2).any(|w| !(w[0] < w[1])) {
                 return Err(v.err(field("loss_fit_onsets_s"), "list increasing onsets (s), at least one"));
             }
@@ -233,16 +259,27 @@ impl FromDeck for LaunchStudy {
                     v.err(field("loss_fit_onsets_s"), format!("{t}: allowed 0 < onset < {:.0} s", burnout_s - 5.0))
                 );
             }
-            let losses_percent = d.loss_fit_losses_percent.clone().unwrap_or_else(|| vec![10.0, 30.0, 50.0]);
+            let losses_percent = d.loss_fit_losses_percent.clone().unwrap_or(defaults.losses_percent);
             if losses_percent.len() < 2 || losses_percent.iter().any(|l| !(*l > 0.0 && *l <= 100.0)) {
                 return Err(v.err(field("loss_fit_losses_percent"), "list at least two losses in (0, 100] %"));
             }
-            let horizon_s = v.positive(&field("loss_fit_horizon_s"), d.loss_fit_horizon_s.unwrap_or(3.0))?;
-            detectors.push(LaunchDetector {
-                name: d.name.clone(),
-                params,
-                loss_table: LossTableSpec { onsets_s, losses_percent, horizon_s },
-            });
+            let horizon_s =
+                v.positive(&field("loss_fit_horizon_s"), d.loss_fit_horizon_s.unwrap_or(defaults.horizon_s))?;
+            let noisy_flights_per_loss = d.loss_fit_noisy_flights.unwrap_or(0);
+            if noisy_flights_per_loss == 1 {
+                return Err(v.err(
+                    field("loss_fit_noisy_flights"),
+                    "1: allowed 0 (noise-free flights) or at least 2 noisy flights per loss and onset",
+                ));
+            }
+            let loss_table = LossTableSpec {
+                onsets_s,
+                losses_percent,
+                horizon_s,
+                noisy_flights_per_loss,
+                noise_seed: header.seed.wrapping_add(1),
+            };
+            detectors.push(LaunchDetector { name: d.name.clone(), params, loss_table });
         }
 
         if deck.faults.len() > 1 {
@@ -335,8 +372,26 @@ mod tests {
     #[test]
     fn the_seed_deck_reads_as_documented() {
         let study = LaunchStudy::bundled("seed001_thrust.toml");
-        assert_eq!(study.detectors.len(), 1);
+        assert_eq!(study.detectors.len(), 2);
         assert_eq!(study.detectors[0].params.mhe, MheParams::seed());
+        assert_eq!(study.detectors[0].loss_table, LossTableSpec { noise_seed: 2, ..LossTableSpec::default() });
+        // The second reads the loss from the seed's 5 % steps fitted on noisy flights, with the same filter.
+        let noisy = &study.detectors[1];
+        assert_eq!(
+            (noisy.params.clone(), noisy.loss_table.noisy_flights_per_loss),
+            (study.detectors[0].params.clone(), 4)
+        );
+        assert_eq!(noisy.loss_table.losses_percent.len(), 11);
+        // The recovering deck: three filters (plain, 0.1 and 0.01 rad/s^2/sqrt(s)) under 15 detectors.
+        let recovering = LaunchStudy::bundled("seed001_recovering_residual.toml");
+        let mut filters: Vec<Option<f64>> = Vec::new();
+        for d in &recovering.detectors {
+            let sigma = d.params.ekf.moment_bias_sigma_rad_s2_per_sqrt_s;
+            if !filters.contains(&sigma) {
+                filters.push(sigma);
+            }
+        }
+        assert_eq!((recovering.detectors.len(), filters), (15, vec![None, Some(0.1), Some(0.01)]));
         assert_eq!(study.gusts.len(), 2);
         assert_eq!(study.monte_carlo.engines, [0, 1, 2, 3]);
     }

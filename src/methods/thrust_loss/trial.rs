@@ -14,13 +14,15 @@
 
 use std::sync::Arc;
 
-use crate::methods::thrust_loss::ekf_mhe::{DesignError, DetectorHealth, EkfMhe, LossFit, MheDesign, MheStep};
+use crate::methods::thrust_loss::ekf_mhe::{
+    DesignError, DetectorHealth, EkfMhe, LossFit, MheDesign, MheStep, NoisyCalibration,
+};
 use crate::methods::thrust_loss::scenario::LaunchTrialSpec;
 use crate::methods::thrust_loss::study::LossTableSpec;
 use crate::methods::thrust_loss::vehicle::{LaunchVehicleConfig, Measurement, Vehicle};
 
 /// The seed's table of the loss against the peak `|fhat|` over onset time: a linear fit per onset of
-/// the spec, from noise-free flights of the design vehicle; between onsets the two neighbouring fits'
+/// the spec, from flights of the design vehicle (noise-free, or with its sensor noise); between onsets the two neighbouring fits'
 /// losses are interpolated linearly in the onset, beyond the ends the nearest fit holds.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LossTable {
@@ -35,10 +37,16 @@ impl LossTable {
         config: &LaunchVehicleConfig,
         spec: &LossTableSpec,
     ) -> Result<LossTable, DesignError> {
-        let fits = spec
-            .onsets_s
-            .iter()
-            .map(|&t| design.calibrate_loss_fit(config, t, &spec.losses_percent, spec.horizon_s).map(|(fit, _)| fit))
+        let flights_per_onset = (spec.losses_percent.len() * spec.noisy_flights_per_loss) as u64;
+        let fits = (spec.onsets_s.iter().enumerate())
+            .map(|(i, &t)| {
+                let noise = (spec.noisy_flights_per_loss > 0).then_some(NoisyCalibration {
+                    flights_per_loss: spec.noisy_flights_per_loss,
+                    seed: spec.noise_seed,
+                    first_stream: i as u64 * flights_per_onset,
+                });
+                design.calibrate_loss_fit(config, t, &spec.losses_percent, spec.horizon_s, noise).map(|(fit, _)| fit)
+            })
             .collect::<Result<Vec<_>, _>>()?;
         Ok(LossTable { onsets_s: spec.onsets_s.clone(), fits, horizon_s: spec.horizon_s })
     }
@@ -82,6 +90,9 @@ pub struct LaunchOutcome {
     pub onset_estimate_s: Option<f64>,
     pub fhat_peak: Option<f64>,
     pub loss_estimate_percent: Option<f64>,
+    /// When detected: the time `|fhat|` spends at or above the deck's threshold in the detection window
+    /// after the onset (the seed's count of the beats the estimate shows the fault; dips do not end it).
+    pub above_threshold_s: Option<f64>,
     pub health: DetectorHealth,
 }
 
@@ -92,6 +103,8 @@ struct Score {
     outcome: LaunchOutcome,
     peak_until_s: f64,
     peak: f64,
+    /// Samples of the detection window with `|fhat|` at or above the threshold.
+    above_samples: u32,
 }
 
 /// Flies `config` with `spec`'s fault for `duration_s` and runs every detector on the same samples;
@@ -122,18 +135,27 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
                 onset_estimate_s: None,
                 fhat_peak: None,
                 loss_estimate_percent: None,
+                above_threshold_s: None,
                 health: DetectorHealth::default(),
             },
             peak_until_s: f64::NAN,
             peak: 0.0,
+            above_samples: 0,
         })
         .collect();
-    let mut steps = Vec::with_capacity(detectors.len());
+    // A detector whose filter is an earlier one's takes that one's residual (a sweep of N or F).
+    let residual_of: Vec<usize> = (detectors.iter().enumerate())
+        .map(|(i, d)| detectors[..i].iter().position(|e| e.design.same_residual(&d.design)).unwrap_or(i))
+        .collect();
+    let mut steps: Vec<MheStep> = Vec::with_capacity(detectors.len());
     while vehicle.time_s() < duration_s - 1e-9 {
         let m = vehicle.step(rng).map_err(|e| e.to_string())?;
         steps.clear();
-        for ((detector, d), score) in running.iter_mut().zip(detectors).zip(&mut scores) {
-            let step = detector.step(&m);
+        for (i, ((detector, d), score)) in running.iter_mut().zip(detectors).zip(&mut scores).enumerate() {
+            let step = match residual_of[i] {
+                j if j == i => detector.step(&m),
+                j => detector.step_residual(&m, steps[j].residual_rad_s),
+            };
             let size = step.fhat.abs();
             let o = &mut score.outcome;
             match onset_s {
@@ -143,6 +165,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
                     }
                 }
                 Some(t0) if m.t_s >= t0 => {
+                    score.above_samples += u32::from(step.alarm);
                     if o.profile_fhat.last().is_none_or(|&v| size > v) {
                         o.profile_t_s.push(m.t_s);
                         o.profile_fhat.push(size);
@@ -171,18 +194,18 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
         }
         on_sample(&m, &steps);
     }
-    Ok(running
-        .iter()
+    Ok((running.iter().enumerate())
         .zip(detectors)
         .zip(scores)
-        .map(|((detector, d), score)| {
+        .map(|(((i, detector), d), score)| {
             let mut o = score.outcome;
             if o.alarm_s.is_some() {
+                o.above_threshold_s = Some(f64::from(score.above_samples) * config.dt_s);
                 o.fhat_peak = Some(score.peak);
                 let onset = o.onset_estimate_s.or(o.alarm_s);
                 o.loss_estimate_percent = onset.map(|t| d.table.loss_percent(t, score.peak));
             }
-            o.health = detector.health();
+            o.health = DetectorHealth { filter: running[residual_of[i]].health().filter, ..detector.health() };
             o
         })
         .collect())
@@ -194,6 +217,58 @@ mod tests {
     use crate::engine::streams::{Substream, noise_rng};
     use crate::methods::thrust_loss::ekf_mhe::DetectorParams;
     use crate::methods::thrust_loss::vehicle::ThrustFault;
+
+    /// A calm flight (no gusts, nominal noise) of trial 0 with a loss of `loss_percent` on engine index
+    /// `engine` from `onset_s`.
+    fn calm_loss(engine: usize, loss_percent: f64, onset_s: f64) -> LaunchTrialSpec {
+        LaunchTrialSpec {
+            trial: 0,
+            fault: Some(ThrustFault { engine, loss_fraction: loss_percent / 100.0, onset_s }),
+            loss_percent,
+            loss_bin: loss_percent,
+            noise_scale: 1.0,
+            noise_bin: 1.0,
+            gust_scale: 0.0,
+            gust_bin: 0.0,
+        }
+    }
+
+    /// Detectors that share a filter take its residual: a sweep of N (and a recovering filter beside the
+    /// plain one) run together gives each detector exactly the outcome it has when run alone.
+    #[test]
+    fn detectors_sharing_a_filter_score_as_if_run_alone() {
+        let config = LaunchVehicleConfig::default();
+        let spec_table =
+            LossTableSpec { onsets_s: vec![20.0], losses_percent: vec![20.0, 40.0], ..LossTableSpec::default() };
+        let detector = |name: &str, window_n: usize, moment_bias: Option<f64>| {
+            let mut params = DetectorParams::seed();
+            params.mhe.window_n = window_n;
+            params.ekf.moment_bias_sigma_rad_s2_per_sqrt_s = moment_bias;
+            let design = Arc::new(params.design(&config).unwrap());
+            let table = LossTable::calibrate(&design, &config, &spec_table).unwrap();
+            DesignedDetector { name: name.into(), design, table }
+        };
+        let all = [
+            detector("n5", 5, None),
+            detector("n10", 10, None),
+            detector("fast", 5, Some(0.1)),
+            detector("fast10", 10, Some(0.1)),
+        ];
+        assert!(all[0].design.same_residual(&all[1].design) && !all[0].design.same_residual(&all[2].design));
+        let spec = calm_loss(1, 50.0, 20.0);
+        let fly = |detectors: &[DesignedDetector]| {
+            let mut rng = noise_rng(5, 0, Substream::SensorNoise);
+            run_detectors(&config, &spec, 23.0, 2.0, detectors, &mut rng, |_, _| ()).unwrap()
+        };
+        let together = fly(&all);
+        for (i, d) in all.iter().enumerate() {
+            assert_eq!(fly(std::slice::from_ref(d))[0], together[i], "{}", d.name);
+        }
+        // The plain filter's plateau stays above the threshold for most of the 2 s window; the
+        // recovering one's jump for a few samples at most.
+        assert!(together[2].above_threshold_s.is_none_or(|s| s < 0.1), "{:?}", together[2]);
+        assert!(together[0].alarm_s.is_some() && together[0].above_threshold_s.unwrap() > 1.5, "{:?}", together[0]);
+    }
 
     #[test]
     fn the_loss_table_interpolates_between_onsets_and_holds_its_ends() {
@@ -217,20 +292,15 @@ mod tests {
         let config = LaunchVehicleConfig::default();
         let params = DetectorParams::seed();
         let design = Arc::new(params.design(&config).unwrap());
-        let spec_table =
-            LossTableSpec { onsets_s: vec![10.0, 30.0], losses_percent: vec![10.0, 30.0, 50.0], horizon_s: 3.0 };
+        let spec_table = LossTableSpec {
+            onsets_s: vec![10.0, 30.0],
+            losses_percent: vec![10.0, 30.0, 50.0],
+            horizon_s: 3.0,
+            ..LossTableSpec::default()
+        };
         let table = LossTable::calibrate(&design, &config, &spec_table).unwrap();
         let detector = DesignedDetector { name: "seed".into(), design, table };
-        let spec = LaunchTrialSpec {
-            trial: 0,
-            fault: Some(ThrustFault { engine: 2, loss_fraction: 0.4, onset_s: 25.0 }),
-            loss_percent: 40.0,
-            loss_bin: 40.0,
-            noise_scale: 1.0,
-            noise_bin: 1.0,
-            gust_scale: 0.0,
-            gust_bin: 0.0,
-        };
+        let spec = calm_loss(2, 40.0, 25.0);
         let mut rng = noise_rng(3, 0, Substream::SensorNoise);
         let o = run_detectors(&config, &spec, 30.0, 2.0, &[detector], &mut rng, |_, _| ()).unwrap();
         let o = &o[0];

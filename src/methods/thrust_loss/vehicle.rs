@@ -409,7 +409,12 @@ pub fn filter_derivatives(p: &VehicleParams, x: &State, t_s: f64, gimbal_rad: &[
 }
 
 /// One classical Runge-Kutta step of `x' = f(t, x)` from `t_s` over `dt_s`.
-pub fn rk4(x: &State, t_s: f64, dt_s: f64, f: impl Fn(f64, &State) -> State) -> State {
+pub fn rk4<const N: usize>(
+    x: &SVector<f64, N>,
+    t_s: f64,
+    dt_s: f64,
+    f: impl Fn(f64, &SVector<f64, N>) -> SVector<f64, N>,
+) -> SVector<f64, N> {
     let k1 = f(t_s, x);
     let k2 = f(t_s + dt_s / 2.0, &(x + k1 * (dt_s / 2.0)));
     let k3 = f(t_s + dt_s / 2.0, &(x + k2 * (dt_s / 2.0)));
