@@ -496,6 +496,9 @@ fn csv_frame(path: &Path) -> polars::prelude::DataFrame {
 fn every_bundled_deck_validates() {
     for entry in std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("studies")).unwrap() {
         let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue; // studies/logs/: the flight logs decks replay
+        }
         let out = fdimc(&["validate", path.to_str().unwrap()]);
         assert_eq!(out.status.code(), Some(0), "{}: {}", path.display(), text(&out.stderr));
     }
@@ -1497,4 +1500,37 @@ fn new_writes_a_starter_deck_of_every_kind_that_validates_and_runs() {
     let out = fdimc(&["new", "kalman", tmp.path().join("x.toml").to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("possible values: detection_filter, thrust_loss"), "{}", text(&out.stderr));
+}
+
+/// `fdimc log` lists what a flight log holds and a topic's field spreads; a missing file, a file that is
+/// not a log and a topic the log lacks exit 2 naming the file (and the topic).
+#[test]
+fn log_lists_topics_and_refuses_what_it_cannot_read() {
+    let small = "studies/logs/sample_log_small.ulg";
+    let out = ok(&fdimc(&["log", small, "--topic", "sensor_combined"]));
+    assert!(out.starts_with(&format!("{small}: 70 topic instances, read to its end")), "{out}");
+    let row = out.lines().find(|l| l.starts_with("sensor_combined ")).unwrap();
+    let cells: Vec<&str> = row.split_whitespace().collect();
+    assert_eq!(cells, ["sensor_combined", "0", "1298", "20.327", "26.823", "199.66", "0.1613", "0"], "{out}");
+    let gyro = out.lines().find(|l| l.starts_with("gyro_rad[0] ")).unwrap();
+    assert_eq!(
+        gyro.split_whitespace().collect::<Vec<_>>(),
+        ["gyro_rad[0]", "4.457860e-3", "2.907517e-3", "2.771991e-3"]
+    );
+
+    let tmp = tempfile::tempdir().unwrap();
+    let deck = tmp.path().join("deck.ulg");
+    std::fs::write(&deck, "[study]\n").unwrap();
+    for (args, want) in [
+        (vec!["log", "studies/logs/none.ulg"], "studies/logs/none.ulg: no such file".to_string()),
+        (vec!["log", deck.to_str().unwrap()], format!("{}: not a readable ULog file", deck.display())),
+        (
+            vec!["log", small, "--topic", "airspeed_x"],
+            format!("{small}: no topic \"airspeed_x\" instance 0 (the log has: "),
+        ),
+    ] {
+        let out = fdimc(&args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(text(&out.stderr).contains(&want), "{args:?}: {}", text(&out.stderr));
+    }
 }

@@ -155,6 +155,19 @@ The same deck and seed give identical records for any --threads, shard split or 
         #[arg(long, value_delimiter = ',')]
         trials: Vec<u64>,
     },
+    /// What a flight log (PX4 ULog) holds: every topic instance with its samples, span, mean rate and
+    /// largest gap; with --topic, the mean and spread of each of its number fields.
+    #[command(after_help = "Example: fdimc log studies/logs/sample_log_small.ulg --topic sensor_combined")]
+    Log {
+        /// The log file (.ulg).
+        file: PathBuf,
+        /// A topic whose fields to summarise, e.g. sensor_combined.
+        #[arg(long)]
+        topic: Option<String>,
+        /// The topic's instance (multi_id; 0 for the first or only one).
+        #[arg(long, default_value_t = 0)]
+        instance: u8,
+    },
     /// Statistical regression check against a baseline summary; exit 1 on regression.
     #[command(after_help = "Make a baseline: cp results/<study>/summary.csv results/baselines/<study>.csv")]
     Check {
@@ -226,6 +239,7 @@ pub fn run(cli: Cli) -> ExitCode {
         }
         Command::Merge { dirs, out, force } => run::exec_merge(&dirs, &out, force),
         Command::Report { dir, trials } => run::exec_report(&dir, &trials),
+        Command::Log { file, topic, instance } => run::exec_log(&file, topic.as_deref(), instance),
         Command::Check { target, baseline, alpha, threads } => {
             match run::exec_check(&target, &baseline, alpha, threads) {
                 Ok(true) => Ok(()),

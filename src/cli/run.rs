@@ -327,3 +327,44 @@ pub fn exec_simulate(
     let (_, study) = load(deck, classifiers)?;
     Ok(study.simulate(trial, detector, out, Inputs { classifiers, quiet: false })?)
 }
+
+/// `fdimc log`: what a flight log holds (every topic instance: samples, span, mean rate, largest gap),
+/// and with `topic` the spread of each of that instance's number fields.
+pub fn exec_log(file: &Path, topic: Option<&str>, instance: u8) -> Result<(), CliError> {
+    use crate::engine::flight_log::{field_spreads, survey};
+    let (topics, ending) = survey(file).map_err(|e| CliError::Invalid(e.to_string()))?;
+    println!(
+        "{}: {} topic instances, {}",
+        file.display(),
+        topics.len(),
+        ending.as_deref().unwrap_or("read to its end")
+    );
+    println!(
+        "{:<32} {:>8} {:>8} {:>10} {:>10} {:>9} {:>14} {:>14}",
+        "topic", "instance", "samples", "first_s", "last_s", "rate_hz", "largest_gap_s", "not_increasing"
+    );
+    for t in topics.iter().filter(|t| topic.is_none_or(|name| t.topic == name)) {
+        println!(
+            "{:<32} {:>8} {:>8} {:>10.3} {:>10.3} {:>9.2} {:>14.4} {:>14}",
+            t.topic,
+            t.instance,
+            t.samples,
+            t.first_s,
+            t.last_s,
+            t.mean_rate_hz(),
+            t.largest_gap_s,
+            t.not_increasing
+        );
+    }
+    if let Some(name) = topic {
+        let spreads = field_spreads(file, name, instance).map_err(|e| CliError::Invalid(e.to_string()))?;
+        println!(
+            "\n{name} instance {instance}: number fields (difference sd = sd of sample-to-sample differences / sqrt 2, the white noise when the signal moves slowly)"
+        );
+        println!("{:<32} {:>14} {:>14} {:>14}", "field", "mean", "sd", "difference_sd");
+        for f in spreads {
+            println!("{:<32} {:>14.6e} {:>14.6e} {:>14.6e}", f.field, f.mean, f.sd, f.difference_sd);
+        }
+    }
+    Ok(())
+}

@@ -3,6 +3,7 @@
 
 pub mod check;
 pub mod deck;
+pub mod flight_log;
 pub mod intervals;
 pub mod method;
 pub mod noise;

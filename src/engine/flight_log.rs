@@ -1,0 +1,512 @@
+//! Recorded flights as a source of sensor signals (issue 22): the topics and fields a method needs, read
+//! from a PX4 ULog file with `px4-ulog` (the one reader that read both bundled logs, appended sections
+//! included, value for value as pyulog does; README "Dependencies").
+//!
+//! The file is streamed: only the requested topic's fields are kept, as `f64` per sample, so memory
+//! follows the signals used, not the log's other topics. What a replay needs of a log is checked here
+//! and refused with the file, topic and field named: a missing topic or field, timestamps that do not
+//! increase, a value that is not finite, a gap longer than the deck allows. A log that ends mid-record
+//! (a cut-off recording) keeps its valid prefix, and [`TopicSeries::ending`] says so for the run to
+//! report.
+
+use std::path::{Path, PathBuf};
+
+use px4_ulog::stream_parser::model::{Completeness, FlattenedFieldType};
+use px4_ulog::stream_parser::{FieldParser, Message, SimpleCallbackResult, read_file_with_simple_callback};
+
+/// Which topic instance and fields to read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TopicRequest {
+    pub topic: String,
+    /// The topic's `multi_id` (0 for the first or only instance).
+    pub instance: u8,
+    /// Flattened field names as the log writes them: `gyro_rad[0]`, `accelerometer_m_s2[2]`, `x`, ..
+    pub fields: Vec<String>,
+    /// The longest gap between consecutive samples the caller accepts (s).
+    pub max_gap_s: f64,
+}
+
+/// One topic instance's samples: times and the requested fields, in request order.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TopicSeries {
+    /// Sample times (s) on the log's boot clock (`timestamp` / 1e6).
+    pub t_s: Vec<f64>,
+    /// `values[field][sample]`.
+    pub values: Vec<Vec<f64>>,
+    /// How the file ended: `None` when cleanly; otherwise what was lost (the valid prefix is kept).
+    pub ending: Option<String>,
+}
+
+/// Why a log cannot be replayed; every message names the file.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LogError {
+    #[error("{file}: {message}")]
+    Unreadable { file: PathBuf, message: String },
+    #[error("{file}: no topic {topic:?} instance {instance} (the log has: {available})")]
+    MissingTopic { file: PathBuf, topic: String, instance: u8, available: String },
+    #[error("{file}: topic {topic:?} has no number field {field:?} (its number fields: {available})")]
+    MissingField { file: PathBuf, topic: String, field: String, available: String },
+    #[error(
+        "{file}: topic {topic:?}: timestamp {t_us} us (sample {index}) does not follow {previous_us} us; timestamps must increase"
+    )]
+    NotIncreasing { file: PathBuf, topic: String, index: usize, t_us: u64, previous_us: u64 },
+    #[error("{file}: topic {topic:?}: field {field:?} is {value} at {t_s} s (sample {index}); allowed: finite values")]
+    NotFinite { file: PathBuf, topic: String, field: String, index: usize, t_s: f64, value: f64 },
+    #[error("{file}: topic {topic:?}: a gap of {gap_s:.3} s after {t_s:.3} s; the deck allows {max_gap_s} s")]
+    Gap { file: PathBuf, topic: String, t_s: f64, gap_s: f64, max_gap_s: f64 },
+}
+
+/// A field's decoder: the number types PX4 writes sensor values in.
+enum NumberField {
+    F32(FieldParser<f32>),
+    F64(FieldParser<f64>),
+}
+
+impl NumberField {
+    fn parse(&self, data: &[u8]) -> f64 {
+        match self {
+            NumberField::F32(p) => f64::from(p.parse(data)),
+            NumberField::F64(p) => p.parse(data),
+        }
+    }
+}
+
+/// Reads `request`'s topic instance from the ULog file at `path` and checks it (module docs).
+pub fn read_ulog(path: &Path, request: &TopicRequest) -> Result<TopicSeries, LogError> {
+    let file = path.to_path_buf();
+    let mut topics: Vec<String> = Vec::new();
+    let mut parsers: Option<Result<(FieldParser<u64>, Vec<NumberField>), LogError>> = None;
+    let mut times_us: Vec<u64> = Vec::new();
+    let mut values: Vec<Vec<f64>> = vec![Vec::new(); request.fields.len()];
+    let ending = stream(path, |data| {
+        let format = data.flattened_format;
+        let name = format.message_name();
+        if name != request.topic || data.multi_id.value() != request.instance {
+            if !topics.iter().any(|t| t == name) {
+                topics.push(name.to_string());
+            }
+            return SimpleCallbackResult::KeepReading;
+        }
+        let built = parsers.get_or_insert_with(|| field_parsers(&file, request, format));
+        let Ok((timestamp, fields)) = built else { return SimpleCallbackResult::Stop };
+        times_us.push(timestamp.parse(data.data));
+        for (column, field) in values.iter_mut().zip(fields.iter()) {
+            column.push(field.parse(data.data));
+        }
+        SimpleCallbackResult::KeepReading
+    })?;
+    match parsers {
+        None => return Err(missing_topic(path, &request.topic, request.instance, topics)),
+        Some(Err(e)) => return Err(e),
+        Some(Ok(_)) => {}
+    }
+    let series = TopicSeries { t_s: times_us.iter().map(|&t| t as f64 * 1e-6).collect(), values, ending };
+    check(&file, request, &times_us, &series)?;
+    Ok(series)
+}
+
+/// The timestamp's and the requested fields' decoders for `format`, or the missing field named.
+fn field_parsers(
+    file: &Path,
+    request: &TopicRequest,
+    format: &px4_ulog::stream_parser::model::FlattenedFormat,
+) -> Result<(FieldParser<u64>, Vec<NumberField>), LogError> {
+    let missing = |field: &str| {
+        let numbers: Vec<&str> = (format.field_iter())
+            .filter(|f| matches!(f.field_type, FlattenedFieldType::Float | FlattenedFieldType::Double))
+            .map(|f| f.flattened_field_name.as_str())
+            .collect();
+        LogError::MissingField {
+            file: file.to_path_buf(),
+            topic: request.topic.clone(),
+            field: field.to_string(),
+            available: numbers.join(", "),
+        }
+    };
+    let timestamp = format.get_field_parser::<u64>("timestamp").map_err(|_| missing("timestamp"))?;
+    let fields = (request.fields.iter())
+        .map(|name| {
+            (format.get_field_parser::<f32>(name).map(NumberField::F32))
+                .or_else(|_| format.get_field_parser::<f64>(name).map(NumberField::F64))
+                .map_err(|_| missing(name))
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok((timestamp, fields))
+}
+
+/// Increasing timestamps, finite values, no gap above the request's.
+fn check(file: &Path, request: &TopicRequest, times_us: &[u64], series: &TopicSeries) -> Result<(), LogError> {
+    let topic = || request.topic.clone();
+    for (index, pair) in times_us.windows(2).enumerate() {
+        if pair[1] <= pair[0] {
+            let (t_us, previous_us) = (pair[1], pair[0]);
+            return Err(LogError::NotIncreasing {
+                file: file.into(),
+                topic: topic(),
+                index: index + 1,
+                t_us,
+                previous_us,
+            });
+        }
+        let gap_s = (pair[1] - pair[0]) as f64 * 1e-6;
+        if gap_s > request.max_gap_s {
+            let (t_s, max_gap_s) = (series.t_s[index], request.max_gap_s);
+            return Err(LogError::Gap { file: file.into(), topic: topic(), t_s, gap_s, max_gap_s });
+        }
+    }
+    for (field, column) in request.fields.iter().zip(&series.values) {
+        if let Some(index) = column.iter().position(|v| !v.is_finite()) {
+            let (t_s, value) = (series.t_s[index], column[index]);
+            return Err(LogError::NotFinite {
+                file: file.into(),
+                topic: topic(),
+                field: field.clone(),
+                index,
+                t_s,
+                value,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// One topic instance of a log at a glance (`fdimc log`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TopicSurvey {
+    pub topic: String,
+    pub instance: u8,
+    pub samples: u64,
+    pub first_s: f64,
+    pub last_s: f64,
+    /// The longest interval between consecutive samples (s); 0 with fewer than two.
+    pub largest_gap_s: f64,
+    /// Intervals that do not move forward (repeated or decreasing timestamps).
+    pub not_increasing: u64,
+}
+
+impl TopicSurvey {
+    /// Mean sample rate (Hz) over the topic's span; 0 with fewer than two samples.
+    pub fn mean_rate_hz(&self) -> f64 {
+        if self.samples < 2 || self.last_s <= self.first_s {
+            0.0
+        } else {
+            (self.samples - 1) as f64 / (self.last_s - self.first_s)
+        }
+    }
+}
+
+/// A number field's spread over a topic instance: mean, standard deviation, and the standard deviation
+/// of its sample-to-sample differences over the square root of 2, which is the white-noise standard
+/// deviation when the signal moves slowly against the sample rate (motion inflates the first two).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FieldSpread {
+    pub field: String,
+    pub mean: f64,
+    pub sd: f64,
+    pub difference_sd: f64,
+}
+
+/// The error for a topic instance the log lacks, listing the topics it has (`seen`).
+fn missing_topic(path: &Path, topic: &str, instance: u8, mut seen: Vec<String>) -> LogError {
+    seen.sort();
+    LogError::MissingTopic {
+        file: path.to_path_buf(),
+        topic: topic.to_string(),
+        instance,
+        available: if seen.is_empty() { "no data".into() } else { seen.join(", ") },
+    }
+}
+
+/// Streams a ULog file through `on_data` (every data message), with the reader's panics and errors
+/// turned into [`LogError::Unreadable`] naming `path`; returns how the file ended.
+fn stream(
+    path: &Path,
+    mut on_data: impl FnMut(&px4_ulog::stream_parser::DataMessage) -> SimpleCallbackResult,
+) -> Result<Option<String>, LogError> {
+    let unreadable = |message: String| LogError::Unreadable { file: path.to_path_buf(), message };
+    let path_text = path.to_str().ok_or_else(|| unreadable("the path is not UTF-8".into()))?;
+    if !path.is_file() {
+        return Err(unreadable("no such file".into()));
+    }
+    let mut on_message = |message: &Message| match message {
+        Message::Data(data) => on_data(data),
+        _ => SimpleCallbackResult::KeepReading,
+    };
+    // The reader slices a corrupt parameter record without a bounds check (px4-ulog 0.6.1): a panic
+    // there is a malformed file, not a bug of ours.
+    let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        read_file_with_simple_callback(path_text, &mut on_message)
+    }));
+    match read {
+        Ok(Ok(Completeness::Complete)) => Ok(None),
+        Ok(Ok(Completeness::Truncated)) => Ok(Some("the file ends partway through a record (kept up to it)".into())),
+        Ok(Ok(Completeness::MalformedRecord(why))) => Ok(Some(format!("a malformed record ({why}); kept up to it"))),
+        Ok(Err(e)) => Err(unreadable(format!("not a readable ULog file: {e}"))),
+        Err(_) => Err(unreadable("not a readable ULog file: a malformed record".into())),
+    }
+}
+
+/// Every topic instance of the log at `path`, sorted by topic and instance, and how the file ended.
+pub fn survey(path: &Path) -> Result<(Vec<TopicSurvey>, Option<String>), LogError> {
+    let mut topics: Vec<(TopicSurvey, u64)> = Vec::new();
+    let ending = stream(path, |data| {
+        let format = data.flattened_format;
+        let (name, instance) = (format.message_name(), data.multi_id.value());
+        let Ok(timestamp) = format.get_field_parser::<u64>("timestamp") else {
+            return SimpleCallbackResult::KeepReading;
+        };
+        let t_us = timestamp.parse(data.data);
+        let t_s = t_us as f64 * 1e-6;
+        match topics.iter_mut().find(|(s, _)| s.topic == name && s.instance == instance) {
+            Some((s, last_us)) => {
+                if t_us <= *last_us {
+                    s.not_increasing += 1;
+                } else {
+                    s.largest_gap_s = s.largest_gap_s.max((t_us - *last_us) as f64 * 1e-6);
+                }
+                *last_us = t_us;
+                s.samples += 1;
+                s.first_s = s.first_s.min(t_s);
+                s.last_s = s.last_s.max(t_s);
+            }
+            None => topics.push((
+                TopicSurvey {
+                    topic: name.to_string(),
+                    instance,
+                    samples: 1,
+                    first_s: t_s,
+                    last_s: t_s,
+                    largest_gap_s: 0.0,
+                    not_increasing: 0,
+                },
+                t_us,
+            )),
+        }
+        SimpleCallbackResult::KeepReading
+    })?;
+    if topics.is_empty() {
+        let message = "not a readable ULog file: no data messages (not a log, or cut before its data)".into();
+        return Err(LogError::Unreadable { file: path.to_path_buf(), message });
+    }
+    let mut topics: Vec<TopicSurvey> = topics.into_iter().map(|(s, _)| s).collect();
+    topics.sort_by(|a, b| (a.topic.as_str(), a.instance).cmp(&(b.topic.as_str(), b.instance)));
+    Ok((topics, ending))
+}
+
+/// The spread of every `f32`/`f64` field of one topic instance ([`FieldSpread`]), in the log's field
+/// order; a topic instance the log lacks is [`LogError::MissingTopic`].
+pub fn field_spreads(path: &Path, topic: &str, instance: u8) -> Result<Vec<FieldSpread>, LogError> {
+    // Welford's running mean and variance, of the values and of their differences.
+    #[derive(Default, Clone, Copy)]
+    struct Running {
+        n: f64,
+        mean: f64,
+        m2: f64,
+    }
+    impl Running {
+        fn add(&mut self, x: f64) {
+            self.n += 1.0;
+            let d = x - self.mean;
+            self.mean += d / self.n;
+            self.m2 += d * (x - self.mean);
+        }
+        fn sd(&self) -> f64 {
+            if self.n > 1.0 { (self.m2 / (self.n - 1.0)).sqrt() } else { f64::NAN }
+        }
+    }
+    let mut fields: Option<Vec<(String, NumberField, Running, Running, f64)>> = None;
+    let mut seen: Vec<String> = Vec::new();
+    stream(path, |data| {
+        let format = data.flattened_format;
+        if format.message_name() != topic || data.multi_id.value() != instance {
+            if !seen.iter().any(|t| t == format.message_name()) {
+                seen.push(format.message_name().to_string());
+            }
+            return SimpleCallbackResult::KeepReading;
+        }
+        let fields = fields.get_or_insert_with(|| {
+            (format.field_iter())
+                .filter_map(|f| {
+                    let name = f.flattened_field_name.as_str();
+                    let parser = match f.field_type {
+                        FlattenedFieldType::Float => NumberField::F32(format.get_field_parser::<f32>(name).ok()?),
+                        FlattenedFieldType::Double => NumberField::F64(format.get_field_parser::<f64>(name).ok()?),
+                        _ => return None,
+                    };
+                    Some((name.to_string(), parser, Running::default(), Running::default(), f64::NAN))
+                })
+                .collect()
+        });
+        for (_, parser, values, differences, last) in fields.iter_mut() {
+            let x = parser.parse(data.data);
+            values.add(x);
+            if last.is_finite() {
+                differences.add(x - *last);
+            }
+            *last = x;
+        }
+        SimpleCallbackResult::KeepReading
+    })?;
+    let Some(fields) = fields else { return Err(missing_topic(path, topic, instance, seen)) };
+    Ok(fields
+        .into_iter()
+        .map(|(field, _, values, differences, _)| FieldSpread {
+            field,
+            mean: values.mean,
+            sd: values.sd(),
+            difference_sd: differences.sd() / std::f64::consts::SQRT_2,
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn log(name: &str) -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/logs").join(name)
+    }
+
+    fn imu_request(max_gap_s: f64) -> TopicRequest {
+        let mut fields: Vec<String> = (0..3).map(|i| format!("gyro_rad[{i}]")).collect();
+        fields.extend((0..3).map(|i| format!("accelerometer_m_s2[{i}]")));
+        TopicRequest { topic: "sensor_combined".into(), instance: 0, fields, max_gap_s }
+    }
+
+    /// Both bundled logs read as pyulog 1.3.0 reads them (its numbers written in): sample count, first
+    /// and last timestamps, and the first, second and last values of every IMU field, to f32 precision
+    /// (the log stores f32; pyulog prints them widened to f64, as here).
+    #[test]
+    fn the_bundled_logs_read_as_pyulog_reads_them() {
+        type Case = (&'static str, usize, f64, f64, [[f64; 3]; 6]);
+        let cases: [Case; 2] = [
+            (
+                "sample_log_small.ulg",
+                1298,
+                20.326716,
+                26.822868,
+                [
+                    [0.002968383487313986, 0.0015724377008154988, 0.0038848412223160267],
+                    [0.003646239871159196, 0.0012462260201573372, -0.0030337886419147253],
+                    [0.0009424961172044277, 0.002898464212194085, 0.0007792016840539873],
+                    [0.0012458056444302201, 0.011952392756938934, -0.010053723119199276],
+                    [-0.15434497594833374, -0.18632270395755768, -0.1637258678674698],
+                    [-9.63424301147461, -9.631083488464355, -9.566828727722168],
+                ],
+            ),
+            (
+                "sample_appended_multiple.ulg",
+                2373,
+                12.262822,
+                21.880422,
+                [
+                    [0.0032860368955880404, 0.004764501471072435, 0.05898718535900116],
+                    [0.009327229112386703, 0.010173491202294827, 0.03172055631875992],
+                    [0.0039487420581281185, 0.005221804603934288, 0.012260101735591888],
+                    [0.5401454567909241, 0.5732278823852539, 0.5413755178451538],
+                    [0.32172298431396484, 0.293390691280365, 0.30004557967185974],
+                    [-9.93630313873291, -9.894732475280762, -9.923652648925781],
+                ],
+            ),
+        ];
+        for (name, count, first_s, last_s, fields) in cases {
+            let s = read_ulog(&log(name), &imu_request(0.5)).unwrap();
+            assert_eq!((s.t_s.len(), s.ending.clone()), (count, None), "{name}");
+            assert!((s.t_s[0] - first_s).abs() < 1e-9 && (s.t_s[count - 1] - last_s).abs() < 1e-9, "{name}");
+            for (column, want) in s.values.iter().zip(fields) {
+                assert_eq!([column[0], column[1], column[count - 1]], want, "{name}");
+            }
+        }
+    }
+
+    /// The survey and the field spreads equal pyulog 1.3.0 with numpy on the same files: topic instances,
+    /// counts, mean rates, largest gaps; means, standard deviations (n - 1) and difference standard
+    /// deviations over sqrt 2 of two fields. On the bench log (small) the two deviations agree (white noise
+    /// dominates); in the moving log the gyro's standard deviation is 2.8 times its difference one.
+    #[test]
+    fn the_survey_and_spreads_match_pyulog() {
+        let (small, ending) = survey(&log("sample_log_small.ulg")).unwrap();
+        assert_eq!((small.len(), ending), (70, None));
+        let find = |s: &[TopicSurvey], topic: &str, instance: u8| {
+            s.iter().find(|t| t.topic == topic && t.instance == instance).unwrap().clone()
+        };
+        let combined = find(&small, "sensor_combined", 0);
+        assert_eq!((combined.samples, combined.not_increasing), (1298, 0));
+        assert!((combined.mean_rate_hz() - 199.6566582801634).abs() < 1e-9);
+        assert!((combined.largest_gap_s - 0.161303).abs() < 1e-12);
+        assert_eq!(find(&small, "sensor_accel", 2).samples, 6);
+        let (appended, _) = survey(&log("sample_appended_multiple.ulg")).unwrap();
+        let combined = find(&appended, "sensor_combined", 0);
+        assert_eq!((appended.len(), combined.samples), (20, 2373));
+        assert!((combined.mean_rate_hz() - 246.63117617700883).abs() < 1e-9);
+        assert!((combined.largest_gap_s - 0.016001).abs() < 1e-12);
+
+        let close = |got: f64, want: f64| (got - want).abs() <= 1e-9 * want.abs();
+        type Spread = (&'static str, &'static str, [f64; 3]);
+        let cases: [Spread; 4] = [
+            ("sample_log_small.ulg", "gyro_rad[0]", [0.004457859755187899, 0.002907516816116944, 0.002771990926852554]),
+            (
+                "sample_log_small.ulg",
+                "accelerometer_m_s2[2]",
+                [-9.621494837644839, 0.04057122740455669, 0.032006920636332745],
+            ),
+            (
+                "sample_appended_multiple.ulg",
+                "gyro_rad[0]",
+                [-0.0038622410727393326, 0.05745443389194065, 0.02026831066852839],
+            ),
+            (
+                "sample_appended_multiple.ulg",
+                "accelerometer_m_s2[2]",
+                [-9.921208001871024, 0.1092127010681122, 0.04445650501381795],
+            ),
+        ];
+        for (name, field, [mean, sd, difference_sd]) in cases {
+            let spreads = field_spreads(&log(name), "sensor_combined", 0).unwrap();
+            let f = spreads.iter().find(|f| f.field == field).unwrap();
+            assert!(close(f.mean, mean) && close(f.sd, sd) && close(f.difference_sd, difference_sd), "{name} {f:?}");
+        }
+        let err = field_spreads(&log("sample_appended_multiple.ulg"), "airspeed", 0).unwrap_err().to_string();
+        assert!(err.contains("no topic \"airspeed\" instance 0 (the log has: "), "{err}");
+    }
+
+    /// What a replay cannot use is refused naming the file, topic and field: the small log's 161 ms
+    /// dropout against a 0.1 s limit, a topic or a field it lacks, a file that is not a log, a missing
+    /// file; a log cut mid-record keeps its valid prefix and says so.
+    #[test]
+    fn unusable_logs_are_refused_by_name() {
+        let small = log("sample_log_small.ulg");
+        let err = read_ulog(&small, &imu_request(0.1)).unwrap_err().to_string();
+        assert!(err.contains("sample_log_small.ulg: topic \"sensor_combined\": a gap of 0.161 s after"), "{err}");
+        let mut wrong_topic = imu_request(0.5);
+        wrong_topic.topic = "sensor_combined_x".into();
+        let err = read_ulog(&small, &wrong_topic).unwrap_err().to_string();
+        assert!(
+            err.contains("no topic \"sensor_combined_x\" instance 0 (the log has: ") && err.contains("sensor_accel"),
+            "{err}"
+        );
+        let mut wrong_field = imu_request(0.5);
+        wrong_field.fields[1] = "gyro_rad[3]".into();
+        let err = read_ulog(&small, &wrong_field).unwrap_err().to_string();
+        assert!(err.contains("has no number field \"gyro_rad[3]\" (its number fields: gyro_rad[0], "), "{err}");
+        let mut instance = imu_request(2.0); // logged at about 1 Hz
+        instance.topic = "sensor_accel".into();
+        instance.instance = 2;
+        instance.fields = vec!["x".into(), "y".into(), "z".into()];
+        assert_eq!(read_ulog(&small, &instance).unwrap().t_s.len(), 6, "the third accelerometer (pyulog: 6)");
+
+        let tmp = tempfile::tempdir().unwrap();
+        let bytes = std::fs::read(&small).unwrap();
+        let cut = tmp.path().join("cut.ulg");
+        std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+        let s = read_ulog(&cut, &imu_request(0.5)).unwrap();
+        assert_eq!(s.t_s.len(), 595, "pyulog 1.3.0 reads 595 samples of the first half of the file");
+        assert!(s.ending.unwrap().contains("partway through a record"));
+        let not_a_log = tmp.path().join("deck.ulg");
+        std::fs::write(&not_a_log, "[study]\nname = \"x\"\n").unwrap();
+        let err = read_ulog(&not_a_log, &imu_request(0.5)).unwrap_err().to_string();
+        assert!(err.starts_with(&format!("{}: ", not_a_log.display())), "{err}");
+        let err = read_ulog(&tmp.path().join("none.ulg"), &imu_request(0.5)).unwrap_err().to_string();
+        assert!(err.ends_with("none.ulg: no such file"), "{err}");
+    }
+}
