@@ -985,7 +985,14 @@ fn launch_records_are_identical_for_any_threads_shards_and_resume() {
     let trace = s(tmp.path().join("trace.parquet"));
     let sim = ok(&fdimc(&["simulate", deck, "--trial", &trial, "--out", &trace]));
     assert!(sim.contains(&format!("delay {delay:.2} s, localised {engine},")), "trial {trial}: {sim}");
-    assert_eq!(read_frame(Path::new(&trace)).height(), 3000);
+    let frame = read_frame(Path::new(&trace));
+    assert_eq!(frame.height(), 3000);
+    // |fhat| over the deck threshold passes 1 in a detected flight, exactly where the alarm is set.
+    let over: Vec<f64> = frame.column("seed_fhat_over_threshold").unwrap().f64().unwrap().into_no_null_iter().collect();
+    let alarm = frame.column("seed_alarm").unwrap().cast(&DataType::Float64).unwrap();
+    let alarm: Vec<bool> = alarm.f64().unwrap().into_no_null_iter().map(|a| a == 1.0).collect();
+    assert!(over.iter().any(|&o| o >= 1.0));
+    assert!(over.iter().zip(&alarm).all(|(&o, &a)| (o >= 1.0) == a));
 
     assert_report(
         &one,
@@ -994,7 +1001,7 @@ fn launch_records_are_identical_for_any_threads_shards_and_resume() {
             ("roc.svg", &["seed calibrated: Pfa"]),
             ("delay_seed.svg", &["thrust_loss ("]),
             ("confusion_seed.svg", &["engine_1", "true target"]),
-            ("trace_trial3.svg", &["estimated fault fhat", "seed_fhat", "thrust_true_n"]),
+            ("trace_trial3.svg", &["estimated fault fhat", "seed_fhat", "thrust_true_n", "seed_fhat_over_threshold"]),
             ("loss_error.svg", &["y = 0", "loss_error_percent", "true fault size (percent of one engine", "seed ("]),
         ],
     );

@@ -83,7 +83,8 @@ pub fn validate(study: &LaunchStudy) -> Result<(), RunError> {
 }
 
 /// One flight of a launch deck: every detector (or `--detector`'s) on the same samples; the trace holds
-/// the measured pitch rate and overloads, the true thrust, and per detector the residual, `fhat` and the
+/// the measured pitch rate and overloads, the true thrust, and per detector the residual, `fhat`, `|fhat|`
+/// over the deck's threshold (one scale for detectors whose `fhat` differ by orders of magnitude) and the
 /// alarm.
 pub fn simulate(study: &LaunchStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), RunError> {
     let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
@@ -106,6 +107,7 @@ pub fn simulate(study: &LaunchStudy, trial: u64, detector: Option<&str>, out: &P
         for (d, step) in selected.detectors.iter().zip(steps) {
             row.float(|| format!("{}_residual_rad_s", d.name), step.residual_rad_s)
                 .float(|| format!("{}_fhat", d.name), step.fhat)
+                .float(|| format!("{}_fhat_over_threshold", d.name), step.fhat.abs() / d.params.threshold_fhat)
                 .flag(|| format!("{}_alarm", d.name), step.alarm);
         }
     });

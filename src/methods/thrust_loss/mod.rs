@@ -57,10 +57,11 @@ pub static METHOD: Method = Method {
     },
     report: None,
     trace_panels: &[
-        TracePanel { title: "yaw rate (rad/s)", columns: &["wz_*"] },
+        TracePanel { title: "pitch rate wz (rad/s)", columns: &["wz_*"] },
         TracePanel { title: "thrust (N)", columns: &["thrust_true_n"] },
         TracePanel { title: "EKF residual (rad/s)", columns: &["*_residual_rad_s"] },
         TracePanel { title: "estimated fault fhat", columns: &["*_fhat"] },
+        TracePanel { title: "|fhat| / deck threshold (alarm at 1)", columns: &["*_fhat_over_threshold"] },
         TracePanel { title: "alarm", columns: &["*_alarm"] },
     ],
     own_plots: &[OwnPlot::Scatter {
