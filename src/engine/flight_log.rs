@@ -7,7 +7,8 @@
 //! and refused with the file, topic and field named: a missing topic or field, timestamps that do not
 //! increase, a value that is not finite, a gap longer than the deck allows. A log that ends mid-record
 //! (a cut-off recording) keeps its valid prefix, and [`TopicSeries::ending`] says so for the run to
-//! report.
+//! report. Logs of other autopilots, converted to CSV or Parquet by their own tools, are read with a
+//! column map ([`TableRequest`], [`read_table`]) and checked the same way.
 
 use std::path::{Path, PathBuf};
 
@@ -46,14 +47,14 @@ pub enum LogError {
     MissingTopic { file: PathBuf, topic: String, instance: u8, available: String },
     #[error("{file}: topic {topic:?} has no number field {field:?} (its number fields: {available})")]
     MissingField { file: PathBuf, topic: String, field: String, available: String },
-    #[error(
-        "{file}: topic {topic:?}: timestamp {t_us} us (sample {index}) does not follow {previous_us} us; timestamps must increase"
-    )]
-    NotIncreasing { file: PathBuf, topic: String, index: usize, t_us: u64, previous_us: u64 },
-    #[error("{file}: topic {topic:?}: field {field:?} is {value} at {t_s} s (sample {index}); allowed: finite values")]
-    NotFinite { file: PathBuf, topic: String, field: String, index: usize, t_s: f64, value: f64 },
-    #[error("{file}: topic {topic:?}: a gap of {gap_s:.3} s after {t_s:.3} s; the deck allows {max_gap_s} s")]
-    Gap { file: PathBuf, topic: String, t_s: f64, gap_s: f64, max_gap_s: f64 },
+    #[error("{file}: table has no column {column:?} (its columns: {available})")]
+    MissingColumn { file: PathBuf, column: String, available: String },
+    #[error("{file}: {origin}: time {t_s} s (sample {index}) does not follow {previous_s} s; times must increase")]
+    NotIncreasing { file: PathBuf, origin: String, index: usize, t_s: f64, previous_s: f64 },
+    #[error("{file}: {origin}: field {field:?} is {value} at {t_s} s (sample {index}); allowed: finite values")]
+    NotFinite { file: PathBuf, origin: String, field: String, index: usize, t_s: f64, value: f64 },
+    #[error("{file}: {origin}: a gap of {gap_s:.3} s after {t_s:.3} s; the deck allows {max_gap_s} s")]
+    Gap { file: PathBuf, origin: String, t_s: f64, gap_s: f64, max_gap_s: f64 },
 }
 
 /// A field's decoder: the number types PX4 writes sensor values in.
@@ -101,7 +102,7 @@ pub fn read_ulog(path: &Path, request: &TopicRequest) -> Result<TopicSeries, Log
         Some(Ok(_)) => {}
     }
     let series = TopicSeries { t_s: times_us.iter().map(|&t| t as f64 * 1e-6).collect(), values, ending };
-    check(&file, request, &times_us, &series)?;
+    check(&file, &format!("topic {:?}", request.topic), &request.fields, request.max_gap_s, &series)?;
     Ok(series)
 }
 
@@ -134,40 +135,73 @@ fn field_parsers(
     Ok((timestamp, fields))
 }
 
-/// Increasing timestamps, finite values, no gap above the request's.
-fn check(file: &Path, request: &TopicRequest, times_us: &[u64], series: &TopicSeries) -> Result<(), LogError> {
-    let topic = || request.topic.clone();
-    for (index, pair) in times_us.windows(2).enumerate() {
-        if pair[1] <= pair[0] {
-            let (t_us, previous_us) = (pair[1], pair[0]);
-            return Err(LogError::NotIncreasing {
-                file: file.into(),
-                topic: topic(),
-                index: index + 1,
-                t_us,
-                previous_us,
-            });
+/// Increasing times, finite values, no gap above `max_gap_s`; `origin` names where the series came from
+/// in messages (`topic "sensor_combined"`, `table`).
+fn check(file: &Path, origin: &str, fields: &[String], max_gap_s: f64, series: &TopicSeries) -> Result<(), LogError> {
+    let (file, origin) = (file.to_path_buf(), origin.to_string());
+    for (index, pair) in series.t_s.windows(2).enumerate() {
+        if !(pair[1] > pair[0]) {
+            let (t_s, previous_s) = (pair[1], pair[0]);
+            return Err(LogError::NotIncreasing { file, origin, index: index + 1, t_s, previous_s });
         }
-        let gap_s = (pair[1] - pair[0]) as f64 * 1e-6;
-        if gap_s > request.max_gap_s {
-            let (t_s, max_gap_s) = (series.t_s[index], request.max_gap_s);
-            return Err(LogError::Gap { file: file.into(), topic: topic(), t_s, gap_s, max_gap_s });
+        let gap_s = pair[1] - pair[0];
+        if gap_s > max_gap_s {
+            return Err(LogError::Gap { file, origin, t_s: pair[0], gap_s, max_gap_s });
         }
     }
-    for (field, column) in request.fields.iter().zip(&series.values) {
+    for (field, column) in fields.iter().zip(&series.values) {
         if let Some(index) = column.iter().position(|v| !v.is_finite()) {
-            let (t_s, value) = (series.t_s[index], column[index]);
-            return Err(LogError::NotFinite {
-                file: file.into(),
-                topic: topic(),
-                field: field.clone(),
-                index,
-                t_s,
-                value,
-            });
+            let (field, t_s, value) = (field.clone(), series.t_s[index], column[index]);
+            return Err(LogError::NotFinite { file, origin, field, index, t_s, value });
         }
     }
     Ok(())
+}
+
+/// A log another autopilot's tools converted to a table (CSV, or Parquet by the `.parquet` extension):
+/// the column holding time, its unit, and the signal columns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TableRequest {
+    pub time_column: String,
+    /// Seconds per unit of the time column: 1 for seconds, 1e-6 for microseconds.
+    pub seconds_per_time_unit: f64,
+    pub columns: Vec<String>,
+    pub max_gap_s: f64,
+}
+
+/// Reads `request`'s columns of the table at `path` and checks them as a ULog topic is checked (a
+/// null reads as a non-finite value). The table is read whole, once per study.
+pub fn read_table(path: &Path, request: &TableRequest) -> Result<TopicSeries, LogError> {
+    use polars::prelude::DataType;
+    let unreadable = |message: String| LogError::Unreadable { file: path.to_path_buf(), message };
+    if !path.is_file() {
+        return Err(unreadable("no such file".into()));
+    }
+    let frame = crate::engine::tables::read_summary(path).map_err(|e| unreadable(e.to_string()))?;
+    let names: Vec<String> = frame.get_column_names().iter().map(|n| n.to_string()).collect();
+    let column = |name: &str| -> Result<Vec<f64>, LogError> {
+        let missing = || LogError::MissingColumn {
+            file: path.to_path_buf(),
+            column: name.to_string(),
+            available: names.join(", "),
+        };
+        let c = frame.column(name).map_err(|_| missing())?;
+        let c = c.cast(&DataType::Float64).map_err(|_| missing())?;
+        let values = c.f64().map_err(|_| missing())?;
+        Ok((0..values.len()).map(|i| values.get(i).unwrap_or(f64::NAN)).collect())
+    };
+    let time = column(&request.time_column)?;
+    let series = TopicSeries {
+        t_s: time.iter().map(|t| t * request.seconds_per_time_unit).collect(),
+        values: request.columns.iter().map(|c| column(c)).collect::<Result<_, _>>()?,
+        ending: None,
+    };
+    if let Some(index) = series.t_s.iter().position(|t| !t.is_finite()) {
+        let (file, origin, field) = (path.to_path_buf(), "table".to_string(), request.time_column.clone());
+        return Err(LogError::NotFinite { file, origin, field, index, t_s: f64::NAN, value: time[index] });
+    }
+    check(path, "table", &request.columns, request.max_gap_s, &series)?;
+    Ok(series)
 }
 
 /// One topic instance of a log at a glance (`fdimc log`).
@@ -468,6 +502,53 @@ mod tests {
         }
         let err = field_spreads(&log("sample_appended_multiple.ulg"), "airspeed", 0).unwrap_err().to_string();
         assert!(err.contains("no topic \"airspeed\" instance 0 (the log has: "), "{err}");
+    }
+
+    /// A log converted to a table reads back to the same series: the small log's gyro written as CSV
+    /// (time in microseconds) and as Parquet (seconds) gives its times and values exactly; a missing column,
+    /// an empty cell and rows out of order are refused naming the file and column.
+    #[test]
+    fn a_table_log_reads_as_the_ulog_it_came_from() {
+        use polars::prelude::*;
+        let fields: Vec<String> = (0..3).map(|i| format!("gyro_rad[{i}]")).collect();
+        let request = TopicRequest { fields: fields.clone(), ..imu_request(0.5) };
+        let ulog = read_ulog(&log("sample_log_small.ulg"), &request).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let mut csv = String::from("time_us,gx,gy,gz\n");
+        for (k, t) in ulog.t_s.iter().enumerate() {
+            let t_us = (t * 1e6).round();
+            csv += &format!("{t_us},{},{},{}\n", ulog.values[0][k], ulog.values[1][k], ulog.values[2][k]);
+        }
+        let csv_path = tmp.path().join("imu.csv");
+        std::fs::write(&csv_path, &csv).unwrap();
+        let columns: Vec<String> = ["gx", "gy", "gz"].map(String::from).to_vec();
+        let table =
+            TableRequest { time_column: "time_us".into(), seconds_per_time_unit: 1e-6, columns, max_gap_s: 0.5 };
+        let from_csv = read_table(&csv_path, &table).unwrap();
+        assert_eq!(from_csv.values, ulog.values);
+        assert!(from_csv.t_s.iter().zip(&ulog.t_s).all(|(a, b)| (a - b).abs() < 1e-12));
+
+        let mut frame =
+            df!("t_s" => &ulog.t_s, "gx" => &ulog.values[0], "gy" => &ulog.values[1], "gz" => &ulog.values[2]).unwrap();
+        let parquet_path = tmp.path().join("imu.parquet");
+        ParquetWriter::new(std::fs::File::create(&parquet_path).unwrap()).finish(&mut frame).unwrap();
+        let seconds = TableRequest { time_column: "t_s".into(), seconds_per_time_unit: 1.0, ..table.clone() };
+        assert_eq!(read_table(&parquet_path, &seconds).unwrap(), TopicSeries { ending: None, ..ulog.clone() });
+
+        let wrong = TableRequest { columns: vec!["gx".into(), "gyro_y".into()], ..table.clone() };
+        let err = read_table(&csv_path, &wrong).unwrap_err().to_string();
+        assert!(err.ends_with("imu.csv: table has no column \"gyro_y\" (its columns: time_us, gx, gy, gz)"), "{err}");
+        let mut lines: Vec<&str> = csv.lines().collect();
+        let holed = lines[11].rsplit_once(',').unwrap().0.to_string() + ",";
+        lines[11] = &holed;
+        std::fs::write(&csv_path, lines.join("\n")).unwrap();
+        let err = read_table(&csv_path, &table).unwrap_err().to_string();
+        assert!(err.contains("imu.csv: table: field \"gz\" is NaN at ") && err.contains("(sample 10)"), "{err}");
+        lines.swap(20, 21);
+        lines[11] = csv.lines().nth(11).unwrap();
+        std::fs::write(&csv_path, lines.join("\n")).unwrap();
+        let err = read_table(&csv_path, &table).unwrap_err().to_string();
+        assert!(err.contains("imu.csv: table: time ") && err.contains("(sample 20) does not follow"), "{err}");
     }
 
     /// What a replay cannot use is refused naming the file, topic and field: the small log's 161 ms
