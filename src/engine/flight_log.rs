@@ -10,6 +10,8 @@
 //! report. Logs of other autopilots, converted to CSV or Parquet by their own tools, are read with a
 //! column map ([`TableRequest`], [`read_table`]) and checked the same way.
 
+use std::collections::hash_map::Entry;
+use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 
 use px4_ulog::stream_parser::model::{Completeness, FlattenedFieldType};
@@ -75,7 +77,7 @@ impl NumberField {
 /// Reads `request`'s topic instance from the ULog file at `path` and checks it (module docs).
 pub fn read_ulog(path: &Path, request: &TopicRequest) -> Result<TopicSeries, LogError> {
     let file = path.to_path_buf();
-    let mut topics: Vec<String> = Vec::new();
+    let mut topics: BTreeSet<String> = BTreeSet::new();
     let mut parsers: Option<Result<(FieldParser<u64>, Vec<NumberField>), LogError>> = None;
     let mut times_us: Vec<u64> = Vec::new();
     let mut values: Vec<Vec<f64>> = vec![Vec::new(); request.fields.len()];
@@ -83,8 +85,8 @@ pub fn read_ulog(path: &Path, request: &TopicRequest) -> Result<TopicSeries, Log
         let format = data.flattened_format;
         let name = format.message_name();
         if name != request.topic || data.multi_id.value() != request.instance {
-            if !topics.iter().any(|t| t == name) {
-                topics.push(name.to_string());
+            if !topics.contains(name) {
+                topics.insert(name.to_string());
             }
             return SimpleCallbackResult::KeepReading;
         }
@@ -241,8 +243,8 @@ pub struct FieldSpread {
 }
 
 /// The error for a topic instance the log lacks, listing the topics it has (`seen`).
-fn missing_topic(path: &Path, topic: &str, instance: u8, mut seen: Vec<String>) -> LogError {
-    seen.sort();
+fn missing_topic(path: &Path, topic: &str, instance: u8, seen: BTreeSet<String>) -> LogError {
+    let seen: Vec<String> = seen.into_iter().collect();
     LogError::MissingTopic {
         file: path.to_path_buf(),
         topic: topic.to_string(),
@@ -282,47 +284,49 @@ fn stream(
 
 /// Every topic instance of the log at `path`, sorted by topic and instance, and how the file ended.
 pub fn survey(path: &Path) -> Result<(Vec<TopicSurvey>, Option<String>), LogError> {
-    let mut topics: Vec<(TopicSurvey, u64)> = Vec::new();
+    // Per subscription (msg_id): its entry, its timestamp's decoder and its last timestamp, looked up once.
+    let mut topics: Vec<TopicSurvey> = Vec::new();
+    let mut by_id: HashMap<u16, (usize, FieldParser<u64>, u64)> = HashMap::new();
     let ending = stream(path, |data| {
-        let format = data.flattened_format;
-        let (name, instance) = (format.message_name(), data.multi_id.value());
-        let Ok(timestamp) = format.get_field_parser::<u64>("timestamp") else {
-            return SimpleCallbackResult::KeepReading;
-        };
-        let t_us = timestamp.parse(data.data);
-        let t_s = t_us as f64 * 1e-6;
-        match topics.iter_mut().find(|(s, _)| s.topic == name && s.instance == instance) {
-            Some((s, last_us)) => {
-                if t_us <= *last_us {
-                    s.not_increasing += 1;
-                } else {
-                    s.largest_gap_s = s.largest_gap_s.max((t_us - *last_us) as f64 * 1e-6);
-                }
-                *last_us = t_us;
-                s.samples += 1;
-                s.first_s = s.first_s.min(t_s);
-                s.last_s = s.last_s.max(t_s);
-            }
-            None => topics.push((
-                TopicSurvey {
-                    topic: name.to_string(),
-                    instance,
-                    samples: 1,
-                    first_s: t_s,
-                    last_s: t_s,
+        let entry = match by_id.entry(data.msg_id) {
+            Entry::Occupied(e) => e.into_mut(),
+            Entry::Vacant(e) => {
+                let format = data.flattened_format;
+                let Ok(timestamp) = format.get_field_parser::<u64>("timestamp") else {
+                    return SimpleCallbackResult::KeepReading;
+                };
+                topics.push(TopicSurvey {
+                    topic: format.message_name().to_string(),
+                    instance: data.multi_id.value(),
+                    samples: 0,
+                    first_s: f64::INFINITY,
+                    last_s: f64::NEG_INFINITY,
                     largest_gap_s: 0.0,
                     not_increasing: 0,
-                },
-                t_us,
-            )),
+                });
+                e.insert((topics.len() - 1, timestamp, u64::MAX))
+            }
+        };
+        let (index, timestamp, last_us) = entry;
+        let (s, t_us) = (&mut topics[*index], timestamp.parse(data.data));
+        let t_s = t_us as f64 * 1e-6;
+        if *last_us != u64::MAX {
+            if t_us <= *last_us {
+                s.not_increasing += 1;
+            } else {
+                s.largest_gap_s = s.largest_gap_s.max((t_us - *last_us) as f64 * 1e-6);
+            }
         }
+        *last_us = t_us;
+        s.samples += 1;
+        s.first_s = s.first_s.min(t_s);
+        s.last_s = s.last_s.max(t_s);
         SimpleCallbackResult::KeepReading
     })?;
     if topics.is_empty() {
         let message = "not a readable ULog file: no data messages (not a log, or cut before its data)".into();
         return Err(LogError::Unreadable { file: path.to_path_buf(), message });
     }
-    let mut topics: Vec<TopicSurvey> = topics.into_iter().map(|(s, _)| s).collect();
     topics.sort_by(|a, b| (a.topic.as_str(), a.instance).cmp(&(b.topic.as_str(), b.instance)));
     Ok((topics, ending))
 }
@@ -349,12 +353,12 @@ pub fn field_spreads(path: &Path, topic: &str, instance: u8) -> Result<Vec<Field
         }
     }
     let mut fields: Option<Vec<(String, NumberField, Running, Running, f64)>> = None;
-    let mut seen: Vec<String> = Vec::new();
+    let mut seen: BTreeSet<String> = BTreeSet::new();
     stream(path, |data| {
         let format = data.flattened_format;
         if format.message_name() != topic || data.multi_id.value() != instance {
-            if !seen.iter().any(|t| t == format.message_name()) {
-                seen.push(format.message_name().to_string());
+            if !seen.contains(format.message_name()) {
+                seen.insert(format.message_name().to_string());
             }
             return SimpleCallbackResult::KeepReading;
         }
