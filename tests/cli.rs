@@ -25,8 +25,14 @@ fn edited_deck(dir: &Path, source: &str, edits: &[(&str, &str)], name: &str) -> 
         text = text.replacen(from, to, 1);
     }
     let path = dir.join(name);
-    std::fs::write(&path, text).unwrap();
+    std::fs::write(&path, with_absolute_logs(&text)).unwrap();
     path
+}
+
+/// A deck written outside `studies/` still finds the bundled logs its `[log]` names relatively.
+fn with_absolute_logs(deck: &str) -> String {
+    let logs = Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/logs/");
+    deck.replace("file = \"logs/", &format!("file = \"{}", logs.display()))
 }
 
 #[test]
@@ -401,14 +407,14 @@ fn bad_decks_exit_2_naming_file_and_field() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let catalogue: Catalogue =
         toml::from_str(&std::fs::read_to_string(root.join("tests/data/bad_decks.toml")).unwrap()).unwrap();
-    assert_eq!(catalogue.case.len(), 116);
+    assert_eq!(catalogue.case.len(), 130);
     let dir = tempfile::tempdir().unwrap();
     for (i, c) in catalogue.case.iter().enumerate() {
         let what = format!("case {i} ({}, {})", c.deck, c.what.as_deref().unwrap_or(&c.to));
         let good = std::fs::read_to_string(root.join("studies").join(&c.deck)).unwrap();
         assert!(good.contains(&c.from), "{what}: the bundled deck no longer contains {:?}", c.from);
         let path = dir.path().join(format!("bad_{i}.toml"));
-        std::fs::write(&path, good.replacen(&c.from, &c.to, 1)).unwrap();
+        std::fs::write(&path, with_absolute_logs(&good.replacen(&c.from, &c.to, 1))).unwrap();
         let out = fdimc(&["validate", path.to_str().unwrap()]);
         let stderr = text(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{what}: {stderr}");
@@ -1540,4 +1546,37 @@ fn log_lists_topics_and_refuses_what_it_cannot_read() {
         assert_eq!(out.status.code(), Some(2), "{args:?}");
         assert!(text(&out.stderr).contains(&want), "{args:?}: {}", text(&out.stderr));
     }
+}
+
+/// The replay deck (method 003 on a real log) runs as any study: identical records for any threads,
+/// shards and resume; one row per trial and classifier with the segment's start inside the evaluated
+/// half; the fault-free replay's alarms; the report; `simulate --trial`.
+#[test]
+fn replay_records_are_identical_for_any_threads_shards_and_resume() {
+    let tmp = tempfile::tempdir().unwrap();
+    let edits = [("trials = 400", "trials = 600"), ("trials_per_class = 300", "trials_per_class = 40")];
+    let deck_path = edited_deck(tmp.path(), "replay_px4.toml", &edits, "replay.toml");
+    let deck = deck_path.to_str().unwrap();
+    let tables = ["confusion.csv", "summary.csv", "detectors.csv", "comparison.csv"];
+    let (one, stdout) = assert_identical_runs(deck, tmp.path(), 600, 512, &tables);
+    for name in ["tree_sim", "flat_sim", "tree_log", "flat_log"] {
+        assert_eq!(stdout.lines().filter(|l| l.starts_with(&format!("    deck       {name} "))).count(), 1, "{stdout}");
+    }
+    let records = read_frame(&one.join("trials.parquet"));
+    assert_eq!(records.height(), 600 * 4);
+    let starts: Vec<f64> = records.column("log_start_s").unwrap().f64().unwrap().into_no_null_iter().collect();
+    let (first, last) = starts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| (a.min(x), b.max(x)));
+    assert!(first >= 4.8 - 1e-9 && last <= 5.6 + 1e-9, "segments start in [{first}, {last}]");
+    assert!(last - first > 0.5, "segments spread over the half: [{first}, {last}]");
+    // The fault-free second half at the simulated flights' threshold: one alarm in 3.3 s.
+    let replay: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(one.join("fault_free_replay.json")).unwrap()).unwrap();
+    assert_eq!(replay["threshold"], 60.0);
+    assert_eq!(replay["alarms"], 1);
+    assert!((replay["watched_s"].as_f64().unwrap() - 3.3).abs() < 0.011, "{replay}");
+    // The report re-flies a trial of the log.
+    assert_report(&one, "2", &[("trace_trial2.svg", &["attitude-EKF residual (m/s2)", "detection statistic"])]);
+    let trace = tmp.path().join("trace.csv");
+    let sim = ok(&fdimc(&["simulate", deck, "--trial", "2", "--out", trace.to_str().unwrap()]));
+    assert!(csv_frame(&trace).height() == 400, "{sim}");
 }

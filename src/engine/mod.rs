@@ -5,6 +5,7 @@ pub mod check;
 pub mod deck;
 pub mod flight_log;
 pub mod intervals;
+pub mod log_source;
 pub mod method;
 pub mod noise;
 pub mod output;

@@ -18,13 +18,39 @@ pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
         study.header.name, study.header.seed, d.scenario.duration_s, d.scenario.dt_s
     );
     let n = &d.scenario.noise;
-    println!(
-        "imu         gyro noise {:.3} deg/s (bias spread {:.3}), accelerometer noise {} m/s^2 (bias spread {})",
+    let simulated = format!(
+        "gyro noise {:.3} deg/s (bias spread {:.3}), accelerometer noise {} m/s^2 (bias spread {})",
         n.gyro_noise_std_rad_s.to_degrees(),
         n.gyro_bias_std_rad_s.to_degrees(),
         n.accel_noise_std_mps2,
         n.accel_bias_std_mps2
     );
+    match &study.log {
+        None => println!("imu         {simulated}"),
+        Some(log) => {
+            println!(
+                "log         {} {}: {} samples at {:.2} Hz (largest gap {:.3} s), resampled to {} samples every {} s{}",
+                log.file.display(),
+                log.origin,
+                log.log_samples,
+                log.log_rate_hz,
+                log.largest_gap_s,
+                log.samples(),
+                log.dt_s,
+                log.ending.as_deref().map(|e| format!("; {e}")).unwrap_or_default()
+            );
+            let part = |p| {
+                let [a, b] = log.seconds(p);
+                format!("[{a:.2}, {b:.2}) s")
+            };
+            println!("            trials start in the evaluated part {}", part(log.evaluate));
+            match log.train {
+                Some(p) => println!("            classifiers and thresholds may learn from {}", part(p)),
+                None => println!("            nothing learns from the log (no train_s)"),
+            }
+            println!("            simulated training trials (trained_on = \"simulation\"): {simulated}");
+        }
+    }
     let r = &d.ranges;
     println!(
         "faults      bias |{:?}| m/s^2, gain |factor - 1| {:?}, stuck at the reading at onset; onset {:?} s; axis and sign drawn",
@@ -44,15 +70,22 @@ pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
         t.svm.c
     );
     println!(
-        "detection   T over {} samples, threshold {}, counted from {} s",
-        study.detection.window, study.detection.threshold, study.settle_s
+        "detection   T over {} samples, threshold {}{}, counted from {} s",
+        study.detection.window,
+        study.detection.threshold,
+        study
+            .log_threshold_margin
+            .map(|m| format!(" ({m} x the largest T of the fault-free training part)"))
+            .unwrap_or_default(),
+        study.settle_s
     );
     for c in &study.classifiers {
         println!(
-            "classifier  {}: {} on the {} window{}",
+            "classifier  {}: {} on the {} window, trained on {}{}",
             c.name,
             c.scheme.name(),
             c.window.name(),
+            c.trained_on.name(),
             if c.balanced { ", classes weighted by the inverse of their size" } else { "" }
         );
     }

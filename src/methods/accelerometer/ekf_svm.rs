@@ -77,7 +77,7 @@ use std::path::{Path, PathBuf};
 
 use linfa::prelude::*;
 use linfa_svm::Svm;
-use nalgebra::Vector3;
+use nalgebra::{Vector3, Vector4};
 use ndarray::{Array1, Array2, ArrayView1};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -420,20 +420,32 @@ pub fn simulate_trial<R: Rng + ?Sized>(
 ) -> Result<ResidualTrace, TrialError> {
     let dt_s = scenario.dt_s;
     let mut scenario = ImuScenario::new(scenario)?;
+    let samples = std::iter::from_fn(|| scenario.next_sample(rng))
+        .map(|s| (s.gyro_rad_s, s.accel_mps2, Some(as_vector(&s.truth.attitude))));
+    filter_trial(dt_s, samples, ekf)
+}
+
+/// The attitude EKF over one trial's (gyro, accelerometer, true attitude if known) samples, aligned on
+/// the first accelerometer sample; simulated and replayed trials alike. Without a true attitude the
+/// tilt error is NaN.
+pub fn filter_trial(
+    dt_s: f64,
+    samples: impl Iterator<Item = (Vector3<f64>, Vector3<f64>, Option<Vector4<f64>>)>,
+    ekf: &AttitudeEkfParams,
+) -> Result<ResidualTrace, TrialError> {
     let mut filter: Option<AttitudeEkf> = None;
-    let mut samples = Vec::with_capacity(scenario.samples());
-    let mut tilt = Vec::with_capacity(scenario.samples());
-    while let Some(s) = scenario.next_sample(rng) {
+    let (mut residuals, mut tilt) = (Vec::new(), Vec::new());
+    for (gyro, accel, truth) in samples {
         let f = match &mut filter {
             Some(f) => f,
-            None => filter.insert(AttitudeEkf::aligned(*ekf, &s.accel_mps2, 0.0)?),
+            None => filter.insert(AttitudeEkf::aligned(*ekf, &accel, 0.0)?),
         };
-        let step = f.step(&s.gyro_rad_s, &s.accel_mps2);
-        samples.push(ResidualSample::from(&step));
-        tilt.push(tilt_error_rad(&as_vector(&s.truth.attitude), f.attitude()));
+        let step = f.step(&gyro, &accel);
+        residuals.push(ResidualSample::from(&step));
+        tilt.push(truth.map_or(f64::NAN, |q| tilt_error_rad(&q, f.attitude())));
     }
     let health = filter.map(|f| f.health()).unwrap_or_default();
-    Ok(ResidualTrace { dt_s, samples, tilt_error_rad: tilt, health })
+    Ok(ResidualTrace { dt_s, samples: residuals, tilt_error_rad: tilt, health })
 }
 
 /// A labelled feature vector.
@@ -934,6 +946,27 @@ pub enum ClassifierWindow {
     Alarm,
 }
 
+/// What a classifier is trained on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TrainingData {
+    /// Simulated trials of the deck's scenario (the training seed).
+    #[default]
+    Simulation,
+    /// Faults injected into the replayed log's training part (`log.train_s`), kept apart in time from
+    /// the evaluated part.
+    Log,
+}
+
+impl TrainingData {
+    pub fn name(self) -> &'static str {
+        match self {
+            TrainingData::Simulation => "simulation",
+            TrainingData::Log => "log",
+        }
+    }
+}
+
 impl Scheme {
     /// The deck's spelling.
     pub fn name(self) -> &'static str {
@@ -961,6 +994,7 @@ pub struct ClassifierSpec {
     pub scheme: Scheme,
     pub window: ClassifierWindow,
     pub balanced: bool,
+    pub trained_on: TrainingData,
 }
 
 impl ClassifierSpec {
@@ -972,6 +1006,7 @@ impl ClassifierSpec {
                 scheme,
                 window: ClassifierWindow::Onset,
                 balanced: false,
+                trained_on: TrainingData::Simulation,
             })
             .into()
     }

@@ -5,6 +5,7 @@ pub mod commands;
 pub mod ekf_svm;
 pub mod imu;
 pub mod records;
+pub mod replay;
 pub mod study;
 pub mod trial;
 
@@ -80,10 +81,53 @@ impl Study for AccelerometerStudy {
         if write_beside {
             classifiers.save(&beside)?;
         }
+        if let Some(log) = &self.log {
+            let replay = replay::fault_free_replay(
+                log,
+                log.evaluate,
+                &self.design.ekf_for(1.0),
+                &self.design.detection_for(&self.detection, 1.0),
+                self.settle_s,
+            )
+            .map_err(|e| RunError::Invalid(format!("{}: the fault-free replay: {e}", log.file.display())))?;
+            if !inputs.quiet {
+                eprintln!(
+                    "fault-free log, {:.1} s watched: largest T {:.1} against {:.1}, {} alarms ({:.0} per flight hour, 95 % upper bound {:.0})",
+                    replay.watched_s,
+                    replay.largest_statistic,
+                    replay.threshold,
+                    replay.alarms,
+                    replay.alarms_per_flight_hour,
+                    replay.alarms_per_flight_hour_upper95
+                );
+            }
+            let text = serde_json::to_string_pretty(&replay).map_err(|e| RunError::Internal(e.to_string()))?;
+            crate::engine::runner::write_atomically(&opts.out_dir.join("fault_free_replay.json"), text.as_bytes())?;
+        }
         Ok(report)
     }
     fn train(&self, out: Option<&Path>) -> Result<(), RunError> {
         commands::train(self, out)
+    }
+}
+
+/// What one trial flies.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TrialPlan {
+    Simulated(crate::methods::accelerometer::imu::ImuScenarioParams),
+    /// The log's segment from grid sample `start`, with `faults` (onsets from the segment's start).
+    Replayed {
+        start: usize,
+        faults: Vec<crate::fault::SensorFault>,
+    },
+}
+
+impl TrialPlan {
+    pub fn faults(&self) -> &[crate::fault::SensorFault] {
+        match self {
+            TrialPlan::Simulated(scenario) => &scenario.faults,
+            TrialPlan::Replayed { faults, .. } => faults,
+        }
     }
 }
 
@@ -98,16 +142,26 @@ impl<'a> AccelerometerTrials<'a> {
         AccelerometerTrials { study, classifiers }
     }
 
-    /// The scenario of trial `trial` and the scenario parameters it flies.
-    fn draw(&self, trial: u64) -> (AccelTrialSpec, crate::methods::accelerometer::imu::ImuScenarioParams) {
+    /// The scenario of trial `trial` and what it flies: a simulated scenario, or a segment of the log
+    /// with the fault injected ([`replay`]).
+    fn draw(&self, trial: u64) -> (AccelTrialSpec, TrialPlan) {
         let s = self.study;
         let mut grid = GridDigits::new(trial);
         let class = s.classes[grid.next(s.classes.len())];
         let (noise_scale, _) = draw(&s.noise_scale, 0.0, &mut |n| grid.next(n));
         let mut rng = trial_rng(s.header.seed, trial, Substream::Fault);
-        let (mut scenario, onset_s) = s.design.draw_trial(class, &mut rng);
-        scenario.noise_scale = noise_scale;
-        let fault = scenario.faults.first();
+        let (plan, onset_s) = match &s.log {
+            None => {
+                let (mut scenario, onset_s) = s.design.draw_trial(class, &mut rng);
+                scenario.noise_scale = noise_scale;
+                (TrialPlan::Simulated(scenario), onset_s)
+            }
+            Some(log) => {
+                let r = replay::draw(&s.design.ranges, log.evaluate, s.header.steps, class, &mut rng);
+                (TrialPlan::Replayed { start: r.start, faults: r.fault.into_iter().collect() }, r.onset_s)
+            }
+        };
+        let fault = plan.faults().first();
         let ranges = &s.design.ranges;
         let third = |magnitude: f64, r: [f64; 2]| {
             let width = (r[1] - r[0]) / 3.0;
@@ -118,20 +172,31 @@ impl<'a> AccelerometerTrials<'a> {
             Some(FaultMode::Gain { factor }) => (factor, third((factor - 1.0).abs(), ranges.gain_deviation)),
             _ => (f64::NAN, f64::NAN),
         };
-        let spec =
-            AccelTrialSpec { trial, class, axis: fault.map(|f| f.channel), size, size_bin, onset_s, noise_scale };
-        (spec, scenario)
+        let log_start_s = match (&plan, &s.log) {
+            (TrialPlan::Replayed { start, .. }, Some(log)) => Some(*start as f64 * log.dt_s),
+            _ => None,
+        };
+        let axis = fault.map(|f| f.channel);
+        let spec = AccelTrialSpec { trial, class, axis, size, size_bin, onset_s, noise_scale, log_start_s };
+        (spec, plan)
     }
 
     /// Trial `trial`, handing the residual samples to `on_trace` (for traces).
     pub fn run_trial_with(&self, trial: u64, on_trace: impl FnOnce(&[ResidualSample], &[f64])) -> AccelTrialResult {
         let s = self.study;
-        let (spec, scenario) = self.draw(trial);
-        let dt_s = scenario.dt_s;
+        let (spec, plan) = self.draw(trial);
+        let dt_s = s.header.dt_s;
         let mut rng = noise_rng(s.header.seed, trial, Substream::SensorNoise);
         let outcome = (|| {
             let ekf = s.design.ekf_for(spec.noise_scale);
-            let trace = simulate_trial(scenario, &ekf, &mut rng).map_err(|e| e.to_string())?;
+            let trace = match (plan, &s.log) {
+                (TrialPlan::Simulated(scenario), _) => simulate_trial(scenario, &ekf, &mut rng),
+                (TrialPlan::Replayed { start, faults }, Some(log)) => {
+                    replay::replay_trace(log, start, s.header.steps, &faults, &ekf)
+                }
+                (TrialPlan::Replayed { .. }, None) => unreachable!("a replayed trial comes from a study with a log"),
+            }
+            .map_err(|e| e.to_string())?;
             let example = s.design.example(&trace, spec.onset_s, spec.class).map_err(|e| e.to_string())?;
             let alarms = Alarms::of(s, &trace, spec.class, spec.onset_s, spec.noise_scale);
             on_trace(&trace.samples, &alarms.statistics);
@@ -188,6 +253,7 @@ impl TrialSource for AccelerometerTrials<'_> {
         }
     }
     fn frame(&self, results: &[AccelTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {
-        records::frame(results, &self.classifiers.classifiers.iter().map(|c| c.name.as_str()).collect::<Vec<_>>())
+        let names: Vec<&str> = self.classifiers.classifiers.iter().map(|c| c.name.as_str()).collect();
+        records::frame(results, &names, self.study.log.is_some())
     }
 }

@@ -14,6 +14,7 @@
 //! |---|---|
 //! | `alarm_s` | the residual detector's first alarm at or after the onset |
 //! | `unusable_accelerometer_samples` | samples the filter could not use (zero or non-finite) |
+//! | `log_start_s` | replay decks only: the trial's segment start, log seconds from its first sample |
 
 use std::borrow::Cow;
 
@@ -34,10 +35,10 @@ fn size_unit(class: FaultClass) -> &'static str {
 
 /// The rows of `results` (trial order) for the classifiers `names` (the outcomes' order); see the
 /// module docs.
-pub fn frame(results: &[AccelTrialResult], names: &[&str]) -> PolarsResult<DataFrame> {
+pub fn frame(results: &[AccelTrialResult], names: &[&str], replay: bool) -> PolarsResult<DataFrame> {
     let n = results.len() * names.len();
     let mut core = CoreColumns::new(Vec::new(), n);
-    let (mut alarm, mut unusable) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let (mut alarm, mut unusable, mut log_start) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::new());
     for r in results {
         let s = &r.spec;
         let fault_free = s.class == FaultClass::Normal;
@@ -67,11 +68,15 @@ pub fn frame(results: &[AccelTrialResult], names: &[&str]) -> PolarsResult<DataF
             });
             alarm.push(o.and_then(|o| o.alarm_s));
             unusable.push(o.map(|o| o.health.unusable_measurement));
+            log_start.push(s.log_start_s);
         }
     }
     let mut columns = core.finish();
     columns.push(Column::new("alarm_s".into(), alarm));
     columns.push(Column::new("unusable_accelerometer_samples".into(), unusable));
+    if replay {
+        columns.push(Column::new("log_start_s".into(), log_start));
+    }
     DataFrame::new_infer_height(columns)
 }
 
@@ -96,6 +101,7 @@ mod tests {
             size_bin: if class == Bias { 0.275 } else { f64::NAN },
             onset_s: 10.0,
             noise_scale: 1.0,
+            log_start_s: None,
         };
         // `predicted` is in the classifiers' order: tree, flat.
         let out = |tree, flat, alarm: Option<f64>, false_alarm: Option<f64>| AccelOutcome {
@@ -116,7 +122,7 @@ mod tests {
             },
             AccelTrialResult { spec: spec(3, Bias, Some(0), 0.3), outcome: Err("unusable".into()) },
         ];
-        let df = frame(&results, &["tree", "flat"]).unwrap();
+        let df = frame(&results, &["tree", "flat"], false).unwrap();
         assert_eq!(df.height(), 8);
         let s = Summarized::of(df, &super::super::METHOD, 4, &["tree", "flat"]);
         assert_eq!(s.summary.height(), 6, "3 kinds x 2 classifiers");

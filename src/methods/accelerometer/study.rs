@@ -27,9 +27,12 @@ use serde::Deserialize;
 
 use crate::engine::deck::{DeckError, Factor, FromDeck, MonteCarloRules, StudyHeader, open_deck};
 use crate::engine::deck::{FactorSpec, StudySection};
+use crate::engine::log_source::{LogSection, ReplayLog};
 use crate::methods::accelerometer::ekf_svm::{
-    ClassifierSpec, ClassifierWindow, DetectionParams, FaultClass, Scheme, SvmKernel, SvmParams, TrialDesign,
+    ClassifierSpec, ClassifierWindow, DetectionParams, FaultClass, Scheme, SvmKernel, SvmParams, TrainingData,
+    TrialDesign,
 };
+use std::sync::Arc;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -42,6 +45,7 @@ struct AccelerometerDeck {
     #[serde(default)]
     classifier: Vec<ClassifierSection>,
     monte_carlo: Option<crate::engine::deck::MonteCarloSection>,
+    log: Option<LogSection>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -51,6 +55,7 @@ struct ClassifierSection {
     scheme: String,
     window: Option<String>,
     balanced: Option<bool>,
+    trained_on: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -85,6 +90,7 @@ struct DetectionSection {
     window_samples: Option<usize>,
     filter_noise: Option<String>,
     threshold: Option<f64>,
+    log_threshold_margin: Option<f64>,
     settle_s: Option<f64>,
 }
 
@@ -122,6 +128,11 @@ pub struct AccelerometerStudy {
     /// The classifiers (the study's detectors), in deck order.
     pub classifiers: Vec<ClassifierSpec>,
     pub noise_scale: Factor,
+    /// The recorded flight trials replay instead of simulated ones (`[log]`), read once.
+    pub log: Option<Arc<ReplayLog>>,
+    /// The margin when the threshold was calibrated on the log's training part
+    /// (`detection.log_threshold_margin`); `detection.threshold` then holds the calibrated value.
+    pub log_threshold_margin: Option<f64>,
 }
 
 impl FromDeck for AccelerometerStudy {
@@ -132,7 +143,11 @@ impl FromDeck for AccelerometerStudy {
         design.scenario.duration_s = duration_s;
         design.scenario.dt_s = dt_s;
         design.features.dt_s = dt_s;
+        design.ekf.dt_s = dt_s;
         if let Some(scale) = deck.imu.manoeuvre_scale {
+            if deck.log.is_some() {
+                return Err(v.err("imu.manoeuvre_scale", "a replay flies the log's own motion ([log]); leave it out"));
+            }
             let scale = v.finite("imu.manoeuvre_scale", scale)?;
             design.scenario.manoeuvre = design.scenario.manoeuvre.scaled(scale);
         }
@@ -307,15 +322,71 @@ impl FromDeck for AccelerometerStudy {
                         return Err(v.err(field("window"), format!("{other:?}: allowed \"onset\", \"alarm\"")));
                     }
                 };
+                let trained_on = match c.trained_on.as_deref() {
+                    None | Some("simulation") => TrainingData::Simulation,
+                    Some("log") if deck.log.as_ref().is_some_and(|l| l.train_s.is_some()) => TrainingData::Log,
+                    Some("log") => {
+                        return Err(v.err(
+                            field("trained_on"),
+                            "\"log\" trains on the log's training part: give [log] with train_s",
+                        ));
+                    }
+                    Some(other) => {
+                        return Err(v.err(field("trained_on"), format!("{other:?}: allowed \"simulation\", \"log\"")));
+                    }
+                };
                 specs.push(ClassifierSpec {
                     name: c.name.clone(),
                     scheme,
                     window,
                     balanced: c.balanced.unwrap_or(false),
+                    trained_on,
                 });
             }
             specs
         };
+
+        let log = match &deck.log {
+            None => None,
+            Some(section) => {
+                if noise_scale != Factor::Fixed(1.0) {
+                    return Err(v.err("monte_carlo.noise_scale", "a replay's noise is the log's; leave it out (1)"));
+                }
+                Some(ReplayLog::load(&v, section, &super::replay::NEEDS, dt_s, header.steps)?)
+            }
+        };
+        let margin = d.and_then(|d| d.log_threshold_margin);
+        if let Some(m) = margin {
+            let m = v.positive("detection.log_threshold_margin", m)?;
+            if d.and_then(|d| d.threshold).is_some() {
+                return Err(v.err(
+                    "detection.log_threshold_margin",
+                    "the threshold is either given (threshold) or calibrated on the log (log_threshold_margin), not both",
+                ));
+            }
+            let Some(part) = log.as_ref().and_then(|l| l.train.map(|p| (l, p))) else {
+                return Err(v.err(
+                    "detection.log_threshold_margin",
+                    "calibrates on the log's training part: give [log] with train_s",
+                ));
+            };
+            let calibrated = super::replay::calibrated_threshold(
+                part.0,
+                part.1,
+                &design.ekf_for(1.0),
+                &design.detection_for(&detection, 1.0),
+                settle_s,
+                m,
+            )
+            .map_err(|e| v.err("detection.log_threshold_margin", e.to_string()))?;
+            if !(calibrated.is_finite() && calibrated > 0.0) {
+                return Err(v.err(
+                    "detection.log_threshold_margin",
+                    format!("the training part gives no statistic after settle_s ({calibrated}); lengthen train_s"),
+                ));
+            }
+            detection.threshold = calibrated;
+        }
 
         Ok(AccelerometerStudy {
             header,
@@ -327,6 +398,8 @@ impl FromDeck for AccelerometerStudy {
             classes,
             classifiers,
             noise_scale,
+            log,
+            log_threshold_margin: margin,
         })
     }
 }

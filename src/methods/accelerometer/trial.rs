@@ -27,9 +27,10 @@ use crate::engine::runner::{RunError, write_atomically};
 use crate::engine::streams::{Substream, trial_rng};
 use crate::methods::accelerometer::attitude::AttitudeHealth;
 use crate::methods::accelerometer::ekf_svm::{
-    Classifier, ClassifierWindow, Example, FaultClass, FeatureParams, ResidualTrace, SvmParams, detection_statistics,
-    first_alarm, simulate_trial, window_start,
+    Classifier, ClassifierWindow, Example, FaultClass, FeatureParams, ResidualTrace, SvmParams, TrainingData,
+    detection_statistics, first_alarm, simulate_trial, window_start,
 };
+use crate::methods::accelerometer::replay;
 use crate::methods::accelerometer::study::AccelerometerStudy;
 
 /// The classifiers of a study, trained on examples of the same training trials, as a file holds them.
@@ -49,6 +50,9 @@ pub struct TrainedClassifiers {
 pub struct TrainedClassifier {
     pub name: String,
     pub window: ClassifierWindow,
+    /// Files written before replays had only simulation.
+    #[serde(default)]
+    pub trained_on: TrainingData,
     pub classifier: Classifier,
 }
 
@@ -99,8 +103,9 @@ impl TrainedClassifiers {
     /// misses gives none; a normal trial its false alarm's window, or without one its nominal onset's).
     pub fn train(study: &AccelerometerStudy) -> Result<TrainedClassifiers, String> {
         let t = &study.training;
-        let online = study.classifiers.iter().any(|c| c.window == ClassifierWindow::Alarm);
-        let (mut at_onset, mut at_alarm) = (Vec::with_capacity(4 * t.trials_per_class), Vec::new());
+        let needs = |source: TrainingData, window: ClassifierWindow| {
+            study.classifiers.iter().any(|c| c.trained_on == source && c.window == window)
+        };
         let classes = FaultClass::ALL.len() as u64;
         let designs: Vec<_> = t
             .noise_scales
@@ -111,44 +116,77 @@ impl TrainedClassifiers {
                 design
             })
             .collect();
-        for j in 0..classes * t.trials_per_class as u64 {
-            let class = FaultClass::ALL[(j % classes) as usize];
+        // Training trial j of each source: its class, the filter's output, its onset and noise scale.
+        let simulated = |j: u64, class: FaultClass| -> Result<(ResidualTrace, f64, f64), String> {
             let design = &designs[((j / classes) % designs.len() as u64) as usize];
             let mut rng = trial_rng(t.seed, j, Substream::Scenario);
-            let what = |e: String| format!("training trial {j} ({}): {e}", class.name());
             let (scenario, onset_s) = design.draw_trial(class, &mut rng);
             let ekf = design.ekf_for(design.scenario.noise_scale);
-            let trace = simulate_trial(scenario, &ekf, &mut rng).map_err(|e| what(e.to_string()))?;
-            at_onset.push(design.example(&trace, onset_s, class).map_err(|e| what(e.to_string()))?);
-            if online {
-                let alarms = Alarms::of(study, &trace, class, onset_s, design.scenario.noise_scale);
-                let start = match (alarms.online_window(class), class) {
-                    (Some(k), _) => Some(k),
-                    (None, FaultClass::Normal) => Some(window_start(onset_s, 0.0, trace.dt_s)),
-                    (None, _) => None,
-                };
-                if let Some(k) = start {
-                    at_alarm.push(design.example_at(&trace, k, class).map_err(|e| what(e.to_string()))?);
+            let trace = simulate_trial(scenario, &ekf, &mut rng).map_err(|e| e.to_string())?;
+            Ok((trace, onset_s, design.scenario.noise_scale))
+        };
+        let replayed = |j: u64, class: FaultClass| -> Result<(ResidualTrace, f64, f64), String> {
+            let log = study.log.as_ref().ok_or("no log to train on")?;
+            let part = log.train.ok_or("the log has no training part (log.train_s)")?;
+            let mut rng = trial_rng(t.seed, j, Substream::Scenario);
+            let r = replay::draw(&study.design.ranges, part, study.header.steps, class, &mut rng);
+            let faults: Vec<_> = r.fault.into_iter().collect();
+            let trace = replay::replay_trace(log, r.start, study.header.steps, &faults, &study.design.ekf_for(1.0))
+                .map_err(|e| e.to_string())?;
+            Ok((trace, r.onset_s, 1.0))
+        };
+        let mut examples: Vec<((TrainingData, ClassifierWindow), Vec<Example>)> = Vec::new();
+        for source in [TrainingData::Simulation, TrainingData::Log] {
+            let (onset, online) = (needs(source, ClassifierWindow::Onset), needs(source, ClassifierWindow::Alarm));
+            if !(onset || online) {
+                continue;
+            }
+            let (mut at_onset, mut at_alarm) = (Vec::with_capacity(4 * t.trials_per_class), Vec::new());
+            for j in 0..classes * t.trials_per_class as u64 {
+                let class = FaultClass::ALL[(j % classes) as usize];
+                let what = |e: String| format!("training trial {j} ({}, {}): {e}", class.name(), source.name());
+                let (trace, onset_s, noise_scale) = match source {
+                    TrainingData::Simulation => simulated(j, class),
+                    TrainingData::Log => replayed(j, class),
+                }
+                .map_err(what)?;
+                at_onset.push(study.design.example(&trace, onset_s, class).map_err(|e| what(e.to_string()))?);
+                if online {
+                    let alarms = Alarms::of(study, &trace, class, onset_s, noise_scale);
+                    let start = match (alarms.online_window(class), class) {
+                        (Some(k), _) => Some(k),
+                        (None, FaultClass::Normal) => Some(window_start(onset_s, 0.0, trace.dt_s)),
+                        (None, _) => None,
+                    };
+                    if let Some(k) = start {
+                        at_alarm.push(study.design.example_at(&trace, k, class).map_err(|e| what(e.to_string()))?);
+                    }
                 }
             }
+            examples.push(((source, ClassifierWindow::Onset), at_onset));
+            examples.push(((source, ClassifierWindow::Alarm), at_alarm));
         }
-        let train = |examples: &[Example], spec: &crate::methods::accelerometer::ekf_svm::ClassifierSpec| {
-            let svm = SvmParams { balanced: spec.balanced, ..t.svm };
-            Classifier::train(spec.scheme, examples, study.design.features, svm)
-                .map_err(|e| format!("training {} ({} window): {e}", spec.name, spec.window.name()))
-        };
         let classifiers = study
             .classifiers
             .iter()
             .map(|spec| {
-                let examples = match spec.window {
-                    ClassifierWindow::Onset => &at_onset,
-                    ClassifierWindow::Alarm => &at_alarm,
-                };
+                let key = (spec.trained_on, spec.window);
+                let (_, examples) =
+                    examples.iter().find(|(k, _)| *k == key).expect("examples of every classifier's key");
+                let svm = SvmParams { balanced: spec.balanced, ..t.svm };
+                let classifier = Classifier::train(spec.scheme, examples, study.design.features, svm).map_err(|e| {
+                    format!(
+                        "training {} ({} window, on {}): {e}",
+                        spec.name,
+                        spec.window.name(),
+                        spec.trained_on.name()
+                    )
+                })?;
                 Ok(TrainedClassifier {
                     name: spec.name.clone(),
                     window: spec.window,
-                    classifier: train(examples, spec)?,
+                    trained_on: spec.trained_on,
+                    classifier,
                 })
             })
             .collect::<Result<Vec<_>, String>>()?;
@@ -177,8 +215,10 @@ impl TrainedClassifiers {
         let trained: TrainedClassifiers = serde_json::from_str(&text).map_err(|e| {
             RunError::Invalid(format!("{}: not classifiers written by `fdimc train` ({e})", path.display()))
         })?;
-        let names: Vec<&str> = trained.classifiers.iter().map(|c| c.name.as_str()).collect();
-        let deck_names: Vec<&str> = study.classifiers.iter().map(|c| c.name.as_str()).collect();
+        let names: Vec<String> =
+            trained.classifiers.iter().map(|c| format!("{} (on {})", c.name, c.trained_on.name())).collect();
+        let deck_names: Vec<String> =
+            study.classifiers.iter().map(|c| format!("{} (on {})", c.name, c.trained_on.name())).collect();
         if names != deck_names {
             return Err(RunError::Invalid(format!(
                 "{}: holds the classifiers [{}], but {} declares [{}]: train for this deck (`fdimc train {}`)",
@@ -220,6 +260,8 @@ pub struct AccelTrialSpec {
     /// The onset, nominal for the normal class.
     pub onset_s: f64,
     pub noise_scale: f64,
+    /// A replayed trial's segment start, log seconds from its first sample (`None`: simulated).
+    pub log_start_s: Option<f64>,
 }
 
 /// How one trial went.
@@ -256,6 +298,7 @@ mod tests {
                 .map(|name| TrainedClassifier {
                     name: name.into(),
                     window: ClassifierWindow::Onset,
+                    trained_on: TrainingData::Simulation,
                     classifier: empty_classifier(),
                 })
                 .into(),
@@ -263,10 +306,11 @@ mod tests {
         let trials = AccelerometerTrials::new(&study, &classifiers);
         let r = &study.design.ranges;
         for i in 0..400u64 {
-            let (spec, scenario) = trials.draw(i);
+            let (spec, plan) = trials.draw(i);
             assert_eq!(format!("{spec:?}"), format!("{:?}", trials.draw(i).0), "a function of the trial index");
             assert_eq!(spec.class, FaultClass::ALL[(i % 4) as usize], "trial {i}");
             assert_eq!(spec.noise_scale, [1.0, 2.0][(i / 4 % 2) as usize], "trial {i}");
+            let crate::methods::accelerometer::TrialPlan::Simulated(scenario) = plan else { panic!("simulated") };
             assert_eq!(scenario.noise_scale, spec.noise_scale);
             assert!((r.onset_s[0]..r.onset_s[1]).contains(&spec.onset_s));
             let fault = scenario.faults.first();

@@ -1,0 +1,375 @@
+//! A recorded flight as a scenario source any method can replay (issue 22). A method names the signals
+//! it needs ([`Needs`]: a deck name with its unit, and the ULog field it is read from by default); the
+//! deck's `[log]` section names the file and may map each signal to another field or, for a table, a
+//! column. The log is read once per study ([`crate::engine::flight_log`]: checked, streamed), resampled
+//! onto the study's step by linear interpolation (the documented repair for a log's own jittery rate and
+//! for gaps up to `max_gap_s`), and split into parts: trials are drawn from the evaluation part, and
+//! whatever learns from the log (a classifier, a threshold) only from the training part, which may not
+//! overlap it.
+//!
+//! ```toml
+//! [log]
+//! file = "logs/sample_appended_multiple.ulg"  # relative to the deck; .ulg, or .csv / .parquet (a table)
+//! topic = "sensor_combined"                   # ULog: the topic (default: the method's) and its instance (0)
+//! time_column = "t_us"                        # tables: the time column and seconds per unit (1)
+//! time_unit_s = 1e-6
+//! max_gap_s = 0.05                            # longest gap bridged by interpolation (s)
+//! evaluate_s = [4.8, 9.6]                     # log seconds from its first sample (default: all)
+//! train_s = [0.0, 4.8]                        # where classifiers and thresholds may learn (optional)
+//! [log.signals]                               # a signal's field or column (ULog: the method's default)
+//! accel_x_mps2 = "accelerometer_m_s2[0]"
+//! ```
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use serde::Deserialize;
+
+use crate::engine::deck::{DeckError, Validator};
+use crate::engine::flight_log::{TableRequest, TopicRequest, TopicSeries, read_table, read_ulog};
+
+/// The deck's `[log]` section (module docs).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LogSection {
+    pub file: String,
+    pub topic: Option<String>,
+    pub instance: Option<u8>,
+    pub time_column: Option<String>,
+    pub time_unit_s: Option<f64>,
+    pub max_gap_s: Option<f64>,
+    pub evaluate_s: Option<[f64; 2]>,
+    pub train_s: Option<[f64; 2]>,
+    #[serde(default)]
+    pub signals: BTreeMap<String, String>,
+}
+
+/// Gaps up to this are bridged unless the deck says otherwise (s): 12 samples at 250 Hz (a choice).
+pub const DEFAULT_MAX_GAP_S: f64 = 0.05;
+
+/// One signal a method replays.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Signal {
+    /// Its name in `[log.signals]`, with the unit the method expects.
+    pub name: &'static str,
+    /// The ULog field it is read from unless the deck maps it.
+    pub ulog_field: &'static str,
+}
+
+/// What a method reads from a log: the default topic and the signals, in the order the method uses them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Needs {
+    pub topic: &'static str,
+    pub signals: &'static [Signal],
+}
+
+/// Grid samples `[first, end)` of a resampled log.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Part {
+    pub first: usize,
+    pub end: usize,
+}
+
+impl Part {
+    pub fn len(&self) -> usize {
+        self.end - self.first
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.end == self.first
+    }
+
+    /// The first sample of a segment of `samples` samples inside the part, from a uniform `u` in [0, 1):
+    /// every start that keeps the segment inside is equally likely.
+    pub fn segment_start(&self, samples: usize, u: f64) -> usize {
+        let starts = self.len() + 1 - samples.min(self.len());
+        self.first + ((u * starts as f64) as usize).min(starts - 1)
+    }
+}
+
+/// A log read, checked and resampled (module docs): `signals[s][k]` is signal `s` (the [`Needs`] order)
+/// at `k dt_s` after the log's first sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReplayLog {
+    pub file: PathBuf,
+    /// Where in the file: `topic "sensor_combined" instance 0`, or `table`.
+    pub origin: String,
+    pub dt_s: f64,
+    pub signals: Vec<Vec<f64>>,
+    /// The log's own samples, their mean rate and largest gap.
+    pub log_samples: usize,
+    pub log_rate_hz: f64,
+    pub largest_gap_s: f64,
+    /// How the file ended when not cleanly (a cut-off recording keeps its valid prefix).
+    pub ending: Option<String>,
+    /// Where trials are drawn from.
+    pub evaluate: Part,
+    /// Where classifiers and thresholds may learn; never overlaps `evaluate`.
+    pub train: Option<Part>,
+}
+
+impl ReplayLog {
+    /// Grid samples in the log.
+    pub fn samples(&self) -> usize {
+        self.signals.first().map_or(0, Vec::len)
+    }
+
+    /// The seconds `[from, to)` of a part, from the log's first sample.
+    pub fn seconds(&self, part: Part) -> [f64; 2] {
+        [part.first as f64 * self.dt_s, part.end as f64 * self.dt_s]
+    }
+
+    /// Reads, checks and resamples the log of `section` for a method that `needs` these signals, at the
+    /// study's step `dt_s`, for trials of `trial_samples` samples. Every refusal names the deck, the
+    /// field, and (for what the log lacks) the log file, topic and field.
+    pub(crate) fn load(
+        v: &Validator,
+        section: &LogSection,
+        needs: &Needs,
+        dt_s: f64,
+        trial_samples: usize,
+    ) -> Result<Arc<ReplayLog>, DeckError> {
+        let file = v.file.parent().unwrap_or(Path::new("")).join(&section.file);
+        let max_gap_s = v.positive("log.max_gap_s", section.max_gap_s.unwrap_or(DEFAULT_MAX_GAP_S))?;
+        for name in section.signals.keys() {
+            if !needs.signals.iter().any(|s| s.name == name) {
+                let names: Vec<&str> = needs.signals.iter().map(|s| s.name).collect();
+                return Err(
+                    v.err(format!("log.signals.{name}"), format!("not a signal; allowed: {}", names.join(", ")))
+                );
+            }
+        }
+        let mapped = |s: &Signal| section.signals.get(s.name).cloned();
+        let extension = file.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+        let log_error = |e: crate::engine::flight_log::LogError| v.err("log.file", e.to_string());
+        let (series, origin) = match extension.as_str() {
+            "ulg" => {
+                for (field, given) in
+                    [("time_column", section.time_column.is_some()), ("time_unit_s", section.time_unit_s.is_some())]
+                {
+                    if given {
+                        return Err(v.err(
+                            format!("log.{field}"),
+                            "only for table logs (.csv, .parquet); a ULog file's time is its timestamp",
+                        ));
+                    }
+                }
+                let topic = section.topic.clone().unwrap_or_else(|| needs.topic.to_string());
+                let instance = section.instance.unwrap_or(0);
+                let fields =
+                    needs.signals.iter().map(|s| mapped(s).unwrap_or_else(|| s.ulog_field.to_string())).collect();
+                let request = TopicRequest { topic: topic.clone(), instance, fields, max_gap_s };
+                (read_ulog(&file, &request).map_err(log_error)?, format!("topic {topic:?} instance {instance}"))
+            }
+            "csv" | "parquet" => {
+                for (field, given) in [("topic", section.topic.is_some()), ("instance", section.instance.is_some())] {
+                    if given {
+                        return Err(v.err(
+                            format!("log.{field}"),
+                            "only for ULog files (.ulg); a table names its columns in [log.signals]",
+                        ));
+                    }
+                }
+                let time_column = section.time_column.clone().ok_or_else(|| {
+                    v.err("log.time_column", "a table log needs its time column (and time_unit_s, seconds per unit)")
+                })?;
+                let seconds_per_time_unit = v.positive("log.time_unit_s", section.time_unit_s.unwrap_or(1.0))?;
+                let columns = needs
+                    .signals
+                    .iter()
+                    .map(|s| {
+                        mapped(s).ok_or_else(|| {
+                            v.err(format!("log.signals.{}", s.name), "a table log maps every signal to a column")
+                        })
+                    })
+                    .collect::<Result<Vec<_>, _>>()?;
+                let request = TableRequest { time_column, seconds_per_time_unit, columns, max_gap_s };
+                (read_table(&file, &request).map_err(log_error)?, "table".to_string())
+            }
+            _ => {
+                return Err(v.err(
+                    "log.file",
+                    format!("{}: allowed a PX4 ULog file (.ulg) or a table (.csv, .parquet)", file.display()),
+                ));
+            }
+        };
+        let signals = resample(&series, dt_s);
+        let samples = signals.first().map_or(0, Vec::len);
+        let span_s = samples as f64 * dt_s;
+        let part = |field: &str, range: Option<[f64; 2]>| -> Result<Part, DeckError> {
+            let [lo, hi] = range.unwrap_or([0.0, span_s]);
+            if !(lo.is_finite() && hi.is_finite() && 0.0 <= lo && lo < hi && hi <= span_s + 1e-9) {
+                return Err(v.err(
+                    field,
+                    format!("[{lo}, {hi}]: allowed [from, to] with 0 <= from < to <= {span_s:.3} s, the log's length at dt {dt_s} s"),
+                ));
+            }
+            let p = Part {
+                first: (lo / dt_s - 1e-9).ceil() as usize,
+                end: ((hi / dt_s + 1e-9).floor() as usize).min(samples),
+            };
+            if p.len() < trial_samples {
+                return Err(v.err(
+                    field,
+                    format!(
+                        "[{lo}, {hi}] holds {} samples; a trial needs {trial_samples} (study.duration_s / study.dt_s)",
+                        p.len()
+                    ),
+                ));
+            }
+            Ok(p)
+        };
+        let evaluate = part("log.evaluate_s", section.evaluate_s)?;
+        let train = section.train_s.map(|r| part("log.train_s", Some(r))).transpose()?;
+        if let Some(t) = train
+            && t.first < evaluate.end
+            && evaluate.first < t.end
+        {
+            return Err(v.err(
+                "log.train_s",
+                format!(
+                    "{:?} overlaps evaluate_s {:?}: what learns from the log may not see the samples it is evaluated on",
+                    section.train_s.unwrap_or_default(),
+                    section.evaluate_s.unwrap_or([0.0, span_s])
+                ),
+            ));
+        }
+        let gaps = series.t_s.windows(2).map(|w| w[1] - w[0]);
+        let n = series.t_s.len();
+        Ok(Arc::new(ReplayLog {
+            file,
+            origin,
+            dt_s,
+            signals,
+            log_samples: n,
+            log_rate_hz: if n > 1 { (n - 1) as f64 / (series.t_s[n - 1] - series.t_s[0]) } else { f64::NAN },
+            largest_gap_s: gaps.fold(0.0, f64::max),
+            ending: series.ending.clone(),
+            evaluate,
+            train,
+        }))
+    }
+}
+
+/// `series` on the grid `t_0 + k dt_s` up to its last sample, each field linearly interpolated between
+/// the samples either side (times increase: [`crate::engine::flight_log`] checked them).
+pub fn resample(series: &TopicSeries, dt_s: f64) -> Vec<Vec<f64>> {
+    let t = &series.t_s;
+    let Some((&t0, &t_last)) = t.first().zip(t.last()) else { return vec![Vec::new(); series.values.len()] };
+    let samples = ((t_last - t0) / dt_s + 1e-9).floor() as usize + 1;
+    let mut out: Vec<Vec<f64>> = vec![Vec::with_capacity(samples); series.values.len()];
+    let mut i = 0;
+    for k in 0..samples {
+        let tk = t0 + k as f64 * dt_s;
+        while i + 2 < t.len() && t[i + 1] <= tk {
+            i += 1;
+        }
+        let (a, b) = if t.len() > 1 { (i, i + 1) } else { (0, 0) };
+        let w = if b > a { ((tk - t[a]) / (t[b] - t[a])).clamp(0.0, 1.0) } else { 0.0 };
+        for (column, values) in out.iter_mut().zip(&series.values) {
+            column.push(values[a] + w * (values[b] - values[a]));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Interpolation between uneven samples: the grid's values lie on the line through the two samples
+    /// either side; a sample on the grid is kept exactly; the grid ends at the last sample.
+    #[test]
+    fn resampling_interpolates_between_the_samples_either_side() {
+        let series = TopicSeries {
+            t_s: vec![10.0, 10.004, 10.0095, 10.0125, 10.02],
+            values: vec![vec![0.0, 4.0, 9.5, 12.5, 20.0], vec![1.0, 1.0, -1.0, -1.0, 3.0]],
+            ending: None,
+        };
+        let out = resample(&series, 0.005);
+        assert_eq!(out[0].len(), 5, "10.000 .. 10.020 every 5 ms");
+        for (k, v) in out[0].iter().enumerate() {
+            assert!((v - 5.0 * k as f64).abs() < 1e-9, "the first field is 1000 (t - t0): {v} at {k}");
+        }
+        // 10.005 lies between 10.004 (1) and 10.0095 (-1): 1 - 2 * 1/5.5.
+        assert!((out[1][1] - (1.0 - 2.0 / 5.5)).abs() < 1e-12);
+        assert_eq!(out[1][0], 1.0);
+        // 10.015 between 10.0125 (-1) and 10.02 (3): -1 + 4 * 2.5/7.5.
+        assert!((out[1][3] - (-1.0 + 4.0 / 3.0)).abs() < 1e-12);
+        assert!((out[1][4] - 3.0).abs() < 1e-12);
+    }
+
+    /// A part's segment starts cover every start that keeps the segment inside, and only those.
+    #[test]
+    fn segment_starts_stay_inside_their_part() {
+        let p = Part { first: 100, end: 110 };
+        let starts: Vec<usize> = (0..1000).map(|i| p.segment_start(4, i as f64 / 1000.0)).collect();
+        assert_eq!(starts.iter().min(), Some(&100));
+        assert_eq!(starts.iter().max(), Some(&106), "a 4-sample segment from 106 ends at 110");
+        assert_eq!(p.segment_start(10, 0.999), 100, "a segment as long as the part has one start");
+    }
+
+    /// The deck's column map: the bench log's IMU written as a CSV table (time in microseconds, columns
+    /// renamed) and replayed through `[log]` gives the same resampled signals as the ULog file itself;
+    /// a table without its time column or a signal's column is refused by field.
+    #[test]
+    fn a_table_log_with_a_column_map_replays_as_its_ulog() {
+        use std::io::Write;
+        const NEEDS: Needs = Needs {
+            topic: "sensor_combined",
+            signals: &[
+                Signal { name: "gyro_x_rad_s", ulog_field: "gyro_rad[0]" },
+                Signal { name: "accel_z_mps2", ulog_field: "accelerometer_m_s2[2]" },
+            ],
+        };
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("studies");
+        let ulog = root.join("logs/sample_appended_multiple.ulg");
+        let request = TopicRequest {
+            topic: "sensor_combined".into(),
+            instance: 0,
+            fields: vec!["gyro_rad[0]".into(), "accelerometer_m_s2[2]".into()],
+            max_gap_s: 0.02,
+        };
+        let series = read_ulog(&ulog, &request).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let mut csv = std::fs::File::create(tmp.path().join("imu.csv")).unwrap();
+        writeln!(csv, "t_us,wx,az").unwrap();
+        for k in 0..series.t_s.len() {
+            // Times as the log's integer microseconds; values in full precision.
+            let t_us = (series.t_s[k] * 1e6).round();
+            writeln!(csv, "{t_us},{:?},{:?}", series.values[0][k], series.values[1][k]).unwrap();
+        }
+        drop(csv);
+        let deck = tmp.path().join("deck.toml");
+        let v = Validator { file: &deck };
+        let section = |text: &str| -> LogSection { toml::from_str(text).unwrap() };
+        let from_table = ReplayLog::load(
+            &v,
+            &section("file = \"imu.csv\"\ntime_column = \"t_us\"\ntime_unit_s = 1e-6\nmax_gap_s = 0.02\nsignals = { gyro_x_rad_s = \"wx\", accel_z_mps2 = \"az\" }"),
+            &NEEDS,
+            0.01,
+            400,
+        )
+        .unwrap();
+        let path = ulog.display().to_string();
+        let from_ulog =
+            ReplayLog::load(&v, &section(&format!("file = {path:?}\nmax_gap_s = 0.02")), &NEEDS, 0.01, 400).unwrap();
+        assert_eq!(from_table.samples(), 962, "9.62 s at 100 Hz");
+        assert_eq!(from_ulog.samples(), from_table.samples());
+        for (a, b) in from_table.signals.iter().zip(&from_ulog.signals) {
+            assert!(a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9), "the same signals");
+        }
+        assert_eq!((from_table.log_samples, from_table.origin.as_str()), (2373, "table"));
+        assert!((from_table.log_rate_hz - 246.63).abs() < 0.01);
+        let err = |text: &str| ReplayLog::load(&v, &section(text), &NEEDS, 0.01, 400).unwrap_err().to_string();
+        let e = err("file = \"imu.csv\"\nsignals = { gyro_x_rad_s = \"wx\", accel_z_mps2 = \"az\" }");
+        assert!(e.contains("log.time_column: a table log needs its time column"), "{e}");
+        let e = err("file = \"imu.csv\"\ntime_column = \"t_us\"\nsignals = { gyro_x_rad_s = \"wx\" }");
+        assert!(e.contains("log.signals.accel_z_mps2: a table log maps every signal to a column"), "{e}");
+        let e = err(
+            "file = \"imu.csv\"\ntime_column = \"t_us\"\ntime_unit_s = 1e-6\nsignals = { gyro_x_rad_s = \"wx\", accel_z_mps2 = \"a_z\" }",
+        );
+        assert!(e.contains("table has no column \"a_z\" (its columns: t_us, wx, az)"), "{e}");
+    }
+}
