@@ -407,7 +407,7 @@ fn bad_decks_exit_2_naming_file_and_field() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let catalogue: Catalogue =
         toml::from_str(&std::fs::read_to_string(root.join("tests/data/bad_decks.toml")).unwrap()).unwrap();
-    assert_eq!(catalogue.case.len(), 130);
+    assert_eq!(catalogue.case.len(), 131);
     let dir = tempfile::tempdir().unwrap();
     for (i, c) in catalogue.case.iter().enumerate() {
         let what = format!("case {i} ({}, {})", c.deck, c.what.as_deref().unwrap_or(&c.to));
@@ -1528,7 +1528,7 @@ fn log_lists_topics_and_refuses_what_it_cannot_read() {
     let gyro = out.lines().find(|l| l.starts_with("gyro_rad[0] ")).unwrap();
     assert_eq!(
         gyro.split_whitespace().collect::<Vec<_>>(),
-        ["gyro_rad[0]", "4.457860e-3", "2.907517e-3", "2.771991e-3"]
+        ["gyro_rad[0]", "4.457860e-3", "2.907517e-3", "2.771991e-3", "0.092", "0.134", "0.037", "-0.037"]
     );
 
     let tmp = tempfile::tempdir().unwrap();
@@ -1574,8 +1574,14 @@ fn replay_records_are_identical_for_any_threads_shards_and_resume() {
     assert_eq!(replay["threshold"], 60.0);
     assert_eq!(replay["alarms"], 1);
     assert!((replay["watched_s"].as_f64().unwrap() - 3.3).abs() < 0.011, "{replay}");
+    let check = ok(&fdimc(&["check", one.to_str().unwrap(), "--baseline", one.join("summary.csv").to_str().unwrap()]));
+    assert!(check.contains(": 0 regression(s)"), "{check}");
     // The report re-flies a trial of the log.
-    assert_report(&one, "2", &[("trace_trial2.svg", &["attitude-EKF residual (m/s2)", "detection statistic"])]);
+    assert_report(
+        &one,
+        "2",
+        &[("trace_trial2.svg", &["attitude-EKF residual (unit gravity direction, 1)", "detection statistic"])],
+    );
     let trace = tmp.path().join("trace.csv");
     let sim = ok(&fdimc(&["simulate", deck, "--trial", "2", "--out", trace.to_str().unwrap()]));
     assert!(csv_frame(&trace).height() == 400, "{sim}");

@@ -359,11 +359,19 @@ pub fn exec_log(file: &Path, topic: Option<&str>, instance: u8) -> Result<(), Cl
     if let Some(name) = topic {
         let spreads = field_spreads(file, name, instance).map_err(|e| CliError::Invalid(e.to_string()))?;
         println!(
-            "\n{name} instance {instance}: number fields (difference sd = sd of sample-to-sample differences / sqrt 2, the white noise when the signal moves slowly)"
+            "\n{name} instance {instance}: number fields (difference sd = sd of sample-to-sample differences / sqrt 2, the white noise when the signal moves slowly; r(l) = autocorrelation at l samples, 0 for white noise)"
         );
-        println!("{:<32} {:>14} {:>14} {:>14}", "field", "mean", "sd", "difference_sd");
+        let lags = crate::engine::flight_log::AUTOCORRELATION_LAGS.map(|l| format!("r({l})"));
+        println!(
+            "{:<32} {:>14} {:>14} {:>14} {:>7} {:>7} {:>7} {:>7}",
+            "field", "mean", "sd", "difference_sd", lags[0], lags[1], lags[2], lags[3]
+        );
         for f in spreads {
-            println!("{:<32} {:>14.6e} {:>14.6e} {:>14.6e}", f.field, f.mean, f.sd, f.difference_sd);
+            let r = f.autocorrelation;
+            println!(
+                "{:<32} {:>14.6e} {:>14.6e} {:>14.6e} {:>7.3} {:>7.3} {:>7.3} {:>7.3}",
+                f.field, f.mean, f.sd, f.difference_sd, r[0], r[1], r[2], r[3]
+            );
         }
     }
     Ok(())

@@ -240,6 +240,70 @@ pub struct FieldSpread {
     pub mean: f64,
     pub sd: f64,
     pub difference_sd: f64,
+    /// The values' autocorrelation at [`AUTOCORRELATION_LAGS`] samples (0 at every lag for white noise
+    /// about a constant, such as the simulator's sensors at rest; near 1 for motion or filtered noise).
+    pub autocorrelation: [f64; AUTOCORRELATION_LAGS.len()],
+}
+
+/// The lags (samples) of [`FieldSpread::autocorrelation`].
+pub const AUTOCORRELATION_LAGS: [usize; 4] = [1, 2, 5, 10];
+
+/// Sums for the autocorrelation at fixed lags, one sample at a time: the values are shifted by the first
+/// (so an offset such as gravity does not cancel digits), the last lags kept in a ring.
+#[derive(Clone)]
+struct Lagged {
+    shift: Option<f64>,
+    ring: [f64; 10],
+    /// The first values (as many as the longest lag).
+    first: [f64; 10],
+    n: usize,
+    sum: f64,
+    sum_sq: f64,
+    /// Per lag: the sum of products `x_t x_(t-l)`, and the sums of the first and the last `n - l` values.
+    products: [f64; AUTOCORRELATION_LAGS.len()],
+    heads: [f64; AUTOCORRELATION_LAGS.len()],
+}
+
+impl Lagged {
+    fn new() -> Self {
+        let z = [0.0; AUTOCORRELATION_LAGS.len()];
+        Lagged { shift: None, ring: [0.0; 10], first: [0.0; 10], n: 0, sum: 0.0, sum_sq: 0.0, products: z, heads: z }
+    }
+
+    fn add(&mut self, x: f64) {
+        let x = x - *self.shift.get_or_insert(x);
+        for (i, &lag) in AUTOCORRELATION_LAGS.iter().enumerate() {
+            if self.n >= lag {
+                let earlier = self.ring[(self.n - lag) % self.ring.len()];
+                self.products[i] += x * earlier;
+                self.heads[i] += earlier;
+            }
+        }
+        self.ring[self.n % self.ring.len()] = x;
+        if self.n < self.first.len() {
+            self.first[self.n] = x;
+        }
+        self.n += 1;
+        self.sum += x;
+        self.sum_sq += x * x;
+    }
+
+    /// `sum_t (x_t - m)(x_(t-l) - m) / sum_t (x_t - m)^2`, `m` the mean of all values.
+    fn autocorrelation(&self) -> [f64; AUTOCORRELATION_LAGS.len()] {
+        let n = self.n as f64;
+        let m = self.sum / n;
+        let variance_sum = self.sum_sq - n * m * m;
+        std::array::from_fn(|i| {
+            let lag = AUTOCORRELATION_LAGS[i];
+            if self.n <= lag {
+                return f64::NAN;
+            }
+            // The later partner of each pair runs over all values but the first l.
+            let tails = self.sum - self.first[..lag].iter().sum::<f64>();
+            let pairs = (self.n - lag) as f64;
+            (self.products[i] - m * (tails + self.heads[i]) + pairs * m * m) / variance_sum
+        })
+    }
 }
 
 /// The error for a topic instance the log lacks, listing the topics it has (`seen`).
@@ -352,7 +416,7 @@ pub fn field_spreads(path: &Path, topic: &str, instance: u8) -> Result<Vec<Field
             if self.n > 1.0 { (self.m2 / (self.n - 1.0)).sqrt() } else { f64::NAN }
         }
     }
-    let mut fields: Option<Vec<(String, NumberField, Running, Running, f64)>> = None;
+    let mut fields: Option<Vec<(String, NumberField, Running, Running, f64, Lagged)>> = None;
     let mut seen: BTreeSet<String> = BTreeSet::new();
     stream(path, |data| {
         let format = data.flattened_format;
@@ -371,13 +435,14 @@ pub fn field_spreads(path: &Path, topic: &str, instance: u8) -> Result<Vec<Field
                         FlattenedFieldType::Double => NumberField::F64(format.get_field_parser::<f64>(name).ok()?),
                         _ => return None,
                     };
-                    Some((name.to_string(), parser, Running::default(), Running::default(), f64::NAN))
+                    Some((name.to_string(), parser, Running::default(), Running::default(), f64::NAN, Lagged::new()))
                 })
                 .collect()
         });
-        for (_, parser, values, differences, last) in fields.iter_mut() {
+        for (_, parser, values, differences, last, lagged) in fields.iter_mut() {
             let x = parser.parse(data.data);
             values.add(x);
+            lagged.add(x);
             if last.is_finite() {
                 differences.add(x - *last);
             }
@@ -388,11 +453,12 @@ pub fn field_spreads(path: &Path, topic: &str, instance: u8) -> Result<Vec<Field
     let Some(fields) = fields else { return Err(missing_topic(path, topic, instance, seen)) };
     Ok(fields
         .into_iter()
-        .map(|(field, _, values, differences, _)| FieldSpread {
+        .map(|(field, _, values, differences, _, lagged)| FieldSpread {
             field,
             mean: values.mean,
             sd: values.sd(),
             difference_sd: differences.sd() / std::f64::consts::SQRT_2,
+            autocorrelation: lagged.autocorrelation(),
         })
         .collect())
 }
@@ -480,29 +546,42 @@ mod tests {
         assert!((combined.largest_gap_s - 0.016001).abs() < 1e-12);
 
         let close = |got: f64, want: f64| (got - want).abs() <= 1e-9 * want.abs();
-        type Spread = (&'static str, &'static str, [f64; 3]);
+        // (log, field, [mean, sd, difference sd], autocorrelation at 1, 2, 5, 10 samples): numpy on
+        // pyulog 1.3.0's arrays.
+        type Spread = (&'static str, &'static str, [f64; 3], [f64; 4]);
         let cases: [Spread; 4] = [
-            ("sample_log_small.ulg", "gyro_rad[0]", [0.004457859755187899, 0.002907516816116944, 0.002771990926852554]),
+            (
+                "sample_log_small.ulg",
+                "gyro_rad[0]",
+                [0.004457859755187899, 0.002907516816116944, 0.002771990926852554],
+                [0.091636425578, 0.134122097017, 0.037050748954, -0.037459154906],
+            ),
             (
                 "sample_log_small.ulg",
                 "accelerometer_m_s2[2]",
                 [-9.621494837644839, 0.04057122740455669, 0.032006920636332745],
+                [0.377367010349, 0.004019435193, 0.096473519054, -0.201629606474],
             ),
             (
                 "sample_appended_multiple.ulg",
                 "gyro_rad[0]",
                 [-0.0038622410727393326, 0.05745443389194065, 0.02026831066852839],
+                [0.875348856757, 0.541029541975, -0.754826713695, 0.203774375604],
             ),
             (
                 "sample_appended_multiple.ulg",
                 "accelerometer_m_s2[2]",
                 [-9.921208001871024, 0.1092127010681122, 0.04445650501381795],
+                [0.834365025084, 0.535114783792, -0.673618024560, 0.138535886425],
             ),
         ];
-        for (name, field, [mean, sd, difference_sd]) in cases {
+        for (name, field, [mean, sd, difference_sd], autocorrelation) in cases {
             let spreads = field_spreads(&log(name), "sensor_combined", 0).unwrap();
             let f = spreads.iter().find(|f| f.field == field).unwrap();
             assert!(close(f.mean, mean) && close(f.sd, sd) && close(f.difference_sd, difference_sd), "{name} {f:?}");
+            for (got, want) in f.autocorrelation.iter().zip(autocorrelation) {
+                assert!((got - want).abs() < 1e-9, "{name} {field}: {:?} vs {autocorrelation:?}", f.autocorrelation);
+            }
         }
         let err = field_spreads(&log("sample_appended_multiple.ulg"), "airspeed", 0).unwrap_err().to_string();
         assert!(err.contains("no topic \"airspeed\" instance 0 (the log has: "), "{err}");

@@ -16,6 +16,7 @@
 //! max_gap_s = 0.05                            # longest gap bridged by interpolation (s)
 //! evaluate_s = [4.8, 9.6]                     # log seconds from its first sample (default: all)
 //! train_s = [0.0, 4.8]                        # where classifiers and thresholds may learn (optional)
+//! debias = ["gyro_x_rad_s"]                   # signals less their train_s mean (a bias calibration)
 //! [log.signals]                               # a signal's field or column (ULog: the method's default)
 //! accel_x_mps2 = "accelerometer_m_s2[0]"
 //! ```
@@ -43,6 +44,10 @@ pub struct LogSection {
     pub train_s: Option<[f64; 2]>,
     #[serde(default)]
     pub signals: BTreeMap<String, String>,
+    /// Signals whose mean over `train_s` is subtracted from the whole log: a bias calibration (such as a
+    /// gyro's at power-up) that sees only the training part.
+    #[serde(default)]
+    pub debias: Vec<String>,
 }
 
 /// Gaps up to this are bridged unless the deck says otherwise (s): 12 samples at 250 Hz (a choice).
@@ -107,6 +112,8 @@ pub struct ReplayLog {
     pub evaluate: Part,
     /// Where classifiers and thresholds may learn; never overlaps `evaluate`.
     pub train: Option<Part>,
+    /// The signals `debias` named and the mean over `train` subtracted from each.
+    pub removed_means: Vec<(String, f64)>,
 }
 
 impl ReplayLog {
@@ -194,7 +201,7 @@ impl ReplayLog {
                 ));
             }
         };
-        let signals = resample(&series, dt_s);
+        let mut signals = resample(&series, dt_s);
         let samples = signals.first().map_or(0, Vec::len);
         let span_s = samples as f64 * dt_s;
         let part = |field: &str, range: Option<[f64; 2]>| -> Result<Part, DeckError> {
@@ -235,6 +242,24 @@ impl ReplayLog {
                 ),
             ));
         }
+        let mut removed_means = Vec::new();
+        for (i, name) in section.debias.iter().enumerate() {
+            let field = format!("log.debias[{i}]");
+            let Some(index) = needs.signals.iter().position(|s| s.name == name) else {
+                let names: Vec<&str> = needs.signals.iter().map(|s| s.name).collect();
+                return Err(v.err(field, format!("{name:?} is not a signal; allowed: {}", names.join(", "))));
+            };
+            if removed_means.iter().any(|(n, _)| n == name) {
+                return Err(v.err(field, format!("{name:?} appears twice")));
+            }
+            let Some(t) = train else {
+                return Err(v.err(field, "the mean is taken over the training part: give train_s"));
+            };
+            let signal = &mut signals[index];
+            let mean = signal[t.first..t.end].iter().sum::<f64>() / t.len() as f64;
+            signal.iter_mut().for_each(|x| *x -= mean);
+            removed_means.push((name.clone(), mean));
+        }
         let gaps = series.t_s.windows(2).map(|w| w[1] - w[0]);
         let n = series.t_s.len();
         Ok(Arc::new(ReplayLog {
@@ -248,6 +273,7 @@ impl ReplayLog {
             ending: series.ending.clone(),
             evaluate,
             train,
+            removed_means,
         }))
     }
 }
@@ -362,6 +388,18 @@ mod tests {
         }
         assert_eq!((from_table.log_samples, from_table.origin.as_str()), (2373, "table"));
         assert!((from_table.log_rate_hz - 246.63).abs() < 0.01);
+        // `debias`: the gyro less its mean over the training part only; the other signal untouched.
+        let text = format!(
+            "file = {path:?}\nmax_gap_s = 0.02\nevaluate_s = [4.8, 9.6]\ntrain_s = [0.0, 4.8]\ndebias = [\"gyro_x_rad_s\"]"
+        );
+        let debiased = ReplayLog::load(&v, &section(&text), &NEEDS, 0.01, 400).unwrap();
+        let t = debiased.train.unwrap();
+        assert_eq!((t.first, t.end), (0, 480));
+        let mean = from_ulog.signals[0][..480].iter().sum::<f64>() / 480.0;
+        assert!((mean - -4.070583e-3).abs() < 1e-9, "{mean}");
+        assert_eq!(debiased.removed_means, vec![("gyro_x_rad_s".to_string(), mean)]);
+        assert!(debiased.signals[0].iter().zip(&from_ulog.signals[0]).all(|(d, x)| (d - (x - mean)).abs() < 1e-15));
+        assert_eq!(debiased.signals[1], from_ulog.signals[1]);
         let err = |text: &str| ReplayLog::load(&v, &section(text), &NEEDS, 0.01, 400).unwrap_err().to_string();
         let e = err("file = \"imu.csv\"\nsignals = { gyro_x_rad_s = \"wx\", accel_z_mps2 = \"az\" }");
         assert!(e.contains("log.time_column: a table log needs its time column"), "{e}");

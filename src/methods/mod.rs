@@ -36,6 +36,7 @@ mod tests {
             ("seed001", "thrust_loss"),
             ("seed002", "air_data"),
             ("seed003", "accelerometer"),
+            ("replay_px4", "accelerometer"), // method 003 on a real log (README "Real flight logs")
             ("seed004", "surface_bank"),
         ];
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("studies");
@@ -54,7 +55,7 @@ mod tests {
             (method.load)(&text, &path).unwrap();
             decks += 1;
         }
-        assert_eq!(decks, 26);
+        assert_eq!(decks, 29);
     }
 
     /// The shared `[monte_carlo]` fields are read by one piece of code: every kind says the same of the

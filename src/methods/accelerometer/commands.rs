@@ -28,17 +28,7 @@ pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
     match &study.log {
         None => println!("imu         {simulated}"),
         Some(log) => {
-            println!(
-                "log         {} {}: {} samples at {:.2} Hz (largest gap {:.3} s), resampled to {} samples every {} s{}",
-                log.file.display(),
-                log.origin,
-                log.log_samples,
-                log.log_rate_hz,
-                log.largest_gap_s,
-                log.samples(),
-                log.dt_s,
-                log.ending.as_deref().map(|e| format!("; {e}")).unwrap_or_default()
-            );
+            println!("log         {}", log_line(log));
             let part = |p| {
                 let [a, b] = log.seconds(p);
                 format!("[{a:.2}, {b:.2}) s")
@@ -47,6 +37,9 @@ pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
             match log.train {
                 Some(p) => println!("            classifiers and thresholds may learn from {}", part(p)),
                 None => println!("            nothing learns from the log (no train_s)"),
+            }
+            for (name, mean) in &log.removed_means {
+                println!("            {name} less its training-part mean, {mean:.6e}");
             }
             println!("            simulated training trials (trained_on = \"simulation\"): {simulated}");
         }
@@ -97,6 +90,21 @@ pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
         study.noise_scale
     );
     Ok(())
+}
+
+/// What was read of a replayed log and how it was repaired (the run reports it too).
+pub fn log_line(log: &crate::engine::log_source::ReplayLog) -> String {
+    format!(
+        "{} {}: {} samples at {:.2} Hz (largest gap {:.3} s, bridged), resampled by linear interpolation to {} samples every {} s{}",
+        log.file.display(),
+        log.origin,
+        log.log_samples,
+        log.log_rate_hz,
+        log.largest_gap_s,
+        log.samples(),
+        log.dt_s,
+        log.ending.as_deref().map(|e| format!("; {e}")).unwrap_or_default()
+    )
 }
 
 /// One trial of an accelerometer deck: the residual and its detection statistic per sample, and what

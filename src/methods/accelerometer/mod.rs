@@ -35,7 +35,7 @@ pub static METHOD: Method = Method {
     summary: SummarySpec { extra_keys: &[], isolates: Isolates::Kind, extras: &[], paired_medians: &[], printed: &[] },
     report: None,
     trace_panels: &[
-        TracePanel { title: "attitude-EKF residual (m/s2)", columns: &["residual_*"] },
+        TracePanel { title: "attitude-EKF residual (unit gravity direction, 1)", columns: &["residual_*"] },
         TracePanel { title: "detection statistic", columns: &["detection_statistic"] },
         TracePanel { title: "alarm", columns: &["alarm"] },
     ],
@@ -76,6 +76,9 @@ impl Study for AccelerometerStudy {
                 (trained, true)
             }
         };
+        if let (Some(log), false) = (&self.log, inputs.quiet) {
+            eprintln!("{}", commands::log_line(log));
+        }
         let trials = AccelerometerTrials::new(self, &classifiers);
         let report = run(&trials, opts)?;
         if write_beside {
@@ -92,7 +95,7 @@ impl Study for AccelerometerStudy {
             .map_err(|e| RunError::Invalid(format!("{}: the fault-free replay: {e}", log.file.display())))?;
             if !inputs.quiet {
                 eprintln!(
-                    "fault-free log, {:.1} s watched: largest T {:.1} against {:.1}, {} alarms ({:.0} per flight hour, 95 % upper bound {:.0})",
+                    "fault-free log, {:.1} s watched: largest T {:.1} against {:.1}, {} alarm(s) ({:.0} per flight hour, 95 % upper bound {:.0})",
                     replay.watched_s,
                     replay.largest_statistic,
                     replay.threshold,

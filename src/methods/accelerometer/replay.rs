@@ -105,7 +105,8 @@ pub fn fault_free_replay(
     detection: &DetectionParams,
     settle_s: f64,
 ) -> Result<FaultFreeReplay, TrialError> {
-    let statistics = part_statistics(log, part, ekf, detection)?;
+    let trace = replay_trace(log, part.first, part.len(), &[], ekf)?;
+    let statistics = detection_statistics(&trace.samples, detection);
     let settle = window_start(settle_s, 0.0, log.dt_s).min(statistics.len());
     let watched = &statistics[settle..];
     let over = |t: f64| t >= detection.threshold;
@@ -126,17 +127,6 @@ pub fn fault_free_replay(
     })
 }
 
-/// `T` of every sample of a fault-free replay of `part`, the filter started at its first sample.
-fn part_statistics(
-    log: &ReplayLog,
-    part: Part,
-    ekf: &AttitudeEkfParams,
-    detection: &DetectionParams,
-) -> Result<Vec<f64>, TrialError> {
-    let trace = replay_trace(log, part.first, part.len(), &[], ekf)?;
-    Ok(detection_statistics(&trace.samples, detection))
-}
-
 /// A threshold calibrated on the fault-free training part: `margin` times the largest `T` after
 /// `settle_s` there (the margin is the deck's choice; the part is never the evaluated one).
 pub fn calibrated_threshold(
@@ -147,10 +137,7 @@ pub fn calibrated_threshold(
     settle_s: f64,
     margin: f64,
 ) -> Result<f64, TrialError> {
-    let statistics = part_statistics(log, part, ekf, detection)?;
-    let settle = window_start(settle_s, 0.0, log.dt_s).min(statistics.len());
-    let largest = statistics[settle..].iter().copied().filter(|t| t.is_finite()).fold(f64::NAN, f64::max);
-    Ok(margin * largest)
+    Ok(margin * fault_free_replay(log, part, ekf, detection, settle_s)?.largest_statistic)
 }
 
 #[cfg(test)]
