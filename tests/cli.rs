@@ -407,7 +407,7 @@ fn bad_decks_exit_2_naming_file_and_field() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let catalogue: Catalogue =
         toml::from_str(&std::fs::read_to_string(root.join("tests/data/bad_decks.toml")).unwrap()).unwrap();
-    assert_eq!(catalogue.case.len(), 131);
+    assert_eq!(catalogue.case.len(), 133);
     let dir = tempfile::tempdir().unwrap();
     for (i, c) in catalogue.case.iter().enumerate() {
         let what = format!("case {i} ({}, {})", c.deck, c.what.as_deref().unwrap_or(&c.to));
@@ -1576,6 +1576,25 @@ fn replay_records_are_identical_for_any_threads_shards_and_resume() {
     assert!((replay["watched_s"].as_f64().unwrap() - 3.3).abs() < 0.011, "{replay}");
     let check = ok(&fdimc(&["check", one.to_str().unwrap(), "--baseline", one.join("summary.csv").to_str().unwrap()]));
     assert!(check.contains(": 0 regression(s)"), "{check}");
+    // Classifiers trained on another split of the log (which could have seen the evaluated samples)
+    // are refused.
+    let split =
+        edited_deck(tmp.path(), "replay_px4.toml", &[("train_s = [0.0, 4.8]", "train_s = [0.0, 4.7]")], "split.toml");
+    let classifiers = one.join("classifiers.json");
+    let out = fdimc(&[
+        "run",
+        split.to_str().unwrap(),
+        "--classifiers",
+        classifiers.to_str().unwrap(),
+        "--out",
+        tmp.path().join("split").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+    assert!(
+        text(&out.stderr).contains("training part [0.000, 4.800) s at dt 0.01 s, debiased [], but "),
+        "{}",
+        text(&out.stderr)
+    );
     // The report re-flies a trial of the log.
     assert_report(
         &one,

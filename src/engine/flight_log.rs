@@ -245,17 +245,18 @@ pub struct FieldSpread {
     pub autocorrelation: [f64; AUTOCORRELATION_LAGS.len()],
 }
 
-/// The lags (samples) of [`FieldSpread::autocorrelation`].
+/// The lags (samples) of [`FieldSpread::autocorrelation`], ascending.
 pub const AUTOCORRELATION_LAGS: [usize; 4] = [1, 2, 5, 10];
+const MAX_LAG: usize = AUTOCORRELATION_LAGS[AUTOCORRELATION_LAGS.len() - 1];
 
 /// Sums for the autocorrelation at fixed lags, one sample at a time: the values are shifted by the first
 /// (so an offset such as gravity does not cancel digits), the last lags kept in a ring.
 #[derive(Clone)]
 struct Lagged {
     shift: Option<f64>,
-    ring: [f64; 10],
+    ring: [f64; MAX_LAG],
     /// The first values (as many as the longest lag).
-    first: [f64; 10],
+    first: [f64; MAX_LAG],
     n: usize,
     sum: f64,
     sum_sq: f64,
@@ -267,7 +268,16 @@ struct Lagged {
 impl Lagged {
     fn new() -> Self {
         let z = [0.0; AUTOCORRELATION_LAGS.len()];
-        Lagged { shift: None, ring: [0.0; 10], first: [0.0; 10], n: 0, sum: 0.0, sum_sq: 0.0, products: z, heads: z }
+        Lagged {
+            shift: None,
+            ring: [0.0; MAX_LAG],
+            first: [0.0; MAX_LAG],
+            n: 0,
+            sum: 0.0,
+            sum_sq: 0.0,
+            products: z,
+            heads: z,
+        }
     }
 
     fn add(&mut self, x: f64) {

@@ -63,9 +63,24 @@ pub fn p_lower(k1: u64, n1: u64, k0: u64, n0: u64) -> f64 {
     normal_sf(z)
 }
 
+/// The exact one-sided 95 % upper bound on a Poisson mean from `k` events (Garwood):
+/// `chi2_0.95(2k + 2) / 2` (3.0 for no event).
+pub fn poisson_upper95(k: u64) -> f64 {
+    use statrs::distribution::{ChiSquared, ContinuousCDF};
+    ChiSquared::new(2.0 * k as f64 + 2.0).map(|c| 0.5 * c.inverse_cdf(0.95)).unwrap_or(f64::NAN)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn poisson_upper_bounds_are_garwoods() {
+        // -ln 0.05 for no event; chi2_0.95(4) / 2 for one (tables: 9.4877 / 2).
+        assert!((poisson_upper95(0) - 2.995732273553991).abs() < 1e-9);
+        assert!((poisson_upper95(1) - 4.743864518390723).abs() < 1e-9);
+        assert!((poisson_upper95(10) - 33.924 / 2.0).abs() < 1e-3, "chi2_0.95(22) = 33.924");
+    }
 
     #[test]
     fn wilson_matches_published_values() {

@@ -69,6 +69,13 @@ pub struct Needs {
     pub signals: &'static [Signal],
 }
 
+impl Needs {
+    /// The signals' names, for messages.
+    pub fn names(&self) -> String {
+        self.signals.iter().map(|s| s.name).collect::<Vec<_>>().join(", ")
+    }
+}
+
 /// Grid samples `[first, end)` of a resampled log.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Part {
@@ -78,7 +85,7 @@ pub struct Part {
 
 impl Part {
     pub fn len(&self) -> usize {
-        self.end - self.first
+        self.end.saturating_sub(self.first)
     }
 
     pub fn is_empty(&self) -> bool {
@@ -141,10 +148,7 @@ impl ReplayLog {
         let max_gap_s = v.positive("log.max_gap_s", section.max_gap_s.unwrap_or(DEFAULT_MAX_GAP_S))?;
         for name in section.signals.keys() {
             if !needs.signals.iter().any(|s| s.name == name) {
-                let names: Vec<&str> = needs.signals.iter().map(|s| s.name).collect();
-                return Err(
-                    v.err(format!("log.signals.{name}"), format!("not a signal; allowed: {}", names.join(", ")))
-                );
+                return Err(v.err(format!("log.signals.{name}"), format!("not a signal; allowed: {}", needs.names())));
             }
         }
         let mapped = |s: &Signal| section.signals.get(s.name).cloned();
@@ -201,6 +205,18 @@ impl ReplayLog {
                 ));
             }
         };
+        if let Some((&t0, &t_last)) = series.t_s.first().zip(series.t_s.last()) {
+            let samples = (t_last - t0) / dt_s;
+            if !(samples < MAX_LOG_SAMPLES) {
+                return Err(v.err(
+                    "study.dt_s",
+                    format!(
+                        "{dt_s} s over the log's {:.3} s makes {samples:.3e} samples; allowed at most {MAX_LOG_SAMPLES:e}",
+                        t_last - t0
+                    ),
+                ));
+            }
+        }
         let mut signals = resample(&series, dt_s);
         let samples = signals.first().map_or(0, Vec::len);
         let span_s = samples as f64 * dt_s;
@@ -216,12 +232,12 @@ impl ReplayLog {
                 first: (lo / dt_s - 1e-9).ceil() as usize,
                 end: ((hi / dt_s + 1e-9).floor() as usize).min(samples),
             };
-            if p.len() < trial_samples {
+            if p.end <= p.first || p.len() < trial_samples {
                 return Err(v.err(
                     field,
                     format!(
                         "[{lo}, {hi}] holds {} samples; a trial needs {trial_samples} (study.duration_s / study.dt_s)",
-                        p.len()
+                        p.end.saturating_sub(p.first)
                     ),
                 ));
             }
@@ -246,8 +262,7 @@ impl ReplayLog {
         for (i, name) in section.debias.iter().enumerate() {
             let field = format!("log.debias[{i}]");
             let Some(index) = needs.signals.iter().position(|s| s.name == name) else {
-                let names: Vec<&str> = needs.signals.iter().map(|s| s.name).collect();
-                return Err(v.err(field, format!("{name:?} is not a signal; allowed: {}", names.join(", "))));
+                return Err(v.err(field, format!("{name:?} is not a signal; allowed: {}", needs.names())));
             };
             if removed_means.iter().any(|(n, _)| n == name) {
                 return Err(v.err(field, format!("{name:?} appears twice")));
@@ -278,20 +293,36 @@ impl ReplayLog {
     }
 }
 
-/// `series` on the grid `t_0 + k dt_s` up to its last sample, each field linearly interpolated between
-/// the samples either side (times increase: [`crate::engine::flight_log`] checked them).
+/// `series` on the grid `t_0 + k dt_s` up to its last sample (times increase:
+/// [`crate::engine::flight_log`] checked them). Grid sample k is the mean of the log's samples in
+/// `[t_k - dt_s / 2, t_k + dt_s / 2)`: what a sensor read at `1 / dt_s` reports (the mean over its
+/// interval), which keeps the noise density (interpolating between independent samples would shrink
+/// the noise by up to half its variance and fold more of what lies above `1 / (2 dt_s)` in). A bin without
+/// a sample (a log slower than the grid, or a gap) takes the linear interpolation at `t_k`.
 pub fn resample(series: &TopicSeries, dt_s: f64) -> Vec<Vec<f64>> {
     let t = &series.t_s;
+    let n = t.len();
     let Some((&t0, &t_last)) = t.first().zip(t.last()) else { return vec![Vec::new(); series.values.len()] };
-    let samples = ((t_last - t0) / dt_s + 1e-9).floor() as usize + 1;
+    let samples = grid_samples(t0, t_last, dt_s);
     let mut out: Vec<Vec<f64>> = vec![Vec::with_capacity(samples); series.values.len()];
-    let mut i = 0;
+    let (mut first, mut bracket) = (0, 0);
     for k in 0..samples {
         let tk = t0 + k as f64 * dt_s;
-        while i + 2 < t.len() && t[i + 1] <= tk {
-            i += 1;
+        let (from, to) = (tk - 0.5 * dt_s, tk + 0.5 * dt_s);
+        while first < n && t[first] < from {
+            first += 1;
         }
-        let (a, b) = if t.len() > 1 { (i, i + 1) } else { (0, 0) };
+        let end = first + t[first..].iter().take_while(|&&ti| ti < to).count();
+        if end > first {
+            for (column, values) in out.iter_mut().zip(&series.values) {
+                column.push(values[first..end].iter().sum::<f64>() / (end - first) as f64);
+            }
+            continue;
+        }
+        while bracket + 2 < n && t[bracket + 1] <= tk {
+            bracket += 1;
+        }
+        let (a, b) = if n > 1 { (bracket, bracket + 1) } else { (0, 0) };
         let w = if b > a { ((tk - t[a]) / (t[b] - t[a])).clamp(0.0, 1.0) } else { 0.0 };
         for (column, values) in out.iter_mut().zip(&series.values) {
             column.push(values[a] + w * (values[b] - values[a]));
@@ -300,30 +331,41 @@ pub fn resample(series: &TopicSeries, dt_s: f64) -> Vec<Vec<f64>> {
     out
 }
 
+/// Grid samples from `t0` to `t_last` every `dt_s`, both ends included.
+fn grid_samples(t0: f64, t_last: f64, dt_s: f64) -> usize {
+    ((t_last - t0) / dt_s + 1e-9).floor() as usize + 1
+}
+
+/// The most grid samples a replayed log may have (as a trial's steps): 1e8, some 5 GB for six signals.
+pub const MAX_LOG_SAMPLES: f64 = 1e8;
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// Interpolation between uneven samples: the grid's values lie on the line through the two samples
-    /// either side; a sample on the grid is kept exactly; the grid ends at the last sample.
+    /// A log faster than the grid: each grid sample is the mean of the log's samples within half a step
+    /// of it, so a straight line stays on itself and alternating noise of +-1 averages to +-1/5 over five
+    /// samples; a bin the log skips (a gap) takes the line through the samples either side; the grid
+    /// ends at the last sample.
     #[test]
-    fn resampling_interpolates_between_the_samples_either_side() {
-        let series = TopicSeries {
-            t_s: vec![10.0, 10.004, 10.0095, 10.0125, 10.02],
-            values: vec![vec![0.0, 4.0, 9.5, 12.5, 20.0], vec![1.0, 1.0, -1.0, -1.0, 3.0]],
-            ending: None,
-        };
+    fn resampling_averages_each_step_and_interpolates_across_gaps() {
+        // 1 ms samples from 10 s, with the ones from 10.0105 to 10.0195 s missing.
+        let t_s: Vec<f64> =
+            (0..=30).map(|i| 10.0 + i as f64 * 1e-3).filter(|t| !(10.0105..10.0195).contains(t)).collect();
+        let line: Vec<f64> = t_s.iter().map(|t| 1000.0 * (t - 10.0)).collect();
+        let alternating: Vec<f64> = (0..t_s.len()).map(|i| if i % 2 == 0 { 1.0 } else { -1.0 }).collect();
+        let series = TopicSeries { t_s, values: vec![line, alternating], ending: None };
         let out = resample(&series, 0.005);
-        assert_eq!(out[0].len(), 5, "10.000 .. 10.020 every 5 ms");
-        for (k, v) in out[0].iter().enumerate() {
-            assert!((v - 5.0 * k as f64).abs() < 1e-9, "the first field is 1000 (t - t0): {v} at {k}");
+        assert_eq!(out[0].len(), 7, "10.000 .. 10.030 every 5 ms");
+        // Bin 0 holds 10.000-10.002 (its first half precedes the log): mean 1.
+        assert!((out[0][0] - 1.0).abs() < 1e-9, "{}", out[0][0]);
+        for k in [1, 5, 6] {
+            let expected = if k == 6 { 29.0 } else { 5.0 * k as f64 };
+            assert!((out[0][k] - expected).abs() < 1e-9, "bin {k}: {} vs {expected}", out[0][k]);
         }
-        // 10.005 lies between 10.004 (1) and 10.0095 (-1): 1 - 2 * 1/5.5.
-        assert!((out[1][1] - (1.0 - 2.0 / 5.5)).abs() < 1e-12);
-        assert_eq!(out[1][0], 1.0);
-        // 10.015 between 10.0125 (-1) and 10.02 (3): -1 + 4 * 2.5/7.5.
-        assert!((out[1][3] - (-1.0 + 4.0 / 3.0)).abs() < 1e-12);
-        assert!((out[1][4] - 3.0).abs() < 1e-12);
+        assert!((out[1][1].abs() - 0.2).abs() < 1e-12, "five alternating samples: {}", out[1][1]);
+        // Bins 2 (10.0075-10.0125) holds 10.008-10.010 only; 3 (10.0125-10.0175) none: the line at 10.015.
+        assert!((out[0][2] - 9.0).abs() < 1e-9 && (out[0][3] - 15.0).abs() < 1e-9, "{:?}", out[0]);
     }
 
     /// A part's segment starts cover every start that keeps the segment inside, and only those.
@@ -396,7 +438,12 @@ mod tests {
         let t = debiased.train.unwrap();
         assert_eq!((t.first, t.end), (0, 480));
         let mean = from_ulog.signals[0][..480].iter().sum::<f64>() / 480.0;
-        assert!((mean - -4.070583e-3).abs() < 1e-9, "{mean}");
+        // The mean of the steps' means is the mean of the log's own samples there, to their weighting.
+        let t0 = series.t_s[0];
+        let raw: Vec<f64> =
+            (0..series.t_s.len()).filter(|&k| series.t_s[k] - t0 < 4.795).map(|k| series.values[0][k]).collect();
+        let raw_mean = raw.iter().sum::<f64>() / raw.len() as f64;
+        assert!((mean - raw_mean).abs() < 1e-4, "{mean} vs {raw_mean} (the gyro sd is 5.7e-2)");
         assert_eq!(debiased.removed_means, vec![("gyro_x_rad_s".to_string(), mean)]);
         assert!(debiased.signals[0].iter().zip(&from_ulog.signals[0]).all(|(d, x)| (d - (x - mean)).abs() < 1e-15));
         assert_eq!(debiased.signals[1], from_ulog.signals[1]);

@@ -95,7 +95,7 @@ pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
 /// What was read of a replayed log and how it was repaired (the run reports it too).
 pub fn log_line(log: &crate::engine::log_source::ReplayLog) -> String {
     format!(
-        "{} {}: {} samples at {:.2} Hz (largest gap {:.3} s, bridged), resampled by linear interpolation to {} samples every {} s{}",
+        "{} {}: {} samples at {:.2} Hz (largest gap {:.3} s, bridged), resampled to {} samples every {} s (means over each step, interpolated across gaps){}",
         log.file.display(),
         log.origin,
         log.log_samples,

@@ -112,15 +112,13 @@ pub fn fault_free_replay(
     let over = |t: f64| t >= detection.threshold;
     let alarms = (0..watched.len()).filter(|&k| over(watched[k]) && (k == 0 || !over(watched[k - 1]))).count() as u64;
     let hours = watched.len() as f64 * log.dt_s / 3600.0;
-    let upper = {
-        use statrs::distribution::{ChiSquared, ContinuousCDF};
-        ChiSquared::new(2.0 * alarms as f64 + 2.0).map(|c| 0.5 * c.inverse_cdf(0.95)).unwrap_or(f64::NAN)
-    };
+    let upper = crate::engine::intervals::poisson_upper95(alarms);
     Ok(FaultFreeReplay {
         part_s: log.seconds(part),
         watched_s: hours * 3600.0,
         threshold: detection.threshold,
-        largest_statistic: watched.iter().copied().filter(|t| t.is_finite()).fold(f64::NAN, f64::max),
+        // NaN (no decision) is passed over by max; an infinite T counts, as it alarms.
+        largest_statistic: watched.iter().copied().fold(f64::NAN, f64::max),
         alarms,
         alarms_per_flight_hour: alarms as f64 / hours,
         alarms_per_flight_hour_upper95: upper / hours,

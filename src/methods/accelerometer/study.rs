@@ -349,7 +349,12 @@ impl FromDeck for AccelerometerStudy {
         let log = match &deck.log {
             None => None,
             Some(section) => {
-                if noise_scale != Factor::Fixed(1.0) {
+                let ones = match &noise_scale {
+                    Factor::Fixed(x) => *x == 1.0,
+                    Factor::Values(list) => list.iter().all(|x| *x == 1.0),
+                    Factor::Range { .. } => false,
+                };
+                if !ones {
                     return Err(v.err("monte_carlo.noise_scale", "a replay's noise is the log's; leave it out (1)"));
                 }
                 Some(ReplayLog::load(&v, section, &super::replay::NEEDS, dt_s, header.steps)?)

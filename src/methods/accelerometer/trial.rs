@@ -43,6 +43,29 @@ pub struct TrainedClassifiers {
     pub noise_scales: Vec<f64>,
     /// In the deck's `[[classifier]]` order.
     pub classifiers: Vec<TrainedClassifier>,
+    /// What the classifiers trained on a log learnt from (the log, its training part, the signals
+    /// debiased there; [`log_training`]): a file from another split, which could have seen the evaluated
+    /// samples, is refused.
+    #[serde(default)]
+    pub log_training: Option<String>,
+}
+
+/// The log split `trained_on = "log"` classifiers of `study` learn from; `None` without any.
+pub fn log_training(study: &AccelerometerStudy) -> Option<String> {
+    let log = study.log.as_ref()?;
+    let part = log.train?;
+    if !study.classifiers.iter().any(|c| c.trained_on == TrainingData::Log) {
+        return None;
+    }
+    let [from, to] = log.seconds(part);
+    let debiased: Vec<&str> = log.removed_means.iter().map(|(name, _)| name.as_str()).collect();
+    Some(format!(
+        "{} {}, training part [{from:.3}, {to:.3}) s at dt {} s, debiased [{}]",
+        log.file.file_name().map(|f| f.to_string_lossy().to_string()).unwrap_or_default(),
+        log.origin,
+        log.dt_s,
+        debiased.join(", ")
+    ))
 }
 
 /// One trained classifier with its name and window.
@@ -196,6 +219,7 @@ impl TrainedClassifiers {
             trials_per_class: t.trials_per_class,
             noise_scales: t.noise_scales.clone(),
             classifiers,
+            log_training: log_training(study),
         })
     }
 
@@ -226,6 +250,18 @@ impl TrainedClassifiers {
                 names.join(", "),
                 study.header.path.display(),
                 deck_names.join(", "),
+                study.header.path.display()
+            )));
+        }
+        let split = log_training(study);
+        if trained.log_training != split {
+            let say = |s: &Option<String>| s.clone().unwrap_or_else(|| "no log".into());
+            return Err(RunError::Invalid(format!(
+                "{}: trained on the log split {}, but {} trains on {}: train for this deck (`fdimc train {}`)",
+                path.display(),
+                say(&trained.log_training),
+                study.header.path.display(),
+                say(&split),
                 study.header.path.display()
             )));
         }
@@ -302,6 +338,7 @@ mod tests {
                     classifier: empty_classifier(),
                 })
                 .into(),
+            log_training: None,
         };
         let trials = AccelerometerTrials::new(&study, &classifiers);
         let r = &study.design.ranges;
