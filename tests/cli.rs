@@ -1238,13 +1238,53 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
     // Thresholds that claim a target the fresh trials contradict are flagged (here a file edited to
     // say 0.3: about 1 % of the trials alarm).
     let claimed = tmp.path().join("claimed.csv");
-    let text = std::fs::read_to_string(&cal_thr).unwrap().replace(",0.01,calibrated at", ",0.3,calibrated at");
-    std::fs::write(&claimed, text).unwrap();
+    let edited = std::fs::read_to_string(&cal_thr).unwrap().replace(",0.01,calibrated at", ",0.3,calibrated at");
+    std::fs::write(&claimed, edited).unwrap();
     let stdout = ok(&fdimc(&["summarize", val.to_str().unwrap(), "--thresholds", claimed.to_str().unwrap()]));
     assert!(
         stdout.contains("warning: detector seed: the thresholds of") && stdout.contains("were calibrated for Pfa 0.3"),
         "{stdout}"
     );
+    // Conservative thresholds (issue 23, item 6): with 95 % confidence that the true Pfa is at most
+    // 0.01, from about 870 fault-free trials at most 3 may alarm (Wilks), against about 9 for the plain
+    // calibration; every threshold is at least the plain one.
+    let detector_thresholds = |path: &Path| -> Vec<(String, i64, f64)> {
+        let t = csv_frame(path);
+        let (det, out) = (
+            t.column("detector").unwrap().str().unwrap().clone(),
+            t.column("statistic").unwrap().str().unwrap().clone(),
+        );
+        let fa = t.column("detector_false_alarms").unwrap().i64().unwrap().clone();
+        let thr = t.column("detector_threshold").unwrap().f64().unwrap().clone();
+        (0..t.height())
+            .filter(|&i| out.get(i) != Some("all"))
+            .map(|i| (det.get(i).unwrap().to_string(), fa.get(i).unwrap_or(-1), thr.get(i).unwrap()))
+            .collect()
+    };
+    let plain = detector_thresholds(&cal_thr);
+    let stdout = ok(&fdimc(&["summarize", cal.to_str().unwrap(), "--target-pfa", "0.01", "--confidence", "0.95"]));
+    assert!(stdout.contains("calibrated at Pfa 0.01 with 0.95 confidence (order statistic)"), "{stdout}");
+    let confident = detector_thresholds(&cal_thr);
+    assert_eq!(plain.len(), confident.len());
+    for ((d, _, p), (_, _, c)) in plain.iter().zip(&confident) {
+        assert!(c >= p, "{d}: the confident threshold {c} is below the plain {p}");
+    }
+    let t = csv_frame(&cal_thr);
+    let out = t.column("statistic").unwrap().str().unwrap().clone();
+    let whole = t.column("detector_false_alarms").unwrap().i64().unwrap().clone();
+    let n = t.column("trials").unwrap().i64().unwrap().clone();
+    for i in (0..t.height()).filter(|&i| out.get(i) == Some("all")) {
+        assert!(n.get(i).unwrap() > 800 && whole.get(i).unwrap() <= 3, "row {i}: {t}");
+    }
+    let out = fdimc(&["summarize", cal.to_str().unwrap(), "--confidence", "0.9999999"]);
+    assert!(
+        text(&out.stdout).contains("cannot give Pfa 0.01 with 0.9999999 confidence (needs >= 1604 fault-free trials)"),
+        "{}",
+        text(&out.stdout)
+    );
+    let out = fdimc(&["summarize", cal.to_str().unwrap(), "--confidence", "1.5"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("--confidence 1.5: allowed 0 < c < 1"), "{}", text(&out.stderr));
 }
 
 #[test]

@@ -130,6 +130,11 @@ The same deck and seed give identical records for any --threads, shard split or 
         /// Target false-alarm probability per trial (default: the deck's monte_carlo.target_pfa).
         #[arg(long)]
         target_pfa: Option<f64>,
+        /// Calibrate conservatively: thresholds whose true false-alarm probability is at most the target
+        /// with this confidence (e.g. 0.95: Wilks' order statistic; says how many fault-free trials it
+        /// needs when there are too few).
+        #[arg(long)]
+        confidence: Option<f64>,
         /// Evaluate with the thresholds of another run (its thresholds.csv) instead of calibrating:
         /// validates a calibration on fresh trials.
         #[arg(long, value_name = "THRESHOLDS_CSV")]
@@ -234,8 +239,8 @@ pub fn run(cli: Cli) -> ExitCode {
             })
             .map(|_| ())
         }
-        Command::Summarize { dir, target_pfa, thresholds } => {
-            run::exec_summarize(&dir, target_pfa, thresholds.as_deref())
+        Command::Summarize { dir, target_pfa, confidence, thresholds } => {
+            run::exec_summarize(&dir, target_pfa, confidence, thresholds.as_deref())
         }
         Command::Merge { dirs, out, force } => run::exec_merge(&dirs, &out, force),
         Command::Report { dir, trials } => run::exec_report(&dir, &trials),

@@ -121,14 +121,34 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
     Ok(out_dir)
 }
 
-pub fn exec_summarize(dir: &Path, target_pfa: Option<f64>, thresholds: Option<&Path>) -> Result<(), CliError> {
-    let (method, _) = method_of_run(dir)?;
-    let calibration = match (target_pfa, thresholds) {
-        (Some(_), Some(_)) => return Err(CliError::Invalid("give --target-pfa or --thresholds, not both".into())),
-        (_, Some(f)) => Some(Calibration::File(f.into())),
-        (Some(p), None) if p > 0.0 && p < 1.0 => Some(Calibration::Target(p)),
-        (Some(p), None) => return Err(CliError::Invalid(format!("--target-pfa {p}: allowed 0 < p < 1"))),
-        (None, None) => None,
+pub fn exec_summarize(
+    dir: &Path,
+    target_pfa: Option<f64>,
+    confidence: Option<f64>,
+    thresholds: Option<&Path>,
+) -> Result<(), CliError> {
+    let (method, manifest) = method_of_run(dir)?;
+    if let Some(c) = confidence
+        && !(c > 0.0 && c < 1.0)
+    {
+        return Err(CliError::Invalid(format!("--confidence {c}: allowed 0 < c < 1 (e.g. 0.95)")));
+    }
+    let calibration = match (target_pfa, thresholds, confidence) {
+        (Some(_), Some(_), _) => {
+            return Err(CliError::Invalid("give --target-pfa or --thresholds, not both".into()));
+        }
+        (_, Some(_), Some(_)) => {
+            return Err(CliError::Invalid("--confidence calibrates; --thresholds applies another run's".into()));
+        }
+        (_, Some(f), None) => Some(Calibration::File(f.into())),
+        (Some(p), None, _) if !(p > 0.0 && p < 1.0) => {
+            return Err(CliError::Invalid(format!("--target-pfa {p}: allowed 0 < p < 1")));
+        }
+        (Some(p), None, None) => Some(Calibration::Target(p)),
+        (p, None, Some(confidence)) => {
+            Some(Calibration::Confident { pfa: p.unwrap_or(manifest.target_pfa), confidence })
+        }
+        (None, None, None) => None,
     };
     if calibration.is_some() {
         method::require(REGISTRY, method, Opt::Thresholds)

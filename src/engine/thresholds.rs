@@ -34,6 +34,9 @@ pub const SLICE_ROWS: usize = 16_384;
 pub enum Calibration {
     /// Calibrated here at this false-alarm probability.
     Target(f64),
+    /// Calibrated here at this false-alarm probability with this confidence that the true probability
+    /// is at most it (order statistic, [`confident_allowed`]).
+    Confident { pfa: f64, confidence: f64 },
     /// Read from another run's `thresholds.csv`.
     File(PathBuf),
 }
@@ -77,6 +80,24 @@ pub fn calibrate(values: &mut [f64], p: f64) -> (f64, u64) {
 /// stays at or below it).
 fn allowed(n: u64, p: f64) -> usize {
     ((p * n as f64).floor() as u64).min(n.saturating_sub(1)) as usize
+}
+
+/// How many of `n` calibration values may exceed a threshold whose true false-alarm probability is at
+/// most `p` with probability `confidence` (distribution-free, Wilks' order-statistic bound, as 95/95
+/// tolerance limits are set in safety analysis): the threshold is the `(m + 1)`-th largest value, and
+/// it lies at or above the true `p`-quantile unless fewer than `m + 1` of the `n` values reach it, which
+/// has probability `P(Binomial(n, p) <= m)`; the largest `m` that keeps this at most `1 - confidence`.
+/// `None` when even the largest value cannot (`n` below [`trials_needed`]).
+pub fn confident_allowed(n: u64, p: f64, confidence: f64) -> Option<usize> {
+    use statrs::distribution::{Binomial, DiscreteCDF};
+    let binomial = Binomial::new(p, n).ok()?;
+    (0..n).take_while(|&m| binomial.cdf(m) <= 1.0 - confidence).last().map(|m| m as usize)
+}
+
+/// The fewest calibration values for which the largest is a threshold of false-alarm probability at
+/// most `p` with `confidence`: `ceil(ln(1 - confidence) / ln(1 - p))` (59 at 0.05 / 0.95, 299 at 0.01).
+pub fn trials_needed(p: f64, confidence: f64) -> u64 {
+    ((1.0 - confidence).ln() / (1.0 - p).ln()).ceil() as u64
 }
 
 /// The `k` largest values seen (ordered as `f64::total_cmp`, NaN above everything).
@@ -198,10 +219,10 @@ pub fn thresholds(
     })?;
     let file = match calibration {
         Calibration::File(f) => Some(read_thresholds(f)?),
-        Calibration::Target(_) => None,
+        Calibration::Target(_) | Calibration::Confident { .. } => None,
     };
     let target_pfa = match (calibration, &file) {
-        (Calibration::Target(p), _) => Some(*p),
+        (Calibration::Target(p) | Calibration::Confident { pfa: p, .. }, _) => Some(*p),
         (_, file) => file.as_ref().and_then(|f| f.target_pfa),
     };
     let source = match calibration {
@@ -212,7 +233,10 @@ pub fn thresholds(
             if fault_free_rows { "fault-free trials" } else { "pre-onset windows" }
         ),
         Calibration::Target(p) if fault_free_rows => format!("calibrated at Pfa {p} on the fault-free trials"),
-        Calibration::Target(p) => {
+        Calibration::Confident { pfa, confidence } if fault_free_rows => {
+            format!("calibrated at Pfa {pfa} with {confidence} confidence (order statistic) on the fault-free trials")
+        }
+        Calibration::Target(p) | Calibration::Confident { pfa: p, .. } => {
             warnings.push(
                 "no fault-free trials: thresholds calibrated on the pre-onset windows (shorter than a whole trial)"
                     .into(),
@@ -245,18 +269,36 @@ pub fn thresholds(
             }
             (per, whole)
         }
-        Calibration::Target(p) => {
+        Calibration::Target(p) | Calibration::Confident { pfa: p, .. } => {
+            let confidence = match calibration {
+                Calibration::Confident { confidence, .. } => Some(*confidence),
+                _ => None,
+            };
+            let mut k = Vec::with_capacity(nd);
             for (d, name) in manifest.detectors.iter().enumerate() {
-                if (n[d] as f64) * p < 1.0 {
-                    warnings.push(format!(
-                        "detector {name}: {} calibration trials cannot resolve Pfa {p} (needs >= {}): thresholds are the largest values seen",
-                        n[d],
-                        (1.0 / p).ceil()
-                    ));
-                }
+                let exceedances = match confidence {
+                    None => {
+                        if (n[d] as f64) * p < 1.0 {
+                            warnings.push(format!(
+                                "detector {name}: {} calibration trials cannot resolve Pfa {p} (needs >= {}): thresholds are the largest values seen",
+                                n[d],
+                                (1.0 / p).ceil()
+                            ));
+                        }
+                        allowed(n[d], *p)
+                    }
+                    Some(c) => confident_allowed(n[d], *p, c).unwrap_or_else(|| {
+                        warnings.push(format!(
+                            "detector {name}: {} calibration trials cannot give Pfa {p} with {c} confidence (needs >= {} fault-free trials): thresholds are the largest values seen, without that confidence",
+                            n[d],
+                            trials_needed(*p, c)
+                        ));
+                        0
+                    }),
+                };
+                k.push(exceedances + 1);
             }
             // Pass 2: per statistic, the largest values.
-            let k: Vec<usize> = n.iter().map(|&n| allowed(n, *p) + 1).collect();
             let mut top: Vec<Vec<TopValues>> =
                 k.iter().map(|&k| (0..ns).map(|_| TopValues::new(k)).collect()).collect();
             for_each_slice(path, rows, manifest, statistics, fault_free_rows, |s| {
@@ -450,6 +492,42 @@ pub fn read_thresholds(path: &Path) -> Result<ThresholdsFile, RunError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Wilks' numbers: 59 values give a 95/95 bound with the largest (58 do not), 299 at Pfa 0.01;
+    /// 500 values at 0.01 allow one exceedance (P(Binomial(500, 0.01) <= 1) = 0.040, <= 2: 0.123).
+    #[test]
+    fn confident_calibration_follows_wilks() {
+        assert_eq!((trials_needed(0.05, 0.95), trials_needed(0.01, 0.95)), (59, 299));
+        assert_eq!(confident_allowed(59, 0.05, 0.95), Some(0));
+        assert_eq!(confident_allowed(58, 0.05, 0.95), None);
+        assert_eq!(confident_allowed(298, 0.01, 0.95), None);
+        assert_eq!(confident_allowed(500, 0.01, 0.95), Some(1));
+        assert_eq!(confident_allowed(869, 0.01, 0.95), Some(3), "the CI deck's fault-free trials");
+    }
+
+    /// Over 4000 fresh calibration sets of 500 exponential maxima (true Pfa of a threshold x: e^-x), the
+    /// plain threshold (at most floor(p n) = 5 exceedances) lets through more than the target 0.01 in
+    /// about half of them; the 95 %-confident one in at most 5 % (here 4 %: its order is the one whose
+    /// miss probability is 0.040).
+    #[test]
+    fn confident_thresholds_exceed_the_target_in_at_most_5_percent_of_fresh_seeds() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Exp1};
+        let (p, n, sets) = (0.01, 500, 4000);
+        let (mut plain_over, mut confident_over) = (0, 0);
+        for seed in 0..sets {
+            let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
+            let mut values: Vec<f64> = (0..n).map(|_| Exp1.sample(&mut rng)).collect();
+            let (plain, _) = calibrate(&mut values, p);
+            let mut top = TopValues::new(confident_allowed(n as u64, p, 0.95).unwrap() + 1);
+            values.iter().for_each(|&v| top.push(v));
+            plain_over += ((-plain).exp() > p) as u32;
+            confident_over += ((-top.threshold()).exp() > p) as u32;
+        }
+        let (plain, confident) = (plain_over as f64 / sets as f64, confident_over as f64 / sets as f64);
+        assert!(plain > 0.35, "plain thresholds exceed the target in {plain} of the sets");
+        assert!((0.03..=0.05).contains(&confident), "confident thresholds exceed it in {confident}");
+    }
 
     #[test]
     fn calibration_allows_floor_p_n_exceedances() {
