@@ -1282,6 +1282,14 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
         "{}",
         text(&out.stdout)
     );
+    // Per flight hour (issue 23, item 4): 0.5 per hour over 10 s trials is 1 - 0.5^(1/360) per trial,
+    // and the achieved rates are printed both ways.
+    let stdout = ok(&fdimc(&["summarize", cal.to_str().unwrap(), "--target-pfa-per-hour", "0.5"]));
+    assert!(stdout.contains("target 0.5 per flight hour = 1.9236e-3 per 10 s trial"), "{stdout}");
+    assert!(stdout.contains("calibrated at Pfa 0.00192355642437"), "{stdout}");
+    assert_eq!(stdout.matches("(the hour's 10 s segments taken as independent)").count(), 2, "{stdout}");
+    let out = fdimc(&["summarize", cal.to_str().unwrap(), "--target-pfa-per-hour", "0.5", "--target-pfa", "0.01"]);
+    assert_eq!(out.status.code(), Some(2));
     let out = fdimc(&["summarize", cal.to_str().unwrap(), "--confidence", "1.5"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("--confidence 1.5: allowed 0 < c < 1"), "{}", text(&out.stderr));

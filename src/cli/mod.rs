@@ -135,6 +135,10 @@ The same deck and seed give identical records for any --threads, shard split or 
         /// needs when there are too few).
         #[arg(long)]
         confidence: Option<f64>,
+        /// Target false-alarm probability per flight hour instead of per trial: converted from the
+        /// trial's duration, the hour's trials taken as independent segments (e.g. 1e-5).
+        #[arg(long, value_name = "P")]
+        target_pfa_per_hour: Option<f64>,
         /// Evaluate with the thresholds of another run (its thresholds.csv) instead of calibrating:
         /// validates a calibration on fresh trials.
         #[arg(long, value_name = "THRESHOLDS_CSV")]
@@ -239,8 +243,8 @@ pub fn run(cli: Cli) -> ExitCode {
             })
             .map(|_| ())
         }
-        Command::Summarize { dir, target_pfa, confidence, thresholds } => {
-            run::exec_summarize(&dir, target_pfa, confidence, thresholds.as_deref())
+        Command::Summarize { dir, target_pfa, confidence, target_pfa_per_hour, thresholds } => {
+            run::exec_summarize(&dir, target_pfa, target_pfa_per_hour, confidence, thresholds.as_deref())
         }
         Command::Merge { dirs, out, force } => run::exec_merge(&dirs, &out, force),
         Command::Report { dir, trials } => run::exec_report(&dir, &trials),

@@ -124,10 +124,33 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
 pub fn exec_summarize(
     dir: &Path,
     target_pfa: Option<f64>,
+    target_pfa_per_hour: Option<f64>,
     confidence: Option<f64>,
     thresholds: Option<&Path>,
 ) -> Result<(), CliError> {
     let (method, manifest) = method_of_run(dir)?;
+    let target_pfa = match (target_pfa, target_pfa_per_hour) {
+        (Some(_), Some(_)) => {
+            return Err(CliError::Invalid("give --target-pfa (per trial) or --target-pfa-per-hour, not both".into()));
+        }
+        (_, Some(h)) if !(h > 0.0 && h < 1.0) => {
+            return Err(CliError::Invalid(format!("--target-pfa-per-hour {h}: allowed 0 < p < 1")));
+        }
+        (_, Some(h)) => {
+            let duration_s = manifest.trial_duration_s.ok_or_else(|| {
+                CliError::Invalid(format!(
+                    "{}: the manifest does not give the trial's duration (a run of an older fdimc): use --target-pfa",
+                    dir.display()
+                ))
+            })?;
+            let p = crate::engine::thresholds::per_segment(h, duration_s);
+            println!(
+                "target {h} per flight hour = {p:.4e} per {duration_s} s trial (the hour's trials taken as independent)"
+            );
+            Some(p)
+        }
+        (p, None) => p,
+    };
     if let Some(c) = confidence
         && !(c > 0.0 && c < 1.0)
     {

@@ -148,6 +148,9 @@ pub struct Manifest {
     pub deck_thresholds: Vec<Vec<f64>>,
     /// Calibration target of detection filters; 0 for banks, which declare by model probability.
     pub target_pfa: f64,
+    /// A trial's duration (s), for false-alarm rates per flight hour (`None` in runs written before).
+    #[serde(default)]
+    pub trial_duration_s: Option<f64>,
     /// Unit of each fault kind's size bins (for plot axes).
     #[serde(default)]
     pub fault_size_units: std::collections::BTreeMap<String, String>,
@@ -244,6 +247,7 @@ impl Manifest {
             seed: header.seed,
             trials,
             detectors: detectors.into_iter().map(String::from).collect(),
+            trial_duration_s: Some(header.duration_s),
             ..Manifest::unstarted()
         }
     }
@@ -266,6 +270,7 @@ impl Manifest {
             outputs: Vec::new(),
             deck_thresholds: Vec::new(),
             target_pfa: 0.0,
+            trial_duration_s: None,
             fault_size_units: Default::default(),
             fault_size_bins: Default::default(),
             command_line: Vec::new(),

@@ -37,7 +37,9 @@ use super::schema::col;
 use super::tables::{
     Table, bool_col, column_names, complete_run, f64_col, list_col, numbers, read_slice, str_col, u64_col,
 };
-use super::thresholds::{Calibration, DetectorThresholds, SLICE_ROWS, alarm_time, thresholds, write_thresholds};
+use super::thresholds::{
+    Calibration, DetectorThresholds, SLICE_ROWS, alarm_time, per_flight_hour, thresholds, write_thresholds,
+};
 use crate::fault::deck::unit;
 
 /// The threshold sets' names.
@@ -922,14 +924,23 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
                 Some(VALIDATION) => ("applied", "this run's trials"),
                 _ => ("calibrated", "the calibration trials"),
             };
+            let rate = t.whole_false_alarms as f64 / t.calibration_units.max(1) as f64;
+            let per_hour = t.unit_duration_s.map_or(String::new(), |d| {
+                let h = |p: f64| per_flight_hour(p, d);
+                format!(
+                    ", per flight hour {:.4} [{:.4}, {:.4}] (the hour's {d} s segments taken as independent)",
+                    h(rate),
+                    h(lo),
+                    h(hi)
+                )
+            });
             println!(
-                "    {}: {label} [{}] (deck [{}]); Pfa achieved {}/{} = {:.4} [{lo:.4}, {hi:.4}] on {trials}",
+                "    {}: {label} [{}] (deck [{}]); Pfa achieved {}/{} = {rate:.4} [{lo:.4}, {hi:.4}] on {trials}{per_hour}",
                 t.detector,
                 list(&t.whole),
                 list(&t.deck),
                 t.whole_false_alarms,
                 t.calibration_units,
-                t.whole_false_alarms as f64 / t.calibration_units.max(1) as f64
             );
         }
     }

@@ -57,6 +57,21 @@ pub struct DetectorThresholds {
     /// The false-alarm probability the thresholds were calibrated for (`None`: a thresholds file that
     /// does not say).
     pub target_pfa: Option<f64>,
+    /// How long each calibration unit flew (s): a whole trial when calibrated on fault-free trials;
+    /// `None` on pre-onset windows (of differing lengths) or without a trial duration.
+    pub unit_duration_s: Option<f64>,
+}
+
+/// A probability per segment of `segment_s` seconds as one per flight hour, the hour's segments taken as
+/// independent: `1 - (1 - p)^(3600 / segment_s)`.
+pub fn per_flight_hour(p: f64, segment_s: f64) -> f64 {
+    -((-p).ln_1p() * (3600.0 / segment_s)).exp_m1()
+}
+
+/// The probability per segment of `segment_s` seconds that gives `per_hour` per flight hour (the
+/// inverse of [`per_flight_hour`]).
+pub fn per_segment(per_hour: f64, segment_s: f64) -> f64 {
+    -((-per_hour).ln_1p() * segment_s / 3600.0).exp_m1()
 }
 
 /// A detector's first post-onset alarm at thresholds `thr`, from the first-passage profiles of one row:
@@ -351,6 +366,7 @@ pub fn thresholds(
             per_statistic_false_alarms: per_fa[d].clone(),
             whole_false_alarms: whole_fa[d],
             target_pfa,
+            unit_duration_s: manifest.trial_duration_s.filter(|_| fault_free_rows),
         })
         .collect::<Vec<_>>();
     // Thresholds from elsewhere: does this run bear out the false-alarm probability they were made for?
@@ -492,6 +508,18 @@ pub fn read_thresholds(path: &Path) -> Result<ThresholdsFile, RunError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Per flight hour from 60 s trials: 60 independent segments an hour, so 1 - (1 - p)^60 (1e-3 per
+    /// trial is 0.0583 per hour (0.058264); 1e-9 per trial is 6e-8 per hour), and back.
+    #[test]
+    fn per_flight_hour_takes_the_hours_segments_as_independent() {
+        assert!((per_flight_hour(1e-3, 60.0) - (1.0 - 0.999f64.powi(60))).abs() < 1e-15);
+        assert!((per_flight_hour(1e-3, 60.0) - 0.058264).abs() < 1e-6);
+        assert!((per_flight_hour(1e-9, 60.0) / 6e-8 - 1.0).abs() < 1e-6, "no cancellation at small p");
+        for p in [1e-9, 1e-4, 0.01] {
+            assert!((per_segment(per_flight_hour(p, 30.0), 30.0) / p - 1.0).abs() < 1e-9, "{p}");
+        }
+    }
 
     /// Wilks' numbers: 59 values give a 95/95 bound with the largest (58 do not), 299 at Pfa 0.01;
     /// 500 values at 0.01 allow one exceedance (P(Binomial(500, 0.01) <= 1) = 0.040, <= 2: 0.123).
