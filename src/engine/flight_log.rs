@@ -249,32 +249,52 @@ pub struct FieldSpread {
 pub const AUTOCORRELATION_LAGS: [usize; 4] = [1, 2, 5, 10];
 const MAX_LAG: usize = AUTOCORRELATION_LAGS[AUTOCORRELATION_LAGS.len() - 1];
 
-/// Sums for the autocorrelation at fixed lags, one sample at a time: the values are shifted by the first
+/// Welford's running mean and variance.
+#[derive(Default, Clone, Copy)]
+struct Running {
+    n: f64,
+    mean: f64,
+    m2: f64,
+}
+
+impl Running {
+    fn add(&mut self, x: f64) {
+        self.n += 1.0;
+        let d = x - self.mean;
+        self.mean += d / self.n;
+        self.m2 += d * (x - self.mean);
+    }
+
+    fn sd(&self) -> f64 {
+        if self.n > 1.0 { (self.m2 / (self.n - 1.0)).sqrt() } else { f64::NAN }
+    }
+}
+
+/// A field's mean and spread, and the sums for its autocorrelation at fixed lags, one sample at a time: the values are shifted by the first
 /// (so an offset such as gravity does not cancel digits), the last lags kept in a ring.
 #[derive(Clone)]
-struct Lagged {
+struct FieldStats {
     shift: Option<f64>,
     ring: [f64; MAX_LAG],
     /// The first values (as many as the longest lag).
     first: [f64; MAX_LAG],
     n: usize,
-    sum: f64,
-    sum_sq: f64,
+    /// Mean and spread of the shifted values.
+    values: Running,
     /// Per lag: the sum of products `x_t x_(t-l)`, and the sums of the first and the last `n - l` values.
     products: [f64; AUTOCORRELATION_LAGS.len()],
     heads: [f64; AUTOCORRELATION_LAGS.len()],
 }
 
-impl Lagged {
+impl FieldStats {
     fn new() -> Self {
         let z = [0.0; AUTOCORRELATION_LAGS.len()];
-        Lagged {
+        FieldStats {
             shift: None,
             ring: [0.0; MAX_LAG],
             first: [0.0; MAX_LAG],
             n: 0,
-            sum: 0.0,
-            sum_sq: 0.0,
+            values: Running::default(),
             products: z,
             heads: z,
         }
@@ -294,22 +314,24 @@ impl Lagged {
             self.first[self.n] = x;
         }
         self.n += 1;
-        self.sum += x;
-        self.sum_sq += x * x;
+        self.values.add(x);
+    }
+
+    fn mean(&self) -> f64 {
+        self.shift.unwrap_or(f64::NAN) + self.values.mean
     }
 
     /// `sum_t (x_t - m)(x_(t-l) - m) / sum_t (x_t - m)^2`, `m` the mean of all values.
     fn autocorrelation(&self) -> [f64; AUTOCORRELATION_LAGS.len()] {
-        let n = self.n as f64;
-        let m = self.sum / n;
-        let variance_sum = self.sum_sq - n * m * m;
+        let (m, variance_sum) = (self.values.mean, self.values.m2);
+        let sum = m * self.n as f64;
         std::array::from_fn(|i| {
             let lag = AUTOCORRELATION_LAGS[i];
             if self.n <= lag {
                 return f64::NAN;
             }
             // The later partner of each pair runs over all values but the first l.
-            let tails = self.sum - self.first[..lag].iter().sum::<f64>();
+            let tails = sum - self.first[..lag].iter().sum::<f64>();
             let pairs = (self.n - lag) as f64;
             (self.products[i] - m * (tails + self.heads[i]) + pairs * m * m) / variance_sum
         })
@@ -408,25 +430,7 @@ pub fn survey(path: &Path) -> Result<(Vec<TopicSurvey>, Option<String>), LogErro
 /// The spread of every `f32`/`f64` field of one topic instance ([`FieldSpread`]), in the log's field
 /// order; a topic instance the log lacks is [`LogError::MissingTopic`].
 pub fn field_spreads(path: &Path, topic: &str, instance: u8) -> Result<Vec<FieldSpread>, LogError> {
-    // Welford's running mean and variance, of the values and of their differences.
-    #[derive(Default, Clone, Copy)]
-    struct Running {
-        n: f64,
-        mean: f64,
-        m2: f64,
-    }
-    impl Running {
-        fn add(&mut self, x: f64) {
-            self.n += 1.0;
-            let d = x - self.mean;
-            self.mean += d / self.n;
-            self.m2 += d * (x - self.mean);
-        }
-        fn sd(&self) -> f64 {
-            if self.n > 1.0 { (self.m2 / (self.n - 1.0)).sqrt() } else { f64::NAN }
-        }
-    }
-    let mut fields: Option<Vec<(String, NumberField, Running, Running, f64, Lagged)>> = None;
+    let mut fields: Option<Vec<(String, NumberField, FieldStats, Running, f64)>> = None;
     let mut seen: BTreeSet<String> = BTreeSet::new();
     stream(path, |data| {
         let format = data.flattened_format;
@@ -445,14 +449,13 @@ pub fn field_spreads(path: &Path, topic: &str, instance: u8) -> Result<Vec<Field
                         FlattenedFieldType::Double => NumberField::F64(format.get_field_parser::<f64>(name).ok()?),
                         _ => return None,
                     };
-                    Some((name.to_string(), parser, Running::default(), Running::default(), f64::NAN, Lagged::new()))
+                    Some((name.to_string(), parser, FieldStats::new(), Running::default(), f64::NAN))
                 })
                 .collect()
         });
-        for (_, parser, values, differences, last, lagged) in fields.iter_mut() {
+        for (_, parser, values, differences, last) in fields.iter_mut() {
             let x = parser.parse(data.data);
             values.add(x);
-            lagged.add(x);
             if last.is_finite() {
                 differences.add(x - *last);
             }
@@ -463,12 +466,12 @@ pub fn field_spreads(path: &Path, topic: &str, instance: u8) -> Result<Vec<Field
     let Some(fields) = fields else { return Err(missing_topic(path, topic, instance, seen)) };
     Ok(fields
         .into_iter()
-        .map(|(field, _, values, differences, _, lagged)| FieldSpread {
+        .map(|(field, _, values, differences, _)| FieldSpread {
             field,
-            mean: values.mean,
-            sd: values.sd(),
+            mean: values.mean(),
+            sd: values.values.sd(),
             difference_sd: differences.sd() / std::f64::consts::SQRT_2,
-            autocorrelation: lagged.autocorrelation(),
+            autocorrelation: values.autocorrelation(),
         })
         .collect())
 }

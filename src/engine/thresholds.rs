@@ -535,7 +535,7 @@ mod tests {
 
     /// Over 4000 fresh calibration sets of 500 exponential maxima (true Pfa of a threshold x: e^-x), the
     /// plain threshold (at most floor(p n) = 5 exceedances) lets through more than the target 0.01 in
-    /// about half of them; the 95 %-confident one in at most 5 % (here 4 %: its order is the one whose
+    /// 62 % of them; the 95 %-confident one in at most 5 % (here 4 %: its order is the one whose
     /// miss probability is 0.040).
     #[test]
     fn confident_thresholds_exceed_the_target_in_at_most_5_percent_of_fresh_seeds() {
@@ -553,7 +553,8 @@ mod tests {
             confident_over += ((-top.threshold()).exp() > p) as u32;
         }
         let (plain, confident) = (plain_over as f64 / sets as f64, confident_over as f64 / sets as f64);
-        assert!(plain > 0.35, "plain thresholds exceed the target in {plain} of the sets");
+        // Measured 0.618 and 0.039 (the formulas: P(Binomial(500, 0.01) <= 5) = 0.616, <= 1: 0.040).
+        assert!((0.59..=0.65).contains(&plain), "plain thresholds exceed the target in {plain} of the sets");
         assert!((0.03..=0.05).contains(&confident), "confident thresholds exceed it in {confident}");
     }
 

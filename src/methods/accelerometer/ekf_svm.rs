@@ -420,21 +420,23 @@ pub fn simulate_trial<R: Rng + ?Sized>(
 ) -> Result<ResidualTrace, TrialError> {
     let dt_s = scenario.dt_s;
     let mut scenario = ImuScenario::new(scenario)?;
+    let n = scenario.samples();
     let samples = std::iter::from_fn(|| scenario.next_sample(rng))
         .map(|s| (s.gyro_rad_s, s.accel_mps2, Some(as_vector(&s.truth.attitude))));
-    filter_trial(dt_s, samples, ekf)
+    filter_trial(dt_s, n, samples, ekf)
 }
 
 /// The attitude EKF over one trial's (gyro, accelerometer, true attitude if known) samples, aligned on
-/// the first accelerometer sample; simulated and replayed trials alike. Without a true attitude the
-/// tilt error is NaN.
+/// the first accelerometer sample; simulated and replayed trials alike (`expected_samples` sizes the
+/// outputs once). Without a true attitude the tilt error is NaN.
 pub fn filter_trial(
     dt_s: f64,
+    expected_samples: usize,
     samples: impl Iterator<Item = (Vector3<f64>, Vector3<f64>, Option<Vector4<f64>>)>,
     ekf: &AttitudeEkfParams,
 ) -> Result<ResidualTrace, TrialError> {
     let mut filter: Option<AttitudeEkf> = None;
-    let (mut residuals, mut tilt) = (Vec::new(), Vec::new());
+    let (mut residuals, mut tilt) = (Vec::with_capacity(expected_samples), Vec::with_capacity(expected_samples));
     for (gyro, accel, truth) in samples {
         let f = match &mut filter {
             Some(f) => f,

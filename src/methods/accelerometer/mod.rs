@@ -116,16 +116,17 @@ impl Study for AccelerometerStudy {
 
 /// What one trial flies.
 #[derive(Debug, Clone, PartialEq)]
-pub enum TrialPlan {
+pub enum TrialPlan<'a> {
     Simulated(crate::methods::accelerometer::imu::ImuScenarioParams),
-    /// The log's segment from grid sample `start`, with `faults` (onsets from the segment's start).
+    /// `log`'s segment from grid sample `start`, with `faults` (onsets from the segment's start).
     Replayed {
+        log: &'a crate::engine::log_source::ReplayLog,
         start: usize,
         faults: Vec<crate::fault::SensorFault>,
     },
 }
 
-impl TrialPlan {
+impl TrialPlan<'_> {
     pub fn faults(&self) -> &[crate::fault::SensorFault] {
         match self {
             TrialPlan::Simulated(scenario) => &scenario.faults,
@@ -147,7 +148,7 @@ impl<'a> AccelerometerTrials<'a> {
 
     /// The scenario of trial `trial` and what it flies: a simulated scenario, or a segment of the log
     /// with the fault injected ([`replay`]).
-    fn draw(&self, trial: u64) -> (AccelTrialSpec, TrialPlan) {
+    fn draw(&self, trial: u64) -> (AccelTrialSpec, TrialPlan<'a>) {
         let s = self.study;
         let mut grid = GridDigits::new(trial);
         let class = s.classes[grid.next(s.classes.len())];
@@ -161,7 +162,7 @@ impl<'a> AccelerometerTrials<'a> {
             }
             Some(log) => {
                 let r = replay::draw(&s.design.ranges, log.evaluate, s.header.steps, class, &mut rng);
-                (TrialPlan::Replayed { start: r.start, faults: r.fault.into_iter().collect() }, r.onset_s)
+                (TrialPlan::Replayed { log, start: r.start, faults: r.fault.into_iter().collect() }, r.onset_s)
             }
         };
         let fault = plan.faults().first();
@@ -175,9 +176,9 @@ impl<'a> AccelerometerTrials<'a> {
             Some(FaultMode::Gain { factor }) => (factor, third((factor - 1.0).abs(), ranges.gain_deviation)),
             _ => (f64::NAN, f64::NAN),
         };
-        let log_start_s = match (&plan, &s.log) {
-            (TrialPlan::Replayed { start, .. }, Some(log)) => Some(*start as f64 * log.dt_s),
-            _ => None,
+        let log_start_s = match &plan {
+            TrialPlan::Replayed { log, start, .. } => Some(*start as f64 * log.dt_s),
+            TrialPlan::Simulated(_) => None,
         };
         let axis = fault.map(|f| f.channel);
         let spec = AccelTrialSpec { trial, class, axis, size, size_bin, onset_s, noise_scale, log_start_s };
@@ -192,12 +193,11 @@ impl<'a> AccelerometerTrials<'a> {
         let mut rng = noise_rng(s.header.seed, trial, Substream::SensorNoise);
         let outcome = (|| {
             let ekf = s.design.ekf_for(spec.noise_scale);
-            let trace = match (plan, &s.log) {
-                (TrialPlan::Simulated(scenario), _) => simulate_trial(scenario, &ekf, &mut rng),
-                (TrialPlan::Replayed { start, faults }, Some(log)) => {
+            let trace = match plan {
+                TrialPlan::Simulated(scenario) => simulate_trial(scenario, &ekf, &mut rng),
+                TrialPlan::Replayed { log, start, faults } => {
                     replay::replay_trace(log, start, s.header.steps, &faults, &ekf)
                 }
-                (TrialPlan::Replayed { .. }, None) => unreachable!("a replayed trial comes from a study with a log"),
             }
             .map_err(|e| e.to_string())?;
             let example = s.design.example(&trace, spec.onset_s, spec.class).map_err(|e| e.to_string())?;

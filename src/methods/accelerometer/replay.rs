@@ -70,12 +70,13 @@ pub fn replay_trace(
     let s = &log.signals;
     let mut active = ActiveFaults::new(faults.to_vec());
     let dt_s = log.dt_s;
-    let rows = (start..(start + samples).min(log.samples())).map(|k| {
+    let end = (start + samples).min(log.samples());
+    let rows = (start..end).map(|k| {
         let mut accel = [s[3][k], s[4][k], s[5][k]];
         active.apply((k - start) as f64 * dt_s, &mut accel);
         (Vector3::new(s[0][k], s[1][k], s[2][k]), Vector3::from(accel), None)
     });
-    filter_trial(dt_s, rows, ekf)
+    filter_trial(dt_s, end.saturating_sub(start), rows, ekf)
 }
 
 /// The residual detector over a fault-free stretch of the log, filtered from its start: what a user
@@ -167,8 +168,7 @@ mod tests {
         AccelerometerStudy::from_toml(deck, &path).unwrap()
     }
 
-    /// A zero-size fault (a bias of 0, a gain of 1) leaves every residual and statistic exactly as the
-    /// clean replay's.
+    /// A zero-size fault (a bias of 0, a gain of 1) leaves every residual exactly as the clean replay's.
     #[test]
     fn a_zero_size_fault_leaves_the_replay_identical() {
         let study = bench_study();
@@ -180,13 +180,8 @@ mod tests {
             for channel in 0..3 {
                 let zero = SensorFault { channel, onset_s: 2.5, mode };
                 let faulty = replay_trace(log, 7, n, &[zero], &ekf).unwrap();
+                // Equal residuals: equal statistics, alarms and features, which are functions of them.
                 assert_eq!(faulty.samples, clean.samples, "{mode:?} on axis {channel}");
-                let detection = study.design.detection_for(&study.detection, 1.0);
-                let (a, b) = (
-                    detection_statistics(&faulty.samples, &detection),
-                    detection_statistics(&clean.samples, &detection),
-                );
-                assert!(a.iter().zip(&b).all(|(x, y)| x == y || (x.is_nan() && y.is_nan())));
             }
         }
         // A real fault does move it (the comparison above can fail).
