@@ -1277,11 +1277,26 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
         assert!(n.get(i).unwrap() > 800 && whole.get(i).unwrap() <= 3, "row {i}: {t}");
     }
     let out = fdimc(&["summarize", cal.to_str().unwrap(), "--confidence", "0.9999999"]);
+    let stdout = text(&out.stdout);
+    assert!(stdout.contains("cannot give Pfa 0.01 with 0.9999999 confidence"), "{stdout}");
+    assert!(stdout.contains("needs >= 1604 fault-free trials"), "{stdout}");
+    // Where the order statistic cannot reach, the tail fit's upper bound sets the thresholds (item 6):
+    // Pfa 1e-4 with 95 % confidence needs 29,956 trials by the order statistic; the fit's 0.95 bound
+    // lies above every calibration value, and no calibration trial alarms.
+    let stdout = ok(&fdimc(&["summarize", cal.to_str().unwrap(), "--target-pfa", "1e-4", "--confidence", "0.95"]));
     assert!(
-        text(&out.stdout).contains("cannot give Pfa 0.01 with 0.9999999 confidence (needs >= 1604 fault-free trials)"),
-        "{}",
-        text(&out.stdout)
+        stdout.contains("needs >= 29956 fault-free trials): thresholds at the tail fit's 0.95 upper bound"),
+        "{stdout}"
     );
+    let t = csv_frame(&cal_thr);
+    let out = t.column("statistic").unwrap().str().unwrap().clone();
+    let whole = t.column("detector_false_alarms").unwrap().i64().unwrap().clone();
+    for i in (0..t.height()).filter(|&i| out.get(i) == Some("all")) {
+        assert_eq!(whole.get(i), Some(0), "row {i}: {t}");
+    }
+    for ((d, _, p), (_, _, c)) in plain.iter().zip(&detector_thresholds(&cal_thr)) {
+        assert!(c > p, "{d}: the tail-bound threshold {c} is not above the plain one at 0.01 ({p})");
+    }
     // Per flight hour (issue 23, item 4): 0.5 per hour over 10 s trials is 1 - 0.5^(1/360) per trial,
     // and the achieved rates are printed both ways.
     let stdout = ok(&fdimc(&["summarize", cal.to_str().unwrap(), "--target-pfa-per-hour", "0.5"]));
@@ -1293,6 +1308,76 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
     let out = fdimc(&["summarize", cal.to_str().unwrap(), "--confidence", "1.5"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("--confidence 1.5: allowed 0 < c < 1"), "{}", text(&out.stderr));
+}
+
+/// Rare false alarms (issue 23, item 1): the CI deck's 869 fault-free trials give a generalised Pareto
+/// fit per detector and threshold set; `tail.csv` holds, per statistic, the Pfa at the deck's and the
+/// calibrated thresholds and the thresholds for 1e-5, 1e-7 and 1e-9 per flight hour.
+#[test]
+fn the_tail_fit_gives_thresholds_for_per_hour_targets() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("run");
+    let stdout = ok(&fdimc(&["run", CI_DECK, "--out", dir.to_str().unwrap()]));
+    assert!(stdout.contains("seed vs calibrated thresholds: fit on the 86 largest of 869, shape"), "{stdout}");
+    assert!(stdout.contains("for 1.00e-9 per flight hour: thresholds x "), "{stdout}");
+    let t = csv_frame(&dir.join("tail.csv"));
+    // 2 detectors x 6 outputs x (deck + calibrated + 3 targets).
+    assert_eq!(t.height(), 60, "{t}");
+    let s = |c: &str| t.column(c).unwrap().str().unwrap().clone();
+    let f = |c: &str| t.column(c).unwrap().cast(&polars::prelude::DataType::Float64).unwrap().f64().unwrap().clone();
+    let (det, set, query, stat) = (s("detector"), s("thresholds"), s("query"), s("statistic"));
+    let (pfa, lo, hi, observed, n) = (f("pfa"), f("pfa_lo"), f("pfa_hi"), f("observed_false_alarms"), f("trials"));
+    let (thr, scale, scale_lo, target) = (f("threshold"), f("scale"), f("scale_lo"), f("target_pfa_per_hour"));
+    let calibrated = csv_frame(&dir.join("thresholds.csv"));
+    let cal_thr = |d: &str, o: &str| {
+        let (cd, co) = (
+            calibrated.column("detector").unwrap().str().unwrap(),
+            calibrated.column("statistic").unwrap().str().unwrap(),
+        );
+        let i = (0..calibrated.height()).find(|&i| cd.get(i) == Some(d) && co.get(i) == Some(o)).unwrap();
+        calibrated.column("detector_threshold").unwrap().f64().unwrap().get(i).unwrap()
+    };
+    let mut last_scale = std::collections::HashMap::new();
+    for i in 0..t.height() {
+        let (d, o) = (det.get(i).unwrap(), stat.get(i).unwrap());
+        match (set.get(i).unwrap(), query.get(i).unwrap()) {
+            // Within the data the fit agrees with what was seen: the observed rate is inside its interval.
+            (_, "pfa_at_thresholds") => {
+                let rate = observed.get(i).unwrap() / n.get(i).unwrap();
+                assert_eq!(n.get(i), Some(869.0));
+                assert!(
+                    lo.get(i).unwrap() <= rate && rate <= hi.get(i).unwrap(),
+                    "row {i}: {rate} outside [{:?}, {:?}]",
+                    lo.get(i),
+                    hi.get(i)
+                );
+                assert!(
+                    (pfa.get(i).unwrap() / rate).ln().abs() < 0.7,
+                    "row {i}: fitted {:?} against observed {rate}",
+                    pfa.get(i)
+                );
+            }
+            ("calibrated", "threshold_for_pfa") => {
+                // Rarer targets need larger thresholds, each beyond the calibrated one (Pfa 0.01) even
+                // at its interval's low end; the thresholds are the calibrated ones scaled.
+                let x = scale.get(i).unwrap();
+                assert!(scale_lo.get(i).unwrap() > 1.0, "row {i}");
+                assert!((thr.get(i).unwrap() / (x * cal_thr(d, o)) - 1.0).abs() < 1e-9, "row {i}");
+                if let Some(previous) = last_scale.insert((d.to_string(), o.to_string()), x) {
+                    assert!(x > previous, "row {i}: {x} after {previous}");
+                }
+                assert!([1e-5, 1e-7, 1e-9].contains(&target.get(i).unwrap()), "row {i}");
+            }
+            other => panic!("row {i}: unexpected {other:?}"),
+        }
+    }
+    let diag = csv_frame(&dir.join("tail_diagnostics.csv"));
+    let chosen = diag.column("chosen").unwrap().bool().unwrap().clone();
+    let k = diag.column("exceedances").unwrap().i64().unwrap().clone();
+    assert_eq!(chosen.sum(), Some(4), "one chosen fit per detector and set: {diag}");
+    assert!((0..diag.height()).filter(|&i| chosen.get(i) == Some(true)).all(|i| k.get(i) == Some(86)));
+    // 172, 122, 86, 61, 43, 30 exceedances per detector and set.
+    assert_eq!(diag.height(), 24, "{diag}");
 }
 
 #[test]
@@ -1388,7 +1473,7 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
     let d = dir.to_str().unwrap();
     ok(&fdimc(&["run", CI_DECK, "--quiet", "--trials", "1500", "--out", d]));
     let stdout = ok(&fdimc(&["report", d, "--trials", "3,17"]));
-    assert!(stdout.contains("11 plots"), "{stdout}");
+    assert!(stdout.contains("13 plots"), "{stdout}");
     let report = dir.join("report");
     let svg = |name: &str| std::fs::read_to_string(report.join(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
     // Each plot names its series (legend entries) and axis titles with units.
@@ -1434,6 +1519,13 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
     }
     let legend = svg_texts(&roc);
     assert!(legend.iter().any(|t| t == "seed") && legend.iter().any(|t| t == "fast"), "{legend:?}");
+    // The tail plot per detector: the observed exceedance fraction, the fit, the per-hour targets.
+    for d in ["seed", "fast"] {
+        let tail = svg(&format!("tail_{d}.svg"));
+        for s in ["observed fraction above", "generalised Pareto fit (shape", "threshold for a target, 95 % interval"] {
+            assert!(tail.contains(s), "tail_{d}.svg lacks {s:?}");
+        }
+    }
     let delay = svg("delay_seed.svg");
     assert!(delay.contains("bias (") && delay.contains("stuck (") && delay.contains("delay after onset (s)"));
     let confusion = svg("confusion_seed.svg");
@@ -1465,7 +1557,7 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
         assert!(report.join(name).is_file(), "report.html references missing {name}");
         refs += 1;
     }
-    assert_eq!(refs, 11);
+    assert_eq!(refs, 13);
     assert!(html.contains("ci_seed000") && html.contains("deck SHA-256"));
     let fa = svg("false_alarms_seed.svg");
     assert!(fa.contains("parameter error bin 0") && fa.contains("noise scale (bin)"), "false_alarms_seed.svg");

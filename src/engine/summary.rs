@@ -58,6 +58,8 @@ pub struct Summary {
     /// Kinds with a statistic: its names, the thresholds and where they came from.
     pub statistics: Vec<String>,
     pub thresholds: Option<(Vec<DetectorThresholds>, String)>,
+    /// The rare-false-alarm fits ([`super::rare`]), per detector and threshold set.
+    pub tails: Vec<super::rare::DetectorTail>,
     pub summary: DataFrame,
     pub detectors: DataFrame,
     pub confusion: DataFrame,
@@ -710,9 +712,13 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
 
     let out = |f: &str| dir_out.join(f);
     let mut files = Vec::new();
-    if let Some((t, source)) = &thresholds {
+    let mut tails = Vec::new();
+    if let (Some((t, source)), Some(set)) = (&thresholds, set) {
         write_thresholds(&dir_out, t, &statistics, source)?;
         files.push("thresholds.csv");
+        tails = super::rare::tails(&path, &manifest, &statistics, t, set)?;
+        super::rare::write_tail_tables(&dir_out, &tails, &statistics)?;
+        files.extend(["tail.csv", "tail_diagnostics.csv"]);
     }
     write_table(&mut summary, &out("summary.csv"))?;
     write_parquet(&mut summary, &out("summary.parquet"))?;
@@ -760,7 +766,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     let settings_path = out(SETTINGS_FILE);
     super::runner::write_atomically(&settings_path, json.as_bytes())?;
     files.push(SETTINGS_FILE);
-    Ok(Summary { statistics, thresholds, summary, detectors, confusion, warnings, files, out_dir: dir_out, set })
+    Ok(Summary { statistics, thresholds, tails, summary, detectors, confusion, warnings, files, out_dir: dir_out, set })
 }
 
 /// `detectors.csv` (module docs), sets in order, detectors in the manifest's order.
@@ -943,6 +949,7 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
                 t.calibration_units,
             );
         }
+        super::rare::print_tails(&s.tails);
     }
     let t = Table(&s.detectors);
     let (sets, names, units, flights) =

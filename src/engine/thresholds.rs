@@ -60,6 +60,8 @@ pub struct DetectorThresholds {
     /// How long each calibration unit flew (s): a whole trial when calibrated on fault-free trials;
     /// `None` on pre-onset windows (of differing lengths) or without a trial duration.
     pub unit_duration_s: Option<f64>,
+    /// Calibrated (or validated) on the fault-free trials, not on pre-onset windows.
+    pub on_fault_free_trials: bool,
 }
 
 /// A probability per segment of `segment_s` seconds as one per flight hour, the hour's segments taken as
@@ -116,7 +118,7 @@ pub fn trials_needed(p: f64, confidence: f64) -> u64 {
 }
 
 /// The `k` largest values seen (ordered as `f64::total_cmp`, NaN above everything).
-struct TopValues {
+pub(crate) struct TopValues {
     k: usize,
     heap: BinaryHeap<Reverse<Total>>,
 }
@@ -136,17 +138,22 @@ impl Ord for Total {
 }
 
 impl TopValues {
-    fn new(k: usize) -> Self {
+    pub(crate) fn new(k: usize) -> Self {
         TopValues { k, heap: BinaryHeap::with_capacity(k + 1) }
     }
 
-    fn push(&mut self, v: f64) {
+    pub(crate) fn push(&mut self, v: f64) {
         if self.heap.len() < self.k {
             self.heap.push(Reverse(Total(v)));
         } else if self.heap.peek().is_some_and(|Reverse(min)| Total(v) > *min) {
             self.heap.pop();
             self.heap.push(Reverse(Total(v)));
         }
+    }
+
+    /// The values kept, in no order.
+    pub(crate) fn values(&self) -> Vec<f64> {
+        self.heap.iter().map(|Reverse(t)| t.0).collect()
     }
 
     /// The k-th largest value (NaN without values).
@@ -156,17 +163,17 @@ impl TopValues {
 }
 
 /// The calibration columns of one slice: which rows calibrate which detector, and their pre-onset maxima.
-struct CalibrationRows {
+pub(crate) struct CalibrationRows {
     /// Per row: the detector's index when the row is a calibration unit.
-    detector: Vec<Option<usize>>,
+    pub detector: Vec<Option<usize>>,
     /// `pre[j][row]`, NaN where null.
-    pre: Vec<Vec<f64>>,
+    pub pre: Vec<Vec<f64>>,
 }
 
 /// Reads the calibration rows of `path` slice by slice and hands each slice to `visit`; `fault_free_only`
 /// is `None` on the first pass (every flown row, with its fault-free flag), then whether only the
 /// fault-free rows calibrate.
-fn for_each_slice(
+pub(crate) fn for_each_slice(
     path: &Path,
     rows: u64,
     manifest: &Manifest,
@@ -290,6 +297,9 @@ pub fn thresholds(
                 _ => None,
             };
             let mut k = Vec::with_capacity(nd);
+            // Detectors whose order statistic cannot give the confidence: their common factor comes from
+            // the tail fit's upper bound instead, where one can be made.
+            let mut by_tail = vec![false; nd];
             for (d, name) in manifest.detectors.iter().enumerate() {
                 let exceedances = match confidence {
                     None => {
@@ -303,11 +313,15 @@ pub fn thresholds(
                         allowed(n[d], *p)
                     }
                     Some(c) => confident_allowed(n[d], *p, c).unwrap_or_else(|| {
-                        warnings.push(format!(
-                            "detector {name}: {} calibration trials cannot give Pfa {p} with {c} confidence (needs >= {} fault-free trials): thresholds are the largest values seen, without that confidence",
-                            n[d],
-                            trials_needed(*p, c)
-                        ));
+                        by_tail[d] = super::tail::exceedances_for(n[d]).is_some();
+                        if !by_tail[d] {
+                            warnings.push(format!(
+                                "detector {name}: {} calibration trials cannot give Pfa {p} with {c} confidence (needs >= {} fault-free trials for the order statistic, {} for a tail fit): thresholds are the largest values seen, without that confidence",
+                                n[d],
+                                trials_needed(*p, c),
+                                10 * super::tail::MIN_EXCEEDANCES
+                            ));
+                        }
                         0
                     }),
                 };
@@ -327,7 +341,11 @@ pub fn thresholds(
             })?;
             let per: Vec<Vec<f64>> = top.iter().map(|t| t.iter().map(TopValues::threshold).collect()).collect();
             // Pass 3: the common factor, on each unit's largest statistic-to-threshold ratio.
-            let mut scale: Vec<TopValues> = k.iter().map(|&k| TopValues::new(k)).collect();
+            let kept = |d: usize| match super::tail::exceedances_for(n[d]) {
+                Some(e) if by_tail[d] => 2 * e + 1,
+                _ => k[d],
+            };
+            let mut scale: Vec<TopValues> = (0..nd).map(|d| TopValues::new(kept(d))).collect();
             for_each_slice(path, rows, manifest, statistics, fault_free_rows, |s| {
                 for (i, d) in s.detector.iter().enumerate() {
                     if let Some(d) = *d {
@@ -335,7 +353,32 @@ pub fn thresholds(
                     }
                 }
             })?;
-            let whole = per.iter().zip(&scale).map(|(p, s)| p.iter().map(|t| t * s.threshold()).collect()).collect();
+            let factor: Vec<f64> = (0..nd)
+                .map(|d| {
+                    let (Some(c), true) = (confidence, by_tail[d]) else { return scale[d].threshold() };
+                    let values = scale[d].values();
+                    let fit = super::tail::exceedances_for(n[d]).and_then(|e| super::tail::TailFit::fit(&values, n[d], e));
+                    let bound = fit.as_ref().map_or(f64::INFINITY, |f| f.quantile_upper(*p, c));
+                    let largest = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                    let name = &manifest.detectors[d];
+                    if bound.is_finite() {
+                        warnings.push(format!(
+                            "detector {name}: {} calibration trials cannot give Pfa {p} with {c} confidence by the order statistic (needs >= {} fault-free trials): thresholds at the tail fit's {c} upper bound, {bound:.4} x the per-statistic maxima (holds if the generalised Pareto law holds beyond the data; tail.csv)",
+                            n[d],
+                            trials_needed(*p, c)
+                        ));
+                        bound
+                    } else {
+                        warnings.push(format!(
+                            "detector {name}: {} calibration trials cannot give Pfa {p} with {c} confidence (needs >= {} fault-free trials), and the tail fit bounds no threshold: thresholds are the largest values seen, without that confidence",
+                            n[d],
+                            trials_needed(*p, c)
+                        ));
+                        largest
+                    }
+                })
+                .collect();
+            let whole = per.iter().zip(&factor).map(|(p, s)| p.iter().map(|t| t * s).collect()).collect();
             (per, whole)
         }
     };
@@ -367,6 +410,7 @@ pub fn thresholds(
             whole_false_alarms: whole_fa[d],
             target_pfa,
             unit_duration_s: manifest.trial_duration_s.filter(|_| fault_free_rows),
+            on_fault_free_trials: fault_free_rows,
         })
         .collect::<Vec<_>>();
     // Thresholds from elsewhere: does this run bear out the false-alarm probability they were made for?

@@ -134,6 +134,9 @@ pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Repor
             report.warnings.push("no ROC: it needs both fault-free and faulty trials".into());
         }
     }
+    if calibrates {
+        report.files.extend(tail_plots(dir, &out, &data)?);
+    }
     let confusion = read_confusion(dir)?;
     let false_alarms = false_alarms_by_bin(dir, set)?;
     for d in &manifest.detectors {
@@ -222,6 +225,69 @@ pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Repor
     write_atomically(&html, page.as_bytes())?;
     report.files.push(html);
     Ok(report)
+}
+
+/// One tail plot per detector with a fit of its calibrated set (`tail.csv`, `tail_diagnostics.csv`;
+/// none from a summary written before them).
+fn tail_plots(dir: &Path, out: &Path, data: &BTreeMap<String, DetectorData>) -> Result<Vec<PathBuf>, RunError> {
+    let (tail_path, diag_path) = (dir.join("tail.csv"), dir.join("tail_diagnostics.csv"));
+    if !tail_path.exists() || !diag_path.exists() {
+        return Ok(Vec::new());
+    }
+    let (tail, diag) = (read_summary(&tail_path)?, read_summary(&diag_path)?);
+    let text = |df: &DataFrame, c: &str, p: &Path| -> Result<Vec<Option<String>>, RunError> {
+        let c = df.column(c).and_then(|c| c.cast(&DataType::String)).map_err(polars_error(p))?;
+        Ok(c.str().map_err(polars_error(p))?.iter().map(|v| v.map(str::to_string)).collect())
+    };
+    let number = |df: &DataFrame, c: &str, p: &Path| -> Result<Vec<f64>, RunError> {
+        let c = df.column(c).and_then(|c| c.cast(&DataType::Float64)).map_err(polars_error(p))?;
+        Ok(c.f64().map_err(polars_error(p))?.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
+    };
+    let (dd, dset, chosen) = (
+        text(&diag, "detector", &diag_path)?,
+        text(&diag, "thresholds", &diag_path)?,
+        text(&diag, "chosen", &diag_path)?,
+    );
+    let (u, sigma, xi, q) = (
+        number(&diag, "fit_threshold_scale", &diag_path)?,
+        number(&diag, "sigma", &diag_path)?,
+        number(&diag, "xi", &diag_path)?,
+        number(&diag, "fit_threshold_quantile", &diag_path)?,
+    );
+    let (td, tset, query, stat) = (
+        text(&tail, "detector", &tail_path)?,
+        text(&tail, "thresholds", &tail_path)?,
+        text(&tail, "query", &tail_path)?,
+        text(&tail, "statistic", &tail_path)?,
+    );
+    let (pfa, scale, lo, hi) = (
+        number(&tail, "pfa", &tail_path)?,
+        number(&tail, "scale", &tail_path)?,
+        number(&tail, "scale_lo", &tail_path)?,
+        number(&tail, "scale_hi", &tail_path)?,
+    );
+    let mut files = Vec::new();
+    for (d, dd_data) in data {
+        if dd_data.z_fault_free.is_empty() {
+            continue;
+        }
+        let is = |v: &Option<String>, s: &str| v.as_deref() == Some(s);
+        let calibrated = |set: &Option<String>| !is(set, "deck");
+        let fit = (0..diag.height())
+            .find(|&i| is(&dd[i], d) && calibrated(&dset[i]) && is(&chosen[i], "true"))
+            .map(|i| (u[i], sigma[i], xi[i], 1.0 - q[i]));
+        let first_statistic = stat.first().cloned().flatten();
+        let targets: Vec<(f64, f64, f64, f64)> = (0..tail.height())
+            .filter(|&i| is(&td[i], d) && calibrated(&tset[i]) && is(&query[i], "threshold_for_pfa"))
+            .filter(|&i| stat[i] == first_statistic)
+            .map(|i| (pfa[i], scale[i], lo[i], hi[i]))
+            .collect();
+        let file = out.join(format!("tail_{d}.svg"));
+        let plot = plots::TailPlot { detector: d, values: &dd_data.z_fault_free, fit, targets: &targets };
+        plots::tail(&file, &plot).map_err(internal(&file))?;
+        files.push(file);
+    }
+    Ok(files)
 }
 
 /// The first detector's first detected fault, first missed fault and first false alarm (those the run
@@ -649,6 +715,17 @@ fn page(
         figures("pd_size_") + &table_of(dir, "min_detectable.csv", &[])?.unwrap_or_default(),
     );
     section("ROC", "Calibrated point marked; the thresholds of every statistic scaled together.", figures("roc"));
+    section(
+        "Rare false alarms",
+        "The fault-free units' largest statistic over the calibrated thresholds, and a generalised Pareto fit of \
+         its upper tail: false-alarm probabilities below what the trials can show, and the thresholds for \
+         per-flight-hour targets, with 95 % profile-likelihood intervals. They hold if the fitted law holds \
+         beyond the data; <code>trust</code> says what the data say against it. The shape should stay put \
+         over the thresholds of <code>tail_diagnostics.csv</code>. Table: <code>tail.csv</code>.",
+        figures("tail_")
+            + &table_of(dir, "tail.csv", &["pfa_per_hour_lo", "pfa_per_hour_hi", "estimate"])?.unwrap_or_default()
+            + &table_of(dir, "tail_diagnostics.csv", &[])?.unwrap_or_default(),
+    );
     section("Detection delay", "Per fault kind, detected trials only.", figures("delay_"));
     section(
         "Isolation",

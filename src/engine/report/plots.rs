@@ -513,3 +513,84 @@ pub fn trace_panels(
     }
     root.present().map_err(e)
 }
+
+/// The fitted tail of one detector's fault-free maxima (`tail.csv`, `tail_diagnostics.csv`).
+pub struct TailPlot<'a> {
+    pub detector: &'a str,
+    /// Each fault-free unit's largest statistic over its calibrated threshold.
+    pub values: &'a [f64],
+    /// The chosen fit: threshold, scale, shape, and the probability of exceeding the threshold.
+    pub fit: Option<(f64, f64, f64, f64)>,
+    /// Per target: per-trial probability and the thresholds' factor with its interval.
+    pub targets: &'a [(f64, f64, f64, f64)],
+}
+
+/// Exceedance probability against the factor on the calibrated thresholds (log scale): the observed
+/// fraction of fault-free units above each value, the generalised Pareto fit beyond its threshold, and
+/// the factor each target needs with its 95 % interval.
+pub fn tail(file: &Path, p: &TailPlot) -> Result<(), String> {
+    let mut sorted: Vec<f64> = p.values.iter().copied().filter(|v| v.is_finite()).collect();
+    sorted.sort_by(|a, b| b.total_cmp(a));
+    let n = p.values.len().max(1) as f64;
+    let floor = p.targets.iter().map(|t| t.0).fold(0.5 / n, f64::min) / 3.0;
+    let finite_hi = p.targets.iter().map(|t| if t.3.is_finite() { t.3 } else { t.1 }).fold(f64::NAN, f64::max);
+    let x_max = sorted.first().copied().unwrap_or(1.0).max(finite_hi).max(1.0) * 1.1;
+    let x_min = sorted.get(sorted.len() / 2).copied().filter(|v| *v > 0.0).unwrap_or(0.1).min(1.0) * 0.9;
+    let root = canvas(file)?;
+    let caption = format!("Fault-free tail: {} (calibrated thresholds scaled)", p.detector);
+    let mut chart = builder(&root, caption, 20)
+        .build_cartesian_2d((x_min..x_max).log_scale(), (floor..1.0).log_scale())
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("factor on the calibrated thresholds (largest statistic / threshold; log)")
+        .x_label_formatter(&|v| format!("{v:.2}"))
+        .y_desc("false-alarm probability per trial (log)")
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .label_style((FONT, 14))
+        .draw()
+        .map_err(e)?;
+    let observed: Vec<(f64, f64)> =
+        sorted.iter().enumerate().map(|(i, &x)| (x, (i + 1) as f64 / n)).filter(|(x, _)| *x >= x_min).collect();
+    chart
+        .draw_series(observed.iter().map(|&pt| Circle::new(pt, 2, color(0).filled())))
+        .map_err(e)?
+        .label("observed fraction above")
+        .legend(|(x, y)| Circle::new((x + 10, y), 3, color(0).filled()));
+    if let Some((u, sigma, xi, zeta)) = p.fit {
+        let curve: Vec<(f64, f64)> = (0..=300)
+            .map(|i| u * (x_max / u).powf(i as f64 / 300.0))
+            .map(|x| {
+                let z = xi * (x - u) / sigma;
+                let s = if xi.abs() < 1e-12 {
+                    (-(x - u) / sigma).exp()
+                } else if z <= -1.0 {
+                    0.0
+                } else {
+                    (-z.ln_1p() / xi).exp()
+                };
+                (x, zeta * s)
+            })
+            .filter(|(_, q)| *q >= floor)
+            .collect();
+        let c = color(1);
+        chart
+            .draw_series(LineSeries::new(curve, c.stroke_width(2)))
+            .map_err(e)?
+            .label(format!("generalised Pareto fit (shape {xi:.3}) above {u:.3}"))
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
+    }
+    let c = color(2);
+    for (i, &(q, s, lo, hi)) in p.targets.iter().enumerate() {
+        let hi = if hi.is_finite() { hi } else { x_max };
+        let bar =
+            chart.draw_series(std::iter::once(PathElement::new([(lo, q), (hi, q)], c.stroke_width(3)))).map_err(e)?;
+        if i == 0 {
+            bar.label("threshold for a target, 95 % interval")
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(3)));
+        }
+        chart.draw_series(std::iter::once(Circle::new((s, q), 5, c.filled()))).map_err(e)?;
+    }
+    legend(&mut chart, SeriesLabelPosition::UpperRight, 14)?;
+    root.present().map_err(e)
+}
