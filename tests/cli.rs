@@ -1380,6 +1380,79 @@ fn the_tail_fit_gives_thresholds_for_per_hour_targets() {
     assert_eq!(diag.height(), 24, "{diag}");
 }
 
+/// `run --precision` (issue 23, item 7): on the CI deck with a cap of 40,000 trials, Pd and Pfa of every
+/// group reach a 95 % half-width of 0.04 at 12,288 trials (3 chunks; the widest: Pd of seed on a 3-sigma
+/// alpha bias, 283/714) and of 0.03 at 20,480. The stop and the records are the same for 1 or 2
+/// threads, for a run stopped and resumed, and for a fixed run of that many trials; --resume with 0.03
+/// takes the 0.04 run on to where a fresh 0.03 run stops.
+#[test]
+fn a_run_stops_at_a_precision_whatever_the_threads_or_resume() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = |n: &str| tmp.path().join(n).to_str().unwrap().to_string();
+    let run = |extra: &[&str], out: &str| {
+        let out = path(out);
+        let mut args = vec!["run", CI_DECK, "--trials", "40000", "--precision-rates", "pd,pfa", "--out", out.as_str()];
+        args.extend_from_slice(extra);
+        fdimc(&args)
+    };
+    let manifest = |dir: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join(dir).join("manifest.json")).unwrap()).unwrap()
+    };
+    let one = ok(&run(&["--precision", "0.04", "--threads", "1"], "one"));
+    assert!(one.contains("trials 0..12288 of 40000 (12288 run, 0 resumed)"), "{one}");
+    assert!(
+        one.contains("precision 0.04 reached at 12288 of at most 40000 trials: all 34 watched rates (pd, pfa)"),
+        "{one}"
+    );
+    assert!(
+        one.contains("the last to get there: pd of detector seed, kind bias, target alpha_rad, size bin 3"),
+        "{one}"
+    );
+    let m = manifest("one");
+    assert_eq!((m["end_trial"].as_u64(), m["rows"].as_u64()), (Some(12288), Some(24576)));
+    assert_eq!(m["precision"]["met"], serde_json::Value::Bool(true));
+    ok(&run(&["--precision", "0.04", "--threads", "2"], "two"));
+    let stopped = ok(&run(&["--precision", "0.04", "--stop-after", "1"], "resumed"));
+    assert!(stopped.contains("continue with the same command and --resume"), "{stopped}");
+    let resumed = ok(&run(&["--precision", "0.04", "--resume"], "resumed"));
+    assert!(resumed.contains("(8192 run, 4096 resumed)"), "{resumed}");
+    ok(&fdimc(&["run", CI_DECK, "--trials", "12288", "--out", &path("fixed")]));
+    let reference = read_frame(&tmp.path().join("one").join("trials.parquet"));
+    for other in ["two", "resumed", "fixed"] {
+        let df = read_frame(&tmp.path().join(other).join("trials.parquet"));
+        assert!(reference.equals_missing(&df), "{other} differs from the 1-thread run");
+    }
+    // Tighter: a fresh run and the 0.04 run resumed stop at the same trial with the same records.
+    let fresh = ok(&run(&["--precision", "0.03"], "fresh"));
+    assert!(fresh.contains("trials 0..20480 of 40000"), "{fresh}");
+    let further = ok(&run(&["--precision", "0.03", "--resume"], "one"));
+    assert!(further.contains("trials 0..20480 of 40000 (8192 run, 12288 resumed)"), "{further}");
+    let a = read_frame(&tmp.path().join("fresh").join("trials.parquet"));
+    assert!(a.equals_missing(&read_frame(&tmp.path().join("one").join("trials.parquet"))));
+    // A cap that comes first is said, and recorded.
+    let capped_dir = path("capped");
+    let capped = ok(&fdimc(&["run", CI_DECK, "--trials", "4096", "--precision", "0.001", "--out", &capped_dir]));
+    assert!(
+        capped
+            .contains("warning: the cap of 4096 trials came first: 48 of 48 watched rates are still wider than 0.001"),
+        "{capped}"
+    );
+    assert_eq!(manifest("capped")["precision"]["met"], serde_json::Value::Bool(false));
+    // Refused, exit 2: a half-width out of range, an unknown rate, shards.
+    for (extra, says) in [
+        (vec!["--precision", "0.7"], "--precision 0.7: allowed 0 < W < 0.5"),
+        (
+            vec!["--precision", "0.01", "--precision-rates", "pd,delay"],
+            "\"delay\" is not a rate of summary.csv; allowed: pd, pfa, isolation_accuracy",
+        ),
+        (vec!["--precision", "0.01", "--shard", "0/2"], "--precision stops where the trials before"),
+    ] {
+        let out = run(&extra, "bad");
+        assert_eq!(out.status.code(), Some(2), "{extra:?}");
+        assert!(text(&out.stderr).contains(says), "{extra:?}: {}", text(&out.stderr));
+    }
+}
+
 #[test]
 fn bad_run_input_exits_2_and_keeps_what_was_written() {
     let tmp = tempfile::tempdir().unwrap();

@@ -122,6 +122,14 @@ The same deck and seed give identical records for any --threads, shard split or 
         /// if interrupted; continue later with --resume.
         #[arg(long, value_name = "N")]
         stop_after: Option<u64>,
+        /// Stop at the first chunk boundary where every rate of summary.csv's groups (deck thresholds)
+        /// has a 95 % Wilson half-width of at most W (e.g. 0.01); --trials (or the deck's) is then a
+        /// cap. Where it stops depends only on the deck and seed; --resume with a smaller W goes on.
+        #[arg(long, value_name = "W")]
+        precision: Option<f64>,
+        /// The rates --precision watches (default all): pd, pfa, isolation_accuracy.
+        #[arg(long, value_name = "R,...", value_delimiter = ',', requires = "precision")]
+        precision_rates: Vec<String>,
     },
     /// Recompute thresholds and summaries from DIR/trials.parquet, without simulating.
     Summarize {
@@ -227,22 +235,36 @@ pub fn run(cli: Cli) -> ExitCode {
             run::exec_simulate(&deck, trial, detector.as_deref(), &out, classifiers.as_deref())
         }
         Command::Train { deck, out } => run::exec_train(&deck, out.as_deref()),
-        Command::Run { deck, trials, seed, threads, out, shard, resume, force, quiet, stop_after, classifiers } => {
-            run::exec_run(run::RunArgs {
-                deck: &deck,
-                trials,
-                seed,
-                threads,
-                out,
-                shard: shard.as_deref(),
-                resume,
-                force,
-                quiet,
-                stop_after,
-                classifiers: classifiers.as_deref(),
-            })
-            .map(|_| ())
-        }
+        Command::Run {
+            deck,
+            trials,
+            seed,
+            threads,
+            out,
+            shard,
+            resume,
+            force,
+            quiet,
+            stop_after,
+            classifiers,
+            precision,
+            precision_rates,
+        } => run::exec_run(run::RunArgs {
+            precision,
+            precision_rates,
+            deck: &deck,
+            trials,
+            seed,
+            threads,
+            out,
+            shard: shard.as_deref(),
+            resume,
+            force,
+            quiet,
+            stop_after,
+            classifiers: classifiers.as_deref(),
+        })
+        .map(|_| ()),
         Command::Summarize { dir, target_pfa, confidence, target_pfa_per_hour, thresholds } => {
             run::exec_summarize(&dir, target_pfa, target_pfa_per_hour, confidence, thresholds.as_deref())
         }

@@ -32,6 +32,9 @@ pub struct RunArgs<'a> {
     pub stop_after: Option<u64>,
     /// Classifiers to evaluate instead of training them ([`Opt::Classifiers`]).
     pub classifiers: Option<&'a Path>,
+    /// `--precision W` and the rates it watches.
+    pub precision: Option<f64>,
+    pub precision_rates: Vec<String>,
 }
 
 /// The deck's method and study, with `--classifiers` checked against what the method takes.
@@ -82,6 +85,11 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         force: a.force,
         progress: !a.quiet,
         stop_after_chunks: a.stop_after,
+        precision: a.precision.map(|half_width| runner::PrecisionAsk {
+            half_width,
+            rates: a.precision_rates.clone(),
+            spec: &method.summary,
+        }),
         command_line: std::env::args().collect(),
     };
     let report = study.run(&opts, Inputs { classifiers: a.classifiers, quiet: a.quiet })?;
@@ -104,6 +112,25 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         );
         if n == 0 {
             println!("  (this shard holds no trials)");
+        }
+    }
+    if let (Some(p), false) = (&m.precision, a.quiet) {
+        if p.met {
+            println!(
+                "  precision {} reached at {} of at most {} trials: all {} watched rates ({}) have a 95 % half-width <= {}; the last to get there: {}",
+                p.half_width,
+                m.end_trial,
+                m.trials,
+                p.watched,
+                p.rates.join(", "),
+                p.half_width,
+                p.widest
+            );
+        } else {
+            println!(
+                "  warning: the cap of {} trials came first: {} of {} watched rates are still wider than {}; the widest: {} (run again with a larger --trials)",
+                m.trials, p.wider, p.watched, p.half_width, p.widest
+            );
         }
     }
     if !m.complete {
@@ -273,6 +300,8 @@ pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<us
             quiet: true,
             stop_after: None,
             classifiers: None,
+            precision: None,
+            precision_rates: Vec::new(),
         };
         let dir = exec_run(args)?;
         (crate::engine::tables::read_summary(&dir.join("summary.csv"))?, Some(scratch))

@@ -161,6 +161,25 @@ pub struct Manifest {
     pub command_line: Vec<String>,
     pub complete: bool,
     pub rows: u64,
+    /// A run asked to stop at a precision (`run --precision`): what it was asked and where it stopped.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub precision: Option<PrecisionOutcome>,
+}
+
+/// What `run --precision` asked and where the run stopped.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PrecisionOutcome {
+    /// The largest 95 % Wilson half-width allowed.
+    pub half_width: f64,
+    /// The rates watched (`summary.csv` names).
+    pub rates: Vec<String>,
+    /// Whether every watched rate got there (else the trial cap stopped the run).
+    pub met: bool,
+    /// Watched rates, and those still wider than asked.
+    pub watched: usize,
+    pub wider: usize,
+    /// The widest watched rate at the stop: the group that set it.
+    pub widest: String,
 }
 
 impl Manifest {
@@ -216,7 +235,19 @@ pub struct RunOptions {
     pub progress: bool,
     /// Stop after writing this many part files, as if interrupted (time-boxed or preemptible jobs).
     pub stop_after_chunks: Option<u64>,
+    /// Stop at the first chunk boundary where every watched rate is this precise (the trial count is
+    /// then a cap).
+    pub precision: Option<PrecisionAsk>,
     pub command_line: Vec<String>,
+}
+
+/// `run --precision W [--precision-rates R,...]`, with the kind's summary to measure it on.
+#[derive(Debug, Clone)]
+pub struct PrecisionAsk {
+    pub half_width: f64,
+    /// Empty: every rate of [`crate::engine::summary::PRECISION_RATES`].
+    pub rates: Vec<String>,
+    pub spec: &'static crate::engine::method::SummarySpec,
 }
 
 /// What a finished run reports.
@@ -276,6 +307,7 @@ impl Manifest {
             command_line: Vec::new(),
             complete: false,
             rows: 0,
+            precision: None,
         }
     }
 }
@@ -301,6 +333,26 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
         ..study_manifest
     };
 
+    let mut monitor = match &opts.precision {
+        Some(_) if opts.shard != Shard::WHOLE => {
+            return Err(RunError::Invalid(
+                "--precision stops where the trials before, in order, are precise enough: run it unsharded (it uses \
+                 every core), or shard a fixed --trials"
+                    .into(),
+            ));
+        }
+        Some(p) if !(p.half_width > 0.0 && p.half_width < 0.5) => {
+            return Err(RunError::Invalid(format!(
+                "--precision {}: allowed 0 < W < 0.5 (a 95 % half-width)",
+                p.half_width
+            )));
+        }
+        Some(p) => Some(
+            crate::engine::summary::PrecisionMonitor::new(p.spec, &manifest.detectors, p.half_width, &p.rates)
+                .map_err(RunError::Invalid)?,
+        ),
+        None => None,
+    };
     let dir = &opts.out_dir;
     let existing = dir.join("manifest.json").exists();
     if existing && opts.resume {
@@ -317,8 +369,18 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
                 old.shard.count
             )));
         }
-        if old.complete && dir.join("trials.parquet").exists() {
-            return Ok(RunReport { manifest: old, trials_run: 0, trials_resumed: end - first, seconds: 0.0 });
+        // A run stopped at a precision keeps its parts, so --resume can take it further.
+        let stopped_early = old.end_trial < end;
+        if old.complete && dir.join("trials.parquet").exists() && !(opts.precision.is_some() && stopped_early) {
+            let resumed = old.end_trial - old.first_trial;
+            return Ok(RunReport { manifest: old, trials_run: 0, trials_resumed: resumed, seconds: 0.0 });
+        }
+        if old.complete && !part_path(dir, first).exists() {
+            return Err(RunError::Invalid(format!(
+                "{}: the part files of the run stopped at trial {} are gone: run again with --force",
+                dir.display(),
+                old.end_trial
+            )));
         }
     } else if existing && !opts.force {
         return Err(RunError::Invalid(format!(
@@ -349,16 +411,18 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
     // so memory stays at about three chunks.
     let (mut resumed, mut run_count, mut chunks_written) = (0, 0, 0);
     let (tx, rx) = std::sync::mpsc::sync_channel::<Chunk<S::Result>>(1);
-    let outcome = std::thread::scope(|scope| -> Result<Option<u64>, RunError> {
-        let writer = scope.spawn(move || write_chunks(source, dir, rx));
+    let precise = std::sync::atomic::AtomicBool::new(false);
+    let outcome = std::thread::scope(|scope| -> Result<Option<Written>, RunError> {
+        let (monitor, precise) = (monitor.as_mut(), &precise);
+        let writer = scope.spawn(move || write_chunks(source, dir, rx, monitor, precise));
         let mut chunk_start = first;
         let mut stopped_early = false;
-        while chunk_start < end {
+        while chunk_start < end && !precise.load(std::sync::atomic::Ordering::SeqCst) {
             let chunk_end = (chunk_start + manifest.chunk_trials).min(end);
             let path = part_path(dir, chunk_start);
             let chunk = if path.exists() && opts.resume {
                 resumed += chunk_end - chunk_start;
-                Chunk::Resumed { path }
+                Chunk::Resumed { path, end: chunk_end }
             } else {
                 let group = source.group_trials();
                 let results: Vec<S::Result> = pool.install(|| {
@@ -375,7 +439,7 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
                 });
                 run_count += chunk_end - chunk_start;
                 chunks_written += 1;
-                Chunk::Fresh { path, results }
+                Chunk::Fresh { path, results, end: chunk_end }
             };
             if tx.send(chunk).is_err() {
                 break; // The writer failed; its error is reported below.
@@ -393,8 +457,10 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
         writer.join().map_err(|_| RunError::Internal("the trials writer panicked".into()))?
     });
     bar.finish();
-    let rows = match outcome? {
-        Some(rows) => rows,
+    let written = outcome?;
+    let end_trial = written.as_ref().and_then(|w| w.stopped_at).unwrap_or(end);
+    let rows = match written {
+        Some(w) => w.rows,
         None if first < end => {
             return Ok(RunReport {
                 manifest,
@@ -412,48 +478,71 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
             0
         }
     };
-    let manifest = Manifest { complete: true, rows, ..manifest };
+    let precision = opts.precision.as_ref().zip(monitor.as_ref()).map(|(ask, m)| {
+        let status = m.status();
+        PrecisionOutcome {
+            half_width: ask.half_width,
+            rates: m.rates().iter().map(|r| r.to_string()).collect(),
+            met: status.met(),
+            watched: status.rates,
+            wider: status.wider,
+            widest: status.describe(),
+        }
+    });
+    let manifest = Manifest { complete: true, rows, end_trial, precision, ..manifest };
     manifest.write(dir)?;
-    Ok(RunReport { manifest, trials_run: run_count, trials_resumed: resumed, seconds: started.elapsed().as_secs_f64() })
+    // A chunk simulated while the writer found the run precise enough is dropped unwritten.
+    let kept = end_trial - first;
+    let trials_resumed = resumed.min(kept);
+    let trials_run = run_count.min(kept - trials_resumed);
+    Ok(RunReport { manifest, trials_run, trials_resumed, seconds: started.elapsed().as_secs_f64() })
 }
 
 /// What the writer thread receives, in trial order.
 enum Chunk<R> {
-    /// Simulated now: write its part file, then append it.
-    Fresh { path: PathBuf, results: Vec<R> },
+    /// Simulated now: write its part file, then append it; `end`: the trial after its last.
+    Fresh { path: PathBuf, results: Vec<R>, end: u64 },
     /// On disk from an interrupted run: append it.
-    Resumed { path: PathBuf },
+    Resumed { path: PathBuf, end: u64 },
     /// Every chunk was sent: finish trials.parquet.
     Complete,
 }
 
 /// The writer thread: part files for resuming, and their rows appended in order to trials.parquet
 /// (under a temporary name until [`Chunk::Complete`], then renamed, and the parts removed). Returns
-/// the rows of trials.parquet, or `None` if the run stopped before its last chunk.
+/// the rows of trials.parquet, or `None` if the run stopped before its last chunk. With a `monitor`,
+/// each chunk's rows are measured after they are appended, and the file is finished at the first chunk
+/// that makes the run precise enough (`precise` tells the simulating side; the parts stay, so a
+/// tighter precision can resume).
 fn write_chunks<S: TrialSource>(
     source: &S,
     dir: &Path,
     chunks: std::sync::mpsc::Receiver<Chunk<S::Result>>,
-) -> Result<Option<u64>, RunError> {
+    mut monitor: Option<&mut crate::engine::summary::PrecisionMonitor>,
+    precise: &std::sync::atomic::AtomicBool,
+) -> Result<Option<Written>, RunError> {
     let out = dir.join("trials.parquet");
     let tmp = temporary_sibling(&out);
     let result = (|| {
         let mut writer: Option<polars::io::parquet::write::BatchedWriter<File>> = None;
         let mut rows = 0;
+        let finish = |writer: Option<polars::io::parquet::write::BatchedWriter<File>>| -> Result<(), RunError> {
+            let w = writer.ok_or_else(|| RunError::Internal("no chunk before the end".into()))?;
+            w.finish().map_err(pol(&out))?;
+            std::fs::rename(&tmp, &out).map_err(io(&out))
+        };
         for chunk in chunks {
-            let df = match chunk {
-                Chunk::Fresh { path, results } => {
+            let (df, path, chunk_end) = match chunk {
+                Chunk::Fresh { path, results, end } => {
                     let mut df = source.frame(&results).map_err(pol(&path))?;
                     write_parquet(&mut df, &path)?;
-                    df
+                    (df, path, end)
                 }
-                Chunk::Resumed { path } => read_parquet(&path)?,
+                Chunk::Resumed { path, end } => (read_parquet(&path)?, path, end),
                 Chunk::Complete => {
-                    let w = writer.ok_or_else(|| RunError::Internal("no chunk before the end".into()))?;
-                    w.finish().map_err(pol(&out))?;
-                    std::fs::rename(&tmp, &out).map_err(io(&out))?;
+                    finish(writer)?;
                     std::fs::remove_dir_all(dir.join("parts")).map_err(io(dir))?;
-                    return Ok(Some(rows));
+                    return Ok(Some(Written { rows, stopped_at: None }));
                 }
             };
             let w = match &mut writer {
@@ -466,6 +555,14 @@ fn write_chunks<S: TrialSource>(
             };
             w.write_batch(&df).map_err(pol(&out))?;
             rows += df.height() as u64;
+            if let Some(m) = monitor.as_deref_mut() {
+                m.add(&df, &path)?;
+                if m.status().met() {
+                    precise.store(true, std::sync::atomic::Ordering::SeqCst);
+                    finish(writer)?;
+                    return Ok(Some(Written { rows, stopped_at: Some(chunk_end) }));
+                }
+            }
         }
         Ok(None)
     })();
@@ -473,6 +570,12 @@ fn write_chunks<S: TrialSource>(
         let _ = std::fs::remove_file(&tmp);
     }
     result
+}
+
+/// What the writer finished: its rows, and the trial it stopped before when a precision stopped it.
+struct Written {
+    rows: u64,
+    stopped_at: Option<u64>,
 }
 
 /// Writes a complete Parquet file atomically.

@@ -1153,3 +1153,114 @@ mod tests {
         assert_eq!(edges("size_bin_hi"), [Some(14.0), Some(0.5), Some(20.0), Some(4.0), Some(3.0), None]);
     }
 }
+
+/// The rates a precision stop can watch (`fdimc run --precision`), as `summary.csv` names them.
+pub const PRECISION_RATES: [&str; 3] = ["pd", "pfa", "isolation_accuracy"];
+
+/// Where a run stands against a precision: every watched rate of every group of `summary.csv` at the
+/// deck's thresholds, its 95 % Wilson half-width. Fed chunk by chunk in trial order, so where it is met
+/// depends only on the deck and seed.
+pub struct PrecisionMonitor {
+    agg: Aggregates<'static>,
+    half_width: f64,
+    rates: Vec<&'static str>,
+}
+
+/// The widest watched rate of a [`PrecisionMonitor`] and how many rates are still wider than asked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PrecisionStatus {
+    /// The group (`detector seed, kind bias, target q_rad_s, size bin 3, ...`), the rate, `k`, `n` and
+    /// its half-width.
+    pub widest: Option<(String, &'static str, u64, u64, f64)>,
+    pub wider: usize,
+    pub rates: usize,
+}
+
+impl PrecisionStatus {
+    pub fn met(&self) -> bool {
+        self.wider == 0 && self.rates > 0
+    }
+
+    pub fn describe(&self) -> String {
+        match &self.widest {
+            Some((group, rate, k, n, h)) => format!("{rate} of {group}: {k}/{n}, half-width {h:.4}"),
+            None => "no rate yet".into(),
+        }
+    }
+}
+
+impl PrecisionMonitor {
+    /// Watches `rates` (names of [`PRECISION_RATES`]; all of them when empty) of a kind's groups.
+    pub fn new(
+        spec: &'static SummarySpec,
+        detectors: &[String],
+        half_width: f64,
+        rates: &[String],
+    ) -> Result<PrecisionMonitor, String> {
+        let mut watched = Vec::new();
+        for r in rates {
+            let known = PRECISION_RATES.iter().find(|k| **k == r.as_str()).ok_or_else(|| {
+                format!(
+                    "--precision-rates: {r:?} is not a rate of summary.csv; allowed: {}",
+                    PRECISION_RATES.join(", ")
+                )
+            })?;
+            watched.push(*known);
+        }
+        if watched.is_empty() {
+            watched = PRECISION_RATES.to_vec();
+        }
+        Ok(PrecisionMonitor { agg: Aggregates::new(spec, vec![DECK], detectors), half_width, rates: watched })
+    }
+
+    pub fn rates(&self) -> &[&'static str] {
+        &self.rates
+    }
+
+    /// Adds a chunk's rows (in trial order).
+    pub fn add(&mut self, df: &DataFrame, file: &Path) -> Result<(), RunError> {
+        self.agg.add_slice(df, file, None)
+    }
+
+    pub fn status(&self) -> PrecisionStatus {
+        let mut status = PrecisionStatus { widest: None, wider: 0, rates: 0 };
+        for (key, c) in &self.agg.groups {
+            for &rate in &self.rates {
+                let (k, n) = match rate {
+                    "pd" if c.faulty => (c.detected, c.flown()),
+                    "pfa" => (c.false_alarms, c.flown()),
+                    "isolation_accuracy" => (c.correct, c.decided),
+                    _ => continue,
+                };
+                if n == 0 {
+                    continue;
+                }
+                let (lo, hi) = wilson(k, n, Z95);
+                let h = 0.5 * (hi - lo);
+                status.rates += 1;
+                status.wider += (h > self.half_width) as usize;
+                if status.widest.as_ref().is_none_or(|w| h > w.4) {
+                    status.widest = Some((self.group_name(key), rate, k, n, h));
+                }
+            }
+        }
+        status
+    }
+
+    /// `detector seed, kind bias, target q_rad_s, size bin 3, noise bin 1, parameter-error bin 1`.
+    fn group_name(&self, key: &[u64]) -> String {
+        let names = &self.agg.names;
+        let mut parts = vec![format!("detector {}", self.agg.detectors[key[1] as usize])];
+        parts.push(format!("kind {}", names.name(key[2]).unwrap_or("-")));
+        parts.push(format!("target {}", names.name(key[3]).unwrap_or("-")));
+        let labels = ["size bin", "noise bin", "parameter-error bin"]
+            .into_iter()
+            .chain(self.agg.spec.extra_keys.iter().copied());
+        for (label, &v) in labels.zip(&key[4..]) {
+            if let Some(x) = number_of(v) {
+                parts.push(format!("{label} {}", significant(x)));
+            }
+        }
+        parts.join(", ")
+    }
+}
