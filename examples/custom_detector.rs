@@ -93,7 +93,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         force: true,
         progress: false,
         stop_after_chunks: None,
-        precision: None,
+        stop: None,
         command_line: std::env::args().collect(),
     };
     let run = fdimc::methods::detection_filter::run_study(&study, &opts)?;

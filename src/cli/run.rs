@@ -85,11 +85,14 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         force: a.force,
         progress: !a.quiet,
         stop_after_chunks: a.stop_after,
-        precision: a.precision.map(|half_width| runner::PrecisionAsk {
-            half_width,
-            rates: a.precision_rates.clone(),
-            spec: &method.summary,
-        }),
+        stop: match a.precision {
+            Some(w) => {
+                let monitor = summary::PrecisionMonitor::new(&method.summary, w, &a.precision_rates)
+                    .map_err(CliError::Invalid)?;
+                Some(runner::StopHandle(std::sync::Arc::new(std::sync::Mutex::new(monitor))))
+            }
+            None => None,
+        },
         command_line: std::env::args().collect(),
     };
     let report = study.run(&opts, Inputs { classifiers: a.classifiers, quiet: a.quiet })?;

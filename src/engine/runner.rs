@@ -235,19 +235,38 @@ pub struct RunOptions {
     pub progress: bool,
     /// Stop after writing this many part files, as if interrupted (time-boxed or preemptible jobs).
     pub stop_after_chunks: Option<u64>,
-    /// Stop at the first chunk boundary where every watched rate is this precise (the trial count is
-    /// then a cap).
-    pub precision: Option<PrecisionAsk>,
+    /// Stop at the first chunk boundary where this rule says the trials so far are enough (`run
+    /// --precision`); the trial count is then a cap.
+    pub stop: Option<StopHandle>,
     pub command_line: Vec<String>,
 }
 
-/// `run --precision W [--precision-rates R,...]`, with the kind's summary to measure it on.
-#[derive(Debug, Clone)]
-pub struct PrecisionAsk {
-    pub half_width: f64,
-    /// Empty: every rate of [`crate::engine::summary::PRECISION_RATES`].
-    pub rates: Vec<String>,
-    pub spec: &'static crate::engine::method::SummarySpec,
+/// What decides, chunk by chunk in trial order, that a run has enough trials (the summary's
+/// precision monitor). Fed only in trial order, so where it stops depends only on the deck and seed.
+pub trait StopRule: Send {
+    /// Before the first chunk: the run's manifest (its detectors).
+    fn start(&mut self, manifest: &Manifest) -> Result<(), RunError>;
+    /// A chunk's rows, after they are appended to `trials.parquet`.
+    fn add(&mut self, chunk: &DataFrame, file: &Path) -> Result<(), RunError>;
+    fn enough(&self) -> bool;
+    /// What `manifest.json` records of the stop.
+    fn outcome(&self) -> PrecisionOutcome;
+}
+
+/// A [`StopRule`] shared by the options and the writer thread.
+#[derive(Clone)]
+pub struct StopHandle(pub std::sync::Arc<std::sync::Mutex<dyn StopRule>>);
+
+impl std::fmt::Debug for StopHandle {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("StopHandle")
+    }
+}
+
+impl StopHandle {
+    fn lock(&self) -> Result<std::sync::MutexGuard<'_, dyn StopRule + 'static>, RunError> {
+        self.0.lock().map_err(|_| RunError::Internal("the stop rule panicked".into()))
+    }
 }
 
 /// What a finished run reports.
@@ -333,26 +352,16 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
         ..study_manifest
     };
 
-    let mut monitor = match &opts.precision {
-        Some(_) if opts.shard != Shard::WHOLE => {
+    if let Some(stop) = &opts.stop {
+        if opts.shard != Shard::WHOLE {
             return Err(RunError::Invalid(
                 "--precision stops where the trials before, in order, are precise enough: run it unsharded (it uses \
                  every core), or shard a fixed --trials"
                     .into(),
             ));
         }
-        Some(p) if !(p.half_width > 0.0 && p.half_width < 0.5) => {
-            return Err(RunError::Invalid(format!(
-                "--precision {}: allowed 0 < W < 0.5 (a 95 % half-width)",
-                p.half_width
-            )));
-        }
-        Some(p) => Some(
-            crate::engine::summary::PrecisionMonitor::new(p.spec, &manifest.detectors, p.half_width, &p.rates)
-                .map_err(RunError::Invalid)?,
-        ),
-        None => None,
-    };
+        stop.lock()?.start(&manifest)?;
+    }
     let dir = &opts.out_dir;
     let existing = dir.join("manifest.json").exists();
     if existing && opts.resume {
@@ -371,7 +380,7 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
         }
         // A run stopped at a precision keeps its parts, so --resume can take it further.
         let stopped_early = old.end_trial < end;
-        if old.complete && dir.join("trials.parquet").exists() && !(opts.precision.is_some() && stopped_early) {
+        if old.complete && dir.join("trials.parquet").exists() && !(opts.stop.is_some() && stopped_early) {
             let resumed = old.end_trial - old.first_trial;
             return Ok(RunReport { manifest: old, trials_run: 0, trials_resumed: resumed, seconds: 0.0 });
         }
@@ -413,8 +422,8 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
     let (tx, rx) = std::sync::mpsc::sync_channel::<Chunk<S::Result>>(1);
     let precise = std::sync::atomic::AtomicBool::new(false);
     let outcome = std::thread::scope(|scope| -> Result<Option<Written>, RunError> {
-        let (monitor, precise) = (monitor.as_mut(), &precise);
-        let writer = scope.spawn(move || write_chunks(source, dir, rx, monitor, precise));
+        let (stop, precise) = (opts.stop.as_ref(), &precise);
+        let writer = scope.spawn(move || write_chunks(source, dir, rx, stop, precise));
         let mut chunk_start = first;
         let mut stopped_early = false;
         while chunk_start < end && !precise.load(std::sync::atomic::Ordering::SeqCst) {
@@ -478,17 +487,10 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
             0
         }
     };
-    let precision = opts.precision.as_ref().zip(monitor.as_ref()).map(|(ask, m)| {
-        let status = m.status();
-        PrecisionOutcome {
-            half_width: ask.half_width,
-            rates: m.rates().iter().map(|r| r.to_string()).collect(),
-            met: status.met(),
-            watched: status.rates,
-            wider: status.wider,
-            widest: status.describe(),
-        }
-    });
+    let precision = match &opts.stop {
+        Some(stop) => Some(stop.lock()?.outcome()),
+        None => None,
+    };
     let manifest = Manifest { complete: true, rows, end_trial, precision, ..manifest };
     manifest.write(dir)?;
     // A chunk simulated while the writer found the run precise enough is dropped unwritten.
@@ -510,7 +512,7 @@ enum Chunk<R> {
 
 /// The writer thread: part files for resuming, and their rows appended in order to trials.parquet
 /// (under a temporary name until [`Chunk::Complete`], then renamed, and the parts removed). Returns
-/// the rows of trials.parquet, or `None` if the run stopped before its last chunk. With a `monitor`,
+/// the rows of trials.parquet, or `None` if the run stopped before its last chunk. With a `stop` rule,
 /// each chunk's rows are measured after they are appended, and the file is finished at the first chunk
 /// that makes the run precise enough (`precise` tells the simulating side; the parts stay, so a
 /// tighter precision can resume).
@@ -518,7 +520,7 @@ fn write_chunks<S: TrialSource>(
     source: &S,
     dir: &Path,
     chunks: std::sync::mpsc::Receiver<Chunk<S::Result>>,
-    mut monitor: Option<&mut crate::engine::summary::PrecisionMonitor>,
+    stop: Option<&StopHandle>,
     precise: &std::sync::atomic::AtomicBool,
 ) -> Result<Option<Written>, RunError> {
     let out = dir.join("trials.parquet");
@@ -555,9 +557,10 @@ fn write_chunks<S: TrialSource>(
             };
             w.write_batch(&df).map_err(pol(&out))?;
             rows += df.height() as u64;
-            if let Some(m) = monitor.as_deref_mut() {
-                m.add(&df, &path)?;
-                if m.status().met() {
+            if let Some(stop) = stop {
+                let mut rule = stop.lock()?;
+                rule.add(&df, &path)?;
+                if rule.enough() {
                     precise.store(true, std::sync::atomic::Ordering::SeqCst);
                     finish(writer)?;
                     return Ok(Some(Written { rows, stopped_at: Some(chunk_end) }));

@@ -1161,7 +1161,8 @@ pub const PRECISION_RATES: [&str; 3] = ["pd", "pfa", "isolation_accuracy"];
 /// deck's thresholds, its 95 % Wilson half-width. Fed chunk by chunk in trial order, so where it is met
 /// depends only on the deck and seed.
 pub struct PrecisionMonitor {
-    agg: Aggregates<'static>,
+    agg: Option<Aggregates<'static>>,
+    spec: &'static SummarySpec,
     half_width: f64,
     rates: Vec<&'static str>,
 }
@@ -1190,13 +1191,12 @@ impl PrecisionStatus {
 }
 
 impl PrecisionMonitor {
-    /// Watches `rates` (names of [`PRECISION_RATES`]; all of them when empty) of a kind's groups.
-    pub fn new(
-        spec: &'static SummarySpec,
-        detectors: &[String],
-        half_width: f64,
-        rates: &[String],
-    ) -> Result<PrecisionMonitor, String> {
+    /// Watches `rates` (names of [`PRECISION_RATES`]; all of them when empty) of a kind's groups for a
+    /// 95 % half-width of at most `half_width`.
+    pub fn new(spec: &'static SummarySpec, half_width: f64, rates: &[String]) -> Result<PrecisionMonitor, String> {
+        if !(half_width > 0.0 && half_width < 0.5) {
+            return Err(format!("--precision {half_width}: allowed 0 < W < 0.5 (a 95 % half-width)"));
+        }
         let mut watched = Vec::new();
         for r in rates {
             let known = PRECISION_RATES.iter().find(|k| **k == r.as_str()).ok_or_else(|| {
@@ -1210,21 +1210,13 @@ impl PrecisionMonitor {
         if watched.is_empty() {
             watched = PRECISION_RATES.to_vec();
         }
-        Ok(PrecisionMonitor { agg: Aggregates::new(spec, vec![DECK], detectors), half_width, rates: watched })
-    }
-
-    pub fn rates(&self) -> &[&'static str] {
-        &self.rates
-    }
-
-    /// Adds a chunk's rows (in trial order).
-    pub fn add(&mut self, df: &DataFrame, file: &Path) -> Result<(), RunError> {
-        self.agg.add_slice(df, file, None)
+        Ok(PrecisionMonitor { agg: None, spec, half_width, rates: watched })
     }
 
     pub fn status(&self) -> PrecisionStatus {
         let mut status = PrecisionStatus { widest: None, wider: 0, rates: 0 };
-        for (key, c) in &self.agg.groups {
+        let Some(agg) = &self.agg else { return status };
+        for (key, c) in &agg.groups {
             for &rate in &self.rates {
                 let (k, n) = match rate {
                     "pd" if c.faulty => (c.detected, c.flown()),
@@ -1240,27 +1232,56 @@ impl PrecisionMonitor {
                 status.rates += 1;
                 status.wider += (h > self.half_width) as usize;
                 if status.widest.as_ref().is_none_or(|w| h > w.4) {
-                    status.widest = Some((self.group_name(key), rate, k, n, h));
+                    status.widest = Some((group_name(agg, key), rate, k, n, h));
                 }
             }
         }
         status
     }
+}
 
-    /// `detector seed, kind bias, target q_rad_s, size bin 3, noise bin 1, parameter-error bin 1`.
-    fn group_name(&self, key: &[u64]) -> String {
-        let names = &self.agg.names;
-        let mut parts = vec![format!("detector {}", self.agg.detectors[key[1] as usize])];
-        parts.push(format!("kind {}", names.name(key[2]).unwrap_or("-")));
-        parts.push(format!("target {}", names.name(key[3]).unwrap_or("-")));
-        let labels = ["size bin", "noise bin", "parameter-error bin"]
-            .into_iter()
-            .chain(self.agg.spec.extra_keys.iter().copied());
-        for (label, &v) in labels.zip(&key[4..]) {
-            if let Some(x) = number_of(v) {
-                parts.push(format!("{label} {}", significant(x)));
-            }
-        }
-        parts.join(", ")
+impl super::runner::StopRule for PrecisionMonitor {
+    fn start(&mut self, manifest: &super::runner::Manifest) -> Result<(), RunError> {
+        self.agg = Some(Aggregates::new(self.spec, vec![DECK], &manifest.detectors));
+        Ok(())
     }
+
+    fn add(&mut self, chunk: &DataFrame, file: &Path) -> Result<(), RunError> {
+        match &mut self.agg {
+            Some(agg) => agg.add_slice(chunk, file, None),
+            None => Err(RunError::Internal("precision monitor fed before the run started".into())),
+        }
+    }
+
+    fn enough(&self) -> bool {
+        self.status().met()
+    }
+
+    fn outcome(&self) -> super::runner::PrecisionOutcome {
+        let status = self.status();
+        super::runner::PrecisionOutcome {
+            half_width: self.half_width,
+            rates: self.rates.iter().map(|r| r.to_string()).collect(),
+            met: status.met(),
+            watched: status.rates,
+            wider: status.wider,
+            widest: status.describe(),
+        }
+    }
+}
+
+/// A group key as text: `detector seed, kind bias, target q_rad_s, size bin 3, noise bin 1, ...`.
+fn group_name(agg: &Aggregates, key: &[u64]) -> String {
+    let names = &agg.names;
+    let mut parts = vec![format!("detector {}", agg.detectors[key[1] as usize])];
+    parts.push(format!("kind {}", names.name(key[2]).unwrap_or("-")));
+    parts.push(format!("target {}", names.name(key[3]).unwrap_or("-")));
+    let labels =
+        ["size bin", "noise bin", "parameter-error bin"].into_iter().chain(agg.spec.extra_keys.iter().copied());
+    for (label, &v) in labels.zip(&key[4..]) {
+        if let Some(x) = number_of(v) {
+            parts.push(format!("{label} {}", significant(x)));
+        }
+    }
+    parts.join(", ")
 }
