@@ -86,7 +86,9 @@ pub enum Command {
     /// Run the Monte Carlo study: trials in parallel, records to DIR/trials.parquet, then thresholds
     /// and summaries (thresholds.csv, summary.csv/.parquet, curves.csv, min_detectable.csv).
     #[command(after_help = "Shards: run `--shard I/N` for I = 0..N-1 (e.g. as a SLURM array), then `fdimc merge`.\n\
-The same deck and seed give identical records for any --threads, shard split or --resume.")]
+The same deck and seed give identical records for any --threads, shard split or --resume.\n\
+Precision: `--precision 0.01 --precision-rates pd,pfa --trials 1000000` runs until every Pd and Pfa of summary.csv is within \
++/-0.01 (95 %), at most 10^6 trials.")]
     Run {
         /// Study deck (TOML).
         deck: PathBuf,
@@ -131,7 +133,9 @@ The same deck and seed give identical records for any --threads, shard split or 
         #[arg(long, value_name = "R,...", value_delimiter = ',', requires = "precision")]
         precision_rates: Vec<String>,
     },
-    /// Recompute thresholds and summaries from DIR/trials.parquet, without simulating.
+    /// Recompute thresholds and summaries from DIR/trials.parquet, without simulating; kinds with a
+    /// detection statistic also get tail.csv: false-alarm rates and thresholds below 1/trials (1e-5 to
+    /// 1e-9 per flight hour) from a generalised Pareto fit, with 95 % intervals and when not to trust it.
     Summarize {
         /// Results folder of a complete run.
         dir: PathBuf,
