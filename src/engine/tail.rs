@@ -196,7 +196,7 @@ impl TailFit {
                 break;
             }
         }
-        let mut sorted: Vec<f64> = top.to_vec();
+        let mut sorted: Vec<f64> = top.iter().copied().filter(|v| v.is_finite()).collect();
         sorted.sort_by(|a, b| b.total_cmp(a));
         for m in [3usize, 10, 30] {
             let Some(&x) = sorted.get(m - 1) else { continue };
