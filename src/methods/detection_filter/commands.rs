@@ -5,6 +5,7 @@ use std::path::Path;
 use nalgebra::DMatrix;
 use serde_json::json;
 
+use super::false_alarms::for_detector;
 use super::filter::{DetectionFilterParams, Gain, Isolation};
 use super::study::{LtiStudy, Shape};
 use super::trials::Engine;
@@ -53,9 +54,23 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                     }
                     Gain::Own(_) => (json!(null), json!(null)),
                 };
+                let false_alarms = match for_detector(study, f, f.thresholds.as_slice()) {
+                    Ok(a) => json!({
+                        "lower": a.lower,
+                        "upper": a.upper(),
+                        "sidak_upper": a.sidak_upper,
+                        "hunter_upper": a.hunter_upper,
+                        "union_bound": a.sum,
+                        "largest_sample": a.largest_sample,
+                        "lower_from": a.lower_from(),
+                        "samples": a.samples,
+                    }),
+                    Err(why) => json!({ "not_computed": why }),
+                };
                 json!({
                     "name": d.name,
                     "kind": d.params.kind(),
+                    "false_alarms_at_deck_thresholds": false_alarms,
                     "eigenvalues_per_s": eigenvalues,
                     "fault_directions": directions,
                     "continuous": f.continuous.as_ref().map(assignment),
@@ -108,6 +123,30 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
         }
         println!("steady residual per unit bias on each output (columns: faulty output; rows: residual)");
         print!("{}", indent(&format!("{:.4}", filter.signatures)));
+        match for_detector(study, filter, filter.thresholds.as_slice()) {
+            Ok(f) => {
+                let hour = |p: f64| crate::engine::thresholds::per_flight_hour(p, study.header.duration_s);
+                println!(
+                    "false alarms at the deck's thresholds, analytic (fault-free, model exact, white Gaussian noise, {} samples):",
+                    f.samples
+                );
+                println!(
+                    "  per trial in [{:.4e}, {:.4e}] (lower: {}; upper: the smaller of Sidak {:.4e} and Hunter {:.4e}); per flight hour [{:.4e}, {:.4e}]",
+                    f.lower,
+                    f.upper(),
+                    f.lower_from(),
+                    f.sidak_upper,
+                    f.hunter_upper,
+                    hour(f.lower),
+                    hour(f.upper())
+                );
+                println!(
+                    "  largest single sample {:.3e}; sum over samples (union bound) {:.3e}",
+                    f.largest_sample, f.sum
+                );
+            }
+            Err(why) => println!("false alarms, analytic: not computed: {why}"),
+        }
     }
     Ok(())
 }

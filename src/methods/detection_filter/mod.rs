@@ -4,6 +4,7 @@ pub mod commands;
 pub mod cusum;
 pub mod decision;
 pub mod deck;
+pub mod false_alarms;
 pub mod filter;
 pub mod kalman_chi2;
 pub mod kernel;

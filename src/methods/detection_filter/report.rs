@@ -20,6 +20,12 @@ use crate::methods::detection_filter::trials::Engine;
 /// The traces of `ctx.trials`, re-simulated from the run's deck (checked by its SHA-256).
 pub fn report_part(ctx: &ReportContext) -> Result<ReportPart, RunError> {
     let mut part = ReportPart::default();
+    if let Ok(deck) = ctx.run_deck() {
+        let study = LtiStudy::load(&deck).map_err(|e| RunError::Invalid(e.to_string()))?;
+        if let Some(section) = analytic_section(ctx, &study)? {
+            part.sections.push(("False alarms without simulating".into(), section));
+        }
+    }
     if ctx.trials.is_empty() {
         return Ok(part);
     }
@@ -45,6 +51,85 @@ pub fn report_part(ctx: &ReportContext) -> Result<ReportPart, RunError> {
         part.files.push(file);
     }
     Ok(part)
+}
+
+/// The analytic bounds ([`super::false_alarms`]) at the deck's and the calibrated thresholds beside what
+/// the run saw there (`tail.csv`: the observed count and the tail fit), or why the deck has none.
+fn analytic_section(ctx: &ReportContext, study: &LtiStudy) -> Result<Option<String>, RunError> {
+    use crate::engine::report::html;
+    use polars::prelude::*;
+    let calibrated = read_thresholds(&ctx.dir.join("thresholds.csv")).map(|t| t.detectors).unwrap_or_default();
+    let tail = crate::engine::tables::read_summary(&ctx.dir.join("tail.csv")).ok();
+    let tail_row = |detector: &str, set: &str| -> Option<(f64, f64, f64, f64, f64)> {
+        let t = tail.as_ref()?;
+        let s =
+            |c: &str| t.column(c).ok().and_then(|c| c.cast(&DataType::String).ok()).and_then(|c| c.str().ok().cloned());
+        let f = |c: &str| {
+            t.column(c).ok().and_then(|c| c.cast(&DataType::Float64).ok()).and_then(|c| c.f64().ok().cloned())
+        };
+        let (d, th, q, pfa, lo, hi, obs, n) = (
+            s("detector")?,
+            s("thresholds")?,
+            s("query")?,
+            f("pfa")?,
+            f("pfa_lo")?,
+            f("pfa_hi")?,
+            f("observed_false_alarms")?,
+            f("trials")?,
+        );
+        let i = (0..t.height())
+            .find(|&i| d.get(i) == Some(detector) && th.get(i) == Some(set) && q.get(i) == Some("pfa_at_thresholds"))?;
+        Some((obs.get(i)?, n.get(i)?, pfa.get(i)?, lo.get(i)?, hi.get(i)?))
+    };
+    let mut rows: Vec<[String; 6]> = Vec::new();
+    let mut why = None;
+    for d in &study.detectors {
+        let filter = d
+            .params
+            .design(&study.design_plant, study.header.dt_s)
+            .map_err(|e| RunError::Invalid(format!("detector {}: {e}", d.name)))?;
+        let mut sets = vec![("deck", filter.thresholds.as_slice().to_vec())];
+        if let Some(c) = calibrated.iter().find(|c| c.0 == d.name) {
+            sets.push(("calibrated", c.2.clone()));
+        }
+        for (set, thresholds) in sets {
+            match super::false_alarms::for_detector(study, &filter, &thresholds) {
+                Ok(a) => {
+                    let seen = tail_row(&d.name, set);
+                    rows.push([
+                        d.name.clone(),
+                        set.to_string(),
+                        format!("[{:.3e}, {:.3e}]", a.lower, a.upper()),
+                        a.lower_from(),
+                        seen.map_or("-".into(), |s| format!("{:.0}/{:.0} = {:.3e}", s.0, s.1, s.0 / s.1)),
+                        seen.map_or("-".into(), |s| format!("{:.3e} [{:.3e}, {:.3e}]", s.2, s.3, s.4)),
+                    ]);
+                }
+                Err(w) => why = Some(w),
+            }
+        }
+    }
+    if rows.is_empty() {
+        return Ok(why.map(|w| format!("<p>Not computed: {}.</p>", html::escape(&w))));
+    }
+    let col = |k: usize| rows.iter().map(|r| r[k].clone()).collect::<Vec<_>>();
+    let df = df!(
+        "detector" => col(0),
+        "thresholds" => col(1),
+        "pfa_per_trial_bounds" => col(2),
+        "lower_bound_from" => col(3),
+        "observed" => col(4),
+        "tail_fit (tail.csv)" => col(5),
+    )
+    .map_err(|e| RunError::Internal(e.to_string()))?;
+    Ok(Some(format!(
+        "<p>The fault-free residual of an exact model under white Gaussian noise is a Gaussian process whose law follows \
+         from the closed loop; the probability of at least one alarm over a trial of {} samples lies between these \
+         bounds (<code>fdimc design</code> prints them at the deck's thresholds). Beside them: what this run's \
+         trials saw, and the tail fit.</p>{}",
+        study.header.steps,
+        html::table(&df, &[])
+    )))
 }
 
 /// Residuals of one trial, one panel per output: residual, +/- deck and calibrated thresholds,
