@@ -141,7 +141,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                     hour(f.upper())
                 );
                 println!(
-                    "  largest single sample {:.3e}; sum over samples (union bound) {:.3e}",
+                    "  largest single sample (Sidak over its outputs) {:.3e}; sum over samples (union bound) {:.3e}",
                     f.largest_sample, f.sum
                 );
             }

@@ -32,7 +32,7 @@ use crate::engine::intervals::normal_sf;
 #[derive(Debug, Clone, PartialEq)]
 pub struct AnalyticFalseAlarms {
     pub samples: usize,
-    /// The largest single sample's exceedance probability (any output).
+    /// The largest single sample's exceedance probability over its outputs (Sidak's bound).
     pub largest_sample: f64,
     /// The sum of every sample's and output's exceedance probability (the union bound).
     pub sum: f64,
