@@ -235,37 +235,29 @@ fn tail_plots(dir: &Path, out: &Path, data: &BTreeMap<String, DetectorData>) -> 
         return Ok(Vec::new());
     }
     let (tail, diag) = (read_summary(&tail_path)?, read_summary(&diag_path)?);
-    let text = |df: &DataFrame, c: &str, p: &Path| -> Result<Vec<Option<String>>, RunError> {
-        let c = df.column(c).and_then(|c| c.cast(&DataType::String)).map_err(polars_error(p))?;
-        Ok(c.str().map_err(polars_error(p))?.iter().map(|v| v.map(str::to_string)).collect())
+    // Columns by name, as text or numbers (NaN where null).
+    let texts = |df: &DataFrame, p: &Path, names: &[&str]| -> Result<Vec<Vec<Option<String>>>, RunError> {
+        let one = |c: &str| -> Result<Vec<Option<String>>, RunError> {
+            let c = df.column(c).and_then(|c| c.cast(&DataType::String)).map_err(polars_error(p))?;
+            Ok(c.str().map_err(polars_error(p))?.iter().map(|v| v.map(str::to_string)).collect())
+        };
+        names.iter().map(|c| one(c)).collect()
     };
-    let number = |df: &DataFrame, c: &str, p: &Path| -> Result<Vec<f64>, RunError> {
-        let c = df.column(c).and_then(|c| c.cast(&DataType::Float64)).map_err(polars_error(p))?;
-        Ok(c.f64().map_err(polars_error(p))?.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
+    let numbers = |df: &DataFrame, p: &Path, names: &[&str]| -> Result<Vec<Vec<f64>>, RunError> {
+        let one = |c: &str| -> Result<Vec<f64>, RunError> {
+            let c = df.column(c).and_then(|c| c.cast(&DataType::Float64)).map_err(polars_error(p))?;
+            Ok(c.f64().map_err(polars_error(p))?.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
+        };
+        names.iter().map(|c| one(c)).collect()
     };
-    let (dd, dset, chosen) = (
-        text(&diag, "detector", &diag_path)?,
-        text(&diag, "thresholds", &diag_path)?,
-        text(&diag, "chosen", &diag_path)?,
-    );
-    let (u, sigma, xi, q) = (
-        number(&diag, "fit_threshold_scale", &diag_path)?,
-        number(&diag, "sigma", &diag_path)?,
-        number(&diag, "xi", &diag_path)?,
-        number(&diag, "fit_threshold_quantile", &diag_path)?,
-    );
-    let (td, tset, query, stat) = (
-        text(&tail, "detector", &tail_path)?,
-        text(&tail, "thresholds", &tail_path)?,
-        text(&tail, "query", &tail_path)?,
-        text(&tail, "statistic", &tail_path)?,
-    );
-    let (pfa, scale, lo, hi) = (
-        number(&tail, "pfa", &tail_path)?,
-        number(&tail, "scale", &tail_path)?,
-        number(&tail, "scale_lo", &tail_path)?,
-        number(&tail, "scale_hi", &tail_path)?,
-    );
+    let d_text = texts(&diag, &diag_path, &["detector", "thresholds", "chosen"])?;
+    let (dd, dset, chosen) = (&d_text[0], &d_text[1], &d_text[2]);
+    let d_num = numbers(&diag, &diag_path, &["fit_threshold_scale", "sigma", "xi", "fit_threshold_quantile"])?;
+    let (u, sigma, xi, q) = (&d_num[0], &d_num[1], &d_num[2], &d_num[3]);
+    let t_text = texts(&tail, &tail_path, &["detector", "thresholds", "query", "statistic"])?;
+    let (td, tset, query, stat) = (&t_text[0], &t_text[1], &t_text[2], &t_text[3]);
+    let t_num = numbers(&tail, &tail_path, &["pfa", "scale", "scale_lo", "scale_hi"])?;
+    let (pfa, scale, lo, hi) = (&t_num[0], &t_num[1], &t_num[2], &t_num[3]);
     let mut files = Vec::new();
     for (d, dd_data) in data {
         if dd_data.z_fault_free.is_empty() {
