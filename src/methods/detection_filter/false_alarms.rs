@@ -128,70 +128,111 @@ pub fn analytic_false_alarms(
         // Sidak again within the sample: a bound, reported as the sample's largest.
         largest_sample = largest_sample.max(-none_here.exp_m1());
     }
-    // Powers of Phi and Phi^(h-1) Kd R, for the lags the bounds need.
+    // C Phi^h (G), P(k) C' (H) and C Phi^h Kd R (GKR): Cov(gamma(k + h), gamma(k)) = G_h H_k - GKR_(h-1).
     let KdR = Kd * &R;
-    let covariance = |powers: &[DMatrix<f64>], l: usize, k: usize| -> DMatrix<f64> {
-        let h = l - k;
-        if h == 0 {
-            return C * &P[k] * C.transpose() + &R;
+    let mut G = Vec::with_capacity(samples + 1);
+    let mut power = DMatrix::<f64>::identity(n, n);
+    for _ in 0..=samples {
+        G.push(C * &power);
+        power = &Phi * power;
+    }
+    let H: Vec<DMatrix<f64>> = P.iter().map(|p| p * C.transpose()).collect();
+    let GKR: Vec<DMatrix<f64>> = G.iter().map(|g| g * &KdR).collect();
+    let covariance = |l: usize, k: usize| -> DMatrix<f64> {
+        match l - k {
+            0 => &G[0] * &H[k] + &R,
+            h => &G[h] * &H[k] - &GKR[h - 1],
         }
-        C * &powers[h] * &P[k] * C.transpose() - C * &powers[h - 1] * &KdR
     };
-    let mut powers = vec![DMatrix::identity(n, n)];
-    let pair = |powers: &[DMatrix<f64>], (k, j): (usize, usize), (l, i): (usize, usize)| -> f64 {
+    let pair = |(k, j): (usize, usize), (l, i): (usize, usize)| -> f64 {
         let (early, late, je, jl) = if k <= l { (k, l, j, i) } else { (l, k, i, j) };
-        let cov = covariance(powers, late, early)[(jl, je)];
+        let cov = covariance(late, early)[(jl, je)];
         let rho = (cov / (sd[late][jl] * sd[early][je])).clamp(-1.0, 1.0);
         both_exceed(thresholds[je] / sd[early][je], thresholds[jl] / sd[late][jl], rho)
     };
-    let extend = |powers: &mut Vec<DMatrix<f64>>, h: usize| {
-        while powers.len() <= h {
-            let next = &Phi * powers.last().expect("starts with I");
-            powers.push(next);
-        }
-    };
-    extend(&mut powers, 1);
     let mut chains = 0.0;
     for k in 0..samples.saturating_sub(1) {
         for j in 0..ny {
-            chains += pair(&powers, (k, j), (k + 1, j));
+            chains += pair((k, j), (k + 1, j));
         }
     }
     let hunter_upper = (sum - chains).max(0.0);
     let sidak_upper = -log_none.exp_m1();
 
-    extend(&mut powers, samples);
-    // Bonferroni's S1 - S2: the pairs up to LOCAL_LAGS samples apart exactly; the farther ones each at
-    // most the pair probability at the smallest standardised thresholds and the largest correlation
-    // among them (P(|X| > a, |Y| > b) grows with |rho| and falls with a and b). Tight when the
-    // residual decorrelates within a few samples, where the thinned family loses most events.
-    const LOCAL_LAGS: usize = 4;
-    let mut near = 0.0;
+    // Bonferroni's S1 - S2: the pairs up to `local` samples apart exactly (up to 4, fewer on long
+    // trials of many outputs to bound the work); the farther ones each at most the pair probability
+    // at the smallest standardised thresholds and a bound on their correlation (P(|X| > a, |Y| > b)
+    // grows with |rho| and falls with a and b). Tight when the residual decorrelates within a few
+    // samples, where the thinned family below loses most events.
+    let local = (300_000 / (samples * ny * ny).max(1)).clamp(2, 5) - 1;
+    let near: f64 = {
+        use rayon::prelude::*;
+        (0..samples)
+            .into_par_iter()
+            .map(|l| {
+                let mut near = 0.0;
+                for k in (l.saturating_sub(local)..=l).rev() {
+                    let cov = covariance(l, k);
+                    for jl in 0..ny {
+                        for je in 0..ny {
+                            if l == k && je >= jl {
+                                continue; // each same-sample pair once, no event with itself
+                            }
+                            let rho = (cov[(jl, je)] / (sd[l][jl] * sd[k][je])).clamp(-1.0, 1.0);
+                            near += both_exceed_to(thresholds[je] / sd[k][je], thresholds[jl] / sd[l][jl], rho, 1e-6);
+                        }
+                    }
+                }
+                near
+            })
+            .sum()
+    };
+    // Every far pair's correlation exactly where the work allows (samples^2 ny^2 n / 2 multiply-adds up
+    // to 2e9); beyond, per lag through |Cov(gamma_jl(k + h), gamma_je(k))| <= |row jl of G_h|
+    // |column je of H_k| + |GKR_(h-1)[jl, je]| over the smallest standard deviations.
+    let sd_min: Vec<f64> = (0..ny).map(|j| (0..samples).map(|k| sd[k][j]).fold(f64::INFINITY, f64::min)).collect();
     let mut far_rho = vec![0.0f64; ny * ny];
     let mut far_count = vec![0.0f64; ny * ny];
-    for l in 0..samples {
-        for k in (0..=l).rev() {
-            let h = l - k;
-            let cov = covariance(&powers, l, k);
+    for h in local + 1..samples {
+        for c in far_count.iter_mut() {
+            *c += (samples - h) as f64;
+        }
+    }
+    if (samples * samples * ny * ny * n) as f64 / 2.0 <= 2e9 {
+        use rayon::prelude::*;
+        far_rho = (local + 1..samples)
+            .into_par_iter()
+            .map(|l| {
+                let mut m = vec![0.0f64; ny * ny];
+                for k in 0..l - local {
+                    let h = l - k;
+                    for jl in 0..ny {
+                        for je in 0..ny {
+                            let cov = G[h].row(jl).dot(&H[k].column(je).transpose()) - GKR[h - 1][(jl, je)];
+                            let c = je * ny + jl;
+                            m[c] = m[c].max((cov / (sd[l][jl] * sd[k][je])).abs().min(1.0));
+                        }
+                    }
+                }
+                m
+            })
+            .reduce(|| vec![0.0; ny * ny], |a, b| a.iter().zip(&b).map(|(x, y)| x.max(*y)).collect());
+    } else {
+        let h_norm: Vec<f64> =
+            (0..ny).map(|j| (0..samples).map(|k| H[k].column(j).norm() / sd[k][j]).fold(0.0, f64::max)).collect();
+        for h in local + 1..samples {
             for jl in 0..ny {
+                let g = G[h].row(jl).norm();
                 for je in 0..ny {
-                    if h == 0 && je >= jl {
-                        continue; // each same-sample pair once, no event with itself
-                    }
-                    let rho = (cov[(jl, je)] / (sd[l][jl] * sd[k][je])).clamp(-1.0, 1.0);
-                    if h <= LOCAL_LAGS {
-                        near += both_exceed_to(thresholds[je] / sd[k][je], thresholds[jl] / sd[l][jl], rho, 1e-6);
-                    } else {
-                        let c = je * ny + jl;
-                        far_rho[c] = far_rho[c].max(rho.abs());
-                        far_count[c] += 1.0;
-                    }
+                    let c = je * ny + jl;
+                    let r = g * h_norm[je] / sd_min[jl] + GKR[h - 1][(jl, je)].abs() / (sd_min[jl] * sd_min[je]);
+                    far_rho[c] = far_rho[c].max(r.min(1.0));
                 }
             }
         }
     }
-    let a_min: Vec<f64> =
-        (0..ny).map(|j| (0..samples).map(|k| thresholds[j] / sd[k][j]).fold(f64::INFINITY, f64::min)).collect();
+    // The smallest standardised thresholds: at each output's largest standard deviation.
+    let a_min: Vec<f64> = (0..ny).map(|j| thresholds[j] / (0..samples).map(|k| sd[k][j]).fold(0.0, f64::max)).collect();
     let far: f64 = (0..ny * ny)
         .filter(|&c| far_count[c] > 0.0)
         .map(|c| far_count[c] * both_exceed(a_min[c / ny], a_min[c % ny], far_rho[c]))
@@ -219,7 +260,7 @@ pub fn analytic_false_alarms(
                 let mut others = vec![0.0; ny];
                 for &m in &ks {
                     let (early, late) = if k <= m { (k, m) } else { (m, k) };
-                    let cov = covariance(&powers, late, early);
+                    let cov = covariance(late, early);
                     for (j, other) in others.iter_mut().enumerate() {
                         for i in (0..ny).filter(|&i| m != k || i != j) {
                             // cov is (late, early): index it from (k, j) and (m, i).
