@@ -1286,7 +1286,7 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
     };
     let plain = detector_thresholds(&cal_thr);
     let stdout = ok(&fdimc(&["summarize", cal.to_str().unwrap(), "--target-pfa", "0.01", "--confidence", "0.95"]));
-    assert!(stdout.contains("calibrated at Pfa 0.01 with 0.95 confidence (order statistic)"), "{stdout}");
+    assert!(stdout.contains("calibrated at Pfa 0.01 with 0.95 confidence (order statistic;"), "{stdout}");
     let confident = detector_thresholds(&cal_thr);
     assert_eq!(plain.len(), confident.len());
     for ((d, _, p), (_, _, c)) in plain.iter().zip(&confident) {

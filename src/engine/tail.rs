@@ -284,7 +284,8 @@ fn gpd_loglik(y: &[f64], sigma: f64, xi: f64) -> f64 {
     -k * sigma.ln() - (1.0 + 1.0 / xi) * sum
 }
 
-fn gpd_survival(d: f64, sigma: f64, xi: f64) -> f64 {
+/// The generalised Pareto survival function at excess `d` (1 at and below 0).
+pub fn gpd_survival(d: f64, sigma: f64, xi: f64) -> f64 {
     if d <= 0.0 {
         return 1.0;
     }

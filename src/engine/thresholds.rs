@@ -256,7 +256,9 @@ pub fn thresholds(
         ),
         Calibration::Target(p) if fault_free_rows => format!("calibrated at Pfa {p} on the fault-free trials"),
         Calibration::Confident { pfa, confidence } if fault_free_rows => {
-            format!("calibrated at Pfa {pfa} with {confidence} confidence (order statistic) on the fault-free trials")
+            format!(
+                "calibrated at Pfa {pfa} with {confidence} confidence (order statistic; with too few trials for it, the tail fit's bound) on the fault-free trials"
+            )
         }
         Calibration::Target(p) | Calibration::Confident { pfa: p, .. } => {
             warnings.push(

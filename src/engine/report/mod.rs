@@ -235,43 +235,24 @@ fn tail_plots(dir: &Path, out: &Path, data: &BTreeMap<String, DetectorData>) -> 
         return Ok(Vec::new());
     }
     let (tail, diag) = (read_summary(&tail_path)?, read_summary(&diag_path)?);
-    // Columns by name, as text or numbers (NaN where null).
-    let texts = |df: &DataFrame, p: &Path, names: &[&str]| -> Result<Vec<Vec<Option<String>>>, RunError> {
-        let one = |c: &str| -> Result<Vec<Option<String>>, RunError> {
-            let c = df.column(c).and_then(|c| c.cast(&DataType::String)).map_err(polars_error(p))?;
-            Ok(c.str().map_err(polars_error(p))?.iter().map(|v| v.map(str::to_string)).collect())
-        };
-        names.iter().map(|c| one(c)).collect()
-    };
-    let numbers = |df: &DataFrame, p: &Path, names: &[&str]| -> Result<Vec<Vec<f64>>, RunError> {
-        let one = |c: &str| -> Result<Vec<f64>, RunError> {
-            let c = df.column(c).and_then(|c| c.cast(&DataType::Float64)).map_err(polars_error(p))?;
-            Ok(c.f64().map_err(polars_error(p))?.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
-        };
-        names.iter().map(|c| one(c)).collect()
-    };
-    let d_text = texts(&diag, &diag_path, &["detector", "thresholds", "chosen"])?;
-    let (dd, dset, chosen) = (&d_text[0], &d_text[1], &d_text[2]);
-    let d_num = numbers(&diag, &diag_path, &["fit_threshold_scale", "sigma", "xi", "fit_threshold_quantile"])?;
-    let (u, sigma, xi, q) = (&d_num[0], &d_num[1], &d_num[2], &d_num[3]);
-    let t_text = texts(&tail, &tail_path, &["detector", "thresholds", "query", "statistic"])?;
-    let (td, tset, query, stat) = (&t_text[0], &t_text[1], &t_text[2], &t_text[3]);
-    let t_num = numbers(&tail, &tail_path, &["pfa", "scale", "scale_lo", "scale_hi"])?;
-    let (pfa, scale, lo, hi) = (&t_num[0], &t_num[1], &t_num[2], &t_num[3]);
+    let (t, g) = (super::tables::Table(&tail), super::tables::Table(&diag));
+    let (dd, dset, chosen) = (g.strs("detector"), g.strs("thresholds"), g.f64s("chosen"));
+    let (u, sigma, xi, q) =
+        (g.f64s("fit_threshold_scale"), g.f64s("sigma"), g.f64s("xi"), g.f64s("fit_threshold_quantile"));
+    let (td, tset, query, stat) = (t.strs("detector"), t.strs("thresholds"), t.strs("query"), t.strs("statistic"));
+    let (pfa, scale, lo, hi) = (t.f64s("pfa"), t.f64s("scale"), t.f64s("scale_lo"), t.f64s("scale_hi"));
     let mut files = Vec::new();
     for (d, dd_data) in data {
         if dd_data.z_fault_free.is_empty() {
             continue;
         }
-        let is = |v: &Option<String>, s: &str| v.as_deref() == Some(s);
-        let calibrated = |set: &Option<String>| !is(set, "deck");
         let fit = (0..diag.height())
-            .find(|&i| is(&dd[i], d) && calibrated(&dset[i]) && is(&chosen[i], "true"))
+            .find(|&i| dd[i] == *d && dset[i] != "deck" && chosen[i] == 1.0)
             .map(|i| (u[i], sigma[i], xi[i], 1.0 - q[i]));
-        let first_statistic = stat.first().cloned().flatten();
+        // One statistic's rows: the factor on the thresholds is the same for every statistic.
         let targets: Vec<(f64, f64, f64, f64)> = (0..tail.height())
-            .filter(|&i| is(&td[i], d) && calibrated(&tset[i]) && is(&query[i], "threshold_for_pfa"))
-            .filter(|&i| stat[i] == first_statistic)
+            .filter(|&i| td[i] == *d && tset[i] != "deck" && query[i] == "threshold_for_pfa")
+            .filter(|&i| Some(&stat[i]) == stat.first())
             .map(|i| (pfa[i], scale[i], lo[i], hi[i]))
             .collect();
         let file = out.join(format!("tail_{d}.svg"));

@@ -560,17 +560,7 @@ pub fn tail(file: &Path, p: &TailPlot) -> Result<(), String> {
     if let Some((u, sigma, xi, zeta)) = p.fit {
         let curve: Vec<(f64, f64)> = (0..=300)
             .map(|i| u * (x_max / u).powf(i as f64 / 300.0))
-            .map(|x| {
-                let z = xi * (x - u) / sigma;
-                let s = if xi.abs() < 1e-12 {
-                    (-(x - u) / sigma).exp()
-                } else if z <= -1.0 {
-                    0.0
-                } else {
-                    (-z.ln_1p() / xi).exp()
-                };
-                (x, zeta * s)
-            })
+            .map(|x| (x, zeta * crate::engine::tail::gpd_survival(x - u, sigma, xi)))
             .filter(|(_, q)| *q >= floor)
             .collect();
         let c = color(1);

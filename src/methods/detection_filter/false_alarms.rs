@@ -106,15 +106,16 @@ pub fn analytic_false_alarms(
     let R = DMatrix::from_diagonal(&sensor_sigma.map(|s| s * s));
     let W = DMatrix::from_diagonal(&process_sigma_per_step.map(|s| s * s));
     let drive = Kd * &R * Kd.transpose() + W;
-    // P(k) for every sample, and the residual's standard deviations.
-    let mut P = Vec::with_capacity(samples);
+    // Per sample, P(k) C' (H: every covariance needs only it) and the residual's standard deviations.
+    let (mut H, mut sd): (Vec<DMatrix<f64>>, Vec<Vec<f64>>) =
+        (Vec::with_capacity(samples), Vec::with_capacity(samples));
     let mut p_k = DMatrix::zeros(n, n);
     for _ in 0..samples {
-        P.push(p_k.clone());
+        let h: DMatrix<f64> = &p_k * C.transpose();
+        sd.push((C * &h + &R).diagonal().map(f64::sqrt).as_slice().to_vec());
+        H.push(h);
         p_k = &Phi * &p_k * Phi.transpose() + &drive;
     }
-    let sd: Vec<Vec<f64>> =
-        P.iter().map(|p| (C * p * C.transpose() + &R).diagonal().map(f64::sqrt).as_slice().to_vec()).collect();
     let single = |k: usize, j: usize| 2.0 * normal_sf(thresholds[j] / sd[k][j]);
     let (mut sum, mut log_none, mut largest_sample) = (0.0, 0.0, 0.0f64);
     for k in 0..samples {
@@ -136,7 +137,6 @@ pub fn analytic_false_alarms(
         G.push(C * &power);
         power = &Phi * power;
     }
-    let H: Vec<DMatrix<f64>> = P.iter().map(|p| p * C.transpose()).collect();
     let GKR: Vec<DMatrix<f64>> = G.iter().map(|g| g * &KdR).collect();
     let covariance = |l: usize, k: usize| -> DMatrix<f64> {
         match l - k {
@@ -144,17 +144,15 @@ pub fn analytic_false_alarms(
             h => &G[h] * &H[k] - &GKR[h - 1],
         }
     };
-    let pair = |(k, j): (usize, usize), (l, i): (usize, usize)| -> f64 {
-        let (early, late, je, jl) = if k <= l { (k, l, j, i) } else { (l, k, i, j) };
-        let cov = covariance(late, early)[(jl, je)];
-        let rho = (cov / (sd[late][jl] * sd[early][je])).clamp(-1.0, 1.0);
-        both_exceed(thresholds[je] / sd[early][je], thresholds[jl] / sd[late][jl], rho)
+    // P(|gamma_jl(l)| > T_jl, |gamma_je(k)| > T_je) from `cov` = Cov(gamma(l), gamma(k)), to `relative`.
+    let pair = |cov: &DMatrix<f64>, (l, jl): (usize, usize), (k, je): (usize, usize), relative: f64| -> f64 {
+        let rho = (cov[(jl, je)] / (sd[l][jl] * sd[k][je])).clamp(-1.0, 1.0);
+        both_exceed_to(thresholds[je] / sd[k][je], thresholds[jl] / sd[l][jl], rho, relative)
     };
     let mut chains = 0.0;
     for k in 0..samples.saturating_sub(1) {
-        for j in 0..ny {
-            chains += pair((k, j), (k + 1, j));
-        }
+        let cov = covariance(k + 1, k);
+        chains += (0..ny).map(|j| pair(&cov, (k + 1, j), (k, j), 1e-10)).sum::<f64>();
     }
     let hunter_upper = (sum - chains).max(0.0);
     let sidak_upper = -log_none.exp_m1();
@@ -178,8 +176,7 @@ pub fn analytic_false_alarms(
                             if l == k && je >= jl {
                                 continue; // each same-sample pair once, no event with itself
                             }
-                            let rho = (cov[(jl, je)] / (sd[l][jl] * sd[k][je])).clamp(-1.0, 1.0);
-                            near += both_exceed_to(thresholds[je] / sd[k][je], thresholds[jl] / sd[l][jl], rho, 1e-6);
+                            near += pair(&cov, (l, jl), (k, je), 1e-6);
                         }
                     }
                 }
@@ -263,10 +260,8 @@ pub fn analytic_false_alarms(
                     let cov = covariance(late, early);
                     for (j, other) in others.iter_mut().enumerate() {
                         for i in (0..ny).filter(|&i| m != k || i != j) {
-                            // cov is (late, early): index it from (k, j) and (m, i).
-                            let c = if k <= m { cov[(i, j)] } else { cov[(j, i)] };
-                            let rho = (c / (sd[k][j] * sd[m][i])).clamp(-1.0, 1.0);
-                            *other += both_exceed(thresholds[j] / sd[k][j], thresholds[i] / sd[m][i], rho);
+                            let (later, earlier) = if k <= m { ((m, i), (k, j)) } else { ((k, j), (m, i)) };
+                            *other += pair(&cov, later, earlier, 1e-10);
                         }
                     }
                 }

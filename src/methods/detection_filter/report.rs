@@ -20,18 +20,19 @@ use crate::methods::detection_filter::trials::Engine;
 /// The traces of `ctx.trials`, re-simulated from the run's deck (checked by its SHA-256).
 pub fn report_part(ctx: &ReportContext) -> Result<ReportPart, RunError> {
     let mut part = ReportPart::default();
-    if let Ok(deck) = ctx.run_deck() {
-        let study = LtiStudy::load(&deck).map_err(|e| RunError::Invalid(e.to_string()))?;
-        if let Some(section) = analytic_section(ctx, &study)? {
-            part.sections.push(("False alarms without simulating".into(), section));
-        }
+    // Without the run's deck there are no bounds; asked-for traces then refuse it by name below.
+    let study = match ctx.run_deck() {
+        Ok(deck) => Some(LtiStudy::load(&deck).map_err(|e| RunError::Invalid(e.to_string()))?),
+        Err(_) => None,
+    };
+    if let Some(section) = study.as_ref().map(|s| analytic_section(ctx, s)).transpose()?.flatten() {
+        part.sections.push(("False alarms without simulating".into(), section));
     }
     if ctx.trials.is_empty() {
         return Ok(part);
     }
     let m = ctx.manifest;
-    let deck = ctx.run_deck()?;
-    let mut study = LtiStudy::load(&deck).map_err(|e| RunError::Invalid(e.to_string()))?;
+    let Some(mut study) = study else { return ctx.run_deck().map(|_| part) };
     study.header.seed = m.seed;
     study.monte_carlo.common.trials = m.trials;
     let engine = Engine::new(&study);
@@ -57,29 +58,17 @@ pub fn report_part(ctx: &ReportContext) -> Result<ReportPart, RunError> {
 /// the run saw there (`tail.csv`: the observed count and the tail fit), or why the deck has none.
 fn analytic_section(ctx: &ReportContext, study: &LtiStudy) -> Result<Option<String>, RunError> {
     use crate::engine::report::html;
-    use polars::prelude::*;
+    use polars::prelude::df;
     let calibrated = read_thresholds(&ctx.dir.join("thresholds.csv")).map(|t| t.detectors).unwrap_or_default();
+    // What the run saw at each set's thresholds: tail.csv's `pfa_at_thresholds` rows (none from a
+    // summary written before it).
     let tail = crate::engine::tables::read_summary(&ctx.dir.join("tail.csv")).ok();
     let tail_row = |detector: &str, set: &str| -> Option<(f64, f64, f64, f64, f64)> {
-        let t = tail.as_ref()?;
-        let s =
-            |c: &str| t.column(c).ok().and_then(|c| c.cast(&DataType::String).ok()).and_then(|c| c.str().ok().cloned());
-        let f = |c: &str| {
-            t.column(c).ok().and_then(|c| c.cast(&DataType::Float64).ok()).and_then(|c| c.f64().ok().cloned())
-        };
-        let (d, th, q, pfa, lo, hi, obs, n) = (
-            s("detector")?,
-            s("thresholds")?,
-            s("query")?,
-            f("pfa")?,
-            f("pfa_lo")?,
-            f("pfa_hi")?,
-            f("observed_false_alarms")?,
-            f("trials")?,
-        );
-        let i = (0..t.height())
-            .find(|&i| d.get(i) == Some(detector) && th.get(i) == Some(set) && q.get(i) == Some("pfa_at_thresholds"))?;
-        Some((obs.get(i)?, n.get(i)?, pfa.get(i)?, lo.get(i)?, hi.get(i)?))
+        let t = crate::engine::tables::Table(tail.as_ref()?);
+        let (d, th, q) = (t.strs("detector"), t.strs("thresholds"), t.strs("query"));
+        let i = (0..d.len()).find(|&i| d[i] == detector && th[i] == set && q[i] == "pfa_at_thresholds")?;
+        let v = |c: &str| t.f64s(c)[i];
+        Some((v("observed_false_alarms"), v("trials"), v("pfa"), v("pfa_lo"), v("pfa_hi")))
     };
     let mut rows: Vec<[String; 6]> = Vec::new();
     let mut why = None;
