@@ -91,6 +91,68 @@ fn analytic_false_alarm_bounds_bracket_the_brute_force() {
     assert!(out.contains("false alarms, analytic: not computed: the deck draws parameter errors"), "{out}");
 }
 
+/// Rare-event simulation (issue 23, item 2): `fdimc rare-event` on the bundled rare-false-alarm deck
+/// meets the analytic answer (6.524e-5 and 6.198e-6 per trial, the bounds meet there) within its
+/// interval, writes the same table for any thread count, and refuses what does not apply (exit 2).
+#[test]
+fn rare_event_meets_the_analytic_answer_and_refuses_what_does_not_apply() {
+    let dir = tempfile::tempdir().unwrap();
+    let deck = "studies/seed000_rare_false_alarms.toml";
+    let mut tables = Vec::new();
+    for threads in ["1", "2"] {
+        let out = dir.path().join(format!("t{threads}"));
+        let args = ["rare-event", deck, "--levels", "1.5,1", "--trials", "6000", "--quiet", "--threads", threads];
+        ok(&fdimc(&[&args[..], &["--out", out.to_str().unwrap()]].concat()));
+        tables.push(std::fs::read_to_string(out.join("rare_event.csv")).unwrap());
+    }
+    assert_eq!(tables[0], tables[1], "the same numbers for 1 and 2 threads");
+    let rows: Vec<Vec<&str>> = tables[0].lines().map(|l| l.split(',').collect()).collect();
+    let at = |name: &str| rows[0].iter().position(|c| *c == name).unwrap();
+    assert_eq!(rows.len(), 1 + 4, "2 detectors x 2 levels:\n{}", tables[0]);
+    for (row, exact) in [(&rows[1], 6.524e-5), (&rows[3], 6.198e-6)] {
+        assert_eq!(row[at("threshold_scale")], "1.0", "levels ascending");
+        let v = |name: &str| row[at(name)].parse::<f64>().unwrap();
+        assert!(v("pfa_per_trial_lo") <= exact && exact <= v("pfa_per_trial_hi"), "{row:?} vs {exact}");
+        assert!(v("plain_steps_same_precision") > 10.0 * v("steps_simulated"), "{row:?}");
+    }
+    let out = dir.path().join("split");
+    let split = ok(&fdimc(&[
+        "rare-event",
+        deck,
+        "--estimator",
+        "splitting",
+        "--particles",
+        "20",
+        "--replicas",
+        "4",
+        "--levels",
+        "0.8",
+        "--detector",
+        "seed_x124",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert!(split.contains("seed_x124") && split.contains("replicas"), "{split}");
+    assert_eq!(std::fs::read_to_string(out.join("rare_event.csv")).unwrap().lines().count(), 2);
+    for (args, says) in [
+        (&["--levels", "0"][..], "--levels 0"),
+        (&["--particles", "50"][..], "--particles does not apply to --estimator importance"),
+        (&["--estimator", "splitting", "--trials", "100"][..], "--trials does not apply to --estimator splitting"),
+        (&["--detector", "nope"][..], "seed_x116, seed_x124"),
+    ] {
+        let out = fdimc(&[&["rare-event", deck][..], args].concat());
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", text(&out.stderr));
+        assert!(text(&out.stderr).contains(says), "{args:?}: {}", text(&out.stderr));
+    }
+    let out = fdimc(&["rare-event", "studies/ci_seed002.toml"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("fdimc rare-event applies to detection_filter studies"),
+        "{}",
+        text(&out.stderr)
+    );
+}
+
 /// Issue 19: a 24-state plant measured at 8 states (`tests/data/plant24_outputs8.toml`, written by
 /// `scripts/plant_deck.py --states 24 --outputs 8 --seed 1 --trials 256`) with `fault_directions` (r = 8 < n)
 /// is observable, designs (the 8 assigned eigenvalues among the 24, residual and conditioning reported,

@@ -156,6 +156,47 @@ Precision: `--precision 0.01 --precision-rates pd,pfa --trials 1000000` runs unt
         #[arg(long, value_name = "THRESHOLDS_CSV")]
         thresholds: Option<PathBuf>,
     },
+    /// Estimate false-alarm probabilities far below 1 / trials (1e-5 .. 1e-20 per trial) by simulation, unbiased:
+    /// importance sampling on the sensor noise (default; statistics without memory) or adaptive
+    /// multilevel splitting (statistics with memory: a CUSUM, a windowed test). Writes rare_event.csv.
+    #[command(after_help = "Example: fdimc rare-event studies/seed000_rare_false_alarms.toml --levels 1,1.2,1.4\n\
+Every trial is fault-free (the deck's faults are removed; its noise scale and parameter errors stay). A level is a \
+threshold scale: the detector alarms when a statistic exceeds its deck threshold times the level. The same deck, \
+seed and options give the same numbers for any --threads.")]
+    RareEvent {
+        /// Study deck (TOML).
+        deck: PathBuf,
+        /// The detector to study (default: every one of the deck).
+        #[arg(long)]
+        detector: Option<String>,
+        /// importance (sensor-noise importance sampling) or splitting (adaptive multilevel splitting).
+        #[arg(long, default_value = "importance", value_parser = ["importance", "splitting"])]
+        estimator: String,
+        /// Threshold scales to estimate at (the deck's thresholds times each), e.g. 1,1.2,1.4.
+        #[arg(long, value_name = "S,...", value_delimiter = ',', default_value = "1")]
+        levels: Vec<f64>,
+        /// Importance sampling: trials, the first fifth a pilot that tunes the mixture [default: 20000].
+        #[arg(long)]
+        trials: Option<u64>,
+        /// Splitting: particles per replica [default: 100].
+        #[arg(long)]
+        particles: Option<usize>,
+        /// Splitting: independent replicas, whose spread gives the interval [default: 16].
+        #[arg(long)]
+        replicas: Option<u64>,
+        /// Study seed (default: the deck's study.seed).
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Worker threads (default: one per core).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Results folder (default: results/<study name>/rare_event).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// No progress or pilot lines.
+        #[arg(long)]
+        quiet: bool,
+    },
     /// Join the results folders of all shards of one run into one, then summarize.
     Merge {
         /// Shard results folders (any order).
@@ -269,6 +310,31 @@ pub fn run(cli: Cli) -> ExitCode {
             classifiers: classifiers.as_deref(),
         })
         .map(|_| ()),
+        Command::RareEvent {
+            deck,
+            detector,
+            estimator,
+            levels,
+            trials,
+            particles,
+            replicas,
+            seed,
+            threads,
+            out,
+            quiet,
+        } => run::exec_rare_event(run::RareEventArgs {
+            deck: &deck,
+            detector,
+            estimator: &estimator,
+            levels,
+            trials,
+            particles,
+            replicas,
+            seed,
+            threads,
+            out,
+            quiet,
+        }),
         Command::Summarize { dir, target_pfa, confidence, target_pfa_per_hour, thresholds } => {
             run::exec_summarize(&dir, target_pfa, target_pfa_per_hour, confidence, thresholds.as_deref())
         }

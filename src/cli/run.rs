@@ -387,6 +387,78 @@ pub fn exec_design(deck: &Path, json: bool) -> Result<(), CliError> {
     Ok(study.design(json)?)
 }
 
+/// `fdimc rare-event`'s arguments as given.
+pub struct RareEventArgs<'a> {
+    pub deck: &'a Path,
+    pub detector: Option<String>,
+    pub estimator: &'a str,
+    pub levels: Vec<f64>,
+    pub trials: Option<u64>,
+    pub particles: Option<usize>,
+    pub replicas: Option<u64>,
+    pub seed: Option<u64>,
+    pub threads: Option<usize>,
+    pub out: Option<PathBuf>,
+    pub quiet: bool,
+}
+
+/// `fdimc rare-event`: checks the options (each estimator's own, the others refused), then runs.
+pub fn exec_rare_event(a: RareEventArgs) -> Result<(), CliError> {
+    use crate::engine::rare_event::{Estimator, RareEventOptions};
+    use crate::engine::streams::{MAX_REPLICA, MAX_TRIAL};
+    let bad = |m: String| Err(CliError::Invalid(m));
+    let estimator = if a.estimator == "splitting" { Estimator::Splitting } else { Estimator::Importance };
+    let (own, other): (&[(&str, bool)], &[(&str, bool)]) = (
+        &[("--trials", a.trials.is_some())],
+        &[("--particles", a.particles.is_some()), ("--replicas", a.replicas.is_some())],
+    );
+    let refused = if estimator == Estimator::Splitting { own } else { other };
+    if let Some((flag, _)) = refused.iter().find(|(_, given)| *given) {
+        return bad(format!("{flag} does not apply to --estimator {}", estimator.name()));
+    }
+    if a.threads == Some(0) {
+        return bad("--threads 0: give at least 1 (or leave it out for one per core)".into());
+    }
+    let mut levels = a.levels.clone();
+    if let Some(l) = levels.iter().find(|l| !(l.is_finite() && **l > 0.0)) {
+        return bad(format!("--levels {l}: a level is a threshold scale, allowed > 0"));
+    }
+    levels.sort_by(f64::total_cmp);
+    levels.dedup();
+    let trials = a.trials.unwrap_or(20_000);
+    if !(10..=MAX_TRIAL).contains(&trials) {
+        return bad(format!("--trials {trials}: allowed 10 (a fifth is the pilot) to {MAX_TRIAL}"));
+    }
+    let particles = a.particles.unwrap_or(100);
+    let replicas = a.replicas.unwrap_or(16);
+    if !(2..=1_000_000).contains(&particles) {
+        return bad(format!("--particles {particles}: allowed 2 to 1000000"));
+    }
+    if !(2..=MAX_REPLICA).contains(&replicas) {
+        return bad(format!("--replicas {replicas}: allowed 2 (an interval needs two) to {MAX_REPLICA}"));
+    }
+    let (method, mut study) = load(a.deck, None)?;
+    method::require(REGISTRY, method, Opt::RareEvent)?;
+    if let Some(seed) = a.seed {
+        *study.seed_and_trials().0 = seed;
+    }
+    let opts = RareEventOptions {
+        estimator,
+        detector: a.detector,
+        levels,
+        trials,
+        particles,
+        replicas,
+        out: a.out.unwrap_or_else(|| PathBuf::from("results").join(&study.header().name).join("rare_event")),
+        quiet: a.quiet,
+    };
+    runner::thread_pool(a.threads)?.install(|| study.rare_event(&opts))?;
+    if !a.quiet {
+        println!("wrote {}", opts.out.join("rare_event.csv").display());
+    }
+    Ok(())
+}
+
 pub fn exec_simulate(
     deck: &Path,
     trial: u64,

@@ -101,6 +101,8 @@ pub enum Opt {
     Classifiers,
     /// `fdimc design`: the kind has a gain design to show.
     Design,
+    /// `fdimc rare-event`: the kind's fault-free trials run as rare-event paths.
+    RareEvent,
 }
 
 impl Opt {
@@ -110,6 +112,7 @@ impl Opt {
             Opt::Thresholds => "--target-pfa / --thresholds",
             Opt::Classifiers => "--classifiers / fdimc train",
             Opt::Design => "fdimc design",
+            Opt::RareEvent => "fdimc rare-event",
         }
     }
 }
@@ -137,6 +140,10 @@ pub trait Study: Sync {
     /// `fdimc design` ([`Opt::Design`]): prints the detectors' gains.
     fn design(&self, _json: bool) -> Result<(), RunError> {
         Err(RunError::Internal("this kind lists no design".into()))
+    }
+    /// `fdimc rare-event` ([`Opt::RareEvent`]): estimates, writes and prints rare false alarms.
+    fn rare_event(&self, _opts: &super::rare_event::RareEventOptions) -> Result<(), RunError> {
+        Err(RunError::Internal("this kind lists no rare-event paths".into()))
     }
     /// `fdimc train` ([`Opt::Classifiers`]): trains what the study evaluates and writes it to `out`.
     fn train(&self, _out: Option<&Path>) -> Result<(), RunError> {

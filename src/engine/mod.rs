@@ -13,6 +13,7 @@ pub mod paired;
 pub mod progress;
 pub mod quantiles;
 pub mod rare;
+pub mod rare_event;
 pub mod report;
 pub mod runner;
 pub mod scenario;

@@ -74,6 +74,14 @@ pub(crate) fn io(file: &Path) -> impl FnOnce(std::io::Error) -> RunError + '_ {
     move |source| RunError::Io { file: file.into(), source }
 }
 
+/// The worker pool of a command: `threads` workers, or one per core.
+pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, RunError> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.unwrap_or(0))
+        .build()
+        .map_err(|e| RunError::Internal(format!("thread pool: {e}")))
+}
+
 pub(crate) fn pol(file: &Path) -> impl FnOnce(PolarsError) -> RunError + '_ {
     move |source| RunError::Polars { file: file.into(), source }
 }
@@ -409,10 +417,7 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
     std::fs::create_dir_all(dir.join("parts")).map_err(io(dir))?;
     manifest.write(dir)?;
 
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(opts.threads.unwrap_or(0))
-        .build()
-        .map_err(|e| RunError::Internal(format!("thread pool: {e}")))?;
+    let pool = thread_pool(opts.threads)?;
     let bar = Progress::new(&manifest.study, end - first, opts.progress);
 
     // Simulation and output overlap: a writer thread encodes chunk k (its part file, then its rows

@@ -47,6 +47,44 @@ pub fn noise_rng(seed: u64, trial: u64, substream: Substream) -> NoiseRng {
     NoiseRng::from_rng(&mut trial_rng(seed, trial, substream))
 }
 
+/// The streams of one branch of a splitting replica ([`super::splitting`]): the survivor choices (branch
+/// 0) and the new noise of a branch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u64)]
+pub enum BranchStream {
+    Choice = 0,
+    Sensor = 1,
+    Process = 2,
+}
+
+/// Largest splitting replica index and branch count with their own streams.
+pub const MAX_REPLICA: u64 = (1 << 22) - 2;
+pub const MAX_BRANCH: u64 = (1 << 40) - 1;
+
+/// The ChaCha8 of `stream` of branch `branch` of splitting replica `replica`. Its key is drawn from
+/// the study seed's stream `u64::MAX`, which no trial uses (trials end at `4 MAX_TRIAL + 3`), so branch
+/// noise never repeats a trial's.
+#[track_caller]
+pub fn branch_rng(seed: u64, replica: u64, branch: u64, stream: BranchStream) -> ChaCha8Rng {
+    assert!(replica <= MAX_REPLICA + 1 && branch <= MAX_BRANCH, "replica {replica} / branch {branch} out of range");
+    let mut keyed = ChaCha8Rng::seed_from_u64(seed);
+    keyed.set_stream(u64::MAX);
+    let mut rng = ChaCha8Rng::from_rng(&mut keyed);
+    rng.set_stream((((replica << 40) | branch) << 2) | stream as u64);
+    rng
+}
+
+/// The stream of trial `trial`'s importance-sampling choice (which sample's noise is inflated): the
+/// splitting's domain, replica [`MAX_REPLICA`] + 1 (reserved for it), branch `trial`.
+pub fn importance_rng(seed: u64, trial: u64) -> ChaCha8Rng {
+    branch_rng(seed, MAX_REPLICA + 1, trial & MAX_BRANCH, BranchStream::Choice)
+}
+
+/// The noise generator of `stream` of a splitting branch (as [`noise_rng`] is of a trial).
+pub fn branch_noise(seed: u64, replica: u64, branch: u64, stream: BranchStream) -> NoiseRng {
+    NoiseRng::from_rng(&mut branch_rng(seed, replica, branch, stream))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -62,5 +100,10 @@ mod tests {
             trial_rng(7, 0, Substream::Scenario).random::<u64>(),
             trial_rng(8, 0, Substream::Scenario).random::<u64>()
         );
+        let branch = |r, b, s| branch_rng(7, r, b, s).random::<u64>();
+        assert_eq!(branch(2, 5, BranchStream::Sensor), branch(2, 5, BranchStream::Sensor));
+        assert_ne!(branch(2, 5, BranchStream::Sensor), branch(2, 6, BranchStream::Sensor));
+        assert_ne!(branch(2, 5, BranchStream::Sensor), branch(3, 5, BranchStream::Sensor));
+        assert_ne!(branch(2, 5, BranchStream::Sensor), branch(2, 5, BranchStream::Process));
     }
 }

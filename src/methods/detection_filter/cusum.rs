@@ -38,6 +38,7 @@ impl ResidualTest for Cusum {
     }
 }
 
+#[derive(Clone)]
 struct CusumState {
     drift: Vec<f64>,
     g: Vec<f64>,
@@ -51,6 +52,10 @@ impl TestState for CusumState {
             self.g[j] = if g.is_finite() { g.max(0.0) } else { g };
             statistic[j] = self.g[j];
         }
+    }
+
+    fn fork(&self) -> Option<Box<dyn TestState>> {
+        Some(Box::new(self.clone()))
     }
 }
 

@@ -32,6 +32,11 @@ pub trait TestState {
     /// Writes each output's statistic after residual sample `residual` (both of the filter's output
     /// count); a statistic must be >= 0 and grow with the evidence of a fault.
     fn step(&mut self, residual: &[f64], statistic: &mut [f64]);
+    /// A copy of this memory, for `fdimc rare-event`'s splitting (which copies trials mid-way); a test
+    /// that does not give one is refused there with a message, and runs everywhere else.
+    fn fork(&self) -> Option<Box<dyn TestState>> {
+        None
+    }
 }
 
 /// The statistics the lane path computes per output.
@@ -111,6 +116,10 @@ impl TestState for Absolute {
         for (s, r) in statistic.iter_mut().zip(residual) {
             *s = r.abs();
         }
+    }
+
+    fn fork(&self) -> Option<Box<dyn TestState>> {
+        Some(Box::new(Absolute))
     }
 }
 

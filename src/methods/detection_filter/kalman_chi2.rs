@@ -109,6 +109,7 @@ impl ResidualTest for WindowedNis {
     }
 }
 
+#[derive(Clone)]
 struct NisState {
     s_inv: DMatrix<f64>,
     recent: VecDeque<f64>,
@@ -127,6 +128,10 @@ impl TestState for NisState {
         }
         // Summed anew each sample (a short window), so no rounding accumulates over a long trial.
         statistic.fill(self.recent.iter().sum());
+    }
+
+    fn fork(&self) -> Option<Box<dyn TestState>> {
+        Some(Box::new(self.clone()))
     }
 }
 

@@ -10,6 +10,7 @@ pub mod kalman_chi2;
 pub mod kernel;
 pub mod lanes;
 pub mod normals;
+pub mod rare_event;
 pub mod records;
 pub mod report;
 pub mod scenario;
@@ -36,7 +37,7 @@ pub static METHOD: Method = Method {
     kind: KIND,
     marker: "plant",
     title: "eigenstructure-assigned detection filters on an LTI plant, sensor faults (method 000)",
-    options: &[Opt::Thresholds, Opt::Design],
+    options: &[Opt::Thresholds, Opt::Design, Opt::RareEvent],
     load: |text, path| Ok(Box::new(LtiStudy::from_toml(text, path)?)),
     summary: SummarySpec {
         extra_keys: &[],
@@ -73,6 +74,9 @@ impl Study for LtiStudy {
     }
     fn run(&self, opts: &RunOptions, _: Inputs) -> Result<RunReport, RunError> {
         run_study(self, opts)
+    }
+    fn rare_event(&self, opts: &crate::engine::rare_event::RareEventOptions) -> Result<(), RunError> {
+        rare_event::run(self, opts)
     }
 }
 use trials::{Engine, TrialResult};

@@ -24,6 +24,8 @@ use nalgebra::DVector;
 use rand::RngExt;
 use rand_distr::StandardNormal;
 
+use crate::engine::noise::NoiseRng;
+use crate::engine::rare_event::Condition;
 use crate::engine::streams::{Substream, noise_rng};
 use crate::fault::ActiveFaults;
 use crate::methods::detection_filter::filter::DetectionFilter;
@@ -189,15 +191,7 @@ pub fn run_trial(
 
     for k in 0..s.header.steps {
         let t = k as f64 * s.header.dt_s;
-        let r = plant_state.reference_mut();
-        r.fill(0.0);
-        for e in &s.excitations {
-            r[e.input] += e.value(t);
-        }
-        plant.measure(&plant_state, &mut y);
-        for (yj, sigma) in y.iter_mut().zip(sensor_sigma.as_slice()) {
-            *yj += sigma * sensor_rng.sample::<f64, _>(StandardNormal);
-        }
+        measure(s, plant, &mut plant_state, t, sensor_sigma.as_slice(), &mut sensor_rng, &mut y, None);
         faults.apply(t, &mut y);
         plant.close_loop(&mut plant_state, &y);
         let u = plant_state.inputs();
@@ -220,18 +214,70 @@ pub fn run_trial(
             }
         }
 
-        plant.advance(&mut plant_state, |x_next| {
-            if has_process_noise {
-                for (xi, sigma) in x_next.iter_mut().zip(s.process_sigma_per_step.as_slice()) {
-                    *xi += sigma * process_rng.sample::<f64, _>(StandardNormal);
-                }
-            }
-        });
+        advance(s, plant, &mut plant_state, &mut process_rng, has_process_noise);
     }
     if let Some(rec) = rec {
         rec.finish();
     }
     trackers.into_iter().zip(filters).map(|(tr, (design, _))| tr.finish(design)).collect()
+}
+
+/// Sample `k`'s measurement at `t = k dt`: the excitation into the reference, `y = C x + D r`, then
+/// each output's sensor noise `sigma_j z_j`, `z_j` standard normal. Under importance sampling (`rare`:
+/// the sample's condition if it has one, and where to write the `z_j`) the draws go through the
+/// condition first.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+pub(super) fn measure(
+    s: &LtiStudy,
+    plant: &PlantStep,
+    state: &mut PlantState<f64>,
+    t: f64,
+    sensor_sigma: &[f64],
+    rng: &mut NoiseRng,
+    y: &mut [f64],
+    rare: Option<(Option<&Condition>, &mut [f64])>,
+) {
+    let r = state.reference_mut();
+    r.fill(0.0);
+    for e in &s.excitations {
+        r[e.input] += e.value(t);
+    }
+    plant.measure(state, y);
+    match rare {
+        None => {
+            for (yj, sigma) in y.iter_mut().zip(sensor_sigma) {
+                *yj += sigma * rng.sample::<f64, _>(StandardNormal);
+            }
+        }
+        Some((condition, draws)) => {
+            draws.iter_mut().for_each(|z| *z = rng.sample::<f64, _>(StandardNormal));
+            if let Some(c) = condition {
+                c.apply(draws);
+            }
+            for ((yj, sigma), z) in y.iter_mut().zip(sensor_sigma).zip(draws.iter()) {
+                *yj += sigma * z;
+            }
+        }
+    }
+}
+
+/// The plant's step to the next sample, with process noise when the deck has any.
+#[inline]
+pub(super) fn advance(
+    s: &LtiStudy,
+    plant: &PlantStep,
+    state: &mut PlantState<f64>,
+    rng: &mut NoiseRng,
+    process_noise: bool,
+) {
+    plant.advance(state, |x_next| {
+        if process_noise {
+            for (xi, sigma) in x_next.iter_mut().zip(s.process_sigma_per_step.as_slice()) {
+                *xi += sigma * rng.sample::<f64, _>(StandardNormal);
+            }
+        }
+    });
 }
 
 /// Collects trace columns: `t_s`, `u_<input>`, `y_<output>` (measured), `yhat_<output>`,

@@ -140,6 +140,18 @@ impl<'a> Engine<'a> {
         run_trial(s, &plant, spec, &filters, trace)
     }
 
+    /// Trial `spec`'s true plant and detector `detector`'s design for the one-trial path.
+    pub fn one_trial_models(
+        &self,
+        spec: &TrialSpec,
+        detector: usize,
+    ) -> Result<(PlantStep, DetectionFilter, FilterStep), DesignError> {
+        let plant = PlantStep::new(&self.plant_patterns, &[Some(&*self.truth(spec))], &self.study.output_feedback);
+        let design = self.designs(spec).swap_remove(detector)?.into_owned();
+        let step = FilterStep::new(&self.filter_patterns[detector], &[Some(&design)]);
+        Ok((plant, design, step))
+    }
+
     /// Runs every detector configuration on trial `trial`, one trial at a time (the general path).
     pub fn run(&self, trial: u64) -> TrialResult {
         let spec = self.spec(trial);

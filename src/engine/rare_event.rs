@@ -1,0 +1,974 @@
+//! Rare false alarms by simulation, unbiased: the probability that a fault-free trial's detection
+//! statistic ever exceeds a level, far below what plain trials reach. Two estimators on one model of a
+//! trial ([`RareEventModel`]: a Markov path that steps one sample at a time and reports the sample's
+//! score, the statistic over its threshold, so the detector alarms at threshold scale `s` when a score
+//! exceeds `s`).
+//!
+//! **Importance sampling on the sensor noise** ([`importance_adaptive`]), for statistics without
+//! memory (the seed's `|residual|`, a one-sample chi-square test). Each trial picks a sample `tau`
+//! and a pair from a mixture: a component of the sample's `m` sensor draws (one draw `j`, or all of
+//! them) and a tail probability `P` (half decades, 1e-1 to 1e-24); it takes that component from the
+//! normal law conditioned beyond its `P` tail (`z_j^2`, or `sum_j z_j^2`, past the chi-square(1 or
+//! m) quantile), every other draw as usual. A 5 % share of plain trials keeps every path possible.
+//! The trial's alarm counts with the likelihood ratio of the whole mixture over samples and pairs,
+//! `1 / (plain + sum_i alpha_i W_i / N)`, where `W_i` sums, over the samples, `1 / P_i` where the
+//! sample's component passes pair `i`'s square and 0 elsewhere: bounded, so no single trial swamps
+//! the estimate. One draw suits a test per output (`|r_j|`), all draws a test on their sum of squares
+//! (a chi-square). A pilot (the first fifth of the trials, pairs alike) sets the pairs' weights
+//! `alpha_i` by one variance-minimising step; the rest's estimate is unbiased for those weights. A
+//! trial depends only on its index, as every plain trial does. What this cannot see: an alarm that
+//! needs several samples' noise at once (a residual much more coloured than white); there the
+//! weights of the few trials that reach it spread, the interval is wide or, worse, too narrow, and
+//! the analytic bounds (LTI decks) or splitting (statistics with memory) are the checks.
+//!
+//! **Adaptive multilevel splitting (AMS)** ([`splitting`]), for statistics with memory (a CUSUM, a
+//! windowed test), where a path that has climbed part way is closer to the alarm (Cérou and Guyader
+//! 2007, in the generalised form of Bréhier, Gazeau, Goudenège, Lelièvre and Rousset 2016 that stays
+//! unbiased with ties and discrete time). One replica:
+//! 1. run `n` particles, each a fault-free trial from its start; a particle's score is its running
+//!    maximum at the end of the trial;
+//! 2. the level `Z` is the smallest score; kill every particle at or below it (`K` of them, ties
+//!    included; all `n`: the estimate is 0 from here on) and multiply the estimate by `1 - K / n`;
+//! 3. each killed particle is replaced by a copy of a survivor (drawn uniformly) taken at the first
+//!    sample where the survivor's running maximum exceeded `Z`, which then continues with noise of
+//!    its own;
+//! 4. repeat until `Z` reaches the level asked; the estimate at level `L` is the product so far times
+//!    the fraction of particles whose score exceeds `L`, read at the first iteration whose `Z >= L`.
+//!
+//! The running maximum only rises at a record, so each particle keeps a snapshot of its path at each
+//! of its records above the current level: branching costs a copy, not a replay. On a memoryless
+//! statistic the splitting is still unbiased but degenerates: a copy taken at `Z` is no closer to a
+//! higher level than a fresh trial, families of copies tie and die together, and most replicas end at
+//! 0 (the tests show it on white noise).
+//!
+//! Replica `r` starts its particles from the study's trials `r n .. (r + 1) n` (faults removed) and
+//! draws branch noise and survivor choices from streams keyed by `(seed, r)`
+//! ([`super::streams::branch_rng`]): its numbers depend on nothing else, not on threads, not on
+//! which shard ran it. Both estimators' 95 % intervals are Student's t on the spread of independent
+//! unbiased units (trials, or replicas).
+
+use rand::RngExt;
+use rayon::prelude::*;
+use statrs::distribution::{ContinuousCDF, StudentsT};
+
+use super::intervals::Z95;
+use super::noise::NoiseRng;
+use super::streams::{BranchStream, branch_noise, branch_rng, importance_rng};
+
+/// Importance sampling's change to one sample: its sensor draw `draw` (or, `None`, all its draws)
+/// taken from the normal law conditioned on its square (their sum of squares) exceeding
+/// `min_square`, whose probability is `tail`; `u`, uniform in (0, 1), picks the point of that
+/// conditioned tail (the direction stays the draws' own).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Condition {
+    pub draw: Option<usize>,
+    pub min_square: f64,
+    pub tail: f64,
+    pub u: f64,
+}
+
+impl Condition {
+    /// Turns standard normal `draws` into the conditioned ones.
+    pub fn apply(&self, draws: &mut [f64]) {
+        match self.draw {
+            Some(j) => {
+                let s = chi2_isf(1, self.u * self.tail);
+                draws[j] = if draws[j] < 0.0 { -s.sqrt() } else { s.sqrt() };
+            }
+            None => {
+                let s = chi2_isf(draws.len(), self.u * self.tail);
+                let r = draws.iter().map(|z| z * z).sum::<f64>().sqrt();
+                draws.iter_mut().for_each(|z| *z *= s.sqrt() / r);
+            }
+        }
+    }
+}
+
+/// P(chi-square(d) > x).
+pub fn chi2_sf(d: usize, x: f64) -> f64 {
+    if x <= 0.0 { 1.0 } else { statrs::function::gamma::gamma_ur(d as f64 / 2.0, x / 2.0) }
+}
+
+/// The x with P(chi-square(d) > x) = p (0 < p < 1): Newton on ln P inside a shrinking bracket, to
+/// 1e-12 in ln P.
+pub fn chi2_isf(d: usize, p: f64) -> f64 {
+    let a = d as f64 / 2.0;
+    let ln_p = p.ln();
+    let ln_norm = a * std::f64::consts::LN_2 + statrs::function::gamma::ln_gamma(a);
+    let (mut lo, mut hi) = (0.0f64, 2.0 * d as f64 + 10.0);
+    while chi2_sf(d, hi) > p {
+        lo = hi;
+        hi *= 2.0;
+    }
+    let mut x = 0.5 * (lo + hi);
+    for _ in 0..200 {
+        let ln_sf = chi2_sf(d, x).ln();
+        let miss = ln_sf - ln_p;
+        if miss.abs() < 1e-12 {
+            break;
+        }
+        if miss > 0.0 {
+            lo = x
+        } else {
+            hi = x
+        }
+        // d ln S / dx = -pdf / S, pdf = x^(a-1) e^(-x/2) / (2^a Gamma(a)).
+        let ln_pdf = (a - 1.0) * x.ln() - x / 2.0 - ln_norm;
+        let next = x + miss * (ln_sf - ln_pdf).exp();
+        x = if next > lo && next < hi { next } else { 0.5 * (lo + hi) };
+    }
+    x
+}
+
+/// A fault-free trial as a Markov path that can be copied mid-trial.
+pub trait RareEventModel: Sync {
+    /// Everything the rest of a trial depends on: states, test memory, noise generators.
+    type Path: Clone;
+    /// Samples per trial.
+    fn steps(&self) -> usize;
+    /// Sensor-noise draws per sample (the ones importance sampling may condition).
+    fn noise_draws(&self) -> usize;
+    /// The path of trial `trial` (its own scenario and noise, faults removed) before its first sample.
+    fn start(&self, trial: u64) -> Self::Path;
+    /// Sample `k` of the path, its sensor draws (standard normals, one per output) changed by
+    /// `condition` if given. Writes the draws as used to `draws` (NaN for draws not made: a diverged
+    /// path), and returns the sample's score: the statistic over its threshold, largest over
+    /// outputs (0 once the path has diverged).
+    fn step(&self, path: &mut Self::Path, k: usize, condition: Option<&Condition>, draws: &mut [f64]) -> f64;
+    /// Gives the path new noise for its remaining samples, drawn from `rng`'s streams.
+    fn renew_noise(&self, path: &mut Self::Path, rng: &mut dyn FnMut(BranchStream) -> NoiseRng);
+}
+
+/// How to run the splitting.
+#[derive(Debug, Clone)]
+pub struct SplitOptions {
+    pub seed: u64,
+    /// Particles per replica (at least 2).
+    pub particles: usize,
+    /// Replica indices to run (a shard runs some of them).
+    pub replicas: Vec<u64>,
+    /// Threshold scales to estimate at, ascending, > 0.
+    pub levels: Vec<f64>,
+    /// Stop a replica after this many iterations (its unreached levels are reported as not reached).
+    pub max_iterations: usize,
+}
+
+/// What one replica found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReplicaResult {
+    pub replica: u64,
+    /// Per level (options order): the estimate, `None` when the iteration cap stopped the replica first.
+    pub estimates: Vec<Option<f64>>,
+    pub iterations: usize,
+    /// Samples simulated (initial trials and branches).
+    pub steps_simulated: u64,
+    /// The last level reached.
+    pub final_level: f64,
+    /// `(level Z_j, estimate of exceeding Z_j)` after each iteration: the splitting's tail curve.
+    pub curve: Vec<(f64, f64)>,
+}
+
+struct Record<P> {
+    value: f64,
+    /// The next sample to simulate from `path`.
+    next: usize,
+    path: P,
+}
+
+struct Particle<P> {
+    score: f64,
+    /// Snapshots at the running maximum's records, ascending; only those above the current level.
+    records: Vec<Record<P>>,
+}
+
+/// Runs `path` from sample `from` to the trial's end with running maximum `max`; the records it sets
+/// go to `records`. Returns the final score and the samples simulated.
+fn finish_path<M: RareEventModel>(
+    model: &M,
+    mut path: M::Path,
+    from: usize,
+    mut max: f64,
+    records: &mut Vec<Record<M::Path>>,
+) -> (f64, u64) {
+    let steps = model.steps();
+    let mut draws = vec![0.0; model.noise_draws()];
+    for k in from..steps {
+        let v = model.step(&mut path, k, None, &mut draws);
+        if v > max {
+            max = v;
+            records.push(Record { value: v, next: k + 1, path: path.clone() });
+        }
+    }
+    (max, (steps - from) as u64)
+}
+
+/// One replica of AMS (see the module docs).
+pub fn splitting_replica<M: RareEventModel>(model: &M, opts: &SplitOptions, replica: u64) -> ReplicaResult {
+    let n = opts.particles;
+    let mut steps_simulated = 0u64;
+    let mut particles: Vec<Particle<M::Path>> = (0..n as u64)
+        .map(|i| {
+            let mut records = Vec::new();
+            let (score, cost) = finish_path(model, model.start(replica * n as u64 + i), 0, 0.0, &mut records);
+            steps_simulated += cost;
+            Particle { score, records }
+        })
+        .collect();
+    let mut choose = branch_rng(opts.seed, replica, 0, BranchStream::Choice);
+    let mut branches = 0u64;
+    let mut estimate = 1.0f64;
+    let mut estimates: Vec<Option<f64>> = vec![None; opts.levels.len()];
+    let mut curve = Vec::new();
+    let mut iterations = 0usize;
+    let mut level = f64::NEG_INFINITY;
+    loop {
+        let z = particles.iter().map(|p| p.score).fold(f64::INFINITY, f64::min);
+        // Levels reached: read off before killing (the fraction above each among the n particles).
+        for (l, e) in opts.levels.iter().zip(estimates.iter_mut()) {
+            if e.is_none() && z >= *l {
+                let above = particles.iter().filter(|p| p.score > *l).count();
+                *e = Some(estimate * above as f64 / n as f64);
+            }
+        }
+        level = level.max(z);
+        if estimates.iter().all(Option::is_some) || iterations >= opts.max_iterations {
+            break;
+        }
+        let killed: Vec<usize> = (0..n).filter(|&i| particles[i].score <= z).collect();
+        if killed.len() == n {
+            // Every particle ties at the lowest score: none gets past it, the estimate is 0 above it.
+            for e in estimates.iter_mut().filter(|e| e.is_none()) {
+                *e = Some(0.0);
+            }
+            break;
+        }
+        estimate *= 1.0 - killed.len() as f64 / n as f64;
+        curve.push((z, estimate));
+        iterations += 1;
+        let survivors: Vec<usize> = (0..n).filter(|&i| particles[i].score > z).collect();
+        for p in particles.iter_mut() {
+            p.records.retain(|r| r.value > z);
+        }
+        for &i in &killed {
+            let parent = &particles[survivors[choose.random_range(0..survivors.len())]];
+            // Records above z are kept ascending, so the first is where the running maximum passed z.
+            let at = &parent.records[0];
+            let (value, next) = (at.value, at.next);
+            let mut path = at.path.clone();
+            branches += 1;
+            model.renew_noise(&mut path, &mut |stream| branch_noise(opts.seed, replica, branches, stream));
+            let mut records = vec![Record { value, next, path: path.clone() }];
+            let (score, cost) = finish_path(model, path, next, value, &mut records);
+            steps_simulated += cost;
+            particles[i] = Particle { score, records };
+        }
+    }
+    ReplicaResult { replica, estimates, iterations, steps_simulated, final_level: level, curve }
+}
+
+/// Every replica of `opts`, in parallel; results in replica order.
+pub fn splitting<M: RareEventModel>(
+    model: &M,
+    opts: &SplitOptions,
+    progress: &(dyn Fn() + Sync),
+) -> Vec<ReplicaResult> {
+    opts.replicas
+        .par_iter()
+        .map(|&r| {
+            let result = splitting_replica(model, opts, r);
+            progress();
+            result
+        })
+        .collect()
+}
+
+/// Sums over independent unbiased units (trials of importance sampling, replicas of splitting) at one
+/// level, mergeable across chunks and shards in a fixed order.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Totals {
+    pub units: u64,
+    pub sum: f64,
+    pub sum_squares: f64,
+    /// Units with a non-zero value (alarms, for importance sampling).
+    pub hits: u64,
+}
+
+impl Totals {
+    pub fn add(&mut self, y: f64) {
+        self.units += 1;
+        self.sum += y;
+        self.sum_squares += y * y;
+        self.hits += u64::from(y > 0.0);
+    }
+
+    pub fn merge(&mut self, o: &Totals) {
+        self.units += o.units;
+        self.sum += o.sum;
+        self.sum_squares += o.sum_squares;
+        self.hits += o.hits;
+    }
+}
+
+/// An estimate at one level from [`Totals`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Combined {
+    pub level: f64,
+    pub units: u64,
+    pub hits: u64,
+    pub estimate: f64,
+    /// 95 % interval: mean +- t(0.975, units - 1) s / sqrt(units), clipped to [0, 1] (NaN with one unit).
+    pub low: f64,
+    pub high: f64,
+    /// Half-width over the estimate.
+    pub relative_half_width: f64,
+}
+
+impl Combined {
+    pub fn new(level: f64, t: &Totals) -> Self {
+        let n = t.units as f64;
+        let mean = t.sum / n;
+        let (low, high) = if t.units >= 2 {
+            let var = ((t.sum_squares - n * mean * mean) / (n - 1.0)).max(0.0);
+            let q = StudentsT::new(0.0, 1.0, n - 1.0).map(|d| d.inverse_cdf(0.975)).unwrap_or(f64::NAN);
+            let half = q * (var / n).sqrt();
+            // A probability: the interval stops at 1 (unless a weighted mean passed it).
+            ((mean - half).max(0.0), (mean + half).min(mean.max(1.0)))
+        } else {
+            (f64::NAN, f64::NAN)
+        };
+        Combined {
+            level,
+            units: t.units,
+            hits: t.hits,
+            estimate: mean,
+            low,
+            high,
+            relative_half_width: (high - low) / 2.0 / mean,
+        }
+    }
+
+    /// Samples plain Monte Carlo would simulate for the same 95 % half-width (`z^2 (1 - p) / (p h^2)`
+    /// trials of `steps_per_trial`); NaN without an interval.
+    pub fn plain_steps_same_precision(&self, steps_per_trial: usize) -> f64 {
+        let (p, h) = (self.estimate, (self.high - self.low) / 2.0);
+        if p > 0.0 && h > 0.0 { Z95 * Z95 * p * (1.0 - p) / (h * h) * steps_per_trial as f64 } else { f64::NAN }
+    }
+}
+
+/// The splitting replicas' totals at level index `l` (replicas that reached it).
+pub fn replica_totals(results: &[ReplicaResult], l: usize) -> Totals {
+    let mut t = Totals::default();
+    for e in results.iter().filter_map(|r| r.estimates[l]) {
+        t.add(e);
+    }
+    t
+}
+
+/// The tail probabilities of the mixture's conditions: half decades from 1e-1 to 1e-24.
+pub fn default_tails() -> Vec<f64> {
+    (2..=48).map(|i| 10f64.powf(-(i as f64) / 2.0)).collect()
+}
+
+/// The importance mixture: a plain trial (weight `plain`, never adapted: it keeps every path
+/// possible), and pairs (component, tail): one draw `j` or all draws (`parts` components), conditioned
+/// beyond the square whose tail probability is `tails[t]`; weights part-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mixture {
+    pub draws: usize,
+    pub parts: usize,
+    pub tails: Vec<f64>,
+    /// Per tail, the square it starts at, for one draw and for all draws.
+    squares: [Vec<f64>; 2],
+    pub plain: f64,
+    pub weights: Vec<f64>,
+}
+
+impl Mixture {
+    /// Every pair alike beside a 5 % plain share, for `draws` sensor draws per sample.
+    pub fn uniform(tails: &[f64], draws: usize) -> Self {
+        let parts = if draws > 1 { draws + 1 } else { 1 };
+        let k = parts * tails.len();
+        let plain = if k == 0 { 1.0 } else { 0.05 };
+        Mixture {
+            draws,
+            parts,
+            tails: tails.to_vec(),
+            squares: [
+                tails.iter().map(|&p| chi2_isf(1, p)).collect(),
+                tails.iter().map(|&p| chi2_isf(draws.max(1), p)).collect(),
+            ],
+            plain,
+            weights: vec![(1.0 - plain) / k.max(1) as f64; k],
+        }
+    }
+
+    /// Plain trials only.
+    pub fn plain(draws: usize) -> Self {
+        Mixture::uniform(&[], draws)
+    }
+
+    /// The pairs that carry most of the mixture, for the log.
+    pub fn describe(&self) -> String {
+        let mut order: Vec<usize> = (0..self.weights.len()).collect();
+        order.sort_by(|a, b| self.weights[*b].total_cmp(&self.weights[*a]));
+        let name = |i: usize| {
+            let (part, t) = (i / self.tails.len(), i % self.tails.len());
+            let what = if part < self.draws { format!("draw {part}") } else { "all draws".into() };
+            format!("{what} beyond its {:.0e} tail {:.0} %", self.tails[t], 100.0 * self.weights[i])
+        };
+        let top: Vec<String> = order.iter().take(4).map(|&i| name(i)).collect();
+        format!("importance mixture after the pilot: {}", top.join(", "))
+    }
+
+    /// One step of the variance-minimising update of a deterministic mixture (Cappé, Douc, Guillin,
+    /// Marin and Robert 2008): `alpha_i <- alpha_i E[y^2 q_i / q] / E[y^2]` from a pilot's
+    /// `contributions` ([`ImportanceTotals`]), over the pairs' share `1 - plain`; each weight at least
+    /// a tenth of uniform, so no pair is ever left out.
+    pub fn adapted(&self, contributions: &[f64]) -> Self {
+        let raw: Vec<f64> = self.weights.iter().zip(contributions).map(|(a, c)| a * c).collect();
+        let total: f64 = raw.iter().sum();
+        if !(total > 0.0) {
+            return self.clone();
+        }
+        let floor = 0.1 / self.weights.len() as f64;
+        let raw: Vec<f64> = raw.iter().map(|c| (c / total).max(floor)).collect();
+        let norm: f64 = raw.iter().sum::<f64>() / (1.0 - self.plain);
+        Mixture { weights: raw.iter().map(|w| w / norm).collect(), ..self.clone() }
+    }
+}
+
+/// Trial `trial` under the importance mixture `mix`: its weighted alarm indicator at each of `levels`
+/// into `y`, and each pair's density share into `scratch`. [`Mixture::plain`] gives a plain trial
+/// (weight 1).
+pub fn importance_trial<M: RareEventModel>(
+    model: &M,
+    seed: u64,
+    trial: u64,
+    mix: &Mixture,
+    levels: &[f64],
+    y: &mut [f64],
+    scratch: &mut TrialScratch,
+) {
+    let (n, m) = (model.steps(), model.noise_draws());
+    let nt = mix.tails.len();
+    let mut choice = importance_rng(seed, trial);
+    let tau = choice.random_range(0..n);
+    let (pick, u): (f64, f64) = (choice.random(), choice.random());
+    let mut acc = mix.plain;
+    let pair = (pick >= acc).then(|| {
+        mix.weights
+            .iter()
+            .position(|w| {
+                acc += w;
+                pick < acc
+            })
+            .unwrap_or(mix.weights.len() - 1)
+    });
+    let condition = pair.map(|i| {
+        let (part, t) = (i / nt, i % nt);
+        let one = part < m;
+        Condition {
+            draw: one.then_some(part),
+            min_square: mix.squares[usize::from(!one)][t],
+            tail: mix.tails[t],
+            u: u.max(f64::MIN_POSITIVE),
+        }
+    });
+    let mut path = model.start(trial);
+    let mut max = 0.0f64;
+    let mut draws = vec![0.0; m];
+    // Per component, how many samples passed each square (a histogram over the tail grid), and how
+    // many samples made no draws (diverged: weight 1 for every pair).
+    let hist = &mut scratch.hist;
+    hist.clear();
+    hist.resize(mix.parts * (nt + 1), 0);
+    let mut not_drawn = 0u64;
+    for k in 0..n {
+        max = max.max(model.step(&mut path, k, condition.as_ref().filter(|_| k == tau), &mut draws));
+        if nt == 0 {
+            continue;
+        }
+        if draws.iter().any(|z| !z.is_finite()) {
+            not_drawn += 1;
+            continue;
+        }
+        let total: f64 = draws.iter().map(|z| z * z).sum();
+        for part in 0..mix.parts {
+            let (sq, squares) =
+                if part < m { (draws[part] * draws[part], &mix.squares[0]) } else { (total, &mix.squares[1]) };
+            // Squares rise along the grid: count those below this sample's.
+            hist[part * (nt + 1) + squares.partition_point(|&x| x < sq)] += 1;
+        }
+    }
+    // W_i: pair i's density over p, summed over the samples (q / p = plain + sum_i alpha_i W_i / N).
+    let shares = &mut scratch.pair_share;
+    shares.clear();
+    for part in 0..mix.parts {
+        let start = shares.len();
+        shares.resize(start + nt, 0.0);
+        let mut passed = 0u64;
+        for t in (0..nt).rev() {
+            passed += hist[part * (nt + 1) + t + 1];
+            shares[start + t] = passed as f64 / mix.tails[t] + not_drawn as f64;
+        }
+    }
+    let sum: f64 = mix.plain * n as f64 + mix.weights.iter().zip(shares.iter()).map(|(a, w)| a * w).sum::<f64>();
+    let ratio = n as f64 / sum;
+    for (yl, l) in y.iter_mut().zip(levels) {
+        *yl = if max > *l { ratio } else { 0.0 };
+    }
+    shares.iter_mut().for_each(|w| *w /= sum);
+}
+
+/// A trial's buffers, kept across the trials of a chunk.
+#[derive(Default)]
+pub struct TrialScratch {
+    hist: Vec<u64>,
+    /// After [`importance_trial`]: each pair's density over the mixture's on the trial's path.
+    pub pair_share: Vec<f64>,
+}
+
+/// Trials per chunk: sums within a chunk run in trial order and chunks merge in order, so the totals
+/// do not depend on the thread count.
+pub const IMPORTANCE_CHUNK: u64 = 1024;
+
+/// What importance sampling over a range of trials gives: per level the totals, and per pair
+/// `sum y^2 q_i / q` over the trials (its part in the estimate's second moment, for the pilot).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportanceTotals {
+    pub levels: Vec<Totals>,
+    pub contributions: Vec<Vec<f64>>,
+}
+
+/// Importance sampling over `trials` with the mixture `mix`. Chunk boundaries are multiples of
+/// [`IMPORTANCE_CHUNK`] from trial 0, so any split of a range at such multiples merges to the same
+/// totals.
+pub fn importance<M: RareEventModel>(
+    model: &M,
+    seed: u64,
+    trials: std::ops::Range<u64>,
+    mix: &Mixture,
+    levels: &[f64],
+    progress: &(dyn Fn(u64) + Sync),
+) -> ImportanceTotals {
+    let first_chunk = trials.start / IMPORTANCE_CHUNK;
+    let last_chunk = trials.end.div_ceil(IMPORTANCE_CHUNK);
+    let empty = || ImportanceTotals {
+        levels: vec![Totals::default(); levels.len()],
+        contributions: vec![vec![0.0; mix.weights.len()]; levels.len()],
+    };
+    let chunks: Vec<ImportanceTotals> = (first_chunk..last_chunk)
+        .into_par_iter()
+        .map(|ch| {
+            let (a, b) = ((ch * IMPORTANCE_CHUNK).max(trials.start), ((ch + 1) * IMPORTANCE_CHUNK).min(trials.end));
+            let mut out = empty();
+            let mut y = vec![0.0; levels.len()];
+            let mut scratch = TrialScratch::default();
+            for t in a..b {
+                importance_trial(model, seed, t, mix, levels, &mut y, &mut scratch);
+                for (l, v) in y.iter().enumerate() {
+                    out.levels[l].add(*v);
+                    if *v > 0.0 {
+                        for (c, share) in out.contributions[l].iter_mut().zip(&scratch.pair_share) {
+                            *c += v * v * share;
+                        }
+                    }
+                }
+            }
+            progress(b - a);
+            out
+        })
+        .collect();
+    let mut out = empty();
+    for ch in &chunks {
+        out.merge(ch);
+    }
+    out
+}
+
+impl ImportanceTotals {
+    pub fn merge(&mut self, o: &ImportanceTotals) {
+        for (a, b) in self.levels.iter_mut().zip(&o.levels) {
+            a.merge(b);
+        }
+        for (a, b) in self.contributions.iter_mut().zip(&o.contributions) {
+            for (x, y) in a.iter_mut().zip(b) {
+                *x += y;
+            }
+        }
+    }
+
+    /// The pairs' contributions, each level where at least 10 trials alarmed counting alike (each
+    /// level's divided by its `sum y^2`), so the adapted mixture serves every level asked; `None`
+    /// when no level has 10 alarms.
+    pub fn shares(&self) -> Option<Vec<f64>> {
+        let mut out = vec![0.0; self.contributions.first()?.len()];
+        let mut any = false;
+        for (t, c) in self.levels.iter().zip(&self.contributions) {
+            if t.hits >= 10 && t.sum_squares > 0.0 {
+                any = true;
+                out.iter_mut().zip(c).for_each(|(o, x)| *o += x / t.sum_squares);
+            }
+        }
+        any.then_some(out)
+    }
+}
+
+/// Importance sampling as `fdimc rare-event` runs it: a pilot on the first fifth of `trials` with
+/// every pair alike, then the rest with the pairs weighted by the pilot's shares (`adapted`). The
+/// estimate is the rest's alone (unbiased for the weights the pilot fixed); the pilot's samples
+/// count in the cost. Returns the rest's totals and the mixture it used.
+pub fn importance_adaptive<M: RareEventModel>(
+    model: &M,
+    seed: u64,
+    trials: u64,
+    tails: &[f64],
+    levels: &[f64],
+    progress: &(dyn Fn(u64) + Sync),
+) -> (ImportanceTotals, Mixture) {
+    let uniform = Mixture::uniform(tails, model.noise_draws());
+    let pilot = (trials / 5).max(1);
+    let first = importance(model, seed, 0..pilot, &uniform, levels, progress);
+    let mix = first.shares().map_or(uniform.clone(), |s| uniform.adapted(&s));
+    (importance(model, seed, pilot..trials, &mix, levels, progress), mix)
+}
+
+/// Which unbiased estimator `fdimc rare-event` runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Estimator {
+    Importance,
+    Splitting,
+}
+
+impl Estimator {
+    pub fn name(self) -> &'static str {
+        match self {
+            Estimator::Importance => "importance",
+            Estimator::Splitting => "splitting",
+        }
+    }
+}
+
+/// `fdimc rare-event`'s options, checked by the command line.
+#[derive(Debug, Clone)]
+pub struct RareEventOptions {
+    pub estimator: Estimator,
+    /// The detector to study (`None`: every one of the deck).
+    pub detector: Option<String>,
+    /// Threshold scales, ascending, > 0 (the deck's thresholds times each).
+    pub levels: Vec<f64>,
+    /// Importance sampling: trials (the first fifth the pilot's).
+    pub trials: u64,
+    /// Splitting: particles per replica and replicas.
+    pub particles: usize,
+    pub replicas: u64,
+    pub out: std::path::PathBuf,
+    pub quiet: bool,
+}
+
+/// One row of `rare_event.csv`: one detector at one threshold scale.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RareEventRow {
+    pub detector: String,
+    pub estimator: Estimator,
+    pub estimate: Combined,
+    /// The splitting's particles per replica (0 for importance sampling).
+    pub particles: usize,
+    /// Samples simulated for this detector, and per trial.
+    pub steps_simulated: u64,
+    pub steps_per_trial: usize,
+    /// Trial duration (s), for the per-hour figures.
+    pub trial_s: f64,
+}
+
+/// Runs `opts`'s estimator on `model` (detector `name`) with the study's `seed`; `trial_s` is a trial's
+/// duration.
+pub fn estimate<M: RareEventModel>(
+    model: &M,
+    name: &str,
+    seed: u64,
+    trial_s: f64,
+    opts: &RareEventOptions,
+) -> Vec<RareEventRow> {
+    let n = model.steps();
+    let row = |estimate: Combined, particles: usize, steps_simulated: u64| RareEventRow {
+        detector: name.to_string(),
+        estimator: opts.estimator,
+        estimate,
+        particles,
+        steps_simulated,
+        steps_per_trial: n,
+        trial_s,
+    };
+    match opts.estimator {
+        Estimator::Importance => {
+            let bar = super::progress::Progress::new(name, opts.trials, !opts.quiet);
+            let (totals, mix) =
+                importance_adaptive(model, seed, opts.trials, &default_tails(), &opts.levels, &|k| bar.inc(k));
+            bar.finish();
+            if !opts.quiet {
+                eprintln!("{name}: {}", mix.describe());
+            }
+            let steps = opts.trials * n as u64;
+            opts.levels.iter().zip(&totals.levels).map(|(&l, t)| row(Combined::new(l, t), 0, steps)).collect()
+        }
+        Estimator::Splitting => {
+            let split = SplitOptions {
+                seed,
+                particles: opts.particles,
+                replicas: (0..opts.replicas).collect(),
+                levels: opts.levels.clone(),
+                max_iterations: opts.particles * 200,
+            };
+            let bar = super::progress::Progress::new(&format!("{name} (replicas)"), opts.replicas, !opts.quiet);
+            let results = splitting(model, &split, &|| bar.inc(1));
+            bar.finish();
+            let steps = results.iter().map(|r| r.steps_simulated).sum();
+            opts.levels
+                .iter()
+                .enumerate()
+                .map(|(l, &level)| row(Combined::new(level, &replica_totals(&results, l)), opts.particles, steps))
+                .collect()
+        }
+    }
+}
+
+/// Writes `rare_event.csv` to `dir`: per detector and threshold scale the estimate per trial and per
+/// flight hour with 95 % intervals, the cost in samples and plain Monte Carlo's for the same interval.
+pub fn write_rows(dir: &std::path::Path, rows: &[RareEventRow]) -> Result<(), super::runner::RunError> {
+    use polars::prelude::*;
+    let path = dir.join("rare_event.csv");
+    let hour = |r: &RareEventRow, p: f64| super::thresholds::per_flight_hour(p, r.trial_s);
+    let f = |g: &dyn Fn(&RareEventRow) -> f64| rows.iter().map(g).collect::<Vec<f64>>();
+    let mut df = DataFrame::new_infer_height(vec![
+        Column::new(super::schema::col::DETECTOR.into(), rows.iter().map(|r| r.detector.as_str()).collect::<Vec<_>>()),
+        Column::new("estimator".into(), rows.iter().map(|r| r.estimator.name()).collect::<Vec<_>>()),
+        Column::new("threshold_scale".into(), f(&|r| r.estimate.level)),
+        Column::new("pfa_per_trial".into(), f(&|r| r.estimate.estimate)),
+        Column::new("pfa_per_trial_lo".into(), f(&|r| r.estimate.low)),
+        Column::new("pfa_per_trial_hi".into(), f(&|r| r.estimate.high)),
+        Column::new("relative_half_width".into(), f(&|r| r.estimate.relative_half_width)),
+        Column::new("pfa_per_flight_hour".into(), f(&|r| hour(r, r.estimate.estimate))),
+        Column::new("pfa_per_flight_hour_lo".into(), f(&|r| hour(r, r.estimate.low))),
+        Column::new("pfa_per_flight_hour_hi".into(), f(&|r| hour(r, r.estimate.high))),
+        Column::new("units".into(), rows.iter().map(|r| r.estimate.units).collect::<Vec<_>>()),
+        Column::new("nonzero_units".into(), rows.iter().map(|r| r.estimate.hits).collect::<Vec<_>>()),
+        Column::new("particles".into(), rows.iter().map(|r| r.particles as u64).collect::<Vec<_>>()),
+        Column::new("steps_simulated".into(), rows.iter().map(|r| r.steps_simulated).collect::<Vec<_>>()),
+        Column::new(
+            "plain_steps_same_precision".into(),
+            f(&|r| r.estimate.plain_steps_same_precision(r.steps_per_trial)),
+        ),
+        Column::new("trial_s".into(), f(&|r| r.trial_s)),
+    ])
+    .map_err(super::runner::pol(&path))?;
+    Ok(super::output::write_table(&mut df, &path)?)
+}
+
+/// The rows as a table on stdout.
+pub fn print_rows(rows: &[RareEventRow]) {
+    println!(
+        "{:<16} {:>6} {:>11} {:>25} {:>7} {:>11} {:>12} {:>10}",
+        "detector", "scale", "Pfa/trial", "95 % interval", "+-rel", "Pfa/hour", "samples", "vs plain"
+    );
+    for r in rows {
+        let e = &r.estimate;
+        let plain = e.plain_steps_same_precision(r.steps_per_trial) / r.steps_simulated as f64;
+        println!(
+            "{:<16} {:>6} {:>11.3e} [{:>10.3e}, {:>10.3e}] {:>6.1}% {:>11.3e} {:>12} {:>9.0}x",
+            r.detector,
+            e.level,
+            e.estimate,
+            e.low,
+            e.high,
+            100.0 * e.relative_half_width,
+            super::thresholds::per_flight_hour(e.estimate, r.trial_s),
+            r.steps_simulated,
+            plain
+        );
+    }
+    for r in rows.iter().filter(|r| !(r.estimate.relative_half_width <= 0.25)) {
+        let other = match r.estimator {
+            Estimator::Importance => "splitting, if the statistic has memory (a CUSUM, a window, a coloured residual)",
+            Estimator::Splitting => "importance sampling, if one sample's noise makes an alarm (a white residual)",
+        };
+        println!(
+            "not yet an answer: {} at {}: the interval is +-{:.0} % ({} of {} {} non-zero); more trials, or {other}",
+            r.detector,
+            r.estimate.level,
+            100.0 * r.estimate.relative_half_width,
+            r.estimate.hits,
+            r.estimate.units,
+            if r.estimator == Estimator::Splitting { "replicas" } else { "trials" },
+        );
+    }
+    println!(
+        "(95 % intervals: Student's t over {}; per flight hour: independent trial-long segments; \"vs plain\": \
+         samples plain Monte Carlo needs for the same interval, over those simulated)",
+        match rows.first().map(|r| r.estimator) {
+            Some(Estimator::Splitting) => "the splitting's independent replicas",
+            _ => "the trials' weighted alarms",
+        }
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::intervals::normal_sf;
+    use crate::engine::streams::{Substream, noise_rng};
+    use rand_distr::StandardNormal;
+
+    /// `x_k = rho x_(k-1) + sqrt(1 - rho^2) e_k` from a stationary start: white for `rho = 0`, where
+    /// P(max of N > L) = 1 - Phi(L)^N exactly.
+    struct Gaussian {
+        steps: usize,
+        seed: u64,
+        rho: f64,
+    }
+
+    impl RareEventModel for Gaussian {
+        type Path = (NoiseRng, f64);
+        fn steps(&self) -> usize {
+            self.steps
+        }
+        fn start(&self, trial: u64) -> (NoiseRng, f64) {
+            let mut rng = noise_rng(self.seed, trial, Substream::SensorNoise);
+            let x0: f64 = rng.sample(StandardNormal);
+            (rng, x0)
+        }
+        fn noise_draws(&self) -> usize {
+            1
+        }
+        fn step(&self, path: &mut (NoiseRng, f64), k: usize, condition: Option<&Condition>, draws: &mut [f64]) -> f64 {
+            draws[0] = path.0.sample::<f64, _>(StandardNormal);
+            if let Some(c) = condition {
+                c.apply(draws);
+            }
+            let e = draws[0];
+            path.1 = if k == 0 && self.rho != 0.0 {
+                path.1
+            } else {
+                self.rho * path.1 + (1.0 - self.rho * self.rho).sqrt() * e
+            };
+            path.1
+        }
+        fn renew_noise(&self, path: &mut (NoiseRng, f64), rng: &mut dyn FnMut(BranchStream) -> NoiseRng) {
+            path.0 = rng(BranchStream::Sensor);
+        }
+    }
+
+    fn white_exact(level: f64, steps: usize) -> f64 {
+        -(steps as f64 * (-normal_sf(level)).ln_1p()).exp_m1()
+    }
+
+    fn split(model: &Gaussian, levels: &[f64], particles: usize, replicas: u64) -> Vec<ReplicaResult> {
+        let opts = SplitOptions {
+            seed: model.seed,
+            particles,
+            replicas: (0..replicas).collect(),
+            levels: levels.to_vec(),
+            max_iterations: 100_000,
+        };
+        let results = splitting(model, &opts, &|| {});
+        // A replica's numbers depend only on (seed, replica), not on what ran beside it.
+        assert_eq!(splitting_replica(model, &opts, 3), results[3]);
+        results
+    }
+
+    #[test]
+    fn importance_sampling_recovers_white_noise_maxima_five_decades_down() {
+        let model = Gaussian { steps: 100, seed: 7, rho: 0.0 };
+        let levels = [3.0, 4.5, 5.5];
+        let (totals, mix) = importance_adaptive(&model, 7, 20_000, &default_tails(), &levels, &|_| {});
+        for (l, &level) in levels.iter().enumerate() {
+            let e = Combined::new(level, &totals.levels[l]);
+            let truth = white_exact(level, 100);
+            assert!(e.low <= truth && truth <= e.high, "level {level}: {truth:e} outside {e:?}");
+            assert!((e.estimate / truth - 1.0).abs() < 0.2, "level {level}: {e:?} vs {truth:e}");
+        }
+        // 5.5 sigma in 100 samples, 1.9e-6, to about +-10 % from 20,000 trials (a fifth of them the
+        // pilot's); plain trials would need about 2e8 for that.
+        let e = Combined::new(5.5, &totals.levels[2]);
+        assert!((1.8e-6..2.0e-6).contains(&white_exact(5.5, 100)));
+        assert!(e.relative_half_width < 0.15, "{e:?}");
+        assert!(e.plain_steps_same_precision(100) > 1e3 * 20_000.0 * 100.0, "{e:?}");
+        // The pilot moves the weight to the tails the levels need (one sample past 4.5 sigma: 3.4e-6,
+        // past 5.5: 1.9e-8): 1e-8 to 1e-4 hold 9 of the 47 tails, 18 % of the weight before it.
+        let used: f64 =
+            mix.weights.iter().zip(&mix.tails).filter(|(_, p)| (1e-8..=1e-4).contains(*p)).map(|(w, _)| w).sum();
+        assert!(used > 0.5, "{mix:?}");
+        // Thread count and chunking do not change the totals: a split at a chunk boundary merges back.
+        let mut merged = importance(&model, 7, 4_000..5_120, &mix, &levels, &|_| {});
+        merged.merge(&importance(&model, 7, 5_120..20_000, &mix, &levels, &|_| {}));
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let single = one.install(|| importance(&model, 7, 4_000..20_000, &mix, &levels, &|_| {}));
+        assert_eq!(totals, single);
+        assert_eq!(totals.levels[2].units, merged.levels[2].units);
+        assert_eq!(totals.levels[2].hits, merged.levels[2].hits);
+        assert!((totals.levels[2].sum / merged.levels[2].sum - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn splitting_degenerates_on_a_statistic_without_memory() {
+        // Unbiased at a level most trials pass, but a copy at a level is no closer to a higher one:
+        // copies tie and die together, and most replicas end at 0 two decades further down.
+        let model = Gaussian { steps: 100, seed: 7, rho: 0.0 };
+        let results = split(&model, &[3.0, 4.5], 100, 30);
+        let e = Combined::new(3.0, &replica_totals(&results, 0));
+        let truth = white_exact(3.0, 100);
+        assert!(e.low <= truth && truth <= e.high, "{truth} outside {e:?}");
+        let zeros = results.iter().filter(|r| r.estimates[1] == Some(0.0)).count();
+        assert!(zeros >= 20, "{zeros} of 30 replicas at 0");
+    }
+
+    #[test]
+    fn splitting_matches_brute_force_where_the_statistic_has_memory() {
+        // rho = 0.95: a path high now stays high for about 20 samples, so a copy taken part way up is
+        // closer to the alarm. Plain trials at 3.5 (about 3e-3 over 200 samples) and at 4.5 (about
+        // 1e-4, from 400,000 trials), against 40 replicas of 100 particles.
+        let model = Gaussian { steps: 200, seed: 11, rho: 0.95 };
+        let levels = [3.5, 4.5];
+        let mut plain = [Totals::default(); 2];
+        let mut y = [0.0; 2];
+        let mut scratch = TrialScratch::default();
+        for t in 0..400_000 {
+            importance_trial(&model, 11, t, &Mixture::plain(1), &levels, &mut y, &mut scratch);
+            plain[0].add(y[0]);
+            plain[1].add(y[1]);
+        }
+        let results = split(&model, &levels, 100, 40);
+        let cost = results.iter().map(|r| r.steps_simulated).sum::<u64>() as f64;
+        for l in 0..2 {
+            let brute = Combined::new(levels[l], &plain[l]);
+            let ams = Combined::new(levels[l], &replica_totals(&results, l));
+            assert!(ams.low <= brute.high && brute.low <= ams.high, "AMS {ams:?} vs brute force {brute:?}");
+            // The splitting's samples buy a narrower interval than the brute force's 80 million.
+            assert!(ams.relative_half_width.powi(2) * cost < brute.relative_half_width.powi(2) * 8e7, "{ams:?} {cost}");
+        }
+    }
+
+    #[test]
+    fn a_statistic_that_never_moves_gives_zero_not_a_loop() {
+        struct Flat;
+        impl RareEventModel for Flat {
+            type Path = ();
+            fn steps(&self) -> usize {
+                10
+            }
+            fn start(&self, _: u64) {}
+            fn noise_draws(&self) -> usize {
+                0
+            }
+            fn step(&self, _: &mut (), _: usize, _: Option<&Condition>, _: &mut [f64]) -> f64 {
+                0.5
+            }
+            fn renew_noise(&self, _: &mut (), _: &mut dyn FnMut(BranchStream) -> NoiseRng) {}
+        }
+        let opts =
+            SplitOptions { seed: 1, particles: 10, replicas: vec![0], levels: vec![0.4, 1.0], max_iterations: 100 };
+        let r = splitting_replica(&Flat, &opts, 0);
+        assert_eq!(r.estimates, vec![Some(1.0), Some(0.0)]);
+        assert_eq!(r.iterations, 0);
+    }
+}
