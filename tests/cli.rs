@@ -106,6 +106,22 @@ fn rare_event_meets_the_analytic_answer_and_refuses_what_does_not_apply() {
         tables.push(std::fs::read_to_string(out.join("rare_event.csv")).unwrap());
     }
     assert_eq!(tables[0], tables[1], "the same numbers for 1 and 2 threads");
+    // Shards of the trial chunks, merged, give the whole run's table to the bit; a missing shard is refused.
+    let mut shards = Vec::new();
+    for i in 0..3 {
+        let out = dir.path().join(format!("s{i}"));
+        let shard = format!("{i}/3");
+        let args = ["rare-event", deck, "--levels", "1.5,1", "--trials", "6000", "--quiet", "--shard", &shard];
+        ok(&fdimc(&[&args[..], &["--out", out.to_str().unwrap()]].concat()));
+        assert!(!out.join("rare_event.csv").exists(), "a shard writes its units only");
+        shards.push(out.to_str().unwrap().to_string());
+    }
+    let merged = dir.path().join("merged");
+    ok(&fdimc(&["merge", &shards[2], &shards[0], &shards[1], "--out", merged.to_str().unwrap()]));
+    assert_eq!(std::fs::read_to_string(merged.join("rare_event.csv")).unwrap(), tables[0]);
+    let out = fdimc(&["merge", &shards[0], &shards[2], "--out", merged.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("need shards 0..3 exactly once each, got [0, 2]"), "{}", text(&out.stderr));
     let rows: Vec<Vec<&str>> = tables[0].lines().map(|l| l.split(',').collect()).collect();
     let at = |name: &str| rows[0].iter().position(|c| *c == name).unwrap();
     assert_eq!(rows.len(), 1 + 4, "2 detectors x 2 levels:\n{}", tables[0]);

@@ -190,9 +190,12 @@ seed and options give the same numbers for any --threads.")]
         /// Worker threads (default: one per core).
         #[arg(long)]
         threads: Option<usize>,
-        /// Results folder (default: results/<study name>/rare_event).
+        /// Results folder (default: results/<study name>/rare_event, or .../rare_event/shard-I-of-N).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Run only shard I of N (0-based) of the trial chunks or replicas; `fdimc merge` the N folders.
+        #[arg(long, value_name = "I/N")]
+        shard: Option<String>,
         /// No progress or pilot lines.
         #[arg(long)]
         quiet: bool,
@@ -321,9 +324,11 @@ pub fn run(cli: Cli) -> ExitCode {
             seed,
             threads,
             out,
+            shard,
             quiet,
         } => run::exec_rare_event(run::RareEventArgs {
             deck: &deck,
+            shard: shard.as_deref(),
             detector,
             estimator: &estimator,
             levels,

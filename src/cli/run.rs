@@ -224,6 +224,9 @@ pub fn exec_merge(dirs: &[PathBuf], out: &Path, force: bool) -> Result<(), CliEr
     if dirs.is_empty() {
         return Err(CliError::Invalid("name the shard folders to merge".into()));
     }
+    if dirs[0].join("rare_event.json").exists() {
+        return Ok(crate::engine::rare_event_study::merge(dirs, out)?);
+    }
     let mut manifests = Vec::with_capacity(dirs.len());
     for d in dirs {
         let m = Manifest::read(d)?;
@@ -390,6 +393,7 @@ pub fn exec_design(deck: &Path, json: bool) -> Result<(), CliError> {
 /// `fdimc rare-event`'s arguments as given.
 pub struct RareEventArgs<'a> {
     pub deck: &'a Path,
+    pub shard: Option<&'a str>,
     pub detector: Option<String>,
     pub estimator: &'a str,
     pub levels: Vec<f64>,
@@ -404,7 +408,7 @@ pub struct RareEventArgs<'a> {
 
 /// `fdimc rare-event`: checks the options (each estimator's own, the others refused), then runs.
 pub fn exec_rare_event(a: RareEventArgs) -> Result<(), CliError> {
-    use crate::engine::rare_event::{Estimator, RareEventOptions};
+    use crate::engine::rare_event_study::{Estimator, RareEventOptions};
     use crate::engine::streams::{MAX_REPLICA, MAX_TRIAL};
     let bad = |m: String| Err(CliError::Invalid(m));
     let estimator = if a.estimator == "splitting" { Estimator::Splitting } else { Estimator::Importance };
@@ -442,18 +446,28 @@ pub fn exec_rare_event(a: RareEventArgs) -> Result<(), CliError> {
     if let Some(seed) = a.seed {
         *study.seed_and_trials().0 = seed;
     }
+    let shard = match a.shard {
+        Some(s) => Shard::parse(s).map_err(|e| CliError::Invalid(format!("--shard {e}")))?,
+        None => Shard::WHOLE,
+    };
+    let base = PathBuf::from("results").join(&study.header().name).join("rare_event");
+    let out = a.out.unwrap_or_else(|| {
+        if shard == Shard::WHOLE { base } else { base.join(format!("shard-{}-of-{}", shard.index, shard.count)) }
+    });
     let opts = RareEventOptions {
+        deck: a.deck.into(),
+        shard,
         estimator,
         detector: a.detector,
         levels,
         trials,
         particles,
         replicas,
-        out: a.out.unwrap_or_else(|| PathBuf::from("results").join(&study.header().name).join("rare_event")),
+        out,
         quiet: a.quiet,
     };
     runner::thread_pool(a.threads)?.install(|| study.rare_event(&opts))?;
-    if !a.quiet {
+    if !a.quiet && shard == Shard::WHOLE {
         println!("wrote {}", opts.out.join("rare_event.csv").display());
     }
     Ok(())

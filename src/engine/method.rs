@@ -142,7 +142,7 @@ pub trait Study: Sync {
         Err(RunError::Internal("this kind lists no design".into()))
     }
     /// `fdimc rare-event` ([`Opt::RareEvent`]): estimates, writes and prints rare false alarms.
-    fn rare_event(&self, _opts: &super::rare_event::RareEventOptions) -> Result<(), RunError> {
+    fn rare_event(&self, _opts: &super::rare_event_study::RareEventOptions) -> Result<(), RunError> {
         Err(RunError::Internal("this kind lists no rare-event paths".into()))
     }
     /// `fdimc train` ([`Opt::Classifiers`]): trains what the study evaluates and writes it to `out`.

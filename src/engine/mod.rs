@@ -14,6 +14,7 @@ pub mod progress;
 pub mod quantiles;
 pub mod rare;
 pub mod rare_event;
+pub mod rare_event_study;
 pub mod report;
 pub mod runner;
 pub mod scenario;

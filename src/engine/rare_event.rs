@@ -540,28 +540,24 @@ pub struct ImportanceTotals {
     pub contributions: Vec<Vec<f64>>,
 }
 
-/// Importance sampling over `trials` with the mixture `mix`. Chunk boundaries are multiples of
-/// [`IMPORTANCE_CHUNK`] from trial 0, so any split of a range at such multiples merges to the same
-/// totals.
-pub fn importance<M: RareEventModel>(
+/// Importance sampling over `trials` with the mixture `mix`, in chunks: each chunk's index and totals,
+/// in order. Chunk boundaries are multiples of [`IMPORTANCE_CHUNK`] from trial 0, so any split of a
+/// range at such multiples (a shard) gives the same chunks.
+pub fn importance_chunks<M: RareEventModel>(
     model: &M,
     seed: u64,
     trials: std::ops::Range<u64>,
     mix: &Mixture,
     levels: &[f64],
     progress: &(dyn Fn(u64) + Sync),
-) -> ImportanceTotals {
+) -> Vec<(u64, ImportanceTotals)> {
     let first_chunk = trials.start / IMPORTANCE_CHUNK;
     let last_chunk = trials.end.div_ceil(IMPORTANCE_CHUNK);
-    let empty = || ImportanceTotals {
-        levels: vec![Totals::default(); levels.len()],
-        contributions: vec![vec![0.0; mix.weights.len()]; levels.len()],
-    };
-    let chunks: Vec<ImportanceTotals> = (first_chunk..last_chunk)
+    (first_chunk..last_chunk)
         .into_par_iter()
         .map(|ch| {
             let (a, b) = ((ch * IMPORTANCE_CHUNK).max(trials.start), ((ch + 1) * IMPORTANCE_CHUNK).min(trials.end));
-            let mut out = empty();
+            let mut out = ImportanceTotals::empty(levels.len(), mix.weights.len());
             let mut y = vec![0.0; levels.len()];
             let mut scratch = TrialScratch::default();
             for t in a..b {
@@ -576,17 +572,32 @@ pub fn importance<M: RareEventModel>(
                 }
             }
             progress(b - a);
-            out
+            (ch, out)
         })
-        .collect();
-    let mut out = empty();
-    for ch in &chunks {
-        out.merge(ch);
+        .collect()
+}
+
+/// [`importance_chunks`] merged in chunk order (the same totals for any thread count).
+pub fn importance<M: RareEventModel>(
+    model: &M,
+    seed: u64,
+    trials: std::ops::Range<u64>,
+    mix: &Mixture,
+    levels: &[f64],
+    progress: &(dyn Fn(u64) + Sync),
+) -> ImportanceTotals {
+    let mut out = ImportanceTotals::empty(levels.len(), mix.weights.len());
+    for (_, ch) in importance_chunks(model, seed, trials, mix, levels, progress) {
+        out.merge(&ch);
     }
     out
 }
 
 impl ImportanceTotals {
+    pub fn empty(levels: usize, pairs: usize) -> Self {
+        ImportanceTotals { levels: vec![Totals::default(); levels], contributions: vec![vec![0.0; pairs]; levels] }
+    }
+
     pub fn merge(&mut self, o: &ImportanceTotals) {
         for (a, b) in self.levels.iter_mut().zip(&o.levels) {
             a.merge(b);
@@ -614,10 +625,29 @@ impl ImportanceTotals {
     }
 }
 
-/// Importance sampling as `fdimc rare-event` runs it: a pilot on the first fifth of `trials` with
-/// every pair alike, then the rest with the pairs weighted by the pilot's shares (`adapted`). The
-/// estimate is the rest's alone (unbiased for the weights the pilot fixed); the pilot's samples
-/// count in the cost. Returns the rest's totals and the mixture it used.
+/// The trials of importance sampling's pilot among `trials`: the first fifth.
+pub fn pilot_trials(trials: u64) -> u64 {
+    (trials / 5).max(1)
+}
+
+/// Importance sampling's pilot ([`pilot_trials`] trials with every pair alike) and the mixture it
+/// sets: the pairs weighted by one variance-minimising step ([`Mixture::adapted`]).
+pub fn pilot_mixture<M: RareEventModel>(
+    model: &M,
+    seed: u64,
+    trials: u64,
+    tails: &[f64],
+    levels: &[f64],
+    progress: &(dyn Fn(u64) + Sync),
+) -> Mixture {
+    let uniform = Mixture::uniform(tails, model.noise_draws());
+    let first = importance(model, seed, 0..pilot_trials(trials), &uniform, levels, progress);
+    first.shares().map_or(uniform.clone(), |s| uniform.adapted(&s))
+}
+
+/// Importance sampling as `fdimc rare-event` runs it: the pilot, then the rest of `trials` with the
+/// pilot's mixture. The estimate is the rest's alone (unbiased for the weights the pilot fixed); the
+/// pilot's samples count in the cost. Returns the rest's totals and the mixture.
 pub fn importance_adaptive<M: RareEventModel>(
     model: &M,
     seed: u64,
@@ -626,190 +656,8 @@ pub fn importance_adaptive<M: RareEventModel>(
     levels: &[f64],
     progress: &(dyn Fn(u64) + Sync),
 ) -> (ImportanceTotals, Mixture) {
-    let uniform = Mixture::uniform(tails, model.noise_draws());
-    let pilot = (trials / 5).max(1);
-    let first = importance(model, seed, 0..pilot, &uniform, levels, progress);
-    let mix = first.shares().map_or(uniform.clone(), |s| uniform.adapted(&s));
-    (importance(model, seed, pilot..trials, &mix, levels, progress), mix)
-}
-
-/// Which unbiased estimator `fdimc rare-event` runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Estimator {
-    Importance,
-    Splitting,
-}
-
-impl Estimator {
-    pub fn name(self) -> &'static str {
-        match self {
-            Estimator::Importance => "importance",
-            Estimator::Splitting => "splitting",
-        }
-    }
-}
-
-/// `fdimc rare-event`'s options, checked by the command line.
-#[derive(Debug, Clone)]
-pub struct RareEventOptions {
-    pub estimator: Estimator,
-    /// The detector to study (`None`: every one of the deck).
-    pub detector: Option<String>,
-    /// Threshold scales, ascending, > 0 (the deck's thresholds times each).
-    pub levels: Vec<f64>,
-    /// Importance sampling: trials (the first fifth the pilot's).
-    pub trials: u64,
-    /// Splitting: particles per replica and replicas.
-    pub particles: usize,
-    pub replicas: u64,
-    pub out: std::path::PathBuf,
-    pub quiet: bool,
-}
-
-/// One row of `rare_event.csv`: one detector at one threshold scale.
-#[derive(Debug, Clone, PartialEq)]
-pub struct RareEventRow {
-    pub detector: String,
-    pub estimator: Estimator,
-    pub estimate: Combined,
-    /// The splitting's particles per replica (0 for importance sampling).
-    pub particles: usize,
-    /// Samples simulated for this detector, and per trial.
-    pub steps_simulated: u64,
-    pub steps_per_trial: usize,
-    /// Trial duration (s), for the per-hour figures.
-    pub trial_s: f64,
-}
-
-/// Runs `opts`'s estimator on `model` (detector `name`) with the study's `seed`; `trial_s` is a trial's
-/// duration.
-pub fn estimate<M: RareEventModel>(
-    model: &M,
-    name: &str,
-    seed: u64,
-    trial_s: f64,
-    opts: &RareEventOptions,
-) -> Vec<RareEventRow> {
-    let n = model.steps();
-    let row = |estimate: Combined, particles: usize, steps_simulated: u64| RareEventRow {
-        detector: name.to_string(),
-        estimator: opts.estimator,
-        estimate,
-        particles,
-        steps_simulated,
-        steps_per_trial: n,
-        trial_s,
-    };
-    match opts.estimator {
-        Estimator::Importance => {
-            let bar = super::progress::Progress::new(name, opts.trials, !opts.quiet);
-            let (totals, mix) =
-                importance_adaptive(model, seed, opts.trials, &default_tails(), &opts.levels, &|k| bar.inc(k));
-            bar.finish();
-            if !opts.quiet {
-                eprintln!("{name}: {}", mix.describe());
-            }
-            let steps = opts.trials * n as u64;
-            opts.levels.iter().zip(&totals.levels).map(|(&l, t)| row(Combined::new(l, t), 0, steps)).collect()
-        }
-        Estimator::Splitting => {
-            let split = SplitOptions {
-                seed,
-                particles: opts.particles,
-                replicas: (0..opts.replicas).collect(),
-                levels: opts.levels.clone(),
-                max_iterations: opts.particles * 200,
-            };
-            let bar = super::progress::Progress::new(&format!("{name} (replicas)"), opts.replicas, !opts.quiet);
-            let results = splitting(model, &split, &|| bar.inc(1));
-            bar.finish();
-            let steps = results.iter().map(|r| r.steps_simulated).sum();
-            opts.levels
-                .iter()
-                .enumerate()
-                .map(|(l, &level)| row(Combined::new(level, &replica_totals(&results, l)), opts.particles, steps))
-                .collect()
-        }
-    }
-}
-
-/// Writes `rare_event.csv` to `dir`: per detector and threshold scale the estimate per trial and per
-/// flight hour with 95 % intervals, the cost in samples and plain Monte Carlo's for the same interval.
-pub fn write_rows(dir: &std::path::Path, rows: &[RareEventRow]) -> Result<(), super::runner::RunError> {
-    use polars::prelude::*;
-    let path = dir.join("rare_event.csv");
-    let hour = |r: &RareEventRow, p: f64| super::thresholds::per_flight_hour(p, r.trial_s);
-    let f = |g: &dyn Fn(&RareEventRow) -> f64| rows.iter().map(g).collect::<Vec<f64>>();
-    let mut df = DataFrame::new_infer_height(vec![
-        Column::new(super::schema::col::DETECTOR.into(), rows.iter().map(|r| r.detector.as_str()).collect::<Vec<_>>()),
-        Column::new("estimator".into(), rows.iter().map(|r| r.estimator.name()).collect::<Vec<_>>()),
-        Column::new("threshold_scale".into(), f(&|r| r.estimate.level)),
-        Column::new("pfa_per_trial".into(), f(&|r| r.estimate.estimate)),
-        Column::new("pfa_per_trial_lo".into(), f(&|r| r.estimate.low)),
-        Column::new("pfa_per_trial_hi".into(), f(&|r| r.estimate.high)),
-        Column::new("relative_half_width".into(), f(&|r| r.estimate.relative_half_width)),
-        Column::new("pfa_per_flight_hour".into(), f(&|r| hour(r, r.estimate.estimate))),
-        Column::new("pfa_per_flight_hour_lo".into(), f(&|r| hour(r, r.estimate.low))),
-        Column::new("pfa_per_flight_hour_hi".into(), f(&|r| hour(r, r.estimate.high))),
-        Column::new("units".into(), rows.iter().map(|r| r.estimate.units).collect::<Vec<_>>()),
-        Column::new("nonzero_units".into(), rows.iter().map(|r| r.estimate.hits).collect::<Vec<_>>()),
-        Column::new("particles".into(), rows.iter().map(|r| r.particles as u64).collect::<Vec<_>>()),
-        Column::new("steps_simulated".into(), rows.iter().map(|r| r.steps_simulated).collect::<Vec<_>>()),
-        Column::new(
-            "plain_steps_same_precision".into(),
-            f(&|r| r.estimate.plain_steps_same_precision(r.steps_per_trial)),
-        ),
-        Column::new("trial_s".into(), f(&|r| r.trial_s)),
-    ])
-    .map_err(super::runner::pol(&path))?;
-    Ok(super::output::write_table(&mut df, &path)?)
-}
-
-/// The rows as a table on stdout.
-pub fn print_rows(rows: &[RareEventRow]) {
-    println!(
-        "{:<16} {:>6} {:>11} {:>25} {:>7} {:>11} {:>12} {:>10}",
-        "detector", "scale", "Pfa/trial", "95 % interval", "+-rel", "Pfa/hour", "samples", "vs plain"
-    );
-    for r in rows {
-        let e = &r.estimate;
-        let plain = e.plain_steps_same_precision(r.steps_per_trial) / r.steps_simulated as f64;
-        println!(
-            "{:<16} {:>6} {:>11.3e} [{:>10.3e}, {:>10.3e}] {:>6.1}% {:>11.3e} {:>12} {:>9.0}x",
-            r.detector,
-            e.level,
-            e.estimate,
-            e.low,
-            e.high,
-            100.0 * e.relative_half_width,
-            super::thresholds::per_flight_hour(e.estimate, r.trial_s),
-            r.steps_simulated,
-            plain
-        );
-    }
-    for r in rows.iter().filter(|r| !(r.estimate.relative_half_width <= 0.25)) {
-        let other = match r.estimator {
-            Estimator::Importance => "splitting, if the statistic has memory (a CUSUM, a window, a coloured residual)",
-            Estimator::Splitting => "importance sampling, if one sample's noise makes an alarm (a white residual)",
-        };
-        println!(
-            "not yet an answer: {} at {}: the interval is +-{:.0} % ({} of {} {} non-zero); more trials, or {other}",
-            r.detector,
-            r.estimate.level,
-            100.0 * r.estimate.relative_half_width,
-            r.estimate.hits,
-            r.estimate.units,
-            if r.estimator == Estimator::Splitting { "replicas" } else { "trials" },
-        );
-    }
-    println!(
-        "(95 % intervals: Student's t over {}; per flight hour: independent trial-long segments; \"vs plain\": \
-         samples plain Monte Carlo needs for the same interval, over those simulated)",
-        match rows.first().map(|r| r.estimator) {
-            Some(Estimator::Splitting) => "the splitting's independent replicas",
-            _ => "the trials' weighted alarms",
-        }
-    );
+    let mix = pilot_mixture(model, seed, trials, tails, levels, progress);
+    (importance(model, seed, pilot_trials(trials)..trials, &mix, levels, progress), mix)
 }
 
 #[cfg(test)]

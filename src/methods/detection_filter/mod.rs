@@ -75,7 +75,7 @@ impl Study for LtiStudy {
     fn run(&self, opts: &RunOptions, _: Inputs) -> Result<RunReport, RunError> {
         run_study(self, opts)
     }
-    fn rare_event(&self, opts: &crate::engine::rare_event::RareEventOptions) -> Result<(), RunError> {
+    fn rare_event(&self, opts: &crate::engine::rare_event_study::RareEventOptions) -> Result<(), RunError> {
         rare_event::run(self, opts)
     }
 }

@@ -17,10 +17,9 @@ use super::trial::{advance, measure};
 use super::trials::Engine;
 use crate::engine::method::select_detector;
 use crate::engine::noise::NoiseRng;
-use crate::engine::rare_event::{
-    Condition, Estimator, RareEventModel, RareEventOptions, estimate, print_rows, write_rows,
-};
-use crate::engine::runner::RunError;
+use crate::engine::rare_event::{Condition, RareEventModel};
+use crate::engine::rare_event_study::{Estimator, RareEventManifest, RareEventOptions, estimate_parts, write};
+use crate::engine::runner::{RunError, deck_sha256};
 use crate::engine::streams::{BranchStream, Substream, noise_rng};
 
 /// What a trial's path needs that does not change along it.
@@ -218,19 +217,33 @@ impl RareEventModel for FaultFreeTrials<'_> {
     }
 }
 
-/// `fdimc rare-event` on a detection-filter deck: each chosen detector's estimates, written and printed.
+/// `fdimc rare-event` on a detection-filter deck: this shard's units of each chosen detector, written
+/// (and, for a whole run, the table printed).
 pub fn run(study: &LtiStudy, opts: &RareEventOptions) -> Result<(), RunError> {
     let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
-    let chosen = select_detector(&study.header, &names, opts.detector.as_deref())?;
-    let trial_s = study.header.steps as f64 * study.header.dt_s;
-    let mut rows = Vec::new();
-    for d in chosen.map_or_else(|| (0..names.len()).collect(), |d| vec![d]) {
+    let chosen: Vec<usize> = select_detector(&study.header, &names, opts.detector.as_deref())?
+        .map_or_else(|| (0..names.len()).collect(), |d| vec![d]);
+    let mut parts = Vec::new();
+    for &d in &chosen {
         let model = FaultFreeTrials::new(study, d, opts.estimator == Estimator::Splitting)?;
-        rows.extend(estimate(&model, model.name(), study.header.seed, trial_s, opts));
+        parts.extend(estimate_parts(&model, model.name(), study.header.seed, opts));
     }
-    write_rows(&opts.out, &rows)?;
-    print_rows(&rows);
-    Ok(())
+    let manifest = RareEventManifest {
+        deck: opts.deck.clone(),
+        deck_sha256: deck_sha256(&opts.deck)?,
+        seed: study.header.seed,
+        estimator: opts.estimator,
+        levels: opts.levels.clone(),
+        trials: opts.trials,
+        particles: opts.particles,
+        replicas: opts.replicas,
+        shard_index: opts.shard.index,
+        shard_count: opts.shard.count,
+        detectors: chosen.iter().map(|&d| names[d].to_string()).collect(),
+        steps_per_trial: study.header.steps,
+        trial_s: study.header.steps as f64 * study.header.dt_s,
+    };
+    write(&opts.out, &manifest, &parts, opts.quiet)
 }
 
 /// The memory of a trial whose design failed: never stepped (the path stays diverged).
