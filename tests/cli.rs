@@ -86,6 +86,9 @@ fn analytic_false_alarm_bounds_bracket_the_brute_force() {
         assert!(lo <= brute_hi && brute_lo <= hi, "detector {i}: [{lo}, {hi}] against [{brute_lo}, {brute_hi}]");
         assert!((lo / expected - 1.0).abs() < 1e-3 && (hi / expected - 1.0).abs() < 1e-3, "detector {i}: {f}");
         assert_eq!(f["lower_from"], "Bonferroni S1 - S2");
+        let (c, c_lo) =
+            (f["conditional_monte_carlo"].as_f64().unwrap(), f["conditional_monte_carlo_lo"].as_f64().unwrap());
+        assert!((c / expected - 1.0).abs() < 1e-3 && c_lo <= hi && c_lo < c, "detector {i}: {f}");
     }
     let out = ok(&fdimc(&["design", "studies/seed000_robustness.toml"]));
     assert!(out.contains("false alarms, analytic: not computed: the deck draws parameter errors"), "{out}");

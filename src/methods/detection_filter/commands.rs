@@ -64,6 +64,10 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                         "largest_sample": a.largest_sample,
                         "lower_from": a.lower_from(),
                         "samples": a.samples,
+                        "conditional_monte_carlo": a.conditional,
+                        "conditional_monte_carlo_lo": a.conditional_lo,
+                        "conditional_monte_carlo_hi": a.conditional_hi,
+                        "conditional_monte_carlo_draws": a.conditional_draws,
                     }),
                     Err(why) => json!({ "not_computed": why }),
                 };
@@ -139,6 +143,14 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                     f.hunter_upper,
                     hour(f.lower),
                     hour(f.upper())
+                );
+                println!(
+                    "  conditional Monte Carlo on the same law ({} draws): {:.4e} [{:.4e}, {:.4e}] per trial, {:.4e} per flight hour",
+                    f.conditional_draws,
+                    f.conditional,
+                    f.conditional_lo,
+                    f.conditional_hi,
+                    hour(f.conditional)
                 );
                 println!(
                     "  largest single sample (Sidak over its outputs) {:.3e}; sum over samples (union bound) {:.3e}",

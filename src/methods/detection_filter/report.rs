@@ -70,7 +70,7 @@ fn analytic_section(ctx: &ReportContext, study: &LtiStudy) -> Result<Option<Stri
         let v = |c: &str| t.f64s(c)[i];
         Some((v("observed_false_alarms"), v("trials"), v("pfa"), v("pfa_lo"), v("pfa_hi")))
     };
-    let mut rows: Vec<[String; 6]> = Vec::new();
+    let mut rows: Vec<[String; 7]> = Vec::new();
     let mut why = None;
     for d in &study.detectors {
         let filter = d
@@ -90,6 +90,7 @@ fn analytic_section(ctx: &ReportContext, study: &LtiStudy) -> Result<Option<Stri
                         set.to_string(),
                         format!("[{:.3e}, {:.3e}]", a.lower, a.upper()),
                         a.lower_from(),
+                        format!("{:.3e} [{:.3e}, {:.3e}]", a.conditional, a.conditional_lo, a.conditional_hi),
                         seen.map_or("-".into(), |s| format!("{:.0}/{:.0} = {:.3e}", s.0, s.1, s.0 / s.1)),
                         seen.map_or("-".into(), |s| format!("{:.3e} [{:.3e}, {:.3e}]", s.2, s.3, s.4)),
                     ]);
@@ -107,15 +108,16 @@ fn analytic_section(ctx: &ReportContext, study: &LtiStudy) -> Result<Option<Stri
         "thresholds" => col(1),
         "pfa_per_trial_bounds" => col(2),
         "lower_bound_from" => col(3),
-        "observed" => col(4),
-        "tail_fit (tail.csv)" => col(5),
+        "conditional_monte_carlo" => col(4),
+        "observed" => col(5),
+        "tail_fit (tail.csv)" => col(6),
     )
     .map_err(|e| RunError::Internal(e.to_string()))?;
     Ok(Some(format!(
         "<p>The fault-free residual of an exact model under white Gaussian noise is a Gaussian process whose law follows \
          from the closed loop; the probability of at least one alarm over a trial of {} samples lies between these \
-         bounds (<code>fdimc design</code> prints them at the deck's thresholds). Beside them: what this run's \
-         trials saw, and the tail fit.</p>{}",
+         bounds, and conditional Monte Carlo on the same law gives it with a 95 % interval (<code>fdimc design</code> \
+         prints both at the deck's thresholds). Beside them: what this run's trials saw, and the tail fit.</p>{}",
         study.header.steps,
         html::table(&df, &[])
     )))
