@@ -163,6 +163,14 @@ fn rare_event_meets_the_analytic_answer_and_refuses_what_does_not_apply() {
         assert_eq!(out.status.code(), Some(2), "{args:?}: {}", text(&out.stderr));
         assert!(text(&out.stderr).contains(says), "{args:?}: {}", text(&out.stderr));
     }
+    // The run's report shows a rare-event table written into its folder.
+    let run = dir.path().join("run");
+    ok(&fdimc(&["run", deck, "--trials", "2000", "--quiet", "--out", run.to_str().unwrap()]));
+    let beside = run.join("rare_event");
+    ok(&fdimc(&["rare-event", deck, "--trials", "2000", "--quiet", "--out", beside.to_str().unwrap()]));
+    ok(&fdimc(&["report", run.to_str().unwrap()]));
+    let page = std::fs::read_to_string(run.join("report/report.html")).unwrap();
+    assert!(page.contains("Rare false alarms by simulation") && page.contains("plain_steps_same_precision"));
     let out = fdimc(&["rare-event", "studies/ci_seed002.toml"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(

@@ -699,6 +699,19 @@ fn page(
             + &table_of(dir, "tail.csv", &["pfa_per_hour_lo", "pfa_per_hour_hi", "estimate"])?.unwrap_or_default()
             + &table_of(dir, "tail_diagnostics.csv", &[])?.unwrap_or_default(),
     );
+    section(
+        "Rare false alarms by simulation",
+        "Written by <code>fdimc rare-event</code> into <code>rare_event/</code> (when it has been run): unbiased \
+         estimates far below 1 / trials, by importance sampling or splitting, with 95 % intervals and the samples \
+         plain Monte Carlo would need for the same interval. Compare with the tail fit above and, for linear \
+         decks, the analytic answer. Table: <code>rare_event/rare_event.csv</code>.",
+        table_of(
+            dir,
+            "rare_event/rare_event.csv",
+            &["pfa_per_flight_hour_lo", "pfa_per_flight_hour_hi", "trial_s", "particles"],
+        )?
+        .unwrap_or_default(),
+    );
     section("Detection delay", "Per fault kind, detected trials only.", figures("delay_"));
     section(
         "Isolation",
