@@ -8,6 +8,7 @@
 pub mod checks;
 pub mod cli;
 pub mod design;
+pub mod dual;
 pub mod engine;
 pub mod estimation;
 pub mod fault;

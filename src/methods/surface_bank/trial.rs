@@ -408,11 +408,13 @@ mod tests {
     /// The seed's clearing event (the no-fault probability back to 0.9) is recorded apart from the
     /// clearance of the declaration, a clearing hold delays the clearance by at least the hold and
     /// nothing else, and the seed's literal floor (reset at 0) lets losing models sink. The improved
-    /// STMMAE on the seed's scenario (trial 0). Measured: recovery 0.19, 0.25, 0.49, 3.07 s after the
+    /// STMMAE on the seed's scenario (trial 0). Measured: recovery 0.19, 0.25, 0.51, 3.07 s after the
     /// left aileron, right aileron, left elevator, right elevator (clearance 0.14, 0.14, 0.23, 3.28 s);
     /// held 1 s, clearance 1.13, 1.13, 1.22, 4.27 s; reset at 0: the left aileron is cleared 151.5 s
     /// after its fault ended and the no-fault model never comes back, the right aileron and right elevator
-    /// are never declared (floor applied on 114 steps against 29,558).
+    /// are never declared (floor applied on 114 steps against 29,558). (With central-difference
+    /// Jacobians the left elevator's recovery came 2 samples earlier, 0.49 s: the probability crosses
+    /// 0.9 slowly there, and the differences' 1e-8 error moved the crossing.)
     #[test]
     fn the_seeds_clearing_event_the_clearing_hold_and_the_literal_floor() {
         use crate::estimation::FloorRule;
@@ -428,7 +430,7 @@ mod tests {
         let outcomes = run_banks(&study, &trial, &banks, &mut rng, |_, _| ()).unwrap();
         let isolated = |b: usize| outcomes[b].windows.iter().filter(|w| w.surface != 4).copied().collect::<Vec<_>>();
         let recovery: Vec<f64> = isolated(0).iter().map(|w| w.recovery_delay_s.unwrap()).collect();
-        for (got, want) in recovery.iter().zip([0.19, 0.25, 0.49, 3.07]) {
+        for (got, want) in recovery.iter().zip([0.19, 0.25, 0.51, 3.07]) {
             assert!((got - want).abs() < 0.005, "{recovery:?}");
         }
         for (free, held) in isolated(0).iter().zip(isolated(1)) {

@@ -80,6 +80,7 @@
 //! closure (Beard & McLain ch. 6), see [`AutopilotGains`] for the loops, gains and how they were chosen.
 #![allow(non_snake_case)]
 
+use crate::dual::Real;
 use nalgebra::{Matrix3, SVector, Vector3};
 
 /// Number of independent control surfaces.
@@ -367,26 +368,26 @@ impl AerosondeParams {
 
 /// The book's effective deflections formed from the five surfaces (rad); see the module docs.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EffectiveDeflections {
+pub struct EffectiveDeflections<T = f64> {
     /// `(left - right) / 2` of the ailerons.
-    pub aileron_rad: f64,
+    pub aileron_rad: T,
     /// `(left + right) / 2` of the ailerons.
-    pub aileron_sym_rad: f64,
+    pub aileron_sym_rad: T,
     /// `(left + right) / 2` of the elevators.
-    pub elevator_rad: f64,
+    pub elevator_rad: T,
     /// `(left - right) / 2` of the elevators.
-    pub elevator_diff_rad: f64,
-    pub rudder_rad: f64,
+    pub elevator_diff_rad: T,
+    pub rudder_rad: T,
 }
 
 /// Mixes the five surfaces into the book's `delta_a`, `delta_e`, the elevator difference and `delta_r`.
-pub fn effective_deflections(surfaces_rad: &[f64; 5]) -> EffectiveDeflections {
+pub fn effective_deflections<T: Real>(surfaces_rad: &[T; 5]) -> EffectiveDeflections<T> {
     let s = surfaces_rad;
     EffectiveDeflections {
-        aileron_rad: 0.5 * (s[0] - s[1]),
-        aileron_sym_rad: 0.5 * (s[0] + s[1]),
-        elevator_rad: 0.5 * (s[2] + s[3]),
-        elevator_diff_rad: 0.5 * (s[2] - s[3]),
+        aileron_rad: T::cst(0.5) * (s[0] - s[1]),
+        aileron_sym_rad: T::cst(0.5) * (s[0] + s[1]),
+        elevator_rad: T::cst(0.5) * (s[2] + s[3]),
+        elevator_diff_rad: T::cst(0.5) * (s[2] - s[3]),
         rudder_rad: s[4],
     }
 }
@@ -411,94 +412,91 @@ fn body_to_ned(phi: f64, theta: f64, psi: f64) -> Matrix3<f64> {
 
 /// Aerodynamic and propulsive forces (N) and moments (N m) in body axes, gravity excluded:
 /// `[fx, fy, fz, l, m, n]`.
-fn aero_propulsion(
+fn aero_propulsion<T: Real>(
     p: &AerosondeParams,
     va: f64,
-    alpha: f64,
-    beta: f64,
-    rates: [f64; 3],
-    surfaces_rad: &[f64; 5],
+    alpha: T,
+    beta: T,
+    rates: [T; 3],
+    surfaces_rad: &[T; 5],
     throttle: f64,
-) -> [f64; 6] {
+) -> [T; 6] {
     let d = effective_deflections(surfaces_rad);
     let [pr, qr, rr] = rates;
     let qbar = 0.5 * p.rho_kgpm3 * va * va;
     // Nondimensional rates; at zero airspeed the dynamic pressure is zero anyway.
     let (p_hat, q_hat, r_hat) = if va > 1e-9 {
-        (p.b_m * pr / (2.0 * va), p.c_m * qr / (2.0 * va), p.b_m * rr / (2.0 * va))
+        (T::cst(p.b_m) * pr / (2.0 * va), T::cst(p.c_m) * qr / (2.0 * va), T::cst(p.b_m) * rr / (2.0 * va))
     } else {
-        (0.0, 0.0, 0.0)
+        (T::cst(0.0), T::cst(0.0), T::cst(0.0))
     };
-    let em = (-p.M_blend * (alpha - p.alpha0_rad)).exp();
-    let ep = (p.M_blend * (alpha + p.alpha0_rad)).exp();
-    let sigma = (1.0 + em + ep) / ((1.0 + em) * (1.0 + ep));
+    let em = (T::cst(-p.M_blend) * (alpha - p.alpha0_rad)).exp();
+    let ep = (T::cst(p.M_blend) * (alpha + p.alpha0_rad)).exp();
+    let sigma = (T::cst(1.0) + em + ep) / ((T::cst(1.0) + em) * (T::cst(1.0) + ep));
     let (sa, ca) = alpha.sin_cos();
-    let cl_lin = p.C_L_0 + p.C_L_alpha * alpha;
-    let c_l = (1.0 - sigma) * cl_lin + sigma * 2.0 * alpha.signum() * sa * sa * ca;
+    let cl_lin = T::cst(p.C_L_0) + T::cst(p.C_L_alpha) * alpha;
+    let c_l = (T::cst(1.0) - sigma) * cl_lin + sigma * 2.0 * alpha.re().signum() * sa * sa * ca;
     let aspect_ratio = p.b_m * p.b_m / p.S_wing_m2;
-    let c_d = p.C_D_p + cl_lin * cl_lin / (std::f64::consts::PI * p.e_oswald * aspect_ratio);
+    let c_d = T::cst(p.C_D_p) + cl_lin * cl_lin / (std::f64::consts::PI * p.e_oswald * aspect_ratio);
     let cx = -c_d * ca + c_l * sa;
-    let cx_q = -p.C_D_q * ca + p.C_L_q * sa;
-    let cx_de = -p.C_D_delta_e * ca + p.C_L_delta_e * sa;
-    let cx_as = p.C_L_delta_a_sym * sa;
+    let cx_q = T::cst(-p.C_D_q) * ca + T::cst(p.C_L_q) * sa;
+    let cx_de = T::cst(-p.C_D_delta_e) * ca + T::cst(p.C_L_delta_e) * sa;
+    let cx_as = T::cst(p.C_L_delta_a_sym) * sa;
     let cz = -c_d * sa - c_l * ca;
-    let cz_q = -p.C_D_q * sa - p.C_L_q * ca;
-    let cz_de = -p.C_D_delta_e * sa - p.C_L_delta_e * ca;
-    let cz_as = -p.C_L_delta_a_sym * ca;
+    let cz_q = T::cst(-p.C_D_q) * sa - T::cst(p.C_L_q) * ca;
+    let cz_de = T::cst(-p.C_D_delta_e) * sa - T::cst(p.C_L_delta_e) * ca;
+    let cz_as = T::cst(-p.C_L_delta_a_sym) * ca;
     let qs = qbar * p.S_wing_m2;
     let slip = p.k_motor_mps * throttle;
     let thrust = 0.5 * p.rho_kgpm3 * p.S_prop_m2 * p.C_prop * (slip * slip - va * va);
-    let fx = qs * (cx + cx_q * q_hat + cx_de * d.elevator_rad + cx_as * d.aileron_sym_rad) + thrust;
-    let fy = qs
-        * (p.C_Y_0
-            + p.C_Y_beta * beta
-            + p.C_Y_p * p_hat
-            + p.C_Y_r * r_hat
-            + p.C_Y_delta_a * d.aileron_rad
-            + p.C_Y_delta_r * d.rudder_rad);
-    let fz = qs * (cz + cz_q * q_hat + cz_de * d.elevator_rad + cz_as * d.aileron_sym_rad);
+    let fx = T::cst(qs) * (cx + cx_q * q_hat + cx_de * d.elevator_rad + cx_as * d.aileron_sym_rad) + thrust;
+    let fy = T::cst(qs)
+        * (T::cst(p.C_Y_0)
+            + T::cst(p.C_Y_beta) * beta
+            + T::cst(p.C_Y_p) * p_hat
+            + T::cst(p.C_Y_r) * r_hat
+            + T::cst(p.C_Y_delta_a) * d.aileron_rad
+            + T::cst(p.C_Y_delta_r) * d.rudder_rad);
+    let fz = T::cst(qs) * (cz + cz_q * q_hat + cz_de * d.elevator_rad + cz_as * d.aileron_sym_rad);
     let omega = p.k_Omega_radps * throttle;
-    let l = qs
-        * p.b_m
-        * (p.C_l_0
-            + p.C_l_beta * beta
-            + p.C_l_p * p_hat
-            + p.C_l_r * r_hat
-            + p.C_l_delta_a * d.aileron_rad
-            + p.C_l_delta_r * d.rudder_rad
-            + p.C_l_delta_e_diff * d.elevator_diff_rad)
+    let l = T::cst(qs * p.b_m)
+        * (T::cst(p.C_l_0)
+            + T::cst(p.C_l_beta) * beta
+            + T::cst(p.C_l_p) * p_hat
+            + T::cst(p.C_l_r) * r_hat
+            + T::cst(p.C_l_delta_a) * d.aileron_rad
+            + T::cst(p.C_l_delta_r) * d.rudder_rad
+            + T::cst(p.C_l_delta_e_diff) * d.elevator_diff_rad)
         - p.k_T_P * omega * omega;
-    let m = qs
-        * p.c_m
-        * (p.C_m_0
-            + p.C_m_alpha * alpha
-            + p.C_m_q * q_hat
-            + p.C_m_delta_e * d.elevator_rad
-            + p.C_m_delta_a_sym * d.aileron_sym_rad);
-    let n = qs
-        * p.b_m
-        * (p.C_n_0
-            + p.C_n_beta * beta
-            + p.C_n_p * p_hat
-            + p.C_n_r * r_hat
-            + p.C_n_delta_a * d.aileron_rad
-            + p.C_n_delta_r * d.rudder_rad);
+    let m = T::cst(qs * p.c_m)
+        * (T::cst(p.C_m_0)
+            + T::cst(p.C_m_alpha) * alpha
+            + T::cst(p.C_m_q) * q_hat
+            + T::cst(p.C_m_delta_e) * d.elevator_rad
+            + T::cst(p.C_m_delta_a_sym) * d.aileron_sym_rad);
+    let n = T::cst(qs * p.b_m)
+        * (T::cst(p.C_n_0)
+            + T::cst(p.C_n_beta) * beta
+            + T::cst(p.C_n_p) * p_hat
+            + T::cst(p.C_n_r) * r_hat
+            + T::cst(p.C_n_delta_a) * d.aileron_rad
+            + T::cst(p.C_n_delta_r) * d.rudder_rad);
     [fx, fy, fz, l, m, n]
 }
 
 /// Body accelerations `[udot, vdot, wdot, pdot, qdot, rdot]` from velocities, attitude (for gravity), rates,
 /// and the air data the forces depend on: the shared kernel of the full and the reduced model.
 #[allow(clippy::too_many_arguments)]
-fn body_accelerations(
+fn body_accelerations<T: Real>(
     p: &AerosondeParams,
-    uvw: [f64; 3],
+    uvw: [T; 3],
     phi: f64,
     theta: f64,
-    rates: [f64; 3],
-    air: (f64, f64, f64),
-    surfaces_rad: &[f64; 5],
+    rates: [T; 3],
+    air: (f64, T, T),
+    surfaces_rad: &[T; 5],
     throttle: f64,
-) -> [f64; 6] {
+) -> [T; 6] {
     let (va, alpha, beta) = air;
     let [fx, fy, fz, l, m, n] = aero_propulsion(p, va, alpha, beta, rates, surfaces_rad, throttle);
     let [u, v, w] = uvw;
@@ -514,9 +512,9 @@ fn body_accelerations(
         rr * v - qr * w + fx / p.mass_kg,
         pr * w - rr * u + fy / p.mass_kg,
         qr * u - pr * v + fz / p.mass_kg,
-        g[0] * pr * qr - g[1] * qr * rr + g[2] * l + g[3] * n,
-        g[4] * pr * rr - g[5] * (pr * pr - rr * rr) + m / p.Jy_kgm2,
-        g[6] * pr * qr - g[0] * qr * rr + g[3] * l + g[7] * n,
+        T::cst(g[0]) * pr * qr - T::cst(g[1]) * qr * rr + T::cst(g[2]) * l + T::cst(g[3]) * n,
+        T::cst(g[4]) * pr * rr - T::cst(g[5]) * (pr * pr - rr * rr) + m / p.Jy_kgm2,
+        T::cst(g[6]) * pr * qr - T::cst(g[0]) * qr * rr + T::cst(g[3]) * l + T::cst(g[7]) * n,
     ]
 }
 
@@ -690,11 +688,23 @@ pub fn reduced_derivatives(
     inputs: &ReducedInputs,
     surfaces_rad: &[f64; 5],
 ) -> ReducedState {
+    let x = [x5[0], x5[1], x5[2], x5[3], x5[4]];
+    ReducedState::from(reduced_derivatives_of(p, &x, inputs, surfaces_rad))
+}
+
+/// [`reduced_derivatives`] in any [`Real`]: on [`crate::dual::Dual`] numbers it gives the derivatives
+/// and their exact Jacobian in one evaluation.
+pub fn reduced_derivatives_of<T: Real>(
+    p: &AerosondeParams,
+    x5: &[T; 5],
+    inputs: &ReducedInputs,
+    surfaces_rad: &[T; 5],
+) -> [T; 5] {
     let (alpha, beta) = (x5[3], x5[4]);
     let va = inputs.va_mps;
     let (sa, ca) = alpha.sin_cos();
     let (sb, cb) = beta.sin_cos();
-    let (u, v, w) = (va * ca * cb, va * sb, va * sa * cb);
+    let (u, v, w) = (T::cst(va) * ca * cb, T::cst(va) * sb, T::cst(va) * sa * cb);
     let rates = [x5[0], x5[1], x5[2]];
     let acc = body_accelerations(
         p,
@@ -710,8 +720,8 @@ pub fn reduced_derivatives(
     let uw2 = u * u + w * w;
     let alpha_dot = (u * wdot - w * udot) / uw2;
     let va_dot = (u * udot + v * vdot + w * wdot) / va;
-    let beta_dot = (va * vdot - v * va_dot) / (va * uw2.sqrt());
-    ReducedState::new(acc[3], acc[4], acc[5], alpha_dot, beta_dot)
+    let beta_dot = (T::cst(va) * vdot - v * va_dot) / (T::cst(va) * uw2.sqrt());
+    [acc[3], acc[4], acc[5], alpha_dot, beta_dot]
 }
 
 /// Surface actuators: each position follows its command through a first-order lag with position limits.
