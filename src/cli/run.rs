@@ -409,7 +409,7 @@ pub struct RareEventArgs<'a> {
 /// `fdimc rare-event`: checks the options (each estimator's own, the others refused), then runs.
 pub fn exec_rare_event(a: RareEventArgs) -> Result<(), CliError> {
     use crate::engine::rare_event_study::{Estimator, RareEventOptions};
-    use crate::engine::streams::{MAX_REPLICA, MAX_TRIAL};
+    use crate::engine::streams::{MAX_BRANCH, MAX_REPLICA};
     let bad = |m: String| Err(CliError::Invalid(m));
     let estimator = if a.estimator == "splitting" { Estimator::Splitting } else { Estimator::Importance };
     let (own, other): (&[(&str, bool)], &[(&str, bool)]) = (
@@ -430,8 +430,9 @@ pub fn exec_rare_event(a: RareEventArgs) -> Result<(), CliError> {
     levels.sort_by(f64::total_cmp);
     levels.dedup();
     let trials = a.trials.unwrap_or(20_000);
-    if !(10..=MAX_TRIAL).contains(&trials) {
-        return bad(format!("--trials {trials}: allowed 10 (a fifth is the pilot) to {MAX_TRIAL}"));
+    // A trial's importance choices come from branch `trial` of a reserved replica's streams.
+    if !(10..=MAX_BRANCH).contains(&trials) {
+        return bad(format!("--trials {trials}: allowed 10 (a fifth is the pilot) to {MAX_BRANCH}"));
     }
     let particles = a.particles.unwrap_or(100);
     let replicas = a.replicas.unwrap_or(16);

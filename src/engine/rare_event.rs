@@ -56,13 +56,12 @@ use super::noise::NoiseRng;
 use super::streams::{BranchStream, branch_noise, branch_rng, importance_rng};
 
 /// Importance sampling's change to one sample: its sensor draw `draw` (or, `None`, all its draws)
-/// taken from the normal law conditioned on its square (their sum of squares) exceeding
-/// `min_square`, whose probability is `tail`; `u`, uniform in (0, 1), picks the point of that
-/// conditioned tail (the direction stays the draws' own).
+/// taken from the normal law conditioned on its square (their sum of squares) lying in the upper
+/// `tail` of its chi-square law; `u`, uniform in (0, 1), picks the point of that conditioned tail
+/// (the direction stays the draws' own).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Condition {
     pub draw: Option<usize>,
-    pub min_square: f64,
     pub tail: f64,
     pub u: f64,
 }
@@ -90,7 +89,7 @@ pub fn chi2_sf(d: usize, x: f64) -> f64 {
 }
 
 /// The x with P(chi-square(d) > x) = p (0 < p < 1): Newton on ln P inside a shrinking bracket, to
-/// 1e-12 in ln P.
+/// 1e-12 in ln P. (statrs' `inverse_cdf(1 - p)` cannot: `1 - p` is 1 below p = 1e-16.)
 pub fn chi2_isf(d: usize, p: f64) -> f64 {
     let a = d as f64 / 2.0;
     let ln_p = p.ln();
@@ -162,10 +161,6 @@ pub struct ReplicaResult {
     pub iterations: usize,
     /// Samples simulated (initial trials and branches).
     pub steps_simulated: u64,
-    /// The last level reached.
-    pub final_level: f64,
-    /// `(level Z_j, estimate of exceeding Z_j)` after each iteration: the splitting's tail curve.
-    pub curve: Vec<(f64, f64)>,
 }
 
 struct Record<P> {
@@ -218,9 +213,7 @@ pub fn splitting_replica<M: RareEventModel>(model: &M, opts: &SplitOptions, repl
     let mut branches = 0u64;
     let mut estimate = 1.0f64;
     let mut estimates: Vec<Option<f64>> = vec![None; opts.levels.len()];
-    let mut curve = Vec::new();
     let mut iterations = 0usize;
-    let mut level = f64::NEG_INFINITY;
     loop {
         let z = particles.iter().map(|p| p.score).fold(f64::INFINITY, f64::min);
         // Levels reached: read off before killing (the fraction above each among the n particles).
@@ -230,7 +223,6 @@ pub fn splitting_replica<M: RareEventModel>(model: &M, opts: &SplitOptions, repl
                 *e = Some(estimate * above as f64 / n as f64);
             }
         }
-        level = level.max(z);
         if estimates.iter().all(Option::is_some) || iterations >= opts.max_iterations {
             break;
         }
@@ -243,7 +235,6 @@ pub fn splitting_replica<M: RareEventModel>(model: &M, opts: &SplitOptions, repl
             break;
         }
         estimate *= 1.0 - killed.len() as f64 / n as f64;
-        curve.push((z, estimate));
         iterations += 1;
         let survivors: Vec<usize> = (0..n).filter(|&i| particles[i].score > z).collect();
         for p in particles.iter_mut() {
@@ -263,7 +254,7 @@ pub fn splitting_replica<M: RareEventModel>(model: &M, opts: &SplitOptions, repl
             particles[i] = Particle { score, records };
         }
     }
-    ReplicaResult { replica, estimates, iterations, steps_simulated, final_level: level, curve }
+    ReplicaResult { replica, estimates, iterations, steps_simulated }
 }
 
 /// Every replica of `opts`, in parallel; results in replica order.
@@ -467,12 +458,7 @@ pub fn importance_trial<M: RareEventModel>(
     let condition = pair.map(|i| {
         let (part, t) = (i / nt, i % nt);
         let one = part < m;
-        Condition {
-            draw: one.then_some(part),
-            min_square: mix.squares[usize::from(!one)][t],
-            tail: mix.tails[t],
-            u: u.max(f64::MIN_POSITIVE),
-        }
+        Condition { draw: one.then_some(part), tail: mix.tails[t], u: u.max(f64::MIN_POSITIVE) }
     });
     let mut path = model.start(trial);
     let mut max = 0.0f64;

@@ -76,8 +76,9 @@ pub fn branch_rng(seed: u64, replica: u64, branch: u64, stream: BranchStream) ->
 
 /// The stream of trial `trial`'s importance-sampling choice (which sample's noise is inflated): the
 /// splitting's domain, replica [`MAX_REPLICA`] + 1 (reserved for it), branch `trial`.
+#[track_caller]
 pub fn importance_rng(seed: u64, trial: u64) -> ChaCha8Rng {
-    branch_rng(seed, MAX_REPLICA + 1, trial & MAX_BRANCH, BranchStream::Choice)
+    branch_rng(seed, MAX_REPLICA + 1, trial, BranchStream::Choice)
 }
 
 /// The noise generator of `stream` of a splitting branch (as [`noise_rng`] is of a trial).

@@ -109,11 +109,22 @@ impl<'a> Engine<'a> {
 
     /// The trial's design of every detector configuration (deck order).
     fn designs(&self, spec: &TrialSpec) -> Vec<Design<'_>> {
+        self.designs_of(spec, 0..self.study.detectors.len())
+    }
+
+    /// The trial's design of the detector configurations `which` (deck indices), in that order.
+    fn designs_of(&self, spec: &TrialSpec, which: std::ops::Range<usize>) -> Vec<Design<'_>> {
         if !self.perturb_design {
-            return self.nominal_filters.iter().map(|f| f.as_ref().map(Cow::Borrowed).map_err(Clone::clone)).collect();
+            return self.nominal_filters[which]
+                .iter()
+                .map(|f| f.as_ref().map(Cow::Borrowed).map_err(Clone::clone))
+                .collect();
         }
         let design = self.perturbed(&self.study.design_plant, spec, ModelTarget::Design);
-        self.study.detectors.iter().map(|d| d.params.design(&design, self.study.header.dt_s).map(Cow::Owned)).collect()
+        self.study.detectors[which]
+            .iter()
+            .map(|d| d.params.design(&design, self.study.header.dt_s).map(Cow::Owned))
+            .collect()
     }
 
     fn truth(&self, spec: &TrialSpec) -> Cow<'_, DiscreteLti> {
@@ -147,7 +158,8 @@ impl<'a> Engine<'a> {
         detector: usize,
     ) -> Result<(PlantStep, DetectionFilter, FilterStep), DesignError> {
         let plant = PlantStep::new(&self.plant_patterns, &[Some(&*self.truth(spec))], &self.study.output_feedback);
-        let design = self.designs(spec).swap_remove(detector)?.into_owned();
+        // Only this detector's design: the others' gains would be recomputed for nothing.
+        let design = self.designs_of(spec, detector..detector + 1).remove(0)?.into_owned();
         let step = FilterStep::new(&self.filter_patterns[detector], &[Some(&design)]);
         Ok((plant, design, step))
     }
