@@ -53,6 +53,12 @@ pub trait DiscreteModel<const N: usize, const M: usize> {
         central_difference(x, |x| self.transition(x, u))
     }
 
+    /// `(f(x, u), df/dx)` at one state. The filter needs both at `x(k|k)`: a model that gets them from
+    /// one evaluation (dual numbers) overrides this and saves the second.
+    fn transition_with_jacobian(&self, x: &SVector<f64, N>, u: &Self::Input) -> (SVector<f64, N>, SMatrix<f64, N, N>) {
+        (self.transition(x, u), self.transition_jacobian(x, u))
+    }
+
     /// `dh/dx` at `x`; central differences unless overridden.
     fn measurement_jacobian(&self, x: &SVector<f64, N>) -> SMatrix<f64, M, N> {
         central_difference(x, |x| self.measurement(x))
@@ -217,7 +223,7 @@ where
             }
         };
 
-        let Phi = model.transition_jacobian(&self.x_upd, u);
+        let (x_next, Phi) = model.transition_with_jacobian(&self.x_upd, u);
         let PhiPPhi = Phi * P_upd * Phi.transpose();
         self.P_pred = match self.fading {
             Fading::None => PhiPPhi + self.Q,
@@ -231,7 +237,7 @@ where
                 Lambda * PhiPPhi * Lambda + self.Q
             }
         };
-        self.x_pred = model.transition(&self.x_upd, u);
+        self.x_pred = x_next;
         self.check_health();
         Innovation { gamma, S, S_inverse }
     }

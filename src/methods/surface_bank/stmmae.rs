@@ -145,12 +145,17 @@ impl DiscreteModel<5, 5> for NoFault<'_> {
     fn transition(&self, x: &SVector<f64, 5>, u: &BankInput) -> SVector<f64, 5> {
         x + self.dt_s * reduced_derivatives(self.airframe, x, &u.inputs, &u.commanded_rad)
     }
-    /// `I + dt df/dx`, exact, from one evaluation on dual numbers.
     fn transition_jacobian(&self, x: &SVector<f64, 5>, u: &BankInput) -> SMatrix<f64, 5, 5> {
+        self.transition_with_jacobian(x, u).1
+    }
+    /// `f` and `I + dt df/dx`, exact, from one evaluation on dual numbers (its values are the `f64`
+    /// evaluation's to the bit).
+    fn transition_with_jacobian(&self, x: &SVector<f64, 5>, u: &BankInput) -> (SVector<f64, 5>, SMatrix<f64, 5, 5>) {
         let x5: [Dual<5>; 5] = std::array::from_fn(|i| Dual::input(x[i], i));
         let surfaces = u.commanded_rad.map(Dual::cst);
         let f = reduced_derivatives_of(self.airframe, &x5, &u.inputs, &surfaces);
-        SMatrix::from_fn(|r, c| f64::from(r == c) + self.dt_s * f[r].d[c])
+        let next = SVector::from_fn(|r, _| x[r] + self.dt_s * f[r].v);
+        (next, SMatrix::from_fn(|r, c| f64::from(r == c) + self.dt_s * f[r].d[c]))
     }
     fn measurement(&self, x: &SVector<f64, 5>) -> SVector<f64, 5> {
         *x
@@ -176,14 +181,19 @@ impl DiscreteModel<6, 5> for SurfaceFault<'_> {
         let next = x5 + self.dt_s * reduced_derivatives(self.airframe, &x5, &u.inputs, &surfaces);
         SVector::<f64, 6>::from_fn(|j, _| if j < 5 { next[j] } else { x[5] })
     }
-    /// `[I + dt df/dx5, dt df/ds; 0, 1]` (`s`: the surface's position), exact, from one evaluation on
-    /// dual numbers.
     fn transition_jacobian(&self, x: &SVector<f64, 6>, u: &BankInput) -> SMatrix<f64, 6, 6> {
+        self.transition_with_jacobian(x, u).1
+    }
+    /// `f` and `[I + dt df/dx5, dt df/ds; 0, 1]` (`s`: the surface's position), exact, from one
+    /// evaluation on dual numbers (its values are the `f64` evaluation's to the bit).
+    fn transition_with_jacobian(&self, x: &SVector<f64, 6>, u: &BankInput) -> (SVector<f64, 6>, SMatrix<f64, 6, 6>) {
         let x5: [Dual<6>; 5] = std::array::from_fn(|i| Dual::input(x[i], i));
         let mut surfaces = u.commanded_rad.map(Dual::cst);
         surfaces[self.surface] = Dual::input(x[5], 5);
         let f = reduced_derivatives_of(self.airframe, &x5, &u.inputs, &surfaces);
-        SMatrix::from_fn(|r, c| f64::from(r == c) + if r < 5 { self.dt_s * f[r].d[c] } else { 0.0 })
+        let next = SVector::from_fn(|r, _| if r < 5 { x[r] + self.dt_s * f[r].v } else { x[5] });
+        let jacobian = SMatrix::from_fn(|r, c| f64::from(r == c) + if r < 5 { self.dt_s * f[r].d[c] } else { 0.0 });
+        (next, jacobian)
     }
     fn measurement(&self, x: &SVector<f64, 6>) -> SVector<f64, 5> {
         x.fixed_rows::<5>(0).into_owned()
@@ -330,7 +340,7 @@ mod tests {
         ];
         for (k, x) in states.iter().enumerate() {
             let u = BankInput {
-                inputs: ReducedInputs { va_mps: 18.0 + 4.0 * k as f64, phi_rad: 0.2, theta_rad: -0.1, throttle: 0.6 },
+                inputs: ReducedInputs::new(18.0 + 4.0 * k as f64, 0.2, -0.1, 0.6),
                 commanded_rad: [0.05, -0.05, -0.1, -0.08, 0.02],
             };
             let x5 = SVector::<f64, 5>::from_fn(|i, _| x[i]);
@@ -338,6 +348,8 @@ mod tests {
             let (exact, numeric) =
                 (model.transition_jacobian(&x5, &u), central_difference(&x5, |x| model.transition(x, &u)));
             assert!((exact - numeric).amax() < 1e-8 * exact.amax(), "state {k}: {exact} vs {numeric}");
+            // The dual evaluation's values are the plain one's to the bit: the records do not move.
+            assert_eq!(model.transition_with_jacobian(&x5, &u).0, model.transition(&x5, &u));
             for surface in 0..SURFACES {
                 let x6 = SVector::<f64, 6>::from_fn(|i, _| x[i]);
                 let model = SurfaceFault { airframe: &airframe, dt_s, surface };
@@ -347,6 +359,7 @@ mod tests {
                     (exact - numeric).amax() < 1e-8 * exact.amax(),
                     "state {k}, surface {surface}: {exact} vs {numeric}"
                 );
+                assert_eq!(model.transition_with_jacobian(&x6, &u).0, model.transition(&x6, &u));
                 // The surface's own column is not zero: the position moves the rates.
                 assert!(exact.column(5).rows(0, 3).amax() > 1e-6, "surface {surface}: {exact}");
             }
@@ -369,7 +382,7 @@ mod tests {
         let airframe = AerosondeParams::default();
         let (x, trim_surfaces, throttle) = trim(&airframe, 25.0, 100.0).unwrap();
         let (va, alpha, beta) = air_data(&x, &nalgebra::Vector3::zeros());
-        let inputs = ReducedInputs { va_mps: va, phi_rad: 0.0, theta_rad: x[7], throttle };
+        let inputs = ReducedInputs::new(va, 0.0, x[7], throttle);
         let dt_s = 0.01;
         let mut truth = SVector::<f64, 5>::new(0.0, 0.0, 0.0, alpha, beta);
         let mut rng = ChaCha8Rng::seed_from_u64(7);

@@ -258,12 +258,7 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
                 .collect();
         }
         let input = BankInput {
-            inputs: ReducedInputs {
-                va_mps: sample.va_mps,
-                phi_rad: sample.phi_rad,
-                theta_rad: sample.theta_rad,
-                throttle: sample.throttle,
-            },
+            inputs: ReducedInputs::new(sample.va_mps, sample.phi_rad, sample.theta_rad, sample.throttle),
             commanded_rad: sample.commanded_rad,
         };
         rows.clear();

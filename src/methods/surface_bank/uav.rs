@@ -416,6 +416,7 @@ fn aero_propulsion<T: Real>(
     p: &AerosondeParams,
     va: f64,
     alpha: T,
+    alpha_sin_cos: (T, T),
     beta: T,
     rates: [T; 3],
     surfaces_rad: &[T; 5],
@@ -433,7 +434,7 @@ fn aero_propulsion<T: Real>(
     let em = (T::cst(-p.M_blend) * (alpha - p.alpha0_rad)).exp();
     let ep = (T::cst(p.M_blend) * (alpha + p.alpha0_rad)).exp();
     let sigma = (T::cst(1.0) + em + ep) / ((T::cst(1.0) + em) * (T::cst(1.0) + ep));
-    let (sa, ca) = alpha.sin_cos();
+    let (sa, ca) = alpha_sin_cos;
     let cl_lin = T::cst(p.C_L_0) + T::cst(p.C_L_alpha) * alpha;
     let c_l = (T::cst(1.0) - sigma) * cl_lin + sigma * 2.0 * alpha.re().signum() * sa * sa * ca;
     let aspect_ratio = p.b_m * p.b_m / p.S_wing_m2;
@@ -484,29 +485,48 @@ fn aero_propulsion<T: Real>(
     [fx, fy, fz, l, m, n]
 }
 
-/// Body accelerations `[udot, vdot, wdot, pdot, qdot, rdot]` from velocities, attitude (for gravity), rates,
-/// and the air data the forces depend on: the shared kernel of the full and the reduced model.
+/// Roll and pitch with their sines and cosines, which the weight's body components need.
+#[derive(Debug, Clone, Copy)]
+pub struct Attitude {
+    sin_cos_phi: (f64, f64),
+    sin_cos_theta: (f64, f64),
+}
+
+impl Attitude {
+    pub fn new(phi_rad: f64, theta_rad: f64) -> Self {
+        Attitude { sin_cos_phi: phi_rad.sin_cos(), sin_cos_theta: theta_rad.sin_cos() }
+    }
+
+    /// The weight (N) of `p`'s aircraft in body axes: `m g [-sin(theta), cos(theta) sin(phi),
+    /// cos(theta) cos(phi)]`.
+    fn weight_in_body(&self, p: &AerosondeParams) -> [f64; 3] {
+        let ((sf, cf), (st, ct)) = (self.sin_cos_phi, self.sin_cos_theta);
+        let mg = p.mass_kg * p.gravity_mps2;
+        [-(mg * st), mg * ct * sf, mg * ct * cf]
+    }
+}
+
+/// Body accelerations `[udot, vdot, wdot, pdot, qdot, rdot]` from velocities, the weight in body axes,
+/// rates, and the air data the forces depend on (`alpha` with its sine and cosine, which every caller
+/// has already): the shared kernel of the full and the reduced model.
 #[allow(clippy::too_many_arguments)]
 fn body_accelerations<T: Real>(
     p: &AerosondeParams,
     uvw: [T; 3],
-    phi: f64,
-    theta: f64,
+    attitude: &Attitude,
     rates: [T; 3],
-    air: (f64, T, T),
+    air: (f64, T, (T, T), T),
     surfaces_rad: &[T; 5],
     throttle: f64,
 ) -> [T; 6] {
-    let (va, alpha, beta) = air;
-    let [fx, fy, fz, l, m, n] = aero_propulsion(p, va, alpha, beta, rates, surfaces_rad, throttle);
+    let (va, alpha, alpha_sin_cos, beta) = air;
+    let [fx, fy, fz, l, m, n] = aero_propulsion(p, va, alpha, alpha_sin_cos, beta, rates, surfaces_rad, throttle);
     let [u, v, w] = uvw;
     let [pr, qr, rr] = rates;
-    let (sf, cf) = phi.sin_cos();
-    let (st, ct) = theta.sin_cos();
-    let mg = p.mass_kg * p.gravity_mps2;
-    let fx = fx - mg * st;
-    let fy = fy + mg * ct * sf;
-    let fz = fz + mg * ct * cf;
+    let weight_body_n = attitude.weight_in_body(p);
+    let fx = fx + weight_body_n[0];
+    let fy = fy + weight_body_n[1];
+    let fz = fz + weight_body_n[2];
     let g = p.gammas();
     [
         rr * v - qr * w + fx / p.mass_kg,
@@ -520,7 +540,12 @@ fn body_accelerations<T: Real>(
 
 /// Airspeed (m/s), angle of attack and sideslip (rad) relative to the air mass.
 pub fn air_data(x: &State, wind_ned_mps: &Vector3<f64>) -> (f64, f64, f64) {
-    let wind_body = body_to_ned(x[6], x[7], x[8]).transpose() * wind_ned_mps;
+    air_data_rotated(x, &body_to_ned(x[6], x[7], x[8]), wind_ned_mps)
+}
+
+/// [`air_data`] with the state's body-to-NED rotation already at hand.
+fn air_data_rotated(x: &State, body_to_ned: &Matrix3<f64>, wind_ned_mps: &Vector3<f64>) -> (f64, f64, f64) {
+    let wind_body = body_to_ned.transpose() * wind_ned_mps;
     let (ur, vr, wr) = (x[3] - wind_body[0], x[4] - wind_body[1], x[5] - wind_body[2]);
     let va = (ur * ur + vr * vr + wr * wr).sqrt();
     let alpha = wr.atan2(ur);
@@ -538,7 +563,7 @@ pub fn specific_force(
     wind_ned_mps: &Vector3<f64>,
 ) -> Vector3<f64> {
     let (va, alpha, beta) = air_data(x, wind_ned_mps);
-    let f = aero_propulsion(p, va, alpha, beta, [x[9], x[10], x[11]], surfaces_rad, throttle);
+    let f = aero_propulsion(p, va, alpha, alpha.sin_cos(), beta, [x[9], x[10], x[11]], surfaces_rad, throttle);
     Vector3::new(f[0], f[1], f[2]) / p.mass_kg
 }
 
@@ -553,11 +578,14 @@ pub fn derivatives(
     let (phi, theta, psi) = (x[6], x[7], x[8]);
     let uvw = [x[3], x[4], x[5]];
     let rates = [x[9], x[10], x[11]];
-    let pos_dot = body_to_ned(phi, theta, psi) * Vector3::new(uvw[0], uvw[1], uvw[2]);
-    let air = air_data(x, wind_ned_mps);
-    let acc = body_accelerations(p, uvw, phi, theta, rates, air, surfaces_rad, throttle);
+    let rotation = body_to_ned(phi, theta, psi);
+    let pos_dot = rotation * Vector3::new(uvw[0], uvw[1], uvw[2]);
+    let (va, alpha, beta) = air_data_rotated(x, &rotation, wind_ned_mps);
+    let air = (va, alpha, alpha.sin_cos(), beta);
+    let attitude = Attitude::new(phi, theta);
+    let acc = body_accelerations(p, uvw, &attitude, rates, air, surfaces_rad, throttle);
     let [pr, qr, rr] = rates;
-    let (sf, cf) = phi.sin_cos();
+    let (sf, cf) = attitude.sin_cos_phi;
     let (tt, ct) = (theta.tan(), theta.cos());
     State::from_column_slice(&[
         pos_dot[0],
@@ -669,13 +697,19 @@ pub fn trim(p: &AerosondeParams, va_mps: f64, altitude_m: f64) -> Result<(State,
     Ok((x, s, t))
 }
 
-/// Known inputs of the reduced model (treated as exogenous by the filter).
+/// Known inputs of the reduced model (treated as exogenous by the filter). The attitude's sines and
+/// cosines are computed once per sample, for every filter of every bank.
 #[derive(Debug, Clone, Copy)]
 pub struct ReducedInputs {
     pub va_mps: f64,
-    pub phi_rad: f64,
-    pub theta_rad: f64,
+    pub attitude: Attitude,
     pub throttle: f64,
+}
+
+impl ReducedInputs {
+    pub fn new(va_mps: f64, phi_rad: f64, theta_rad: f64, throttle: f64) -> Self {
+        ReducedInputs { va_mps, attitude: Attitude::new(phi_rad, theta_rad), throttle }
+    }
 }
 
 /// The reduced model an estimator of `[p, q, r, alpha, beta]` uses (Ducard & Geering's filter state): the
@@ -709,10 +743,9 @@ pub fn reduced_derivatives_of<T: Real>(
     let acc = body_accelerations(
         p,
         [u, v, w],
-        inputs.phi_rad,
-        inputs.theta_rad,
+        &inputs.attitude,
         rates,
-        (va, alpha, beta),
+        (va, alpha, (sa, ca), beta),
         surfaces_rad,
         inputs.throttle,
     );
@@ -1212,7 +1245,7 @@ mod tests {
         let throttle = 0.5;
         let (va, alpha, beta) = air_data(&x, &no_wind());
         let x5 = ReducedState::new(x[9], x[10], x[11], alpha, beta);
-        let inputs = ReducedInputs { va_mps: va, phi_rad: x[6], theta_rad: x[7], throttle };
+        let inputs = ReducedInputs::new(va, x[6], x[7], throttle);
         let r = reduced_derivatives(&p, &x5, &inputs, &s);
         let d = derivatives(&p, &x, &s, throttle, &no_wind());
         for i in 0..3 {
