@@ -59,9 +59,63 @@ pub trait DiscreteModel<const N: usize, const M: usize> {
         (self.transition(x, u), self.transition_jacobian(x, u))
     }
 
-    /// `dh/dx` at `x`; central differences unless overridden.
+    /// `dh/dx` at `x`: the selection when [`Self::measured_states`] names the states, else central
+    /// differences, unless overridden.
     fn measurement_jacobian(&self, x: &SVector<f64, N>) -> SMatrix<f64, M, N> {
-        central_difference(x, |x| self.measurement(x))
+        match self.measured_states() {
+            Some(picked) => SMatrix::from_fn(|i, j| f64::from(picked[i] == j)),
+            None => central_difference(x, |x| self.measurement(x)),
+        }
+    }
+
+    /// When `h(x)` only picks states (`y_i = x[picked[i]]`), their indices: the filter then forms its
+    /// products with `H` by picking entries.
+    fn measured_states(&self) -> Option<[usize; M]> {
+        None
+    }
+}
+
+/// A step's `H` with the products the filter forms with it. When the model only picks states they are
+/// formed by picking entries, for a fraction of the arithmetic and the same numbers: every other term of
+/// the full product is an exact zero (only a zero's sign, or a non-finite entry's NaN, can differ).
+struct Observation<const N: usize, const M: usize> {
+    H: SMatrix<f64, M, N>,
+    picked: Option<[usize; M]>,
+}
+
+impl<const N: usize, const M: usize> Observation<N, M> {
+    fn of<D: DiscreteModel<N, M>>(model: &D, x: &SVector<f64, N>) -> Self {
+        Observation { H: model.measurement_jacobian(x), picked: model.measured_states() }
+    }
+
+    /// `H A H'`.
+    fn project(&self, A: &SMatrix<f64, N, N>) -> SMatrix<f64, M, M> {
+        match &self.picked {
+            Some(p) => SMatrix::from_fn(|i, j| A[(p[i], p[j])]),
+            None => self.H * A * self.H.transpose(),
+        }
+    }
+
+    /// `A H'`.
+    fn right(&self, A: &SMatrix<f64, N, N>) -> SMatrix<f64, N, M> {
+        match &self.picked {
+            Some(p) => SMatrix::from_fn(|i, j| A[(i, p[j])]),
+            None => A * self.H.transpose(),
+        }
+    }
+
+    /// `L H`.
+    fn expand(&self, L: &SMatrix<f64, N, M>) -> SMatrix<f64, N, N> {
+        match &self.picked {
+            Some(p) => {
+                let mut LH = SMatrix::<f64, N, N>::zeros();
+                for (k, &j) in p.iter().enumerate() {
+                    LH.set_column(j, &L.column(k));
+                }
+                LH
+            }
+            None => L * self.H,
+        }
     }
 }
 
@@ -201,15 +255,15 @@ where
 
     /// One sample: update with `y`, then predict with `u`. Returns the innovation of `y`.
     pub fn step<D: DiscreteModel<N, M>>(&mut self, model: &D, y: &SVector<f64, M>, u: &D::Input) -> Innovation<M> {
-        let H = model.measurement_jacobian(&self.x_pred);
+        let H = Observation::of(model, &self.x_pred);
         let gamma = y - model.measurement(&self.x_pred);
-        let S = H * self.P_pred * H.transpose() + self.R;
+        let S = H.project(&self.P_pred) + self.R;
         let S_inverse = S.lu().try_inverse();
         let P_upd = match &S_inverse {
             Some(S_inv) => {
-                let L = self.P_pred * H.transpose() * S_inv;
+                let L = H.right(&self.P_pred) * S_inv;
                 self.x_upd = self.x_pred + L * gamma;
-                let IKH = SMatrix::<f64, N, N>::identity() - L * H;
+                let IKH = SMatrix::<f64, N, N>::identity() - H.expand(&L);
                 if self.joseph {
                     IKH * self.P_pred * IKH.transpose() + L * self.R * L.transpose()
                 } else {
@@ -227,14 +281,15 @@ where
         let PhiPPhi = Phi * P_upd * Phi.transpose();
         self.P_pred = match self.fading {
             Fading::None => PhiPPhi + self.Q,
+            // Scaling rows (and columns) by the factors is the product with `diag(lambda)`, term for term.
             Fading::Original(params) => {
                 self.lambda = self.fading_factors_for(&params, &gamma, &H, &PhiPPhi);
-                SMatrix::<f64, N, N>::from_diagonal(&self.lambda) * PhiPPhi + self.Q
+                SMatrix::<f64, N, N>::from_fn(|i, j| self.lambda[i] * PhiPPhi[(i, j)]) + self.Q
             }
             Fading::Symmetric(params) => {
                 self.lambda = self.fading_factors_for(&params, &gamma, &H, &PhiPPhi);
-                let Lambda = SMatrix::<f64, N, N>::from_diagonal(&self.lambda);
-                Lambda * PhiPPhi * Lambda + self.Q
+                let l = &self.lambda;
+                SMatrix::<f64, N, N>::from_fn(|i, j| l[i] * PhiPPhi[(i, j)] * l[j]) + self.Q
             }
         };
         self.x_pred = x_next;
@@ -247,7 +302,7 @@ where
         &mut self,
         params: &FadingParams<N>,
         gamma: &SVector<f64, M>,
-        H: &SMatrix<f64, M, N>,
+        H: &Observation<N, M>,
         PhiPPhi: &SMatrix<f64, N, N>,
     ) -> SVector<f64, N> {
         let outer = gamma * gamma.transpose();
@@ -256,8 +311,8 @@ where
             Some(V) => (params.rho * V + outer) / (1.0 + params.rho),
         };
         self.V = Some(V);
-        let N_k = V - H * self.Q * H.transpose() - params.beta * self.R;
-        let M_k = H * PhiPPhi * H.transpose();
+        let N_k = V - H.project(&self.Q) - params.beta * self.R;
+        let M_k = H.project(PhiPPhi);
         let weighted: f64 = (0..M).map(|j| params.a[j] * M_k[(j, j)]).sum();
         let c = N_k.trace() / weighted;
         // c is NaN or negative when the residual is smaller than expected: no fading then.
@@ -390,6 +445,55 @@ pub(super) mod tests {
             assert_eq!(st.health(), FilterHealth::default(), "{fading:?}");
         }
         assert_eq!(ekf.health(), FilterHealth::default());
+    }
+
+    /// [`Cv`] with its exact `H = [1 0]`; with `picked`, it also declares that it measures state 0, so
+    /// the filter picks entries instead of multiplying by `H`.
+    struct ExactCv {
+        cv: Cv,
+        picked: bool,
+    }
+
+    impl DiscreteModel<2, 1> for ExactCv {
+        type Input = f64;
+        fn transition(&self, x: &Vector2<f64>, u: &f64) -> Vector2<f64> {
+            self.cv.transition(x, u)
+        }
+        fn measurement(&self, x: &Vector2<f64>) -> Vector1<f64> {
+            self.cv.measurement(x)
+        }
+        fn measurement_jacobian(&self, _: &Vector2<f64>) -> SMatrix<f64, 1, 2> {
+            Matrix2x1::new(1.0, 0.0).transpose()
+        }
+        fn measured_states(&self) -> Option<[usize; 1]> {
+            self.picked.then_some([0])
+        }
+    }
+
+    #[test]
+    fn picking_measured_states_gives_the_full_products_numbers() {
+        let ys = noisy(160, 100);
+        let weights = FadingParams { rho: 0.95, beta: 1.0, a: Vector2::new(1.0, 3.0) };
+        for fading in [Fading::None, Fading::Original(weights), Fading::Symmetric(weights)] {
+            let Q = Matrix2::new(1e-6, 0.0, 0.0, 1e-6);
+            let new = || Stekf::new(Vector2::zeros(), Matrix2::identity() * 10.0, Q, SMatrix::from_element(0.09), fading);
+            let (mut full, mut picked) = (new(), new());
+            let full_model = ExactCv { cv: Cv { dt_s: 0.1 }, picked: false };
+            let picked_model = ExactCv { cv: Cv { dt_s: 0.1 }, picked: true };
+            let mut max_lambda = 1.0f64;
+            for y in &ys {
+                let a = full.step(&full_model, &Vector1::new(*y), &0.0);
+                let b = picked.step(&picked_model, &Vector1::new(*y), &0.0);
+                assert_eq!(a, b);
+                assert_eq!(full.estimate(), picked.estimate());
+                assert_eq!(full.predicted_covariance(), picked.predicted_covariance());
+                assert_eq!(full.fading_factors(), picked.fading_factors());
+                max_lambda = max_lambda.max(full.fading_factors().max());
+            }
+            // The strong-tracking forms' factors did act after the jump: the check covers their scaling.
+            assert_eq!(max_lambda > 1.0, fading != Fading::None, "{fading:?}");
+            assert_eq!(full.health(), picked.health());
+        }
     }
 
     #[test]

@@ -160,8 +160,8 @@ impl DiscreteModel<5, 5> for NoFault<'_> {
     fn measurement(&self, x: &SVector<f64, 5>) -> SVector<f64, 5> {
         *x
     }
-    fn measurement_jacobian(&self, _: &SVector<f64, 5>) -> SMatrix<f64, 5, 5> {
-        SMatrix::identity()
+    fn measured_states(&self) -> Option<[usize; 5]> {
+        Some([0, 1, 2, 3, 4])
     }
 }
 
@@ -198,8 +198,8 @@ impl DiscreteModel<6, 5> for SurfaceFault<'_> {
     fn measurement(&self, x: &SVector<f64, 6>) -> SVector<f64, 5> {
         x.fixed_rows::<5>(0).into_owned()
     }
-    fn measurement_jacobian(&self, _: &SVector<f64, 6>) -> SMatrix<f64, 5, 6> {
-        SMatrix::<f64, 5, 6>::identity()
+    fn measured_states(&self) -> Option<[usize; 5]> {
+        Some([0, 1, 2, 3, 4])
     }
 }
 

@@ -384,10 +384,10 @@ pub struct EffectiveDeflections<T = f64> {
 pub fn effective_deflections<T: Real>(surfaces_rad: &[T; 5]) -> EffectiveDeflections<T> {
     let s = surfaces_rad;
     EffectiveDeflections {
-        aileron_rad: T::cst(0.5) * (s[0] - s[1]),
-        aileron_sym_rad: T::cst(0.5) * (s[0] + s[1]),
-        elevator_rad: T::cst(0.5) * (s[2] + s[3]),
-        elevator_diff_rad: T::cst(0.5) * (s[2] - s[3]),
+        aileron_rad: (s[0] - s[1]) * 0.5,
+        aileron_sym_rad: (s[0] + s[1]) * 0.5,
+        elevator_rad: (s[2] + s[3]) * 0.5,
+        elevator_diff_rad: (s[2] - s[3]) * 0.5,
         rudder_rad: s[4],
     }
 }
@@ -427,61 +427,61 @@ fn aero_propulsion<T: Real>(
     let qbar = 0.5 * p.rho_kgpm3 * va * va;
     // Nondimensional rates; at zero airspeed the dynamic pressure is zero anyway.
     let (p_hat, q_hat, r_hat) = if va > 1e-9 {
-        (T::cst(p.b_m) * pr / (2.0 * va), T::cst(p.c_m) * qr / (2.0 * va), T::cst(p.b_m) * rr / (2.0 * va))
+        (pr * p.b_m / (2.0 * va), qr * p.c_m / (2.0 * va), rr * p.b_m / (2.0 * va))
     } else {
         (T::cst(0.0), T::cst(0.0), T::cst(0.0))
     };
-    let em = (T::cst(-p.M_blend) * (alpha - p.alpha0_rad)).exp();
-    let ep = (T::cst(p.M_blend) * (alpha + p.alpha0_rad)).exp();
+    let em = ((alpha - p.alpha0_rad) * -p.M_blend).exp();
+    let ep = ((alpha + p.alpha0_rad) * p.M_blend).exp();
     let sigma = (T::cst(1.0) + em + ep) / ((T::cst(1.0) + em) * (T::cst(1.0) + ep));
     let (sa, ca) = alpha_sin_cos;
-    let cl_lin = T::cst(p.C_L_0) + T::cst(p.C_L_alpha) * alpha;
+    let cl_lin = T::cst(p.C_L_0) + alpha * p.C_L_alpha;
     let c_l = (T::cst(1.0) - sigma) * cl_lin + sigma * 2.0 * alpha.re().signum() * sa * sa * ca;
     let aspect_ratio = p.b_m * p.b_m / p.S_wing_m2;
     let c_d = T::cst(p.C_D_p) + cl_lin * cl_lin / (std::f64::consts::PI * p.e_oswald * aspect_ratio);
     let cx = -c_d * ca + c_l * sa;
-    let cx_q = T::cst(-p.C_D_q) * ca + T::cst(p.C_L_q) * sa;
-    let cx_de = T::cst(-p.C_D_delta_e) * ca + T::cst(p.C_L_delta_e) * sa;
-    let cx_as = T::cst(p.C_L_delta_a_sym) * sa;
+    let cx_q = ca * -p.C_D_q + sa * p.C_L_q;
+    let cx_de = ca * -p.C_D_delta_e + sa * p.C_L_delta_e;
+    let cx_as = sa * p.C_L_delta_a_sym;
     let cz = -c_d * sa - c_l * ca;
-    let cz_q = T::cst(-p.C_D_q) * sa - T::cst(p.C_L_q) * ca;
-    let cz_de = T::cst(-p.C_D_delta_e) * sa - T::cst(p.C_L_delta_e) * ca;
-    let cz_as = T::cst(-p.C_L_delta_a_sym) * ca;
+    let cz_q = sa * -p.C_D_q - ca * p.C_L_q;
+    let cz_de = sa * -p.C_D_delta_e - ca * p.C_L_delta_e;
+    let cz_as = ca * -p.C_L_delta_a_sym;
     let qs = qbar * p.S_wing_m2;
     let slip = p.k_motor_mps * throttle;
     let thrust = 0.5 * p.rho_kgpm3 * p.S_prop_m2 * p.C_prop * (slip * slip - va * va);
-    let fx = T::cst(qs) * (cx + cx_q * q_hat + cx_de * d.elevator_rad + cx_as * d.aileron_sym_rad) + thrust;
-    let fy = T::cst(qs)
-        * (T::cst(p.C_Y_0)
-            + T::cst(p.C_Y_beta) * beta
-            + T::cst(p.C_Y_p) * p_hat
-            + T::cst(p.C_Y_r) * r_hat
-            + T::cst(p.C_Y_delta_a) * d.aileron_rad
-            + T::cst(p.C_Y_delta_r) * d.rudder_rad);
-    let fz = T::cst(qs) * (cz + cz_q * q_hat + cz_de * d.elevator_rad + cz_as * d.aileron_sym_rad);
+    let fx = (cx + cx_q * q_hat + cx_de * d.elevator_rad + cx_as * d.aileron_sym_rad) * qs + thrust;
+    let fy = (T::cst(p.C_Y_0)
+            + beta * p.C_Y_beta
+            + p_hat * p.C_Y_p
+            + r_hat * p.C_Y_r
+            + d.aileron_rad * p.C_Y_delta_a
+            + d.rudder_rad * p.C_Y_delta_r)
+        * qs;
+    let fz = (cz + cz_q * q_hat + cz_de * d.elevator_rad + cz_as * d.aileron_sym_rad) * qs;
     let omega = p.k_Omega_radps * throttle;
-    let l = T::cst(qs * p.b_m)
-        * (T::cst(p.C_l_0)
-            + T::cst(p.C_l_beta) * beta
-            + T::cst(p.C_l_p) * p_hat
-            + T::cst(p.C_l_r) * r_hat
-            + T::cst(p.C_l_delta_a) * d.aileron_rad
-            + T::cst(p.C_l_delta_r) * d.rudder_rad
-            + T::cst(p.C_l_delta_e_diff) * d.elevator_diff_rad)
+    let l = (T::cst(p.C_l_0)
+            + beta * p.C_l_beta
+            + p_hat * p.C_l_p
+            + r_hat * p.C_l_r
+            + d.aileron_rad * p.C_l_delta_a
+            + d.rudder_rad * p.C_l_delta_r
+            + d.elevator_diff_rad * p.C_l_delta_e_diff)
+        * (qs * p.b_m)
         - p.k_T_P * omega * omega;
-    let m = T::cst(qs * p.c_m)
-        * (T::cst(p.C_m_0)
-            + T::cst(p.C_m_alpha) * alpha
-            + T::cst(p.C_m_q) * q_hat
-            + T::cst(p.C_m_delta_e) * d.elevator_rad
-            + T::cst(p.C_m_delta_a_sym) * d.aileron_sym_rad);
-    let n = T::cst(qs * p.b_m)
-        * (T::cst(p.C_n_0)
-            + T::cst(p.C_n_beta) * beta
-            + T::cst(p.C_n_p) * p_hat
-            + T::cst(p.C_n_r) * r_hat
-            + T::cst(p.C_n_delta_a) * d.aileron_rad
-            + T::cst(p.C_n_delta_r) * d.rudder_rad);
+    let m = (T::cst(p.C_m_0)
+            + alpha * p.C_m_alpha
+            + q_hat * p.C_m_q
+            + d.elevator_rad * p.C_m_delta_e
+            + d.aileron_sym_rad * p.C_m_delta_a_sym)
+        * (qs * p.c_m);
+    let n = (T::cst(p.C_n_0)
+            + beta * p.C_n_beta
+            + p_hat * p.C_n_p
+            + r_hat * p.C_n_r
+            + d.aileron_rad * p.C_n_delta_a
+            + d.rudder_rad * p.C_n_delta_r)
+        * (qs * p.b_m);
     [fx, fy, fz, l, m, n]
 }
 
@@ -532,9 +532,9 @@ fn body_accelerations<T: Real>(
         rr * v - qr * w + fx / p.mass_kg,
         pr * w - rr * u + fy / p.mass_kg,
         qr * u - pr * v + fz / p.mass_kg,
-        T::cst(g[0]) * pr * qr - T::cst(g[1]) * qr * rr + T::cst(g[2]) * l + T::cst(g[3]) * n,
-        T::cst(g[4]) * pr * rr - T::cst(g[5]) * (pr * pr - rr * rr) + m / p.Jy_kgm2,
-        T::cst(g[6]) * pr * qr - T::cst(g[0]) * qr * rr + T::cst(g[3]) * l + T::cst(g[7]) * n,
+        pr * g[0] * qr - qr * g[1] * rr + l * g[2] + n * g[3],
+        pr * g[4] * rr - (pr * pr - rr * rr) * g[5] + m / p.Jy_kgm2,
+        pr * g[6] * qr - qr * g[0] * rr + l * g[3] + n * g[7],
     ]
 }
 
@@ -738,7 +738,7 @@ pub fn reduced_derivatives_of<T: Real>(
     let va = inputs.va_mps;
     let (sa, ca) = alpha.sin_cos();
     let (sb, cb) = beta.sin_cos();
-    let (u, v, w) = (T::cst(va) * ca * cb, T::cst(va) * sb, T::cst(va) * sa * cb);
+    let (u, v, w) = (ca * va * cb, sb * va, sa * va * cb);
     let rates = [x5[0], x5[1], x5[2]];
     let acc = body_accelerations(
         p,
@@ -753,7 +753,7 @@ pub fn reduced_derivatives_of<T: Real>(
     let uw2 = u * u + w * w;
     let alpha_dot = (u * wdot - w * udot) / uw2;
     let va_dot = (u * udot + v * vdot + w * wdot) / va;
-    let beta_dot = (T::cst(va) * vdot - v * va_dot) / (T::cst(va) * uw2.sqrt());
+    let beta_dot = (vdot * va - v * va_dot) / (uw2.sqrt() * va);
     [acc[3], acc[4], acc[5], alpha_dot, beta_dot]
 }
 
