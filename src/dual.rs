@@ -7,11 +7,21 @@
 //! the handful of operations the surface-bank model uses, without another dependency on nalgebra's
 //! version.)
 
-use std::ops::{Add, Div, Mul, Neg, Sub};
+use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 
-/// What a model generic over its number type may do with it.
+use nalgebra::{ClosedAddAssign, ClosedDivAssign, ClosedMulAssign, ClosedSubAssign, SMatrix, SVector, Scalar};
+use num_traits::{One, Zero};
+
+/// What a model generic over its number type may do with it, in nalgebra's vectors and matrices too.
 pub trait Real:
     Copy
+    + Scalar
+    + Zero
+    + One
+    + ClosedAddAssign
+    + ClosedSubAssign
+    + ClosedMulAssign
+    + ClosedDivAssign
     + Add<Output = Self>
     + Sub<Output = Self>
     + Mul<Output = Self>
@@ -70,6 +80,16 @@ impl<const N: usize> Dual<N> {
     }
 }
 
+/// `g(x)` and its Jacobian `dg/dx`, exact, from one evaluation of `g` on dual numbers (the values are
+/// the `f64` evaluation's to the bit).
+pub fn value_and_jacobian<const N: usize, const R: usize>(
+    x: &SVector<f64, N>,
+    g: impl Fn(&SVector<Dual<N>, N>) -> SVector<Dual<N>, R>,
+) -> (SVector<f64, R>, SMatrix<f64, R, N>) {
+    let gx = g(&SVector::from_fn(|i, _| Dual::input(x[i], i)));
+    (gx.map(|e| e.v), SMatrix::from_fn(|r, c| gx[r].d[c]))
+}
+
 impl<const N: usize> Real for Dual<N> {
     fn cst(v: f64) -> Self {
         Dual { v, d: [0.0; N] }
@@ -85,9 +105,12 @@ impl<const N: usize> Real for Dual<N> {
         let e = self.v.exp();
         self.chain(e, e)
     }
+    /// At 0, where the square root has no derivative, the slope is taken as 0: the models use it for a
+    /// norm `|v|` that multiplies `v` (drag), and `|v| v` has the derivative 0 there, which 0 gives and
+    /// `0 * inf` would turn into NaN.
     fn sqrt(self) -> Self {
         let r = self.v.sqrt();
-        self.chain(r, 0.5 / r)
+        self.chain(r, if r > 0.0 { 0.5 / r } else { 0.0 })
     }
 }
 
@@ -125,6 +148,45 @@ impl<const N: usize> Neg for Dual<N> {
     type Output = Self;
     fn neg(self) -> Self {
         Dual { v: -self.v, d: self.d.map(|x| -x) }
+    }
+}
+
+impl<const N: usize> Zero for Dual<N> {
+    fn zero() -> Self {
+        Dual::cst(0.0)
+    }
+    fn is_zero(&self) -> bool {
+        self.v == 0.0 && self.d.iter().all(|d| *d == 0.0)
+    }
+}
+
+impl<const N: usize> One for Dual<N> {
+    fn one() -> Self {
+        Dual::cst(1.0)
+    }
+}
+
+impl<const N: usize> AddAssign for Dual<N> {
+    fn add_assign(&mut self, o: Self) {
+        *self = *self + o;
+    }
+}
+
+impl<const N: usize> SubAssign for Dual<N> {
+    fn sub_assign(&mut self, o: Self) {
+        *self = *self - o;
+    }
+}
+
+impl<const N: usize> MulAssign for Dual<N> {
+    fn mul_assign(&mut self, o: Self) {
+        *self = *self * o;
+    }
+}
+
+impl<const N: usize> DivAssign for Dual<N> {
+    fn div_assign(&mut self, o: Self) {
+        *self = *self / o;
     }
 }
 

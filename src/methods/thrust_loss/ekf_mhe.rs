@@ -9,8 +9,8 @@
 //! the 12 states other than the thrust (`H = [0 I]`). Its model ([`FilterModel`]): all four engines at
 //! `P / 4`, the nominal mass schedule, the thrust's nominal altitude law, and the measured gimbal
 //! positions as input; one RK4 step per sample. The transition Jacobian is
-//! `I + A dt + (A dt)^2 / 2` with `A` the central-difference Jacobian of the continuous dynamics at
-//! `x(k|k)` (a quarter of the cost of differencing the RK4 map, exact to second order in `dt`). The
+//! `I + A dt + (A dt)^2 / 2` with `A` the exact Jacobian of the continuous dynamics at `x(k|k)`, from one
+//! evaluation on dual numbers, which also gives the first RK4 stage (exact to second order in `dt`). The
 //! residual is the innovation of the pitch rate, `r(k) = wz_measured(k) - wz(k|k-1)` (rad/s).
 //!
 //! That filter has no state for a loss's moment (its model holds the four engines equal), so a loss
@@ -83,13 +83,13 @@ use std::sync::Arc;
 
 use nalgebra::{SMatrix, SVector};
 
+use crate::dual::{Real, value_and_jacobian};
 use crate::engine::noise::NoiseRng;
 use crate::engine::streams::{Substream, noise_rng};
-use crate::estimation::stekf::central_difference;
 use crate::estimation::{DiscreteModel, Fading, FilterHealth, Stekf};
 use crate::methods::thrust_loss::vehicle::{
     ENGINES, LaunchVehicleConfig, LaunchVehicleError, MEASURED, Measured, Measurement, STATES, SensorNoise, State,
-    ThrustFault, Vehicle, VehicleParams, expected_jump_signs, filter_derivatives, idx, rk4,
+    ThrustFault, Vehicle, VehicleParams, expected_jump_signs, filter_derivatives, idx, rk4, rk4_from,
 };
 
 /// The unit fault `f` is counted in: a 1 % thrust loss of one engine (the seed's `e`).
@@ -124,9 +124,15 @@ impl DiscreteModel<STATES, MEASURED> for FilterModel {
     }
 
     fn transition_jacobian(&self, x: &State, u: &FilterInput) -> SMatrix<f64, STATES, STATES> {
-        let A = central_difference(x, |x| filter_derivatives(&self.params, x, u.t_s, &u.gimbal_rad));
-        let Adt = A * self.dt_s;
-        SMatrix::identity() + Adt + Adt * Adt * 0.5
+        self.transition_with_jacobian(x, u).1
+    }
+
+    /// RK4 and `I + A dt + (A dt)^2 / 2` with `A = df/dx` exact: one evaluation on dual numbers gives `A`
+    /// and the first RK4 stage.
+    fn transition_with_jacobian(&self, x: &State, u: &FilterInput) -> (State, SMatrix<f64, STATES, STATES>) {
+        let (k1, A) = value_and_jacobian(x, |x| filter_derivatives(&self.params, x, u.t_s, &u.gimbal_rad));
+        let next = rk4_from(x, k1, u.t_s, self.dt_s, |t_s, x| filter_derivatives(&self.params, x, t_s, &u.gimbal_rad));
+        (next, second_order_transition(&A, self.dt_s))
     }
 
     fn measured_states(&self) -> Option<[usize; MEASURED]> {
@@ -143,15 +149,21 @@ pub const AUGMENTED: usize = STATES + 3;
 /// pitch-rate innovation returns to zero once they have converged (the seed's recovering jump).
 struct WithMomentStates<'a>(&'a FilterModel);
 
+/// `Phi = I + A dt + (A dt)^2 / 2` from the continuous Jacobian `A`.
+fn second_order_transition<const N: usize>(A: &SMatrix<f64, N, N>, dt_s: f64) -> SMatrix<f64, N, N> {
+    let Adt = A * dt_s;
+    SMatrix::identity() + Adt + Adt * Adt * 0.5
+}
+
 impl WithMomentStates<'_> {
-    fn derivatives(
+    fn derivatives<T: Real>(
         &self,
-        x: &SVector<f64, AUGMENTED>,
+        x: &SVector<T, AUGMENTED>,
         t_s: f64,
         gimbal_rad: &[f64; ENGINES],
-    ) -> SVector<f64, AUGMENTED> {
-        let vehicle: State = x.fixed_rows::<STATES>(0).into_owned();
-        let mut dx = SVector::<f64, AUGMENTED>::zeros();
+    ) -> SVector<T, AUGMENTED> {
+        let vehicle: SVector<T, STATES> = x.fixed_rows::<STATES>(0).into_owned();
+        let mut dx = SVector::<T, AUGMENTED>::zeros();
         dx.fixed_rows_mut::<STATES>(0).copy_from(&filter_derivatives(&self.0.params, &vehicle, t_s, gimbal_rad));
         for axis in 0..3 {
             dx[idx::WX + axis] += x[STATES + axis];
@@ -172,9 +184,18 @@ impl DiscreteModel<AUGMENTED, MEASURED> for WithMomentStates<'_> {
     }
 
     fn transition_jacobian(&self, x: &SVector<f64, AUGMENTED>, u: &FilterInput) -> SMatrix<f64, AUGMENTED, AUGMENTED> {
-        let A = central_difference(x, |x| self.derivatives(x, u.t_s, &u.gimbal_rad));
-        let Adt = A * self.0.dt_s;
-        SMatrix::identity() + Adt + Adt * Adt * 0.5
+        self.transition_with_jacobian(x, u).1
+    }
+
+    /// As [`FilterModel`]'s: one evaluation on dual numbers for `A` and the first RK4 stage.
+    fn transition_with_jacobian(
+        &self,
+        x: &SVector<f64, AUGMENTED>,
+        u: &FilterInput,
+    ) -> (SVector<f64, AUGMENTED>, SMatrix<f64, AUGMENTED, AUGMENTED>) {
+        let (k1, A) = value_and_jacobian(x, |x| self.derivatives(x, u.t_s, &u.gimbal_rad));
+        let next = rk4_from(x, k1, u.t_s, self.0.dt_s, |t_s, x| self.derivatives(x, t_s, &u.gimbal_rad));
+        (next, second_order_transition(&A, self.0.dt_s))
     }
 
     fn measured_states(&self) -> Option<[usize; MEASURED]> {
@@ -994,6 +1015,46 @@ mod tests {
         assert_eq!(detector.health().filter, FilterHealth::default());
         assert_eq!(detector.health().gls_failed, 0);
         out
+    }
+
+    /// The filters' exact Jacobians (dual numbers) against central differences of the continuous
+    /// dynamics at flown states (the pad, max-q, a gust, late in the burn, with a loss): equal to the
+    /// differences' own error, 1e-6 of each column's scale; the first RK4 stage is the plain
+    /// evaluation's to the bit, so the transition does not move.
+    #[test]
+    fn exact_jacobians_match_central_differences() {
+        use crate::estimation::stekf::central_difference;
+        let config = LaunchVehicleConfig::default();
+        let model = FilterModel { params: config.params.clone(), dt_s: config.dt_s };
+        let flown = run(&seed_design(), Some(ThrustFault { engine: 2, onset_s: 60.0, loss_fraction: 0.3 }), 80.0, Some(3), None);
+        for t_s in [0.0, 40.5, 50.5, 62.0, 79.0] {
+            let (m, _) = flown.iter().find(|(m, _)| m.t_s >= t_s).unwrap();
+            let u = FilterInput { t_s: m.t_s, gimbal_rad: m.gimbal_rad };
+            let (k1, exact) = value_and_jacobian(&m.truth, |x| filter_derivatives(&model.params, x, u.t_s, &u.gimbal_rad));
+            let numeric = central_difference(&m.truth, |x| filter_derivatives(&model.params, x, u.t_s, &u.gimbal_rad));
+            assert_eq!(k1, filter_derivatives(&model.params, &m.truth, u.t_s, &u.gimbal_rad));
+            // A central difference's own error: its truncation (relative, below 1e-6 of the column here)
+            // and its rounding, about 1e-16 |f_r| / h_c with the step h_c = 1e-6 max(1, |x_c|); allowed
+            // 100x that.
+            for c in 0..STATES {
+                let scale = exact.column(c).amax();
+                for r in 0..STATES {
+                    let rounding = 1e-8 * k1[r].abs().max(1.0) / m.truth[c].abs().max(1.0);
+                    let error = (exact[(r, c)] - numeric[(r, c)]).abs();
+                    assert!(error <= 1e-6 * scale + rounding, "t = {t_s} s, ({r}, {c}): {error:e} of {scale:e}");
+                }
+            }
+            // Thrust lifts, and climbing raises the thrust: the thrust state is coupled both ways.
+            assert!(exact[(idx::VY, idx::THRUST)] > 0.0 && exact[(idx::THRUST, idx::VY)] > 0.0);
+            assert_eq!(model.transition_with_jacobian(&m.truth, &u).0, model.transition(&m.truth, &u));
+            let augmented = WithMomentStates(&model);
+            let x16 = SVector::<f64, AUGMENTED>::from_fn(|i, _| if i < STATES { m.truth[i] } else { 0.01 * i as f64 });
+            let (_, exact16) = value_and_jacobian(&x16, |x| augmented.derivatives(x, u.t_s, &u.gimbal_rad));
+            let numeric16 = central_difference(&x16, |x| augmented.derivatives(x, u.t_s, &u.gimbal_rad));
+            assert!((exact16 - numeric16).amax() <= 1e-6 * exact16.amax().max(1.0), "t = {t_s} s, augmented");
+            assert_eq!(exact16[(idx::WX, STATES)], 1.0);
+            assert_eq!(augmented.transition_with_jacobian(&x16, &u).0, augmented.transition(&x16, &u));
+        }
     }
 
     /// `(S' V^-1 S + R^-1)^-1 S' V^-1 (Y - Y0)` written out with general matrices.

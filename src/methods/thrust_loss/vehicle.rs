@@ -77,6 +77,8 @@
 #![allow(non_snake_case)]
 
 use nalgebra::{Matrix3, SVector, Vector3};
+
+use crate::dual::Real;
 use rand::RngExt;
 use rand_distr::StandardNormal;
 
@@ -225,13 +227,13 @@ impl VehicleParams {
     }
 
     /// Ambient pressure (Pa) at altitude `y_m`.
-    pub fn pressure_pa(&self, y_m: f64) -> f64 {
-        self.sea_level_pressure_pa * (-y_m / self.pressure_scale_height_m).exp()
+    pub fn pressure_pa<T: Real>(&self, y_m: T) -> T {
+        (-y_m / self.pressure_scale_height_m).exp() * self.sea_level_pressure_pa
     }
 
     /// Air density (kg/m^3) at altitude `y_m`.
-    pub fn density_kgpm3(&self, y_m: f64) -> f64 {
-        self.sea_level_density_kgpm3 * (-y_m / self.density_scale_height_m).exp()
+    pub fn density_kgpm3<T: Real>(&self, y_m: T) -> T {
+        (-y_m / self.density_scale_height_m).exp() * self.sea_level_density_kgpm3
     }
 
     /// Thrust (N) of one healthy engine at altitude `y_m`.
@@ -241,8 +243,8 @@ impl VehicleParams {
 
     /// Rate of change (N/s) of one engine's thrust when climbing at `vy_mps` through altitude `y_m`:
     /// `-A_e dp/dt = A_e p / H_p vy`.
-    pub fn engine_thrust_rate_n_s(&self, y_m: f64, vy_mps: f64) -> f64 {
-        self.nozzle_exit_area_m2 * self.pressure_pa(y_m) / self.pressure_scale_height_m * vy_mps
+    pub fn engine_thrust_rate_n_s<T: Real>(&self, y_m: T, vy_mps: T) -> T {
+        self.pressure_pa(y_m) * self.nozzle_exit_area_m2 / self.pressure_scale_height_m * vy_mps
     }
 
     /// Propellant flow (kg/s) of one healthy engine.
@@ -276,22 +278,24 @@ impl VehicleParams {
 }
 
 /// `Rx(gamma) Ry(psi) Rz(phi)`: launch-frame components to body components.
-pub fn launch_to_body(phi: f64, psi: f64, gamma: f64) -> Matrix3<f64> {
+pub fn launch_to_body<T: Real>(phi: T, psi: T, gamma: T) -> Matrix3<T> {
     let (sf, cf) = phi.sin_cos();
     let (sp, cp) = psi.sin_cos();
     let (sg, cg) = gamma.sin_cos();
-    let Rz = Matrix3::new(cf, sf, 0.0, -sf, cf, 0.0, 0.0, 0.0, 1.0);
-    let Ry = Matrix3::new(cp, 0.0, -sp, 0.0, 1.0, 0.0, sp, 0.0, cp);
-    let Rx = Matrix3::new(1.0, 0.0, 0.0, 0.0, cg, sg, 0.0, -sg, cg);
+    let (o, l) = (T::zero(), T::one());
+    let Rz = Matrix3::new(cf, sf, o, -sf, cf, o, o, o, l);
+    let Ry = Matrix3::new(cp, o, -sp, o, l, o, sp, o, cp);
+    let Rx = Matrix3::new(l, o, o, o, cg, sg, o, -sg, cg);
     Rx * Ry * Rz
 }
 
-/// What the rigid body feels at one instant besides its state.
+/// What the rigid body feels at one instant besides its state. The thrusts are in the model's number
+/// type: the filter's model derives them from its thrust state.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Loads {
+pub struct Loads<T = f64> {
     pub mass_kg: f64,
     /// Thrust of each engine (N).
-    pub thrust_n: [f64; ENGINES],
+    pub thrust_n: [T; ENGINES],
     /// Gimbal deflection of each engine (rad, tangential, module docs).
     pub gimbal_rad: [f64; ENGINES],
     /// Velocity of the air, launch frame (m/s): the truth's gusts; zero in the filter's model.
@@ -346,45 +350,50 @@ impl Gust {
 
 /// Rates of the 12 rigid-body states (entry [`idx::THRUST`] left 0), the specific force at the centre of
 /// mass (body axes, m/s^2) and the angular acceleration (rad/s^2).
-pub fn rigid_body_derivatives(p: &VehicleParams, x: &State, loads: &Loads) -> (State, Vector3<f64>, Vector3<f64>) {
+pub fn rigid_body_derivatives<T: Real>(
+    p: &VehicleParams,
+    x: &SVector<T, STATES>,
+    loads: &Loads<T>,
+) -> (SVector<T, STATES>, Vector3<T>, Vector3<T>) {
     let C = launch_to_body(x[idx::PHI], x[idx::PSI], x[idx::GAMMA]);
     let v = Vector3::new(x[idx::VX], x[idx::VY], x[idx::VZ]);
     let w = Vector3::new(x[idx::WX], x[idx::WY], x[idx::WZ]);
     // The aerodynamics see the velocity relative to the air.
-    let v_body = C * (v - loads.wind_mps);
+    let v_body = C * (v - loads.wind_mps.map(T::cst));
 
-    let mut force = Vector3::zeros();
-    let mut moment = Vector3::zeros();
+    let mut force = Vector3::<T>::zeros();
+    let mut moment = Vector3::<T>::zeros();
     for ((angle_deg, thrust_n), gimbal_rad) in ENGINE_ANGLES_DEG.iter().zip(&loads.thrust_n).zip(&loads.gimbal_rad) {
         let (s, c) = angle_deg.to_radians().sin_cos();
         let (sd, cd) = gimbal_rad.sin_cos();
-        let f = *thrust_n * Vector3::new(cd, -sd * s, sd * c);
-        let r = Vector3::new(-p.gimbal_arm_m, p.engine_radius_m * c, p.engine_radius_m * s);
+        let f = Vector3::new(cd, -sd * s, sd * c).map(|e| *thrust_n * e);
+        let r = Vector3::new(-p.gimbal_arm_m, p.engine_radius_m * c, p.engine_radius_m * s).map(T::cst);
         force += f;
         moment += r.cross(&f);
     }
     // Aerodynamic forces with the speed factored so that they are smooth through zero speed.
-    let half_rho_s_v = 0.5 * p.density_kgpm3(x[idx::Y]) * p.reference_area_m2 * v_body.norm();
-    let aero = -half_rho_s_v
-        * Vector3::new(
-            p.axial_force_coefficient * v_body.x,
-            p.normal_force_slope_per_rad * v_body.y,
-            p.normal_force_slope_per_rad * v_body.z,
-        );
+    let speed = v_body.dot(&v_body).sqrt();
+    let half_rho_s_v = p.density_kgpm3(x[idx::Y]) * 0.5 * p.reference_area_m2 * speed;
+    let aero = Vector3::new(
+        v_body.x * p.axial_force_coefficient,
+        v_body.y * p.normal_force_slope_per_rad,
+        v_body.z * p.normal_force_slope_per_rad,
+    )
+    .map(|e| e * -half_rho_s_v);
     force += aero;
-    moment += Vector3::new(p.centre_of_pressure_ahead_of_cg_m, 0.0, 0.0).cross(&aero);
+    moment += Vector3::new(p.centre_of_pressure_ahead_of_cg_m, 0.0, 0.0).map(T::cst).cross(&aero);
 
-    let I = p.inertia_kgm2(loads.mass_kg);
+    let I = p.inertia_kgm2(loads.mass_kg).map(T::cst);
     let w_dot = (moment - w.cross(&I.component_mul(&w))).component_div(&I);
-    let specific_force = force / loads.mass_kg;
-    let radius_ratio = p.earth_radius_m / (p.earth_radius_m + x[idx::Y]);
-    let gravity = Vector3::new(0.0, -p.gravity_mps2 * radius_ratio * radius_ratio, 0.0);
+    let specific_force = force.map(|f| f / loads.mass_kg);
+    let radius_ratio = T::cst(p.earth_radius_m) / (x[idx::Y] + p.earth_radius_m);
+    let gravity = Vector3::new(T::zero(), radius_ratio * -p.gravity_mps2 * radius_ratio, T::zero());
     let v_dot = C.transpose() * specific_force + gravity;
 
     let (sg, cg) = x[idx::GAMMA].sin_cos();
     let (sp, cp) = x[idx::PSI].sin_cos();
     let pitch_yaw = w.y * sg + w.z * cg;
-    let mut dx = State::zeros();
+    let mut dx = SVector::<T, STATES>::zeros();
     dx.fixed_rows_mut::<3>(idx::VX).copy_from(&v_dot);
     dx.fixed_rows_mut::<3>(idx::WX).copy_from(&w_dot);
     dx.fixed_rows_mut::<3>(idx::X).copy_from(&v);
@@ -395,8 +404,14 @@ pub fn rigid_body_derivatives(p: &VehicleParams, x: &State, loads: &Loads) -> (S
 }
 
 /// The filter's model: every engine at `P / 4` of the thrust state, the nominal mass at `t_s`, and the
-/// thrust state's own rate from the nominal altitude law (`4 A_e p / H_p vy`).
-pub fn filter_derivatives(p: &VehicleParams, x: &State, t_s: f64, gimbal_rad: &[f64; ENGINES]) -> State {
+/// thrust state's own rate from the nominal altitude law (`4 A_e p / H_p vy`). Generic so that one
+/// evaluation on [`crate::dual::Dual`] numbers gives the filter its exact Jacobian.
+pub fn filter_derivatives<T: Real>(
+    p: &VehicleParams,
+    x: &SVector<T, STATES>,
+    t_s: f64,
+    gimbal_rad: &[f64; ENGINES],
+) -> SVector<T, STATES> {
     let loads = Loads {
         mass_kg: p.nominal_mass_kg(t_s),
         thrust_n: [x[idx::THRUST] / ENGINES as f64; ENGINES],
@@ -404,7 +419,7 @@ pub fn filter_derivatives(p: &VehicleParams, x: &State, t_s: f64, gimbal_rad: &[
         wind_mps: Vector3::zeros(),
     };
     let (mut dx, _, _) = rigid_body_derivatives(p, x, &loads);
-    dx[idx::THRUST] = ENGINES as f64 * p.engine_thrust_rate_n_s(x[idx::Y], x[idx::VY]);
+    dx[idx::THRUST] = p.engine_thrust_rate_n_s(x[idx::Y], x[idx::VY]) * ENGINES as f64;
     dx
 }
 
@@ -415,7 +430,17 @@ pub fn rk4<const N: usize>(
     dt_s: f64,
     f: impl Fn(f64, &SVector<f64, N>) -> SVector<f64, N>,
 ) -> SVector<f64, N> {
-    let k1 = f(t_s, x);
+    rk4_from(x, f(t_s, x), t_s, dt_s, f)
+}
+
+/// [`rk4`] with its first stage `k1 = f(t_s, x)` already evaluated.
+pub fn rk4_from<const N: usize>(
+    x: &SVector<f64, N>,
+    k1: SVector<f64, N>,
+    t_s: f64,
+    dt_s: f64,
+    f: impl Fn(f64, &SVector<f64, N>) -> SVector<f64, N>,
+) -> SVector<f64, N> {
     let k2 = f(t_s + dt_s / 2.0, &(x + k1 * (dt_s / 2.0)));
     let k3 = f(t_s + dt_s / 2.0, &(x + k2 * (dt_s / 2.0)));
     let k4 = f(t_s + dt_s, &(x + k3 * dt_s));
