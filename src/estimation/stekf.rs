@@ -476,7 +476,8 @@ pub(super) mod tests {
         let weights = FadingParams { rho: 0.95, beta: 1.0, a: Vector2::new(1.0, 3.0) };
         for fading in [Fading::None, Fading::Original(weights), Fading::Symmetric(weights)] {
             let Q = Matrix2::new(1e-6, 0.0, 0.0, 1e-6);
-            let new = || Stekf::new(Vector2::zeros(), Matrix2::identity() * 10.0, Q, SMatrix::from_element(0.09), fading);
+            let new =
+                || Stekf::new(Vector2::zeros(), Matrix2::identity() * 10.0, Q, SMatrix::from_element(0.09), fading);
             let (mut full, mut picked) = (new(), new());
             let full_model = ExactCv { cv: Cv { dt_s: 0.1 }, picked: false };
             let picked_model = ExactCv { cv: Cv { dt_s: 0.1 }, picked: true };

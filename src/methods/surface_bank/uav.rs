@@ -452,35 +452,35 @@ fn aero_propulsion<T: Real>(
     let thrust = 0.5 * p.rho_kgpm3 * p.S_prop_m2 * p.C_prop * (slip * slip - va * va);
     let fx = (cx + cx_q * q_hat + cx_de * d.elevator_rad + cx_as * d.aileron_sym_rad) * qs + thrust;
     let fy = (T::cst(p.C_Y_0)
-            + beta * p.C_Y_beta
-            + p_hat * p.C_Y_p
-            + r_hat * p.C_Y_r
-            + d.aileron_rad * p.C_Y_delta_a
-            + d.rudder_rad * p.C_Y_delta_r)
+        + beta * p.C_Y_beta
+        + p_hat * p.C_Y_p
+        + r_hat * p.C_Y_r
+        + d.aileron_rad * p.C_Y_delta_a
+        + d.rudder_rad * p.C_Y_delta_r)
         * qs;
     let fz = (cz + cz_q * q_hat + cz_de * d.elevator_rad + cz_as * d.aileron_sym_rad) * qs;
     let omega = p.k_Omega_radps * throttle;
     let l = (T::cst(p.C_l_0)
-            + beta * p.C_l_beta
-            + p_hat * p.C_l_p
-            + r_hat * p.C_l_r
-            + d.aileron_rad * p.C_l_delta_a
-            + d.rudder_rad * p.C_l_delta_r
-            + d.elevator_diff_rad * p.C_l_delta_e_diff)
+        + beta * p.C_l_beta
+        + p_hat * p.C_l_p
+        + r_hat * p.C_l_r
+        + d.aileron_rad * p.C_l_delta_a
+        + d.rudder_rad * p.C_l_delta_r
+        + d.elevator_diff_rad * p.C_l_delta_e_diff)
         * (qs * p.b_m)
         - p.k_T_P * omega * omega;
     let m = (T::cst(p.C_m_0)
-            + alpha * p.C_m_alpha
-            + q_hat * p.C_m_q
-            + d.elevator_rad * p.C_m_delta_e
-            + d.aileron_sym_rad * p.C_m_delta_a_sym)
+        + alpha * p.C_m_alpha
+        + q_hat * p.C_m_q
+        + d.elevator_rad * p.C_m_delta_e
+        + d.aileron_sym_rad * p.C_m_delta_a_sym)
         * (qs * p.c_m);
     let n = (T::cst(p.C_n_0)
-            + beta * p.C_n_beta
-            + p_hat * p.C_n_p
-            + r_hat * p.C_n_r
-            + d.aileron_rad * p.C_n_delta_a
-            + d.rudder_rad * p.C_n_delta_r)
+        + beta * p.C_n_beta
+        + p_hat * p.C_n_p
+        + r_hat * p.C_n_r
+        + d.aileron_rad * p.C_n_delta_a
+        + d.rudder_rad * p.C_n_delta_r)
         * (qs * p.b_m);
     [fx, fy, fz, l, m, n]
 }

@@ -1026,11 +1026,18 @@ mod tests {
         use crate::estimation::stekf::central_difference;
         let config = LaunchVehicleConfig::default();
         let model = FilterModel { params: config.params.clone(), dt_s: config.dt_s };
-        let flown = run(&seed_design(), Some(ThrustFault { engine: 2, onset_s: 60.0, loss_fraction: 0.3 }), 80.0, Some(3), None);
+        let flown = run(
+            &seed_design(),
+            Some(ThrustFault { engine: 2, onset_s: 60.0, loss_fraction: 0.3 }),
+            80.0,
+            Some(3),
+            None,
+        );
         for t_s in [0.0, 40.5, 50.5, 62.0, 79.0] {
             let (m, _) = flown.iter().find(|(m, _)| m.t_s >= t_s).unwrap();
             let u = FilterInput { t_s: m.t_s, gimbal_rad: m.gimbal_rad };
-            let (k1, exact) = value_and_jacobian(&m.truth, |x| filter_derivatives(&model.params, x, u.t_s, &u.gimbal_rad));
+            let (k1, exact) =
+                value_and_jacobian(&m.truth, |x| filter_derivatives(&model.params, x, u.t_s, &u.gimbal_rad));
             let numeric = central_difference(&m.truth, |x| filter_derivatives(&model.params, x, u.t_s, &u.gimbal_rad));
             assert_eq!(k1, filter_derivatives(&model.params, &m.truth, u.t_s, &u.gimbal_rad));
             // A central difference's own error: its truncation (relative, below 1e-6 of the column here)
