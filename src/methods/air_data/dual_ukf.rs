@@ -87,8 +87,8 @@ use crate::estimation::stekf::central_difference;
 use crate::estimation::ukf::{Ukf, UkfError, UkfHealth, UnscentedParams};
 use crate::estimation::{DiscreteModel, Innovation, LikelihoodForm, ModelProbabilities};
 use crate::methods::air_data::flight::{
-    AirData, Inertial, SensorNoise, air_data_from_velocity, propagate_velocity, velocity_derivative_input_jacobian,
-    velocity_from_air_data,
+    AirData, Inertial, InertialInterval, SensorNoise, air_data_from_velocity, propagate_velocity,
+    velocity_derivative_input_jacobian, velocity_from_air_data,
 };
 
 /// Models: 0 no fault, 1 fault (biases).
@@ -235,13 +235,6 @@ pub enum DualUkfError {
     Unscented(#[from] UkfError),
 }
 
-/// The inertial samples at the two ends of a sample period: the filters' input.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct InertialInterval {
-    pub start: Inertial,
-    pub end: Inertial,
-}
-
 /// The no-fault model: `x = (u, v, w)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NoFaultModel {
@@ -251,7 +244,7 @@ pub struct NoFaultModel {
 impl DiscreteModel<3, 3> for NoFaultModel {
     type Input = InertialInterval;
     fn transition(&self, x: &SVector<f64, 3>, u: &InertialInterval) -> SVector<f64, 3> {
-        propagate_velocity(x, &u.start, &u.end, self.dt_s)
+        propagate_velocity(x, u, self.dt_s)
     }
     fn measurement(&self, x: &SVector<f64, 3>) -> SVector<f64, 3> {
         air_data_from_velocity(x).to_vector()
@@ -268,7 +261,7 @@ impl DiscreteModel<6, 3> for FaultModel {
     type Input = InertialInterval;
     fn transition(&self, x: &SVector<f64, 6>, u: &InertialInterval) -> SVector<f64, 6> {
         let velocity = x.fixed_rows::<3>(0).into_owned();
-        let next = propagate_velocity(&velocity, &u.start, &u.end, self.dt_s);
+        let next = propagate_velocity(&velocity, u, self.dt_s);
         SVector::<f64, 6>::new(next[0], next[1], next[2], x[3], x[4], x[5])
     }
     fn measurement(&self, x: &SVector<f64, 6>) -> SVector<f64, 3> {
@@ -436,7 +429,7 @@ impl DualUkf {
         let Some(previous) = self.previous_inertial.replace(*inertial) else {
             return self.initialise(air);
         };
-        self.predict(&InertialInterval { start: previous, end: *inertial });
+        self.predict(&InertialInterval::new(previous, *inertial));
         let y = air.to_vector();
         let nf_model = NoFaultModel { dt_s: self.dt_s };
         let f_model = FaultModel { dt_s: self.dt_s };
@@ -967,7 +960,7 @@ mod tests {
                     compared += 1;
                     let Q = detector.velocity_process_noise(lone.state(), &mean_of(&start, &sample.inertial));
                     lone.set_process_noise(Q);
-                    lone.predict(&NoFaultModel { dt_s }, &InertialInterval { start, end: sample.inertial });
+                    lone.predict(&NoFaultModel { dt_s }, &InertialInterval::new(start, sample.inertial));
                     lone.update(&NoFaultModel { dt_s }, &sample.air_data.to_vector());
                     assert_eq!((lone.state(), lone.covariance()), (nf.state(), nf.covariance()));
                 }
