@@ -7,6 +7,7 @@
 //! positive definiteness, a non-finite estimate) is counted and reported, never a panic.
 
 pub mod bank;
+pub mod fixed;
 pub mod stekf;
 pub mod ukf;
 

@@ -24,8 +24,9 @@
 //!   `sum_j a_j M_jj` runs over the m measured components and assumes measurement j observes state j
 //!   (true of method 004's filters, `H = [I_5 0]`); the prior weights `a_j` of the other states only
 //!   scale their factor `lambda_j = max(1, a_j c)`.
-//! - `S` is inverted by LU, not Cholesky: the original form's covariance is not symmetric, and a
-//!   Cholesky solve would silently use only one triangle and hide the very asymmetry the seed warns of.
+//! - `S` is inverted by LU ([`crate::estimation::fixed::lu_inverse`]), not Cholesky: the original form's
+//!   covariance is not symmetric, and a Cholesky solve would silently use only one triangle and hide the
+//!   very asymmetry the seed warns of.
 //! - Jacobians are central differences with a step of `1e-6 max(1, |x_j|)` unless the model gives them.
 //!
 //! Joseph form (method 001): [`Stekf::with_joseph_update`] replaces the update `P(k|k) = (I - L H) P(k|k-1)`
@@ -35,7 +36,9 @@
 //! Off by default, so existing users get the same numbers.
 #![allow(non_snake_case)]
 
-use nalgebra::{Const, DimMin, SMatrix, SVector};
+use nalgebra::{SMatrix, SVector};
+
+use crate::estimation::fixed::{has_cholesky, lu_inverse};
 
 /// A discrete-time nonlinear model for the filter. `Input` is whatever the transition needs besides
 /// the state (commanded surfaces, airspeed, ...).
@@ -201,10 +204,7 @@ pub struct Stekf<const N: usize, const M: usize> {
     joseph: bool,
 }
 
-impl<const N: usize, const M: usize> Stekf<N, M>
-where
-    Const<M>: DimMin<Const<M>, Output = Const<M>>,
-{
+impl<const N: usize, const M: usize> Stekf<N, M> {
     /// A filter at the prior `x(0|-1) = x0`, `P(0|-1) = P0`.
     pub fn new(
         x0: SVector<f64, N>,
@@ -258,7 +258,7 @@ where
         let H = Observation::of(model, &self.x_pred);
         let gamma = y - model.measurement(&self.x_pred);
         let S = H.project(&self.P_pred) + self.R;
-        let S_inverse = S.lu().try_inverse();
+        let S_inverse = lu_inverse(&S);
         let P_upd = match &S_inverse {
             Some(S_inv) => {
                 let L = H.right(&self.P_pred) * S_inv;
@@ -329,7 +329,7 @@ where
         if (P - P.transpose()).amax() > 1e-6 * scale {
             self.health.asymmetric += 1;
         }
-        if ((P + P.transpose()) * 0.5).cholesky().is_none() {
+        if !has_cholesky(&((P + P.transpose()) * 0.5)) {
             self.health.not_positive_definite += 1;
         }
     }
