@@ -451,21 +451,15 @@ fn aero_propulsion<T: Real>(
     let slip = p.k_motor_mps * throttle;
     let thrust = 0.5 * p.rho_kgpm3 * p.S_prop_m2 * p.C_prop * (slip * slip - va * va);
     let fx = (cx + cx_q * q_hat + cx_de * d.elevator_rad + cx_as * d.aileron_sym_rad) * qs + thrust;
-    let fy = (T::cst(p.C_Y_0)
-        + beta * p.C_Y_beta
-        + p_hat * p.C_Y_p
-        + r_hat * p.C_Y_r
-        + d.aileron_rad * p.C_Y_delta_a
-        + d.rudder_rad * p.C_Y_delta_r)
-        * qs;
+    // The lateral-directional coefficients share their form: `C_0 + C_beta beta + C_p p^ + C_r r^ +
+    // C_da delta_a + C_dr delta_r` (summed in this order).
+    let lateral = |c: [f64; 6]| {
+        T::cst(c[0]) + beta * c[1] + p_hat * c[2] + r_hat * c[3] + d.aileron_rad * c[4] + d.rudder_rad * c[5]
+    };
+    let fy = lateral([p.C_Y_0, p.C_Y_beta, p.C_Y_p, p.C_Y_r, p.C_Y_delta_a, p.C_Y_delta_r]) * qs;
     let fz = (cz + cz_q * q_hat + cz_de * d.elevator_rad + cz_as * d.aileron_sym_rad) * qs;
     let omega = p.k_Omega_radps * throttle;
-    let l = (T::cst(p.C_l_0)
-        + beta * p.C_l_beta
-        + p_hat * p.C_l_p
-        + r_hat * p.C_l_r
-        + d.aileron_rad * p.C_l_delta_a
-        + d.rudder_rad * p.C_l_delta_r
+    let l = (lateral([p.C_l_0, p.C_l_beta, p.C_l_p, p.C_l_r, p.C_l_delta_a, p.C_l_delta_r])
         + d.elevator_diff_rad * p.C_l_delta_e_diff)
         * (qs * p.b_m)
         - p.k_T_P * omega * omega;
@@ -475,13 +469,7 @@ fn aero_propulsion<T: Real>(
         + d.elevator_rad * p.C_m_delta_e
         + d.aileron_sym_rad * p.C_m_delta_a_sym)
         * (qs * p.c_m);
-    let n = (T::cst(p.C_n_0)
-        + beta * p.C_n_beta
-        + p_hat * p.C_n_p
-        + r_hat * p.C_n_r
-        + d.aileron_rad * p.C_n_delta_a
-        + d.rudder_rad * p.C_n_delta_r)
-        * (qs * p.b_m);
+    let n = lateral([p.C_n_0, p.C_n_beta, p.C_n_p, p.C_n_r, p.C_n_delta_a, p.C_n_delta_r]) * (qs * p.b_m);
     [fx, fy, fz, l, m, n]
 }
 
