@@ -16,5 +16,5 @@ fn main() {
     let study = LaunchStudy::load(&deck).expect("bundled deck");
     let trials = LaunchTrials::new(&study).expect("design");
     let detectors = study.detectors.len();
-    nonlinear::report("seed001_thrust", study.header.duration_s, detectors, |t| Box::new(trials.trial(t)));
+    nonlinear::report("seed001_thrust", study.header.duration_s, detectors, |t| trials.trial(t));
 }

@@ -15,5 +15,5 @@ fn main() {
     let study = AirDataStudy::load(&deck).expect("bundled deck");
     let trials = AirDataTrials::new(&study);
     let detectors = study.detectors.len();
-    nonlinear::report("seed002_air_data", study.header.duration_s, detectors, |t| Box::new(trials.trial(t)));
+    nonlinear::report("seed002_air_data", study.header.duration_s, detectors, |t| trials.trial(t));
 }

@@ -15,5 +15,5 @@ fn main() {
     let study = SurfaceStudy::load(&deck).expect("bundled deck");
     let trials = SurfaceTrials::new(&study);
     let banks = study.banks.len();
-    nonlinear::report("seed004_monte_carlo", study.header.duration_s, banks, |t| Box::new(trials.trial(t)));
+    nonlinear::report("seed004_monte_carlo", study.header.duration_s, banks, |t| trials.trial(t));
 }

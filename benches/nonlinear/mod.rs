@@ -10,7 +10,7 @@ const BUDGET: Duration = Duration::from_secs(20);
 
 /// Runs `trial(0)` untimed (first-touch costs), then trials 1, 2, .. until [`BUDGET`] is spent (at
 /// least [`MIN_TRIALS`]), and prints the cost per trial and per simulated second of `flight_s`.
-pub fn report(name: &str, flight_s: f64, detectors: usize, trial: impl Fn(u64) -> Box<dyn std::any::Any>) {
+pub fn report<R>(name: &str, flight_s: f64, detectors: usize, trial: impl Fn(u64) -> R) {
     black_box(trial(0));
     let start = Instant::now();
     let mut trials = 0u64;

@@ -81,43 +81,47 @@ pub trait DiscreteModel<const N: usize, const M: usize> {
 /// A step's `H` with the products the filter forms with it. When the model only picks states they are
 /// formed by picking entries, for a fraction of the arithmetic and the same numbers: every other term of
 /// the full product is an exact zero (only a zero's sign, or a non-finite entry's NaN, can differ).
-struct Observation<const N: usize, const M: usize> {
-    H: SMatrix<f64, M, N>,
-    picked: Option<[usize; M]>,
+enum Observation<const N: usize, const M: usize> {
+    /// `y_i = x[picked[i]]`: no `H` is formed.
+    Picked([usize; M]),
+    Full(SMatrix<f64, M, N>),
 }
 
 impl<const N: usize, const M: usize> Observation<N, M> {
     fn of<D: DiscreteModel<N, M>>(model: &D, x: &SVector<f64, N>) -> Self {
-        Observation { H: model.measurement_jacobian(x), picked: model.measured_states() }
+        match model.measured_states() {
+            Some(picked) => Observation::Picked(picked),
+            None => Observation::Full(model.measurement_jacobian(x)),
+        }
     }
 
     /// `H A H'`.
     fn project(&self, A: &SMatrix<f64, N, N>) -> SMatrix<f64, M, M> {
-        match &self.picked {
-            Some(p) => SMatrix::from_fn(|i, j| A[(p[i], p[j])]),
-            None => self.H * A * self.H.transpose(),
+        match self {
+            Observation::Picked(p) => SMatrix::from_fn(|i, j| A[(p[i], p[j])]),
+            Observation::Full(H) => H * A * H.transpose(),
         }
     }
 
     /// `A H'`.
     fn right(&self, A: &SMatrix<f64, N, N>) -> SMatrix<f64, N, M> {
-        match &self.picked {
-            Some(p) => SMatrix::from_fn(|i, j| A[(i, p[j])]),
-            None => A * self.H.transpose(),
+        match self {
+            Observation::Picked(p) => SMatrix::from_fn(|i, j| A[(i, p[j])]),
+            Observation::Full(H) => A * H.transpose(),
         }
     }
 
     /// `L H`.
     fn expand(&self, L: &SMatrix<f64, N, M>) -> SMatrix<f64, N, N> {
-        match &self.picked {
-            Some(p) => {
+        match self {
+            Observation::Picked(p) => {
                 let mut LH = SMatrix::<f64, N, N>::zeros();
                 for (k, &j) in p.iter().enumerate() {
                     LH.set_column(j, &L.column(k));
                 }
                 LH
             }
-            None => L * self.H,
+            Observation::Full(H) => L * H,
         }
     }
 }

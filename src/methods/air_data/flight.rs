@@ -62,8 +62,8 @@ use thiserror::Error;
 
 use crate::checks::{ValueError, finite, non_negative, positive, sensor_faults};
 use crate::fault::{ActiveFaults, SensorFault};
-use crate::kinematics::GRAVITY_MPS2;
 pub use crate::kinematics::body_from_ned;
+use crate::kinematics::{Attitude, GRAVITY_MPS2};
 use crate::methods::air_data::airframe::{AerosondeFlight, AirframeSample};
 
 /// Air-data channel indices (the `channel` of a [`SensorFault`]).
@@ -169,13 +169,10 @@ pub fn velocity_derivative(velocity_mps: &Vector3<f64>, m: &Inertial) -> Vector3
     velocity_derivative_with(velocity_mps, m, &gravity_terms(m))
 }
 
-/// Gravity's body components `g (sin theta, cos theta sin phi, cos theta cos phi)` at a sample's
-/// attitude: the part of [`velocity_derivative`] that does not depend on the velocity.
+/// Gravity's body components at a sample's attitude ([`Attitude::gravity_terms`]): the part of
+/// [`velocity_derivative`] that does not depend on the velocity.
 fn gravity_terms(m: &Inertial) -> [f64; 3] {
-    let (sphi, cphi) = m.roll_rad.sin_cos();
-    let (sth, cth) = m.pitch_rad.sin_cos();
-    let g = GRAVITY_MPS2;
-    [g * sth, g * cth * sphi, g * cth * cphi]
+    Attitude::new(m.roll_rad, m.pitch_rad).gravity_terms(GRAVITY_MPS2)
 }
 
 fn velocity_derivative_with(velocity_mps: &Vector3<f64>, m: &Inertial, gravity: &[f64; 3]) -> Vector3<f64> {

@@ -35,7 +35,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use crate::dual::{Dual, Real};
+use crate::dual::{Dual, Real, value_and_jacobian};
 use crate::estimation::bank::{Decision, DeclareClear};
 use crate::estimation::stekf::{FadingParams, FilterHealth};
 use crate::estimation::{DiscreteModel, Fading, FloorRule, LikelihoodForm, ModelProbabilities, Stekf};
@@ -151,11 +151,11 @@ impl DiscreteModel<5, 5> for NoFault<'_> {
     /// `f` and `I + dt df/dx`, exact, from one evaluation on dual numbers (its values are the `f64`
     /// evaluation's to the bit).
     fn transition_with_jacobian(&self, x: &SVector<f64, 5>, u: &BankInput) -> (SVector<f64, 5>, SMatrix<f64, 5, 5>) {
-        let x5: [Dual<5>; 5] = std::array::from_fn(|i| Dual::input(x[i], i));
-        let surfaces = u.commanded_rad.map(Dual::cst);
-        let f = reduced_derivatives_of(self.airframe, &x5, &u.inputs, &surfaces);
-        let next = SVector::from_fn(|r, _| x[r] + self.dt_s * f[r].v);
-        (next, SMatrix::from_fn(|r, c| f64::from(r == c) + self.dt_s * f[r].d[c]))
+        let (f, J) = value_and_jacobian(x, |x| {
+            let surfaces = u.commanded_rad.map(Dual::cst);
+            SVector::from(reduced_derivatives_of(self.airframe, &[x[0], x[1], x[2], x[3], x[4]], &u.inputs, &surfaces))
+        });
+        (x + self.dt_s * f, SMatrix::identity() + self.dt_s * J)
     }
     fn measurement(&self, x: &SVector<f64, 5>) -> SVector<f64, 5> {
         *x
@@ -187,12 +187,13 @@ impl DiscreteModel<6, 5> for SurfaceFault<'_> {
     /// `f` and `[I + dt df/dx5, dt df/ds; 0, 1]` (`s`: the surface's position), exact, from one
     /// evaluation on dual numbers (its values are the `f64` evaluation's to the bit).
     fn transition_with_jacobian(&self, x: &SVector<f64, 6>, u: &BankInput) -> (SVector<f64, 6>, SMatrix<f64, 6, 6>) {
-        let x5: [Dual<6>; 5] = std::array::from_fn(|i| Dual::input(x[i], i));
-        let mut surfaces = u.commanded_rad.map(Dual::cst);
-        surfaces[self.surface] = Dual::input(x[5], 5);
-        let f = reduced_derivatives_of(self.airframe, &x5, &u.inputs, &surfaces);
-        let next = SVector::from_fn(|r, _| if r < 5 { x[r] + self.dt_s * f[r].v } else { x[5] });
-        let jacobian = SMatrix::from_fn(|r, c| f64::from(r == c) + if r < 5 { self.dt_s * f[r].d[c] } else { 0.0 });
+        let (f, J) = value_and_jacobian(x, |x| {
+            let mut surfaces = u.commanded_rad.map(Dual::cst);
+            surfaces[self.surface] = x[5];
+            SVector::from(reduced_derivatives_of(self.airframe, &[x[0], x[1], x[2], x[3], x[4]], &u.inputs, &surfaces))
+        });
+        let next = SVector::from_fn(|r, _| if r < 5 { x[r] + self.dt_s * f[r] } else { x[5] });
+        let jacobian = SMatrix::from_fn(|r, c| f64::from(r == c) + if r < 5 { self.dt_s * J[(r, c)] } else { 0.0 });
         (next, jacobian)
     }
     fn measurement(&self, x: &SVector<f64, 6>) -> SVector<f64, 5> {

@@ -81,6 +81,7 @@
 #![allow(non_snake_case)]
 
 use crate::dual::Real;
+use crate::kinematics::Attitude;
 use nalgebra::{Matrix3, SVector, Vector3};
 
 /// Number of independent control surfaces.
@@ -473,25 +474,11 @@ fn aero_propulsion<T: Real>(
     [fx, fy, fz, l, m, n]
 }
 
-/// Roll and pitch with their sines and cosines, which the weight's body components need.
-#[derive(Debug, Clone, Copy)]
-pub struct Attitude {
-    sin_cos_phi: (f64, f64),
-    sin_cos_theta: (f64, f64),
-}
-
-impl Attitude {
-    pub fn new(phi_rad: f64, theta_rad: f64) -> Self {
-        Attitude { sin_cos_phi: phi_rad.sin_cos(), sin_cos_theta: theta_rad.sin_cos() }
-    }
-
-    /// The weight (N) of `p`'s aircraft in body axes: `m g [-sin(theta), cos(theta) sin(phi),
-    /// cos(theta) cos(phi)]`.
-    fn weight_in_body(&self, p: &AerosondeParams) -> [f64; 3] {
-        let ((sf, cf), (st, ct)) = (self.sin_cos_phi, self.sin_cos_theta);
-        let mg = p.mass_kg * p.gravity_mps2;
-        [-(mg * st), mg * ct * sf, mg * ct * cf]
-    }
+/// The weight (N) of `p`'s aircraft in body axes at `attitude`: `m g [-sin(theta), cos(theta) sin(phi),
+/// cos(theta) cos(phi)]`.
+fn weight_in_body(p: &AerosondeParams, attitude: &Attitude) -> [f64; 3] {
+    let [x, y, z] = attitude.gravity_terms(p.mass_kg * p.gravity_mps2);
+    [-x, y, z]
 }
 
 /// Body accelerations `[udot, vdot, wdot, pdot, qdot, rdot]` from velocities, the weight in body axes,
@@ -511,7 +498,7 @@ fn body_accelerations<T: Real>(
     let [fx, fy, fz, l, m, n] = aero_propulsion(p, va, alpha, alpha_sin_cos, beta, rates, surfaces_rad, throttle);
     let [u, v, w] = uvw;
     let [pr, qr, rr] = rates;
-    let weight_body_n = attitude.weight_in_body(p);
+    let weight_body_n = weight_in_body(p, attitude);
     let fx = fx + weight_body_n[0];
     let fy = fy + weight_body_n[1];
     let fz = fz + weight_body_n[2];
@@ -573,7 +560,7 @@ pub fn derivatives(
     let attitude = Attitude::new(phi, theta);
     let acc = body_accelerations(p, uvw, &attitude, rates, air, surfaces_rad, throttle);
     let [pr, qr, rr] = rates;
-    let (sf, cf) = attitude.sin_cos_phi;
+    let (sf, cf) = attitude.sin_cos_roll;
     let (tt, ct) = (theta.tan(), theta.cos());
     State::from_column_slice(&[
         pos_dot[0],
