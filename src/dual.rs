@@ -42,18 +42,23 @@ pub trait Real:
 }
 
 impl Real for f64 {
+    #[inline(always)]
     fn cst(v: f64) -> Self {
         v
     }
+    #[inline(always)]
     fn re(self) -> f64 {
         self
     }
+    #[inline(always)]
     fn sin_cos(self) -> (f64, f64) {
         f64::sin_cos(self)
     }
+    #[inline(always)]
     fn exp(self) -> f64 {
         f64::exp(self)
     }
+    #[inline(always)]
     fn sqrt(self) -> f64 {
         f64::sqrt(self)
     }
@@ -68,6 +73,7 @@ pub struct Dual<const N: usize> {
 
 impl<const N: usize> Dual<N> {
     /// Input `i` at value `v` (its derivative with respect to itself 1).
+    #[inline(always)]
     pub fn input(v: f64, i: usize) -> Self {
         let mut d = [0.0; N];
         d[i] = 1.0;
@@ -75,6 +81,7 @@ impl<const N: usize> Dual<N> {
     }
 
     /// `g(v)` with `g'(v) = slope`: the chain rule.
+    #[inline(always)]
     fn chain(self, v: f64, slope: f64) -> Self {
         Dual { v, d: self.d.map(|x| x * slope) }
     }
@@ -91,16 +98,20 @@ pub fn value_and_jacobian<const N: usize, const R: usize>(
 }
 
 impl<const N: usize> Real for Dual<N> {
+    #[inline(always)]
     fn cst(v: f64) -> Self {
         Dual { v, d: [0.0; N] }
     }
+    #[inline(always)]
     fn re(self) -> f64 {
         self.v
     }
+    #[inline(always)]
     fn sin_cos(self) -> (Self, Self) {
         let (s, c) = self.v.sin_cos();
         (self.chain(s, c), self.chain(c, -s))
     }
+    #[inline(always)]
     fn exp(self) -> Self {
         let e = self.v.exp();
         self.chain(e, e)
@@ -108,6 +119,7 @@ impl<const N: usize> Real for Dual<N> {
     /// At 0, where the square root has no derivative, the slope is taken as 0: the models use it for a
     /// norm `|v|` that multiplies `v` (drag), and `|v| v` has the derivative 0 there, which 0 gives and
     /// `0 * inf` would turn into NaN.
+    #[inline(always)]
     fn sqrt(self) -> Self {
         let r = self.v.sqrt();
         self.chain(r, if r > 0.0 { 0.5 / r } else { 0.0 })
@@ -116,6 +128,7 @@ impl<const N: usize> Real for Dual<N> {
 
 impl<const N: usize> Add for Dual<N> {
     type Output = Self;
+    #[inline(always)]
     fn add(self, o: Self) -> Self {
         Dual { v: self.v + o.v, d: std::array::from_fn(|i| self.d[i] + o.d[i]) }
     }
@@ -123,6 +136,7 @@ impl<const N: usize> Add for Dual<N> {
 
 impl<const N: usize> Sub for Dual<N> {
     type Output = Self;
+    #[inline(always)]
     fn sub(self, o: Self) -> Self {
         Dual { v: self.v - o.v, d: std::array::from_fn(|i| self.d[i] - o.d[i]) }
     }
@@ -130,6 +144,7 @@ impl<const N: usize> Sub for Dual<N> {
 
 impl<const N: usize> Mul for Dual<N> {
     type Output = Self;
+    #[inline(always)]
     fn mul(self, o: Self) -> Self {
         Dual { v: self.v * o.v, d: std::array::from_fn(|i| self.d[i] * o.v + self.v * o.d[i]) }
     }
@@ -137,6 +152,7 @@ impl<const N: usize> Mul for Dual<N> {
 
 impl<const N: usize> Div for Dual<N> {
     type Output = Self;
+    #[inline(always)]
     fn div(self, o: Self) -> Self {
         let inv = 1.0 / o.v;
         let v = self.v / o.v;
@@ -146,45 +162,53 @@ impl<const N: usize> Div for Dual<N> {
 
 impl<const N: usize> Neg for Dual<N> {
     type Output = Self;
+    #[inline(always)]
     fn neg(self) -> Self {
         Dual { v: -self.v, d: self.d.map(|x| -x) }
     }
 }
 
 impl<const N: usize> Zero for Dual<N> {
+    #[inline(always)]
     fn zero() -> Self {
         Dual::cst(0.0)
     }
+    #[inline(always)]
     fn is_zero(&self) -> bool {
         self.v == 0.0 && self.d.iter().all(|d| *d == 0.0)
     }
 }
 
 impl<const N: usize> One for Dual<N> {
+    #[inline(always)]
     fn one() -> Self {
         Dual::cst(1.0)
     }
 }
 
 impl<const N: usize> AddAssign for Dual<N> {
+    #[inline(always)]
     fn add_assign(&mut self, o: Self) {
         *self = *self + o;
     }
 }
 
 impl<const N: usize> SubAssign for Dual<N> {
+    #[inline(always)]
     fn sub_assign(&mut self, o: Self) {
         *self = *self - o;
     }
 }
 
 impl<const N: usize> MulAssign for Dual<N> {
+    #[inline(always)]
     fn mul_assign(&mut self, o: Self) {
         *self = *self * o;
     }
 }
 
 impl<const N: usize> DivAssign for Dual<N> {
+    #[inline(always)]
     fn div_assign(&mut self, o: Self) {
         *self = *self / o;
     }
@@ -192,6 +216,7 @@ impl<const N: usize> DivAssign for Dual<N> {
 
 impl<const N: usize> Add<f64> for Dual<N> {
     type Output = Self;
+    #[inline(always)]
     fn add(self, o: f64) -> Self {
         Dual { v: self.v + o, d: self.d }
     }
@@ -199,6 +224,7 @@ impl<const N: usize> Add<f64> for Dual<N> {
 
 impl<const N: usize> Sub<f64> for Dual<N> {
     type Output = Self;
+    #[inline(always)]
     fn sub(self, o: f64) -> Self {
         Dual { v: self.v - o, d: self.d }
     }
@@ -206,6 +232,7 @@ impl<const N: usize> Sub<f64> for Dual<N> {
 
 impl<const N: usize> Mul<f64> for Dual<N> {
     type Output = Self;
+    #[inline(always)]
     fn mul(self, o: f64) -> Self {
         Dual { v: self.v * o, d: self.d.map(|x| x * o) }
     }
@@ -213,6 +240,7 @@ impl<const N: usize> Mul<f64> for Dual<N> {
 
 impl<const N: usize> Div<f64> for Dual<N> {
     type Output = Self;
+    #[inline(always)]
     fn div(self, o: f64) -> Self {
         Dual { v: self.v / o, d: self.d.map(|x| x / o) }
     }
@@ -220,6 +248,7 @@ impl<const N: usize> Div<f64> for Dual<N> {
 
 impl<const N: usize> Add<Dual<N>> for f64 {
     type Output = Dual<N>;
+    #[inline(always)]
     fn add(self, o: Dual<N>) -> Dual<N> {
         Dual { v: self + o.v, d: o.d }
     }
@@ -227,6 +256,7 @@ impl<const N: usize> Add<Dual<N>> for f64 {
 
 impl<const N: usize> Sub<Dual<N>> for f64 {
     type Output = Dual<N>;
+    #[inline(always)]
     fn sub(self, o: Dual<N>) -> Dual<N> {
         Dual { v: self - o.v, d: o.d.map(|x| -x) }
     }
@@ -234,6 +264,7 @@ impl<const N: usize> Sub<Dual<N>> for f64 {
 
 impl<const N: usize> Mul<Dual<N>> for f64 {
     type Output = Dual<N>;
+    #[inline(always)]
     fn mul(self, o: Dual<N>) -> Dual<N> {
         Dual { v: self * o.v, d: o.d.map(|x| self * x) }
     }
@@ -241,6 +272,7 @@ impl<const N: usize> Mul<Dual<N>> for f64 {
 
 impl<const N: usize> Div<Dual<N>> for f64 {
     type Output = Dual<N>;
+    #[inline(always)]
     fn div(self, o: Dual<N>) -> Dual<N> {
         let v = self / o.v;
         Dual { v, d: o.d.map(|x| -v * x / o.v) }

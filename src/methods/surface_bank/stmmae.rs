@@ -37,7 +37,7 @@ use nalgebra::{SMatrix, SVector};
 
 use crate::dual::{Dual, Real, value_and_jacobian};
 use crate::estimation::bank::{Decision, DeclareClear};
-use crate::estimation::stekf::{FadingParams, FilterHealth};
+use crate::estimation::stekf::{FadingParams, FilterHealth, Innovation};
 use crate::estimation::{DiscreteModel, Fading, FloorRule, LikelihoodForm, ModelProbabilities, Stekf};
 use crate::methods::surface_bank::uav::{
     AerosondeParams, ReducedInputs, SURFACES, reduced_derivatives, reduced_derivatives_of,
@@ -113,6 +113,19 @@ impl BankParams {
             clear_hold_s: 0.0,
             floor_rule: FloorRule::EveryStep,
         }
+    }
+
+    /// Whether banks with `self` and `other` run the same six filters: the same covariance form and
+    /// tuning (the fading factors' parameters only matter with strong tracking). Their likelihoods,
+    /// floors and decision rules may differ.
+    pub fn same_filters(&self, other: &BankParams) -> bool {
+        let fading = |p: &BankParams| (p.rho, p.beta, p.a, p.a_surface);
+        self.covariance == other.covariance
+            && self.process_variance_per_s == other.process_variance_per_s
+            && self.surface_process_variance_rad2_per_s == other.surface_process_variance_rad2_per_s
+            && self.measurement_variance == other.measurement_variance
+            && self.initial_surface_variance_rad2 == other.initial_surface_variance_rad2
+            && (self.covariance == CovarianceForm::Ekf || fading(self) == fading(other))
     }
 
     fn fading<const N: usize>(&self) -> Fading<N> {
@@ -217,22 +230,32 @@ pub struct BankStep {
     pub decision: Option<Decision>,
 }
 
-/// The bank of six filters with its probabilities and decision rule; see the module docs.
+/// The six filters of a bank: they depend on the bank's covariance form and tuning, not on its
+/// likelihood or decision rule, so banks that differ only there can share one set
+/// ([`BankParams::same_filters`]) and get the same numbers.
 #[derive(Debug, Clone)]
-pub struct SurfaceBank {
+pub struct BankFilters {
     airframe: AerosondeParams,
     dt_s: f64,
-    likelihood: LikelihoodForm,
     no_fault: Stekf<5, 5>,
     surfaces: [Stekf<6, 5>; SURFACES],
-    probabilities: ModelProbabilities<MODELS>,
-    rule: DeclareClear,
 }
 
-impl SurfaceBank {
-    /// A bank on the design airframe `airframe` (the detector's model, which may differ from the
-    /// truth), started at the first measurement `y0` with the surfaces at `initial_surfaces_rad`
-    /// (their trim) and equal prior probabilities.
+/// What one step of a bank's filters hands its likelihoods and scoring.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FiltersStep {
+    /// Filter i's innovation (index 0: no fault, i: surface i-1).
+    pub innovations: [Innovation<5>; MODELS],
+    /// Filter i's estimate of `[p, q, r, alpha, beta]` after this step's update.
+    pub estimates: [SVector<f64, 5>; MODELS],
+    /// Filter i's estimate of surface i-1's position (rad).
+    pub surface_estimates_rad: [f64; SURFACES],
+}
+
+impl BankFilters {
+    /// The filters of a bank with `params` on the design airframe `airframe` (the detector's model,
+    /// which may differ from the truth), started at the first measurement `y0` with the surfaces at
+    /// `initial_surfaces_rad` (their trim).
     pub fn new(
         params: &BankParams,
         airframe: AerosondeParams,
@@ -254,12 +277,52 @@ impl SurfaceBank {
             Q[(5, 5)] = params.surface_process_variance_rad2_per_s * dt_s;
             Stekf::new(x0, P0, Q, R, params.fading())
         });
+        BankFilters { airframe, dt_s, no_fault, surfaces }
+    }
+
+    /// Every filter updates with `y` and predicts with `input`.
+    pub fn step(&mut self, y: &SVector<f64, 5>, input: &BankInput) -> FiltersStep {
+        let model = NoFault { airframe: &self.airframe, dt_s: self.dt_s };
+        let no_fault = self.no_fault.step(&model, y, input);
+        let surfaces: [Innovation<5>; SURFACES] = std::array::from_fn(|i| {
+            let model = SurfaceFault { airframe: &self.airframe, dt_s: self.dt_s, surface: i };
+            self.surfaces[i].step(&model, y, input)
+        });
+        FiltersStep {
+            innovations: std::array::from_fn(|i| if i == 0 { no_fault } else { surfaces[i - 1] }),
+            estimates: std::array::from_fn(|i| match i {
+                0 => *self.no_fault.estimate(),
+                i => self.surfaces[i - 1].estimate().fixed_rows::<5>(0).into_owned(),
+            }),
+            surface_estimates_rad: std::array::from_fn(|i| self.surfaces[i].estimate()[5]),
+        }
+    }
+
+    /// The six filters' health counters, summed.
+    pub fn health(&self) -> FilterHealth {
+        self.surfaces.iter().map(Stekf::health).fold(self.no_fault.health(), |a, b| FilterHealth {
+            singular_innovation: a.singular_innovation + b.singular_innovation,
+            asymmetric: a.asymmetric + b.asymmetric,
+            not_positive_definite: a.not_positive_definite + b.not_positive_definite,
+            non_finite: a.non_finite + b.non_finite,
+        })
+    }
+}
+
+/// A bank's probabilities and decision rule, on the innovations of its six filters ([`BankFilters`],
+/// which banks with the same filters share); see the module docs.
+#[derive(Debug, Clone)]
+pub struct SurfaceBank {
+    likelihood: LikelihoodForm,
+    probabilities: ModelProbabilities<MODELS>,
+    rule: DeclareClear,
+}
+
+impl SurfaceBank {
+    /// A bank with equal prior probabilities.
+    pub fn new(params: &BankParams, dt_s: f64) -> Self {
         SurfaceBank {
-            airframe,
-            dt_s,
             likelihood: params.likelihood,
-            no_fault,
-            surfaces,
             probabilities: ModelProbabilities::new([1.0 / MODELS as f64; MODELS], params.probability_floor)
                 .with_floor_rule(params.floor_rule),
             rule: DeclareClear::with_holds_s(
@@ -272,29 +335,16 @@ impl SurfaceBank {
         }
     }
 
-    /// One sample: every filter updates with `y` and predicts with `input`; then the probabilities and
-    /// the decision rule.
-    pub fn step(&mut self, y: &SVector<f64, 5>, input: &BankInput) -> BankStep {
-        let model = NoFault { airframe: &self.airframe, dt_s: self.dt_s };
-        let innovation = self.no_fault.step(&model, y, input);
-        let mut log_likelihood = [0.0; MODELS];
-        log_likelihood[0] = self.likelihood.log_likelihood(&innovation);
-        for (i, filter) in self.surfaces.iter_mut().enumerate() {
-            let model = SurfaceFault { airframe: &self.airframe, dt_s: self.dt_s, surface: i };
-            let innovation = filter.step(&model, y, input);
-            log_likelihood[i + 1] = self.likelihood.log_likelihood(&innovation);
-        }
+    /// One sample: the probabilities and the decision rule on one step of the filters.
+    pub fn step(&mut self, filters: &FiltersStep) -> BankStep {
+        let log_likelihood = filters.innovations.map(|innovation| self.likelihood.log_likelihood(&innovation));
         self.probabilities.update(&log_likelihood);
         let probabilities = *self.probabilities.probabilities();
         let decision = self.rule.observe(&probabilities);
-        let estimates: [SVector<f64, 5>; MODELS] = std::array::from_fn(|i| match i {
-            0 => *self.no_fault.estimate(),
-            i => self.surfaces[i - 1].estimate().fixed_rows::<5>(0).into_owned(),
-        });
         BankStep {
             probabilities,
-            surface_estimates_rad: std::array::from_fn(|i| self.surfaces[i].estimate()[5]),
-            blended: self.probabilities.blend(&estimates),
+            surface_estimates_rad: filters.surface_estimates_rad,
+            blended: self.probabilities.blend(&filters.estimates),
             decision,
         }
     }
@@ -302,16 +352,6 @@ impl SurfaceBank {
     /// The surface currently declared faulty (0-based), if any.
     pub fn declared_surface(&self) -> Option<usize> {
         self.rule.declared().map(|i| i - 1)
-    }
-
-    /// The six filters' health counters, summed.
-    pub fn health(&self) -> FilterHealth {
-        self.surfaces.iter().map(Stekf::health).fold(self.no_fault.health(), |a, b| FilterHealth {
-            singular_innovation: a.singular_innovation + b.singular_innovation,
-            asymmetric: a.asymmetric + b.asymmetric,
-            not_positive_definite: a.not_positive_definite + b.not_positive_definite,
-            non_finite: a.non_finite + b.non_finite,
-        })
     }
 
     /// Steps on which the probability floor was applied.
@@ -391,12 +431,13 @@ mod tests {
         let mut measure = |x: &SVector<f64, 5>| {
             SVector::<f64, 5>::from_fn(|j, _| x[j] + Normal::new(0.0, sigma[j]).unwrap().sample(&mut rng))
         };
-        let mut bank = SurfaceBank::new(params, airframe.clone(), dt_s, &measure(&truth), &trim_surfaces);
+        let mut filters = BankFilters::new(params, airframe.clone(), dt_s, &measure(&truth), &trim_surfaces);
+        let mut bank = SurfaceBank::new(params, dt_s);
         let input = BankInput { inputs, commanded_rad: trim_surfaces };
         let mut decisions = Vec::new();
         for k in 0..(seconds / dt_s) as usize {
             let t = k as f64 * dt_s;
-            let step = bank.step(&measure(&truth), &input);
+            let step = bank.step(&filters.step(&measure(&truth), &input));
             if let Some(d) = step.decision {
                 decisions.push((t, d));
             }
