@@ -88,8 +88,8 @@ use crate::engine::noise::NoiseRng;
 use crate::engine::streams::{Substream, noise_rng};
 use crate::estimation::{DiscreteModel, Fading, FilterHealth, Stekf};
 use crate::methods::thrust_loss::vehicle::{
-    ENGINES, LaunchVehicleConfig, LaunchVehicleError, MEASURED, Measured, Measurement, STATES, SensorNoise, State,
-    ThrustFault, Vehicle, VehicleParams, expected_jump_signs, filter_derivatives, idx, rk4, rk4_from,
+    ENGINES, Gimbals, LaunchVehicleConfig, LaunchVehicleError, MEASURED, Measured, Measurement, STATES, SensorNoise,
+    State, ThrustFault, Vehicle, VehicleParams, expected_jump_signs, filter_derivatives, idx, rk4, rk4_from,
 };
 
 /// The unit fault `f` is counted in: a 1 % thrust loss of one engine (the seed's `e`).
@@ -102,7 +102,13 @@ pub const PITCH_RATE_MEASUREMENT: usize = idx::WZ - 1;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FilterInput {
     pub t_s: f64,
-    pub gimbal_rad: [f64; ENGINES],
+    pub gimbals: Gimbals,
+}
+
+impl FilterInput {
+    pub fn new(t_s: f64, gimbal_rad: [f64; ENGINES]) -> Self {
+        FilterInput { t_s, gimbals: Gimbals::new(gimbal_rad) }
+    }
 }
 
 /// The EKF's model of the vehicle (module docs).
@@ -116,7 +122,7 @@ impl DiscreteModel<STATES, MEASURED> for FilterModel {
     type Input = FilterInput;
 
     fn transition(&self, x: &State, u: &FilterInput) -> State {
-        rk4(x, u.t_s, self.dt_s, |t_s, x| filter_derivatives(&self.params, x, t_s, &u.gimbal_rad))
+        rk4(x, u.t_s, self.dt_s, |t_s, x| filter_derivatives(&self.params, x, t_s, &u.gimbals))
     }
 
     fn measurement(&self, x: &State) -> Measured {
@@ -130,8 +136,8 @@ impl DiscreteModel<STATES, MEASURED> for FilterModel {
     /// RK4 and `I + A dt + (A dt)^2 / 2` with `A = df/dx` exact: one evaluation on dual numbers gives `A`
     /// and the first RK4 stage.
     fn transition_with_jacobian(&self, x: &State, u: &FilterInput) -> (State, SMatrix<f64, STATES, STATES>) {
-        let (k1, A) = value_and_jacobian(x, |x| filter_derivatives(&self.params, x, u.t_s, &u.gimbal_rad));
-        let next = rk4_from(x, k1, u.t_s, self.dt_s, |t_s, x| filter_derivatives(&self.params, x, t_s, &u.gimbal_rad));
+        let (k1, A) = value_and_jacobian(x, |x| filter_derivatives(&self.params, x, u.t_s, &u.gimbals));
+        let next = rk4_from(x, k1, u.t_s, self.dt_s, |t_s, x| filter_derivatives(&self.params, x, t_s, &u.gimbals));
         (next, second_order_transition(&A, self.dt_s))
     }
 
@@ -156,15 +162,10 @@ fn second_order_transition<const N: usize>(A: &SMatrix<f64, N, N>, dt_s: f64) ->
 }
 
 impl WithMomentStates<'_> {
-    fn derivatives<T: Real>(
-        &self,
-        x: &SVector<T, AUGMENTED>,
-        t_s: f64,
-        gimbal_rad: &[f64; ENGINES],
-    ) -> SVector<T, AUGMENTED> {
+    fn derivatives<T: Real>(&self, x: &SVector<T, AUGMENTED>, t_s: f64, gimbals: &Gimbals) -> SVector<T, AUGMENTED> {
         let vehicle: SVector<T, STATES> = x.fixed_rows::<STATES>(0).into_owned();
         let mut dx = SVector::<T, AUGMENTED>::zeros();
-        dx.fixed_rows_mut::<STATES>(0).copy_from(&filter_derivatives(&self.0.params, &vehicle, t_s, gimbal_rad));
+        dx.fixed_rows_mut::<STATES>(0).copy_from(&filter_derivatives(&self.0.params, &vehicle, t_s, gimbals));
         for axis in 0..3 {
             dx[idx::WX + axis] += x[STATES + axis];
         }
@@ -176,7 +177,7 @@ impl DiscreteModel<AUGMENTED, MEASURED> for WithMomentStates<'_> {
     type Input = FilterInput;
 
     fn transition(&self, x: &SVector<f64, AUGMENTED>, u: &FilterInput) -> SVector<f64, AUGMENTED> {
-        rk4(x, u.t_s, self.0.dt_s, |t_s, x| self.derivatives(x, t_s, &u.gimbal_rad))
+        rk4(x, u.t_s, self.0.dt_s, |t_s, x| self.derivatives(x, t_s, &u.gimbals))
     }
 
     fn measurement(&self, x: &SVector<f64, AUGMENTED>) -> Measured {
@@ -193,8 +194,8 @@ impl DiscreteModel<AUGMENTED, MEASURED> for WithMomentStates<'_> {
         x: &SVector<f64, AUGMENTED>,
         u: &FilterInput,
     ) -> (SVector<f64, AUGMENTED>, SMatrix<f64, AUGMENTED, AUGMENTED>) {
-        let (k1, A) = value_and_jacobian(x, |x| self.derivatives(x, u.t_s, &u.gimbal_rad));
-        let next = rk4_from(x, k1, u.t_s, self.0.dt_s, |t_s, x| self.derivatives(x, t_s, &u.gimbal_rad));
+        let (k1, A) = value_and_jacobian(x, |x| self.derivatives(x, u.t_s, &u.gimbals));
+        let next = rk4_from(x, k1, u.t_s, self.0.dt_s, |t_s, x| self.derivatives(x, t_s, &u.gimbals));
         (next, second_order_transition(&A, self.0.dt_s))
     }
 
@@ -214,7 +215,7 @@ enum ResidualFilter {
 impl ResidualFilter {
     /// The pitch-rate innovation of one filter step (rad/s).
     fn pitch_rate_residual(&mut self, model: &FilterModel, m: &Measurement) -> f64 {
-        let input = FilterInput { t_s: m.t_s, gimbal_rad: m.gimbal_rad };
+        let input = FilterInput::new(m.t_s, m.gimbal_rad);
         let gamma = match self {
             ResidualFilter::Plain(f) => f.step(model, &m.y, &input).gamma,
             ResidualFilter::Recovering(f) => f.step(&WithMomentStates(model), &m.y, &input).gamma,
@@ -1035,11 +1036,10 @@ mod tests {
         );
         for t_s in [0.0, 40.5, 50.5, 62.0, 79.0] {
             let (m, _) = flown.iter().find(|(m, _)| m.t_s >= t_s).unwrap();
-            let u = FilterInput { t_s: m.t_s, gimbal_rad: m.gimbal_rad };
-            let (k1, exact) =
-                value_and_jacobian(&m.truth, |x| filter_derivatives(&model.params, x, u.t_s, &u.gimbal_rad));
-            let numeric = central_difference(&m.truth, |x| filter_derivatives(&model.params, x, u.t_s, &u.gimbal_rad));
-            assert_eq!(k1, filter_derivatives(&model.params, &m.truth, u.t_s, &u.gimbal_rad));
+            let u = FilterInput::new(m.t_s, m.gimbal_rad);
+            let (k1, exact) = value_and_jacobian(&m.truth, |x| filter_derivatives(&model.params, x, u.t_s, &u.gimbals));
+            let numeric = central_difference(&m.truth, |x| filter_derivatives(&model.params, x, u.t_s, &u.gimbals));
+            assert_eq!(k1, filter_derivatives(&model.params, &m.truth, u.t_s, &u.gimbals));
             // A central difference's own error: its truncation (relative, below 1e-6 of the column here)
             // and its rounding, about 1e-16 |f_r| / h_c with the step h_c = 1e-6 max(1, |x_c|); allowed
             // 100x that.
@@ -1056,8 +1056,8 @@ mod tests {
             assert_eq!(model.transition_with_jacobian(&m.truth, &u).0, model.transition(&m.truth, &u));
             let augmented = WithMomentStates(&model);
             let x16 = SVector::<f64, AUGMENTED>::from_fn(|i, _| if i < STATES { m.truth[i] } else { 0.01 * i as f64 });
-            let (_, exact16) = value_and_jacobian(&x16, |x| augmented.derivatives(x, u.t_s, &u.gimbal_rad));
-            let numeric16 = central_difference(&x16, |x| augmented.derivatives(x, u.t_s, &u.gimbal_rad));
+            let (_, exact16) = value_and_jacobian(&x16, |x| augmented.derivatives(x, u.t_s, &u.gimbals));
+            let numeric16 = central_difference(&x16, |x| augmented.derivatives(x, u.t_s, &u.gimbals));
             assert!((exact16 - numeric16).amax() <= 1e-6 * exact16.amax().max(1.0), "t = {t_s} s, augmented");
             assert_eq!(exact16[(idx::WX, STATES)], 1.0);
             assert_eq!(augmented.transition_with_jacobian(&x16, &u).0, augmented.transition(&x16, &u));
