@@ -214,8 +214,7 @@ pub fn propagate_velocity(velocity_mps: &Vector3<f64>, interval: &InertialInterv
 /// kinematics (the detector maps the inertial noise into its process noise with it).
 pub fn velocity_derivative_input_jacobian(velocity_mps: &Vector3<f64>, m: &Inertial) -> SMatrix<f64, 3, 8> {
     let (u, v, w) = (velocity_mps[0], velocity_mps[1], velocity_mps[2]);
-    let (sphi, cphi) = m.roll_rad.sin_cos();
-    let (sth, cth) = m.pitch_rad.sin_cos();
+    let Attitude { sin_cos_roll: (sphi, cphi), sin_cos_pitch: (sth, cth) } = Attitude::new(m.roll_rad, m.pitch_rad);
     let g = GRAVITY_MPS2;
     #[rustfmt::skip]
     let G = SMatrix::<f64, 3, 8>::from_row_slice(&[

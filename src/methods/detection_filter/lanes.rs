@@ -79,7 +79,7 @@ fn run_lanes_in(
     let (n, nu, ny) = (s.plant.n_states(), s.plant.n_inputs(), s.plant.n_outputs());
     // Idle lanes repeat the last trial; their results are dropped.
     let spec = |l: usize| &specs[l.min(specs.len() - 1)];
-    let has_process_noise = s.process_sigma_per_step.iter().any(|&v| v > 0.0);
+    let has_process_noise = s.has_process_noise();
     let normals =
         |substream| LaneNormals::new(std::array::from_fn(|l| noise_rng(s.header.seed, spec(l).trial, substream)));
     let mut sensor_normals = normals(Substream::SensorNoise);

@@ -94,13 +94,8 @@ impl<'a> FaultFreeTrials<'a> {
         }
         let spec = engine.spec(0);
         let varies = spec_varies(study);
-        let mut me = FaultFreeTrials {
-            study,
-            engine,
-            detector,
-            shared: None,
-            has_process_noise: study.process_sigma_per_step.iter().any(|&v| v > 0.0),
-        };
+        let mut me =
+            FaultFreeTrials { study, engine, detector, shared: None, has_process_noise: study.has_process_noise() };
         if !varies {
             me.shared = Some(me.model_of(&spec)?);
         }

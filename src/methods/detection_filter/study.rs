@@ -116,6 +116,13 @@ pub struct LtiMonteCarlo {
     pub parameter_errors: Vec<ParameterError>,
 }
 
+impl LtiStudy {
+    /// Whether any state has process noise: without it a trial draws no process normals at all.
+    pub fn has_process_noise(&self) -> bool {
+        self.process_sigma_per_step.iter().any(|&v| v > 0.0)
+    }
+}
+
 impl FromDeck for LtiStudy {
     fn from_toml(text: &str, path: &Path) -> Result<LtiStudy, DeckError> {
         let deck: Deck = parse_deck(text, path)?;

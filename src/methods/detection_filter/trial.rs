@@ -176,7 +176,7 @@ pub fn run_trial(
     let (n, nu, ny) = (s.plant.n_states(), s.plant.n_inputs(), s.plant.n_outputs());
     let mut sensor_rng = noise_rng(s.header.seed, spec.trial, Substream::SensorNoise);
     let mut process_rng = noise_rng(s.header.seed, spec.trial, Substream::ProcessNoise);
-    let has_process_noise = s.process_sigma_per_step.iter().any(|&v| v > 0.0);
+    let has_process_noise = s.has_process_noise();
     let sensor_sigma = &s.sensor_sigma * spec.noise_scale;
 
     let mut faults = ActiveFaults::new(spec.faults.clone());

@@ -81,7 +81,7 @@
 #![allow(non_snake_case)]
 
 use crate::dual::Real;
-use crate::kinematics::Attitude;
+use crate::kinematics::{Attitude, body_from_ned};
 use nalgebra::{Matrix3, SVector, Vector3};
 
 /// Number of independent control surfaces.
@@ -393,24 +393,6 @@ pub fn effective_deflections<T: Real>(surfaces_rad: &[T; 5]) -> EffectiveDeflect
     }
 }
 
-/// Rotation from body to NED axes for 3-2-1 Euler angles.
-fn body_to_ned(phi: f64, theta: f64, psi: f64) -> Matrix3<f64> {
-    let (sf, cf) = phi.sin_cos();
-    let (st, ct) = theta.sin_cos();
-    let (sp, cp) = psi.sin_cos();
-    Matrix3::new(
-        ct * cp,
-        sf * st * cp - cf * sp,
-        cf * st * cp + sf * sp,
-        ct * sp,
-        sf * st * sp + cf * cp,
-        cf * st * sp - sf * cp,
-        -st,
-        sf * ct,
-        cf * ct,
-    )
-}
-
 /// Aerodynamic and propulsive forces (N) and moments (N m) in body axes, gravity excluded:
 /// `[fx, fy, fz, l, m, n]`.
 fn aero_propulsion<T: Real>(
@@ -515,7 +497,7 @@ fn body_accelerations<T: Real>(
 
 /// Airspeed (m/s), angle of attack and sideslip (rad) relative to the air mass.
 pub fn air_data(x: &State, wind_ned_mps: &Vector3<f64>) -> (f64, f64, f64) {
-    air_data_rotated(x, &body_to_ned(x[6], x[7], x[8]), wind_ned_mps)
+    air_data_rotated(x, &body_from_ned(x[6], x[7], x[8]).transpose(), wind_ned_mps)
 }
 
 /// [`air_data`] with the state's body-to-NED rotation already at hand.
@@ -553,7 +535,7 @@ pub fn derivatives(
     let (phi, theta, psi) = (x[6], x[7], x[8]);
     let uvw = [x[3], x[4], x[5]];
     let rates = [x[9], x[10], x[11]];
-    let rotation = body_to_ned(phi, theta, psi);
+    let rotation = body_from_ned(phi, theta, psi).transpose();
     let pos_dot = rotation * Vector3::new(uvw[0], uvw[1], uvw[2]);
     let (va, alpha, beta) = air_data_rotated(x, &rotation, wind_ned_mps);
     let air = (va, alpha, alpha.sin_cos(), beta);
