@@ -3,9 +3,9 @@
 //! by Cholesky. Each performs nalgebra's operations (`LU::new` + `try_inverse`, `Cholesky::new`) in
 //! nalgebra's order, so the numbers are nalgebra's to the bit (tested on random, pivoting, singular and
 //! indefinite matrices), without the general-matrix code's views, bounds and strides, which took most of
-//! their time in the profiles of methods 004 and 001. Where nalgebra repeats one operation over independent columns (the inverse's solves) it is done here
-//! across them, so the compiler can run them in SIMD lanes: each entry still sees the same operations
-//! in the same order.
+//! their time in the profiles of methods 004 and 001. Where nalgebra repeats one operation over
+//! independent columns (the inverse's solves) it is done here across them, so the compiler can run
+//! them in SIMD lanes: each entry still sees the same operations in the same order.
 #![allow(non_snake_case)]
 
 use nalgebra::SMatrix;

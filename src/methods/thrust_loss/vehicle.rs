@@ -133,8 +133,8 @@ pub const ENGINE_ANGLES_DEG: [f64; ENGINES] = [45.0, 135.0, 225.0, 315.0];
 /// Signs of the jumps `(n_y, n_z)` that a thrust loss on engine `index` produces (module docs): the sign
 /// of the engine's `y1` and `z1` coordinates.
 pub fn expected_jump_signs(index: usize) -> (f64, f64) {
-    let theta = ENGINE_ANGLES_DEG[index].to_radians();
-    (theta.cos().signum(), theta.sin().signum())
+    let (s, c) = engine_angle_sin_cos()[index];
+    (c.signum(), s.signum())
 }
 
 /// Vehicle parameters: a two-stage vehicle of the Long March 2C class during first-stage flight.
@@ -301,22 +301,16 @@ pub fn launch_to_body_of<T: Real>((sf, cf): (T, T), (sp, cp): (T, T), (sg, cg): 
     )
 }
 
-/// The gimbal deflections over a step with their sines and cosines, which every model evaluation of the
-/// step (RK4 stages, the filter's Jacobian) would otherwise compute again.
+/// The gimbal deflections over a step (rad, tangential, module docs) by their sines and cosines, which
+/// every model evaluation of the step (RK4 stages, the filter's Jacobian) would otherwise compute again.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Gimbals {
-    rad: [f64; ENGINES],
     sin_cos: [(f64, f64); ENGINES],
 }
 
 impl Gimbals {
     pub fn new(rad: [f64; ENGINES]) -> Self {
-        Gimbals { rad, sin_cos: rad.map(f64::sin_cos) }
-    }
-
-    /// Each engine's deflection (rad, tangential, module docs).
-    pub fn rad(&self) -> &[f64; ENGINES] {
-        &self.rad
+        Gimbals { sin_cos: rad.map(f64::sin_cos) }
     }
 }
 
@@ -600,8 +594,7 @@ impl Controller {
         let (d_phi, d_psi, d_gamma) = self.equivalent_deflections(y, program, t_s);
         let blend = 1.0 - (-dt_s / self.gains.servo_time_constant_s).exp();
         let limit = self.gains.gimbal_limit_rad;
-        for (i, pos) in self.positions_rad.iter_mut().enumerate() {
-            let (s, c) = ENGINE_ANGLES_DEG[i].to_radians().sin_cos();
+        for (pos, &(s, c)) in self.positions_rad.iter_mut().zip(engine_angle_sin_cos()) {
             let command = (d_gamma + 2.0 * (s * d_phi + c * d_psi)).clamp(-limit, limit);
             *pos = (*pos + blend * (command - *pos)).clamp(-limit, limit);
         }
@@ -929,6 +922,31 @@ mod tests {
     use super::*;
     use rand::SeedableRng;
     use rand::rngs::ChaCha8Rng;
+
+    /// The rotation written out is the product `Rx(gamma) Ry(psi) Rz(phi)` to the bit, on `f64` and on
+    /// dual numbers (values and derivatives), at angles of every quadrant.
+    #[test]
+    fn launch_to_body_is_the_product_of_the_three_rotations() {
+        fn product<T: Real>(phi: T, psi: T, gamma: T) -> Matrix3<T> {
+            let ((sf, cf), (sp, cp), (sg, cg)) = (phi.sin_cos(), psi.sin_cos(), gamma.sin_cos());
+            let (o, l) = (T::zero(), T::one());
+            let Rz = Matrix3::new(cf, sf, o, -sf, cf, o, o, o, l);
+            let Ry = Matrix3::new(cp, o, -sp, o, l, o, sp, o, cp);
+            let Rx = Matrix3::new(l, o, o, o, cg, sg, o, -sg, cg);
+            Rx * Ry * Rz
+        }
+        for (phi, psi, gamma) in [(1.5707, 0.01, -0.02), (0.3, -2.5, 2.9), (-1.1, 0.7, -3.0), (2.2, 1.9, 0.4)] {
+            assert_eq!(launch_to_body(phi, psi, gamma), product(phi, psi, gamma));
+            let d = |v: f64, i: usize| crate::dual::Dual::<3>::input(v, i);
+            let (ours, theirs) =
+                (launch_to_body(d(phi, 0), d(psi, 1), d(gamma, 2)), product(d(phi, 0), d(psi, 1), d(gamma, 2)));
+            for (a, b) in ours.iter().zip(theirs.iter()) {
+                assert_eq!(a.v, b.v);
+                // Equal, up to the sign of an exact zero (which the product's terms in 0 can flip).
+                assert!(a.d.iter().zip(&b.d).all(|(x, y)| x == y), "{a:?} {b:?}");
+            }
+        }
+    }
 
     fn exact_config() -> LaunchVehicleConfig {
         LaunchVehicleConfig { noise: SensorNoise::none(), ..LaunchVehicleConfig::default() }
