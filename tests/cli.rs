@@ -1930,3 +1930,120 @@ fn replay_records_are_identical_for_any_threads_shards_and_resume() {
     let sim = ok(&fdimc(&["simulate", deck, "--trial", "2", "--out", trace.to_str().unwrap()]));
     assert!(csv_frame(&trace).height() == 400, "{sim}");
 }
+
+/// `fdimc sensitivity` on the CI deck with two factors added: a listed noise scale (which drives false
+/// alarms) and an error on the plant's throttle entry, which no detector can see (the throttle never
+/// moves): its indices are exactly 0, intervals included, while the fault size's total index on Pd is
+/// clear of 0. Shards and merge, and a stopped run resumed, give the same records and indices to the
+/// bit; the report draws the indices; other kinds and bad arguments are refused.
+#[test]
+fn sensitivity_indices_see_what_the_detector_sees_whatever_the_shards_or_resume() {
+    use polars::prelude::*;
+    let tmp = tempfile::tempdir().unwrap();
+    let deck = edited_deck(
+        tmp.path(),
+        "ci_seed000.toml",
+        &[(
+            "onset_s = { range = [2.0, 6.0] }",
+            "onset_s = { range = [2.0, 6.0] }\nnoise_scale = { values = [1.0, 2.0] }\n\n\
+             [[monte_carlo.parameter_error]]\nname = \"throttle_unused\"\nmodel = \"plant\"\nmatrix = \"b\"\n\
+             entries = [[\"v_m_s\", \"throttle\"]]\nabsolute = { range = [-1.0, 1.0] }\n",
+        )],
+        "sens.toml",
+    );
+    let deck = deck.to_str().unwrap();
+    let s = |n: &str| tmp.path().join(n).to_str().unwrap().to_string();
+    let run = |extra: &[&str], out: &str| {
+        let out = s(out);
+        let mut args = vec!["sensitivity", deck, "--base-samples", "400", "--out", &out];
+        args.extend_from_slice(extra);
+        fdimc(&args)
+    };
+    let printed = ok(&run(&[], "whole"));
+    // Faulty: kind, output, size, onset, noise scale, throttle, noise = 7 factors, 400 x 9 trials;
+    // fault-free: noise scale, throttle, noise, 400 x 5.
+    assert!(printed.contains("faulty trials: 7 factors (fault_kind, output, size, onset_s, noise_scale, throttle_unused, noise_realisation): 3600 trials"), "{printed}");
+    assert!(
+        printed.contains("fault-free trials: 3 factors (noise_scale, throttle_unused, noise_realisation): 2000 trials"),
+        "{printed}"
+    );
+    let table = csv_frame(&tmp.path().join("whole/sensitivity.csv"));
+    assert_eq!(table.height(), 2 * (7 * 3 + 3), "detectors x (factors x outcomes) per part");
+    assert_eq!(read_frame(&tmp.path().join("whole/trials.parquet")).height(), 2 * 5600);
+    let rows = |outcome: &str, detector: &str, factor: &str| {
+        table
+            .clone()
+            .lazy()
+            .filter(
+                col("outcome")
+                    .eq(lit(outcome))
+                    .and(col("detector").eq(lit(detector)))
+                    .and(col("factor").eq(lit(factor))),
+            )
+            .collect()
+            .unwrap()
+    };
+    let value = |df: &DataFrame, c: &str| df.column(c).unwrap().f64().unwrap().get(0);
+    for detector in ["seed", "fast"] {
+        for outcome in ["pd", "isolation", "delay_s", "pfa"] {
+            let r = rows(outcome, detector, "throttle_unused");
+            for c in ["s1", "s1_lo", "s1_hi", "st", "st_lo", "st_hi"] {
+                assert_eq!(value(&r, c), Some(0.0), "{outcome} {detector} {c}: the throttle is invisible");
+            }
+        }
+        let size = rows("pd", detector, "size");
+        assert!(value(&size, "st_lo").unwrap() > 0.05, "{detector}: the size drives Pd\n{size}");
+        let noise = rows("pfa", detector, "noise_scale");
+        assert!(value(&noise, "st_lo").unwrap() > 0.05, "{detector}: doubling the noise drives false alarms\n{noise}");
+    }
+
+    for i in 0..3 {
+        ok(&run(&["--shard", &format!("{i}/3"), "--quiet"], &format!("s{i}")));
+    }
+    ok(&fdimc(&["merge", &s("s2"), &s("s0"), &s("s1"), "--out", &s("merged")]));
+    let stopped = ok(&run(&["--stop-after", "1", "--threads", "1"], "resumed"));
+    assert!(stopped.contains("--resume"), "{stopped}");
+    ok(&run(&["--resume"], "resumed"));
+    let reference = read_frame(&tmp.path().join("whole/trials.parquet"));
+    let whole = std::fs::read_to_string(tmp.path().join("whole/sensitivity.csv")).unwrap();
+    for other in ["merged", "resumed"] {
+        assert!(reference.equals_missing(&read_frame(&tmp.path().join(other).join("trials.parquet"))), "{other}");
+        assert_eq!(whole, std::fs::read_to_string(tmp.path().join(other).join("sensitivity.csv")).unwrap(), "{other}");
+    }
+    // A plain run's shard does not merge with a sensitivity run's.
+    ok(&fdimc(&["run", deck, "--trials", "5600", "--shard", "2/3", "--quiet", "--out", &s("plain2")]));
+    let out = fdimc(&["merge", &s("s0"), &s("s1"), &s("plain2"), "--out", &s("bad")]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+
+    // At another run's calibrated thresholds: the same trials, read again; isolation left out.
+    ok(&fdimc(&["run", deck, "--trials", "3000", "--quiet", "--out", &s("plain")]));
+    let calibrated = s("plain/thresholds.csv");
+    ok(&fdimc(&["summarize", &s("merged"), "--thresholds", &calibrated]));
+    let at_calibrated = csv_frame(&tmp.path().join("merged/sensitivity.csv"));
+    assert_eq!(at_calibrated.height(), 2 * (7 * 2 + 3), "no isolation rows");
+    let source = at_calibrated.column("thresholds").unwrap().str().unwrap().get(0).unwrap().to_string();
+    assert_eq!(source, format!("from {calibrated}"));
+    let out = fdimc(&["summarize", &s("merged"), "--target-pfa", "0.01"]);
+    assert_eq!(out.status.code(), Some(2), "a sensitivity run calibrates nothing");
+
+    let report = ok(&fdimc(&["report", &s("whole")]));
+    let page = std::fs::read_to_string(tmp.path().join("whole/report/report.html")).unwrap();
+    for name in ["sensitivity_pd_seed.svg", "sensitivity_pfa_fast.svg", "sensitivity_delay_s_fast.svg"] {
+        let svg = std::fs::read_to_string(tmp.path().join("whole/report").join(name)).unwrap();
+        let texts = svg_texts(&svg);
+        assert!(texts.iter().any(|t| t == "throttle_unused"), "{name}: {texts:?}");
+        assert!(texts.iter().any(|t| t.starts_with("ST: total")), "{name}: {texts:?}");
+        assert!(page.contains(&format!("src=\"{name}\"")), "{report}");
+    }
+    assert_report_loads_in_a_browser(&tmp.path().join("whole"));
+
+    for (args, want) in [
+        (vec!["sensitivity", "studies/ci_seed001.toml"], "fdimc sensitivity applies to detection_filter studies"),
+        (vec!["sensitivity", deck, "--base-samples", "1"], "--base-samples 1: allowed 2 to"),
+        (vec!["sensitivity", deck, "--bootstrap", "5"], "--bootstrap 5: allowed 10 to 100000"),
+    ] {
+        let out = fdimc(&args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        assert!(text(&out.stderr).contains(want), "{}", text(&out.stderr));
+    }
+}

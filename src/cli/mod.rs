@@ -95,35 +95,12 @@ Precision: `--precision 0.01 --precision-rates pd,pfa --trials 1000000` runs unt
         /// Number of trials (default: the deck's monte_carlo.trials).
         #[arg(long)]
         trials: Option<u64>,
-        /// Study seed (default: the deck's study.seed); another seed gives fresh trials.
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Worker threads (default: one per core).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Results folder (default: results/<study name>, or results/<study name>/shard-I-of-N).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Run only shard I of N (0-based), e.g. 0/4.
-        #[arg(long, value_name = "I/N")]
-        shard: Option<String>,
-        /// Continue an interrupted run in the same folder (same deck, seed, trials and shard).
-        #[arg(long)]
-        resume: bool,
-        /// Replace an existing run in the results folder.
-        #[arg(long, conflicts_with = "resume")]
-        force: bool,
-        /// No progress bar or report.
-        #[arg(long)]
-        quiet: bool,
+        #[command(flatten)]
+        folder: RunFolder,
         /// Accelerometer decks: evaluate the classifiers in FILE (written by `fdimc train`) instead of
         /// training them first.
         #[arg(long, value_name = "FILE")]
         classifiers: Option<PathBuf>,
-        /// Stop after writing N part files (4096 trials each for detection filters, 64 for surface banks), as
-        /// if interrupted; continue later with --resume.
-        #[arg(long, value_name = "N")]
-        stop_after: Option<u64>,
         /// Stop at the first chunk boundary where every rate of summary.csv's groups (deck thresholds)
         /// has a 95 % Wilson half-width of at most W (e.g. 0.01); --trials (or the deck's) is then a
         /// cap. Where it stops depends only on the deck and seed; --resume with a smaller W goes on.
@@ -200,6 +177,32 @@ seed and options give the same numbers for any --threads.")]
         #[arg(long)]
         quiet: bool,
     },
+    /// Which uncertainty drives the misses and false alarms: Sobol indices (first and total order, with
+    /// 95 % bootstrap intervals) of Pd, isolation, delay and Pfa per detector to every factor the deck's
+    /// trials draw, the noise realisation among them. Writes DIR/sensitivity.csv and .parquet.
+    #[command(after_help = "Example: fdimc run studies/seed000_robustness.toml, then\n  \
+fdimc sensitivity studies/seed000_robustness.toml --base-samples 4096 --thresholds results/seed000_robustness/thresholds.csv\n\
+The trials are the rows of a Saltelli design: matrices A and B of --base-samples rows each and, per factor i, A with \
+column i from B, for faulty and for fault-free trials: base-samples x (factors + 2) trials per part. \
+It prints the factors before it runs. Shards, --resume and `fdimc merge` work as for `run`; \
+`fdimc report DIR` draws the indices.")]
+    Sensitivity {
+        /// Study deck (TOML).
+        deck: PathBuf,
+        /// Rows of each of the matrices A and B; the interval half-widths shrink as 1/sqrt(N).
+        #[arg(long, default_value_t = 512)]
+        base_samples: u64,
+        /// Bootstrap resamples of the base rows for the 95 % intervals.
+        #[arg(long, default_value_t = 500)]
+        bootstrap: u64,
+        #[command(flatten)]
+        folder: RunFolder,
+        /// Read the outcomes at the whole-detector thresholds of another run's thresholds.csv (e.g. the
+        /// deck's own run, calibrated at its target Pfa) instead of the deck's; leaves out isolation,
+        /// which is recorded at the deck's thresholds only.
+        #[arg(long, value_name = "THRESHOLDS_CSV")]
+        thresholds: Option<PathBuf>,
+    },
     /// Join the results folders of all shards of one run into one, then summarize.
     Merge {
         /// Shard results folders (any order).
@@ -250,6 +253,37 @@ seed and options give the same numbers for any --threads.")]
     },
 }
 
+/// Where and how `run` and `sensitivity` fly their trials.
+#[derive(Debug, clap::Args)]
+pub struct RunFolder {
+    /// Study seed (default: the deck's study.seed); another seed gives fresh trials.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Worker threads (default: one per core).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Results folder (default: results/<study name>, for sensitivity results/<study name>/sensitivity;
+    /// a shard's in shard-I-of-N under it).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Run only shard I of N (0-based), e.g. 0/4; then `fdimc merge` the N folders.
+    #[arg(long, value_name = "I/N")]
+    pub shard: Option<String>,
+    /// Continue an interrupted run in the same folder (same deck, seed, trials or design, and shard).
+    #[arg(long)]
+    pub resume: bool,
+    /// Replace an existing run in the results folder.
+    #[arg(long, conflicts_with = "resume")]
+    pub force: bool,
+    /// No progress bar or report.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Stop after writing N part files (4096 trials each for detection filters, 64 for surface banks), as
+    /// if interrupted; continue later with --resume.
+    #[arg(long, value_name = "N")]
+    pub stop_after: Option<u64>,
+}
+
 /// An error the CLI reports, with its exit code.
 #[derive(Debug)]
 pub enum CliError {
@@ -283,34 +317,14 @@ pub fn run(cli: Cli) -> ExitCode {
             run::exec_simulate(&deck, trial, detector.as_deref(), &out, classifiers.as_deref())
         }
         Command::Train { deck, out } => run::exec_train(&deck, out.as_deref()),
-        Command::Run {
-            deck,
-            trials,
-            seed,
-            threads,
-            out,
-            shard,
-            resume,
-            force,
-            quiet,
-            stop_after,
-            classifiers,
-            precision,
-            precision_rates,
-        } => run::exec_run(run::RunArgs {
+        Command::Run { deck, trials, folder, classifiers, precision, precision_rates } => run::exec_run(run::RunArgs {
             precision,
             precision_rates,
             deck: &deck,
             trials,
-            seed,
-            threads,
-            out,
-            shard: shard.as_deref(),
-            resume,
-            force,
-            quiet,
-            stop_after,
+            folder,
             classifiers: classifiers.as_deref(),
+            sensitivity: None,
         })
         .map(|_| ()),
         Command::RareEvent {
@@ -340,6 +354,27 @@ pub fn run(cli: Cli) -> ExitCode {
             out,
             quiet,
         }),
+        Command::Sensitivity { deck, base_samples, bootstrap, folder, thresholds } => {
+            if !(2..=crate::engine::streams::MAX_TRIAL / 64).contains(&base_samples) {
+                Err(CliError::Invalid(format!(
+                    "--base-samples {base_samples}: allowed 2 to {}",
+                    crate::engine::streams::MAX_TRIAL / 64
+                )))
+            } else if !(10..=100_000).contains(&bootstrap) {
+                Err(CliError::Invalid(format!("--bootstrap {bootstrap}: allowed 10 to 100000")))
+            } else {
+                run::exec_run(run::RunArgs {
+                    precision: None,
+                    precision_rates: Vec::new(),
+                    deck: &deck,
+                    trials: None,
+                    folder,
+                    classifiers: None,
+                    sensitivity: Some(run::SensitivityArgs { base_samples, bootstrap, thresholds }),
+                })
+                .map(|_| ())
+            }
+        }
         Command::Summarize { dir, target_pfa, confidence, target_pfa_per_hour, thresholds } => {
             run::exec_summarize(&dir, target_pfa, target_pfa_per_hour, confidence, thresholds.as_deref())
         }

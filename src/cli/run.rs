@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::cli::CliError;
+use crate::cli::{CliError, RunFolder};
 use crate::engine::method::{self, Inputs, Method, Opt, Study};
 use crate::engine::runner::{self, Manifest, RunError, RunOptions, Shard};
 use crate::engine::summary;
@@ -22,19 +22,22 @@ impl From<RunError> for CliError {
 pub struct RunArgs<'a> {
     pub deck: &'a Path,
     pub trials: Option<u64>,
-    pub seed: Option<u64>,
-    pub threads: Option<usize>,
-    pub out: Option<PathBuf>,
-    pub shard: Option<&'a str>,
-    pub resume: bool,
-    pub force: bool,
-    pub quiet: bool,
-    pub stop_after: Option<u64>,
+    pub folder: RunFolder,
     /// Classifiers to evaluate instead of training them ([`Opt::Classifiers`]).
     pub classifiers: Option<&'a Path>,
     /// `--precision W` and the rates it watches.
     pub precision: Option<f64>,
     pub precision_rates: Vec<String>,
+    /// `fdimc sensitivity`'s design and the thresholds its outcomes are read at.
+    pub sensitivity: Option<SensitivityArgs>,
+}
+
+/// `fdimc sensitivity`: base samples and bootstrap resamples of its design, and another run's
+/// `thresholds.csv` to read the outcomes at (default: the deck's thresholds).
+pub struct SensitivityArgs {
+    pub base_samples: u64,
+    pub bootstrap: u64,
+    pub thresholds: Option<PathBuf>,
 }
 
 /// The deck's method and study, with `--classifiers` checked against what the method takes.
@@ -55,11 +58,12 @@ fn method_of_run(dir: &Path) -> Result<(&'static Method, Manifest), CliError> {
 }
 
 pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
-    let shard = match a.shard {
+    let f = &a.folder;
+    let shard = match f.shard.as_deref() {
         Some(s) => Shard::parse(s).map_err(|e| CliError::Invalid(format!("--shard {e}")))?,
         None => Shard::WHOLE,
     };
-    if a.threads == Some(0) {
+    if f.threads == Some(0) {
         return Err(CliError::Invalid("--threads 0: give at least 1 (or leave it out for one per core)".into()));
     }
     let (method, mut study) = load(a.deck, a.classifiers)?;
@@ -69,22 +73,47 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         }
         *study.seed_and_trials().1 = n;
     }
-    if let Some(seed) = a.seed {
+    if let Some(seed) = f.seed {
         *study.seed_and_trials().0 = seed;
     }
-    let out_dir = a.out.clone().unwrap_or_else(|| {
+    let design = match &a.sensitivity {
+        Some(SensitivityArgs { base_samples, bootstrap, thresholds }) => {
+            method::require(REGISTRY, method, Opt::Sensitivity)?;
+            if let Some(f) = thresholds {
+                // A bad file is refused before any trial is flown.
+                crate::engine::thresholds::read_thresholds(f)?;
+            }
+            let design = study.sensitivity_design(*base_samples, *bootstrap)?;
+            if !f.quiet {
+                for part in &design.parts {
+                    let names: Vec<&str> = part.factors.iter().map(|f| f.name.as_str()).collect();
+                    println!(
+                        "{} trials: {} factors ({}): {} trials",
+                        if part.fault_free { "fault-free" } else { "faulty" },
+                        names.len(),
+                        names.join(", "),
+                        base_samples * (names.len() as u64 + 2)
+                    );
+                }
+            }
+            Some(design)
+        }
+        None => None,
+    };
+    let out_dir = f.out.clone().unwrap_or_else(|| {
         let base = PathBuf::from("results").join(&study.header().name);
+        let base = if design.is_some() { base.join("sensitivity") } else { base };
         if shard == Shard::WHOLE { base } else { base.join(format!("shard-{}-of-{}", shard.index, shard.count)) }
     });
     let opts = RunOptions {
         deck: a.deck.into(),
         out_dir: out_dir.clone(),
-        threads: a.threads,
+        threads: f.threads,
         shard,
-        resume: a.resume,
-        force: a.force,
-        progress: !a.quiet,
-        stop_after_chunks: a.stop_after,
+        resume: f.resume,
+        force: f.force,
+        progress: !f.quiet,
+        stop_after_chunks: f.stop_after,
         stop: match a.precision {
             Some(w) => {
                 let monitor = summary::PrecisionMonitor::new(&method.summary, w, &a.precision_rates)
@@ -93,11 +122,12 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
             }
             None => None,
         },
+        sensitivity: design,
         command_line: std::env::args().collect(),
     };
-    let report = study.run(&opts, Inputs { classifiers: a.classifiers, quiet: a.quiet })?;
+    let report = study.run(&opts, Inputs { classifiers: a.classifiers, quiet: f.quiet })?;
     let m = &report.manifest;
-    if !a.quiet {
+    if !f.quiet {
         let n = m.end_trial - m.first_trial;
         let rate = if report.seconds > 0.0 { report.trials_run as f64 / report.seconds } else { f64::NAN };
         println!(
@@ -117,7 +147,7 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
             println!("  (this shard holds no trials)");
         }
     }
-    if let (Some(p), false) = (&m.precision, a.quiet) {
+    if let (Some(p), false) = (&m.precision, f.quiet) {
         if p.met {
             println!(
                 "  precision {} reached at {} of at most {} trials: all {} watched rates ({}) have a 95 % half-width <= {}; the last to get there: {}",
@@ -139,13 +169,16 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
     if !m.complete {
         println!(
             "  stopped after {} part file(s): continue with the same command and --resume",
-            a.stop_after.unwrap_or(0)
+            f.stop_after.unwrap_or(0)
         );
         return Ok(out_dir);
     }
     if shard == Shard::WHOLE {
-        summarize(method, &out_dir, None, !a.quiet)?;
-    } else if !a.quiet {
+        let calibration = a.sensitivity.and_then(|s| s.thresholds).map(Calibration::File);
+        summarize(method, &out_dir, calibration.as_ref(), !f.quiet)?;
+    } else if !f.quiet && m.sensitivity.is_some() {
+        println!("  shard done: join the shards with `fdimc merge <shard dirs>... --out DIR` to get the indices");
+    } else if !f.quiet {
         println!("  shard done: join the shards with `fdimc merge <shard dirs>... --out DIR` to get the summary");
     }
     Ok(out_dir)
@@ -203,6 +236,14 @@ pub fn exec_summarize(
         }
         (None, None, None) => None,
     };
+    if matches!(calibration, Some(Calibration::Target(_) | Calibration::Confident { .. }))
+        && manifest.sensitivity.is_some()
+    {
+        return Err(CliError::Invalid(format!(
+            "{}: a sensitivity run calibrates no thresholds: give another run's --thresholds, or none for the deck's",
+            dir.display()
+        )));
+    }
     if calibration.is_some() {
         method::require(REGISTRY, method, Opt::Thresholds)
             .map_err(|e| CliError::Invalid(format!("{}: {e}", dir.display())))?;
@@ -210,8 +251,21 @@ pub fn exec_summarize(
     summarize(method, dir, calibration.as_ref(), true)
 }
 
-/// The shared summary of the run in `dir`, with what `method` adds; printed unless `print` is false.
+/// The shared summary of the run in `dir`, with what `method` adds, or the indices of a sensitivity run;
+/// printed unless `print` is false.
 fn summarize(method: &Method, dir: &Path, calibration: Option<&Calibration>, print: bool) -> Result<(), CliError> {
+    if Manifest::read(dir)?.sensitivity.is_some() {
+        let thresholds = match calibration {
+            Some(Calibration::File(f)) => Some(f.as_path()),
+            _ => None,
+        };
+        let indices = crate::engine::sensitivity::analyse(dir, thresholds)?;
+        if print {
+            crate::engine::sensitivity::print(&indices)?;
+            println!("\n-> {}", dir.join("sensitivity.csv").display());
+        }
+        return Ok(());
+    }
     let spec = method.summary;
     let s = summary::summarize(dir, &spec, calibration)?;
     if print {
@@ -246,6 +300,7 @@ pub fn exec_merge(dirs: &[PathBuf], out: &Path, force: bool) -> Result<(), CliEr
             || m.seed != first.seed
             || m.trials != first.trials
             || m.shard.count != count
+            || m.sensitivity != first.sensitivity
         {
             return Err(CliError::Invalid(format!(
                 "{}: from another run (deck, seed, trial count or shard count differ from {})",
@@ -297,17 +352,20 @@ pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<us
         let args = RunArgs {
             deck: target,
             trials: None,
-            seed: None,
-            threads,
-            out: Some(scratch.clone()),
-            shard: None,
-            resume: false,
-            force: true,
-            quiet: true,
-            stop_after: None,
+            folder: RunFolder {
+                seed: None,
+                threads,
+                out: Some(scratch.clone()),
+                shard: None,
+                resume: false,
+                force: true,
+                quiet: true,
+                stop_after: None,
+            },
             classifiers: None,
             precision: None,
             precision_rates: Vec::new(),
+            sensitivity: None,
         };
         let dir = exec_run(args)?;
         (crate::engine::tables::read_summary(&dir.join("summary.csv"))?, Some(scratch))

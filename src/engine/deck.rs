@@ -38,6 +38,15 @@ pub enum Factor {
 pub type SizeBins = std::collections::BTreeMap<String, Vec<[f64; 2]>>;
 
 impl Factor {
+    /// Whether trials draw it (a range, or more than one listed value): a factor of a sensitivity design.
+    pub fn is_sampled(&self) -> bool {
+        match self {
+            Factor::Fixed(_) => false,
+            Factor::Range { lo, hi, .. } => hi > lo,
+            Factor::Values(v) => v.len() > 1,
+        }
+    }
+
     /// The `[low, high)` edges of each of a range's bins (a listed or fixed value is its own bin: none).
     pub fn bin_edges(&self) -> Vec<[f64; 2]> {
         match self {
@@ -523,6 +532,8 @@ pub struct MonteCarlo {
     pub onset_s: Factor,
     /// Multiplies every sensor's noise standard deviation.
     pub noise_scale: Factor,
+    /// Set by `fdimc sensitivity`, never by a deck: the trials are the rows of this design.
+    pub design: Option<std::sync::Arc<crate::engine::sensitivity::Design>>,
 }
 
 /// A `[[monte_carlo.parameter_error]]`: what every kind shares (a name for its `perr_<name>` column, the
@@ -593,6 +604,7 @@ impl Validator<'_> {
                 target_pfa: 0.01,
                 onset_s: Factor::Fixed(duration_s / 3.0),
                 noise_scale: Factor::Fixed(1.0),
+                design: None,
             };
             return Ok((defaults, None, Vec::new()));
         };
@@ -675,7 +687,7 @@ impl Validator<'_> {
             parameter_errors.push(ParameterError { name, model, absolute, value, what });
         }
         Ok((
-            MonteCarlo { trials, fault_free_fraction, sampler, target_pfa, onset_s, noise_scale },
+            MonteCarlo { trials, fault_free_fraction, sampler, target_pfa, onset_s, noise_scale, design: None },
             Some(own),
             parameter_errors,
         ))

@@ -103,6 +103,8 @@ pub enum Opt {
     Design,
     /// `fdimc rare-event`: the kind's fault-free trials run as rare-event paths.
     RareEvent,
+    /// `fdimc sensitivity`: the kind's trials can be drawn from a sensitivity design.
+    Sensitivity,
 }
 
 impl Opt {
@@ -113,6 +115,7 @@ impl Opt {
             Opt::Classifiers => "--classifiers / fdimc train",
             Opt::Design => "fdimc design",
             Opt::RareEvent => "fdimc rare-event",
+            Opt::Sensitivity => "fdimc sensitivity",
         }
     }
 }
@@ -144,6 +147,15 @@ pub trait Study: Sync {
     /// `fdimc rare-event` ([`Opt::RareEvent`]): estimates, writes and prints rare false alarms.
     fn rare_event(&self, _opts: &super::rare_event_study::RareEventOptions) -> Result<(), RunError> {
         Err(RunError::Internal("this kind lists no rare-event paths".into()))
+    }
+    /// `fdimc sensitivity` ([`Opt::Sensitivity`]): makes the study's trials the rows of a Saltelli design
+    /// of `base_samples` rows per matrix over the factors its trials draw, and returns the design.
+    fn sensitivity_design(
+        &mut self,
+        _base_samples: u64,
+        _bootstrap: u64,
+    ) -> Result<super::sensitivity::Design, RunError> {
+        Err(RunError::Internal("this kind lists no sensitivity design".into()))
     }
     /// `fdimc train` ([`Opt::Classifiers`]): trains what the study evaluates and writes it to `out`.
     fn train(&self, _out: Option<&Path>) -> Result<(), RunError> {

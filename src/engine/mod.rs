@@ -19,6 +19,7 @@ pub mod report;
 pub mod runner;
 pub mod scenario;
 pub mod schema;
+pub mod sensitivity;
 pub mod streams;
 pub mod summary;
 pub mod tables;

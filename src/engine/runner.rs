@@ -172,6 +172,9 @@ pub struct Manifest {
     /// A run asked to stop at a precision (`run --precision`): what it was asked and where it stopped.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub precision: Option<PrecisionOutcome>,
+    /// A sensitivity study (`fdimc sensitivity`): its design, whose rows the trials are.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensitivity: Option<crate::engine::sensitivity::Design>,
 }
 
 /// What `run --precision` asked and where the run stopped.
@@ -212,6 +215,7 @@ impl Manifest {
             && self.seed == other.seed
             && self.trials == other.trials
             && self.chunk_trials == other.chunk_trials
+            && self.sensitivity == other.sensitivity
     }
 }
 
@@ -246,6 +250,8 @@ pub struct RunOptions {
     /// Stop at the first chunk boundary where this rule says the trials so far are enough (`run
     /// --precision`); the trial count is then a cap.
     pub stop: Option<StopHandle>,
+    /// The design of a sensitivity study, recorded in the manifest (the study draws its trials from it).
+    pub sensitivity: Option<crate::engine::sensitivity::Design>,
     pub command_line: Vec<String>,
 }
 
@@ -335,6 +341,7 @@ impl Manifest {
             complete: false,
             rows: 0,
             precision: None,
+            sensitivity: None,
         }
     }
 }
@@ -357,6 +364,7 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
         command_line: opts.command_line.clone(),
         complete: false,
         rows: 0,
+        sensitivity: opts.sensitivity.clone(),
         ..study_manifest
     };
 

@@ -6,12 +6,19 @@
 //! dimension d = a seeded permutation of 0..N), or an Owen-scrambled Sobol sequence (sobol_burley;
 //! independent scrambles per block of 65,536 trials, since one sequence holds 2^16 points). Whether a
 //! trial is fault-free is the first draw of its scenario stream.
+//!
+//! A sensitivity study ([`crate::engine::sensitivity`]) replaces all of this by its design's rows: the
+//! design sets whether a trial is fault-free, each factor's unit draw (a listed factor's too, drawn
+//! from its list by its dimension), each grid digit, and which trial's noise streams a trial uses.
 
 use rand::RngExt;
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 
+use std::sync::Arc;
+
 use crate::engine::deck::{Factor, MonteCarlo, ParameterError, Sampler};
+use crate::engine::sensitivity::Design;
 use crate::engine::streams::{Substream, trial_rng};
 
 /// Uniform draws in [0, 1) per (trial, dimension) by the deck's sampler: independent uniforms, a Latin
@@ -25,13 +32,15 @@ pub struct UnitSampler {
     fault_free_fraction: f64,
     /// Latin-hypercube strata: `lhs[d][i]` for dimension d, trial i.
     lhs: Vec<Vec<u32>>,
+    /// A sensitivity study's design, whose rows replace the sampler ([`MonteCarlo::design`]).
+    design: Option<Arc<Design>>,
 }
 
 impl UnitSampler {
     /// The sampler of a study's `[monte_carlo]` (seed `seed`) over `dims` continuous dimensions.
     pub fn for_study(mc: &MonteCarlo, seed: u64, dims: usize) -> Self {
         let (sampler, trials) = (mc.sampler, mc.trials);
-        let lhs = if sampler == Sampler::LatinHypercube {
+        let lhs = if sampler == Sampler::LatinHypercube && mc.design.is_none() {
             let n = trials as usize;
             (0..dims)
                 .map(|d| {
@@ -48,17 +57,29 @@ impl UnitSampler {
         } else {
             Vec::new()
         };
-        UnitSampler { sampler, trials, seed, dims, fault_free_fraction: mc.fault_free_fraction, lhs }
+        let design = mc.design.clone();
+        UnitSampler { sampler, trials, seed, dims, fault_free_fraction: mc.fault_free_fraction, lhs, design }
     }
 
     /// Trial `trial`'s draws, in the same order for every kind of study: whether it is fault-free (the
     /// first draw of its scenario stream, true with probability `fault_free_fraction`), then one unit
     /// draw per dimension; and its grid digits.
     pub fn trial(&self, trial: u64) -> TrialDraws {
+        if let Some(design) = &self.design {
+            let d = design.draws(self.seed, trial, self.dims);
+            let digits = Some(DesignDigits { units: d.digit_units, taken: 0 });
+            return TrialDraws {
+                fault_free: d.fault_free,
+                units: d.dim_units,
+                grid: GridDigits::new(0),
+                digits,
+                noise_trial: d.noise_trial,
+            };
+        }
         let mut rng = trial_rng(self.seed, trial, Substream::Scenario);
         let fault_free = rng.random::<f64>() < self.fault_free_fraction;
         let units = (0..self.dims).map(|d| self.unit(trial, d, &mut rng)).collect();
-        TrialDraws { fault_free, units, grid: GridDigits::new(trial) }
+        TrialDraws { fault_free, units, grid: GridDigits::new(trial), digits: None, noise_trial: trial }
     }
 
     /// Uniform in [0, 1) for dimension `dim` of trial `trial`; `rng` is the trial's scenario stream
@@ -88,18 +109,45 @@ pub struct TrialDraws {
     pub fault_free: bool,
     units: Vec<f64>,
     grid: GridDigits,
+    /// A sensitivity design's digits, which replace the grid's.
+    digits: Option<DesignDigits>,
+    /// The trial whose noise streams this trial uses: itself, except in a sensitivity design.
+    pub noise_trial: u64,
+}
+
+/// The unit draws of a design row's grid digits, taken in order.
+struct DesignDigits {
+    units: Vec<f64>,
+    taken: usize,
+}
+
+/// Index `0..n` of a unit draw.
+fn pick(u: f64, n: usize) -> usize {
+    ((u * n as f64) as usize).min(n - 1)
 }
 
 impl TrialDraws {
     /// The next grid digit, in `0..n` (a listed choice: fault kind, component).
     pub fn digit(&mut self, n: usize) -> usize {
-        self.grid.next(n)
+        match &mut self.digits {
+            Some(d) => {
+                let u = d.units.get(d.taken).copied().unwrap_or(0.0);
+                d.taken += 1;
+                pick(u, n)
+            }
+            None => self.grid.next(n),
+        }
     }
 
-    /// Factor `f`'s value and group label ([`draw`]) from dimension `dim`.
+    /// Factor `f`'s value and group label ([`draw`]) from dimension `dim`. In a sensitivity design a
+    /// listed factor is drawn from its list by its dimension's unit draw, not by the grid.
     pub fn factor(&mut self, f: &Factor, dim: usize) -> (f64, f64) {
+        let u = self.units[dim];
+        if self.digits.is_some() {
+            return draw(f, u, &mut |n| pick(u, n));
+        }
         let grid = &mut self.grid;
-        draw(f, self.units[dim], &mut |n| grid.next(n))
+        draw(f, u, &mut |n| grid.next(n))
     }
 
     /// Each parameter error's value (deck order, dimensions from `first_dim` on) and the largest |group

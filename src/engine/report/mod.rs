@@ -16,6 +16,7 @@
 
 pub mod html;
 pub mod plots;
+mod sensitivity;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -88,6 +89,9 @@ struct DetectorData {
 /// Writes the report of the run in `dir`, drawing `trials` from the deck the run used.
 pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Report, RunError> {
     let manifest = Manifest::read(dir)?;
+    if manifest.sensitivity.is_some() {
+        return sensitivity::write(dir, &manifest);
+    }
     let calibrates = method.options.contains(&Opt::Thresholds);
     let mut needed = vec!["summary.parquet", "curves.csv", "min_detectable.csv", "detectors.csv"];
     if calibrates {
@@ -712,6 +716,15 @@ fn page(
         )?
         .unwrap_or_default(),
     );
+    section(
+        "Which factors matter (Sobol indices)",
+        "Written by <code>fdimc sensitivity</code> into <code>sensitivity/</code> (when it has been run): the share \
+         of each outcome's variance each factor explains alone (S1) and with its interactions (ST), with 95 % \
+         bootstrap intervals; its bar charts are in <a href=\"../sensitivity/report/report.html\">its own report</a> \
+         (after <code>fdimc report DIR/sensitivity</code>). Table: <code>sensitivity/sensitivity.csv</code>.",
+        table_of(dir, "sensitivity/sensitivity.csv", &["part", "outcome_variance", "note", "sum_s1"])?
+            .unwrap_or_default(),
+    );
     section("Detection delay", "Per fault kind, detected trials only.", figures("delay_"));
     section(
         "Isolation",
@@ -759,12 +772,18 @@ fn page(
         &format!("Re-flown from the run's deck with <code>fdimc simulate</code>.{}", r.trace_note),
         figures("trace_"),
     );
-    let warnings = if r.warnings.is_empty() {
+    Ok(shell(m, &r.warnings, &body))
+}
+
+/// The page around a report's sections: the provenance of the run and its warnings.
+fn shell(m: &Manifest, warnings: &[String], body: &str) -> String {
+    use html::escape;
+    let warnings = if warnings.is_empty() {
         "<p>None.</p>".to_string()
     } else {
-        format!("<ul>{}</ul>", r.warnings.iter().map(|w| format!("<li>{}</li>", escape(w))).collect::<String>())
+        format!("<ul>{}</ul>", warnings.iter().map(|w| format!("<li>{}</li>", escape(w))).collect::<String>())
     };
-    Ok(format!(
+    format!(
         r#"<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>fdimc report: {study}</title>
 <style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}}
@@ -798,7 +817,7 @@ table{{border-collapse:collapse;font-size:85%;margin:0.5em 0}}td,th{{border:1px 
         pfa = if m.target_pfa > 0.0 { m.target_pfa.to_string() } else { "- (the kind calibrates no threshold)".into() },
         version = escape(&m.fdimc_version),
         cmd = escape(&m.command_line.join(" ")),
-    ))
+    )
 }
 
 #[cfg(test)]

@@ -584,3 +584,71 @@ pub fn tail(file: &Path, p: &TailPlot) -> Result<(), String> {
     legend(&mut chart, SeriesLabelPosition::UpperRight, 14)?;
     root.present().map_err(e)
 }
+
+/// One outcome's Sobol indices for one detector (`sensitivity.csv`): per factor, the first-order index
+/// (upper bar) and the total index (lower bar) with their 95 % bootstrap intervals as whiskers.
+pub struct SensitivityBars<'a> {
+    pub outcome: &'a str,
+    pub detector: &'a str,
+    /// (factor, S1, S1 interval, ST, ST interval), drawn bottom to top.
+    pub factors: Vec<(String, f64, (f64, f64), f64, (f64, f64))>,
+}
+
+pub fn sensitivity_bars(file: &Path, p: &SensitivityBars) -> Result<(), String> {
+    let k = p.factors.len().max(1) as i32;
+    let lowest = p.factors.iter().map(|f| f.2.0.min(f.4.0)).fold(0.0f64, f64::min);
+    let highest = p.factors.iter().map(|f| f.2.1.max(f.4.1)).fold(1.0f64, f64::max);
+    let figure = SVGBackend::new(file, (900, 130 + 64 * k as u32)).into_drawing_area();
+    figure.fill(&WHITE).map_err(e)?;
+    let caption = format!("Sobol indices of {} for detector {} (95 % bootstrap intervals)", p.outcome, p.detector);
+    let mut chart = ChartBuilder::on(&figure)
+        .caption(caption, (FONT, 18))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(150)
+        .build_cartesian_2d(lowest - 0.02..highest + 0.02, (0..k - 1).into_segmented())
+        .map_err(e)?;
+    let names: Vec<String> = p.factors.iter().map(|f| f.0.clone()).collect();
+    let centre = |v: &SegmentValue<i32>| match v {
+        SegmentValue::CenterOf(i) => Some(*i as usize),
+        _ => None,
+    };
+    chart
+        .configure_mesh()
+        .disable_y_mesh()
+        .y_labels(k as usize)
+        .y_label_formatter(&|v| centre(v).and_then(|i| names.get(i).cloned()).unwrap_or_default())
+        .x_desc("share of the outcome's variance")
+        .x_label_formatter(&|x| format!("{:.1}", if x.abs() < 1e-9 { 0.0 } else { *x }))
+        .label_style((FONT, 13))
+        .draw()
+        .map_err(e)?;
+    let segment_px = chart.plotting_area().dim_in_pixel().1 / k as u32;
+    let at = |frac: f64| (frac * segment_px as f64).round() as u32;
+    let (s1_colour, st_colour) = (color(0), color(1));
+    for (i, (_, s1, s1_ci, st, st_ci)) in p.factors.iter().enumerate() {
+        let (top, bottom) = (|| SegmentValue::Exact(i as i32), || SegmentValue::Exact(i as i32 + 1));
+        // Segment i is drawn from its top (Exact(i)) down: S1 in the upper half, ST in the lower.
+        for (value, (lo, hi), colour, upper) in [(s1, s1_ci, s1_colour, true), (st, st_ci, st_colour, false)] {
+            let (t, b) = if upper { (at(0.12), at(0.52)) } else { (at(0.52), at(0.12)) };
+            let mut bar = Rectangle::new([(0.0, top()), (*value, bottom())], colour.mix(0.8).filled());
+            bar.set_margin(t, b, 0, 0);
+            let (wt, wb) = if upper { (at(0.31), at(0.69) - 2) } else { (at(0.69) - 2, at(0.31)) };
+            let mut whisker = Rectangle::new([(*lo, top()), (*hi, bottom())], BLACK.filled());
+            whisker.set_margin(wt, wb, 0, 0);
+            chart.draw_series([bar, whisker]).map_err(e)?;
+        }
+    }
+    chart
+        .draw_series(std::iter::empty::<Circle<(f64, SegmentValue<i32>), i32>>())
+        .map_err(e)?
+        .label("S1: first order (the factor alone)")
+        .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 16, y + 5)], s1_colour.filled()));
+    chart
+        .draw_series(std::iter::empty::<Circle<(f64, SegmentValue<i32>), i32>>())
+        .map_err(e)?
+        .label("ST: total (with its interactions)")
+        .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 16, y + 5)], st_colour.filled()));
+    legend(&mut chart, SeriesLabelPosition::LowerRight, 13)?;
+    figure.present().map_err(e)
+}

@@ -81,7 +81,7 @@ fn run_lanes_in(
     let spec = |l: usize| &specs[l.min(specs.len() - 1)];
     let has_process_noise = s.has_process_noise();
     let normals =
-        |substream| LaneNormals::new(std::array::from_fn(|l| noise_rng(s.header.seed, spec(l).trial, substream)));
+        |substream| LaneNormals::new(std::array::from_fn(|l| noise_rng(s.header.seed, spec(l).noise_trial, substream)));
     let mut sensor_normals = normals(Substream::SensorNoise);
     let mut process_normals = has_process_noise.then(|| normals(Substream::ProcessNoise));
     let mut draws = vec![[0.0; LANES]; ny.max(n)];

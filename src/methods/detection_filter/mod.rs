@@ -25,6 +25,7 @@ use std::path::Path;
 use crate::engine::deck::FromDeck;
 use crate::engine::method::{Extra, Inputs, Isolates, Method, Opt, Study, SummarySpec};
 use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
+use crate::engine::sensitivity::Design;
 use kernel::LANES;
 use records::RecordBuilder;
 use study::LtiStudy;
@@ -37,7 +38,7 @@ pub static METHOD: Method = Method {
     kind: KIND,
     marker: "plant",
     title: "eigenstructure-assigned detection filters on an LTI plant, sensor faults (method 000)",
-    options: &[Opt::Thresholds, Opt::Design, Opt::RareEvent],
+    options: &[Opt::Thresholds, Opt::Design, Opt::RareEvent, Opt::Sensitivity],
     load: |text, path| Ok(Box::new(LtiStudy::from_toml(text, path)?)),
     summary: SummarySpec {
         extra_keys: &[],
@@ -77,6 +78,12 @@ impl Study for LtiStudy {
     }
     fn rare_event(&self, opts: &crate::engine::rare_event_study::RareEventOptions) -> Result<(), RunError> {
         rare_event::run(self, opts)
+    }
+    fn sensitivity_design(&mut self, base_samples: u64, bootstrap: u64) -> Result<Design, RunError> {
+        let design = Design { base_samples, bootstrap, parts: scenario::ScenarioSampler::sensitivity_parts(self) };
+        self.monte_carlo.common.trials = design.trials();
+        self.monte_carlo.common.design = Some(std::sync::Arc::new(design.clone()));
+        Ok(design)
     }
 }
 use trials::{Engine, TrialResult};

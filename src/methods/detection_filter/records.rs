@@ -145,6 +145,7 @@ mod tests {
         let q = 2;
         let spec = |trial: u64, faulty: bool| TrialSpec {
             trial,
+            noise_trial: trial,
             faults: if faulty {
                 vec![SensorFault { channel: q, onset_s: 5.0, mode: FaultMode::Bias { bias: 0.015 } }]
             } else {

@@ -4,6 +4,7 @@
 use super::study::LtiStudy;
 use crate::engine::deck::ModelTarget;
 use crate::engine::scenario::UnitSampler;
+use crate::engine::sensitivity::{DesignFactor, Part, Slot};
 use crate::fault::SensorFault;
 use crate::fault::deck::{SizeSpec, fixed_size_unit, unit};
 
@@ -17,6 +18,8 @@ const DIM_PARAMETERS: usize = 3;
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrialSpec {
     pub trial: u64,
+    /// The trial whose noise streams this one uses: itself, except in a sensitivity design.
+    pub noise_trial: u64,
     /// Faults of this trial (empty: fault-free).
     pub faults: Vec<SensorFault>,
     /// Kind of the (first) fault, "none" when fault-free.
@@ -70,6 +73,7 @@ impl<'a> ScenarioSampler<'a> {
 
         let mut spec = TrialSpec {
             trial,
+            noise_trial: t.noise_trial,
             faults: Vec::new(),
             kind: "none",
             output: None,
@@ -111,6 +115,46 @@ impl<'a> ScenarioSampler<'a> {
             }
         }
         spec
+    }
+
+    /// The factors a sensitivity design varies: those of the deck that trials draw, where [`Self::spec`]
+    /// takes them. Faulty trials: fault kind and output (the first two grid digits), size, onset, noise
+    /// scale, parameter errors; fault-free trials: noise scale and parameter errors.
+    pub fn sensitivity_parts(study: &LtiStudy) -> Vec<Part> {
+        let mc = &study.monte_carlo;
+        let factor = |name: &str, slot| DesignFactor { name: name.into(), slot };
+        let mut shared = Vec::new();
+        if mc.common.noise_scale.is_sampled() {
+            shared.push(factor("noise_scale", Slot::Dim(DIM_NOISE)));
+        }
+        for (k, pe) in mc.parameter_errors.iter().enumerate() {
+            if pe.value.is_sampled() {
+                shared.push(factor(&pe.name, Slot::Dim(DIM_PARAMETERS + k)));
+            }
+        }
+        let mut faulty = Vec::new();
+        if !mc.faults.is_empty() {
+            if mc.faults.len() > 1 {
+                faulty.push(factor("fault_kind", Slot::Digit(0)));
+            }
+            if mc.outputs.len() > 1 {
+                faulty.push(factor("output", Slot::Digit(1)));
+            }
+            let sized = |s: &SizeSpec| matches!(s, SizeSpec::Output(f) | SizeSpec::SensorSigma(f) if f.is_sampled());
+            if mc.faults.iter().any(|f| sized(&f.size)) {
+                faulty.push(factor("size", Slot::Dim(DIM_SIZE)));
+            }
+            if mc.common.onset_s.is_sampled() {
+                faulty.push(factor("onset_s", Slot::Dim(DIM_ONSET)));
+            }
+        }
+        let mut parts = Vec::new();
+        if !mc.faults.is_empty() || !study.faults.is_empty() {
+            faulty.extend(shared.iter().cloned());
+            parts.push(Part::new(false, faulty));
+        }
+        parts.push(Part::new(true, shared));
+        parts
     }
 
     /// Whether any parameter error perturbs `target`.

@@ -174,8 +174,8 @@ pub fn run_trial(
 ) -> Vec<DetectorOutcome> {
     let s = study;
     let (n, nu, ny) = (s.plant.n_states(), s.plant.n_inputs(), s.plant.n_outputs());
-    let mut sensor_rng = noise_rng(s.header.seed, spec.trial, Substream::SensorNoise);
-    let mut process_rng = noise_rng(s.header.seed, spec.trial, Substream::ProcessNoise);
+    let mut sensor_rng = noise_rng(s.header.seed, spec.noise_trial, Substream::SensorNoise);
+    let mut process_rng = noise_rng(s.header.seed, spec.noise_trial, Substream::ProcessNoise);
     let has_process_noise = s.has_process_noise();
     let sensor_sigma = &s.sensor_sigma * spec.noise_scale;
 
