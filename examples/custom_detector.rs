@@ -94,6 +94,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         progress: false,
         stop_after_chunks: None,
         stop: None,
+        sensitivity: None,
         command_line: std::env::args().collect(),
     };
     let run = fdimc::methods::detection_filter::run_study(&study, &opts)?;

@@ -2038,12 +2038,42 @@ fn sensitivity_indices_see_what_the_detector_sees_whatever_the_shards_or_resume(
     assert_report_loads_in_a_browser(&tmp.path().join("whole"));
 
     for (args, want) in [
-        (vec!["sensitivity", "studies/ci_seed001.toml"], "fdimc sensitivity applies to detection_filter studies"),
+        (vec!["sensitivity", "studies/ci_seed004.toml"], "not to this surface_bank study"),
         (vec!["sensitivity", deck, "--base-samples", "1"], "--base-samples 1: allowed 2 to"),
         (vec!["sensitivity", deck, "--bootstrap", "5"], "--bootstrap 5: allowed 10 to 100000"),
     ] {
         let out = fdimc(&args);
         assert_eq!(out.status.code(), Some(2), "{args:?}");
         assert!(text(&out.stderr).contains(want), "{}", text(&out.stderr));
+    }
+}
+
+/// The launch-vehicle (001) and air-data (002) kinds name their factors for a design too: the factors
+/// printed, one row per outcome, detector and factor, and the same indices for 1 and 2 threads.
+#[test]
+fn launch_and_air_data_decks_take_a_sensitivity_design() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (deck, faulty, fault_free) in [
+        (
+            "studies/ci_seed001.toml",
+            "faulty trials: 5 factors (engine, loss_percent, onset_s, gust_scale, noise_realisation): 224 trials",
+            "fault-free trials: 2 factors (gust_scale, noise_realisation): 128 trials",
+        ),
+        (
+            "studies/ci_seed002.toml",
+            "faulty trials: 4 factors (output_set, size, onset_s, noise_realisation): 192 trials",
+            "fault-free trials: 1 factors (noise_realisation): 96 trials",
+        ),
+    ] {
+        let out = |threads: &str| tmp.path().join(format!("{}-{threads}", &deck[8..18])).to_str().unwrap().to_string();
+        let printed = ok(&fdimc(&["sensitivity", deck, "--base-samples", "32", "--threads", "2", "--out", &out("2")]));
+        assert!(printed.contains(faulty) && printed.contains(fault_free), "{deck}: {printed}");
+        ok(&fdimc(&["sensitivity", deck, "--base-samples", "32", "--threads", "1", "--quiet", "--out", &out("1")]));
+        let table = csv_frame(&Path::new(&out("2")).join("sensitivity.csv"));
+        let detectors = table.column("detector").unwrap().n_unique().unwrap();
+        let (kf, k0) = if deck.contains("001") { (5, 2) } else { (4, 1) };
+        assert_eq!(table.height(), detectors * (3 * kf + k0), "{deck}");
+        let read = |o: &str| std::fs::read_to_string(Path::new(&out(o)).join("sensitivity.csv")).unwrap();
+        assert_eq!(read("1"), read("2"), "{deck}: the same indices for any thread count");
     }
 }

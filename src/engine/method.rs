@@ -310,10 +310,28 @@ macro_rules! study_accessors {
 
 /// `impl Study` for a kind whose folder has `commands::{validate, simulate}` and whose trials are a
 /// [`super::runner::TrialSource`] made from the study by `|study| source` (a `Result`: an error is the
-/// deck's, exit 2). Kinds with more to do (a gain design, trained classifiers) write the impl out.
+/// deck's, exit 2); with `sensitivity: |study| parts`, the kind's sensitivity design
+/// ([`Opt::Sensitivity`]) over the parts its scenario names (its trials at `monte_carlo.common`). Kinds
+/// with more to do (a gain design, trained classifiers) write the impl out.
 #[macro_export]
 macro_rules! plain_study {
     ($study:ty, $($trials:ident).+, |$s:ident| $source:expr) => {
+        $crate::plain_study!(@impl $study, [$($trials).+], |$s| $source, {});
+    };
+    ($study:ty, $($trials:ident).+, |$s:ident| $source:expr, sensitivity: |$p:ident| $parts:expr) => {
+        $crate::plain_study!(@impl $study, [$($trials).+], |$s| $source, {
+            fn sensitivity_design(
+                &mut self,
+                base_samples: u64,
+                bootstrap: u64,
+            ) -> Result<$crate::engine::sensitivity::Design, $crate::engine::runner::RunError> {
+                let $p = &*self;
+                let parts = $parts;
+                Ok($crate::engine::sensitivity::use_design(&mut self.monte_carlo.common, base_samples, bootstrap, parts))
+            }
+        });
+    };
+    (@impl $study:ty, [$($trials:ident).+], |$s:ident| $source:expr, { $($extra:tt)* }) => {
         impl $crate::engine::method::Study for $study {
             $crate::study_accessors!($($trials).+);
             fn validate(&self) -> Result<(), $crate::engine::runner::RunError> {
@@ -336,6 +354,7 @@ macro_rules! plain_study {
                 let $s = self;
                 $crate::engine::runner::run(&$source?, opts)
             }
+            $($extra)*
         }
     };
 }

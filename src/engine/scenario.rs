@@ -82,6 +82,11 @@ impl UnitSampler {
         TrialDraws { fault_free, units, grid: GridDigits::new(trial), digits: None, noise_trial: trial }
     }
 
+    /// The trial whose noise streams trial `trial` uses: itself, except in a sensitivity design.
+    pub fn noise_trial(&self, trial: u64) -> u64 {
+        self.design.as_ref().map_or(trial, |d| d.noise_trial(trial))
+    }
+
     /// Uniform in [0, 1) for dimension `dim` of trial `trial`; `rng` is the trial's scenario stream
     /// (one draw per call, whatever the sampler, so later draws do not depend on it).
     fn unit(&self, trial: u64, dim: usize, rng: &mut ChaCha8Rng) -> f64 {

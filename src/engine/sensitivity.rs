@@ -42,6 +42,7 @@ use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
+use super::deck::MonteCarlo;
 use super::output::write_table;
 use super::runner::{Manifest, RunError, pol};
 use super::schema::col;
@@ -126,6 +127,15 @@ enum Block {
     Ab(usize),
 }
 
+/// Makes the trials of a study's `[monte_carlo]` the rows of a design of `base_samples` rows per matrix
+/// over `parts`, and returns the design (for the manifest).
+pub fn use_design(common: &mut MonteCarlo, base_samples: u64, bootstrap: u64, parts: Vec<Part>) -> Design {
+    let design = Design { base_samples, bootstrap, parts };
+    common.trials = design.trials();
+    common.design = Some(std::sync::Arc::new(design.clone()));
+    design
+}
+
 impl Design {
     pub fn trials(&self) -> u64 {
         self.parts.iter().map(|p| p.trials(self.base_samples)).sum()
@@ -151,6 +161,19 @@ impl Design {
         panic!("trial {t} is past the design's {} trials", self.trials())
     }
 
+    /// The trial whose noise streams trial `t` uses: its `A` row's, or its `B` row's in `B` and in
+    /// `A_B^noise`.
+    pub fn noise_trial(&self, t: u64) -> u64 {
+        let (p, first, block, j) = self.locate(t);
+        let (row_a, row_b) = (first + j, first + self.base_samples + j);
+        match block {
+            Block::A => row_a,
+            Block::B => row_b,
+            Block::Ab(i) if self.parts[p].factors[i].slot == Slot::Noise => row_b,
+            Block::Ab(_) => row_a,
+        }
+    }
+
     /// The draws of trial `t` of a study seeded `seed` whose scenarios have `dims` continuous dimensions.
     pub fn draws(&self, seed: u64, t: u64, dims: usize) -> DesignDraws {
         let (p, first, block, j) = self.locate(t);
@@ -162,13 +185,13 @@ impl Design {
             let mut rng = trial_rng(seed, row, Substream::Scenario);
             part.factors.iter().map(|_| rng.random::<f64>()).collect()
         };
-        let (mut units, noise_trial) = match block {
-            Block::A => (units_of(row_a), row_a),
-            Block::B => (units_of(row_b), row_b),
+        let mut units = match block {
+            Block::A => units_of(row_a),
+            Block::B => units_of(row_b),
             Block::Ab(i) => {
                 let mut u = units_of(row_a);
                 u[i] = units_of(row_b)[i];
-                (u, if part.factors[i].slot == Slot::Noise { row_b } else { row_a })
+                u
             }
         };
         let digits = part.factors.iter().filter_map(|f| if let Slot::Digit(k) = f.slot { Some(k + 1) } else { None });
@@ -176,7 +199,7 @@ impl Design {
             fault_free: part.fault_free,
             dim_units: vec![0.5; dims],
             digit_units: vec![0.0; digits.max().unwrap_or(0)],
-            noise_trial,
+            noise_trial: self.noise_trial(t),
         };
         for (f, u) in part.factors.iter().zip(units.drain(..)) {
             match f.slot {

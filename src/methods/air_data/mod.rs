@@ -11,7 +11,7 @@ pub mod trial;
 pub mod voting;
 
 use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Isolates, Method, OwnPlot, SummarySpec, TracePanel};
+use crate::engine::method::{Extra, Isolates, Method, Opt, OwnPlot, SummarySpec, TracePanel};
 use crate::engine::runner::{Manifest, RunError, TrialSource};
 use crate::engine::streams::{Substream, noise_rng};
 use crate::methods::air_data::flight::{AIR_DATA_CHANNEL_NAMES, AirDataSample};
@@ -27,7 +27,7 @@ pub static METHOD: Method = Method {
     kind: KIND,
     marker: "flight",
     title: "dual-model UKF on air-data sensors, chi-square isolation (method 002)",
-    options: &[],
+    options: &[Opt::Sensitivity],
     load: |text, path| Ok(Box::new(AirDataStudy::from_toml(text, path)?)),
     summary: SummarySpec {
         extra_keys: &[records::col::GUST_BIN, records::col::FAULTY_LANES],
@@ -76,7 +76,8 @@ pub static METHOD: Method = Method {
     starter: ("studies/ci_seed002.toml", include_str!("../../../studies/ci_seed002.toml")),
 };
 
-crate::plain_study!(AirDataStudy, monte_carlo.common.trials, |s| Ok::<_, RunError>(AirDataTrials::new(s)));
+crate::plain_study!(AirDataStudy, monte_carlo.common.trials, |s| Ok::<_, RunError>(AirDataTrials::new(s)),
+    sensitivity: |s| scenario::sensitivity_parts(s));
 
 /// The runner's view of an air-data study.
 pub struct AirDataTrials<'a> {
@@ -102,7 +103,7 @@ impl<'a> AirDataTrials<'a> {
         on_sample: impl FnMut(&AirDataSample, &[DetectorStep]),
     ) -> AirDataTrialResult {
         let spec = self.sampler.spec(trial);
-        let mut rng = noise_rng(self.study.header.seed, trial, Substream::SensorNoise);
+        let mut rng = noise_rng(self.study.header.seed, self.sampler.noise_trial(trial), Substream::SensorNoise);
         let outcome = run_detectors(self.sampler.scenario(&spec), &spec, &self.study.detectors, &mut rng, on_sample);
         AirDataTrialResult { spec, outcome }
     }

@@ -5,6 +5,7 @@
 //! fault-free is the first draw of its scenario stream.
 
 use crate::engine::scenario::UnitSampler;
+use crate::engine::sensitivity::{DesignFactor, Part, Slot};
 use crate::fault::SensorFault;
 use crate::fault::deck::{SizeSpec, fixed_size_unit, unit};
 use crate::methods::air_data::flight::ScenarioParams;
@@ -50,6 +51,11 @@ impl<'a> AirDataScenarioSampler<'a> {
     pub fn new(study: &'a AirDataStudy) -> Self {
         let mc = &study.monte_carlo;
         AirDataScenarioSampler { study, units: UnitSampler::for_study(&mc.common, study.header.seed, DIMS) }
+    }
+
+    /// The trial whose noise streams trial `trial` uses (another in a sensitivity design).
+    pub fn noise_trial(&self, trial: u64) -> u64 {
+        self.units.noise_trial(trial)
     }
 
     /// The scenario of trial `trial`.
@@ -140,6 +146,49 @@ impl<'a> AirDataScenarioSampler<'a> {
             faulty_lanes: spec.faulty_lanes.max(1), // 0 in a fault-free trial: nothing to hit
         }
     }
+}
+
+/// The factors a sensitivity design varies, where [`AirDataScenarioSampler::spec`] takes them. Faulty
+/// trials: fault kind and output set (the first two grid digits, with sampled faults), size, onset,
+/// noise scale, gust level, faulty lanes (the last digit); fault-free trials: noise scale and gusts.
+pub fn sensitivity_parts(study: &AirDataStudy) -> Vec<Part> {
+    let mc = &study.monte_carlo;
+    let factor = |name: &str, slot| DesignFactor { name: name.into(), slot };
+    let mut shared = Vec::new();
+    if mc.common.noise_scale.is_sampled() {
+        shared.push(factor("noise_scale", Slot::Dim(DIM_NOISE)));
+    }
+    if mc.gust_std_mps.is_sampled() {
+        shared.push(factor("gust_std_mps", Slot::Dim(DIM_GUST)));
+    }
+    let sampled = !mc.faults.is_empty();
+    let mut faulty = Vec::new();
+    if sampled {
+        if mc.faults.len() > 1 {
+            faulty.push(factor("fault_kind", Slot::Digit(0)));
+        }
+        if mc.output_sets.len() > 1 {
+            faulty.push(factor("output_set", Slot::Digit(1)));
+        }
+        let sized = |s: &SizeSpec| matches!(s, SizeSpec::Output(f) | SizeSpec::SensorSigma(f) if f.is_sampled());
+        if mc.faults.iter().any(|f| sized(&f.size)) {
+            faulty.push(factor("size", Slot::Dim(DIM_SIZE)));
+        }
+        if mc.common.onset_s.is_sampled() {
+            faulty.push(factor("onset_s", Slot::Dim(DIM_ONSET)));
+        }
+    }
+    faulty.extend(shared.iter().cloned());
+    if mc.faulty_lanes.len() > 1 {
+        // The digit after the kind's and the set's, which only sampled faults take.
+        faulty.push(factor("faulty_lanes", Slot::Digit(if sampled { 2 } else { 0 })));
+    }
+    let mut parts = Vec::new();
+    if sampled || !study.faults.is_empty() {
+        parts.push(Part::new(false, faulty));
+    }
+    parts.push(Part::new(true, shared));
+    parts
 }
 
 #[cfg(test)]

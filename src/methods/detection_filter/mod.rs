@@ -80,10 +80,8 @@ impl Study for LtiStudy {
         rare_event::run(self, opts)
     }
     fn sensitivity_design(&mut self, base_samples: u64, bootstrap: u64) -> Result<Design, RunError> {
-        let design = Design { base_samples, bootstrap, parts: scenario::ScenarioSampler::sensitivity_parts(self) };
-        self.monte_carlo.common.trials = design.trials();
-        self.monte_carlo.common.design = Some(std::sync::Arc::new(design.clone()));
-        Ok(design)
+        let parts = scenario::ScenarioSampler::sensitivity_parts(self);
+        Ok(crate::engine::sensitivity::use_design(&mut self.monte_carlo.common, base_samples, bootstrap, parts))
     }
 }
 use trials::{Engine, TrialResult};

@@ -27,7 +27,7 @@ pub static METHOD: Method = Method {
     kind: KIND,
     marker: "vehicle",
     title: "EKF residual and moving-horizon least squares on a launch vehicle, thrust loss (method 001)",
-    options: &[Opt::Thresholds],
+    options: &[Opt::Thresholds, Opt::Sensitivity],
     load: |text, path| Ok(Box::new(LaunchStudy::from_toml(text, path)?)),
     summary: SummarySpec {
         extra_keys: &[records::col::GUST_BIN],
@@ -76,7 +76,8 @@ pub static METHOD: Method = Method {
 
 // Designs and loss tables are the deck's: one that cannot be designed is invalid input.
 crate::plain_study!(LaunchStudy, monte_carlo.common.trials, |s| LaunchTrials::new(s)
-    .map_err(|e| RunError::Invalid(format!("{}: {e}", s.header.path.display()))));
+    .map_err(|e| RunError::Invalid(format!("{}: {e}", s.header.path.display()))),
+    sensitivity: |s| scenario::sensitivity_parts(s));
 
 /// The runner's view of a launch study: designs built once, every trial flown once.
 pub struct LaunchTrials<'a> {
@@ -106,7 +107,7 @@ impl<'a> LaunchTrials<'a> {
     pub fn run_trial_with(&self, trial: u64, on_sample: impl FnMut(&Measurement, &[MheStep])) -> LaunchTrialResult {
         let spec = self.sampler.spec(trial);
         let config = self.sampler.config(&spec);
-        let mut rng = noise_rng(self.study.header.seed, trial, Substream::SensorNoise);
+        let mut rng = noise_rng(self.study.header.seed, self.sampler.noise_trial(trial), Substream::SensorNoise);
         let (duration_s, window_s) = (self.study.header.duration_s, self.study.monte_carlo.detection_window_s);
         let outcome = run_detectors(&config, &spec, duration_s, window_s, &self.detectors, &mut rng, on_sample);
         LaunchTrialResult { spec, outcome }

@@ -5,6 +5,7 @@
 //! the first draw of its scenario stream.
 
 use crate::engine::scenario::UnitSampler;
+use crate::engine::sensitivity::{DesignFactor, Part, Slot};
 use crate::methods::thrust_loss::study::LaunchStudy;
 use crate::methods::thrust_loss::vehicle::{Gust, LaunchVehicleConfig, ThrustFault};
 
@@ -69,6 +70,11 @@ impl<'a> LaunchScenarioSampler<'a> {
         LaunchTrialSpec { trial, fault, loss_percent, loss_bin, noise_scale, noise_bin, gust_scale, gust_bin }
     }
 
+    /// The trial whose noise streams trial `trial` uses (another in a sensitivity design).
+    pub fn noise_trial(&self, trial: u64) -> u64 {
+        self.units.noise_trial(trial)
+    }
+
     /// What the trial's truth flies: the study's vehicle with the trial's noise and gusts.
     pub fn config(&self, spec: &LaunchTrialSpec) -> LaunchVehicleConfig {
         let s = self.study;
@@ -78,6 +84,40 @@ impl<'a> LaunchScenarioSampler<'a> {
             ..s.config.clone()
         }
     }
+}
+
+/// The factors a sensitivity design varies, where [`LaunchScenarioSampler::spec`] takes them. Faulty
+/// trials: engine (the first grid digit), loss, onset, noise scale, gust scale; fault-free trials: the
+/// last two. A deck's fixed `[[faults]]` has no factor of its own.
+pub fn sensitivity_parts(study: &LaunchStudy) -> Vec<Part> {
+    let mc = &study.monte_carlo;
+    let factor = |name: &str, slot| DesignFactor { name: name.into(), slot };
+    let mut shared = Vec::new();
+    if mc.common.noise_scale.is_sampled() {
+        shared.push(factor("noise_scale", Slot::Dim(DIM_NOISE)));
+    }
+    if mc.gust_scale.is_sampled() {
+        shared.push(factor("gust_scale", Slot::Dim(DIM_GUST)));
+    }
+    let mut faulty = Vec::new();
+    if let Some(loss) = &mc.loss_percent {
+        if mc.engines.len() > 1 {
+            faulty.push(factor("engine", Slot::Digit(0)));
+        }
+        if loss.is_sampled() {
+            faulty.push(factor("loss_percent", Slot::Dim(DIM_SIZE)));
+        }
+        if mc.common.onset_s.is_sampled() {
+            faulty.push(factor("onset_s", Slot::Dim(DIM_ONSET)));
+        }
+    }
+    let mut parts = Vec::new();
+    if mc.loss_percent.is_some() || study.fault.is_some() {
+        faulty.extend(shared.iter().cloned());
+        parts.push(Part::new(false, faulty));
+    }
+    parts.push(Part::new(true, shared));
+    parts
 }
 
 #[cfg(test)]
