@@ -2077,3 +2077,102 @@ fn launch_and_air_data_decks_take_a_sensitivity_design() {
         assert_eq!(read("1"), read("2"), "{deck}: the same indices for any thread count");
     }
 }
+
+/// One writer per results folder (issue 26): a second run on a folder that another run is writing is
+/// refused (exit 2) naming the holder's pid; once the first is killed (SIGKILL), its lock is gone with
+/// it, and `--resume` completes the run to the records of an uninterrupted one.
+#[test]
+fn a_second_writer_is_refused_and_a_killed_runs_lock_is_not_stale() {
+    let tmp = tempfile::tempdir().unwrap();
+    let s = |n: &str| tmp.path().join(n).to_str().unwrap().to_string();
+    // 40,960 CI trials on one thread: ten part files, several seconds of writing.
+    fn args(out: &str) -> Vec<&str> {
+        vec!["run", CI_DECK, "--trials", "40960", "--threads", "1", "--quiet", "--out", out]
+    }
+    let busy = s("busy");
+    let mut first = Command::new(env!("CARGO_BIN_EXE_fdimc"))
+        .args(args(&busy))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .spawn()
+        .unwrap();
+    let parts = tmp.path().join("busy/parts");
+    let started = std::time::Instant::now();
+    while !std::fs::read_dir(&parts)
+        .is_ok_and(|d| d.flatten().any(|e| e.file_name().to_string_lossy().starts_with("part-")))
+    {
+        assert!(started.elapsed().as_secs() < 60, "the first run wrote no part file");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let second = fdimc(&[args(&busy), vec!["--resume"]].concat());
+    assert_eq!(second.status.code(), Some(2), "{}", text(&second.stderr));
+    let e = text(&second.stderr);
+    assert!(
+        e.contains("another fdimc is writing this folder") && e.contains(&format!("pid {} on host", first.id())),
+        "{e}"
+    );
+    first.kill().unwrap();
+    first.wait().unwrap();
+    assert!(!tmp.path().join("busy/trials.parquet").exists(), "killed before its end");
+    let resumed = ok(&fdimc(&["run", CI_DECK, "--trials", "40960", "--resume", "--out", &busy]));
+    assert!(resumed.contains(" resumed)") && !resumed.contains(", 0 resumed)"), "{resumed}");
+    ok(&fdimc(&args(&s("whole"))));
+    let whole = read_frame(&tmp.path().join("whole/trials.parquet"));
+    assert!(whole.equals_missing(&read_frame(&tmp.path().join("busy/trials.parquet"))));
+}
+
+/// The cluster files the README shows (issue 26): the SLURM job file takes its shard from the array and
+/// resumes; the Kubernetes indexed Job's shard count is its completion count, its deck is bundled.
+#[test]
+fn the_cluster_job_files_take_their_shard_from_the_scheduler() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let sbatch = std::fs::read_to_string(root.join("scripts/cluster/fdimc-array.sbatch")).unwrap();
+    let command = sbatch.lines().find(|l| l.starts_with("exec ")).expect("the job's command");
+    for word in ["run", "--shard auto", "--out \"$OUT\"", "--resume", "--threads \"${SLURM_CPUS_PER_TASK:-1}\""] {
+        assert!(command.contains(word), "{command}: {word}");
+    }
+    assert!(sbatch.contains("#SBATCH --requeue"));
+
+    let yaml = std::fs::read_to_string(root.join("scripts/cluster/fdimc-indexed-job.yaml")).unwrap();
+    let field = |name: &str| -> String {
+        let line =
+            yaml.lines().find(|l| l.trim_start().starts_with(&format!("{name}:"))).unwrap_or_else(|| panic!("{name}"));
+        line.split_once(':').unwrap().1.trim().to_string()
+    };
+    assert_eq!(field("apiVersion"), "batch/v1");
+    assert_eq!(field("kind"), "Job");
+    assert_eq!(field("completionMode"), "Indexed");
+    assert_eq!(field("restartPolicy"), "Never");
+    let completions: u64 = field("completions").parse().unwrap();
+    assert_eq!(field("parallelism").parse::<u64>().unwrap(), completions);
+    // The command, as a flow list over lines: its quoted words.
+    let start = yaml.find("command: [").unwrap();
+    let list = &yaml[start + 10..start + yaml[start..].find(']').unwrap()];
+    let words: Vec<&str> = list.split(',').map(|w| w.trim().trim_matches('"')).collect();
+    let after = |flag: &str| words[words.iter().position(|w| *w == flag).unwrap_or_else(|| panic!("{flag}")) + 1];
+    assert_eq!(&words[..2], ["fdimc", "run"]);
+    assert!(root.join(words[2]).exists(), "{}", words[2]);
+    assert_eq!(after("--shard"), format!("auto/{completions}"));
+    assert!(words.contains(&"--resume"));
+    assert_eq!(after("--threads"), field("cpu").trim_matches('"'));
+    // What a pod would do with it: index 3 of the completions is shard 3, in its own folder.
+    let out = tempfile::tempdir().unwrap();
+    let o = out.path().to_str().unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_fdimc"))
+        .args(["run", CI_DECK, "--trials", "64", "--shard", &format!("auto/{completions}"), "--out", o])
+        .env("JOB_COMPLETION_INDEX", "3")
+        .current_dir(root)
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(0), "{}", text(&run.stderr));
+    assert!(out.path().join(format!("shard-3-of-{completions}/manifest.json")).exists());
+    // And without a scheduler, `auto` is refused.
+    let bare = Command::new(env!("CARGO_BIN_EXE_fdimc"))
+        .args(["run", CI_DECK, "--shard", "auto", "--out", o])
+        .env_remove("SLURM_ARRAY_TASK_ID")
+        .env_remove("JOB_COMPLETION_INDEX")
+        .current_dir(root)
+        .output()
+        .unwrap();
+    assert_eq!(bare.status.code(), Some(2));
+    assert!(text(&bare.stderr).contains("no array task in the environment"), "{}", text(&bare.stderr));
+}

@@ -170,8 +170,9 @@ seed and options give the same numbers for any --threads.")]
         /// Results folder (default: results/<study name>/rare_event, or .../rare_event/shard-I-of-N).
         #[arg(long)]
         out: Option<PathBuf>,
-        /// Run only shard I of N (0-based) of the trial chunks or replicas; `fdimc merge` the N folders.
-        #[arg(long, value_name = "I/N")]
+        /// Run only shard I of N (0-based) of the trial chunks or replicas; `fdimc merge` the N folders;
+        /// `auto` (or auto/N): the scheduler's array task, as for `run`.
+        #[arg(long, value_name = "I/N|auto")]
         shard: Option<String>,
         /// No progress or pilot lines.
         #[arg(long)]
@@ -266,8 +267,10 @@ pub struct RunFolder {
     /// a shard's in shard-I-of-N under it).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Run only shard I of N (0-based), e.g. 0/4; then `fdimc merge` the N folders.
-    #[arg(long, value_name = "I/N")]
+    /// Run only shard I of N (0-based), e.g. 0/4, then `fdimc merge` the N folders; `auto` (or auto/N):
+    /// the scheduler's array task (SLURM_ARRAY_TASK_ID, a Kubernetes JOB_COMPLETION_INDEX), its folder
+    /// shard-I-of-N under --out.
+    #[arg(long, value_name = "I/N|auto")]
     pub shard: Option<String>,
     /// Continue an interrupted run in the same folder (same deck, seed, trials or design, and shard).
     #[arg(long)]

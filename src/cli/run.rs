@@ -57,12 +57,35 @@ fn method_of_run(dir: &Path) -> Result<(&'static Method, Manifest), CliError> {
     Ok((method, manifest))
 }
 
+/// `--shard`: `I/N`, or the scheduler's array task (`auto`); whether it was `auto`.
+fn shard_of(text: Option<&str>) -> Result<(Shard, bool), CliError> {
+    match text {
+        Some(s) => {
+            Shard::from_arg(s, |name| std::env::var(name).ok()).map_err(|e| CliError::Invalid(format!("--shard {e}")))
+        }
+        None => Ok((Shard::WHOLE, false)),
+    }
+}
+
+/// The results folder of a run: `--out`, or `results/<study>[/<sub>]`; a shard's folder under it when
+/// the shard is the default's or the scheduler's (array tasks that share one `--out` cannot collide).
+fn results_folder(out: Option<&Path>, study: &str, sub: Option<&str>, shard: Shard, auto: bool) -> PathBuf {
+    let whole = || {
+        let base = PathBuf::from("results").join(study);
+        sub.map_or(base.clone(), |s| base.join(s))
+    };
+    match out {
+        Some(dir) if !auto => dir.to_path_buf(),
+        given => {
+            let base = given.map_or_else(whole, Path::to_path_buf);
+            if shard == Shard::WHOLE { base } else { base.join(shard.folder()) }
+        }
+    }
+}
+
 pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
     let f = &a.folder;
-    let shard = match f.shard.as_deref() {
-        Some(s) => Shard::parse(s).map_err(|e| CliError::Invalid(format!("--shard {e}")))?,
-        None => Shard::WHOLE,
-    };
+    let (shard, auto) = shard_of(f.shard.as_deref())?;
     if f.threads == Some(0) {
         return Err(CliError::Invalid("--threads 0: give at least 1 (or leave it out for one per core)".into()));
     }
@@ -100,11 +123,11 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         }
         None => None,
     };
-    let out_dir = f.out.clone().unwrap_or_else(|| {
-        let base = PathBuf::from("results").join(&study.header().name);
-        let base = if design.is_some() { base.join("sensitivity") } else { base };
-        if shard == Shard::WHOLE { base } else { base.join(format!("shard-{}-of-{}", shard.index, shard.count)) }
-    });
+    let sub = design.is_some().then_some("sensitivity");
+    let out_dir = results_folder(f.out.as_deref(), &study.header().name, sub, shard, auto);
+    if auto && !f.quiet {
+        println!("shard {}/{} from the scheduler's array task -> {}", shard.index, shard.count, out_dir.display());
+    }
     let opts = RunOptions {
         deck: a.deck.into(),
         out_dir: out_dir.clone(),
@@ -505,14 +528,8 @@ pub fn exec_rare_event(a: RareEventArgs) -> Result<(), CliError> {
     if let Some(seed) = a.seed {
         *study.seed_and_trials().0 = seed;
     }
-    let shard = match a.shard {
-        Some(s) => Shard::parse(s).map_err(|e| CliError::Invalid(format!("--shard {e}")))?,
-        None => Shard::WHOLE,
-    };
-    let base = PathBuf::from("results").join(&study.header().name).join("rare_event");
-    let out = a.out.unwrap_or_else(|| {
-        if shard == Shard::WHOLE { base } else { base.join(format!("shard-{}-of-{}", shard.index, shard.count)) }
-    });
+    let (shard, auto) = shard_of(a.shard)?;
+    let out = results_folder(a.out.as_deref(), &study.header().name, Some("rare_event"), shard, auto);
     let opts = RareEventOptions {
         deck: a.deck.into(),
         shard,

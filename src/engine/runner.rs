@@ -124,6 +124,101 @@ impl Shard {
         Ok(Shard { index, count })
     }
 
+    /// `--shard`'s text: `I/N`, or `auto` (or `auto/N`) for the array task the scheduler runs this
+    /// process as, read by `env` ([`Shard::from_scheduler`]). The flag says whether it was `auto`.
+    pub fn from_arg(text: &str, env: impl Fn(&str) -> Option<String>) -> Result<(Shard, bool), String> {
+        match text.trim().strip_prefix("auto") {
+            Some("") => Ok((Shard::from_scheduler(None, env)?, true)),
+            Some(rest) => {
+                let n = rest.strip_prefix('/').and_then(|n| n.trim().parse::<u64>().ok()).filter(|&n| n > 0);
+                let n = n.ok_or_else(|| format!("{text:?}: expected auto or auto/N (N the task count, >= 1)"))?;
+                Ok((Shard::from_scheduler(Some(n), env)?, true))
+            }
+            None => Ok((Shard::parse(text)?, false)),
+        }
+    }
+
+    /// The shard of the scheduler's array task: SLURM's `SLURM_ARRAY_TASK_ID` among
+    /// `SLURM_ARRAY_TASK_MIN..=MAX` (or `0..SLURM_ARRAY_TASK_COUNT`), or a Kubernetes indexed job's
+    /// `JOB_COMPLETION_INDEX` among `count` (`auto/N`) or `FDIMC_SHARD_COUNT` completions. Refuses an
+    /// environment that names no task, names both, or disagrees with itself or with `count`.
+    pub fn from_scheduler(count: Option<u64>, env: impl Fn(&str) -> Option<String>) -> Result<Shard, String> {
+        let number = |name: &str| -> Result<Option<u64>, String> {
+            match env(name) {
+                None => Ok(None),
+                Some(v) => v.trim().parse::<u64>().map(Some).map_err(|_| format!("{name}={v:?}: not a whole number")),
+            }
+        };
+        let (slurm_id, k8s_index) = (number("SLURM_ARRAY_TASK_ID")?, number("JOB_COMPLETION_INDEX")?);
+        let shard = match (slurm_id, k8s_index) {
+            (None, None) => {
+                return Err("auto: no array task in the environment (SLURM_ARRAY_TASK_ID, or a Kubernetes indexed \
+                            job's JOB_COMPLETION_INDEX): run it as an array task, or give --shard I/N"
+                    .into());
+            }
+            (Some(_), Some(_)) => {
+                return Err("auto: both SLURM_ARRAY_TASK_ID and JOB_COMPLETION_INDEX are set: give --shard I/N".into());
+            }
+            (Some(id), None) => {
+                let (min, max, n) = (
+                    number("SLURM_ARRAY_TASK_MIN")?,
+                    number("SLURM_ARRAY_TASK_MAX")?,
+                    number("SLURM_ARRAY_TASK_COUNT")?,
+                );
+                let min = min.unwrap_or(0);
+                let span = max.map(|max| max.saturating_sub(min) + 1);
+                let tasks = match (span, n) {
+                    (Some(s), Some(n)) if s != n => {
+                        return Err(format!(
+                            "auto: SLURM_ARRAY_TASK_MIN..MAX holds {s} tasks but SLURM_ARRAY_TASK_COUNT is {n}: \
+                             a stepped or sparse --array; give the array as a range like 0-3"
+                        ));
+                    }
+                    (Some(t), _) | (None, Some(t)) => t,
+                    (None, None) => {
+                        return Err("auto: SLURM_ARRAY_TASK_ID is set but neither SLURM_ARRAY_TASK_COUNT nor \
+                                    SLURM_ARRAY_TASK_MAX"
+                            .into());
+                    }
+                };
+                if id < min || id - min >= tasks {
+                    return Err(format!(
+                        "auto: SLURM_ARRAY_TASK_ID {id} is outside the array's {min}..{}",
+                        min + tasks
+                    ));
+                }
+                Shard { index: id - min, count: tasks }
+            }
+            (None, Some(index)) => {
+                let tasks = match (count, number("FDIMC_SHARD_COUNT")?) {
+                    (Some(c), Some(e)) if c != e => {
+                        return Err(format!("auto/{c}: FDIMC_SHARD_COUNT says {e}"));
+                    }
+                    (Some(c), _) | (None, Some(c)) => c,
+                    (None, None) => {
+                        return Err("auto: JOB_COMPLETION_INDEX is set but not the completions: give --shard auto/N \
+                                    or set FDIMC_SHARD_COUNT"
+                            .into());
+                    }
+                };
+                if index >= tasks {
+                    return Err(format!("auto: JOB_COMPLETION_INDEX {index} is outside 0..{tasks}"));
+                }
+                Shard { index, count: tasks }
+            }
+        };
+        match count {
+            Some(c) if c != shard.count => Err(format!("auto/{c}: the scheduler's array has {} tasks", shard.count)),
+            _ if shard.count == 0 => Err("auto: an array of 0 tasks".into()),
+            _ => Ok(shard),
+        }
+    }
+
+    /// A shard's own results folder under a run's: `shard-I-of-N`.
+    pub fn folder(&self) -> String {
+        format!("shard-{}-of-{}", self.index, self.count)
+    }
+
     /// The half-open trial range of this shard among `trials`.
     pub fn range(&self, trials: u64) -> (u64, u64) {
         let at = |k: u64| ((k as u128 * trials as u128) / self.count as u128) as u64;
@@ -217,6 +312,67 @@ impl Manifest {
             && self.chunk_trials == other.chunk_trials
             && self.sensitivity == other.sensitivity
     }
+}
+
+/// The one writer of a results folder: an advisory lock on `DIR/.fdimc-lock`, held while a run writes.
+/// It is the kernel's (`flock`, through std's `File::try_lock`): released when the process ends however
+/// it ends, so a killed run leaves no lock behind, only the file, whose text names its last holder.
+pub struct FolderLock {
+    _file: File,
+}
+
+/// The lock file of a results folder.
+pub const LOCK_FILE: &str = ".fdimc-lock";
+
+impl FolderLock {
+    /// Takes the lock of `dir` (created if missing), or refuses (exit 2) naming the process that holds it.
+    pub fn take(dir: &Path, command_line: &[String]) -> Result<FolderLock, RunError> {
+        use std::io::{Seek, Write};
+        std::fs::create_dir_all(dir).map_err(io(dir))?;
+        let path = dir.join(LOCK_FILE);
+        let mut file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&path)
+            .map_err(io(&path))?;
+        match file.try_lock() {
+            Ok(()) => {}
+            Err(std::fs::TryLockError::WouldBlock) => {
+                let holder = std::fs::read_to_string(&path).unwrap_or_default();
+                return Err(RunError::Invalid(format!(
+                    "{}: another fdimc is writing this folder ({}): let it finish (then --resume if it was \
+                     interrupted), or use another --out",
+                    dir.display(),
+                    describe_holder(holder.trim())
+                )));
+            }
+            Err(std::fs::TryLockError::Error(e)) => return Err(RunError::Io { file: path, source: e }),
+        }
+        let since = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+        let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
+        let holder = format!(
+            "pid={} host={} since_unix_s={since} command={}\n",
+            std::process::id(),
+            host.trim(),
+            command_line.join(" ")
+        );
+        // What the file says is for the message above; the lock is the kernel's whatever it says.
+        let _ = file.set_len(0).and_then(|_| file.rewind()).and_then(|_| file.write_all(holder.as_bytes()));
+        Ok(FolderLock { _file: file })
+    }
+}
+
+/// `pid 123 on host n1, started 42 s ago: fdimc run ...` from a lock file's text.
+fn describe_holder(text: &str) -> String {
+    let field = |name: &str| {
+        text.split_whitespace().find_map(|w| w.strip_prefix(&format!("{name}="))).unwrap_or("?").to_string()
+    };
+    let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let ago = field("since_unix_s").parse::<u64>().map_or("?".into(), |t| now.saturating_sub(t).to_string());
+    let command = text.split_once("command=").map_or("", |c| c.1);
+    format!("pid {} on host {}, started {ago} s ago: {command}", field("pid"), field("host"))
 }
 
 /// Writes `bytes` to `path` through a temporary file and a rename.
@@ -379,6 +535,7 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
         stop.lock()?.start(&manifest)?;
     }
     let dir = &opts.out_dir;
+    let _writer = FolderLock::take(dir, &opts.command_line)?;
     let existing = dir.join("manifest.json").exists();
     if existing && opts.resume {
         let old = Manifest::read(dir)?;
@@ -662,5 +819,53 @@ mod tests {
         assert!(Shard::parse("1/0").is_err());
         assert!(Shard::parse("x").is_err());
         assert_eq!(Shard::parse("1/4"), Ok(Shard { index: 1, count: 4 }));
+    }
+
+    /// `--shard auto` from each scheduler's variables; every inconsistent environment refused.
+    #[test]
+    fn the_scheduler_names_the_shard() {
+        let env = |vars: &[(&str, &str)]| {
+            let vars: Vec<(String, String)> = vars.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
+            move |name: &str| vars.iter().find(|(k, _)| k == name).map(|(_, v)| v.clone())
+        };
+        let slurm = |id: &str, count: &str| {
+            env(&[("SLURM_ARRAY_TASK_ID", id), ("SLURM_ARRAY_TASK_COUNT", count), ("SLURM_ARRAY_TASK_MIN", "0")])
+        };
+        assert_eq!(Shard::from_arg("auto", slurm("2", "4")), Ok((Shard { index: 2, count: 4 }, true)));
+        assert_eq!(Shard::from_arg("auto/4", slurm("3", "4")), Ok((Shard { index: 3, count: 4 }, true)));
+        assert_eq!(Shard::from_arg("1/4", slurm("3", "4")), Ok((Shard { index: 1, count: 4 }, false)));
+        // --array=1-4: tasks 1..4 are shards 0..3.
+        let one_based =
+            env(&[("SLURM_ARRAY_TASK_ID", "4"), ("SLURM_ARRAY_TASK_MIN", "1"), ("SLURM_ARRAY_TASK_MAX", "4")]);
+        assert_eq!(Shard::from_scheduler(None, one_based), Ok(Shard { index: 3, count: 4 }));
+        let k8s = env(&[("JOB_COMPLETION_INDEX", "5")]);
+        assert_eq!(Shard::from_arg("auto/8", &k8s), Ok((Shard { index: 5, count: 8 }, true)));
+        let k8s_env = env(&[("JOB_COMPLETION_INDEX", "0"), ("FDIMC_SHARD_COUNT", "2")]);
+        assert_eq!(Shard::from_scheduler(None, k8s_env), Ok(Shard { index: 0, count: 2 }));
+        for (arg, vars, want) in [
+            ("auto", vec![], "no array task in the environment"),
+            ("auto", vec![("SLURM_ARRAY_TASK_ID", "1"), ("JOB_COMPLETION_INDEX", "1")], "both"),
+            ("auto", vec![("SLURM_ARRAY_TASK_ID", "x")], "not a whole number"),
+            ("auto", vec![("SLURM_ARRAY_TASK_ID", "1")], "neither SLURM_ARRAY_TASK_COUNT"),
+            ("auto", vec![("SLURM_ARRAY_TASK_ID", "4"), ("SLURM_ARRAY_TASK_COUNT", "4")], "outside the array's 0..4"),
+            (
+                "auto",
+                vec![
+                    ("SLURM_ARRAY_TASK_ID", "4"),
+                    ("SLURM_ARRAY_TASK_MIN", "0"),
+                    ("SLURM_ARRAY_TASK_MAX", "12"),
+                    ("SLURM_ARRAY_TASK_COUNT", "4"),
+                ],
+                "a stepped or sparse --array",
+            ),
+            ("auto/3", vec![("SLURM_ARRAY_TASK_ID", "1"), ("SLURM_ARRAY_TASK_COUNT", "4")], "has 4 tasks"),
+            ("auto", vec![("JOB_COMPLETION_INDEX", "1")], "give --shard auto/N"),
+            ("auto/2", vec![("JOB_COMPLETION_INDEX", "2")], "outside 0..2"),
+            ("auto/2", vec![("JOB_COMPLETION_INDEX", "1"), ("FDIMC_SHARD_COUNT", "3")], "FDIMC_SHARD_COUNT says 3"),
+            ("auto/0", vec![("JOB_COMPLETION_INDEX", "0")], "expected auto or auto/N"),
+        ] {
+            let e = Shard::from_arg(arg, env(&vars)).unwrap_err();
+            assert!(e.contains(want), "{arg} {vars:?}: {e}");
+        }
     }
 }
