@@ -84,7 +84,7 @@ use thiserror::Error;
 
 use crate::estimation::bank::{Decision, DeclareClear};
 use crate::estimation::stekf::central_difference;
-use crate::estimation::ukf::{Ukf, UkfError, UkfHealth, UnscentedParams};
+use crate::estimation::ukf::{SigmaModel, SigmaPoints, Ukf, UkfError, UkfHealth, UnscentedParams};
 use crate::estimation::{DiscreteModel, Innovation, LikelihoodForm, ModelProbabilities};
 use crate::methods::air_data::flight::{
     AirData, Inertial, InertialInterval, SensorNoise, air_data_from_velocity, propagate_velocity,
@@ -251,6 +251,8 @@ impl DiscreteModel<3, 3> for NoFaultModel {
     }
 }
 
+impl SigmaModel<3, 3> for NoFaultModel {}
+
 /// The fault model: `x = (u, v, w, b_V, b_alpha, b_beta)`, biases constant (their random walk is in `Q`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct FaultModel {
@@ -267,6 +269,40 @@ impl DiscreteModel<6, 3> for FaultModel {
     fn measurement(&self, x: &SVector<f64, 6>) -> SVector<f64, 3> {
         air_data_from_velocity(&x.fixed_rows::<3>(0).into_owned()).to_vector() + x.fixed_rows::<3>(3)
     }
+}
+
+/// The fault model's points share the centre's air data and propagated velocity where their velocity is
+/// the centre's to the bit: the bias columns of the lower Cholesky factor are zero in the velocity rows,
+/// so six of the 13 points move only the biases. Atan2, asin and the propagation are then evaluated for
+/// 7 points instead of 13, with the same numbers (the test compares them to the bit).
+impl SigmaModel<6, 3> for FaultModel {
+    fn measurement_points(&self, X: &SigmaPoints<6, 6>) -> SigmaPoints<6, 3> {
+        let centre = velocity_of(&X.center);
+        let centre_air = air_data_from_velocity(&centre).to_vector();
+        X.map(|x| {
+            let v = velocity_of(x);
+            let air = if same_bits(&v, &centre) { centre_air } else { air_data_from_velocity(&v).to_vector() };
+            air + x.fixed_rows::<3>(3)
+        })
+    }
+
+    fn transition_points(&self, X: &SigmaPoints<6, 6>, u: &InertialInterval) -> SigmaPoints<6, 6> {
+        let centre = velocity_of(&X.center);
+        let centre_next = propagate_velocity(&centre, u, self.dt_s);
+        X.map(|x| {
+            let v = velocity_of(x);
+            let next = if same_bits(&v, &centre) { centre_next } else { propagate_velocity(&v, u, self.dt_s) };
+            SVector::<f64, 6>::new(next[0], next[1], next[2], x[3], x[4], x[5])
+        })
+    }
+}
+
+fn velocity_of(x: &SVector<f64, 6>) -> Vector3<f64> {
+    x.fixed_rows::<3>(0).into_owned()
+}
+
+fn same_bits(a: &Vector3<f64>, b: &Vector3<f64>) -> bool {
+    a.iter().zip(b.iter()).all(|(p, q)| p.to_bits() == q.to_bits())
 }
 
 /// How the fault model's bias component was re-initialised at the last step (module docs, step 4).
@@ -718,6 +754,47 @@ mod tests {
         let samples: Vec<_> = std::iter::from_fn(|| generator.next_sample(&mut rng)).collect();
         let steps = samples.iter().map(|s| detector.step(&s.inertial, &s.air_data)).collect();
         (samples, steps, detector)
+    }
+
+    /// The fault model's shared mapping of its sigma points is the point-by-point one to the bit, on
+    /// covariances with and without velocity-bias correlation, and on a centre with a -0.0 velocity
+    /// component (where `x + 0` is +0.0, not the centre's bits, so the point is evaluated on its own).
+    #[test]
+    fn shared_sigma_points_map_to_the_bit() {
+        use crate::estimation::ukf::cholesky_repaired;
+        use rand::RngExt;
+        let model = FaultModel { dt_s: 0.02 };
+        let weights = UnscentedParams::seed().weights(6).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(26);
+        let mut shared_points = 0;
+        for case in 0..200 {
+            let A = SMatrix::<f64, 6, 6>::from_fn(|_, _| rng.random_range(-1.0..1.0));
+            let P = A * A.transpose() + SMatrix::identity() * 0.01;
+            let (L, _, _) = cholesky_repaired(&P).unwrap();
+            let mut x = SVector::<f64, 6>::from_fn(|i, _| if i == 0 { 60.0 } else { rng.random_range(-3.0..3.0) });
+            if case == 7 {
+                x[2] = -0.0;
+            }
+            let X = SigmaPoints::new(&x, &L, &weights);
+            let inertial = |k: f64| Inertial::from_array(std::array::from_fn(|i| 0.1 * k + 0.01 * i as f64));
+            let u = InertialInterval::new(inertial(1.0), inertial(2.0));
+            let bits = |p: &[SVector<f64, 6>]| p.iter().flat_map(|v| v.iter().map(|e| e.to_bits())).collect::<Vec<_>>();
+            let (shared, one_by_one) = (model.transition_points(&X, &u), X.map(|p| model.transition(p, &u)));
+            assert_eq!(bits(&[shared.center]), bits(&[one_by_one.center]));
+            assert_eq!(bits(&shared.plus), bits(&one_by_one.plus), "case {case}");
+            assert_eq!(bits(&shared.minus), bits(&one_by_one.minus), "case {case}");
+            let (shared, one_by_one) = (model.measurement_points(&X), X.map(|p| model.measurement(p)));
+            let bits3 =
+                |p: &[SVector<f64, 3>]| p.iter().flat_map(|v| v.iter().map(|e| e.to_bits())).collect::<Vec<_>>();
+            assert_eq!(bits3(&shared.plus), bits3(&one_by_one.plus), "case {case}");
+            assert_eq!(bits3(&shared.minus), bits3(&one_by_one.minus), "case {case}");
+            assert_eq!(bits3(&[shared.center]), bits3(&[one_by_one.center]));
+            shared_points +=
+                X.plus.iter().chain(&X.minus).filter(|p| same_bits(&velocity_of(p), &velocity_of(&x))).count();
+        }
+        // Six points a case share the centre's velocity; with the -0.0 centre only the three `x - 0`
+        // (still -0.0), not the three `x + 0` (+0.0).
+        assert_eq!(shared_points, 199 * 6 + 3);
     }
 
     fn bias(channel: usize, onset_s: f64, size: f64) -> SensorFault {
