@@ -68,18 +68,12 @@ impl UnitSampler {
         if let Some(design) = &self.design {
             let d = design.draws(self.seed, trial, self.dims);
             let digits = Some(DesignDigits { units: d.digit_units, taken: 0 });
-            return TrialDraws {
-                fault_free: d.fault_free,
-                units: d.dim_units,
-                grid: GridDigits::new(0),
-                digits,
-                noise_trial: d.noise_trial,
-            };
+            return TrialDraws { fault_free: d.fault_free, units: d.dim_units, grid: GridDigits::new(0), digits };
         }
         let mut rng = trial_rng(self.seed, trial, Substream::Scenario);
         let fault_free = rng.random::<f64>() < self.fault_free_fraction;
         let units = (0..self.dims).map(|d| self.unit(trial, d, &mut rng)).collect();
-        TrialDraws { fault_free, units, grid: GridDigits::new(trial), digits: None, noise_trial: trial }
+        TrialDraws { fault_free, units, grid: GridDigits::new(trial), digits: None }
     }
 
     /// The trial whose noise streams trial `trial` uses: itself, except in a sensitivity design.
@@ -116,8 +110,6 @@ pub struct TrialDraws {
     grid: GridDigits,
     /// A sensitivity design's digits, which replace the grid's.
     digits: Option<DesignDigits>,
-    /// The trial whose noise streams this trial uses: itself, except in a sensitivity design.
-    pub noise_trial: u64,
 }
 
 /// The unit draws of a design row's grid digits, taken in order.

@@ -48,7 +48,7 @@ use super::runner::{Manifest, RunError, pol};
 use super::schema::col;
 use super::streams::{Substream, trial_rng};
 use super::tables::{bool_col, complete_run, f64_col, list_col, numbers, str_col, u64_col};
-use super::thresholds::{alarm_time, read_thresholds};
+use super::thresholds::{alarms_at, read_thresholds};
 
 /// Name of the noise realisation's factor.
 pub const NOISE_FACTOR: &str = "noise_realisation";
@@ -95,6 +95,30 @@ impl Part {
     }
 }
 
+/// A method's factors while it lists them: each added only where the deck's trials draw it.
+#[derive(Debug, Default)]
+pub struct Factors(Vec<DesignFactor>);
+
+impl Factors {
+    pub fn add(&mut self, name: &str, slot: Slot, sampled: bool) {
+        if sampled {
+            self.0.push(DesignFactor { name: name.into(), slot });
+        }
+    }
+
+    /// The parts of a study: faulty trials over `faulty` and then `shared` (when the deck has faults),
+    /// and fault-free trials over `shared`.
+    pub fn parts(faulty: Option<Factors>, shared: Factors) -> Vec<Part> {
+        let mut parts = Vec::new();
+        if let Some(Factors(mut f)) = faulty {
+            f.extend(shared.0.iter().cloned());
+            parts.push(Part::new(false, f));
+        }
+        parts.push(Part::new(true, shared.0));
+        parts
+    }
+}
+
 /// A sensitivity study's design, recorded in `manifest.json` (what `merge` and `--resume` check, and
 /// what `summarize` needs to compute the indices again).
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -114,8 +138,6 @@ pub struct DesignDraws {
     pub dim_units: Vec<f64>,
     /// The unit draw per grid digit, in the order the scenario takes them (0 where none is set).
     pub digit_units: Vec<f64>,
-    /// The trial whose noise streams this trial uses.
-    pub noise_trial: u64,
 }
 
 /// Which matrix a trial's row belongs to.
@@ -199,7 +221,6 @@ impl Design {
             fault_free: part.fault_free,
             dim_units: vec![0.5; dims],
             digit_units: vec![0.0; digits.max().unwrap_or(0)],
-            noise_trial: self.noise_trial(t),
         };
         for (f, u) in part.factors.iter().zip(units.drain(..)) {
             match f.slot {
@@ -418,7 +439,7 @@ fn at_thresholds(
             path.display()
         )));
     }
-    let read = read_thresholds(file)?;
+    let (_, whole) = read_thresholds(file)?.for_run(file, &manifest.detectors, statistics.len())?;
     let (trial, detector) = (u64_col(records, col::TRIAL, path)?, str_col(records, col::DETECTOR, path)?);
     let fault_free = bool_col(records, col::FAULT_FREE, path)?;
     let mut pre = Vec::new();
@@ -428,30 +449,12 @@ fn at_thresholds(
         fp_t.push(list_col(records, &col::fp_t(s), path)?);
         fp_v.push(list_col(records, &col::fp_v(s), path)?);
     }
-    let mut whole = Vec::new();
-    for d in &manifest.detectors {
-        let (_, _, w) = read.detectors.iter().find(|(name, _, _)| name == d).ok_or_else(|| {
-            RunError::Invalid(format!("{}: has no detector {d:?}: calibrate on a run of the same deck", file.display()))
-        })?;
-        if w.len() != statistics.len() {
-            return Err(RunError::Invalid(format!(
-                "{}: has {} statistics for {d:?}, this run {}",
-                file.display(),
-                w.len(),
-                statistics.len()
-            )));
-        }
-        whole.push(w.clone());
-    }
     for r in 0..records.height() {
         let (t, name) = (trial.get(r).unwrap_or(0) as usize, detector.get(r).unwrap_or(""));
         let d = manifest.detectors.iter().position(|n| n == name).unwrap_or(0);
-        let w = &whole[d];
         let out = &mut rows[d];
-        out.false_alarm[t] = (0..w.len()).any(|j| pre[j][r] > w[j]);
-        let times: Vec<&[f64]> = fp_t.iter().map(|c| c[r].as_slice()).collect();
-        let values: Vec<&[f64]> = fp_v.iter().map(|c| c[r].as_slice()).collect();
-        let alarm = if fault_free.get(r) == Some(true) { None } else { alarm_time(&times, &values, w) };
+        let (false_alarm, alarm) = alarms_at(&pre, &fp_t, &fp_v, r, &whole[d], fault_free.get(r) != Some(true));
+        out.false_alarm[t] = false_alarm;
         out.detected[t] = alarm.is_some();
         out.delay_s[t] = alarm.map(|a| a - out.onset_s[t].unwrap_or(f64::NAN));
     }
@@ -796,26 +799,27 @@ mod tests {
         };
         assert_eq!(design.trials(), 4 * 5 + 4 * 4);
         let d = |t| design.draws(3, t, 2);
+        let noise = |t| design.noise_trial(t);
         for j in 0..4 {
             let (a, b) = (d(j), d(4 + j));
             assert_ne!(a.digit_units[0], b.digit_units[0]);
-            assert_eq!((a.noise_trial, b.noise_trial), (j, 4 + j));
+            assert_eq!((noise(j), noise(4 + j)), (j, 4 + j));
             let (ab_kind, ab_onset, ab_noise) = (d(8 + j), d(12 + j), d(16 + j));
             assert_eq!(
-                (ab_kind.digit_units[0], ab_kind.dim_units[1], ab_kind.noise_trial),
+                (ab_kind.digit_units[0], ab_kind.dim_units[1], noise(8 + j)),
                 (b.digit_units[0], a.dim_units[1], j)
             );
             assert_eq!(
-                (ab_onset.digit_units[0], ab_onset.dim_units[1], ab_onset.noise_trial),
+                (ab_onset.digit_units[0], ab_onset.dim_units[1], noise(12 + j)),
                 (a.digit_units[0], b.dim_units[1], j)
             );
             assert_eq!(
-                (ab_noise.digit_units[0], ab_noise.dim_units[1], ab_noise.noise_trial),
+                (ab_noise.digit_units[0], ab_noise.dim_units[1], noise(16 + j)),
                 (a.digit_units[0], a.dim_units[1], 4 + j)
             );
             assert_eq!(a.dim_units[0], 0.5, "a dimension no factor sets");
             assert!(!a.fault_free && d(20 + j).fault_free);
-            assert_eq!(d(20 + j).noise_trial, 20 + j);
+            assert_eq!(noise(20 + j), 20 + j);
         }
     }
 }

@@ -38,7 +38,7 @@ use super::tables::{
     Table, bool_col, column_names, complete_run, f64_col, list_col, numbers, read_slice, str_col, u64_col,
 };
 use super::thresholds::{
-    Calibration, DetectorThresholds, SLICE_ROWS, alarm_time, per_flight_hour, thresholds, write_thresholds,
+    Calibration, DetectorThresholds, SLICE_ROWS, alarms_at, per_flight_hour, thresholds, write_thresholds,
 };
 use crate::fault::deck::unit;
 
@@ -379,11 +379,7 @@ impl<'s> Aggregates<'s> {
                 } else {
                     let (thresholds, _) = calibrated.expect("a calibrated set has thresholds");
                     let (pre, fp_t, fp_v) = profiles.as_ref().expect("a calibrated set has profiles");
-                    let whole = &thresholds[d].whole;
-                    let fa = (0..whole.len()).any(|j| pre[j][i] > whole[j]);
-                    let t: Vec<&[f64]> = fp_t.iter().map(|c| c[i].as_slice()).collect();
-                    let v: Vec<&[f64]> = fp_v.iter().map(|c| c[i].as_slice()).collect();
-                    let alarm = if faulty { alarm_time(&t, &v, whole) } else { None };
+                    let (fa, alarm) = alarms_at(pre, fp_t, fp_v, i, &thresholds[d].whole, faulty);
                     Unit {
                         flown,
                         faulty,

@@ -76,6 +76,23 @@ pub fn per_segment(per_hour: f64, segment_s: f64) -> f64 {
     -((-per_hour).ln_1p() * segment_s / 3600.0).exp_m1()
 }
 
+/// Row `i`'s alarms at whole-detector thresholds `whole` from its recorded statistics (`pre[j][i]`, the
+/// pre-onset maxima; `fp_t`, `fp_v`, the first-passage profiles): whether it has a false alarm, and its
+/// first post-onset alarm (none for a fault-free row).
+pub fn alarms_at(
+    pre: &[Vec<f64>],
+    fp_t: &[Vec<Vec<f64>>],
+    fp_v: &[Vec<Vec<f64>>],
+    i: usize,
+    whole: &[f64],
+    faulty: bool,
+) -> (bool, Option<f64>) {
+    let false_alarm = (0..whole.len()).any(|j| pre[j][i] > whole[j]);
+    let t: Vec<&[f64]> = fp_t.iter().map(|c| c[i].as_slice()).collect();
+    let v: Vec<&[f64]> = fp_v.iter().map(|c| c[i].as_slice()).collect();
+    (false_alarm, if faulty { alarm_time(&t, &v, whole) } else { None })
+}
+
 /// A detector's first post-onset alarm at thresholds `thr`, from the first-passage profiles of one row:
 /// for each statistic the first profile point above its threshold, then the earliest over statistics.
 pub fn alarm_time(profile_t_s: &[&[f64]], profile_value: &[&[f64]], thr: &[f64]) -> Option<f64> {
@@ -270,29 +287,10 @@ pub fn thresholds(
     };
 
     let (per, whole): (Vec<Vec<f64>>, Vec<Vec<f64>>) = match calibration {
-        Calibration::File(f) => {
-            let file = file.as_ref().map(|f| f.detectors.as_slice()).unwrap_or_default();
-            let mut per = Vec::with_capacity(nd);
-            let mut whole = Vec::with_capacity(nd);
-            for d in &manifest.detectors {
-                let (_, p, w) = file.iter().find(|(name, _, _)| name == d).cloned().ok_or_else(|| {
-                    RunError::Invalid(format!(
-                        "{}: has no detector {d:?}: calibrate on a run of the same deck",
-                        f.display()
-                    ))
-                })?;
-                if p.len() != ns {
-                    return Err(RunError::Invalid(format!(
-                        "{}: has {} statistics for {d:?}, this run {ns}",
-                        f.display(),
-                        p.len()
-                    )));
-                }
-                per.push(p);
-                whole.push(w);
-            }
-            (per, whole)
-        }
+        Calibration::File(f) => match &file {
+            Some(file) => file.for_run(f, &manifest.detectors, ns)?,
+            None => return Err(RunError::Internal("a thresholds file that was not read".into())),
+        },
         Calibration::Target(p) | Calibration::Confident { pfa: p, .. } => {
             let confidence = match calibration {
                 Calibration::Confident { confidence, .. } => Some(*confidence),
@@ -512,6 +510,38 @@ pub fn write_thresholds(
 pub struct ThresholdsFile {
     pub detectors: Vec<(String, Vec<f64>, Vec<f64>)>,
     pub target_pfa: Option<f64>,
+}
+
+impl ThresholdsFile {
+    /// Per-statistic and whole-detector thresholds of each of a run's `detectors` (in its order), each
+    /// with `statistics` entries; a detector missing or a count that differs is refused, naming `path`.
+    pub fn for_run(
+        &self,
+        path: &Path,
+        detectors: &[String],
+        statistics: usize,
+    ) -> Result<(Vec<Vec<f64>>, Vec<Vec<f64>>), RunError> {
+        let mut per = Vec::with_capacity(detectors.len());
+        let mut whole = Vec::with_capacity(detectors.len());
+        for d in detectors {
+            let (_, p, w) = self.detectors.iter().find(|(name, _, _)| name == d).cloned().ok_or_else(|| {
+                RunError::Invalid(format!(
+                    "{}: has no detector {d:?}: calibrate on a run of the same deck",
+                    path.display()
+                ))
+            })?;
+            if p.len() != statistics {
+                return Err(RunError::Invalid(format!(
+                    "{}: has {} statistics for {d:?}, this run {statistics}",
+                    path.display(),
+                    p.len()
+                )));
+            }
+            per.push(p);
+            whole.push(w);
+        }
+        Ok((per, whole))
+    }
 }
 
 /// Reads `thresholds.csv` (see [`ThresholdsFile`]).

@@ -74,6 +74,13 @@ pub enum SizeSpec {
     SensorSigma(Factor),
 }
 
+impl SizeSpec {
+    /// Whether trials draw the size (a range or several values): a factor of a sensitivity design.
+    pub fn is_sampled(&self) -> bool {
+        matches!(self, SizeSpec::Output(f) | SizeSpec::SensorSigma(f) if f.is_sampled())
+    }
+}
+
 #[derive(Debug, Clone, PartialEq)]
 pub struct FaultKindSpec {
     pub kind: FaultKind,

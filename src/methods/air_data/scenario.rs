@@ -5,7 +5,7 @@
 //! fault-free is the first draw of its scenario stream.
 
 use crate::engine::scenario::UnitSampler;
-use crate::engine::sensitivity::{DesignFactor, Part, Slot};
+use crate::engine::sensitivity::{Factors, Part, Slot};
 use crate::fault::SensorFault;
 use crate::fault::deck::{SizeSpec, fixed_size_unit, unit};
 use crate::methods::air_data::flight::ScenarioParams;
@@ -153,42 +153,20 @@ impl<'a> AirDataScenarioSampler<'a> {
 /// noise scale, gust level, faulty lanes (the last digit); fault-free trials: noise scale and gusts.
 pub fn sensitivity_parts(study: &AirDataStudy) -> Vec<Part> {
     let mc = &study.monte_carlo;
-    let factor = |name: &str, slot| DesignFactor { name: name.into(), slot };
-    let mut shared = Vec::new();
-    if mc.common.noise_scale.is_sampled() {
-        shared.push(factor("noise_scale", Slot::Dim(DIM_NOISE)));
-    }
-    if mc.gust_std_mps.is_sampled() {
-        shared.push(factor("gust_std_mps", Slot::Dim(DIM_GUST)));
-    }
+    let mut shared = Factors::default();
+    shared.add("noise_scale", Slot::Dim(DIM_NOISE), mc.common.noise_scale.is_sampled());
+    shared.add("gust_std_mps", Slot::Dim(DIM_GUST), mc.gust_std_mps.is_sampled());
     let sampled = !mc.faults.is_empty();
-    let mut faulty = Vec::new();
+    let mut faulty = Factors::default();
     if sampled {
-        if mc.faults.len() > 1 {
-            faulty.push(factor("fault_kind", Slot::Digit(0)));
-        }
-        if mc.output_sets.len() > 1 {
-            faulty.push(factor("output_set", Slot::Digit(1)));
-        }
-        let sized = |s: &SizeSpec| matches!(s, SizeSpec::Output(f) | SizeSpec::SensorSigma(f) if f.is_sampled());
-        if mc.faults.iter().any(|f| sized(&f.size)) {
-            faulty.push(factor("size", Slot::Dim(DIM_SIZE)));
-        }
-        if mc.common.onset_s.is_sampled() {
-            faulty.push(factor("onset_s", Slot::Dim(DIM_ONSET)));
-        }
+        faulty.add("fault_kind", Slot::Digit(0), mc.faults.len() > 1);
+        faulty.add("output_set", Slot::Digit(1), mc.output_sets.len() > 1);
+        faulty.add("size", Slot::Dim(DIM_SIZE), mc.faults.iter().any(|f| f.size.is_sampled()));
+        faulty.add("onset_s", Slot::Dim(DIM_ONSET), mc.common.onset_s.is_sampled());
     }
-    faulty.extend(shared.iter().cloned());
-    if mc.faulty_lanes.len() > 1 {
-        // The digit after the kind's and the set's, which only sampled faults take.
-        faulty.push(factor("faulty_lanes", Slot::Digit(if sampled { 2 } else { 0 })));
-    }
-    let mut parts = Vec::new();
-    if sampled || !study.faults.is_empty() {
-        parts.push(Part::new(false, faulty));
-    }
-    parts.push(Part::new(true, shared));
-    parts
+    // The digit after the kind's and the set's, which only sampled faults take.
+    faulty.add("faulty_lanes", Slot::Digit(if sampled { 2 } else { 0 }), mc.faulty_lanes.len() > 1);
+    Factors::parts((sampled || !study.faults.is_empty()).then_some(faulty), shared)
 }
 
 #[cfg(test)]

@@ -4,7 +4,7 @@
 use super::study::LtiStudy;
 use crate::engine::deck::ModelTarget;
 use crate::engine::scenario::UnitSampler;
-use crate::engine::sensitivity::{DesignFactor, Part, Slot};
+use crate::engine::sensitivity::{Factors, Part, Slot};
 use crate::fault::SensorFault;
 use crate::fault::deck::{SizeSpec, fixed_size_unit, unit};
 
@@ -73,7 +73,7 @@ impl<'a> ScenarioSampler<'a> {
 
         let mut spec = TrialSpec {
             trial,
-            noise_trial: t.noise_trial,
+            noise_trial: self.units.noise_trial(trial),
             faults: Vec::new(),
             kind: "none",
             output: None,
@@ -122,39 +122,20 @@ impl<'a> ScenarioSampler<'a> {
     /// scale, parameter errors; fault-free trials: noise scale and parameter errors.
     pub fn sensitivity_parts(study: &LtiStudy) -> Vec<Part> {
         let mc = &study.monte_carlo;
-        let factor = |name: &str, slot| DesignFactor { name: name.into(), slot };
-        let mut shared = Vec::new();
-        if mc.common.noise_scale.is_sampled() {
-            shared.push(factor("noise_scale", Slot::Dim(DIM_NOISE)));
-        }
+        let mut shared = Factors::default();
+        shared.add("noise_scale", Slot::Dim(DIM_NOISE), mc.common.noise_scale.is_sampled());
         for (k, pe) in mc.parameter_errors.iter().enumerate() {
-            if pe.value.is_sampled() {
-                shared.push(factor(&pe.name, Slot::Dim(DIM_PARAMETERS + k)));
-            }
+            shared.add(&pe.name, Slot::Dim(DIM_PARAMETERS + k), pe.value.is_sampled());
         }
-        let mut faulty = Vec::new();
+        let mut faulty = Factors::default();
         if !mc.faults.is_empty() {
-            if mc.faults.len() > 1 {
-                faulty.push(factor("fault_kind", Slot::Digit(0)));
-            }
-            if mc.outputs.len() > 1 {
-                faulty.push(factor("output", Slot::Digit(1)));
-            }
-            let sized = |s: &SizeSpec| matches!(s, SizeSpec::Output(f) | SizeSpec::SensorSigma(f) if f.is_sampled());
-            if mc.faults.iter().any(|f| sized(&f.size)) {
-                faulty.push(factor("size", Slot::Dim(DIM_SIZE)));
-            }
-            if mc.common.onset_s.is_sampled() {
-                faulty.push(factor("onset_s", Slot::Dim(DIM_ONSET)));
-            }
+            faulty.add("fault_kind", Slot::Digit(0), mc.faults.len() > 1);
+            faulty.add("output", Slot::Digit(1), mc.outputs.len() > 1);
+            faulty.add("size", Slot::Dim(DIM_SIZE), mc.faults.iter().any(|f| f.size.is_sampled()));
+            faulty.add("onset_s", Slot::Dim(DIM_ONSET), mc.common.onset_s.is_sampled());
         }
-        let mut parts = Vec::new();
-        if !mc.faults.is_empty() || !study.faults.is_empty() {
-            faulty.extend(shared.iter().cloned());
-            parts.push(Part::new(false, faulty));
-        }
-        parts.push(Part::new(true, shared));
-        parts
+        let has_faults = !mc.faults.is_empty() || !study.faults.is_empty();
+        Factors::parts(has_faults.then_some(faulty), shared)
     }
 
     /// Whether any parameter error perturbs `target`.

@@ -5,7 +5,7 @@
 //! the first draw of its scenario stream.
 
 use crate::engine::scenario::UnitSampler;
-use crate::engine::sensitivity::{DesignFactor, Part, Slot};
+use crate::engine::sensitivity::{Factors, Part, Slot};
 use crate::methods::thrust_loss::study::LaunchStudy;
 use crate::methods::thrust_loss::vehicle::{Gust, LaunchVehicleConfig, ThrustFault};
 
@@ -91,33 +91,17 @@ impl<'a> LaunchScenarioSampler<'a> {
 /// last two. A deck's fixed `[[faults]]` has no factor of its own.
 pub fn sensitivity_parts(study: &LaunchStudy) -> Vec<Part> {
     let mc = &study.monte_carlo;
-    let factor = |name: &str, slot| DesignFactor { name: name.into(), slot };
-    let mut shared = Vec::new();
-    if mc.common.noise_scale.is_sampled() {
-        shared.push(factor("noise_scale", Slot::Dim(DIM_NOISE)));
-    }
-    if mc.gust_scale.is_sampled() {
-        shared.push(factor("gust_scale", Slot::Dim(DIM_GUST)));
-    }
-    let mut faulty = Vec::new();
+    let mut shared = Factors::default();
+    shared.add("noise_scale", Slot::Dim(DIM_NOISE), mc.common.noise_scale.is_sampled());
+    shared.add("gust_scale", Slot::Dim(DIM_GUST), mc.gust_scale.is_sampled());
+    let mut faulty = Factors::default();
     if let Some(loss) = &mc.loss_percent {
-        if mc.engines.len() > 1 {
-            faulty.push(factor("engine", Slot::Digit(0)));
-        }
-        if loss.is_sampled() {
-            faulty.push(factor("loss_percent", Slot::Dim(DIM_SIZE)));
-        }
-        if mc.common.onset_s.is_sampled() {
-            faulty.push(factor("onset_s", Slot::Dim(DIM_ONSET)));
-        }
+        faulty.add("engine", Slot::Digit(0), mc.engines.len() > 1);
+        faulty.add("loss_percent", Slot::Dim(DIM_SIZE), loss.is_sampled());
+        faulty.add("onset_s", Slot::Dim(DIM_ONSET), mc.common.onset_s.is_sampled());
     }
-    let mut parts = Vec::new();
-    if mc.loss_percent.is_some() || study.fault.is_some() {
-        faulty.extend(shared.iter().cloned());
-        parts.push(Part::new(false, faulty));
-    }
-    parts.push(Part::new(true, shared));
-    parts
+    let has_faults = mc.loss_percent.is_some() || study.fault.is_some();
+    Factors::parts(has_faults.then_some(faulty), shared)
 }
 
 #[cfg(test)]
