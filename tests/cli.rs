@@ -165,7 +165,7 @@ fn rare_event_meets_the_analytic_answer_and_refuses_what_does_not_apply() {
     }
     // The run's report shows a rare-event table written into its folder.
     let run = dir.path().join("run");
-    ok(&fdimc(&["run", deck, "--trials", "2000", "--quiet", "--out", run.to_str().unwrap()]));
+    run_deck(deck, Some(2000), &run);
     let beside = run.join("rare_event");
     ok(&fdimc(&["rare-event", deck, "--trials", "2000", "--quiet", "--out", beside.to_str().unwrap()]));
     ok(&fdimc(&["report", run.to_str().unwrap()]));
@@ -211,7 +211,7 @@ fn a_24_state_plant_with_8_outputs_designs_and_runs() {
 
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("run");
-    ok(&fdimc(&["run", deck, "--quiet", "--out", dir.to_str().unwrap()]));
+    run_deck(deck, None, &dir);
     assert_eq!(read_frame(&dir.join("trials.parquet")).height(), 256);
 }
 
@@ -234,15 +234,7 @@ fn the_seeds_tuning_lets_strong_tracking_find_the_rudder() {
     use polars::prelude::*;
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("run");
-    ok(&fdimc(&[
-        "run",
-        "studies/seed004_reference_tuning.toml",
-        "--trials",
-        "2",
-        "--quiet",
-        "--out",
-        dir.to_str().unwrap(),
-    ]));
+    run_deck("studies/seed004_reference_tuning.toml", Some(2), &dir);
     let df = read_frame(&dir.join("trials.parquet"))
         .lazy()
         .filter(col("target").eq(lit("rudder")))
@@ -273,15 +265,7 @@ fn voting_is_blind_to_common_mode_and_the_dual_ukf_is_not() {
     use polars::prelude::*;
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("run");
-    ok(&fdimc(&[
-        "run",
-        "studies/seed002_hifi_truth.toml",
-        "--trials",
-        "60",
-        "--quiet",
-        "--out",
-        dir.to_str().unwrap(),
-    ]));
+    run_deck("studies/seed002_hifi_truth.toml", Some(60), &dir);
     let df = read_frame(&dir.join("trials.parquet"))
         .lazy()
         .filter(col("fault_free").not())
@@ -327,7 +311,7 @@ fn online_classifiers_classify_only_what_the_detector_alarmed_on() {
     let classifiers = "[[classifier]]\nname = \"tree\"\nscheme = \"tree\"\n\n[[classifier]]\nname = \"tree_online\"\nscheme = \"tree\"\nwindow = \"alarm\"\n\n[[classifier]]\nname = \"tree_reversed\"\nscheme = \"tree_most_separable_first\"\n\n[monte_carlo]";
     let deck = edited_deck(tmp.path(), "ci_seed003.toml", &[("[monte_carlo]", classifiers)], "online.toml");
     let dir = tmp.path().join("run");
-    ok(&fdimc(&["run", deck.to_str().unwrap(), "--trials", "160", "--quiet", "--out", dir.to_str().unwrap()]));
+    run_deck(deck.to_str().unwrap(), Some(160), &dir);
     let df = read_frame(&dir.join("trials.parquet"));
     assert_eq!(df.height(), 480, "three classifiers per trial");
     let rows = |detector: &str, alarmed: bool| {
@@ -364,15 +348,7 @@ fn a_filter_tuned_to_the_noise_keeps_the_classes_apart_at_twice_the_noise() {
     let tmp = tempfile::tempdir().unwrap();
     let at_twice_the_noise = |deck: &str| -> (f64, u32) {
         let dir = tmp.path().join(deck);
-        ok(&fdimc(&[
-            "run",
-            &format!("studies/{deck}.toml"),
-            "--trials",
-            "200",
-            "--quiet",
-            "--out",
-            dir.to_str().unwrap(),
-        ]));
+        run_deck(&format!("studies/{deck}.toml"), Some(200), &dir);
         let df = read_frame(&dir.join("trials.parquet"))
             .lazy()
             .filter(col("detector").eq(lit("tree")).and(col("noise_bin").eq(lit(2.0))))
@@ -431,7 +407,7 @@ fn the_seeds_localisation_case_names_every_engine() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("run");
     let deck = "studies/seed001_localisation.toml";
-    ok(&fdimc(&["run", deck, "--trials", "16", "--quiet", "--out", dir.to_str().unwrap()]));
+    run_deck(deck, Some(16), &dir);
     let df = read_frame(&dir.join("trials.parquet"))
         .lazy()
         .group_by([col("target")])
@@ -589,6 +565,17 @@ fn bad_arguments_exit_2() {
 // Monte Carlo runs
 
 const CI_DECK: &str = "studies/ci_seed000.toml";
+
+/// `fdimc run DECK [--trials N] --quiet --out OUT`, which must succeed; its standard output.
+fn run_deck(deck: &str, trials: Option<u64>, out: &Path) -> String {
+    let trials = trials.map(|n| n.to_string());
+    let mut args = vec!["run", deck];
+    if let Some(n) = &trials {
+        args.extend(["--trials", n]);
+    }
+    args.extend(["--quiet", "--out", out.to_str().unwrap()]);
+    ok(&fdimc(&args))
+}
 
 fn ok(out: &Output) -> String {
     assert_eq!(out.status.code(), Some(0), "stdout:\n{}\nstderr:\n{}", text(&out.stdout), text(&out.stderr));
@@ -969,7 +956,7 @@ fn check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
     let tmp = tempfile::tempdir().unwrap();
     let doctored = perfect_detection_baseline(baseline, tmp.path());
     let run_dir = tmp.path().join("run");
-    ok(&fdimc(&["run", CI_DECK, "--quiet", "--out", run_dir.to_str().unwrap()]));
+    run_deck(CI_DECK, None, &run_dir);
     let out = fdimc(&["check", run_dir.to_str().unwrap(), "--baseline", doctored.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(1), "{}", text(&out.stdout));
     let stdout = text(&out.stdout);
@@ -1259,7 +1246,7 @@ fn surface_check_passes_on_its_baseline_and_fails_on_a_detection_drop() {
     let baseline = "results/baselines/ci_seed004.csv";
     let tmp = tempfile::tempdir().unwrap();
     let run_dir = tmp.path().join("run");
-    ok(&fdimc(&["run", "studies/ci_seed004.toml", "--quiet", "--out", run_dir.to_str().unwrap()]));
+    run_deck("studies/ci_seed004.toml", None, &run_dir);
     let stdout = ok(&fdimc(&["check", run_dir.to_str().unwrap(), "--baseline", baseline]));
     assert!(stdout.contains(": 0 regression(s)") && !stdout.contains("REGRESSION"), "{stdout}");
 
@@ -1283,7 +1270,7 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
     let tmp = tempfile::tempdir().unwrap();
     let cal = tmp.path().join("cal");
     let val = tmp.path().join("val");
-    ok(&fdimc(&["run", CI_DECK, "--quiet", "--out", cal.to_str().unwrap()]));
+    run_deck(CI_DECK, None, &cal);
     ok(&fdimc(&["run", CI_DECK, "--quiet", "--seed", "12", "--out", val.to_str().unwrap()]));
     let own = std::fs::read(val.join("thresholds.csv")).unwrap();
     let own_summary = std::fs::read(val.join("summary.csv")).unwrap();
@@ -1580,7 +1567,7 @@ fn bad_run_input_exits_2_and_keeps_what_was_written() {
     assert_eq!(code(&["run", CI_DECK, "--threads", "0", "--out", d]).0, Some(2));
     assert_eq!(code(&["run", CI_DECK, "--trials", "0", "--out", d]).0, Some(2));
 
-    ok(&fdimc(&["run", CI_DECK, "--quiet", "--trials", "500", "--out", d]));
+    run_deck(CI_DECK, Some(500), Path::new(d));
     let summary_before = std::fs::read(dir.join("summary.csv")).unwrap();
     // Occupied folder without --resume or --force.
     let (c, e) = code(&["run", CI_DECK, "--trials", "500", "--out", d]);
@@ -1656,7 +1643,7 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("run");
     let d = dir.to_str().unwrap();
-    ok(&fdimc(&["run", CI_DECK, "--quiet", "--trials", "1500", "--out", d]));
+    run_deck(CI_DECK, Some(1500), Path::new(d));
     let stdout = ok(&fdimc(&["report", d, "--trials", "3,17"]));
     assert!(stdout.contains("13 plots"), "{stdout}");
     let report = dir.join("report");

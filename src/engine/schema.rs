@@ -34,6 +34,8 @@ use std::borrow::Cow;
 
 use polars::prelude::*;
 
+use crate::estimation::stekf::FilterHealth;
+
 /// Column names of the core schema and of recorded statistics.
 pub mod col {
     pub const TRIAL: &str = "trial";
@@ -62,6 +64,11 @@ pub mod col {
     pub const PERR_PREFIX: &str = "perr_";
     /// Prefix of a recorded statistic's pre-onset maximum.
     pub const PRE_MAX_PREFIX: &str = "pre_max_";
+    /// A Kalman-type filter's health counters ([`super::FilterHealthColumns`]), filter-steps.
+    pub const SINGULAR_INNOVATION_STEPS: &str = "singular_innovation_steps";
+    pub const ASYMMETRIC_STEPS: &str = "asymmetric_steps";
+    pub const NOT_POSITIVE_DEFINITE_STEPS: &str = "not_positive_definite_steps";
+    pub const NON_FINITE_STEPS: &str = "non_finite_steps";
 
     pub fn perr(name: &str) -> String {
         format!("{PERR_PREFIX}{name}")
@@ -269,5 +276,34 @@ impl StatisticColumns {
             columns.push(v.finish().into_series().into_column());
         }
         columns
+    }
+}
+
+/// A Kalman-type filter's health counters ([`FilterHealth`]) while rows are added, for kinds whose
+/// detectors are such filters (null where the unit was not flown): `singular_innovation_steps`,
+/// `asymmetric_steps`, `not_positive_definite_steps`, `non_finite_steps`, in this order.
+#[derive(Default)]
+pub struct FilterHealthColumns {
+    singular: Vec<Option<u32>>,
+    asymmetric: Vec<Option<u32>>,
+    not_positive_definite: Vec<Option<u32>>,
+    non_finite: Vec<Option<u32>>,
+}
+
+impl FilterHealthColumns {
+    pub fn push(&mut self, health: Option<FilterHealth>) {
+        self.singular.push(health.map(|h| h.singular_innovation));
+        self.asymmetric.push(health.map(|h| h.asymmetric));
+        self.not_positive_definite.push(health.map(|h| h.not_positive_definite));
+        self.non_finite.push(health.map(|h| h.non_finite));
+    }
+
+    pub fn finish(self) -> [Column; 4] {
+        [
+            Column::new(col::SINGULAR_INNOVATION_STEPS.into(), self.singular),
+            Column::new(col::ASYMMETRIC_STEPS.into(), self.asymmetric),
+            Column::new(col::NOT_POSITIVE_DEFINITE_STEPS.into(), self.not_positive_definite),
+            Column::new(col::NON_FINITE_STEPS.into(), self.non_finite),
+        ]
     }
 }

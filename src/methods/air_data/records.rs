@@ -23,7 +23,7 @@ use polars::prelude::*;
 use super::flight::AIR_DATA_CHANNEL_NAMES;
 use super::study::AirDataStudy;
 use super::trial::AirDataTrialResult;
-use crate::engine::schema::col::NO_FAULT;
+use crate::engine::schema::col::{self as schema_col, NO_FAULT};
 use crate::engine::schema::{CoreColumns, Outcome};
 
 /// Column names of this kind's own columns that its summary reads.
@@ -116,8 +116,8 @@ pub fn frame(study: &AirDataStudy, results: &[AirDataTrialResult]) -> PolarsResu
     }
     columns.extend([
         Column::new(col::COVARIANCE_REPAIRS.into(), t.repairs),
-        Column::new("singular_innovation_steps".into(), t.singular),
-        Column::new("non_finite_steps".into(), t.non_finite),
+        Column::new(schema_col::SINGULAR_INNOVATION_STEPS.into(), t.singular),
+        Column::new(schema_col::NON_FINITE_STEPS.into(), t.non_finite),
         Column::new("floor_steps".into(), t.floor),
         Column::new("both_reinitialisations".into(), t.both),
     ]);

@@ -41,8 +41,11 @@ pub static METHOD: Method = Method {
             Extra::Rate { name: "recovery_rate", k: "recovered", n: "recovery_decided", faulty_only: true },
             Extra::Count { name: "post_fault", column: records::col::POST_FAULT_DECLARATIONS },
             Extra::Rate { name: "post_fault_rate", k: "post_fault", n: "flown", faulty_only: true },
-            Extra::Count { name: "asymmetric", column: records::col::ASYMMETRIC_STEPS },
-            Extra::Count { name: "not_positive_definite", column: records::col::NOT_POSITIVE_DEFINITE_STEPS },
+            Extra::Count { name: "asymmetric", column: crate::engine::schema::col::ASYMMETRIC_STEPS },
+            Extra::Count {
+                name: "not_positive_definite",
+                column: crate::engine::schema::col::NOT_POSITIVE_DEFINITE_STEPS,
+            },
             Extra::Quantile {
                 name: "isolation_delay_p50_s",
                 column: records::col::ISOLATION_DELAY_S,

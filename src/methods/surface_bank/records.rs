@@ -27,7 +27,7 @@ use super::study::SurfaceStudy;
 use super::trial::{BankOutcome, SurfaceTrialResult};
 use super::uav::SURFACE_NAMES;
 use crate::engine::schema::col::NO_FAULT;
-use crate::engine::schema::{CoreColumns, Outcome};
+use crate::engine::schema::{CoreColumns, FilterHealthColumns, Outcome};
 
 /// Column names of this kind's own columns that its summary reads.
 pub mod col {
@@ -38,8 +38,6 @@ pub mod col {
     pub const RECOVERY_DELAY_S: &str = "recovery_delay_s";
     pub const SURFACE_ESTIMATE_RMS_DEG: &str = "surface_estimate_rms_deg";
     pub const POST_FAULT_DECLARATIONS: &str = "post_fault_declarations";
-    pub const ASYMMETRIC_STEPS: &str = "asymmetric_steps";
-    pub const NOT_POSITIVE_DEFINITE_STEPS: &str = "not_positive_definite_steps";
 }
 
 /// The rows of `results` (trial order); see the module docs.
@@ -89,11 +87,7 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
                     .push(scored.map(|s| s.surface_estimate_rms_rad.to_degrees()).filter(|v: &f64| v.is_finite()));
                 t.false_alarms.push(outcome.map(|o| o.false_alarms));
                 t.post_fault.push(outcome.map(|o| o.post_fault_declarations));
-                let h = outcome.map(|o| o.health);
-                t.singular.push(h.map(|h| h.singular_innovation));
-                t.asymmetric.push(h.map(|h| h.asymmetric));
-                t.not_pd.push(h.map(|h| h.not_positive_definite));
-                t.non_finite.push(h.map(|h| h.non_finite));
+                t.health.push(outcome.map(|o| o.health));
                 t.floor.push(outcome.map(|o| o.floor_steps));
             }
         }
@@ -110,12 +104,9 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
         Column::new(col::SURFACE_ESTIMATE_RMS_DEG.into(), t.estimate_rms_deg),
         Column::new("false_alarms".into(), t.false_alarms),
         Column::new(col::POST_FAULT_DECLARATIONS.into(), t.post_fault),
-        Column::new("singular_innovation_steps".into(), t.singular),
-        Column::new(col::ASYMMETRIC_STEPS.into(), t.asymmetric),
-        Column::new(col::NOT_POSITIVE_DEFINITE_STEPS.into(), t.not_pd),
-        Column::new("non_finite_steps".into(), t.non_finite),
-        Column::new("floor_steps".into(), t.floor),
     ]);
+    columns.extend(t.health.finish());
+    columns.push(Column::new("floor_steps".into(), t.floor));
     DataFrame::new_infer_height(columns)
 }
 
@@ -132,10 +123,7 @@ struct Columns {
     estimate_rms_deg: Vec<Option<f64>>,
     false_alarms: Vec<Option<u32>>,
     post_fault: Vec<Option<u32>>,
-    singular: Vec<Option<u32>>,
-    asymmetric: Vec<Option<u32>>,
-    not_pd: Vec<Option<u32>>,
-    non_finite: Vec<Option<u32>>,
+    health: FilterHealthColumns,
     floor: Vec<Option<u32>>,
 }
 

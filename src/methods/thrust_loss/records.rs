@@ -22,7 +22,7 @@ use polars::prelude::*;
 use super::study::LaunchStudy;
 use super::trial::LaunchTrialResult;
 use crate::engine::schema::col::NO_FAULT;
-use crate::engine::schema::{CoreColumns, Outcome, StatisticColumns};
+use crate::engine::schema::{CoreColumns, FilterHealthColumns, Outcome, StatisticColumns};
 
 /// Column names of this kind's own columns that its summary reads.
 pub mod col {
@@ -92,10 +92,7 @@ pub fn frame(study: &LaunchStudy, results: &[LaunchTrialResult]) -> PolarsResult
             t.loss_estimate.push(estimate);
             t.loss_error.push(estimate.filter(|_| s.fault.is_some()).map(|e| e - s.loss_percent));
             t.above_threshold.push(o.and_then(|o| o.above_threshold_s));
-            t.singular.push(h.map(|h| h.filter.singular_innovation));
-            t.asymmetric.push(h.map(|h| h.filter.asymmetric));
-            t.not_pd.push(h.map(|h| h.filter.not_positive_definite));
-            t.non_finite.push(h.map(|h| h.filter.non_finite));
+            t.health.push(h.map(|h| h.filter));
             t.clamped.push(h.map(|h| h.sensitivity_clamped));
             t.gls_failed.push(h.map(|h| h.gls_failed));
         }
@@ -110,13 +107,10 @@ pub fn frame(study: &LaunchStudy, results: &[LaunchTrialResult]) -> PolarsResult
         Column::new("loss_estimate_percent".into(), t.loss_estimate),
         Column::new(col::LOSS_ERROR_PERCENT.into(), t.loss_error),
         Column::new(col::ABOVE_THRESHOLD_S.into(), t.above_threshold),
-        Column::new("singular_innovation_steps".into(), t.singular),
-        Column::new("asymmetric_steps".into(), t.asymmetric),
-        Column::new("not_positive_definite_steps".into(), t.not_pd),
-        Column::new("non_finite_steps".into(), t.non_finite),
-        Column::new("sensitivity_clamped".into(), t.clamped),
-        Column::new("gls_failed".into(), t.gls_failed),
     ]);
+    columns.extend(t.health.finish());
+    columns
+        .extend([Column::new("sensitivity_clamped".into(), t.clamped), Column::new("gls_failed".into(), t.gls_failed)]);
     columns.extend(statistics.finish());
     DataFrame::new_infer_height(columns)
 }
@@ -132,10 +126,7 @@ struct Columns {
     loss_estimate: Vec<Option<f64>>,
     loss_error: Vec<Option<f64>>,
     above_threshold: Vec<Option<f64>>,
-    singular: Vec<Option<u32>>,
-    asymmetric: Vec<Option<u32>>,
-    not_pd: Vec<Option<u32>>,
-    non_finite: Vec<Option<u32>>,
+    health: FilterHealthColumns,
     clamped: Vec<Option<u32>>,
     gls_failed: Vec<Option<u32>>,
 }
