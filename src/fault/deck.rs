@@ -75,6 +75,14 @@ pub enum SizeSpec {
 }
 
 impl SizeSpec {
+    /// A trial's size and its group label, from dimension `dim` of its draws; NaN for a kind without one.
+    pub fn draw(&self, t: &mut crate::engine::scenario::TrialDraws, dim: usize) -> (f64, f64) {
+        match self {
+            SizeSpec::None => (f64::NAN, f64::NAN),
+            SizeSpec::Output(f) | SizeSpec::SensorSigma(f) => t.factor(f, dim),
+        }
+    }
+
     /// Whether trials draw the size (a range or several values): a factor of a sensitivity design.
     pub fn is_sampled(&self) -> bool {
         matches!(self, SizeSpec::Output(f) | SizeSpec::SensorSigma(f) if f.is_sampled())
@@ -134,6 +142,73 @@ impl FaultKindSpec {
         match self.size {
             SizeSpec::SensorSigma(_) => given * sigma,
             _ => given,
+        }
+    }
+}
+
+/// One trial's sensor faults and how the tables label them (the core columns `kind`, `size`,
+/// `size_bin`, `size_unit`, `onset_s`), for kinds whose faults are [`SensorFault`]s.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrialFaults {
+    /// The faults (empty: fault-free).
+    pub faults: Vec<SensorFault>,
+    /// Kind of the (first) fault, "none" when fault-free.
+    pub kind: &'static str,
+    /// The size as the deck gives it, in `size_unit` (the faults themselves are in their outputs'
+    /// units); NaN when fault-free or for a kind without a size.
+    pub size: f64,
+    /// Group label of the size, in `size_unit`.
+    pub size_bin: f64,
+    pub size_unit: &'static str,
+    /// The earliest onset; NaN when fault-free.
+    pub onset_s: f64,
+}
+
+impl TrialFaults {
+    pub fn none() -> Self {
+        TrialFaults {
+            faults: Vec::new(),
+            kind: crate::engine::schema::col::NO_FAULT,
+            size: f64::NAN,
+            size_bin: f64::NAN,
+            size_unit: unit::NONE,
+            onset_s: f64::NAN,
+        }
+    }
+
+    /// `population`'s fault on each of `channels` from `onset_s`, its size drawn as `(size, size_bin)`
+    /// in the deck's unit; `sigma(j)`: channel `j`'s nominal sensor sigma.
+    pub fn drawn(
+        population: &FaultKindSpec,
+        channels: &[usize],
+        (size, size_bin): (f64, f64),
+        onset_s: f64,
+        sigma: impl Fn(usize) -> f64,
+    ) -> Self {
+        let fault = |channel| {
+            let mode = population.kind.mode(population.in_output_units(size, sigma(channel)));
+            SensorFault { channel, onset_s, mode }
+        };
+        TrialFaults {
+            faults: channels.iter().map(|&j| fault(j)).collect(),
+            kind: population.kind.name(),
+            size,
+            size_bin,
+            size_unit: population.size_unit(),
+            onset_s,
+        }
+    }
+
+    /// The deck's fixed faults (`[[faults]]`), labelled by the first; none when there are none.
+    pub fn fixed(faults: &[SensorFault]) -> Self {
+        let Some(first) = faults.first() else { return TrialFaults::none() };
+        TrialFaults {
+            faults: faults.to_vec(),
+            kind: first.mode.name(),
+            size: first.mode.size(),
+            size_bin: first.mode.size(),
+            size_unit: fixed_size_unit(&first.mode),
+            onset_s: faults.iter().map(|f| f.onset_s).fold(f64::INFINITY, f64::min),
         }
     }
 }
@@ -270,5 +345,33 @@ impl Validator<'_> {
             }
         };
         Ok(SensorFault { channel, onset_s, mode })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trial_faults_label_drawn_and_fixed_faults() {
+        // A bias of 3 sensor sigmas on channels 1 and 4, whose sigmas are 0.5 and 2.
+        let population = FaultKindSpec { kind: FaultKind::Bias, size: SizeSpec::SensorSigma(Factor::Fixed(3.0)) };
+        let drawn = TrialFaults::drawn(&population, &[1, 4], (3.0, 2.5), 12.0, |j| if j == 1 { 0.5 } else { 2.0 });
+        let biases: Vec<(usize, FaultMode)> = drawn.faults.iter().map(|f| (f.channel, f.mode)).collect();
+        assert_eq!(biases, [(1, FaultMode::Bias { bias: 1.5 }), (4, FaultMode::Bias { bias: 6.0 })]);
+        assert!(drawn.faults.iter().all(|f| f.onset_s == 12.0));
+        assert_eq!((drawn.kind, drawn.size, drawn.size_bin, drawn.size_unit), ("bias", 3.0, 2.5, unit::SENSOR_SIGMA));
+
+        // The deck's fixed faults: labelled by the first, from the earliest onset.
+        let fixed = TrialFaults::fixed(&[
+            SensorFault { channel: 2, onset_s: 9.0, mode: FaultMode::Gain { factor: 1.2 } },
+            SensorFault { channel: 0, onset_s: 4.0, mode: FaultMode::Bias { bias: 0.1 } },
+        ]);
+        assert_eq!((fixed.kind, fixed.size, fixed.size_bin, fixed.size_unit), ("gain", 1.2, 1.2, unit::GAIN_FACTOR));
+        assert_eq!((fixed.faults.len(), fixed.onset_s), (2, 4.0));
+
+        let none = TrialFaults::fixed(&[]);
+        assert!(none.faults.is_empty() && none.onset_s.is_nan() && none.size.is_nan());
+        assert_eq!((none.kind, none.size_unit), ("none", unit::NONE));
     }
 }

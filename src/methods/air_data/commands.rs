@@ -162,21 +162,21 @@ pub fn simulate(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &
         samples,
         out.display()
     );
-    if spec.faults.is_empty() {
+    if spec.fault.faults.is_empty() {
         println!("  fault-free trial");
     } else {
         println!(
             "  fault               {} {} size {} from {:.3} s",
             crate::methods::air_data::records::sensor_set(&spec.outputs),
-            spec.kind,
-            spec.size,
-            spec.onset_s
+            spec.fault.kind,
+            spec.fault.size,
+            spec.fault.onset_s
         );
     }
     println!("  noise scale {}, gust {:.2} m/s", spec.noise_scale, spec.gust_std_mps);
     let secs = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
     for (d, o) in selected.detectors.iter().zip(&outcomes) {
-        let delay = o.detection_s.map(|t| t - spec.onset_s);
+        let delay = o.detection_s.map(|t| t - spec.fault.onset_s);
         let isolated = o.isolated.as_deref().map_or("-".to_string(), crate::methods::air_data::records::sensor_set);
         println!(
             "  {:<12} false alarm {}, delay {} s, isolated {isolated}, bias error {} sigma, air data {} / raw {} sigma",

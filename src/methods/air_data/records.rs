@@ -55,7 +55,7 @@ pub fn frame(study: &AirDataStudy, results: &[AirDataTrialResult]) -> PolarsResu
     let mut t = Columns::default();
     for r in results {
         let s = &r.spec;
-        let faulty = !s.faults.is_empty();
+        let faulty = !s.fault.faults.is_empty();
         let target = sensor_set(&s.outputs);
         for (d, det) in study.detectors.iter().enumerate() {
             let o = r.outcome.as_ref().ok().map(|o| &o[d]);
@@ -64,17 +64,17 @@ pub fn frame(study: &AirDataStudy, results: &[AirDataTrialResult]) -> PolarsResu
             core.push(Outcome {
                 trial: s.trial,
                 detector: &det.name,
-                kind: s.kind,
+                kind: s.fault.kind,
                 target: faulty.then(|| Cow::Owned(target.clone())),
-                size: Some(s.size),
-                size_unit: s.size_unit,
-                size_bin: Some(s.size_bin),
-                onset_s: faulty.then_some(s.onset_s),
+                size: Some(s.fault.size),
+                size_unit: s.fault.size_unit,
+                size_bin: Some(s.fault.size_bin),
+                onset_s: faulty.then_some(s.fault.onset_s),
                 fault_free: !faulty,
                 failure: r.outcome.as_ref().err().cloned(),
                 diverged: h.is_some_and(|h| h.no_fault.non_finite + h.fault.non_finite > 0),
                 false_alarm_s: o.and_then(|o| o.false_alarm_s),
-                delay_s: o.and_then(|o| o.detection_s).filter(|_| faulty).map(|t| t - s.onset_s),
+                delay_s: o.and_then(|o| o.detection_s).filter(|_| faulty).map(|t| t - s.fault.onset_s),
                 isolated: isolated.map(|i| Cow::Owned(sensor_set(i))),
                 isolated_correctly: isolated.map(|i| *i == s.outputs),
                 noise_scale: s.noise_scale,
@@ -148,6 +148,7 @@ mod tests {
     use super::*;
     use crate::engine::deck::FromDeck;
     use crate::engine::summary::hand_made::Summarized;
+    use crate::fault::deck::TrialFaults;
     use crate::fault::{FaultMode, SensorFault};
     use crate::methods::air_data::dual_ukf::DualUkfHealth;
     use crate::methods::air_data::scenario::AirDataTrialSpec;
@@ -166,13 +167,15 @@ mod tests {
         let fault = |channel| SensorFault { channel, onset_s: 30.0, mode: FaultMode::Bias { bias: 5.0 } };
         let spec = |trial: u64, faulty: bool| AirDataTrialSpec {
             trial,
-            faults: if faulty { vec![fault(0), fault(1)] } else { vec![] },
-            kind: if faulty { "bias" } else { NO_FAULT },
+            fault: TrialFaults {
+                faults: if faulty { vec![fault(0), fault(1)] } else { vec![] },
+                kind: if faulty { "bias" } else { NO_FAULT },
+                size: if faulty { 5.0 } else { f64::NAN },
+                size_bin: if faulty { 5.0 } else { f64::NAN },
+                size_unit: if faulty { crate::fault::deck::unit::SENSOR_SIGMA } else { crate::fault::deck::unit::NONE },
+                onset_s: 30.0,
+            },
             outputs: if faulty { vec![0, 1] } else { vec![] },
-            size: if faulty { 5.0 } else { f64::NAN },
-            size_bin: if faulty { 5.0 } else { f64::NAN },
-            size_unit: if faulty { crate::fault::deck::unit::SENSOR_SIGMA } else { crate::fault::deck::unit::NONE },
-            onset_s: 30.0,
             noise_scale: 1.0,
             noise_bin: 1.0,
             gust_std_mps: 0.0,

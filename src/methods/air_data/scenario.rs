@@ -6,8 +6,7 @@
 
 use crate::engine::scenario::UnitSampler;
 use crate::engine::sensitivity::{Factors, Part, Slot};
-use crate::fault::SensorFault;
-use crate::fault::deck::{SizeSpec, fixed_size_unit, unit};
+use crate::fault::deck::TrialFaults;
 use crate::methods::air_data::flight::ScenarioParams;
 use crate::methods::air_data::study::AirDataStudy;
 
@@ -21,18 +20,10 @@ const DIMS: usize = 4;
 #[derive(Debug, Clone, PartialEq)]
 pub struct AirDataTrialSpec {
     pub trial: u64,
-    /// The faults (one per faulty sensor); empty: fault-free.
-    pub faults: Vec<SensorFault>,
-    /// Kind of the faults ("none" when fault-free).
-    pub kind: &'static str,
+    /// The faults (one per faulty sensor) and their labels.
+    pub fault: TrialFaults,
     /// Faulty sensors, ascending channel indices.
     pub outputs: Vec<usize>,
-    /// The size as the deck gives it (sensor sigmas, or output units, or a gain factor); NaN without one.
-    pub size: f64,
-    pub size_bin: f64,
-    /// The unit of `size` and `size_bin`.
-    pub size_unit: &'static str,
-    pub onset_s: f64,
     pub noise_scale: f64,
     pub noise_bin: f64,
     pub gust_std_mps: f64,
@@ -67,10 +58,7 @@ impl<'a> AirDataScenarioSampler<'a> {
         let sampled = (!mc.faults.is_empty()).then(|| {
             let spec = &mc.faults[t.digit(mc.faults.len())];
             let set = &mc.output_sets[t.digit(mc.output_sets.len())];
-            let size = match &spec.size {
-                SizeSpec::None => (f64::NAN, f64::NAN),
-                SizeSpec::Output(f) | SizeSpec::SensorSigma(f) => t.factor(f, DIM_SIZE),
-            };
+            let size = spec.size.draw(&mut t, DIM_SIZE);
             (spec, set, size)
         });
         let (onset_s, _) = t.factor(&mc.common.onset_s, DIM_ONSET);
@@ -80,13 +68,8 @@ impl<'a> AirDataScenarioSampler<'a> {
         let faulty_lanes = mc.faulty_lanes[t.digit(mc.faulty_lanes.len())];
         let mut spec = AirDataTrialSpec {
             trial,
-            faults: Vec::new(),
-            kind: "none",
+            fault: TrialFaults::none(),
             outputs: Vec::new(),
-            size: f64::NAN,
-            size_bin: f64::NAN,
-            size_unit: unit::NONE,
-            onset_s: f64::NAN,
             noise_scale,
             noise_bin,
             gust_std_mps,
@@ -98,33 +81,18 @@ impl<'a> AirDataScenarioSampler<'a> {
             return spec;
         }
         match sampled {
-            Some((kind_spec, set, (size, size_bin))) => {
+            Some((kind_spec, set, size)) => {
                 let sigma = s.noise.air_data_std();
-                spec.faults = set
-                    .iter()
-                    .map(|&j| {
-                        let mode = kind_spec.kind.mode(kind_spec.in_output_units(size, sigma[j]));
-                        SensorFault { channel: j, onset_s, mode }
-                    })
-                    .collect();
-                spec.kind = kind_spec.kind.name();
-                spec.outputs = set.clone();
-                (spec.size, spec.size_bin, spec.onset_s) = (size, size_bin, onset_s);
-                spec.size_unit = kind_spec.size_unit();
+                spec.fault = TrialFaults::drawn(kind_spec, set, size, onset_s, |j| sigma[j]);
+                spec.outputs = set.to_vec();
             }
-            None if !s.faults.is_empty() => {
-                spec.faults = s.faults.clone();
-                spec.kind = s.faults[0].mode.name();
+            None => {
+                spec.fault = TrialFaults::fixed(&s.faults);
                 let mut outputs: Vec<usize> = s.faults.iter().map(|f| f.channel).collect();
                 outputs.sort_unstable();
                 outputs.dedup();
                 spec.outputs = outputs;
-                spec.size = s.faults[0].mode.size();
-                spec.size_bin = spec.size;
-                spec.size_unit = fixed_size_unit(&s.faults[0].mode);
-                spec.onset_s = s.faults.iter().map(|f| f.onset_s).fold(f64::INFINITY, f64::min);
             }
-            None => {}
         }
         spec
     }
@@ -139,7 +107,7 @@ impl<'a> AirDataScenarioSampler<'a> {
             noise: s.noise,
             noise_scale: spec.noise_scale,
             wind: crate::methods::air_data::flight::WindParams { gust_std_mps: spec.gust_std_mps, ..s.wind },
-            faults: spec.faults.clone(),
+            faults: spec.fault.faults.clone(),
             airframe: s.airframe,
             sensor_errors: s.sensor_errors,
             lanes: s.lanes,
@@ -187,22 +155,22 @@ mod tests {
             let spec = sampler.spec(i);
             assert_eq!(spec.noise_scale, [1.0, 2.0][(i / 5 % 2) as usize], "trial {i}");
             assert_eq!(spec.gust_std_mps, [0.0, 0.5][(i / 10 % 2) as usize], "trial {i}");
-            if spec.faults.is_empty() {
+            if spec.fault.faults.is_empty() {
                 fault_free += 1;
-                assert_eq!(spec.kind, "none");
+                assert_eq!(spec.fault.kind, "none");
                 continue;
             }
             let set = &study.monte_carlo.output_sets[(i % 5) as usize];
             assert_eq!(&spec.outputs, set, "trial {i}");
-            assert_eq!(spec.faults.len(), set.len());
-            assert!((2.0..20.0).contains(&spec.size) && (10.0..40.0).contains(&spec.onset_s), "{spec:?}");
-            for f in &spec.faults {
-                assert_eq!(f.onset_s, spec.onset_s);
-                assert_eq!(f.mode, FaultMode::Bias { bias: spec.size * sigma[f.channel] }, "trial {i}");
+            assert_eq!(spec.fault.faults.len(), set.len());
+            assert!((2.0..20.0).contains(&spec.fault.size) && (10.0..40.0).contains(&spec.fault.onset_s), "{spec:?}");
+            for f in &spec.fault.faults {
+                assert_eq!(f.onset_s, spec.fault.onset_s);
+                assert_eq!(f.mode, FaultMode::Bias { bias: spec.fault.size * sigma[f.channel] }, "trial {i}");
             }
             let params = sampler.scenario(&spec);
             assert_eq!((params.noise_scale, params.wind.gust_std_mps), (spec.noise_scale, spec.gust_std_mps));
-            assert_eq!(params.faults, spec.faults);
+            assert_eq!(params.faults, spec.fault.faults);
         }
         // 10 % fault-free: 300 expected, binomial sd 16.4.
         assert!((250..350).contains(&fault_free), "{fault_free}");

@@ -149,7 +149,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
     let offsets: Vec<(usize, FaultMode)> = scenario.faults.iter().map(|f| (f.channel, f.mode)).collect();
     let mut filters = detectors.iter().map(|d| Running::new(d, &scenario)).collect::<Result<Vec<_>, _>>()?;
     let mut flight = AirDataScenario::new(scenario).map_err(|e| e.to_string())?;
-    let onset_s = spec.faults.first().map(|_| spec.onset_s);
+    let onset_s = spec.fault.faults.first().map(|_| spec.fault.onset_s);
     let scored_from_s = match onset_s {
         Some(t0) => 0.5 * (t0 + duration_s),
         None => 0.5 * duration_s,
@@ -279,6 +279,7 @@ mod tests {
     use crate::engine::streams::Substream;
     use crate::engine::streams::noise_rng;
     use crate::fault::SensorFault;
+    use crate::fault::deck::TrialFaults;
     use crate::methods::air_data::dual_ukf::DualUkfParams;
     use crate::methods::air_data::flight::ALPHA;
 
@@ -288,13 +289,15 @@ mod tests {
         scenario.faults = vec![SensorFault { channel: ALPHA, onset_s: 20.0, mode: FaultMode::Bias { bias: bias_rad } }];
         let spec = AirDataTrialSpec {
             trial: 0,
-            faults: scenario.faults.clone(),
-            kind: "bias",
+            fault: TrialFaults {
+                faults: scenario.faults.clone(),
+                kind: "bias",
+                size: 10.0,
+                size_bin: 10.0,
+                size_unit: crate::fault::deck::unit::SENSOR_SIGMA,
+                onset_s: 20.0,
+            },
             outputs: vec![ALPHA],
-            size: 10.0,
-            size_bin: 10.0,
-            size_unit: crate::fault::deck::unit::SENSOR_SIGMA,
-            onset_s: 20.0,
             noise_scale: 1.0,
             noise_bin: 1.0,
             gust_std_mps: 0.0,

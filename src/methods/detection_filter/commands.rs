@@ -310,7 +310,10 @@ pub fn simulate(study: &LtiStudy, trial: u64, detector: Option<&str>, out: &Path
     );
     match spec.output {
         Some(j) => {
-            println!("  fault               {} {} size {} from {} s", outputs[j], spec.kind, spec.size, spec.onset_s)
+            println!(
+                "  fault               {} {} size {} from {} s",
+                outputs[j], spec.fault.kind, spec.fault.size, spec.fault.onset_s
+            )
         }
         None => println!("  fault-free trial"),
     }
@@ -329,7 +332,9 @@ pub fn simulate(study: &LtiStudy, trial: u64, detector: Option<&str>, out: &Path
         None => println!("  false alarm         none"),
     }
     match outcome.detection {
-        Some((t, j)) => println!("  detected            {t:.3} s on {} (delay {:.3} s)", outputs[j], t - spec.onset_s),
+        Some((t, j)) => {
+            println!("  detected            {t:.3} s on {} (delay {:.3} s)", outputs[j], t - spec.fault.onset_s)
+        }
         None => println!("  detected            no"),
     }
     let name =

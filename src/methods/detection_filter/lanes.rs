@@ -88,7 +88,7 @@ fn run_lanes_in(
     let sensor_sigma: Vec<Lane> =
         s.sensor_sigma.iter().map(|sigma| std::array::from_fn(|l| sigma * spec(l).noise_scale)).collect();
     let process_sigma: Vec<Lane> = s.process_sigma_per_step.iter().map(|&sigma| [sigma; LANES]).collect();
-    let mut faults: Vec<ActiveFaults> = (0..LANES).map(|l| ActiveFaults::new(spec(l).faults.clone())).collect();
+    let mut faults: Vec<ActiveFaults> = (0..LANES).map(|l| ActiveFaults::new(spec(l).fault.faults.clone())).collect();
     let onset_s: Lane = std::array::from_fn(|l| faults[l].first_onset_s().unwrap_or(f64::INFINITY));
 
     let x0: Vec<Lane> = s.initial_state.iter().map(|&v| [v; LANES]).collect();

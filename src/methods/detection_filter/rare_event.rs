@@ -301,7 +301,7 @@ mod tests {
             let thr = &study.detectors[d].params.thresholds;
             for t in 0..8 {
                 let run = engine.run(t);
-                assert!(run.spec.faults.is_empty());
+                assert!(run.spec.fault.faults.is_empty());
                 let pre = &run.detectors[d].as_ref().unwrap().pre_onset_max_abs_residual;
                 let expected = pre.iter().zip(thr.iter()).map(|(v, h)| v / h).fold(0.0, f64::max);
                 assert_eq!(plain_score(&model, t), expected, "detector {d}, trial {t}");

@@ -69,17 +69,17 @@ impl<'a> RecordBuilder<'a> {
             self.core.push(Outcome {
                 trial: spec.trial,
                 detector: &d.name,
-                kind: spec.kind,
+                kind: spec.fault.kind,
                 target: truth.map(Cow::Borrowed),
-                size: Some(spec.size),
-                size_unit: spec.size_unit,
-                size_bin: Some(spec.size_bin),
-                onset_s: Some(spec.onset_s),
-                fault_free: spec.faults.is_empty(),
+                size: Some(spec.fault.size),
+                size_unit: spec.fault.size_unit,
+                size_bin: Some(spec.fault.size_bin),
+                onset_s: Some(spec.fault.onset_s),
+                fault_free: spec.fault.faults.is_empty(),
                 failure: outcome.as_ref().err().map(ToString::to_string),
                 diverged: o.is_some_and(|o| o.diverged_at_s.is_some()),
                 false_alarm_s: o.and_then(|o| o.false_alarm.map(|a| a.0)),
-                delay_s: o.and_then(|o| o.detection.map(|a| a.0 - spec.onset_s)),
+                delay_s: o.and_then(|o| o.detection.map(|a| a.0 - spec.fault.onset_s)),
                 isolated: isolated.map(Cow::Borrowed),
                 isolated_correctly: isolated.map(|i| Some(i) == truth),
                 noise_scale: spec.noise_scale,
@@ -128,6 +128,7 @@ mod tests {
     use crate::engine::deck::FromDeck;
     use crate::engine::runner::Manifest;
     use crate::engine::summary::hand_made::{Summarized, manifest};
+    use crate::fault::deck::TrialFaults;
     use crate::fault::{FaultMode, SensorFault};
     use crate::methods::detection_filter::scenario::TrialSpec;
     use crate::methods::detection_filter::trial::DetectorOutcome;
@@ -146,17 +147,19 @@ mod tests {
         let spec = |trial: u64, faulty: bool| TrialSpec {
             trial,
             noise_trial: trial,
-            faults: if faulty {
-                vec![SensorFault { channel: q, onset_s: 5.0, mode: FaultMode::Bias { bias: 0.015 } }]
-            } else {
-                vec![]
+            fault: TrialFaults {
+                faults: if faulty {
+                    vec![SensorFault { channel: q, onset_s: 5.0, mode: FaultMode::Bias { bias: 0.015 } }]
+                } else {
+                    vec![]
+                },
+                kind: if faulty { "bias" } else { "none" },
+                size: if faulty { 3.0 } else { f64::NAN },
+                size_bin: if faulty { 3.0 } else { f64::NAN },
+                size_unit: crate::fault::deck::unit::SENSOR_SIGMA,
+                onset_s: 5.0,
             },
-            kind: if faulty { "bias" } else { "none" },
             output: faulty.then_some(q),
-            size: if faulty { 3.0 } else { f64::NAN },
-            size_bin: if faulty { 3.0 } else { f64::NAN },
-            size_unit: crate::fault::deck::unit::SENSOR_SIGMA,
-            onset_s: 5.0,
             noise_scale: 1.0,
             noise_bin: 1.0,
             parameter_errors: vec![],

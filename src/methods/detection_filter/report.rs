@@ -140,7 +140,9 @@ fn draw(
     let root = SVGBackend::new(file, (1100, 80 + 260 * rows)).into_drawing_area();
     root.fill(&WHITE).map_err(e)?;
     let fault = match spec.output {
-        Some(j) => format!("{} {} size {:.4} from {:.2} s", outputs[j], spec.kind, spec.size, spec.onset_s),
+        Some(j) => {
+            format!("{} {} size {:.4} from {:.2} s", outputs[j], spec.fault.kind, spec.fault.size, spec.fault.onset_s)
+        }
         None => "fault-free".into(),
     };
     let root = root
@@ -181,9 +183,12 @@ fn draw(
                 }
             }
         }
-        if spec.onset_s.is_finite() {
+        if spec.fault.onset_s.is_finite() {
             chart
-                .draw_series(LineSeries::new([(spec.onset_s, -lim), (spec.onset_s, lim)], BLACK.stroke_width(2)))
+                .draw_series(LineSeries::new(
+                    [(spec.fault.onset_s, -lim), (spec.fault.onset_s, lim)],
+                    BLACK.stroke_width(2),
+                ))
                 .map_err(e)?
                 .label("onset")
                 .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.stroke_width(2)));

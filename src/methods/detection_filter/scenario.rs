@@ -5,8 +5,7 @@ use super::study::LtiStudy;
 use crate::engine::deck::ModelTarget;
 use crate::engine::scenario::UnitSampler;
 use crate::engine::sensitivity::{Factors, Part, Slot};
-use crate::fault::SensorFault;
-use crate::fault::deck::{SizeSpec, fixed_size_unit, unit};
+use crate::fault::deck::TrialFaults;
 
 /// Continuous-factor dimensions, fixed so a trial's draws do not depend on which factors are present.
 const DIM_ONSET: usize = 0;
@@ -20,19 +19,10 @@ pub struct TrialSpec {
     pub trial: u64,
     /// The trial whose noise streams this one uses: itself, except in a sensitivity design.
     pub noise_trial: u64,
-    /// Faults of this trial (empty: fault-free).
-    pub faults: Vec<SensorFault>,
-    /// Kind of the (first) fault, "none" when fault-free.
-    pub kind: &'static str,
+    /// The trial's faults and their labels.
+    pub fault: TrialFaults,
     /// Faulty output index.
     pub output: Option<usize>,
-    /// Fault size as the deck gives it, in `size_unit` (the fault itself is in the output's units); NaN
-    /// when the kind has none.
-    pub size: f64,
-    /// Group label of the size, in `size_unit`.
-    pub size_bin: f64,
-    pub size_unit: &'static str,
-    pub onset_s: f64,
     pub noise_scale: f64,
     pub noise_bin: f64,
     /// Relative error of each `monte_carlo.parameter_error`, in deck order.
@@ -63,10 +53,7 @@ impl<'a> ScenarioSampler<'a> {
         // Sampled population: kind and output first (the fastest grid digits).
         let sampled =
             (!mc.faults.is_empty()).then(|| (t.digit(mc.faults.len()), mc.outputs[t.digit(mc.outputs.len())]));
-        let size_pick = sampled.map(|(k, _)| match &mc.faults[k].size {
-            SizeSpec::None => (f64::NAN, f64::NAN),
-            SizeSpec::Output(f) | SizeSpec::SensorSigma(f) => t.factor(f, DIM_SIZE),
-        });
+        let size_pick = sampled.map(|(k, _)| mc.faults[k].size.draw(&mut t, DIM_SIZE));
         let (onset, _) = t.factor(&mc.common.onset_s, DIM_ONSET);
         let (noise_scale, noise_bin) = t.factor(&mc.common.noise_scale, DIM_NOISE);
         let (parameter_errors, parameter_error_bin) = t.parameter_errors(&mc.parameter_errors, DIM_PARAMETERS);
@@ -74,13 +61,8 @@ impl<'a> ScenarioSampler<'a> {
         let mut spec = TrialSpec {
             trial,
             noise_trial: self.units.noise_trial(trial),
-            faults: Vec::new(),
-            kind: "none",
+            fault: TrialFaults::none(),
             output: None,
-            size: f64::NAN,
-            size_bin: f64::NAN,
-            size_unit: unit::NONE,
-            onset_s: f64::NAN,
             noise_scale,
             noise_bin,
             parameter_errors,
@@ -90,28 +72,13 @@ impl<'a> ScenarioSampler<'a> {
             return spec;
         }
         match (sampled, size_pick) {
-            (Some((k, output)), Some((size, size_bin))) => {
-                let population = &mc.faults[k];
-                let in_units = population.in_output_units(size, s.sensor_sigma[output]);
-                spec.faults =
-                    vec![SensorFault { channel: output, onset_s: onset, mode: population.kind.mode(in_units) }];
-                spec.kind = population.kind.name();
+            (Some((k, output)), Some(size)) => {
+                spec.fault = TrialFaults::drawn(&mc.faults[k], &[output], size, onset, |j| s.sensor_sigma[j]);
                 spec.output = Some(output);
-                spec.size = size;
-                spec.size_bin = size_bin;
-                spec.size_unit = population.size_unit();
-                spec.onset_s = onset;
             }
             _ => {
-                if let Some(first) = s.faults.first() {
-                    spec.faults = s.faults.clone();
-                    spec.kind = first.mode.name();
-                    spec.output = Some(first.channel);
-                    spec.size = first.mode.size();
-                    spec.size_bin = first.mode.size();
-                    spec.size_unit = fixed_size_unit(&first.mode);
-                    spec.onset_s = s.faults.iter().map(|f| f.onset_s).fold(f64::INFINITY, f64::min);
-                }
+                spec.fault = TrialFaults::fixed(&s.faults);
+                spec.output = s.faults.first().map(|f| f.channel);
             }
         }
         spec

@@ -179,7 +179,7 @@ pub fn run_trial(
     let has_process_noise = s.has_process_noise();
     let sensor_sigma = &s.sensor_sigma * spec.noise_scale;
 
-    let mut faults = ActiveFaults::new(spec.faults.clone());
+    let mut faults = ActiveFaults::new(spec.fault.faults.clone());
     let onset_s = faults.first_onset_s();
     let x0 = s.initial_state.as_slice();
     let mut plant_state = PlantState::new(x0, nu);
@@ -429,7 +429,7 @@ mod tests {
         let study = seed000(false);
         let (out, trace) = run(&study, 3);
         let sigma_q = study.sensor_sigma[2];
-        assert!(Engine::new(&study).spec(3).faults.is_empty());
+        assert!(Engine::new(&study).spec(3).fault.faults.is_empty());
         let r = column(&trace, "r_q_rad_s");
         let (mean, sd) = stats(r);
         // Zero mean within 4 standard errors; the residual is coloured by the filter, so the error of

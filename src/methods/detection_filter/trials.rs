@@ -318,7 +318,7 @@ mod tests {
         for trial in 0..20 {
             let mut trace = Trace::default();
             let (spec, outcome) = e.simulate(trial, k, &mut trace).unwrap();
-            assert!(spec.faults.is_empty() && outcome.diverged_at_s.is_none());
+            assert!(spec.fault.faults.is_empty() && outcome.diverged_at_s.is_none());
             let stat = &trace.float_columns.iter().find(|(n, _)| n == "stat_v_m_s").unwrap().1;
             for v in stat.iter().skip(200 + 9).step_by(10) {
                 windows += 1;
@@ -339,8 +339,8 @@ mod tests {
         // Fault-free trials still draw their units; faulty ones carry the onset. Use all the faulty ones.
         let mut strata: Vec<usize> = specs
             .iter()
-            .filter(|sp| sp.onset_s.is_finite())
-            .map(|sp| ((sp.onset_s - 5.0) / 15.0 * 240.0) as usize)
+            .filter(|sp| sp.fault.onset_s.is_finite())
+            .map(|sp| ((sp.fault.onset_s - 5.0) / 15.0 * 240.0) as usize)
             .collect();
         let faulty = strata.len();
         strata.sort();
@@ -350,7 +350,7 @@ mod tests {
         assert!((30..=70).contains(&fault_free), "{fault_free} fault-free of 240 at fraction 0.2");
         // Kind is the fastest grid digit: each of the 4 kinds gets a quarter of the faulty trials.
         for kind in ["bias", "gain", "stuck", "total_failure"] {
-            let n = specs.iter().filter(|sp| sp.kind == kind).count();
+            let n = specs.iter().filter(|sp| sp.fault.kind == kind).count();
             assert!((n as f64 - faulty as f64 / 4.0).abs() <= 12.0, "{kind}: {n}");
         }
     }
