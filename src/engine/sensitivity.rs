@@ -616,50 +616,79 @@ impl Table {
     }
 }
 
-/// Prints the indices, one block per outcome and detector, factors by total index.
-pub fn print(df: &DataFrame) -> Result<(), RunError> {
-    let file = Path::new("sensitivity.csv");
+/// One outcome and detector's rows of `sensitivity.csv`, as read back.
+pub struct IndexBlock {
+    pub outcome: String,
+    pub detector: String,
+    pub mean: f64,
+    pub base_samples: u64,
+    pub sum_s1: f64,
+    /// Each factor's indices, in the table's order; `Err(why)`: the outcome got none.
+    pub factors: Result<Vec<(String, Estimate)>, String>,
+}
+
+/// The blocks of `sensitivity.csv` (`df`, read from `file`), in the table's order.
+pub fn index_blocks(df: &DataFrame, file: &Path) -> Result<Vec<IndexBlock>, RunError> {
     let (outcome, detector, factor) =
         (str_col(df, "outcome", file)?, str_col(df, "detector", file)?, str_col(df, "factor", file)?);
-    let num = |name: &str| -> Result<Vec<Option<f64>>, RunError> { Ok(f64_col(df, name, file)?.iter().collect()) };
+    // As numbers whatever their type: read back from the CSV, a column of whole numbers or of nulls only
+    // comes as integers or strings. Null: NaN.
+    let num = |name: &str| numbers(df, name, file);
     let (s1, s1_lo, s1_hi, st, st_lo, st_hi) =
         (num("s1")?, num("s1_lo")?, num("s1_hi")?, num("st")?, num("st_lo")?, num("st_hi")?);
-    let (sum_s1, mean) = (num("sum_s1")?, num("outcome_mean")?);
-    let base = u64_col(df, "base_samples", file)?;
+    let (sum_s1, mean, base) = (num("sum_s1")?, num("outcome_mean")?, num("base_samples")?);
     let note = str_col(df, "note", file)?;
+    let mut out = Vec::new();
     let mut r = 0;
     while r < df.height() {
         let key = (outcome.get(r), detector.get(r));
         let end = (r..df.height()).find(|&i| (outcome.get(i), detector.get(i)) != key).unwrap_or(df.height());
-        println!(
-            "\n{} of detector {} (mean {:.4}, {} base rows):",
-            key.0.unwrap_or(""),
-            key.1.unwrap_or(""),
-            mean[r].unwrap_or(f64::NAN),
-            base.get(r).unwrap_or(0)
-        );
-        if s1[r].is_none() {
-            println!("  no indices: {}", note.get(r).unwrap_or("the outcome does not vary"));
-            r = end;
-            continue;
-        }
-        println!("  {:<24} {:>22} {:>22}", "factor", "S1 [95 %]", "ST [95 %]");
-        let mut order: Vec<usize> = (r..end).collect();
-        order.sort_by(|&a, &b| st[b].unwrap_or(0.0).total_cmp(&st[a].unwrap_or(0.0)));
-        let show = |v: Option<f64>, lo: Option<f64>, hi: Option<f64>| {
-            format!("{:.3} [{:.3}, {:.3}]", v.unwrap_or(f64::NAN), lo.unwrap_or(f64::NAN), hi.unwrap_or(f64::NAN))
+        let factors = match s1[r].is_nan() {
+            true => Err(note.get(r).unwrap_or("the outcome does not vary").to_string()),
+            false => Ok((r..end)
+                .map(|i| {
+                    let estimate = Estimate {
+                        s1: s1[i],
+                        s1_interval: (s1_lo[i], s1_hi[i]),
+                        st: st[i],
+                        st_interval: (st_lo[i], st_hi[i]),
+                    };
+                    (factor.get(i).unwrap_or("").to_string(), estimate)
+                })
+                .collect()),
         };
-        for i in order {
-            println!(
-                "  {:<24} {:>22} {:>22}",
-                factor.get(i).unwrap_or(""),
-                show(s1[i], s1_lo[i], s1_hi[i]),
-                show(st[i], st_lo[i], st_hi[i])
-            );
-        }
-        let sum = sum_s1[r].unwrap_or(f64::NAN);
-        println!("  sum of S1 {sum:.3}: interactions hold about {:.3} of the variance", 1.0 - sum);
+        out.push(IndexBlock {
+            outcome: key.0.unwrap_or("").to_string(),
+            detector: key.1.unwrap_or("").to_string(),
+            mean: mean[r],
+            base_samples: base[r] as u64,
+            sum_s1: sum_s1[r],
+            factors,
+        });
         r = end;
+    }
+    Ok(out)
+}
+
+/// Prints the indices, one block per outcome and detector, factors by total index.
+pub fn print(df: &DataFrame) -> Result<(), RunError> {
+    for b in index_blocks(df, Path::new("sensitivity.csv"))? {
+        println!("\n{} of detector {} (mean {:.4}, {} base rows):", b.outcome, b.detector, b.mean, b.base_samples);
+        let mut factors = match b.factors {
+            Ok(f) => f,
+            Err(why) => {
+                println!("  no indices: {why}");
+                continue;
+            }
+        };
+        println!("  {:<24} {:>22} {:>22}", "factor", "S1 [95 %]", "ST [95 %]");
+        factors.sort_by(|a, b| b.1.st.total_cmp(&a.1.st));
+        let show = |v: f64, (lo, hi): (f64, f64)| format!("{v:.3} [{lo:.3}, {hi:.3}]");
+        for (name, e) in factors {
+            println!("  {:<24} {:>22} {:>22}", name, show(e.s1, e.s1_interval), show(e.st, e.st_interval));
+        }
+        let sum = b.sum_s1;
+        println!("  sum of S1 {sum:.3}: interactions hold about {:.3} of the variance", 1.0 - sum);
     }
     Ok(())
 }

@@ -1,4 +1,4 @@
-//! Tables of a report written for reading: counts as integers, rates with 3 decimals, each interval as
+//! Tables and figures of a report written for reading: counts as integers, rates with 3 decimals, each interval as
 //! `[lo, hi]` next to its rate, other numbers to 4 significant digits, and a column that holds one value
 //! on every row said once above the table instead.
 
@@ -7,6 +7,12 @@ use polars::prelude::*;
 /// `<`, `>`, `&` and `"` as HTML entities.
 pub fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+/// A figure of the report folder: the image `file` (by its name), captioned with it.
+pub fn figure(file: &std::path::Path) -> String {
+    let name = escape(&file.file_name().unwrap_or_default().to_string_lossy());
+    format!("<figure><img src=\"{name}\" alt=\"{name}\"><figcaption>{name}</figcaption></figure>\n")
 }
 
 /// Rates and probabilities: shown with 3 decimals.

@@ -653,16 +653,12 @@ fn page(
     false_alarms: &BTreeMap<String, Vec<(f64, f64, f64, f64, f64, u64)>>,
 ) -> Result<String, RunError> {
     use html::escape;
-    let figure = |f: &PathBuf| {
-        let name = escape(&f.file_name().unwrap_or_default().to_string_lossy());
-        format!("<figure><img src=\"{name}\" alt=\"{name}\"><figcaption>{name}</figcaption></figure>\n")
-    };
     let figures = |prefix: &str| -> String {
         r.files
             .iter()
             .filter(|f| f.extension().is_some_and(|e| e == "svg"))
             .filter(|f| f.file_name().is_some_and(|n| n.to_string_lossy().starts_with(prefix)))
-            .map(figure)
+            .map(|f| html::figure(f))
             .collect()
     };
     let mut body = String::new();
@@ -762,7 +758,7 @@ fn page(
     section(
         &format!("What {} studies add", escape(&m.kind)),
         "The method's own record columns (<code>trials.parquet</code>), per detector.",
-        own_files.iter().map(figure).collect(),
+        own_files.iter().map(|f| html::figure(f)).collect(),
     );
     for (title, content) in own {
         section(&escape(title), "", content.clone());

@@ -8,6 +8,7 @@ use plotters::prelude::*;
 use polars::prelude::*;
 
 use crate::engine::schema::col;
+use crate::engine::sensitivity::Estimate;
 
 pub const FONT: &str = "sans-serif";
 
@@ -590,14 +591,14 @@ pub fn tail(file: &Path, p: &TailPlot) -> Result<(), String> {
 pub struct SensitivityBars<'a> {
     pub outcome: &'a str,
     pub detector: &'a str,
-    /// (factor, S1, S1 interval, ST, ST interval), drawn bottom to top.
-    pub factors: Vec<(String, f64, (f64, f64), f64, (f64, f64))>,
+    /// (factor, its indices), drawn bottom to top.
+    pub factors: Vec<(String, Estimate)>,
 }
 
 pub fn sensitivity_bars(file: &Path, p: &SensitivityBars) -> Result<(), String> {
     let k = p.factors.len().max(1) as i32;
-    let lowest = p.factors.iter().map(|f| f.2.0.min(f.4.0)).fold(0.0f64, f64::min);
-    let highest = p.factors.iter().map(|f| f.2.1.max(f.4.1)).fold(1.0f64, f64::max);
+    let lowest = p.factors.iter().map(|(_, f)| f.s1_interval.0.min(f.st_interval.0)).fold(0.0f64, f64::min);
+    let highest = p.factors.iter().map(|(_, f)| f.s1_interval.1.max(f.st_interval.1)).fold(1.0f64, f64::max);
     let figure = SVGBackend::new(file, (900, 130 + 64 * k as u32)).into_drawing_area();
     figure.fill(&WHITE).map_err(e)?;
     let caption = format!("Sobol indices of {} for detector {} (95 % bootstrap intervals)", p.outcome, p.detector);
@@ -626,15 +627,17 @@ pub fn sensitivity_bars(file: &Path, p: &SensitivityBars) -> Result<(), String> 
     let segment_px = chart.plotting_area().dim_in_pixel().1 / k as u32;
     let at = |frac: f64| (frac * segment_px as f64).round() as u32;
     let (s1_colour, st_colour) = (color(0), color(1));
-    for (i, (_, s1, s1_ci, st, st_ci)) in p.factors.iter().enumerate() {
+    for (i, (_, f)) in p.factors.iter().enumerate() {
         let (top, bottom) = (|| SegmentValue::Exact(i as i32), || SegmentValue::Exact(i as i32 + 1));
         // Segment i is drawn from its top (Exact(i)) down: S1 in the upper half, ST in the lower.
-        for (value, (lo, hi), colour, upper) in [(s1, s1_ci, s1_colour, true), (st, st_ci, st_colour, false)] {
+        for (value, (lo, hi), colour, upper) in
+            [(f.s1, f.s1_interval, s1_colour, true), (f.st, f.st_interval, st_colour, false)]
+        {
             let (t, b) = if upper { (at(0.12), at(0.52)) } else { (at(0.52), at(0.12)) };
-            let mut bar = Rectangle::new([(0.0, top()), (*value, bottom())], colour.mix(0.8).filled());
+            let mut bar = Rectangle::new([(0.0, top()), (value, bottom())], colour.mix(0.8).filled());
             bar.set_margin(t, b, 0, 0);
             let (wt, wb) = if upper { (at(0.31), at(0.69) - 2) } else { (at(0.69) - 2, at(0.31)) };
-            let mut whisker = Rectangle::new([(*lo, top()), (*hi, bottom())], BLACK.filled());
+            let mut whisker = Rectangle::new([(lo, top()), (hi, bottom())], BLACK.filled());
             whisker.set_margin(wt, wb, 0, 0);
             chart.draw_series([bar, whisker]).map_err(e)?;
         }

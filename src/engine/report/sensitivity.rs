@@ -3,11 +3,12 @@
 
 use std::path::Path;
 
-use super::html::escape;
+use super::html::{escape, figure};
 use super::plots::{self, SensitivityBars};
 use super::{Report, shell, table_of};
 use crate::engine::runner::{Manifest, RunError, io, write_atomically};
-use crate::engine::tables::{f64_col, read_summary, str_col};
+use crate::engine::sensitivity::index_blocks;
+use crate::engine::tables::read_summary;
 
 /// Writes `dir/report/`: `sensitivity_<outcome>_<detector>.svg` and `report.html`.
 pub(super) fn write(dir: &Path, manifest: &Manifest) -> Result<Report, RunError> {
@@ -20,50 +21,26 @@ pub(super) fn write(dir: &Path, manifest: &Manifest) -> Result<Report, RunError>
         )));
     }
     let df = read_summary(&path)?;
-    let (outcome, detector, factor) =
-        (str_col(&df, "outcome", &path)?, str_col(&df, "detector", &path)?, str_col(&df, "factor", &path)?);
-    let num = |name: &str| -> Result<Vec<Option<f64>>, RunError> { Ok(f64_col(&df, name, &path)?.iter().collect()) };
-    let (s1, s1_lo, s1_hi, st, st_lo, st_hi) =
-        (num("s1")?, num("s1_lo")?, num("s1_hi")?, num("st")?, num("st_lo")?, num("st_hi")?);
-    let note = str_col(&df, "note", &path)?;
     let out = dir.join("report");
     std::fs::create_dir_all(&out).map_err(io(&out))?;
     plots::register_font();
     let mut report = Report::default();
-    let mut r = 0;
-    while r < df.height() {
-        let key = (outcome.get(r).unwrap_or(""), detector.get(r).unwrap_or(""));
-        let end = (r..df.height()).find(|&i| (outcome.get(i), detector.get(i)) != (Some(key.0), Some(key.1)));
-        let end = end.unwrap_or(df.height());
-        if s1[r].is_none() {
-            let why = note.get(r).unwrap_or("the outcome does not vary");
-            report.warnings.push(format!("{} of detector {}: no indices: {why}", key.0, key.1));
-            r = end;
-            continue;
-        }
-        let get = |v: &[Option<f64>], i: usize| v[i].unwrap_or(f64::NAN);
-        let mut factors: Vec<_> = (r..end)
-            .map(|i| {
-                let name = factor.get(i).unwrap_or("").to_string();
-                (name, get(&s1, i), (get(&s1_lo, i), get(&s1_hi, i)), get(&st, i), (get(&st_lo, i), get(&st_hi, i)))
-            })
-            .collect();
+    for b in index_blocks(&df, &path)? {
+        let mut factors = match b.factors {
+            Ok(f) => f,
+            Err(why) => {
+                report.warnings.push(format!("{} of detector {}: no indices: {why}", b.outcome, b.detector));
+                continue;
+            }
+        };
         // Largest total index on top (the chart draws the first factor at the bottom).
-        factors.sort_by(|a, b| a.3.total_cmp(&b.3));
-        let file = out.join(format!("sensitivity_{}_{}.svg", key.0, key.1));
-        let bars = SensitivityBars { outcome: key.0, detector: key.1, factors };
+        factors.sort_by(|a, b| a.1.st.total_cmp(&b.1.st));
+        let file = out.join(format!("sensitivity_{}_{}.svg", b.outcome, b.detector));
+        let bars = SensitivityBars { outcome: &b.outcome, detector: &b.detector, factors };
         plots::sensitivity_bars(&file, &bars).map_err(|m| RunError::Internal(format!("{}: {m}", file.display())))?;
         report.files.push(file);
-        r = end;
     }
-    let figures: String = report
-        .files
-        .iter()
-        .map(|f| {
-            let name = escape(&f.file_name().unwrap_or_default().to_string_lossy());
-            format!("<figure><img src=\"{name}\" alt=\"{name}\"><figcaption>{name}</figcaption></figure>\n")
-        })
-        .collect();
+    let figures: String = report.files.iter().map(|f| figure(f)).collect();
     let body = format!(
         "<h2>Which factors drive the outcomes: Sobol indices</h2>\n<p>A Saltelli design over the factors the deck's \
          trials draw: {design}. <b>S1</b> (first order, Saltelli 2010) is the share of an outcome's variance that a \
