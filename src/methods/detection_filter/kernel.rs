@@ -79,6 +79,8 @@ pub trait Element: Copy + std::fmt::Debug {
     const WIDTH: usize;
     fn from_fn(f: impl FnMut(usize) -> f64) -> Self;
     fn mul_add(m: &Self, x: &Self, acc: &mut Self);
+    /// [`Element::mul_add`] with the same coefficient `m` for every trial: the same operations.
+    fn mul_add_shared(m: f64, x: &Self, acc: &mut Self);
 }
 
 impl Element for f64 {
@@ -89,6 +91,10 @@ impl Element for f64 {
     }
     #[inline(always)]
     fn mul_add(m: &Self, x: &Self, acc: &mut Self) {
+        *acc = m * x + *acc;
+    }
+    #[inline(always)]
+    fn mul_add_shared(m: f64, x: &Self, acc: &mut Self) {
         *acc = m * x + *acc;
     }
 }
@@ -103,6 +109,12 @@ impl Element for Lane {
     fn mul_add(m: &Self, x: &Self, acc: &mut Self) {
         for l in 0..LANES {
             acc[l] = m[l] * x[l] + acc[l];
+        }
+    }
+    #[inline(always)]
+    fn mul_add_shared(m: f64, x: &Self, acc: &mut Self) {
+        for l in 0..LANES {
+            acc[l] = m * x[l] + acc[l];
         }
     }
 }
@@ -124,6 +136,10 @@ pub struct Product<E> {
     row_end: Vec<usize>,
     /// (index into the stacked vector, coefficient).
     entries: Vec<(usize, E)>,
+    /// The entries with one coefficient each, when every trial of a lane group has the same ones (no
+    /// per-trial model): the product then loads one number per entry instead of one per lane, the
+    /// same operations otherwise. Idle lanes take the shared coefficients (their results are dropped).
+    shared: Option<Vec<(usize, f64)>>,
 }
 
 impl<E: Element> Product<E> {
@@ -132,17 +148,25 @@ impl<E: Element> Product<E> {
         assert_eq!(models.len(), E::WIDTH, "one model per trial of the element");
         let mut row_end = Vec::with_capacity(nrows);
         let mut entries = Vec::new();
+        // Per entry, the coefficient all models share (bit for bit), if they do.
+        let mut shared = Vec::new();
         for i in 0..nrows {
             for b in blocks {
                 assert_eq!(b.pattern.nrows(), nrows, "blocks of a product share their rows");
                 for &j in &b.pattern.cols[b.pattern.row_start[i]..b.pattern.row_start[i + 1]] {
-                    let value = E::from_fn(|l| models[l].map_or(0.0, |m| b.sign * (b.matrix)(m)[(i, j)]));
+                    let of = |m: &M| b.sign * (b.matrix)(m)[(i, j)];
+                    let value = E::from_fn(|l| models[l].map_or(0.0, of));
                     entries.push((b.offset + j, value));
+                    let mut values = models.iter().flatten().map(|m| of(m));
+                    let first = values.next();
+                    shared
+                        .push(first.filter(|v| values.all(|w| w.to_bits() == v.to_bits())).map(|v| (b.offset + j, v)));
                 }
             }
             row_end.push(entries.len());
         }
-        Product { row_end, entries }
+        let shared = (E::WIDTH > 1).then(|| shared.into_iter().collect::<Option<Vec<_>>>()).flatten();
+        Product { row_end, entries, shared }
     }
 
     /// `out = M v` (accumulated from zero, see the module docs for the operation order).
@@ -162,15 +186,31 @@ impl<E: Element> Product<E> {
     /// per product.
     #[inline(always)]
     fn accumulate(&self, out: &mut [E], v: &[E], start: impl Fn(usize) -> E) {
-        let mut first = 0;
-        for (i, (out_i, &end)) in out.iter_mut().zip(&self.row_end).enumerate() {
-            let mut acc = start(i);
-            for (j, m) in &self.entries[first..end] {
-                E::mul_add(m, &v[*j], &mut acc);
-            }
-            *out_i = acc;
-            first = end;
+        if let Some(shared) = &self.shared {
+            return rows(&self.row_end, shared, out, v, start, |m, x, acc| E::mul_add_shared(*m, x, acc));
         }
+        rows(&self.row_end, &self.entries, out, v, start, E::mul_add);
+    }
+}
+
+/// Row i of `out`: `acc = start(i)`, then `mul_add(m, v_j, acc)` over the row's entries; `out_i = acc`.
+#[inline(always)]
+fn rows<E: Element, C>(
+    row_end: &[usize],
+    entries: &[(usize, C)],
+    out: &mut [E],
+    v: &[E],
+    start: impl Fn(usize) -> E,
+    mul_add: impl Fn(&C, &E, &mut E),
+) {
+    let mut first = 0;
+    for (i, (out_i, &end)) in out.iter_mut().zip(row_end).enumerate() {
+        let mut acc = start(i);
+        for (j, m) in &entries[first..end] {
+            mul_add(m, &v[*j], &mut acc);
+        }
+        *out_i = acc;
+        first = end;
     }
 }
 
@@ -456,6 +496,35 @@ mod tests {
             got.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
             want.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
         );
+    }
+
+    /// One model for every lane (one idle): the product takes the shared coefficients, and each live lane
+    /// rounds exactly like the one-trial product; different models per lane keep theirs.
+    #[test]
+    fn lanes_that_share_a_model_share_its_coefficients_and_round_alike() {
+        let m = example();
+        let pattern = Pattern::nonzeros(&m);
+        let models: Vec<Option<&DMatrix<f64>>> = (0..LANES).map(|l| (l != 5).then_some(&m)).collect();
+        let lanes = product::<Lane>(&pattern, &models, -1.0);
+        assert_eq!(lanes.shared.as_ref().map(Vec::len), Some(pattern.len()));
+        let other = m.map(|v| v * 1.5);
+        let mixed: Vec<Option<&DMatrix<f64>>> = (0..LANES).map(|l| Some(if l == 2 { &other } else { &m })).collect();
+        assert!(product::<Lane>(&pattern, &mixed, -1.0).shared.is_none());
+        assert!(product::<f64>(&pattern, &[Some(&m)], -1.0).shared.is_none(), "one trial: nothing to share");
+
+        let xs: Vec<Vec<f64>> = (0..LANES).map(|l| (0..5).map(|j| ((l * 5 + j) as f64).cos()).collect()).collect();
+        let x_lanes: Vec<Lane> = (0..5).map(|j| std::array::from_fn(|l| xs[l][j])).collect();
+        let base: Vec<Lane> = (0..6).map(|i| [0.3 - 0.1 * i as f64; LANES]).collect();
+        let mut y_lanes = vec![[0.0; LANES]; 6];
+        lanes.mul_add(&mut y_lanes, &base, &x_lanes);
+        for (l, x) in xs.iter().enumerate().filter(|(l, _)| *l != 5) {
+            let base: Vec<f64> = (0..6).map(|i| 0.3 - 0.1 * i as f64).collect();
+            let mut y = vec![0.0; 6];
+            product::<f64>(&pattern, &[Some(&m)], -1.0).mul_add(&mut y, &base, x);
+            for i in 0..6 {
+                assert_eq!(y_lanes[i][l].to_bits(), y[i].to_bits(), "lane {l} row {i}");
+            }
+        }
     }
 
     #[test]
