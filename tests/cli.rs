@@ -1942,21 +1942,21 @@ fn sensitivity_indices_see_what_the_detector_sees_whatever_the_shards_or_resume(
     let s = |n: &str| tmp.path().join(n).to_str().unwrap().to_string();
     let run = |extra: &[&str], out: &str| {
         let out = s(out);
-        let mut args = vec!["sensitivity", deck, "--base-samples", "400", "--out", &out];
+        let mut args = vec!["sensitivity", deck, "--base-samples", "800", "--out", &out];
         args.extend_from_slice(extra);
         fdimc(&args)
     };
     let printed = ok(&run(&[], "whole"));
-    // Faulty: kind, output, size, onset, noise scale, throttle, noise = 7 factors, 400 x 9 trials;
-    // fault-free: noise scale, throttle, noise, 400 x 5.
-    assert!(printed.contains("faulty trials: 7 factors (fault_kind, output, size, onset_s, noise_scale, throttle_unused, noise_realisation): 3600 trials"), "{printed}");
+    // Faulty: kind, output, size, onset, noise scale, throttle, noise = 7 factors, 800 x 9 trials;
+    // fault-free: noise scale, throttle, noise, 800 x 5. 22,400 rows: the analysis reads them in two slices.
+    assert!(printed.contains("faulty trials: 7 factors (fault_kind, output, size, onset_s, noise_scale, throttle_unused, noise_realisation): 7200 trials"), "{printed}");
     assert!(
-        printed.contains("fault-free trials: 3 factors (noise_scale, throttle_unused, noise_realisation): 2000 trials"),
+        printed.contains("fault-free trials: 3 factors (noise_scale, throttle_unused, noise_realisation): 4000 trials"),
         "{printed}"
     );
     let table = csv_frame(&tmp.path().join("whole/sensitivity.csv"));
     assert_eq!(table.height(), 2 * (7 * 3 + 3), "detectors x (factors x outcomes) per part");
-    assert_eq!(read_frame(&tmp.path().join("whole/trials.parquet")).height(), 2 * 5600);
+    assert_eq!(read_frame(&tmp.path().join("whole/trials.parquet")).height(), 2 * 11200);
     let rows = |outcome: &str, detector: &str, factor: &str| {
         table
             .clone()
@@ -1998,7 +1998,7 @@ fn sensitivity_indices_see_what_the_detector_sees_whatever_the_shards_or_resume(
         assert_eq!(whole, std::fs::read_to_string(tmp.path().join(other).join("sensitivity.csv")).unwrap(), "{other}");
     }
     // A plain run's shard does not merge with a sensitivity run's.
-    ok(&fdimc(&["run", deck, "--trials", "5600", "--shard", "2/3", "--quiet", "--out", &s("plain2")]));
+    ok(&fdimc(&["run", deck, "--trials", "11200", "--shard", "2/3", "--quiet", "--out", &s("plain2")]));
     let out = fdimc(&["merge", &s("s0"), &s("s1"), &s("plain2"), "--out", &s("bad")]);
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
 

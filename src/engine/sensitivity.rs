@@ -47,8 +47,8 @@ use super::output::write_table;
 use super::runner::{Manifest, RunError, pol};
 use super::schema::col;
 use super::streams::{Substream, trial_rng};
-use super::tables::{bool_col, complete_run, f64_col, list_col, numbers, str_col, u64_col};
-use super::thresholds::{alarms_at, read_thresholds};
+use super::tables::{bool_col, column_names, complete_run, f64_col, list_col, numbers, read_slice, str_col, u64_col};
+use super::thresholds::{SLICE_ROWS, alarms_at, read_thresholds};
 
 /// Name of the noise realisation's factor.
 pub const NOISE_FACTOR: &str = "noise_realisation";
@@ -324,16 +324,9 @@ pub fn analyse(dir: &Path, thresholds: Option<&Path>) -> Result<DataFrame, RunEr
     let design = manifest.sensitivity.clone().ok_or_else(|| {
         RunError::Invalid(format!("{}: not a sensitivity run (made by `fdimc sensitivity`)", dir.display()))
     })?;
-    let records = super::runner::read_parquet(&path)?;
+    let per_detector = read_rows(&manifest, &path, thresholds)?;
+    let source = thresholds.map_or("deck".to_string(), |file| format!("from {}", file.display()));
     let mut table = Table::default();
-    let mut per_detector = rows_per_detector(&records, &manifest, &path)?;
-    let source = match thresholds {
-        Some(file) => {
-            at_thresholds(&records, &manifest, &path, file, &mut per_detector)?;
-            format!("from {}", file.display())
-        }
-        None => "deck".to_string(),
-    };
     let n = design.base_samples as usize;
     let mut first = 0usize;
     for (p, part) in design.parts.iter().enumerate() {
@@ -416,35 +409,96 @@ fn too_few(outcome: &str, values: &[f64]) -> Option<String> {
 /// The key of the bootstrap streams ("sensitiv" in ASCII), apart from every trial's.
 const BOOTSTRAP_KEY: u64 = 0x7365_6e73_6974_6976;
 
-/// Replaces each detector's alarms by those at the whole-detector thresholds of `file` (another run's
-/// `thresholds.csv`), from the recorded statistics, as `fdimc summarize --thresholds` does.
+/// Each detector's rows of the complete run in `path`, read 16,384 rows at a time (only the columns the
+/// outcomes need), so memory holds the outcomes, not the records. `thresholds`: another run's
+/// `thresholds.csv`, whose whole-detector thresholds replace the deck's (the alarms are re-read from the
+/// recorded statistics, as `fdimc summarize --thresholds` does).
+fn read_rows(manifest: &Manifest, path: &Path, thresholds: Option<&Path>) -> Result<Vec<DetectorRows>, RunError> {
+    let trials = manifest.trials as usize;
+    if manifest.rows != manifest.trials * manifest.detectors.len() as u64 {
+        return Err(RunError::Invalid(format!(
+            "{}: {} rows for {} trials x {} detectors: sensitivity needs one row per trial and detector",
+            path.display(),
+            manifest.rows,
+            trials,
+            manifest.detectors.len()
+        )));
+    }
+    let mut columns: Vec<String> = [
+        col::TRIAL,
+        col::DETECTOR,
+        col::FAILURE,
+        col::DETECTED,
+        col::FALSE_ALARM,
+        col::ISOLATED_CORRECTLY,
+        col::DELAY_S,
+        col::ONSET_S,
+        col::FAULT_FREE,
+    ]
+    .map(String::from)
+    .to_vec();
+    let whole = match thresholds {
+        None => None,
+        Some(file) => {
+            let statistics: Vec<String> = column_names(path)?
+                .iter()
+                .filter_map(|c| c.strip_prefix(col::PRE_MAX_PREFIX))
+                .map(str::to_string)
+                .collect();
+            if statistics.is_empty() {
+                return Err(RunError::Invalid(format!(
+                    "--thresholds {}: the {} run in {} records no detection statistic to apply thresholds to",
+                    file.display(),
+                    manifest.kind,
+                    path.display()
+                )));
+            }
+            let (_, whole) = read_thresholds(file)?.for_run(file, &manifest.detectors, statistics.len())?;
+            for s in &statistics {
+                columns.extend([col::pre_max(s), col::fp_t(s), col::fp_v(s)]);
+            }
+            Some((statistics, whole))
+        }
+    };
+    let mut out: Vec<DetectorRows> = manifest
+        .detectors
+        .iter()
+        .map(|_| DetectorRows {
+            failure: vec![None; trials],
+            detected: vec![false; trials],
+            false_alarm: vec![false; trials],
+            isolated_correctly: vec![false; trials],
+            delay_s: vec![None; trials],
+            onset_s: vec![None; trials],
+        })
+        .collect();
+    let mut offset = 0;
+    while offset < manifest.rows as usize {
+        let records = read_slice(path, offset, SLICE_ROWS, Some(columns.clone()))?;
+        add_rows(&records, manifest, path, &mut out)?;
+        if let Some((statistics, whole)) = &whole {
+            at_thresholds(&records, manifest, path, statistics, whole, &mut out)?;
+        }
+        offset += SLICE_ROWS;
+    }
+    Ok(out)
+}
+
+/// Replaces the alarms of `records`' rows by those at each detector's whole-detector thresholds `whole`,
+/// from the recorded `statistics`.
 fn at_thresholds(
     records: &DataFrame,
     manifest: &Manifest,
     path: &Path,
-    file: &Path,
+    statistics: &[String],
+    whole: &[Vec<f64>],
     rows: &mut [DetectorRows],
 ) -> Result<(), RunError> {
-    let statistics: Vec<String> = records
-        .get_column_names()
-        .iter()
-        .filter_map(|c| c.strip_prefix(col::PRE_MAX_PREFIX))
-        .map(str::to_string)
-        .collect();
-    if statistics.is_empty() {
-        return Err(RunError::Invalid(format!(
-            "--thresholds {}: the {} run in {} records no detection statistic to apply thresholds to",
-            file.display(),
-            manifest.kind,
-            path.display()
-        )));
-    }
-    let (_, whole) = read_thresholds(file)?.for_run(file, &manifest.detectors, statistics.len())?;
     let (trial, detector) = (u64_col(records, col::TRIAL, path)?, str_col(records, col::DETECTOR, path)?);
     let fault_free = bool_col(records, col::FAULT_FREE, path)?;
     let mut pre = Vec::new();
     let (mut fp_t, mut fp_v) = (Vec::new(), Vec::new());
-    for s in &statistics {
+    for s in statistics {
         pre.push(numbers(records, &col::pre_max(s), path)?);
         fp_t.push(list_col(records, &col::fp_t(s), path)?);
         fp_v.push(list_col(records, &col::fp_v(s), path)?);
@@ -486,40 +540,19 @@ impl DetectorRows {
     }
 }
 
-/// Each detector's rows, indexed by trial; refuses a run with other than one row per trial and detector.
-fn rows_per_detector(records: &DataFrame, manifest: &Manifest, path: &Path) -> Result<Vec<DetectorRows>, RunError> {
+/// Adds `records`' rows to each detector's rows, indexed by trial; refuses a row outside the design.
+fn add_rows(records: &DataFrame, manifest: &Manifest, path: &Path, out: &mut [DetectorRows]) -> Result<(), RunError> {
     let trials = manifest.trials as usize;
-    if records.height() != trials * manifest.detectors.len() {
-        return Err(RunError::Invalid(format!(
-            "{}: {} rows for {} trials x {} detectors: sensitivity needs one row per trial and detector",
-            path.display(),
-            records.height(),
-            trials,
-            manifest.detectors.len()
-        )));
-    }
     let (trial, detector) = (u64_col(records, col::TRIAL, path)?, str_col(records, col::DETECTOR, path)?);
     let failure = str_col(records, col::FAILURE, path)?;
     let (detected, false_alarm) = (bool_col(records, col::DETECTED, path)?, bool_col(records, col::FALSE_ALARM, path)?);
     let isolated = bool_col(records, col::ISOLATED_CORRECTLY, path)?;
     let (delay, onset) = (f64_col(records, col::DELAY_S, path)?, f64_col(records, col::ONSET_S, path)?);
-    let mut out: Vec<DetectorRows> = manifest
-        .detectors
-        .iter()
-        .map(|_| DetectorRows {
-            failure: vec![None; trials],
-            detected: vec![false; trials],
-            false_alarm: vec![false; trials],
-            isolated_correctly: vec![false; trials],
-            delay_s: vec![None; trials],
-            onset_s: vec![None; trials],
-        })
-        .collect();
     for r in 0..records.height() {
         let (t, name) = (trial.get(r).unwrap_or(u64::MAX) as usize, detector.get(r).unwrap_or(""));
         let Some(d) = manifest.detectors.iter().position(|n| n == name).filter(|_| t < trials) else {
             return Err(RunError::Invalid(format!(
-                "{}: row {r} (trial {t}, detector {name:?}) is not in the run's design",
+                "{}: row (trial {t}, detector {name:?}) is not in the run's design",
                 path.display()
             )));
         };
@@ -531,7 +564,7 @@ fn rows_per_detector(records: &DataFrame, manifest: &Manifest, path: &Path) -> R
         rows.delay_s[t] = delay.get(r);
         rows.onset_s[t] = onset.get(r);
     }
-    Ok(out)
+    Ok(())
 }
 
 struct Row<'a> {
