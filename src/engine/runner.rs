@@ -207,9 +207,9 @@ impl Shard {
                 Shard { index, count: tasks }
             }
         };
+        // Each arm above refused an index outside 0..count, so count is at least 1 here.
         match count {
             Some(c) if c != shard.count => Err(format!("auto/{c}: the scheduler's array has {} tasks", shard.count)),
-            _ if shard.count == 0 => Err("auto: an array of 0 tasks".into()),
             _ => Ok(shard),
         }
     }
@@ -350,7 +350,7 @@ impl FolderLock {
             }
             Err(std::fs::TryLockError::Error(e)) => return Err(RunError::Io { file: path, source: e }),
         }
-        let since = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+        let since = unix_time_s();
         let host = std::fs::read_to_string("/proc/sys/kernel/hostname").unwrap_or_default();
         let holder = format!(
             "pid={} host={} since_unix_s={since} command={}\n",
@@ -364,12 +364,17 @@ impl FolderLock {
     }
 }
 
+/// Seconds since the Unix epoch (0 on a clock set before it).
+fn unix_time_s() -> u64 {
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs())
+}
+
 /// `pid 123 on host n1, started 42 s ago: fdimc run ...` from a lock file's text.
 fn describe_holder(text: &str) -> String {
     let field = |name: &str| {
         text.split_whitespace().find_map(|w| w.strip_prefix(&format!("{name}="))).unwrap_or("?").to_string()
     };
-    let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_secs());
+    let now = unix_time_s();
     let ago = field("since_unix_s").parse::<u64>().map_or("?".into(), |t| now.saturating_sub(t).to_string());
     let command = text.split_once("command=").map_or("", |c| c.1);
     format!("pid {} on host {}, started {ago} s ago: {command}", field("pid"), field("host"))

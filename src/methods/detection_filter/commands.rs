@@ -308,7 +308,7 @@ pub fn simulate(study: &LtiStudy, trial: u64, detector: Option<&str>, out: &Path
         study.header.steps,
         out.display()
     );
-    match spec.output {
+    match spec.output() {
         Some(j) => {
             println!(
                 "  fault               {} {} size {} from {} s",

@@ -157,10 +157,13 @@ impl<E: Element> Product<E> {
                     let of = |m: &M| b.sign * (b.matrix)(m)[(i, j)];
                     let value = E::from_fn(|l| models[l].map_or(0.0, of));
                     entries.push((b.offset + j, value));
-                    let mut values = models.iter().flatten().map(|m| of(m));
-                    let first = values.next();
-                    shared
-                        .push(first.filter(|v| values.all(|w| w.to_bits() == v.to_bits())).map(|v| (b.offset + j, v)));
+                    // One trial per element has nothing to share.
+                    if E::WIDTH > 1 {
+                        let mut values = models.iter().flatten().map(|m| of(m));
+                        let first = values.next();
+                        let same = first.filter(|v| values.all(|w| w.to_bits() == v.to_bits()));
+                        shared.push(same.map(|v| (b.offset + j, v)));
+                    }
                 }
             }
             row_end.push(entries.len());

@@ -61,7 +61,7 @@ impl<'a> RecordBuilder<'a> {
         let spec = &result.spec;
         for (d, outcome) in s.detectors.iter().zip(&result.detectors) {
             let o = outcome.as_ref().ok();
-            let truth = name(spec.output);
+            let truth = name(spec.output());
             let isolated = match d.params.isolation {
                 Isolation::LargestNormalised => o.and_then(|o| name(o.isolated_by_max)),
                 Isolation::Signature => o.and_then(|o| name(o.isolated_by_direction)),
@@ -159,7 +159,6 @@ mod tests {
                 size_unit: crate::fault::deck::unit::SENSOR_SIGMA,
                 onset_s: 5.0,
             },
-            output: faulty.then_some(q),
             noise_scale: 1.0,
             noise_bin: 1.0,
             parameter_errors: vec![],

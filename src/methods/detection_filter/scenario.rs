@@ -21,14 +21,19 @@ pub struct TrialSpec {
     pub noise_trial: u64,
     /// The trial's faults and their labels.
     pub fault: TrialFaults,
-    /// Faulty output index.
-    pub output: Option<usize>,
     pub noise_scale: f64,
     pub noise_bin: f64,
     /// Relative error of each `monte_carlo.parameter_error`, in deck order.
     pub parameter_errors: Vec<f64>,
     /// Largest |group label| of the parameter errors (0 without any).
     pub parameter_error_bin: f64,
+}
+
+impl TrialSpec {
+    /// The faulty output (the first fault's), `None` when fault-free.
+    pub fn output(&self) -> Option<usize> {
+        self.fault.faults.first().map(|f| f.channel)
+    }
 }
 
 /// Draws trial scenarios for one study.
@@ -62,7 +67,6 @@ impl<'a> ScenarioSampler<'a> {
             trial,
             noise_trial: self.units.noise_trial(trial),
             fault: TrialFaults::none(),
-            output: None,
             noise_scale,
             noise_bin,
             parameter_errors,
@@ -74,11 +78,9 @@ impl<'a> ScenarioSampler<'a> {
         match (sampled, size_pick) {
             (Some((k, output)), Some(size)) => {
                 spec.fault = TrialFaults::drawn(&mc.faults[k], &[output], size, onset, |j| s.sensor_sigma[j]);
-                spec.output = Some(output);
             }
             _ => {
                 spec.fault = TrialFaults::fixed(&s.faults);
-                spec.output = s.faults.first().map(|f| f.channel);
             }
         }
         spec
