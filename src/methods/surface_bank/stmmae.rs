@@ -241,17 +241,6 @@ pub struct BankFilters {
     surfaces: [Stekf<6, 5>; SURFACES],
 }
 
-/// What one step of a bank's filters hands its likelihoods and scoring.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FiltersStep {
-    /// Filter i's innovation (index 0: no fault, i: surface i-1).
-    pub innovations: [Innovation<5>; MODELS],
-    /// Filter i's estimate of `[p, q, r, alpha, beta]` after this step's update.
-    pub estimates: [SVector<f64, 5>; MODELS],
-    /// Filter i's estimate of surface i-1's position (rad).
-    pub surface_estimates_rad: [f64; SURFACES],
-}
-
 impl BankFilters {
     /// The filters of a bank with `params` on the design airframe `airframe` (the detector's model,
     /// which may differ from the truth), started at the first measurement `y0` with the surfaces at
@@ -280,22 +269,35 @@ impl BankFilters {
         BankFilters { airframe, dt_s, no_fault, surfaces }
     }
 
-    /// Every filter updates with `y` and predicts with `input`.
-    pub fn step(&mut self, y: &SVector<f64, 5>, input: &BankInput) -> FiltersStep {
+    /// Every filter updates with `y` and predicts with `input`; the banks read the step through
+    /// [`Self::innovation`] and [`Self::estimates`].
+    pub fn step(&mut self, y: &SVector<f64, 5>, input: &BankInput) {
         let model = NoFault { airframe: &self.airframe, dt_s: self.dt_s };
-        let no_fault = self.no_fault.step(&model, y, input);
-        let surfaces: [Innovation<5>; SURFACES] = std::array::from_fn(|i| {
-            let model = SurfaceFault { airframe: &self.airframe, dt_s: self.dt_s, surface: i };
-            self.surfaces[i].step(&model, y, input)
-        });
-        FiltersStep {
-            innovations: std::array::from_fn(|i| if i == 0 { no_fault } else { surfaces[i - 1] }),
-            estimates: std::array::from_fn(|i| match i {
-                0 => *self.no_fault.estimate(),
-                i => self.surfaces[i - 1].estimate().fixed_rows::<5>(0).into_owned(),
-            }),
-            surface_estimates_rad: std::array::from_fn(|i| self.surfaces[i].estimate()[5]),
+        self.no_fault.step(&model, y, input);
+        for (surface, filter) in self.surfaces.iter_mut().enumerate() {
+            filter.step(&SurfaceFault { airframe: &self.airframe, dt_s: self.dt_s, surface }, y, input);
         }
+    }
+
+    /// Filter `model`'s innovation at the last step (0: no fault, i: surface i-1).
+    pub fn innovation(&self, model: usize) -> &Innovation<5> {
+        match model {
+            0 => self.no_fault.innovation(),
+            i => self.surfaces[i - 1].innovation(),
+        }
+    }
+
+    /// Each filter's estimate of `[p, q, r, alpha, beta]` after the last step's update.
+    pub fn estimates(&self) -> [SVector<f64, 5>; MODELS] {
+        std::array::from_fn(|i| match i {
+            0 => *self.no_fault.estimate(),
+            i => self.surfaces[i - 1].estimate().fixed_rows::<5>(0).into_owned(),
+        })
+    }
+
+    /// Filter i's estimate of surface i-1's position (rad).
+    pub fn surface_estimates_rad(&self) -> [f64; SURFACES] {
+        std::array::from_fn(|i| self.surfaces[i].estimate()[5])
     }
 
     /// The six filters' health counters, summed.
@@ -336,15 +338,16 @@ impl SurfaceBank {
     }
 
     /// One sample: the probabilities and the decision rule on one step of the filters.
-    pub fn step(&mut self, filters: &FiltersStep) -> BankStep {
-        let log_likelihood = filters.innovations.map(|innovation| self.likelihood.log_likelihood(&innovation));
+    pub fn step(&mut self, filters: &BankFilters) -> BankStep {
+        let log_likelihood: [f64; MODELS] =
+            std::array::from_fn(|i| self.likelihood.log_likelihood(filters.innovation(i)));
         self.probabilities.update(&log_likelihood);
         let probabilities = *self.probabilities.probabilities();
         let decision = self.rule.observe(&probabilities);
         BankStep {
             probabilities,
-            surface_estimates_rad: filters.surface_estimates_rad,
-            blended: self.probabilities.blend(&filters.estimates),
+            surface_estimates_rad: filters.surface_estimates_rad(),
+            blended: self.probabilities.blend(&filters.estimates()),
             decision,
         }
     }
@@ -437,7 +440,8 @@ mod tests {
         let mut decisions = Vec::new();
         for k in 0..(seconds / dt_s) as usize {
             let t = k as f64 * dt_s;
-            let step = bank.step(&filters.step(&measure(&truth), &input));
+            filters.step(&measure(&truth), &input);
+            let step = bank.step(&filters);
             if let Some(d) = step.decision {
                 decisions.push((t, d));
             }

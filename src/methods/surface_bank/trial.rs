@@ -37,7 +37,7 @@ use crate::estimation::bank::Decision;
 use crate::estimation::stekf::FilterHealth;
 use crate::methods::surface_bank::actuator::{ActuatorFault, effective_positions, faulty_commands};
 use crate::methods::surface_bank::scenario::{SurfaceScenarioSampler, SurfaceTrialSpec};
-use crate::methods::surface_bank::stmmae::{BankFilters, BankInput, BankParams, FiltersStep, MODELS, SurfaceBank};
+use crate::methods::surface_bank::stmmae::{BankFilters, BankInput, BankParams, MODELS, SurfaceBank};
 use crate::methods::surface_bank::study::{SensorNoise, SurfaceStudy};
 use crate::methods::surface_bank::uav::{
     Actuators, AerosondeParams, Autopilot, AutopilotGains, ReducedInputs, SURFACES, Setpoints, air_data, step_rk4, trim,
@@ -248,7 +248,6 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
         .map(|(i, p)| banks[..i].iter().position(|q| q.same_filters(p)).unwrap_or(i))
         .collect();
     let mut filters: Vec<Option<BankFilters>> = Vec::new();
-    let mut filter_steps: Vec<Option<FiltersStep>> = vec![None; banks.len()];
     let mut running: Vec<SurfaceBank> = banks.iter().map(|p| SurfaceBank::new(p, study.header.dt_s)).collect();
     let mut scores: Vec<Vec<WindowScore>> = banks
         .iter()
@@ -273,12 +272,11 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
         };
         rows.clear();
         for (b, bank) in running.iter_mut().enumerate() {
-            let filter_step = match &mut filters[b] {
-                Some(own) => own.step(&sample.y, &input),
-                None => filter_steps[filters_of[b]].expect("an earlier bank's filters stepped first"),
-            };
-            filter_steps[b] = Some(filter_step);
-            let step = bank.step(&filter_step);
+            if let Some(own) = &mut filters[b] {
+                own.step(&sample.y, &input);
+            }
+            let bank_filters = filters[filters_of[b]].as_ref().expect("a bank's own or an earlier bank's filters");
+            let step = bank.step(bank_filters);
             let t = sample.t_s;
             let after_a_fault = scores[b].iter().any(|w| t >= w.outcome.end_s);
             let window = scores[b].iter_mut().find(|w| w.outcome.onset_s <= t && t < w.outcome.end_s);
