@@ -691,6 +691,27 @@ pub fn reduced_derivatives_of<T: Real>(
     inputs: &ReducedInputs,
     surfaces_rad: &[T; 5],
 ) -> [T; 5] {
+    reduced_derivatives_at(p, x5, inputs, surfaces_rad).0
+}
+
+/// The values inside one evaluation of the reduced model that its rate and surface columns of the
+/// Jacobian need ([`reduced_rate_and_surface_columns`]).
+#[derive(Debug, Clone, Copy)]
+pub struct ReducedPoint {
+    pub sin_cos_alpha: (f64, f64),
+    /// Body velocities `[u, v, w]` (m/s).
+    pub uvw: [f64; 3],
+    /// `u^2 + w^2`.
+    pub uw2: f64,
+}
+
+/// [`reduced_derivatives_of`] with the point it was evaluated at.
+pub fn reduced_derivatives_at<T: Real>(
+    p: &AerosondeParams,
+    x5: &[T; 5],
+    inputs: &ReducedInputs,
+    surfaces_rad: &[T; 5],
+) -> ([T; 5], ReducedPoint) {
     let (alpha, beta) = (x5[3], x5[4]);
     let va = inputs.va_mps;
     let (sa, ca) = alpha.sin_cos();
@@ -711,7 +732,89 @@ pub fn reduced_derivatives_of<T: Real>(
     let alpha_dot = (u * wdot - w * udot) / uw2;
     let va_dot = (u * udot + v * vdot + w * wdot) / va;
     let beta_dot = (vdot * va - v * va_dot) / (uw2.sqrt() * va);
-    [acc[3], acc[4], acc[5], alpha_dot, beta_dot]
+    let point = ReducedPoint { sin_cos_alpha: (sa.re(), ca.re()), uvw: [u.re(), v.re(), w.re()], uw2: uw2.re() };
+    ([acc[3], acc[4], acc[5], alpha_dot, beta_dot], point)
+}
+
+/// `d f / d p`, `d f / d q`, `d f / d r` and `d f / d s` of the reduced model (`f = [pdot, qdot, rdot,
+/// alpha_dot, beta_dot]`, `s` the position of `surface`; zero without one) at `point`, written out.
+///
+/// The model is linear in the nondimensional rates and the deflections, and `u, v, w` do not depend
+/// on either, so these columns are short sums of the coefficients (the Coriolis and gyroscopic terms
+/// add the rates themselves); only alpha and beta need the chain through the aerodynamics, which dual
+/// numbers give. Each entry is formed as dual numbers over all six inputs form it (the same products
+/// in the same order, a quotient as a product with the reciprocal; the terms they add in exact zeros
+/// left out), so the columns are theirs to the bit for finite values (tested in `stmmae`).
+pub fn reduced_rate_and_surface_columns(
+    p: &AerosondeParams,
+    x5: &[f64; 5],
+    inputs: &ReducedInputs,
+    point: &ReducedPoint,
+    surface: Option<usize>,
+) -> [[f64; 5]; 4] {
+    let va = inputs.va_mps;
+    let qs = 0.5 * p.rho_kgpm3 * va * va * p.S_wing_m2;
+    let (kb, kc) = if va > 1e-9 { (p.b_m / (2.0 * va), p.c_m / (2.0 * va)) } else { (0.0, 0.0) };
+    let (sa, ca) = point.sin_cos_alpha;
+    let cx_q = ca * -p.C_D_q + sa * p.C_L_q;
+    let cz_q = sa * -p.C_D_q - ca * p.C_L_q;
+    let (qsb, qsc) = (qs * p.b_m, qs * p.c_m);
+    // Forces and moments per unit rate: [dfx, dfy, dfz, dl, dm, dn].
+    let per_p = [0.0, p.C_Y_p * kb * qs, 0.0, p.C_l_p * kb * qsb, 0.0, p.C_n_p * kb * qsb];
+    let per_q = [cx_q * kc * qs, 0.0, cz_q * kc * qs, 0.0, p.C_m_q * kc * qsc, 0.0];
+    let per_r = [0.0, p.C_Y_r * kb * qs, 0.0, p.C_l_r * kb * qsb, 0.0, p.C_n_r * kb * qsb];
+    let per_s = match surface {
+        None => [0.0; 6],
+        Some(i) => {
+            let mut unit = [0.0; 5];
+            unit[i] = 1.0;
+            let d = effective_deflections(&unit);
+            let cx_de = ca * -p.C_D_delta_e + sa * p.C_L_delta_e;
+            let cz_de = sa * -p.C_D_delta_e - ca * p.C_L_delta_e;
+            let (cx_as, cz_as) = (sa * p.C_L_delta_a_sym, ca * -p.C_L_delta_a_sym);
+            [
+                (cx_de * d.elevator_rad + cx_as * d.aileron_sym_rad) * qs,
+                (p.C_Y_delta_a * d.aileron_rad + p.C_Y_delta_r * d.rudder_rad) * qs,
+                (cz_de * d.elevator_rad + cz_as * d.aileron_sym_rad) * qs,
+                (p.C_l_delta_a * d.aileron_rad
+                    + p.C_l_delta_r * d.rudder_rad
+                    + p.C_l_delta_e_diff * d.elevator_diff_rad)
+                    * qsb,
+                (p.C_m_delta_e * d.elevator_rad + p.C_m_delta_a_sym * d.aileron_sym_rad) * qsc,
+                (p.C_n_delta_a * d.aileron_rad + p.C_n_delta_r * d.rudder_rad) * qsb,
+            ]
+        }
+    };
+    let [u, v, w] = point.uvw;
+    let [pr, qr, rr] = [x5[0], x5[1], x5[2]];
+    let g = p.gammas();
+    // The Coriolis (velocities) and gyroscopic (rates) terms' derivatives, [udot, vdot, wdot, pdot,
+    // qdot, rdot] per rate; none per surface.
+    let kinematic = [
+        [0.0, w, -v, g[0] * qr, g[4] * rr - 2.0 * pr * g[5], g[6] * qr],
+        [-w, 0.0, u, pr * g[0] - g[1] * rr, 0.0, pr * g[6] - g[0] * rr],
+        [v, -u, 0.0, -qr * g[1], pr * g[4] + 2.0 * rr * g[5], -qr * g[0]],
+        [0.0; 6],
+    ];
+    let column = |aero: &[f64; 6], kin: &[f64; 6]| {
+        let udot = kin[0] + aero[0] / p.mass_kg;
+        let vdot = kin[1] + aero[1] / p.mass_kg;
+        let wdot = kin[2] + aero[2] / p.mass_kg;
+        let pdot = kin[3] + aero[3] * g[2] + aero[5] * g[3];
+        let qdot = kin[4] + aero[4] / p.Jy_kgm2;
+        let rdot = kin[5] + aero[3] * g[3] + aero[5] * g[7];
+        // A dual quotient by a dual without these inputs' derivatives multiplies by the reciprocal.
+        let alpha_dot = (u * wdot - w * udot) * (1.0 / point.uw2);
+        let va_dot = (u * udot + v * vdot + w * wdot) / va;
+        let beta_dot = (vdot * va - v * va_dot) * (1.0 / (point.uw2.sqrt() * va));
+        [pdot, qdot, rdot, alpha_dot, beta_dot]
+    };
+    [
+        column(&per_p, &kinematic[0]),
+        column(&per_q, &kinematic[1]),
+        column(&per_r, &kinematic[2]),
+        column(&per_s, &kinematic[3]),
+    ]
 }
 
 /// Surface actuators: each position follows its command through a first-order lag with position limits.
