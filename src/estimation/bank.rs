@@ -41,7 +41,10 @@ impl LikelihoodForm {
         let ln_2pi = (2.0 * std::f64::consts::PI).ln();
         match self {
             LikelihoodForm::Gaussian => {
-                let (Some(S_inv), det) = (innovation.S_inverse.as_ref(), innovation.S.determinant()) else {
+                let (Some(S_inv), det) = (
+                    innovation.S_inverse.as_ref(),
+                    innovation.S_determinant.unwrap_or_else(|| innovation.S.determinant()),
+                ) else {
                     return f64::NEG_INFINITY;
                 };
                 if !(det > 0.0) {
@@ -215,7 +218,7 @@ mod tests {
     use nalgebra::{Matrix2, Vector2};
 
     fn innovation(gamma: Vector2<f64>, S: Matrix2<f64>) -> Innovation<2> {
-        Innovation { gamma, S, S_inverse: S.try_inverse() }
+        Innovation { gamma, S, S_inverse: S.try_inverse(), S_determinant: None }
     }
 
     #[test]

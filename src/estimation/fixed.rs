@@ -10,8 +10,9 @@
 
 use nalgebra::SMatrix;
 
-/// `A^-1` by LU with partial pivoting, as `A.lu().try_inverse()`; `None` when a pivot is zero.
-pub fn lu_inverse<const M: usize>(A: &SMatrix<f64, M, M>) -> Option<SMatrix<f64, M, M>> {
+/// `A^-1` by LU with partial pivoting, as `A.lu().try_inverse()` (`None` when a pivot is zero), and the
+/// determinant from the same factors, as `A.lu().determinant()` (which is `A.determinant()` from 4x4 on).
+pub fn lu_inverse<const M: usize>(A: &SMatrix<f64, M, M>) -> (Option<SMatrix<f64, M, M>>, f64) {
     // Column-major like nalgebra: a[c][r] is row r of column c.
     let mut a: [[f64; M]; M] = std::array::from_fn(|c| std::array::from_fn(|r| A[(r, c)]));
     let mut swaps = [(0usize, 0usize); M];
@@ -47,6 +48,12 @@ pub fn lu_inverse<const M: usize>(A: &SMatrix<f64, M, M>) -> Option<SMatrix<f64,
             }
         }
     }
+    // nalgebra's order: 1 times each pivot in turn, then the permutation's sign.
+    let mut determinant = 1.0;
+    for (i, column) in a.iter().enumerate() {
+        determinant *= column[i];
+    }
+    let determinant = if swap_count % 2 == 0 { determinant } else { -determinant };
     // Solve L U X = P I. nalgebra solves column by column; the columns are independent and each
     // sees the same operations in the same order, so they are solved here side by side: x[r] is row r
     // of X across all its columns, and each step below is one operation on every column at once.
@@ -66,7 +73,7 @@ pub fn lu_inverse<const M: usize>(A: &SMatrix<f64, M, M>) -> Option<SMatrix<f64,
     for i in (0..M).rev() {
         let diag = a[i][i];
         if diag == 0.0 {
-            return None;
+            return (None, determinant);
         }
         for y in x[i].iter_mut() {
             *y /= diag;
@@ -79,7 +86,7 @@ pub fn lu_inverse<const M: usize>(A: &SMatrix<f64, M, M>) -> Option<SMatrix<f64,
             }
         }
     }
-    Some(SMatrix::from_fn(|r, c| x[r][c]))
+    (Some(SMatrix::from_fn(|r, c| x[r][c])), determinant)
 }
 
 /// Whether `A` (its lower triangle) has a Cholesky factor, as `A.cholesky().is_some()`: every pivot
@@ -118,7 +125,7 @@ mod tests {
         SMatrix::from_fn(|_, _| rng.random_range(-3.0..3.0))
     }
 
-    /// Bit for bit nalgebra's, on matrices that pivot at every step, that need no pivoting, with exact
+    /// Bit for bit nalgebra's, inverse and determinant, on matrices that pivot at every step, that need no pivoting, with exact
     /// zeros, singular ones, and covariances (symmetric positive definite) of 5, 6 and 12 states.
     #[test]
     fn lu_inverse_is_nalgebras_to_the_bit() {
@@ -126,9 +133,13 @@ mod tests {
         where
             Const<N>: DimMin<Const<N>, Output = Const<N>>,
         {
-            let ours = lu_inverse(&A);
+            let (ours, determinant) = lu_inverse(&A);
             let theirs = A.lu().try_inverse();
             assert_eq!(ours.map(|m| m.map(f64::to_bits)), theirs.map(|m| m.map(f64::to_bits)), "{A}");
+            assert_eq!(determinant.to_bits(), A.lu().determinant().to_bits(), "{A}");
+            if N > 3 {
+                assert_eq!(determinant.to_bits(), A.determinant().to_bits(), "{A}");
+            }
             ours.is_some()
         }
         let mut rng = ChaCha8Rng::seed_from_u64(24);

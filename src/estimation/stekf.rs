@@ -191,6 +191,9 @@ pub struct Innovation<const M: usize> {
     pub S: SMatrix<f64, M, M>,
     /// `S^-1`, when `S` is invertible.
     pub S_inverse: Option<SMatrix<f64, M, M>>,
+    /// `det S` when the filter had it from the factorization that inverted `S`, equal to nalgebra's
+    /// `determinant` to the bit; the likelihood computes it otherwise.
+    pub S_determinant: Option<f64>,
 }
 
 /// A (strong-tracking) EKF; see the module docs.
@@ -232,7 +235,12 @@ impl<const N: usize, const M: usize> Stekf<N, M> {
             lambda: SVector::repeat(1.0),
             health: FilterHealth::default(),
             joseph: false,
-            innovation: Innovation { gamma: SVector::zeros(), S: SMatrix::zeros(), S_inverse: None },
+            innovation: Innovation {
+                gamma: SVector::zeros(),
+                S: SMatrix::zeros(),
+                S_inverse: None,
+                S_determinant: None,
+            },
         }
     }
 
@@ -271,7 +279,7 @@ impl<const N: usize, const M: usize> Stekf<N, M> {
         let H = Observation::of(model, &self.x_pred);
         let gamma = y - model.measurement(&self.x_pred);
         let S = H.project(&self.P_pred) + self.R;
-        let S_inverse = lu_inverse(&S);
+        let (S_inverse, determinant) = lu_inverse(&S);
         let P_upd = match &S_inverse {
             Some(S_inv) => {
                 let L = H.right(&self.P_pred) * S_inv;
@@ -307,7 +315,8 @@ impl<const N: usize, const M: usize> Stekf<N, M> {
         };
         self.x_pred = x_next;
         self.check_health();
-        self.innovation = Innovation { gamma, S, S_inverse };
+        // Up to 3x3 nalgebra's determinant is a closed form, not the factors' product.
+        self.innovation = Innovation { gamma, S, S_inverse, S_determinant: (M > 3).then_some(determinant) };
         &self.innovation
     }
 

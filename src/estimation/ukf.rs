@@ -325,7 +325,12 @@ impl<const N: usize, const M: usize> Ukf<N, M> {
 
     /// Measurement update with `y`; returns the innovation `gamma = y - y^` and `S`.
     pub fn update<D: SigmaModel<N, M>>(&mut self, model: &D, y: &SVector<f64, M>) -> Innovation<M> {
-        let skipped = |gamma: SVector<f64, M>, S: SMatrix<f64, M, M>| Innovation { gamma, S, S_inverse: None };
+        let skipped = |gamma: SVector<f64, M>, S: SMatrix<f64, M, M>| Innovation {
+            gamma,
+            S,
+            S_inverse: None,
+            S_determinant: None,
+        };
         let Some(X) = self.sigma_points() else {
             self.health.non_finite += 1;
             return skipped(SVector::repeat(f64::NAN), SMatrix::repeat(f64::NAN));
@@ -354,7 +359,7 @@ impl<const N: usize, const M: usize> Ukf<N, M> {
         } else {
             self.health.non_finite += 1;
         }
-        Innovation { gamma, S: S_sym, S_inverse: Some(S_inverse) }
+        Innovation { gamma, S: S_sym, S_inverse: Some(S_inverse), S_determinant: None }
     }
 
     /// Time update with the input `u` and the current `Q`.
