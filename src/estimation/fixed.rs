@@ -125,8 +125,9 @@ mod tests {
         SMatrix::from_fn(|_, _| rng.random_range(-3.0..3.0))
     }
 
-    /// Bit for bit nalgebra's, inverse and determinant, on matrices that pivot at every step, that need no pivoting, with exact
-    /// zeros, singular ones, and covariances (symmetric positive definite) of 5, 6 and 12 states.
+    /// Bit for bit nalgebra's, inverse and determinant, on matrices that pivot at every step, that need
+    /// no pivoting, with exact zeros, singular ones, and covariances (symmetric positive definite) of 5,
+    /// 6 and 12 states.
     #[test]
     fn lu_inverse_is_nalgebras_to_the_bit() {
         fn check<const N: usize>(A: SMatrix<f64, N, N>) -> bool

@@ -358,7 +358,7 @@ impl<const N: usize, const M: usize> Stekf<N, M> {
 /// comparisons (and `|P_ij - P_ji| = |P_ji - P_ij|`, so one triangle suffices).
 fn health_of<const N: usize>(P: &SMatrix<f64, N, N>, x: &SVector<f64, N>) -> FilterHealth {
     let mut found = FilterHealth::default();
-    let finite = P.iter().chain(x.iter()).fold(0.0, |acc, v| acc + (v - v)) == 0.0;
+    let finite = P.as_slice().iter().chain(x.as_slice()).fold(0.0, |acc, v| acc + (v - v)) == 0.0;
     if !finite {
         found.non_finite = 1;
         return found;

@@ -151,6 +151,8 @@ pub struct BankInput {
 /// Filter 0's model: every surface at its command.
 struct NoFault<'a> {
     airframe: &'a AerosondeParams,
+    /// `airframe.gammas()`, computed once per bank.
+    gammas: &'a [f64; 8],
     dt_s: f64,
 }
 
@@ -165,7 +167,7 @@ impl DiscreteModel<5, 5> for NoFault<'_> {
     /// `f` and `I + dt df/dx`, exact ([`reduced_with_jacobian`]).
     fn transition_with_jacobian(&self, x: &SVector<f64, 5>, u: &BankInput) -> (SVector<f64, 5>, SMatrix<f64, 5, 5>) {
         let x5 = [x[0], x[1], x[2], x[3], x[4]];
-        let (f, J) = reduced_with_jacobian(self.airframe, &x5, &u.inputs, &u.commanded_rad, None);
+        let (f, J) = reduced_with_jacobian(self.airframe, self.gammas, &x5, &u.inputs, &u.commanded_rad, None);
         (x + self.dt_s * SVector::from(f), SMatrix::identity() + self.dt_s * SMatrix::from_fn(|r, c| J[c][r]))
     }
     fn measurement(&self, x: &SVector<f64, 5>) -> SVector<f64, 5> {
@@ -183,6 +185,7 @@ impl DiscreteModel<5, 5> for NoFault<'_> {
 /// of dual numbers over all six inputs, to the bit (tested), at about half the cost.
 fn reduced_with_jacobian(
     airframe: &AerosondeParams,
+    gammas: &[f64; 8],
     x5: &[f64; 5],
     inputs: &ReducedInputs,
     surfaces_rad: &[f64; SURFACES],
@@ -190,8 +193,8 @@ fn reduced_with_jacobian(
 ) -> ([f64; 5], [[f64; 5]; 6]) {
     let duals =
         [Dual::cst(x5[0]), Dual::cst(x5[1]), Dual::cst(x5[2]), Dual::<2>::input(x5[3], 0), Dual::input(x5[4], 1)];
-    let (f, point) = reduced_derivatives_at(airframe, &duals, inputs, &surfaces_rad.map(Dual::cst));
-    let [p, q, r, s] = reduced_rate_and_surface_columns(airframe, x5, inputs, &point, surface);
+    let (f, point) = reduced_derivatives_at(airframe, gammas, &duals, inputs, &surfaces_rad.map(Dual::cst));
+    let [p, q, r, s] = reduced_rate_and_surface_columns(airframe, gammas, x5, inputs, &point, surface);
     let (alpha, beta) = (f.map(|e| e.d[0]), f.map(|e| e.d[1]));
     (f.map(|e| e.v), [p, q, r, alpha, beta, s])
 }
@@ -199,6 +202,7 @@ fn reduced_with_jacobian(
 /// Filter i's model: surface i at the augmented state's position.
 struct SurfaceFault<'a> {
     airframe: &'a AerosondeParams,
+    gammas: &'a [f64; 8],
     dt_s: f64,
     surface: usize,
 }
@@ -221,7 +225,7 @@ impl DiscreteModel<6, 5> for SurfaceFault<'_> {
         let mut surfaces = u.commanded_rad;
         surfaces[self.surface] = x[5];
         let x5 = [x[0], x[1], x[2], x[3], x[4]];
-        let (f, J) = reduced_with_jacobian(self.airframe, &x5, &u.inputs, &surfaces, Some(self.surface));
+        let (f, J) = reduced_with_jacobian(self.airframe, self.gammas, &x5, &u.inputs, &surfaces, Some(self.surface));
         let next = SVector::from_fn(|r, _| if r < 5 { x[r] + self.dt_s * f[r] } else { x[5] });
         let jacobian = SMatrix::from_fn(|r, c| f64::from(r == c) + if r < 5 { self.dt_s * J[c][r] } else { 0.0 });
         (next, jacobian)
@@ -253,6 +257,8 @@ pub struct BankStep {
 #[derive(Debug, Clone)]
 pub struct BankFilters {
     airframe: AerosondeParams,
+    /// `airframe.gammas()`, which the six filters' model evaluations would each recompute.
+    gammas: [f64; 8],
     dt_s: f64,
     no_fault: Stekf<5, 5>,
     surfaces: [Stekf<6, 5>; SURFACES],
@@ -283,16 +289,16 @@ impl BankFilters {
             Q[(5, 5)] = params.surface_process_variance_rad2_per_s * dt_s;
             Stekf::new(x0, P0, Q, R, params.fading())
         });
-        BankFilters { airframe, dt_s, no_fault, surfaces }
+        BankFilters { gammas: airframe.gammas(), airframe, dt_s, no_fault, surfaces }
     }
 
     /// Every filter updates with `y` and predicts with `input`; the banks read the step through
     /// [`Self::innovation`] and [`Self::estimates`].
     pub fn step(&mut self, y: &SVector<f64, 5>, input: &BankInput) {
-        let model = NoFault { airframe: &self.airframe, dt_s: self.dt_s };
-        self.no_fault.step(&model, y, input);
+        let (airframe, gammas, dt_s) = (&self.airframe, &self.gammas, self.dt_s);
+        self.no_fault.step(&NoFault { airframe, gammas, dt_s }, y, input);
         for (surface, filter) in self.surfaces.iter_mut().enumerate() {
-            filter.step(&SurfaceFault { airframe: &self.airframe, dt_s: self.dt_s, surface }, y, input);
+            filter.step(&SurfaceFault { airframe, gammas, dt_s, surface }, y, input);
         }
     }
 
@@ -386,26 +392,30 @@ mod tests {
     use crate::estimation::stekf::central_difference;
     use crate::methods::surface_bank::uav::{air_data, reduced_derivatives_of, trim};
 
-    /// The filters' exact Jacobians (dual numbers) against central differences of their transitions at
-    /// states around the trim and far from it (rates up to 1 rad/s, alpha and beta to +-0.3 rad, a
-    /// surface at 20 deg): equal to the differences' own error, about 1e-8 relative to the entry scale.
+    /// States `[p, q, r, alpha, beta, surface]` around the trim and far from it (rates up to 1 rad/s,
+    /// alpha and beta to +-0.3 rad, a surface at 20 deg), and the inputs at state k (airspeed 18 to 30 m/s).
+    const STATES: [[f64; 6]; 4] = [
+        [0.0, 0.0, 0.0, 0.05, 0.0, 0.0],
+        [0.3, -0.2, 0.1, 0.12, -0.05, 0.1],
+        [-1.0, 0.8, -0.6, -0.3, 0.3, -0.35],
+        [0.5, 0.5, 0.5, 0.3, -0.3, 0.35],
+    ];
+    const COMMANDED_RAD: [f64; SURFACES] = [0.05, -0.05, -0.1, -0.08, 0.02];
+
+    fn inputs_at(k: usize) -> ReducedInputs {
+        ReducedInputs::new(18.0 + 4.0 * k as f64, 0.2, -0.1, 0.6)
+    }
+
+    /// The filters' exact Jacobians against central differences of their transitions at [`STATES`]:
+    /// equal to the differences' own error, about 1e-8 relative to the entry scale.
     #[test]
     fn exact_jacobians_match_central_differences() {
         let airframe = AerosondeParams::default();
         let dt_s = 0.01;
-        let states = [
-            [0.0, 0.0, 0.0, 0.05, 0.0, 0.0],
-            [0.3, -0.2, 0.1, 0.12, -0.05, 0.1],
-            [-1.0, 0.8, -0.6, -0.3, 0.3, -0.35],
-            [0.5, 0.5, 0.5, 0.3, -0.3, 0.35],
-        ];
-        for (k, x) in states.iter().enumerate() {
-            let u = BankInput {
-                inputs: ReducedInputs::new(18.0 + 4.0 * k as f64, 0.2, -0.1, 0.6),
-                commanded_rad: [0.05, -0.05, -0.1, -0.08, 0.02],
-            };
+        for (k, x) in STATES.iter().enumerate() {
+            let u = BankInput { inputs: inputs_at(k), commanded_rad: COMMANDED_RAD };
             let x5 = SVector::<f64, 5>::from_fn(|i, _| x[i]);
-            let model = NoFault { airframe: &airframe, dt_s };
+            let model = NoFault { airframe: &airframe, gammas: &airframe.gammas(), dt_s };
             let (exact, numeric) =
                 (model.transition_jacobian(&x5, &u), central_difference(&x5, |x| model.transition(x, &u)));
             assert!((exact - numeric).amax() < 1e-8 * exact.amax(), "state {k}: {exact} vs {numeric}");
@@ -413,7 +423,7 @@ mod tests {
             assert_eq!(model.transition_with_jacobian(&x5, &u).0, model.transition(&x5, &u));
             for surface in 0..SURFACES {
                 let x6 = SVector::<f64, 6>::from_fn(|i, _| x[i]);
-                let model = SurfaceFault { airframe: &airframe, dt_s, surface };
+                let model = SurfaceFault { airframe: &airframe, gammas: &airframe.gammas(), dt_s, surface };
                 let (exact, numeric) =
                     (model.transition_jacobian(&x6, &u), central_difference(&x6, |x| model.transition(x, &u)));
                 assert!(
@@ -431,21 +441,14 @@ mod tests {
     use rand_distr::{Distribution, Normal};
 
     /// The Jacobian's columns against dual numbers over all six inputs (how they were formed before),
-    /// to the bit, values included, at states around the trim and far from it, for the no-fault model
-    /// and each surface: the records do not move.
+    /// to the bit, values included, at [`STATES`], for the no-fault model and each surface: the records
+    /// do not move.
     #[test]
     fn written_out_columns_are_the_all_dual_jacobians() {
         use crate::dual::value_and_jacobian;
         let airframe = AerosondeParams::default();
-        let states = [
-            [0.0, 0.0, 0.0, 0.05, 0.0, 0.0],
-            [0.3, -0.2, 0.1, 0.12, -0.05, 0.1],
-            [-1.0, 0.8, -0.6, -0.3, 0.3, -0.35],
-            [0.5, 0.5, 0.5, 0.3, -0.3, 0.35],
-        ];
-        for (k, x) in states.iter().enumerate() {
-            let inputs = ReducedInputs::new(18.0 + 4.0 * k as f64, 0.2, -0.1, 0.6);
-            let commanded = [0.05, -0.05, -0.1, -0.08, 0.02];
+        for (k, x) in STATES.iter().enumerate() {
+            let (inputs, commanded) = (inputs_at(k), COMMANDED_RAD);
             for surface in [None, Some(0), Some(1), Some(2), Some(3), Some(4)] {
                 let mut surfaces = commanded;
                 if let Some(i) = surface {
@@ -460,7 +463,7 @@ mod tests {
                     SVector::from(reduced_derivatives_of(&airframe, &[d[0], d[1], d[2], d[3], d[4]], &inputs, &s))
                 });
                 let x5 = [x[0], x[1], x[2], x[3], x[4]];
-                let (f, J) = reduced_with_jacobian(&airframe, &x5, &inputs, &surfaces, surface);
+                let (f, J) = reduced_with_jacobian(&airframe, &airframe.gammas(), &x5, &inputs, &surfaces, surface);
                 let what = format!("state {k}, surface {surface:?}");
                 assert_eq!(SVector::from(f), f_all, "{what}");
                 for (c, column) in J.iter().enumerate() {

@@ -350,8 +350,9 @@ impl AerosondeParams {
         Ok(out)
     }
 
-    /// The book's inertia combinations Gamma_1..Gamma_8 (chapter 3), index 0..7.
-    fn gammas(&self) -> [f64; 8] {
+    /// The book's inertia combinations Gamma_1..Gamma_8 (chapter 3), index 0..7. A model evaluated
+    /// many times on one airframe computes them once and passes them on (8 divisions).
+    pub fn gammas(&self) -> [f64; 8] {
         let (jx, jy, jz, jxz) = (self.Jx_kgm2, self.Jy_kgm2, self.Jz_kgm2, self.Jxz_kgm2);
         let g = jx * jz - jxz * jxz;
         [
@@ -469,6 +470,7 @@ fn weight_in_body(p: &AerosondeParams, attitude: &Attitude) -> [f64; 3] {
 #[allow(clippy::too_many_arguments)]
 fn body_accelerations<T: Real>(
     p: &AerosondeParams,
+    g: &[f64; 8],
     uvw: [T; 3],
     attitude: &Attitude,
     rates: [T; 3],
@@ -484,7 +486,6 @@ fn body_accelerations<T: Real>(
     let fx = fx + weight_body_n[0];
     let fy = fy + weight_body_n[1];
     let fz = fz + weight_body_n[2];
-    let g = p.gammas();
     [
         rr * v - qr * w + fx / p.mass_kg,
         pr * w - rr * u + fy / p.mass_kg,
@@ -540,7 +541,7 @@ pub fn derivatives(
     let (va, alpha, beta) = air_data_rotated(x, &rotation, wind_ned_mps);
     let air = (va, alpha, alpha.sin_cos(), beta);
     let attitude = Attitude::new(phi, theta);
-    let acc = body_accelerations(p, uvw, &attitude, rates, air, surfaces_rad, throttle);
+    let acc = body_accelerations(p, &p.gammas(), uvw, &attitude, rates, air, surfaces_rad, throttle);
     let [pr, qr, rr] = rates;
     let (sf, cf) = attitude.sin_cos_roll;
     let (tt, ct) = (theta.tan(), theta.cos());
@@ -691,7 +692,7 @@ pub fn reduced_derivatives_of<T: Real>(
     inputs: &ReducedInputs,
     surfaces_rad: &[T; 5],
 ) -> [T; 5] {
-    reduced_derivatives_at(p, x5, inputs, surfaces_rad).0
+    reduced_derivatives_at(p, &p.gammas(), x5, inputs, surfaces_rad).0
 }
 
 /// The values inside one evaluation of the reduced model that its rate and surface columns of the
@@ -705,9 +706,10 @@ pub struct ReducedPoint {
     pub uw2: f64,
 }
 
-/// [`reduced_derivatives_of`] with the point it was evaluated at.
+/// [`reduced_derivatives_of`] with the point it was evaluated at; `gammas` are `p.gammas()`.
 pub fn reduced_derivatives_at<T: Real>(
     p: &AerosondeParams,
+    gammas: &[f64; 8],
     x5: &[T; 5],
     inputs: &ReducedInputs,
     surfaces_rad: &[T; 5],
@@ -720,6 +722,7 @@ pub fn reduced_derivatives_at<T: Real>(
     let rates = [x5[0], x5[1], x5[2]];
     let acc = body_accelerations(
         p,
+        gammas,
         [u, v, w],
         &inputs.attitude,
         rates,
@@ -737,7 +740,8 @@ pub fn reduced_derivatives_at<T: Real>(
 }
 
 /// `d f / d p`, `d f / d q`, `d f / d r` and `d f / d s` of the reduced model (`f = [pdot, qdot, rdot,
-/// alpha_dot, beta_dot]`, `s` the position of `surface`; zero without one) at `point`, written out.
+/// alpha_dot, beta_dot]`, `s` the position of `surface`; zero without one) at `point`, written out
+/// (`g`: `p.gammas()`).
 ///
 /// The model is linear in the nondimensional rates and the deflections, and `u, v, w` do not depend
 /// on either, so these columns are short sums of the coefficients (the Coriolis and gyroscopic terms
@@ -747,6 +751,7 @@ pub fn reduced_derivatives_at<T: Real>(
 /// left out), so the columns are theirs to the bit for finite values (tested in `stmmae`).
 pub fn reduced_rate_and_surface_columns(
     p: &AerosondeParams,
+    g: &[f64; 8],
     x5: &[f64; 5],
     inputs: &ReducedInputs,
     point: &ReducedPoint,
@@ -787,7 +792,6 @@ pub fn reduced_rate_and_surface_columns(
     };
     let [u, v, w] = point.uvw;
     let [pr, qr, rr] = [x5[0], x5[1], x5[2]];
-    let g = p.gammas();
     // The Coriolis (velocities) and gyroscopic (rates) terms' derivatives, [udot, vdot, wdot, pdot,
     // qdot, rdot] per rate; none per surface.
     let kinematic = [
