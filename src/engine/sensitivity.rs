@@ -47,7 +47,7 @@ use super::output::write_table;
 use super::runner::{Manifest, RunError, pol};
 use super::schema::col;
 use super::streams::{Substream, trial_rng};
-use super::tables::{bool_col, column_names, complete_run, f64_col, list_col, numbers, read_slice, str_col, u64_col};
+use super::tables::{bool_col, column_names, complete_run, f64_col, list_col, numbers, slices, str_col, u64_col};
 use super::thresholds::{SLICE_ROWS, alarms_at, read_thresholds};
 
 /// Name of the noise realisation's factor.
@@ -472,14 +472,12 @@ fn read_rows(manifest: &Manifest, path: &Path, thresholds: Option<&Path>) -> Res
             onset_s: vec![None; trials],
         })
         .collect();
-    let mut offset = 0;
-    while offset < manifest.rows as usize {
-        let records = read_slice(path, offset, SLICE_ROWS, Some(columns.clone()))?;
+    for records in slices(path, manifest.rows as usize, SLICE_ROWS, &columns) {
+        let records = records?;
         add_rows(&records, manifest, path, &mut out)?;
         if let Some((statistics, whole)) = &whole {
             at_thresholds(&records, manifest, path, statistics, whole, &mut out)?;
         }
-        offset += SLICE_ROWS;
     }
     Ok(out)
 }

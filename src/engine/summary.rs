@@ -35,7 +35,7 @@ use super::quantiles::Quantiles;
 use super::runner::{RunError, pol, write_parquet};
 use super::schema::col;
 use super::tables::{
-    Table, bool_col, column_names, complete_run, f64_col, list_col, numbers, read_slice, str_col, u64_col,
+    Table, bool_col, column_names, complete_run, f64_col, list_col, numbers, slices, str_col, u64_col,
 };
 use super::thresholds::{
     Calibration, DetectorThresholds, SLICE_ROWS, alarms_at, per_flight_hour, thresholds, write_thresholds,
@@ -655,11 +655,8 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
 
     let mut agg = Aggregates::new(spec, sets.clone(), &manifest.detectors);
     let calibrated = thresholds.as_ref().map(|(t, _)| (t.as_slice(), statistics.as_slice()));
-    let mut offset = 0;
-    while offset < manifest.rows as usize {
-        let df = read_slice(&path, offset, SLICE_ROWS, Some(select.clone()))?;
-        agg.add_slice(&df, &path, calibrated)?;
-        offset += SLICE_ROWS;
+    for df in slices(&path, manifest.rows as usize, SLICE_ROWS, &select) {
+        agg.add_slice(&df?, &path, calibrated)?;
     }
 
     let mut key_names: Vec<String> =

@@ -49,6 +49,17 @@ pub fn read_slice(path: &Path, offset: usize, len: usize, columns: Option<Vec<St
     ParquetReader::new(file).with_columns(columns).with_slice(Some((offset, len))).finish().map_err(pol(path))
 }
 
+/// The first `rows` rows of the Parquet file at `path`, `step` at a time and only `columns`: a full
+/// pass whose memory holds one slice.
+pub fn slices<'a>(
+    path: &'a Path,
+    rows: usize,
+    step: usize,
+    columns: &'a [String],
+) -> impl Iterator<Item = Result<DataFrame, RunError>> + 'a {
+    (0..rows).step_by(step).map(move |offset| read_slice(path, offset, step, Some(columns.to_vec())))
+}
+
 pub fn str_col<'a>(df: &'a DataFrame, name: &str, file: &Path) -> Result<&'a StringChunked, RunError> {
     df.column(name).and_then(|c| c.str()).map_err(pol(file))
 }

@@ -24,7 +24,7 @@ use super::intervals::{Z95, wilson};
 use super::output::write_table;
 use super::runner::{Manifest, RunError, pol};
 use super::schema::col;
-use super::tables::{bool_col, read_slice, read_summary, str_col};
+use super::tables::{bool_col, read_slice, read_summary, slices, str_col};
 
 /// Rows read at a time.
 pub const SLICE_ROWS: usize = 16_384;
@@ -200,9 +200,8 @@ pub(crate) fn for_each_slice(
 ) -> Result<(), RunError> {
     let mut select = vec![col::DETECTOR.to_string(), col::FAULT_FREE.to_string(), col::FAILURE.to_string()];
     select.extend(statistics.iter().map(|s| col::pre_max(s)));
-    let mut offset = 0;
-    while offset < rows as usize {
-        let df = read_slice(path, offset, SLICE_ROWS, Some(select.clone()))?;
+    for df in slices(path, rows as usize, SLICE_ROWS, &select) {
+        let df = df?;
         let (det, fault_free, failure) = (
             str_col(&df, col::DETECTOR, path)?,
             bool_col(&df, col::FAULT_FREE, path)?,
@@ -222,7 +221,6 @@ pub(crate) fn for_each_slice(
             })
             .collect::<Result<Vec<Vec<f64>>, RunError>>()?;
         visit(&CalibrationRows { detector, pre });
-        offset += SLICE_ROWS;
     }
     Ok(())
 }
