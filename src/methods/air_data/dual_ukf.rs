@@ -281,7 +281,11 @@ impl SigmaModel<6, 3> for FaultModel {
         let centre_air = air_data_from_velocity(&centre).to_vector();
         X.map(|x| {
             let v = velocity_of(x);
-            let air = if same_bits(&v, &centre) { centre_air } else { air_data_from_velocity(&v).to_vector() };
+            let air = if same_bits(v.as_slice(), centre.as_slice()) {
+                centre_air
+            } else {
+                air_data_from_velocity(&v).to_vector()
+            };
             air + x.fixed_rows::<3>(3)
         })
     }
@@ -291,7 +295,11 @@ impl SigmaModel<6, 3> for FaultModel {
         let centre_next = propagate_velocity(&centre, u, self.dt_s);
         X.map(|x| {
             let v = velocity_of(x);
-            let next = if same_bits(&v, &centre) { centre_next } else { propagate_velocity(&v, u, self.dt_s) };
+            let next = if same_bits(v.as_slice(), centre.as_slice()) {
+                centre_next
+            } else {
+                propagate_velocity(&v, u, self.dt_s)
+            };
             SVector::<f64, 6>::new(next[0], next[1], next[2], x[3], x[4], x[5])
         })
     }
@@ -301,8 +309,10 @@ fn velocity_of(x: &SVector<f64, 6>) -> Vector3<f64> {
     x.fixed_rows::<3>(0).into_owned()
 }
 
-fn same_bits(a: &Vector3<f64>, b: &Vector3<f64>) -> bool {
-    a.iter().zip(b.iter()).all(|(p, q)| p.to_bits() == q.to_bits())
+/// Every number of `a` has the bits of its counterpart in `b` (so -0.0 differs from 0.0, and a NaN
+/// equals a NaN of the same bits).
+fn same_bits(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(p, q)| p.to_bits() == q.to_bits())
 }
 
 /// How the fault model's bias component was re-initialised at the last step (module docs, step 4).
@@ -462,8 +472,53 @@ impl DualUkf {
 
     /// One sample: the inertial data `inertial` and the air data `air` taken at the same time.
     pub fn step(&mut self, inertial: &Inertial, air: &AirData) -> DualUkfStep {
+        let innovation = self.filter(inertial, air);
+        self.decide(air, innovation.as_ref())
+    }
+
+    /// Whether `other`'s filters step as this detector's do: their parameters differ at most in the
+    /// isolation settings (`false_alarm_probability`, `isolation_window`, `keep_significant_biases`),
+    /// which enter only [`DualUkf::decide`].
+    pub fn filters_like(&self, other: &DualUkf) -> bool {
+        let filtering = |p: &DualUkfParams| DualUkfParams {
+            false_alarm_probability: 0.0,
+            isolation_window: 1,
+            keep_significant_biases: false,
+            ..p.clone()
+        };
+        self.dt_s == other.dt_s && filtering(&self.params) == filtering(&other.params)
+    }
+
+    /// Whether `other`'s [`DualUkf::filter`] would now give this detector's to the bit: its filters are
+    /// [`DualUkf::filters_like`] these, and their states, covariances, model probabilities, health
+    /// counters and last inertial sample have the same bits. The seed deck's three detectors are so until
+    /// their first step with a fault present and, when their isolations agree there, after it.
+    pub fn same_filters(&self, other: &DualUkf) -> bool {
+        fn same_ukf<const N: usize, const M: usize>(a: &Ukf<N, M>, b: &Ukf<N, M>) -> bool {
+            same_bits(a.state().as_slice(), b.state().as_slice())
+                && same_bits(a.covariance().as_slice(), b.covariance().as_slice())
+                && a.health() == b.health()
+        }
+        let (p, q) = (&self.probabilities, &other.probabilities);
+        same_ukf(&self.no_fault, &other.no_fault)
+            && same_ukf(&self.fault, &other.fault)
+            && same_bits(p.probabilities(), q.probabilities())
+            && (p.floor_steps, p.skipped_steps) == (q.floor_steps, q.skipped_steps)
+            && match (&self.previous_inertial, &other.previous_inertial) {
+                (None, None) => true,
+                (Some(a), Some(b)) => same_bits(&a.to_array(), &b.to_array()),
+                _ => false,
+            }
+            && self.filters_like(other)
+    }
+
+    /// The first part of [`DualUkf::step`], which the isolation settings do not enter: both filters'
+    /// prediction and update and the model probabilities (at the first sample, the initialisation).
+    /// Returns the no-fault innovation for [`DualUkf::decide`]; none at the first sample.
+    pub fn filter(&mut self, inertial: &Inertial, air: &AirData) -> Option<Innovation<3>> {
         let Some(previous) = self.previous_inertial.replace(*inertial) else {
-            return self.initialise(air);
+            self.initialise(air);
+            return None;
         };
         self.predict(&InertialInterval::new(previous, *inertial));
         let y = air.to_vector();
@@ -471,15 +526,45 @@ impl DualUkf {
         let f_model = FaultModel { dt_s: self.dt_s };
         let nf_innovation = self.no_fault.update(&nf_model, &y);
         let f_innovation = self.fault.update(&f_model, &y);
-
         let likelihood = self.params.likelihood;
         self.probabilities
             .update(&[likelihood.log_likelihood(&nf_innovation), likelihood.log_likelihood(&f_innovation)]);
+        Some(nf_innovation)
+    }
+
+    /// Takes `leader`'s filters and model probabilities after its [`DualUkf::filter`] in place of this
+    /// detector's own [`DualUkf::filter`]: the same numbers when the two had
+    /// [`DualUkf::same_filters`] before it.
+    pub fn follow(&mut self, leader: &DualUkf) {
+        self.no_fault.clone_from(&leader.no_fault);
+        self.fault.clone_from(&leader.fault);
+        self.probabilities.clone_from(&leader.probabilities);
+        self.previous_inertial = leader.previous_inertial;
+    }
+
+    /// The second part of [`DualUkf::step`]: the declaration, the isolation, the re-initialisation and
+    /// the outputs, from the no-fault `innovation` that [`DualUkf::filter`] returned.
+    pub fn decide(&mut self, air: &AirData, innovation: Option<&Innovation<3>>) -> DualUkfStep {
+        let Some(nf_innovation) = innovation else {
+            return DualUkfStep {
+                probabilities: *self.probabilities.probabilities(),
+                fault_declared: false,
+                decision: None,
+                both_reinitialised: false,
+                chi_square: [0.0; COMPONENTS],
+                chi_square_threshold: self.thresholds[0],
+                isolated: [false; COMPONENTS],
+                bias_modes: self.bias_modes,
+                air_data: *air,
+                bias: [0.0; COMPONENTS],
+                fault_model_bias: [0.0; COMPONENTS],
+            };
+        };
         let probabilities = *self.probabilities.probabilities();
         let decision = self.rule.observe(&probabilities);
         let fault_declared = self.fault_declared();
 
-        let (chi_square, chi_square_threshold) = self.isolation_statistic(&nf_innovation);
+        let (chi_square, chi_square_threshold) = self.isolation_statistic(nf_innovation);
         let isolated = chi_square.map(|t| t > chi_square_threshold);
         let fault_model_bias = self.bias_estimate();
         // The patent judges the fault from the model probabilities at each step; the hold of the
@@ -509,28 +594,16 @@ impl DualUkf {
         }
     }
 
-    /// First sample: both filters start at the measured air data (module docs).
-    fn initialise(&mut self, air: &AirData) -> DualUkfStep {
+    /// First sample: both filters start at the measured air data (module docs), every bias open. Only
+    /// the filters: the bias modes start open and the re-initialisation counters at zero.
+    fn initialise(&mut self, air: &AirData) {
         let y = air.to_vector();
         let x0 = velocity_from_air_data(air);
         let J = central_difference(&y, |a| velocity_from_air_data(&AirData::from_array([a[0], a[1], a[2]])));
         let P0 = J * self.no_fault.measurement_noise() * J.transpose();
         self.no_fault.reinitialise(x0, P0);
-        self.reinitialise_fault_model();
-        self.fault_model_reinitialisations = 0;
-        DualUkfStep {
-            probabilities: *self.probabilities.probabilities(),
-            fault_declared: false,
-            decision: None,
-            both_reinitialised: false,
-            chi_square: [0.0; COMPONENTS],
-            chi_square_threshold: self.thresholds[0],
-            isolated: [false; COMPONENTS],
-            bias_modes: self.bias_modes,
-            air_data: *air,
-            bias: [0.0; COMPONENTS],
-            fault_model_bias: [0.0; COMPONENTS],
-        }
+        let (x, P) = self.fault_model_start();
+        self.fault.reinitialise(x, P);
     }
 
     /// Window sum of `gamma_j^2 / S_jj` and the threshold for the samples it holds.
@@ -563,18 +636,23 @@ impl DualUkf {
 
     /// No fault declared: the fault model restarts from the no-fault model with every bias open.
     fn reinitialise_fault_model(&mut self) {
-        let x_nf = self.no_fault.state();
-        let P_nf = self.no_fault.covariance();
-        let mut x = SVector::<f64, 6>::zeros();
-        x.fixed_rows_mut::<3>(0).copy_from(x_nf);
-        let mut P = SMatrix::<f64, 6, 6>::zeros();
-        P.fixed_view_mut::<3, 3>(0, 0).copy_from(P_nf);
-        for j in 0..COMPONENTS {
-            P[(3 + j, 3 + j)] = self.params.initial_bias_std[j].powi(2);
-        }
+        let (x, P) = self.fault_model_start();
         self.fault.reinitialise(x, P);
         self.bias_modes = [BiasMode::Open; COMPONENTS];
         self.fault_model_reinitialisations += 1;
+    }
+
+    /// The fault model's start from the no-fault model: its velocity `(x, P)`, every bias 0 with its
+    /// initial variance.
+    fn fault_model_start(&self) -> (SVector<f64, 6>, SMatrix<f64, 6, 6>) {
+        let mut x = SVector::<f64, 6>::zeros();
+        x.fixed_rows_mut::<3>(0).copy_from(self.no_fault.state());
+        let mut P = SMatrix::<f64, 6, 6>::zeros();
+        P.fixed_view_mut::<3, 3>(0, 0).copy_from(self.no_fault.covariance());
+        for j in 0..COMPONENTS {
+            P[(3 + j, 3 + j)] = self.params.initial_bias_std[j].powi(2);
+        }
+        (x, P)
     }
 
     /// Fault declared: the fault model's biases selectively (faulty set), then the no-fault model from
@@ -789,8 +867,12 @@ mod tests {
             assert_eq!(bits3(&shared.plus), bits3(&one_by_one.plus), "case {case}");
             assert_eq!(bits3(&shared.minus), bits3(&one_by_one.minus), "case {case}");
             assert_eq!(bits3(&[shared.center]), bits3(&[one_by_one.center]));
-            shared_points +=
-                X.plus.iter().chain(&X.minus).filter(|p| same_bits(&velocity_of(p), &velocity_of(&x))).count();
+            shared_points += X
+                .plus
+                .iter()
+                .chain(&X.minus)
+                .filter(|p| same_bits(velocity_of(p).as_slice(), velocity_of(&x).as_slice()))
+                .count();
         }
         // Six points a case share the centre's velocity; with the -0.0 centre only the three `x - 0`
         // (still -0.0), not the three `x + 0` (+0.0).

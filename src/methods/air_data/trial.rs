@@ -16,9 +16,10 @@
 //!   faulty sensors in sigmas: the patent's claim of accurate air data under fault, against what the
 //!   faulty sensor itself says.
 
+use crate::estimation::Innovation;
 use crate::estimation::bank::Decision;
 use crate::fault::FaultMode;
-use crate::methods::air_data::dual_ukf::{BiasMode, COMPONENTS, DualUkf, DualUkfHealth};
+use crate::methods::air_data::dual_ukf::{BiasMode, COMPONENTS, DualUkf, DualUkfHealth, DualUkfStep};
 use crate::methods::air_data::flight::{AirData, AirDataSample, AirDataScenario, ScenarioParams};
 use crate::methods::air_data::scenario::AirDataTrialSpec;
 use crate::methods::air_data::study::{AirDataDetector, DetectorKind};
@@ -45,6 +46,21 @@ pub struct DetectorStep {
     pub bias: Option<[f64; COMPONENTS]>,
 }
 
+impl From<DualUkfStep> for DetectorStep {
+    fn from(s: DualUkfStep) -> DetectorStep {
+        DetectorStep {
+            p_fault: s.probabilities[1],
+            fault_declared: s.fault_declared,
+            decision: s.decision,
+            statistic: s.chi_square,
+            flagged: s.isolated,
+            faulty_set: s.bias_modes.map(|m| m == BiasMode::Estimated),
+            air_data: s.air_data,
+            bias: Some(s.bias),
+        }
+    }
+}
+
 /// A detector flying a trial.
 enum Running {
     Dual(Box<DualUkf>),
@@ -64,35 +80,10 @@ impl Running {
         })
     }
 
-    /// The dual UKF reads lane 0, the voter every lane.
-    fn step(&mut self, sample: &AirDataSample) -> DetectorStep {
+    fn dual(&self) -> Option<&DualUkf> {
         match self {
-            Running::Dual(f) => {
-                let s = f.step(&sample.inertial, &sample.air_data);
-                DetectorStep {
-                    p_fault: s.probabilities[1],
-                    fault_declared: s.fault_declared,
-                    decision: s.decision,
-                    statistic: s.chi_square,
-                    flagged: s.isolated,
-                    faulty_set: s.bias_modes.map(|m| m == BiasMode::Estimated),
-                    air_data: s.air_data,
-                    bias: Some(s.bias),
-                }
-            }
-            Running::Voting(v) => {
-                let s = v.step(&sample.lanes);
-                DetectorStep {
-                    p_fault: if s.fault_declared { 1.0 } else { 0.0 },
-                    fault_declared: s.fault_declared,
-                    decision: s.decision,
-                    statistic: s.miscompare_sigma,
-                    flagged: s.miscompares,
-                    faulty_set: s.failed,
-                    air_data: s.air_data,
-                    bias: None,
-                }
-            }
+            Running::Dual(f) => Some(f),
+            Running::Voting(_) => None,
         }
     }
 
@@ -100,6 +91,89 @@ impl Running {
         match self {
             Running::Dual(f) => f.health(),
             Running::Voting(_) => DualUkfHealth::default(),
+        }
+    }
+}
+
+/// The deck's detectors on one flight. Dual UKFs whose filters are the same to the bit
+/// ([`DualUkf::same_filters`]: the seed deck's three, which differ only in their isolation settings,
+/// until their first step with a fault present and again whenever their isolations agree there) step
+/// them once: the first of them filters and the others take its filters ([`DualUkf::follow`]), then each
+/// makes its own decisions. Before the onset, and through fault-free flights, that is one detector's
+/// filter work instead of three, with the same records.
+struct Detectors {
+    running: Vec<Running>,
+    /// Per detector, the earlier dual UKFs whose filters step as its own do ([`DualUkf::filters_like`]).
+    alike: Vec<Vec<usize>>,
+    /// This step, detector `i` takes the filters of detector `leader[i]` (earlier, filtering itself).
+    leader: Vec<Option<usize>>,
+    /// This step's no-fault innovation of each dual UKF, from its own filters or its leader's.
+    innovations: Vec<Option<Innovation<3>>>,
+}
+
+impl Detectors {
+    fn new(detectors: &[AirDataDetector], scenario: &ScenarioParams) -> Result<Self, String> {
+        let running = detectors.iter().map(|d| Running::new(d, scenario)).collect::<Result<Vec<_>, _>>()?;
+        let alike = (0..running.len())
+            .map(|i| match running[i].dual() {
+                Some(f) => (0..i).filter(|&j| running[j].dual().is_some_and(|l| l.filters_like(f))).collect(),
+                None => Vec::new(),
+            })
+            .collect();
+        let n = running.len();
+        Ok(Detectors { running, alike, leader: vec![None; n], innovations: vec![None; n] })
+    }
+
+    /// Each detector's leader for this step: the first alike detector that filters itself and whose
+    /// filters have the same bits as this one's.
+    fn find_leaders(&mut self) {
+        for i in 0..self.running.len() {
+            self.leader[i] = match self.running[i].dual() {
+                Some(f) => self.alike[i]
+                    .iter()
+                    .copied()
+                    .find(|&j| self.leader[j].is_none() && self.running[j].dual().is_some_and(|l| l.same_filters(f))),
+                None => None,
+            };
+        }
+    }
+
+    /// Every detector's step on `sample`, into `steps` (cleared first).
+    fn step(&mut self, sample: &AirDataSample, steps: &mut Vec<DetectorStep>) {
+        let (inertial, air) = (&sample.inertial, &sample.air_data);
+        self.find_leaders();
+        for i in 0..self.running.len() {
+            if let (None, Running::Dual(f)) = (self.leader[i], &mut self.running[i]) {
+                self.innovations[i] = f.filter(inertial, air);
+            }
+        }
+        for i in 0..self.running.len() {
+            if let Some(l) = self.leader[i] {
+                let (before, from_i) = self.running.split_at_mut(i);
+                if let (Running::Dual(f), Running::Dual(leader)) = (&mut from_i[0], &before[l]) {
+                    f.follow(leader);
+                }
+                self.innovations[i] = self.innovations[l];
+            }
+        }
+        steps.clear();
+        for (i, running) in self.running.iter_mut().enumerate() {
+            steps.push(match running {
+                Running::Dual(f) => f.decide(air, self.innovations[i].as_ref()).into(),
+                Running::Voting(v) => {
+                    let s = v.step(&sample.lanes);
+                    DetectorStep {
+                        p_fault: if s.fault_declared { 1.0 } else { 0.0 },
+                        fault_declared: s.fault_declared,
+                        decision: s.decision,
+                        statistic: s.miscompare_sigma,
+                        flagged: s.miscompares,
+                        faulty_set: s.failed,
+                        air_data: s.air_data,
+                        bias: None,
+                    }
+                }
+            });
         }
     }
 }
@@ -147,7 +221,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
     let sigma = scenario.noise.air_data_std();
     let duration_s = scenario.duration_s;
     let offsets: Vec<(usize, FaultMode)> = scenario.faults.iter().map(|f| (f.channel, f.mode)).collect();
-    let mut filters = detectors.iter().map(|d| Running::new(d, &scenario)).collect::<Result<Vec<_>, _>>()?;
+    let mut filters = Detectors::new(detectors, &scenario)?;
     let mut flight = AirDataScenario::new(scenario).map_err(|e| e.to_string())?;
     let onset_s = spec.fault.faults.first().map(|_| spec.fault.onset_s);
     let scored_from_s = match onset_s {
@@ -181,9 +255,8 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
     let mut last_sets = vec![[false; COMPONENTS]; detectors.len()];
     while let Some(sample) = flight.next_sample(rng) {
         let t = sample.t_s;
-        steps.clear();
-        for (((filter, d), score), set) in filters.iter_mut().zip(detectors).zip(&mut scores).zip(&mut last_sets) {
-            let step = filter.step(&sample);
+        filters.step(&sample, &mut steps);
+        for (((&step, d), score), set) in steps.iter().zip(detectors).zip(&mut scores).zip(&mut last_sets) {
             *set = step.faulty_set;
             let o = &mut score.outcome;
             // Declarations made, not standing: one left over from a false alarm is no detection.
@@ -232,7 +305,6 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
                     }
                 }
             }
-            steps.push(step);
         }
         on_sample(&sample, &steps);
     }
@@ -240,6 +312,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
         return Err(failure.to_string());
     }
     Ok(filters
+        .running
         .iter()
         .zip(scores)
         .zip(last_sets)
@@ -379,5 +452,56 @@ mod tests {
                 assert!(voting.estimate_rms_sigma.unwrap() > 9.0, "the vote follows the three biased lanes");
             }
         }
+    }
+
+    /// The seed deck's three dual UKFs (the patent's, with the Wald test, with a 10-sample window) on
+    /// the alpha-bias flight: stepped together they give each one's steps alone to the bit. The second
+    /// and third take the first's filters at every sample before the onset; after it the Wald test's
+    /// keeps doing so (its faulty set stays the patent's, alpha, on this flight), and the windowed one
+    /// at only 111 of the 4,000 samples, its isolation differing from the patent's (measured). A
+    /// detector with another declaration level has filters of its own.
+    #[test]
+    fn alike_detectors_share_their_filters_and_step_as_each_alone() {
+        let (scenario, _) = alpha_bias(ScenarioParams::seed());
+        let seed = DualUkfParams::seed();
+        let params = [
+            seed.clone(),
+            DualUkfParams { keep_significant_biases: true, ..seed.clone() },
+            DualUkfParams { isolation_window: 10, ..seed.clone() },
+        ];
+        let detectors: Vec<AirDataDetector> = (params.iter())
+            .map(|p| AirDataDetector {
+                name: "d".into(),
+                kind: DetectorKind::DualUkf(p.clone()),
+                isolation_delay_s: 1.0,
+            })
+            .collect();
+        let mut together = Detectors::new(&detectors, &scenario).unwrap();
+        let mut alone: Vec<DualUkf> = params.iter().map(|p| DualUkf::new(p, scenario.dt_s).unwrap()).collect();
+        let flight_dt_s = scenario.dt_s;
+        let mut flight = AirDataScenario::new(scenario).unwrap();
+        let mut rng = noise_rng(7, 0, Substream::SensorNoise);
+        let mut steps = Vec::new();
+        let (mut before, mut following_before, mut following_after) = (0, [0; 3], [0; 3]);
+        while let Some(sample) = flight.next_sample(&mut rng) {
+            together.step(&sample, &mut steps);
+            for (k, f) in alone.iter_mut().enumerate() {
+                let s: DetectorStep = f.step(&sample.inertial, &sample.air_data).into();
+                assert_eq!(format!("{:?}", steps[k]), format!("{s:?}"), "detector {k} at {} s", sample.t_s);
+            }
+            let following = &mut if sample.t_s < 20.0 { &mut following_before } else { &mut following_after };
+            for (k, leader) in together.leader.iter().enumerate() {
+                following[k] += usize::from(*leader == Some(0));
+            }
+            before += usize::from(sample.t_s < 20.0);
+        }
+        for (k, f) in alone.iter().enumerate() {
+            assert_eq!(together.running[k].health(), f.health());
+        }
+        assert_eq!(before, 2000);
+        assert_eq!((following_before, following_after), ([0, 2000, 2000], [0, 4000, 111]));
+        let other = DualUkfParams { declare_probability: 0.5 * seed.declare_probability, ..seed.clone() };
+        let other = DualUkf::new(&other, flight_dt_s).unwrap();
+        assert!(alone[2].filters_like(&alone[0]) && !other.filters_like(&alone[0]));
     }
 }
