@@ -212,6 +212,9 @@ pub struct Stekf<const N: usize, const M: usize> {
     /// The last step's innovation, kept here so that a bank reads it where it was formed instead of
     /// copying it (with `S` and its inverse, 56 numbers) at every step.
     innovation: Innovation<M>,
+    /// The last step's `Phi P Phi'`, before fading and `Q`: what a strong-tracking filter beside this
+    /// one needs for its fading factors ([`Stekf::step_beside`]).
+    phi_p_phi: SMatrix<f64, N, N>,
 }
 
 impl<const N: usize, const M: usize> Stekf<N, M> {
@@ -241,6 +244,7 @@ impl<const N: usize, const M: usize> Stekf<N, M> {
                 S_inverse: None,
                 S_determinant: None,
             },
+            phi_p_phi: SMatrix::zeros(),
         }
     }
 
@@ -314,10 +318,44 @@ impl<const N: usize, const M: usize> Stekf<N, M> {
             }
         };
         self.x_pred = x_next;
+        self.phi_p_phi = PhiPPhi;
         self.check_health();
         // Up to 3x3 nalgebra's determinant is a closed form, not the factors' product.
         self.innovation = Innovation { gamma, S, S_inverse, S_determinant: (M > 3).then_some(determinant) };
         &self.innovation
+    }
+
+    /// One sample, as [`Stekf::step`], beside `ekf`: a filter without fading, with this filter's model,
+    /// `Q`, `R` and update form, already stepped on the same `y` and `u` from the state this filter is
+    /// in now, to the bit (estimates, covariances and health counters). When this step's fading factors
+    /// are all 1, `1 * v` is `v`, so this filter's step is the EKF's to the bit: it takes it, at the cost
+    /// of the factors alone. Otherwise it steps itself. Returns whether it took the EKF's step (after
+    /// one it did not, the two differ and it must not be stepped beside `ekf` again).
+    pub fn step_beside<D: DiscreteModel<N, M>>(
+        &mut self,
+        ekf: &Stekf<N, M>,
+        model: &D,
+        y: &SVector<f64, M>,
+        u: &D::Input,
+    ) -> bool {
+        debug_assert!(matches!(ekf.fading, Fading::None) && ekf.joseph == self.joseph);
+        let (V, fading) = (self.V, self.fading);
+        let lambda = match fading {
+            Fading::None => SVector::repeat(1.0),
+            Fading::Original(params) | Fading::Symmetric(params) => {
+                let H = Observation::of(model, &self.x_pred);
+                self.fading_factors_for(&params, &ekf.innovation.gamma, &H, &ekf.phi_p_phi)
+            }
+        };
+        if lambda.iter().any(|&l| l != 1.0) {
+            self.V = V;
+            self.step(model, y, u);
+            return false;
+        }
+        let V = self.V;
+        self.clone_from(ekf);
+        (self.V, self.fading, self.lambda) = (V, fading, lambda);
+        true
     }
 
     /// `lambda_j = max(1, a_j c)` with `c = tr(N) / sum_j a_j M_jj` (module docs).

@@ -122,11 +122,23 @@ impl BankParams {
     pub fn same_filters(&self, other: &BankParams) -> bool {
         let fading = |p: &BankParams| (p.rho, p.beta, p.a, p.a_surface);
         self.covariance == other.covariance
-            && self.process_variance_per_s == other.process_variance_per_s
+            && self.same_noise(other)
+            && (self.covariance == CovarianceForm::Ekf || fading(self) == fading(other))
+    }
+
+    /// Whether a bank with `self` is strong tracking and its filters, while their fading factors are
+    /// 1, step as those of an EKF bank with `ekf` ([`BankFilters::step_beside`]): the same noise
+    /// tuning, which is all that sets the EKFs.
+    pub fn tracks_beside(&self, ekf: &BankParams) -> bool {
+        self.covariance != CovarianceForm::Ekf && ekf.covariance == CovarianceForm::Ekf && self.same_noise(ekf)
+    }
+
+    /// The same process, measurement and initial variances.
+    fn same_noise(&self, other: &BankParams) -> bool {
+        self.process_variance_per_s == other.process_variance_per_s
             && self.surface_process_variance_rad2_per_s == other.surface_process_variance_rad2_per_s
             && self.measurement_variance == other.measurement_variance
             && self.initial_surface_variance_rad2 == other.initial_surface_variance_rad2
-            && (self.covariance == CovarianceForm::Ekf || fading(self) == fading(other))
     }
 
     fn fading<const N: usize>(&self) -> Fading<N> {
@@ -262,6 +274,9 @@ pub struct BankFilters {
     dt_s: f64,
     no_fault: Stekf<5, 5>,
     surfaces: [Stekf<6, 5>; SURFACES],
+    /// Per filter (0: no fault, i: surface i-1), whether it has taken an EKF's step at every step so
+    /// far ([`BankFilters::step_beside`]).
+    beside: [bool; MODELS],
 }
 
 impl BankFilters {
@@ -289,7 +304,7 @@ impl BankFilters {
             Q[(5, 5)] = params.surface_process_variance_rad2_per_s * dt_s;
             Stekf::new(x0, P0, Q, R, params.fading())
         });
-        BankFilters { gammas: airframe.gammas(), airframe, dt_s, no_fault, surfaces }
+        BankFilters { gammas: airframe.gammas(), airframe, dt_s, no_fault, surfaces, beside: [true; MODELS] }
     }
 
     /// Every filter updates with `y` and predicts with `input`; the banks read the step through
@@ -300,6 +315,41 @@ impl BankFilters {
         for (surface, filter) in self.surfaces.iter_mut().enumerate() {
             filter.step(&SurfaceFault { airframe, gammas, dt_s, surface }, y, input);
         }
+        self.beside = [false; MODELS];
+    }
+
+    /// [`BankFilters::step`] beside `ekf`, the filters of an EKF bank with this bank's noise tuning
+    /// ([`BankParams::tracks_beside`]) on the same airframe, started with these and already stepped on
+    /// `y` and `input`, and only on those: each filter that has taken the EKF's step at every step so
+    /// far takes it again if its fading factors are all 1, where its step is the EKF's to the bit
+    /// ([`Stekf::step_beside`]); the others step themselves. Before a fault the seed deck's strong
+    /// tracking hardly ever fades, so its two strong-tracking banks cost little more than their
+    /// fading factors until the onset.
+    pub fn step_beside(&mut self, ekf: &BankFilters, y: &SVector<f64, 5>, input: &BankInput) {
+        let (airframe, gammas, dt_s) = (&self.airframe, &self.gammas, self.dt_s);
+        let model = NoFault { airframe, gammas, dt_s };
+        self.beside[0] = match self.beside[0] {
+            true => self.no_fault.step_beside(&ekf.no_fault, &model, y, input),
+            false => {
+                self.no_fault.step(&model, y, input);
+                false
+            }
+        };
+        for (surface, filter) in self.surfaces.iter_mut().enumerate() {
+            let model = SurfaceFault { airframe, gammas, dt_s, surface };
+            self.beside[surface + 1] = match self.beside[surface + 1] {
+                true => filter.step_beside(&ekf.surfaces[surface], &model, y, input),
+                false => {
+                    filter.step(&model, y, input);
+                    false
+                }
+            };
+        }
+    }
+
+    /// How many of the six filters took an EKF's step at the last [`BankFilters::step_beside`].
+    pub fn steps_taken_beside(&self) -> usize {
+        self.beside.iter().filter(|&&b| b).count()
     }
 
     /// Filter `model`'s innovation at the last step (0: no fault, i: surface i-1).
@@ -475,9 +525,50 @@ mod tests {
         }
     }
 
-    /// Measurements from the filters' own reduced model (Euler, 100 Hz) at the 25 m/s trim, with
-    /// `surface` moved by `offset_rad` from `onset_s` on while its command stays at trim; the seed's
-    /// sensor noise. Returns the step at which each declaration was made.
+    /// The flight of these tests: the filters' own reduced model (Euler, 100 Hz) at the 25 m/s trim,
+    /// with the seed's sensor noise (seed 7) and one surface moved off its command from an onset on.
+    struct TrimFlight {
+        airframe: AerosondeParams,
+        trim_surfaces: [f64; SURFACES],
+        input: BankInput,
+        truth: SVector<f64, 5>,
+        rng: ChaCha8Rng,
+    }
+
+    impl TrimFlight {
+        const DT_S: f64 = 0.01;
+
+        fn new() -> Self {
+            let airframe = AerosondeParams::default();
+            let (x, trim_surfaces, throttle) = trim(&airframe, 25.0, 100.0).unwrap();
+            let (va, alpha, beta) = air_data(&x, &nalgebra::Vector3::zeros());
+            let inputs = ReducedInputs::new(va, 0.0, x[7], throttle);
+            let truth = SVector::<f64, 5>::new(0.0, 0.0, 0.0, alpha, beta);
+            let input = BankInput { inputs, commanded_rad: trim_surfaces };
+            TrimFlight { airframe, trim_surfaces, input, truth, rng: ChaCha8Rng::seed_from_u64(7) }
+        }
+
+        fn measure(&mut self) -> SVector<f64, 5> {
+            let sigma = [0.0076f64.sqrt(); 3].into_iter().chain([0.0012f64.sqrt(); 2]).collect::<Vec<_>>();
+            SVector::<f64, 5>::from_fn(|j, _| self.truth[j] + Normal::new(0.0, sigma[j]).unwrap().sample(&mut self.rng))
+        }
+
+        fn filters(&mut self, params: &BankParams, y0: &SVector<f64, 5>) -> BankFilters {
+            BankFilters::new(params, self.airframe.clone(), Self::DT_S, y0, &self.trim_surfaces)
+        }
+
+        /// One step of the truth from `t`, `surface` moved by `offset_rad` once `t >= onset_s`.
+        fn advance(&mut self, t: f64, surface: usize, offset_rad: f64, onset_s: f64) {
+            let mut actual = self.trim_surfaces;
+            if t >= onset_s {
+                actual[surface] += offset_rad;
+            }
+            self.truth += Self::DT_S * reduced_derivatives(&self.airframe, &self.truth, &self.input.inputs, &actual);
+        }
+    }
+
+    /// The decisions of a bank with `params` on a [`TrimFlight`] with `surface` moved by `offset_rad`
+    /// from `onset_s` on while its command stays at trim, with the step at which each was made.
     fn isolate(
         params: &BankParams,
         surface: usize,
@@ -485,33 +576,19 @@ mod tests {
         onset_s: f64,
         seconds: f64,
     ) -> Vec<(f64, Decision)> {
-        let airframe = AerosondeParams::default();
-        let (x, trim_surfaces, throttle) = trim(&airframe, 25.0, 100.0).unwrap();
-        let (va, alpha, beta) = air_data(&x, &nalgebra::Vector3::zeros());
-        let inputs = ReducedInputs::new(va, 0.0, x[7], throttle);
-        let dt_s = 0.01;
-        let mut truth = SVector::<f64, 5>::new(0.0, 0.0, 0.0, alpha, beta);
-        let mut rng = ChaCha8Rng::seed_from_u64(7);
-        let sigma = [0.0076f64.sqrt(); 3].into_iter().chain([0.0012f64.sqrt(); 2]).collect::<Vec<_>>();
-        let mut measure = |x: &SVector<f64, 5>| {
-            SVector::<f64, 5>::from_fn(|j, _| x[j] + Normal::new(0.0, sigma[j]).unwrap().sample(&mut rng))
-        };
-        let mut filters = BankFilters::new(params, airframe.clone(), dt_s, &measure(&truth), &trim_surfaces);
-        let mut bank = SurfaceBank::new(params, dt_s);
-        let input = BankInput { inputs, commanded_rad: trim_surfaces };
+        let mut flight = TrimFlight::new();
+        let y0 = flight.measure();
+        let mut filters = flight.filters(params, &y0);
+        let mut bank = SurfaceBank::new(params, TrimFlight::DT_S);
         let mut decisions = Vec::new();
-        for k in 0..(seconds / dt_s) as usize {
-            let t = k as f64 * dt_s;
-            filters.step(&measure(&truth), &input);
+        for k in 0..(seconds / TrimFlight::DT_S) as usize {
+            let t = k as f64 * TrimFlight::DT_S;
+            filters.step(&flight.measure(), &flight.input);
             let step = bank.step(&filters);
             if let Some(d) = step.decision {
                 decisions.push((t, d));
             }
-            let mut actual = trim_surfaces;
-            if t >= onset_s {
-                actual[surface] += offset_rad;
-            }
-            truth += dt_s * reduced_derivatives(&airframe, &truth, &inputs, &actual);
+            flight.advance(t, surface, offset_rad, onset_s);
         }
         decisions
     }
@@ -520,7 +597,8 @@ mod tests {
     fn each_surface_is_isolated_by_every_variant() {
         // Surface moved 8 deg off its command at 1 s. Measured here (seed 7): EMMAE declares after
         // 1.62, 1.62, 4.13, 3.48, 0.25 s; the Euclidean-norm variants after 1.87, 1.87, 2.92, 2.58, 0.19 s
-        // (the fading factors never rise above 1: the seed's R_V is 13x the gyros' true noise variance).
+        // (before the fault the fading factors stay 1, the seed's R_V being 13x the gyros' true noise
+        // variance; after it some rise: strong_tracking_beside_an_ekf_is_strong_tracking_alone).
         for (covariance, likelihood) in [
             (CovarianceForm::Ekf, LikelihoodForm::Gaussian),
             (CovarianceForm::Ekf, LikelihoodForm::EuclideanNorm),
@@ -536,6 +614,58 @@ mod tests {
                 assert!((1.0..6.0).contains(&t), "{what}");
                 assert_eq!(decisions.len(), 1, "no clearance or switch while the fault persists: {what}");
             }
+        }
+    }
+
+    /// A [`TrimFlight`] with `surface` moved by `offset_rad` from `onset_s` on: an EKF bank's filters
+    /// with `ekf`, a strong-tracking bank's with `tracking` stepped beside them, and the same stepped
+    /// alone. Every step, the filters beside give the filters alone to the bit (innovations, estimates,
+    /// health); returns how many of the six took the EKF's step at each step.
+    fn beside_and_alone(
+        ekf: &BankParams,
+        tracking: &BankParams,
+        surface: usize,
+        offset_rad: f64,
+        onset_s: f64,
+        seconds: f64,
+    ) -> Vec<usize> {
+        assert!(tracking.tracks_beside(ekf));
+        let mut flight = TrimFlight::new();
+        let y0 = flight.measure();
+        let (mut by_ekf, mut beside, mut alone) =
+            (flight.filters(ekf, &y0), flight.filters(tracking, &y0), flight.filters(tracking, &y0));
+        let mut taken = Vec::new();
+        for k in 0..(seconds / TrimFlight::DT_S) as usize {
+            let t = k as f64 * TrimFlight::DT_S;
+            let (y, input) = (flight.measure(), &flight.input);
+            by_ekf.step(&y, input);
+            beside.step_beside(&by_ekf, &y, input);
+            alone.step(&y, input);
+            for m in 0..MODELS {
+                assert_eq!(format!("{:?}", beside.innovation(m)), format!("{:?}", alone.innovation(m)), "{t} s");
+            }
+            assert_eq!(format!("{:?}", beside.estimates()), format!("{:?}", alone.estimates()), "{t} s");
+            let bits = |f: &BankFilters| f.surface_estimates_rad().map(f64::to_bits);
+            assert_eq!(bits(&beside), bits(&alone), "{t} s");
+            assert_eq!(beside.health(), alone.health());
+            taken.push(beside.steps_taken_beside());
+            flight.advance(t, surface, offset_rad, onset_s);
+        }
+        taken
+    }
+
+    /// Strong-tracking filters beside an EKF bank's are the strong-tracking filters alone, to the bit,
+    /// on the seed's tuning with an 8 deg elevator fault from 1 s, both while they take the EKF's steps
+    /// and after their fading factors first leave 1 (measured, either form: all six take the EKF's
+    /// step until 1.31 s, three still do at the end, 4 s).
+    #[test]
+    fn strong_tracking_beside_an_ekf_is_strong_tracking_alone() {
+        for form in [CovarianceForm::StrongTracking, CovarianceForm::SymmetricStrongTracking] {
+            let ekf = BankParams::seed(CovarianceForm::Ekf, LikelihoodForm::Gaussian);
+            let tracking = BankParams::seed(form, LikelihoodForm::EuclideanNorm);
+            let taken = beside_and_alone(&ekf, &tracking, 1, (-8f64).to_radians(), 1.0, 4.0);
+            let all_until = taken.iter().position(|&n| n < MODELS);
+            assert_eq!((all_until, taken[taken.len() - 1]), (Some(131), 3), "{form:?}");
         }
     }
 }

@@ -216,6 +216,18 @@ struct WindowScore {
     error_samples: u32,
 }
 
+/// The own filters of bank `read`, to read, and of bank `write` (another), to step.
+fn pick_two(filters: &mut [Option<BankFilters>], read: usize, write: usize) -> (&BankFilters, &mut BankFilters) {
+    let (read, write) = if read < write {
+        let (before, from) = filters.split_at_mut(write);
+        (&before[read], &mut from[0])
+    } else {
+        let (before, from) = filters.split_at_mut(read);
+        (&from[0], &mut before[write])
+    };
+    (read.as_ref().expect("an EKF bank's own filters"), write.as_mut().expect("a bank's own filters"))
+}
+
 /// Flies `trial` once and runs every bank in `banks` on the same samples, on the trial's design
 /// airframe. `on_sample` sees each sample with every bank's row (for traces; pass `|_, _| ()`).
 pub fn run_banks<R: rand::Rng + ?Sized>(
@@ -247,6 +259,14 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
     let filters_of: Vec<usize> = (banks.iter().enumerate())
         .map(|(i, p)| banks[..i].iter().position(|q| q.same_filters(p)).unwrap_or(i))
         .collect();
+    // A strong-tracking bank with its own filters steps them beside an EKF bank's with its noise tuning
+    // (BankFilters::step_beside): while its fading factors are 1, the EKF's steps are its own.
+    let beside: Vec<Option<usize>> = (banks.iter().enumerate())
+        .map(|(i, p)| {
+            let leads = |j: usize| filters_of[j] == j && p.tracks_beside(&banks[j]);
+            (filters_of[i] == i).then(|| (0..banks.len()).find(|&j| leads(j))).flatten()
+        })
+        .collect();
     let mut filters: Vec<Option<BankFilters>> = Vec::new();
     let mut running: Vec<SurfaceBank> = banks.iter().map(|p| SurfaceBank::new(p, study.header.dt_s)).collect();
     let mut scores: Vec<Vec<WindowScore>> = banks
@@ -271,10 +291,18 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
             commanded_rad: sample.commanded_rad,
         };
         rows.clear();
-        for (b, bank) in running.iter_mut().enumerate() {
-            if let Some(own) = &mut filters[b] {
+        for b in 0..banks.len() {
+            if let (Some(own), None) = (&mut filters[b], beside[b]) {
                 own.step(&sample.y, &input);
             }
+        }
+        for (b, &ekf) in beside.iter().enumerate() {
+            if let Some(e) = ekf {
+                let (ekf, own) = pick_two(&mut filters, e, b);
+                own.step_beside(ekf, &sample.y, &input);
+            }
+        }
+        for (b, bank) in running.iter_mut().enumerate() {
             let bank_filters = filters[filters_of[b]].as_ref().expect("a bank's own or an earlier bank's filters");
             let step = bank.step(bank_filters);
             let t = sample.t_s;
