@@ -489,10 +489,11 @@ impl DualUkf {
         self.dt_s == other.dt_s && filtering(&self.params) == filtering(&other.params)
     }
 
-    /// Whether `other`'s [`DualUkf::filter`] would now give this detector's to the bit: its filters are
-    /// [`DualUkf::filters_like`] these, and their states, covariances, model probabilities, health
-    /// counters and last inertial sample have the same bits. The seed deck's three detectors are so until
-    /// their first step with a fault present and, when their isolations agree there, after it.
+    /// Whether `other`'s [`DualUkf::filter`] would now give this detector's to the bit, for two detectors
+    /// whose filters are [`DualUkf::filters_like`] (the caller checks that once, not at every sample):
+    /// their states, covariances, model probabilities, health counters and last inertial sample have the
+    /// same bits. The seed deck's three detectors are so until their first step with a fault present
+    /// and, when their isolations agree there, after it.
     pub fn same_filters(&self, other: &DualUkf) -> bool {
         fn same_ukf<const N: usize, const M: usize>(a: &Ukf<N, M>, b: &Ukf<N, M>) -> bool {
             same_bits(a.state().as_slice(), b.state().as_slice())
@@ -509,7 +510,6 @@ impl DualUkf {
                 (Some(a), Some(b)) => same_bits(&a.to_array(), &b.to_array()),
                 _ => false,
             }
-            && self.filters_like(other)
     }
 
     /// The first part of [`DualUkf::step`], which the isolation settings do not enter: both filters'

@@ -149,8 +149,7 @@ impl Detectors {
         }
         for i in 0..self.running.len() {
             if let Some(l) = self.leader[i] {
-                let (before, from_i) = self.running.split_at_mut(i);
-                if let (Running::Dual(f), Running::Dual(leader)) = (&mut from_i[0], &before[l]) {
+                if let Ok([Running::Dual(leader), Running::Dual(f)]) = self.running.get_disjoint_mut([l, i]) {
                     f.follow(leader);
                 }
                 self.innovations[i] = self.innovations[l];

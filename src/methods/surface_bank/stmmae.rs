@@ -326,24 +326,26 @@ impl BankFilters {
     /// tracking hardly ever fades, so its two strong-tracking banks cost little more than their
     /// fading factors until the onset.
     pub fn step_beside(&mut self, ekf: &BankFilters, y: &SVector<f64, 5>, input: &BankInput) {
-        let (airframe, gammas, dt_s) = (&self.airframe, &self.gammas, self.dt_s);
-        let model = NoFault { airframe, gammas, dt_s };
-        self.beside[0] = match self.beside[0] {
-            true => self.no_fault.step_beside(&ekf.no_fault, &model, y, input),
-            false => {
-                self.no_fault.step(&model, y, input);
-                false
+        /// `filter`'s step beside `ekf` while it has taken the EKF's every step (`*beside`), its own after.
+        fn one<const N: usize, D: DiscreteModel<N, 5, Input = BankInput>>(
+            filter: &mut Stekf<N, 5>,
+            ekf: &Stekf<N, 5>,
+            beside: &mut bool,
+            model: &D,
+            y: &SVector<f64, 5>,
+            input: &BankInput,
+        ) {
+            if *beside {
+                *beside = filter.step_beside(ekf, model, y, input);
+            } else {
+                filter.step(model, y, input);
             }
-        };
+        }
+        let (airframe, gammas, dt_s) = (&self.airframe, &self.gammas, self.dt_s);
+        one(&mut self.no_fault, &ekf.no_fault, &mut self.beside[0], &NoFault { airframe, gammas, dt_s }, y, input);
         for (surface, filter) in self.surfaces.iter_mut().enumerate() {
             let model = SurfaceFault { airframe, gammas, dt_s, surface };
-            self.beside[surface + 1] = match self.beside[surface + 1] {
-                true => filter.step_beside(&ekf.surfaces[surface], &model, y, input),
-                false => {
-                    filter.step(&model, y, input);
-                    false
-                }
-            };
+            one(filter, &ekf.surfaces[surface], &mut self.beside[surface + 1], &model, y, input);
         }
     }
 
@@ -549,8 +551,10 @@ mod tests {
         }
 
         fn measure(&mut self) -> SVector<f64, 5> {
-            let sigma = [0.0076f64.sqrt(); 3].into_iter().chain([0.0012f64.sqrt(); 2]).collect::<Vec<_>>();
-            SVector::<f64, 5>::from_fn(|j, _| self.truth[j] + Normal::new(0.0, sigma[j]).unwrap().sample(&mut self.rng))
+            let variance = [0.0076, 0.0076, 0.0076, 0.0012, 0.0012];
+            SVector::<f64, 5>::from_fn(|j, _| {
+                self.truth[j] + Normal::new(0.0, f64::sqrt(variance[j])).unwrap().sample(&mut self.rng)
+            })
         }
 
         fn filters(&mut self, params: &BankParams, y0: &SVector<f64, 5>) -> BankFilters {

@@ -216,18 +216,6 @@ struct WindowScore {
     error_samples: u32,
 }
 
-/// The own filters of bank `read`, to read, and of bank `write` (another), to step.
-fn pick_two(filters: &mut [Option<BankFilters>], read: usize, write: usize) -> (&BankFilters, &mut BankFilters) {
-    let (read, write) = if read < write {
-        let (before, from) = filters.split_at_mut(write);
-        (&before[read], &mut from[0])
-    } else {
-        let (before, from) = filters.split_at_mut(read);
-        (&from[0], &mut before[write])
-    };
-    (read.as_ref().expect("an EKF bank's own filters"), write.as_mut().expect("a bank's own filters"))
-}
-
 /// Flies `trial` once and runs every bank in `banks` on the same samples, on the trial's design
 /// airframe. `on_sample` sees each sample with every bank's row (for traces; pass `|_, _| ()`).
 pub fn run_banks<R: rand::Rng + ?Sized>(
@@ -297,8 +285,9 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
             }
         }
         for (b, &ekf) in beside.iter().enumerate() {
-            if let Some(e) = ekf {
-                let (ekf, own) = pick_two(&mut filters, e, b);
+            if let Some(e) = ekf
+                && let Ok([Some(ekf), Some(own)]) = filters.get_disjoint_mut([e, b])
+            {
                 own.step_beside(ekf, &sample.y, &input);
             }
         }
