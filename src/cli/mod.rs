@@ -140,44 +140,7 @@ Precision: `--precision 0.01 --precision-rates pd,pfa --trials 1000000` runs unt
 Every trial is fault-free (the deck's faults are removed; its noise scale and parameter errors stay). A level is a \
 threshold scale: the detector alarms when a statistic exceeds its deck threshold times the level. The same deck, \
 seed and options give the same numbers for any --threads.")]
-    RareEvent {
-        /// Study deck (TOML).
-        deck: PathBuf,
-        /// The detector to study (default: every one of the deck).
-        #[arg(long)]
-        detector: Option<String>,
-        /// importance (sensor-noise importance sampling) or splitting (adaptive multilevel splitting).
-        #[arg(long, default_value = "importance", value_parser = ["importance", "splitting"])]
-        estimator: String,
-        /// Threshold scales to estimate at (the deck's thresholds times each), e.g. 1,1.2,1.4.
-        #[arg(long, value_name = "S,...", value_delimiter = ',', default_value = "1")]
-        levels: Vec<f64>,
-        /// Importance sampling: trials, the first fifth a pilot that tunes the mixture [default: 20000].
-        #[arg(long)]
-        trials: Option<u64>,
-        /// Splitting: particles per replica [default: 100].
-        #[arg(long)]
-        particles: Option<usize>,
-        /// Splitting: independent replicas, whose spread gives the interval [default: 16].
-        #[arg(long)]
-        replicas: Option<u64>,
-        /// Study seed (default: the deck's study.seed).
-        #[arg(long)]
-        seed: Option<u64>,
-        /// Worker threads (default: one per core).
-        #[arg(long)]
-        threads: Option<usize>,
-        /// Results folder (default: results/<study name>/rare_event, or .../rare_event/shard-I-of-N).
-        #[arg(long)]
-        out: Option<PathBuf>,
-        /// Run only shard I of N (0-based) of the trial chunks or replicas; `fdimc merge` the N folders;
-        /// `auto` (or auto/N): the scheduler's array task, as for `run`.
-        #[arg(long, value_name = "I/N|auto")]
-        shard: Option<String>,
-        /// No progress or pilot lines.
-        #[arg(long)]
-        quiet: bool,
-    },
+    RareEvent(RareEventArgs),
     /// Which uncertainty drives the misses and false alarms: Sobol indices (first and total order, with
     /// 95 % bootstrap intervals) of Pd, isolation, delay and Pfa per detector to every factor the deck's
     /// trials draw, the noise realisation among them. Writes DIR/sensitivity.csv and .parquet.
@@ -254,24 +217,61 @@ It prints the factors before it runs. Shards, --resume and `fdimc merge` work as
     },
 }
 
-/// Where and how `run` and `sensitivity` fly their trials.
+/// The options of `rare-event`.
 #[derive(Debug, clap::Args)]
-pub struct RunFolder {
+pub struct RareEventArgs {
+    /// Study deck (TOML).
+    pub deck: PathBuf,
+    /// The detector to study (default: every one of the deck).
+    #[arg(long)]
+    pub detector: Option<String>,
+    /// importance (sensor-noise importance sampling) or splitting (adaptive multilevel splitting).
+    #[arg(long, default_value = "importance", value_parser = ["importance", "splitting"])]
+    pub estimator: String,
+    /// Threshold scales to estimate at (the deck's thresholds times each), e.g. 1,1.2,1.4.
+    #[arg(long, value_name = "S,...", value_delimiter = ',', default_value = "1")]
+    pub levels: Vec<f64>,
+    /// Importance sampling: trials, the first fifth a pilot that tunes the mixture [default: 20000].
+    #[arg(long)]
+    pub trials: Option<u64>,
+    /// Splitting: particles per replica [default: 100].
+    #[arg(long)]
+    pub particles: Option<usize>,
+    /// Splitting: independent replicas, whose spread gives the interval [default: 16].
+    #[arg(long)]
+    pub replicas: Option<u64>,
+    #[command(flatten)]
+    pub place: Placement,
+    /// No progress or pilot lines.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// Seed, threads, results folder and shard: where `run`, `sensitivity` and `rare-event` fly their trials.
+#[derive(Debug, Default, clap::Args)]
+pub struct Placement {
     /// Study seed (default: the deck's study.seed); another seed gives fresh trials.
     #[arg(long)]
     pub seed: Option<u64>,
     /// Worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Results folder (default: results/<study name>, for sensitivity results/<study name>/sensitivity;
-    /// a shard's in shard-I-of-N under it).
+    /// Results folder (default: results/<study name>, and under it sensitivity/ or rare_event/ for
+    /// those commands; a shard's in shard-I-of-N under it).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Run only shard I of N (0-based), e.g. 0/4, then `fdimc merge` the N folders; `auto` (or auto/N):
-    /// the scheduler's array task (SLURM_ARRAY_TASK_ID, a Kubernetes JOB_COMPLETION_INDEX), its folder
-    /// shard-I-of-N under --out.
+    /// Run only shard I of N (0-based) of the trial chunks (rare-event splitting: of the replicas), e.g.
+    /// 0/4, then `fdimc merge` the N folders; `auto` (or auto/N): the scheduler's array task
+    /// (SLURM_ARRAY_TASK_ID, a Kubernetes JOB_COMPLETION_INDEX), its folder shard-I-of-N under --out.
     #[arg(long, value_name = "I/N|auto")]
     pub shard: Option<String>,
+}
+
+/// Where and how `run` and `sensitivity` fly their trials.
+#[derive(Debug, clap::Args)]
+pub struct RunFolder {
+    #[command(flatten)]
+    pub place: Placement,
     /// Continue an interrupted run in the same folder (same deck, seed, trials or design, and shard).
     #[arg(long)]
     pub resume: bool,
@@ -330,33 +330,7 @@ pub fn run(cli: Cli) -> ExitCode {
             sensitivity: None,
         })
         .map(|_| ()),
-        Command::RareEvent {
-            deck,
-            detector,
-            estimator,
-            levels,
-            trials,
-            particles,
-            replicas,
-            seed,
-            threads,
-            out,
-            shard,
-            quiet,
-        } => run::exec_rare_event(run::RareEventArgs {
-            deck: &deck,
-            shard: shard.as_deref(),
-            detector,
-            estimator: &estimator,
-            levels,
-            trials,
-            particles,
-            replicas,
-            seed,
-            threads,
-            out,
-            quiet,
-        }),
+        Command::RareEvent(args) => run::exec_rare_event(args),
         Command::Sensitivity { deck, base_samples, bootstrap, folder, thresholds } => {
             if !(2..=crate::engine::streams::MAX_TRIAL / 64).contains(&base_samples) {
                 Err(CliError::Invalid(format!(

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::cli::{CliError, RunFolder};
+use crate::cli::{CliError, Placement, RareEventArgs, RunFolder};
 use crate::engine::method::{self, Inputs, Method, Opt, Study};
 use crate::engine::runner::{self, Manifest, RunError, RunOptions, Shard};
 use crate::engine::summary;
@@ -57,6 +57,19 @@ fn method_of_run(dir: &Path) -> Result<(&'static Method, Manifest), CliError> {
     Ok((method, manifest))
 }
 
+/// Refuses `--threads 0` and sets `--seed`; the results folder (`sub` under the study's by default) and
+/// the shard, and whether the scheduler gave it (`--shard auto`).
+fn place(p: &Placement, study: &mut dyn Study, sub: Option<&str>) -> Result<(PathBuf, Shard, bool), CliError> {
+    if p.threads == Some(0) {
+        return Err(CliError::Invalid("--threads 0: give at least 1 (or leave it out for one per core)".into()));
+    }
+    let (shard, auto) = shard_of(p.shard.as_deref())?;
+    if let Some(seed) = p.seed {
+        *study.seed_and_trials().0 = seed;
+    }
+    Ok((results_folder(p.out.as_deref(), &study.header().name, sub, shard, auto), shard, auto))
+}
+
 /// `--shard`: `I/N`, or the scheduler's array task (`auto`); whether it was `auto`.
 fn shard_of(text: Option<&str>) -> Result<(Shard, bool), CliError> {
     match text {
@@ -85,10 +98,6 @@ fn results_folder(out: Option<&Path>, study: &str, sub: Option<&str>, shard: Sha
 
 pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
     let f = &a.folder;
-    let (shard, auto) = shard_of(f.shard.as_deref())?;
-    if f.threads == Some(0) {
-        return Err(CliError::Invalid("--threads 0: give at least 1 (or leave it out for one per core)".into()));
-    }
     let (method, mut study) = load(a.deck, a.classifiers)?;
     if let Some(n) = a.trials {
         if n == 0 || n > crate::engine::streams::MAX_TRIAL {
@@ -96,9 +105,8 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         }
         *study.seed_and_trials().1 = n;
     }
-    if let Some(seed) = f.seed {
-        *study.seed_and_trials().0 = seed;
-    }
+    let sub = a.sensitivity.is_some().then_some("sensitivity");
+    let (out_dir, shard, auto) = place(&f.place, study.as_mut(), sub)?;
     let design = match &a.sensitivity {
         Some(SensitivityArgs { base_samples, bootstrap, thresholds }) => {
             method::require(REGISTRY, method, Opt::Sensitivity)?;
@@ -123,15 +131,13 @@ pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
         }
         None => None,
     };
-    let sub = design.is_some().then_some("sensitivity");
-    let out_dir = results_folder(f.out.as_deref(), &study.header().name, sub, shard, auto);
     if auto && !f.quiet {
         println!("shard {}/{} from the scheduler's array task -> {}", shard.index, shard.count, out_dir.display());
     }
     let opts = RunOptions {
         deck: a.deck.into(),
         out_dir: out_dir.clone(),
-        threads: f.threads,
+        threads: f.place.threads,
         shard,
         resume: f.resume,
         force: f.force,
@@ -376,10 +382,7 @@ pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<us
             deck: target,
             trials: None,
             folder: RunFolder {
-                seed: None,
-                threads,
-                out: Some(scratch.clone()),
-                shard: None,
+                place: Placement { threads, out: Some(scratch.clone()), ..Placement::default() },
                 resume: false,
                 force: true,
                 quiet: true,
@@ -471,22 +474,6 @@ pub fn exec_design(deck: &Path, json: bool) -> Result<(), CliError> {
     Ok(study.design(json)?)
 }
 
-/// `fdimc rare-event`'s arguments as given.
-pub struct RareEventArgs<'a> {
-    pub deck: &'a Path,
-    pub shard: Option<&'a str>,
-    pub detector: Option<String>,
-    pub estimator: &'a str,
-    pub levels: Vec<f64>,
-    pub trials: Option<u64>,
-    pub particles: Option<usize>,
-    pub replicas: Option<u64>,
-    pub seed: Option<u64>,
-    pub threads: Option<usize>,
-    pub out: Option<PathBuf>,
-    pub quiet: bool,
-}
-
 /// `fdimc rare-event`: checks the options (each estimator's own, the others refused), then runs.
 pub fn exec_rare_event(a: RareEventArgs) -> Result<(), CliError> {
     use crate::engine::rare_event_study::{Estimator, RareEventOptions};
@@ -500,9 +487,6 @@ pub fn exec_rare_event(a: RareEventArgs) -> Result<(), CliError> {
     let refused = if estimator == Estimator::Splitting { own } else { other };
     if let Some((flag, _)) = refused.iter().find(|(_, given)| *given) {
         return bad(format!("{flag} does not apply to --estimator {}", estimator.name()));
-    }
-    if a.threads == Some(0) {
-        return bad("--threads 0: give at least 1 (or leave it out for one per core)".into());
     }
     let mut levels = a.levels.clone();
     if let Some(l) = levels.iter().find(|l| !(l.is_finite() && **l > 0.0)) {
@@ -523,13 +507,9 @@ pub fn exec_rare_event(a: RareEventArgs) -> Result<(), CliError> {
     if !(2..=MAX_REPLICA).contains(&replicas) {
         return bad(format!("--replicas {replicas}: allowed 2 (an interval needs two) to {MAX_REPLICA}"));
     }
-    let (method, mut study) = load(a.deck, None)?;
+    let (method, mut study) = load(&a.deck, None)?;
     method::require(REGISTRY, method, Opt::RareEvent)?;
-    if let Some(seed) = a.seed {
-        *study.seed_and_trials().0 = seed;
-    }
-    let (shard, auto) = shard_of(a.shard)?;
-    let out = results_folder(a.out.as_deref(), &study.header().name, Some("rare_event"), shard, auto);
+    let (out, shard, _) = place(&a.place, study.as_mut(), Some("rare_event"))?;
     let opts = RareEventOptions {
         deck: a.deck.into(),
         shard,
@@ -542,7 +522,7 @@ pub fn exec_rare_event(a: RareEventArgs) -> Result<(), CliError> {
         out,
         quiet: a.quiet,
     };
-    runner::thread_pool(a.threads)?.install(|| study.rare_event(&opts))?;
+    runner::thread_pool(a.place.threads)?.install(|| study.rare_event(&opts))?;
     if !a.quiet && shard == Shard::WHOLE {
         println!("wrote {}", opts.out.join("rare_event.csv").display());
     }
