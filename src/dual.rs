@@ -186,33 +186,19 @@ impl<const N: usize> One for Dual<N> {
     }
 }
 
-impl<const N: usize> AddAssign for Dual<N> {
-    #[inline(always)]
-    fn add_assign(&mut self, o: Self) {
-        *self = *self + o;
-    }
+/// `a op= b` as `a = a op b`, for each of the four operators.
+macro_rules! assign_ops {
+    ($($trait:ident $method:ident $op:tt),*) => {$(
+        impl<const N: usize> $trait for Dual<N> {
+            #[inline(always)]
+            fn $method(&mut self, o: Self) {
+                *self = *self $op o;
+            }
+        }
+    )*};
 }
 
-impl<const N: usize> SubAssign for Dual<N> {
-    #[inline(always)]
-    fn sub_assign(&mut self, o: Self) {
-        *self = *self - o;
-    }
-}
-
-impl<const N: usize> MulAssign for Dual<N> {
-    #[inline(always)]
-    fn mul_assign(&mut self, o: Self) {
-        *self = *self * o;
-    }
-}
-
-impl<const N: usize> DivAssign for Dual<N> {
-    #[inline(always)]
-    fn div_assign(&mut self, o: Self) {
-        *self = *self / o;
-    }
-}
+assign_ops!(AddAssign add_assign +, SubAssign sub_assign -, MulAssign mul_assign *, DivAssign div_assign /);
 
 impl<const N: usize> Add<f64> for Dual<N> {
     type Output = Self;

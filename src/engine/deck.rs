@@ -188,6 +188,17 @@ pub struct StudyHeader {
     pub steps: usize,
 }
 
+impl StudyHeader {
+    /// The first lines of `validate`: the deck is valid, and the study's name, seed and time grid.
+    pub fn print_valid(&self) {
+        println!("{}: valid", self.path.display());
+        println!(
+            "study       {} (seed {}, {} s at dt {} s = {} samples)",
+            self.name, self.seed, self.duration_s, self.dt_s, self.steps
+        );
+    }
+}
+
 /// Copies each field a deck table gives (`Some`) over the default of the same name in `$params`:
 /// `take_given!(params, deck_table, [field_a, field_b])`.
 #[macro_export]
@@ -245,6 +256,15 @@ impl Validator<'_> {
             Ok(v)
         } else {
             Err(self.err(field, format!("must be a finite number >= 0, got {v}")))
+        }
+    }
+
+    /// A finite number >= `min`; `what` says in the message what the number is.
+    pub(crate) fn at_least(&self, field: &str, v: f64, min: f64, what: &str) -> Result<f64, DeckError> {
+        if v.is_finite() && v >= min {
+            Ok(v)
+        } else {
+            Err(self.err(field, format!("must be >= {min} ({what}), got {v}")))
         }
     }
 
@@ -467,14 +487,32 @@ impl Validator<'_> {
         Ok(v)
     }
 
+    /// One of a field's named values: `choices` pairs each name a deck may write with its value and what
+    /// it means for the message ("" for nothing), which lists them all in this order.
+    pub(crate) fn choice<T: Clone>(
+        &self,
+        field: &str,
+        name: &str,
+        choices: &[(&str, T, &str)],
+    ) -> Result<T, DeckError> {
+        if let Some((_, value, _)) = choices.iter().find(|(n, ..)| *n == name) {
+            return Ok(value.clone());
+        }
+        let allowed: Vec<String> = choices
+            .iter()
+            .map(|(n, _, what)| if what.is_empty() { format!("{n:?}") } else { format!("{n:?} ({what})") })
+            .collect();
+        Err(self.err(field, format!("{name:?}: allowed {}", allowed.join(", "))))
+    }
+
     /// The sampler of continuous factors (default random).
     pub(crate) fn sampler(&self, field: &str, name: Option<&str>) -> Result<Sampler, DeckError> {
-        match name {
-            None | Some("random") => Ok(Sampler::Random),
-            Some("lhs") => Ok(Sampler::LatinHypercube),
-            Some("sobol") => Ok(Sampler::Sobol),
-            Some(other) => Err(self.err(field, format!("{other:?}: allowed \"random\", \"lhs\", \"sobol\""))),
-        }
+        let choices = [
+            ("random", Sampler::Random, "default"),
+            ("lhs", Sampler::LatinHypercube, ""),
+            ("sobol", Sampler::Sobol, ""),
+        ];
+        self.choice(field, name.unwrap_or("random"), &choices)
     }
 
     /// A name that becomes a column (`perr_<name>`): letters, digits and '_', not among `earlier`.
@@ -495,12 +533,11 @@ impl Validator<'_> {
 
     /// Which model a parameter error perturbs.
     pub(crate) fn model_target(&self, field: &str, name: &str) -> Result<ModelTarget, DeckError> {
-        match name {
-            "plant" => Ok(ModelTarget::Plant),
-            "design" => Ok(ModelTarget::Design),
-            other => Err(self
-                .err(field, format!("{other:?}: allowed \"plant\" (the truth) or \"design\" (the detector's model)"))),
-        }
+        self.choice(
+            field,
+            name,
+            &[("plant", ModelTarget::Plant, "the truth"), ("design", ModelTarget::Design, "the detector's model")],
+        )
     }
 }
 

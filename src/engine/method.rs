@@ -172,6 +172,22 @@ pub fn select_detector(header: &StudyHeader, names: &[&str], wanted: Option<&str
     })
 }
 
+/// `simulate --detector NAME`: keeps only detector `wanted` of `detectors` (named by `name`), or all of
+/// them when no name is given; an error lists the names.
+pub fn keep_detector<D>(
+    header: &StudyHeader,
+    detectors: &mut Vec<D>,
+    name: impl Fn(&D) -> &str,
+    wanted: Option<&str>,
+) -> Result<(), RunError> {
+    let names: Vec<&str> = detectors.iter().map(name).collect();
+    if let Some(i) = select_detector(header, &names, wanted)? {
+        detectors.swap(0, i);
+        detectors.truncate(1);
+    }
+    Ok(())
+}
+
 /// The method of `kind` (a results folder's), or an error listing the kinds there are.
 pub fn find<'r>(registry: &'r [&'r Method], kind: &str) -> Result<&'r Method, RunError> {
     registry.iter().copied().find(|m| m.kind == kind).ok_or_else(|| {

@@ -21,6 +21,13 @@ use crate::engine::deck::{Factor, MonteCarlo, ParameterError, Sampler};
 use crate::engine::sensitivity::Design;
 use crate::engine::streams::{Substream, trial_rng};
 
+/// Continuous dimensions of the factors every kind draws (the fault size's, where its kind has one); a kind's
+/// own factors take [`FIRST_OWN_DIM`] on.
+pub const DIM_ONSET: usize = 0;
+pub const DIM_SIZE: usize = 1;
+pub const DIM_NOISE: usize = 2;
+pub const FIRST_OWN_DIM: usize = 3;
+
 /// Uniform draws in [0, 1) per (trial, dimension) by the deck's sampler: independent uniforms, a Latin
 /// hypercube over `trials`, or Owen-scrambled Sobol points. Shared by every kind of study.
 pub struct UnitSampler {
@@ -145,6 +152,13 @@ impl TrialDraws {
         }
         let grid = &mut self.grid;
         draw(f, u, &mut |n| grid.next(n))
+    }
+
+    /// The shared factors of `[monte_carlo]`, onset first: (onset in s, noise scale, its group label).
+    pub fn onset_and_noise(&mut self, mc: &MonteCarlo) -> (f64, f64, f64) {
+        let (onset_s, _) = self.factor(&mc.onset_s, DIM_ONSET);
+        let (noise_scale, noise_bin) = self.factor(&mc.noise_scale, DIM_NOISE);
+        (onset_s, noise_scale, noise_bin)
     }
 
     /// Each parameter error's value (deck order, dimensions from `first_dim` on) and the largest |group

@@ -47,8 +47,8 @@ use super::output::write_table;
 use super::runner::{Manifest, RunError, pol};
 use super::schema::col;
 use super::streams::{Substream, trial_rng};
-use super::tables::{bool_col, column_names, complete_run, f64_col, list_col, numbers, slices, str_col, u64_col};
-use super::thresholds::{SLICE_ROWS, alarms_at, read_thresholds};
+use super::tables::{bool_col, column_names, complete_run, f64_col, numbers, slices, str_col, u64_col};
+use super::thresholds::{RecordedStatistics, SLICE_ROWS, read_thresholds};
 
 /// Name of the noise realisation's factor.
 pub const NOISE_FACTOR: &str = "noise_realisation";
@@ -494,18 +494,12 @@ fn at_thresholds(
 ) -> Result<(), RunError> {
     let (trial, detector) = (u64_col(records, col::TRIAL, path)?, str_col(records, col::DETECTOR, path)?);
     let fault_free = bool_col(records, col::FAULT_FREE, path)?;
-    let mut pre = Vec::new();
-    let (mut fp_t, mut fp_v) = (Vec::new(), Vec::new());
-    for s in statistics {
-        pre.push(numbers(records, &col::pre_max(s), path)?);
-        fp_t.push(list_col(records, &col::fp_t(s), path)?);
-        fp_v.push(list_col(records, &col::fp_v(s), path)?);
-    }
+    let recorded = RecordedStatistics::read(records, statistics, path)?;
     for r in 0..records.height() {
         let (t, name) = (trial.get(r).unwrap_or(0) as usize, detector.get(r).unwrap_or(""));
         let d = manifest.detectors.iter().position(|n| n == name).unwrap_or(0);
         let out = &mut rows[d];
-        let (false_alarm, alarm) = alarms_at(&pre, &fp_t, &fp_v, r, &whole[d], fault_free.get(r) != Some(true));
+        let (false_alarm, alarm) = recorded.alarms_at(r, &whole[d], fault_free.get(r) != Some(true));
         out.false_alarm[t] = false_alarm;
         out.detected[t] = alarm.is_some();
         out.delay_s[t] = alarm.map(|a| a - out.onset_s[t].unwrap_or(f64::NAN));

@@ -34,11 +34,9 @@ use super::paired::{PairedUnits, UnitOutcome};
 use super::quantiles::Quantiles;
 use super::runner::{RunError, pol, write_parquet};
 use super::schema::col;
-use super::tables::{
-    Table, bool_col, column_names, complete_run, f64_col, list_col, numbers, slices, str_col, u64_col,
-};
+use super::tables::{Table, bool_col, column_names, complete_run, f64_col, numbers, slices, str_col, u64_col};
 use super::thresholds::{
-    Calibration, DetectorThresholds, SLICE_ROWS, alarms_at, per_flight_hour, thresholds, write_thresholds,
+    Calibration, DetectorThresholds, RecordedStatistics, SLICE_ROWS, per_flight_hour, thresholds, write_thresholds,
 };
 use crate::fault::deck::unit;
 
@@ -326,16 +324,7 @@ impl<'s> Aggregates<'s> {
         let paired_medians =
             spec.paired_medians.iter().map(|c| numbers(df, c, file)).collect::<Result<Vec<Vec<f64>>, RunError>>()?;
         let profiles = match calibrated {
-            Some((_, statistics)) => {
-                let mut pre = Vec::new();
-                let (mut t, mut v) = (Vec::new(), Vec::new());
-                for s in statistics {
-                    pre.push(numbers(df, &col::pre_max(s), file)?);
-                    t.push(list_col(df, &col::fp_t(s), file)?);
-                    v.push(list_col(df, &col::fp_v(s), file)?);
-                }
-                Some((pre, t, v))
-            }
+            Some((_, statistics)) => Some(RecordedStatistics::read(df, statistics, file)?),
             None => None,
         };
 
@@ -378,8 +367,8 @@ impl<'s> Aggregates<'s> {
                     }
                 } else {
                     let (thresholds, _) = calibrated.expect("a calibrated set has thresholds");
-                    let (pre, fp_t, fp_v) = profiles.as_ref().expect("a calibrated set has profiles");
-                    let (fa, alarm) = alarms_at(pre, fp_t, fp_v, i, &thresholds[d].whole, faulty);
+                    let profiles = profiles.as_ref().expect("a calibrated set has profiles");
+                    let (fa, alarm) = profiles.alarms_at(i, &thresholds[d].whole, faulty);
                     Unit {
                         flown,
                         faulty,

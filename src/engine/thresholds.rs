@@ -24,7 +24,7 @@ use super::intervals::{Z95, wilson};
 use super::output::write_table;
 use super::runner::{Manifest, RunError, pol};
 use super::schema::col;
-use super::tables::{bool_col, read_slice, read_summary, slices, str_col};
+use super::tables::{bool_col, list_col, numbers, read_slice, read_summary, slices, str_col};
 
 /// Rows read at a time.
 pub const SLICE_ROWS: usize = 16_384;
@@ -76,21 +76,46 @@ pub fn per_segment(per_hour: f64, segment_s: f64) -> f64 {
     -((-per_hour).ln_1p() * segment_s / 3600.0).exp_m1()
 }
 
-/// Row `i`'s alarms at whole-detector thresholds `whole` from its recorded statistics (`pre[j][i]`, the
-/// pre-onset maxima; `fp_t`, `fp_v`, the first-passage profiles): whether it has a false alarm, and its
-/// first post-onset alarm (none for a fault-free row).
-pub fn alarms_at(
-    pre: &[Vec<f64>],
-    fp_t: &[Vec<Vec<f64>>],
-    fp_v: &[Vec<Vec<f64>>],
-    i: usize,
-    whole: &[f64],
-    faulty: bool,
-) -> (bool, Option<f64>) {
-    let false_alarm = (0..whole.len()).any(|j| pre[j][i] > whole[j]);
-    let t: Vec<&[f64]> = fp_t.iter().map(|c| c[i].as_slice()).collect();
-    let v: Vec<&[f64]> = fp_v.iter().map(|c| c[i].as_slice()).collect();
-    (false_alarm, if faulty { alarm_time(&t, &v, whole) } else { None })
+/// The recorded statistics of a slice of `trials.parquet` (per statistic, each row's pre-onset maximum
+/// and first-passage profile), read back to place alarms at other thresholds than the deck's.
+pub struct RecordedStatistics {
+    /// `pre[j][i]`: statistic j's largest value before the onset in row i (NaN where not recorded).
+    pub pre: Vec<Vec<f64>>,
+    /// `fp_t[j][i]`, `fp_v[j][i]`: statistic j's first-passage profile in row i, times (s) and values.
+    pub fp_t: Vec<Vec<Vec<f64>>>,
+    pub fp_v: Vec<Vec<Vec<f64>>>,
+}
+
+impl RecordedStatistics {
+    /// The columns that hold `statistics`, to select when reading a slice.
+    pub fn columns(statistics: &[String]) -> impl Iterator<Item = String> + '_ {
+        statistics.iter().flat_map(|s| [col::pre_max(s), col::fp_t(s), col::fp_v(s)])
+    }
+
+    /// `statistics`' columns of `df` (read from `file`, for messages).
+    pub fn read(df: &DataFrame, statistics: &[String], file: &Path) -> Result<Self, RunError> {
+        let mut r = RecordedStatistics { pre: Vec::new(), fp_t: Vec::new(), fp_v: Vec::new() };
+        for s in statistics {
+            r.pre.push(numbers(df, &col::pre_max(s), file)?);
+            r.fp_t.push(list_col(df, &col::fp_t(s), file)?);
+            r.fp_v.push(list_col(df, &col::fp_v(s), file)?);
+        }
+        Ok(r)
+    }
+
+    /// Row `i`'s alarms at whole-detector thresholds `whole`: whether it has a false alarm, and its first
+    /// post-onset alarm (none for a fault-free row).
+    pub fn alarms_at(&self, i: usize, whole: &[f64], faulty: bool) -> (bool, Option<f64>) {
+        let false_alarm = (0..whole.len()).any(|j| self.pre[j][i] > whole[j]);
+        (false_alarm, if faulty { self.first_alarm(i, whole) } else { None })
+    }
+
+    /// Row `i`'s first post-onset alarm at thresholds `thr` (of the first `thr.len()` statistics).
+    pub fn first_alarm(&self, i: usize, thr: &[f64]) -> Option<f64> {
+        let t: Vec<&[f64]> = self.fp_t.iter().map(|c| c[i].as_slice()).collect();
+        let v: Vec<&[f64]> = self.fp_v.iter().map(|c| c[i].as_slice()).collect();
+        alarm_time(&t, &v, thr)
+    }
 }
 
 /// A detector's first post-onset alarm at thresholds `thr`, from the first-passage profiles of one row:

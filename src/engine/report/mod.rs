@@ -28,8 +28,8 @@ use super::method::{Inputs, Method, Opt, OwnPlot};
 use super::runner::{Manifest, RunError, io, read_parquet, write_atomically};
 use super::schema::col;
 use super::summary::Settings;
-use super::tables::{bool_col, column_names, f64_col, list_col, read_slice, read_summary, str_col, u64_col};
-use super::thresholds::{alarm_time, read_thresholds};
+use super::tables::{bool_col, column_names, f64_col, read_slice, read_summary, str_col, u64_col};
+use super::thresholds::{RecordedStatistics, read_thresholds};
 
 /// What a report wrote, for the CLI and tests.
 #[derive(Debug, Default)]
@@ -531,9 +531,7 @@ fn gather(
     let mut columns: Vec<String> =
         [col::DETECTOR, col::KIND, col::FAILURE, col::ONSET_S, col::DELAY_S].iter().map(|s| s.to_string()).collect();
     if by_statistic {
-        for s in &statistics {
-            columns.extend([col::pre_max(s), col::fp_t(s), col::fp_v(s)]);
-        }
+        columns.extend(RecordedStatistics::columns(&statistics));
     }
     let step = 8_192usize;
     let mut offset = 0usize;
@@ -545,14 +543,7 @@ fn gather(
         let failure = str_col(&df, col::FAILURE, &path)?;
         let onset = f64_col(&df, col::ONSET_S, &path)?;
         let delay = f64_col(&df, col::DELAY_S, &path)?;
-        let (mut pre, mut fp_t, mut fp_v) = (Vec::new(), Vec::new(), Vec::new());
-        if by_statistic {
-            for s in &statistics {
-                pre.push(f64_col(&df, &col::pre_max(s), &path)?);
-                fp_t.push(list_col(&df, &col::fp_t(s), &path)?);
-                fp_v.push(list_col(&df, &col::fp_v(s), &path)?);
-            }
-        }
+        let recorded = RecordedStatistics::read(&df, if by_statistic { &statistics } else { &[] }, &path)?;
         for i in 0..df.height() {
             let (Some(d), Some(k)) = (det.get(i), kind.get(i)) else { continue };
             if failure.get(i).is_some() {
@@ -568,15 +559,13 @@ fn gather(
             let Some(th) = whole.get(d) else { continue };
             let j_max = statistics.len().min(th.len());
             if k == col::NO_FAULT {
-                let z = (0..j_max).map(|j| pre[j].get(i).unwrap_or(f64::NAN) / th[j]).fold(0.0, f64::max);
+                let z = (0..j_max).map(|j| recorded.pre[j][i] / th[j]).fold(0.0, f64::max);
                 dd.z_fault_free.push(z);
                 continue;
             }
-            let z = (0..j_max).map(|j| fp_v[j][i].last().copied().unwrap_or(0.0) / th[j]).fold(0.0, f64::max);
+            let z = (0..j_max).map(|j| recorded.fp_v[j][i].last().copied().unwrap_or(0.0) / th[j]).fold(0.0, f64::max);
             dd.z_faulty.push(z);
-            let t: Vec<&[f64]> = fp_t.iter().take(j_max).map(|c| c[i].as_slice()).collect();
-            let v: Vec<&[f64]> = fp_v.iter().take(j_max).map(|c| c[i].as_slice()).collect();
-            if let (Some(t), Some(t0)) = (alarm_time(&t, &v, &th[..j_max]), onset.get(i)) {
+            if let (Some(t), Some(t0)) = (recorded.first_alarm(i, &th[..j_max]), onset.get(i)) {
                 dd.delays.entry(k.to_string()).or_default().push(t - t0);
             }
         }

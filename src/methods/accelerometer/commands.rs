@@ -12,11 +12,7 @@ use std::path::PathBuf;
 /// The resolved accelerometer study (method 003).
 pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
     let d = &study.design;
-    println!("{}: valid", study.header.path.display());
-    println!(
-        "study       {} (seed {}, {} s at dt {} s)",
-        study.header.name, study.header.seed, d.scenario.duration_s, d.scenario.dt_s
-    );
+    study.header.print_valid();
     let n = &d.scenario.noise;
     let simulated = format!(
         "gyro noise {:.3} deg/s (bias spread {:.3}), accelerometer noise {} m/s^2 (bias spread {})",

@@ -1356,11 +1356,14 @@ mod tests {
             assert_eq!(merge.separability, least);
         }
         // Top-down classification of the cluster centres.
-        for class in FaultClass::ALL {
-            let mut x = vec![0.0; FEATURE_COUNT];
-            x[0] = centre(class);
-            assert_eq!(tree.classify(&x), class);
-        }
+        let classifies_the_centres = |tree: &SvmTree| {
+            for class in FaultClass::ALL {
+                let mut x = vec![0.0; FEATURE_COUNT];
+                x[0] = centre(class);
+                assert_eq!(tree.classify(&x), class);
+            }
+        };
+        classifies_the_centres(&tree);
         // The opposite order merges the farthest pair first (normal at 20 with bias at 0), each merge the
         // most separable candidate; it still classifies the centres.
         let reversed = SvmTree::train(&rows, &SvmParams::seed(), false).unwrap();
@@ -1370,11 +1373,7 @@ mod tests {
             let most = merge.candidates.iter().map(|c| c.separability).fold(f64::NEG_INFINITY, f64::max);
             assert_eq!(merge.separability, most);
         }
-        for class in FaultClass::ALL {
-            let mut x = vec![0.0; FEATURE_COUNT];
-            x[0] = centre(class);
-            assert_eq!(reversed.classify(&x), class);
-        }
+        classifies_the_centres(&reversed);
     }
 
     /// Balanced weights at a node of one class against three: on overlapping clusters (centres 0 and 1.5,

@@ -168,25 +168,30 @@ mod tests {
         AccelerometerStudy::from_toml(deck, &path).unwrap()
     }
 
+    /// The bench log replayed from sample `start` for the study's length with `faults`, by the study's
+    /// filter at the nominal noise.
+    fn replayed(study: &AccelerometerStudy, start: usize, faults: &[SensorFault]) -> ResidualTrace {
+        let (log, ekf) = (study.log.as_ref().unwrap(), study.design.ekf_for(1.0));
+        replay_trace(log, start, study.header.steps, faults, &ekf).unwrap()
+    }
+
     /// A zero-size fault (a bias of 0, a gain of 1) leaves every residual exactly as the clean replay's.
     #[test]
     fn a_zero_size_fault_leaves_the_replay_identical() {
         let study = bench_study();
-        let log = study.log.as_ref().unwrap();
-        let (ekf, n) = (study.design.ekf_for(1.0), study.header.steps);
-        let clean = replay_trace(log, 7, n, &[], &ekf).unwrap();
+        let clean = replayed(&study, 7, &[]);
         assert_eq!(clean.samples.len(), 600);
         for mode in [FaultMode::Bias { bias: 0.0 }, FaultMode::Gain { factor: 1.0 }] {
             for channel in 0..3 {
                 let zero = SensorFault { channel, onset_s: 2.5, mode };
-                let faulty = replay_trace(log, 7, n, &[zero], &ekf).unwrap();
+                let faulty = replayed(&study, 7, &[zero]);
                 // Equal residuals: equal statistics, alarms and features, which are functions of them.
                 assert_eq!(faulty.samples, clean.samples, "{mode:?} on axis {channel}");
             }
         }
         // A real fault does move it (the comparison above can fail).
         let bias = SensorFault { channel: 0, onset_s: 2.5, mode: FaultMode::Bias { bias: 0.05 } };
-        assert_ne!(replay_trace(log, 7, n, &[bias], &ekf).unwrap().samples, clean.samples);
+        assert_ne!(replayed(&study, 7, &[bias]).samples, clean.samples);
     }
 
     /// A 0.1 m/s^2 bias on x at 3 s of the bench log (at rest, gravity on z): at the onset sample the
@@ -198,13 +203,12 @@ mod tests {
     #[test]
     fn a_known_bias_moves_the_residual_as_the_steady_state_filter_predicts() {
         let study = bench_study();
-        let log = study.log.as_ref().unwrap();
-        let (ekf, n) = (study.design.ekf_for(1.0), study.header.steps);
-        let clean = replay_trace(log, 0, n, &[], &ekf).unwrap();
+        let (log, ekf) = (study.log.as_ref().unwrap(), study.design.ekf_for(1.0));
+        let clean = replayed(&study, 0, &[]);
         let (onset_s, b) = (3.0, 0.1);
         let k0 = window_start(onset_s, 0.0, log.dt_s);
         let fault = SensorFault { channel: 0, onset_s, mode: FaultMode::Bias { bias: b } };
-        let faulty = replay_trace(log, 0, n, &[fault], &ekf).unwrap();
+        let faulty = replayed(&study, 0, &[fault]);
         // The measured direction's shift at the onset, from the recorded sample.
         let a = Vector3::new(log.signals[3][k0], log.signals[4][k0], log.signals[5][k0]);
         let shifted = a + Vector3::new(b, 0.0, 0.0);

@@ -227,29 +227,15 @@ impl FromDeck for AccelerometerStudy {
             ));
         }
 
-        match t.and_then(|t| t.noise_features.as_deref()) {
-            None | Some("absolute") => {}
-            Some("relative") => design.features.relative_noise = true,
-            Some(other) => {
-                return Err(v.err(
-                    "training.noise_features",
-                    format!("{other:?}: allowed \"absolute\" (default) or \"relative\" (to the window before)"),
-                ));
-            }
-        }
+        let relative = [("absolute", false, "default"), ("relative", true, "to the window before")];
+        let noise_features = t.and_then(|t| t.noise_features.as_deref()).unwrap_or("absolute");
+        design.features.relative_noise = v.choice("training.noise_features", noise_features, &relative)?;
 
         let mut detection = DetectionParams::seed();
         let d = deck.detection.as_ref();
-        match d.and_then(|d| d.filter_noise.as_deref()) {
-            None | Some("nominal") => {}
-            Some("actual") => design.filter_knows_noise = true,
-            Some(other) => {
-                return Err(v.err(
-                    "detection.filter_noise",
-                    format!("{other:?}: allowed \"nominal\" (default) or \"actual\" (Q, R and sigma_z follow the noise scale)"),
-                ));
-            }
-        }
+        let knows = [("nominal", false, "default"), ("actual", true, "Q, R and sigma_z follow the noise scale")];
+        let filter_noise = d.and_then(|d| d.filter_noise.as_deref()).unwrap_or("nominal");
+        design.filter_knows_noise = v.choice("detection.filter_noise", filter_noise, &knows)?;
         if let Some(n) = d.and_then(|d| d.window_samples) {
             if n == 0 {
                 return Err(v.err("detection.window_samples", "allowed at least 1"));
@@ -304,24 +290,14 @@ impl FromDeck for AccelerometerStudy {
             let mut specs = Vec::with_capacity(deck.classifier.len());
             for (i, c) in deck.classifier.iter().enumerate() {
                 let field = |f: &str| format!("classifier[{i}].{f}");
-                let scheme = match c.scheme.as_str() {
-                    "tree" => Scheme::Tree,
-                    "tree_most_separable_first" => Scheme::TreeMostSeparableFirst,
-                    "flat" => Scheme::OneVsOne,
-                    other => {
-                        return Err(v.err(
-                            field("scheme"),
-                            format!("{other:?}: allowed \"tree\", \"tree_most_separable_first\", \"flat\""),
-                        ));
-                    }
-                };
-                let window = match c.window.as_deref() {
-                    None | Some("onset") => ClassifierWindow::Onset,
-                    Some("alarm") => ClassifierWindow::Alarm,
-                    Some(other) => {
-                        return Err(v.err(field("window"), format!("{other:?}: allowed \"onset\", \"alarm\"")));
-                    }
-                };
+                let schemes = [
+                    ("tree", Scheme::Tree, ""),
+                    ("tree_most_separable_first", Scheme::TreeMostSeparableFirst, ""),
+                    ("flat", Scheme::OneVsOne, ""),
+                ];
+                let scheme = v.choice(&field("scheme"), &c.scheme, &schemes)?;
+                let windows = [("onset", ClassifierWindow::Onset, "default"), ("alarm", ClassifierWindow::Alarm, "")];
+                let window = v.choice(&field("window"), c.window.as_deref().unwrap_or("onset"), &windows)?;
                 let trained_on = match c.trained_on.as_deref() {
                     None | Some("simulation") => TrainingData::Simulation,
                     Some("log") if deck.log.as_ref().is_some_and(|l| l.train_s.is_some()) => TrainingData::Log,

@@ -3,18 +3,13 @@
 use std::path::Path;
 
 use super::study::{AirDataStudy, DetectorKind};
-use crate::engine::method::select_detector;
+use crate::engine::method::keep_detector;
 use crate::engine::output::Trace;
 use crate::engine::runner::RunError;
 
 /// The resolved air-data study (method 002).
 pub fn validate(study: &AirDataStudy) -> Result<(), RunError> {
-    println!("{}: valid", study.header.path.display());
-    let samples = (study.header.duration_s / study.header.dt_s).round();
-    println!(
-        "study       {} (seed {}, {} s at dt {} s = {samples} samples)",
-        study.header.name, study.header.seed, study.header.duration_s, study.header.dt_s
-    );
+    study.header.print_valid();
     let p = &study.profile;
     match study.airframe {
         crate::methods::air_data::flight::Airframe::Kinematic => println!(
@@ -121,11 +116,8 @@ pub fn validate(study: &AirDataStudy) -> Result<(), RunError> {
 /// probability, the declaration, the isolation statistics and flags, the air-data and bias estimates.
 pub fn simulate(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), RunError> {
     use crate::methods::air_data::flight::{AIR_DATA_CHANNEL_NAMES, INERTIAL_CHANNEL_NAMES};
-    let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
     let mut selected = study.clone();
-    if let Some(i) = select_detector(&study.header, &names, detector)? {
-        selected.detectors = vec![study.detectors[i].clone()];
-    }
+    keep_detector(&study.header, &mut selected.detectors, |d| &d.name, detector)?;
     let trials = crate::methods::air_data::AirDataTrials::new(&selected);
     let mut trace = Trace::default();
     let result = trials.run_trial_with(trial, |s, steps| {

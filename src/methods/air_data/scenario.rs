@@ -4,17 +4,14 @@
 //! sensor set, size, onset, noise, gust); ranges are drawn by the deck's sampler; whether a trial is
 //! fault-free is the first draw of its scenario stream.
 
-use crate::engine::scenario::UnitSampler;
+use crate::engine::scenario::{DIM_NOISE, DIM_ONSET, DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
 use crate::engine::sensitivity::{Factors, Part, Slot};
 use crate::fault::deck::TrialFaults;
 use crate::methods::air_data::flight::ScenarioParams;
 use crate::methods::air_data::study::AirDataStudy;
 
-const DIM_ONSET: usize = 0;
-const DIM_SIZE: usize = 1;
-const DIM_NOISE: usize = 2;
-const DIM_GUST: usize = 3;
-const DIMS: usize = 4;
+const DIM_GUST: usize = FIRST_OWN_DIM;
+const DIMS: usize = DIM_GUST + 1;
 
 /// One trial's scenario.
 #[derive(Debug, Clone, PartialEq)]
@@ -61,8 +58,7 @@ impl<'a> AirDataScenarioSampler<'a> {
             let size = spec.size.draw(&mut t, DIM_SIZE);
             (spec, set, size)
         });
-        let (onset_s, _) = t.factor(&mc.common.onset_s, DIM_ONSET);
-        let (noise_scale, noise_bin) = t.factor(&mc.common.noise_scale, DIM_NOISE);
+        let (onset_s, noise_scale, noise_bin) = t.onset_and_noise(&mc.common);
         let (gust_std_mps, gust_bin) = t.factor(&mc.gust_std_mps, DIM_GUST);
         // The last grid digit: a deck without redundancy lists one count, which leaves the others as they were.
         let faulty_lanes = mc.faulty_lanes[t.digit(mc.faulty_lanes.len())];

@@ -190,11 +190,7 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
     let list = |v: &[String]| v.join(", ");
     let nums = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(", ");
 
-    println!("{}: valid", deck.display());
-    println!(
-        "study       {} (seed {}, {} s at dt {} s = {} samples)",
-        study.header.name, study.header.seed, study.header.duration_s, study.header.dt_s, study.header.steps
-    );
+    study.header.print_valid();
     println!("plant       {} states [{}]", p.n_states(), list(&p.state_names));
     println!("            {} inputs [{}]", p.n_inputs(), list(&p.input_names));
     println!("            {} outputs [{}]", p.n_outputs(), list(&p.output_names));

@@ -3,15 +3,12 @@
 
 use super::study::LtiStudy;
 use crate::engine::deck::ModelTarget;
-use crate::engine::scenario::UnitSampler;
+use crate::engine::scenario::{DIM_NOISE, DIM_ONSET, DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
 use crate::engine::sensitivity::{Factors, Part, Slot};
 use crate::fault::deck::TrialFaults;
 
 /// Continuous-factor dimensions, fixed so a trial's draws do not depend on which factors are present.
-const DIM_ONSET: usize = 0;
-const DIM_SIZE: usize = 1;
-const DIM_NOISE: usize = 2;
-const DIM_PARAMETERS: usize = 3;
+const DIM_PARAMETERS: usize = FIRST_OWN_DIM;
 
 /// One trial's scenario.
 #[derive(Debug, Clone, PartialEq)]
@@ -59,8 +56,7 @@ impl<'a> ScenarioSampler<'a> {
         let sampled =
             (!mc.faults.is_empty()).then(|| (t.digit(mc.faults.len()), mc.outputs[t.digit(mc.outputs.len())]));
         let size_pick = sampled.map(|(k, _)| mc.faults[k].size.draw(&mut t, DIM_SIZE));
-        let (onset, _) = t.factor(&mc.common.onset_s, DIM_ONSET);
-        let (noise_scale, noise_bin) = t.factor(&mc.common.noise_scale, DIM_NOISE);
+        let (onset, noise_scale, noise_bin) = t.onset_and_noise(&mc.common);
         let (parameter_errors, parameter_error_bin) = t.parameter_errors(&mc.parameter_errors, DIM_PARAMETERS);
 
         let mut spec = TrialSpec {

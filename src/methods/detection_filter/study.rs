@@ -298,11 +298,11 @@ fn monte_carlo(
         let field = |name: &str| format!("{prefix}.{name}");
         let pe: MatrixEntriesSection =
             toml::Value::Table(table).try_into().map_err(|e| chk.err(prefix, e.to_string().trim_end().to_string()))?;
-        let (matrix_b, col_names, col_list) = match pe.matrix.as_str() {
-            "a" => (false, &plant.state_names, "plant.states"),
-            "b" => (true, &plant.input_names, "plant.inputs"),
-            other => return Err(chk.err(field("matrix"), format!("{other:?}: allowed \"a\" or \"b\""))),
-        };
+        let matrices = [
+            ("a", (false, &plant.state_names, "plant.states"), ""),
+            ("b", (true, &plant.input_names, "plant.inputs"), ""),
+        ];
+        let (matrix_b, col_names, col_list) = chk.choice(&field("matrix"), &pe.matrix, &matrices)?;
         if pe.entries.is_empty() {
             return Err(chk.err(field("entries"), "list at least one [row, column] pair of names"));
         }

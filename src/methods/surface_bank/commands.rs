@@ -8,7 +8,7 @@ use super::stmmae::{CovarianceForm, MODELS};
 use super::study::{SurfaceFaultSpec, SurfaceStudy};
 use super::trial::{SurfaceTrial, run_banks};
 use super::uav::{AerosondeParams, SURFACE_NAMES, trim};
-use crate::engine::method::select_detector;
+use crate::engine::method::keep_detector;
 use crate::engine::output::Trace;
 use crate::engine::runner::RunError;
 use crate::engine::streams::{Substream, noise_rng};
@@ -16,12 +16,7 @@ use crate::estimation::bank::LikelihoodForm;
 
 /// The resolved control-surface study (method 004).
 pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
-    println!("{}: valid", study.header.path.display());
-    let samples = (study.header.duration_s / study.header.dt_s).round();
-    println!(
-        "study       {} (seed {}, {} s at dt {} s = {samples} samples)",
-        study.header.name, study.header.seed, study.header.duration_s, study.header.dt_s
-    );
+    study.header.print_valid();
     println!(
         "airframe    aerosonde trimmed at {} m/s, {} m; wind NED {:?} m/s",
         study.trim_airspeed_mps, study.trim_altitude_m, study.wind_ned_mps
@@ -116,11 +111,8 @@ pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
 /// holds the measurements, commands, true positions, and per bank the model probabilities and the
 /// declared surface.
 pub fn simulate(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), RunError> {
-    let names: Vec<&str> = study.banks.iter().map(|(n, _)| n.as_str()).collect();
-    let banks: Vec<_> = match select_detector(&study.header, &names, detector)? {
-        None => study.banks.iter().collect(),
-        Some(i) => vec![&study.banks[i]],
-    };
+    let mut banks = study.banks.clone();
+    keep_detector(&study.header, &mut banks, |(name, _)| name, detector)?;
     let params: Vec<_> = banks.iter().map(|(_, p)| p.clone()).collect();
     // The trial `fdimc run` flies under this index: its scenario, airframes, noise stream.
     let sampler = SurfaceScenarioSampler::new(study);

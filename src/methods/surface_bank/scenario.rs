@@ -6,17 +6,14 @@
 //! draw of its scenario stream.
 
 use crate::engine::deck::ModelTarget;
-use crate::engine::scenario::UnitSampler;
+use crate::engine::scenario::{DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
 use crate::methods::surface_bank::actuator::{ActuatorFault, ActuatorFaultKind};
 use crate::methods::surface_bank::study::{SensorNoise, SurfaceFaultSpec, SurfaceStudy};
 use crate::methods::surface_bank::uav::AerosondeParams;
 
 /// Continuous-factor dimensions, fixed so a trial's draws do not depend on which factors are present.
-const DIM_ONSET: usize = 0;
-const DIM_SIZE: usize = 1;
-const DIM_NOISE: usize = 2;
-const DIM_DURATION: usize = 3;
-const DIM_PARAMETERS: usize = 4;
+const DIM_DURATION: usize = FIRST_OWN_DIM;
+const DIM_PARAMETERS: usize = DIM_DURATION + 1;
 
 /// One fault of a trial with its size and the size's group label (see [`ActuatorFaultKind::size`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,8 +68,7 @@ impl<'a> SurfaceScenarioSampler<'a> {
             let (size, size_bin) = t.factor(spec.size(), DIM_SIZE);
             (spec, surface, size, size_bin)
         });
-        let (onset_s, _) = t.factor(&mc.common.onset_s, DIM_ONSET);
-        let (noise_scale, noise_bin) = t.factor(&mc.common.noise_scale, DIM_NOISE);
+        let (onset_s, noise_scale, noise_bin) = t.onset_and_noise(&mc.common);
         let duration_s = mc.fault_duration_s.as_ref().map(|f| t.factor(f, DIM_DURATION).0);
         let (parameter_errors, parameter_error_bin) = t.parameter_errors(&mc.parameter_errors, DIM_PARAMETERS);
 

@@ -349,8 +349,9 @@ impl BankFilters {
         }
     }
 
-    /// How many of the six filters took an EKF's step at the last [`BankFilters::step_beside`].
-    pub fn steps_taken_beside(&self) -> usize {
+    /// How many of the six filters took an EKF's step at the last [`BankFilters::step_beside`] (for tests).
+    #[cfg(test)]
+    fn steps_taken_beside(&self) -> usize {
         self.beside.iter().filter(|&&b| b).count()
     }
 

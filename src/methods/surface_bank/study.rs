@@ -398,27 +398,20 @@ impl FromDeck for SurfaceStudy {
         let mut banks: Vec<(String, BankParams)> = Vec::new();
         for (i, b) in deck.bank.iter().enumerate() {
             let field = |f: &str| format!("bank[{i}].{f}");
-            let covariance = match b.covariance.as_str() {
-                "ekf" => CovarianceForm::Ekf,
-                "strong_tracking" => CovarianceForm::StrongTracking,
-                "symmetric_strong_tracking" => CovarianceForm::SymmetricStrongTracking,
-                other => {
-                    return Err(v.err(
-                        field("covariance"),
-                        format!("must be \"ekf\", \"strong_tracking\" or \"symmetric_strong_tracking\", got {other:?}"),
-                    ));
-                }
-            };
-            let likelihood = match b.likelihood.as_str() {
-                "gaussian" => LikelihoodForm::Gaussian,
-                "euclidean_norm" => LikelihoodForm::EuclideanNorm,
-                other => {
-                    return Err(v.err(
-                        field("likelihood"),
-                        format!("must be \"gaussian\" or \"euclidean_norm\", got {other:?}"),
-                    ));
-                }
-            };
+            let covariance = v.choice(
+                &field("covariance"),
+                &b.covariance,
+                &[
+                    ("ekf", CovarianceForm::Ekf, ""),
+                    ("strong_tracking", CovarianceForm::StrongTracking, ""),
+                    ("symmetric_strong_tracking", CovarianceForm::SymmetricStrongTracking, ""),
+                ],
+            )?;
+            let likelihood = v.choice(
+                &field("likelihood"),
+                &b.likelihood,
+                &[("gaussian", LikelihoodForm::Gaussian, ""), ("euclidean_norm", LikelihoodForm::EuclideanNorm, "")],
+            )?;
             let mut p = BankParams::seed(covariance, likelihood);
             if let Some(given) = b.process_variance_per_s {
                 for (j, x) in given.iter().enumerate() {
@@ -444,24 +437,16 @@ impl FromDeck for SurfaceStudy {
                 p.rho = rho;
             }
             if let Some(beta) = b.beta {
-                if !(beta.is_finite() && beta >= 1.0) {
-                    return Err(v.err(field("beta"), format!("must be >= 1 (a weakening factor), got {beta}")));
-                }
-                p.beta = beta;
+                p.beta = v.at_least(&field("beta"), beta, 1.0, "a weakening factor")?;
             }
             if let Some(a) = b.a {
-                if let Some(j) = a.iter().position(|a| !(a.is_finite() && *a >= 1.0)) {
-                    return Err(
-                        v.err(format!("bank[{i}].a[{j}]"), format!("must be >= 1 (a prior weight), got {}", a[j]))
-                    );
+                for (j, a) in a.iter().enumerate() {
+                    v.at_least(&format!("bank[{i}].a[{j}]"), *a, 1.0, "a prior weight")?;
                 }
                 p.a = a;
             }
             if let Some(a) = b.a_surface {
-                if !(a.is_finite() && a >= 1.0) {
-                    return Err(v.err(field("a_surface"), format!("must be >= 1 (a prior weight), got {a}")));
-                }
-                p.a_surface = a;
+                p.a_surface = v.at_least(&field("a_surface"), a, 1.0, "a prior weight")?;
             }
             if let Some(h) = b.declare_hold_s {
                 p.declare_hold_s = v.non_negative(&field("declare_hold_s"), h)?;
@@ -470,16 +455,9 @@ impl FromDeck for SurfaceStudy {
                 p.clear_hold_s = v.non_negative(&field("clear_hold_s"), h)?;
             }
             if let Some(rule) = &b.probability_floor_rule {
-                p.floor_rule = match rule.as_str() {
-                    "every_step" => FloorRule::EveryStep,
-                    "reset_at_zero" => FloorRule::ResetAtZero,
-                    other => {
-                        return Err(v.err(
-                            field("probability_floor_rule"),
-                            format!("{other:?}: allowed \"every_step\" (default), \"reset_at_zero\""),
-                        ));
-                    }
-                };
+                let rules =
+                    [("every_step", FloorRule::EveryStep, "default"), ("reset_at_zero", FloorRule::ResetAtZero, "")];
+                p.floor_rule = v.choice(&field("probability_floor_rule"), rule, &rules)?;
             }
             banks.push((b.name.clone(), p));
         }

@@ -3,22 +3,14 @@
 use std::path::Path;
 
 use super::study::LaunchStudy;
-use crate::engine::method::select_detector;
+use crate::engine::method::keep_detector;
 use crate::engine::output::Trace;
 use crate::engine::runner::RunError;
 
 /// The resolved launch-vehicle study (method 001).
 pub fn validate(study: &LaunchStudy) -> Result<(), RunError> {
-    println!("{}: valid", study.header.path.display());
+    study.header.print_valid();
     let c = &study.config;
-    println!(
-        "study       {} (seed {}, {} s at dt {} s = {} samples)",
-        study.header.name,
-        study.header.seed,
-        study.header.duration_s,
-        c.dt_s,
-        (study.header.duration_s / c.dt_s).round()
-    );
     let p = &c.params;
     println!(
         "vehicle     medium_launcher: {:.0} t at lift-off, 4 engines of {:.0} kN at sea level, thrust/weight {:.2}",
@@ -87,11 +79,8 @@ pub fn validate(study: &LaunchStudy) -> Result<(), RunError> {
 /// over the deck's threshold (one scale for detectors whose `fhat` differ by orders of magnitude) and the
 /// alarm.
 pub fn simulate(study: &LaunchStudy, trial: u64, detector: Option<&str>, out: &Path) -> Result<(), RunError> {
-    let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
     let mut selected = study.clone();
-    if let Some(i) = select_detector(&study.header, &names, detector)? {
-        selected.detectors = vec![study.detectors[i].clone()];
-    }
+    keep_detector(&study.header, &mut selected.detectors, |d| &d.name, detector)?;
     let trials = crate::methods::thrust_loss::LaunchTrials::new(&selected)
         .map_err(|e| RunError::Invalid(format!("{}: {e}", study.header.path.display())))?;
     let mut trace = Trace::default();

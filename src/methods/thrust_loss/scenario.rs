@@ -4,16 +4,13 @@
 //! onset, noise, gust scale); ranges are drawn by the deck's sampler; whether a trial is fault-free is
 //! the first draw of its scenario stream.
 
-use crate::engine::scenario::UnitSampler;
+use crate::engine::scenario::{DIM_NOISE, DIM_ONSET, DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
 use crate::engine::sensitivity::{Factors, Part, Slot};
 use crate::methods::thrust_loss::study::LaunchStudy;
 use crate::methods::thrust_loss::vehicle::{Gust, LaunchVehicleConfig, ThrustFault};
 
-const DIM_ONSET: usize = 0;
-const DIM_SIZE: usize = 1;
-const DIM_NOISE: usize = 2;
-const DIM_GUST: usize = 3;
-const DIMS: usize = 4;
+const DIM_GUST: usize = FIRST_OWN_DIM;
+const DIMS: usize = DIM_GUST + 1;
 
 /// One trial's scenario.
 #[derive(Debug, Clone, PartialEq)]
@@ -52,8 +49,7 @@ impl<'a> LaunchScenarioSampler<'a> {
             let (loss, bin) = t.factor(f, DIM_SIZE);
             (engine, loss, bin)
         });
-        let (onset_s, _) = t.factor(&mc.common.onset_s, DIM_ONSET);
-        let (noise_scale, noise_bin) = t.factor(&mc.common.noise_scale, DIM_NOISE);
+        let (onset_s, noise_scale, noise_bin) = t.onset_and_noise(&mc.common);
         let (gust_scale, gust_bin) = t.factor(&mc.gust_scale, DIM_GUST);
         let (fault, loss_percent, loss_bin) = match (t.fault_free, sampled, s.fault) {
             (true, _, _) => (None, f64::NAN, f64::NAN),

@@ -189,13 +189,8 @@ impl FromDeck for LaunchStudy {
         let mut gusts = Vec::with_capacity(deck.gust.len());
         for (i, g) in deck.gust.iter().enumerate() {
             let field = |f: &str| format!("gust[{i}].{f}");
-            let axis = match g.axis.as_str() {
-                "down_range" => GustAxis::DownRange,
-                "cross_range" => GustAxis::CrossRange,
-                other => {
-                    return Err(v.err(field("axis"), format!("{other:?}: allowed \"down_range\" or \"cross_range\"")));
-                }
-            };
+            let axes = [("down_range", GustAxis::DownRange, ""), ("cross_range", GustAxis::CrossRange, "")];
+            let axis = v.choice(&field("axis"), &g.axis, &axes)?;
             let amplitude_mps = v.finite(&field("amplitude_mps"), g.amplitude_mps)?;
             let start_s = v.finite(&field("start_s"), g.start_s)?;
             if !(0.0..duration_s).contains(&start_s) {
