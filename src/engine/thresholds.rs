@@ -24,7 +24,7 @@ use super::intervals::{Z95, wilson};
 use super::output::write_table;
 use super::runner::{Manifest, RunError, pol};
 use super::schema::col;
-use super::tables::{bool_col, list_col, numbers, read_slice, read_summary, slices, str_col};
+use super::tables::{bool_col, list_col, numbers, read_summary, slices, str_col};
 
 /// Rows read at a time.
 pub const SLICE_ROWS: usize = 16_384;
@@ -110,20 +110,16 @@ impl RecordedStatistics {
         (false_alarm, if faulty { self.first_alarm(i, whole) } else { None })
     }
 
-    /// Row `i`'s first post-onset alarm at thresholds `thr` (of the first `thr.len()` statistics).
+    /// Row `i`'s first post-onset alarm at thresholds `thr` (of the first `thr.len()` statistics): for
+    /// each statistic the first profile point above its threshold, then the earliest over statistics.
     pub fn first_alarm(&self, i: usize, thr: &[f64]) -> Option<f64> {
-        let t: Vec<&[f64]> = self.fp_t.iter().map(|c| c[i].as_slice()).collect();
-        let v: Vec<&[f64]> = self.fp_v.iter().map(|c| c[i].as_slice()).collect();
-        alarm_time(&t, &v, thr)
+        (0..thr.len())
+            .filter_map(|j| {
+                let (t, v) = (&self.fp_t[j][i], &self.fp_v[j][i]);
+                t.iter().zip(v).find(|(_, v)| **v > thr[j]).map(|(t, _)| *t)
+            })
+            .reduce(f64::min)
     }
-}
-
-/// A detector's first post-onset alarm at thresholds `thr`, from the first-passage profiles of one row:
-/// for each statistic the first profile point above its threshold, then the earliest over statistics.
-pub fn alarm_time(profile_t_s: &[&[f64]], profile_value: &[&[f64]], thr: &[f64]) -> Option<f64> {
-    (0..thr.len())
-        .filter_map(|j| profile_t_s[j].iter().zip(profile_value[j]).find(|(_, v)| **v > thr[j]).map(|(t, _)| *t))
-        .reduce(f64::min)
 }
 
 /// The order statistic such that at most `floor(p n)` of the values exceed it; `(threshold,
@@ -266,12 +262,11 @@ pub fn thresholds(
     // Pass 1: are there fault-free units, and how many calibration units has each detector?
     let fault_free_rows = {
         let mut any = false;
-        let select = vec![col::FAULT_FREE.to_string()];
-        let mut offset = 0;
-        while offset < rows as usize && !any {
-            let df = read_slice(path, offset, SLICE_ROWS, Some(select.clone()))?;
-            any = bool_col(&df, col::FAULT_FREE, path)?.any();
-            offset += SLICE_ROWS;
+        for df in slices(path, rows as usize, SLICE_ROWS, &[col::FAULT_FREE.to_string()]) {
+            if bool_col(&df?, col::FAULT_FREE, path)?.any() {
+                any = true;
+                break;
+            }
         }
         any
     };
@@ -671,12 +666,17 @@ mod tests {
 
     #[test]
     fn the_alarm_is_the_earliest_first_passage_over_any_threshold() {
-        let (t0, v0) = ([1.0, 2.0, 3.0], [0.5, 1.5, 2.5]);
-        let (t1, v1) = ([1.5, 2.5], [0.2, 3.0]);
-        let t: [&[f64]; 2] = [&t0, &t1];
-        let v: [&[f64]; 2] = [&v0, &v1];
-        assert_eq!(alarm_time(&t, &v, &[1.0, 1.0]), Some(2.0));
-        assert_eq!(alarm_time(&t, &v, &[2.0, 1.0]), Some(2.5));
-        assert_eq!(alarm_time(&t, &v, &[3.0, 3.0]), None);
+        // One row, two statistics.
+        let recorded = RecordedStatistics {
+            pre: vec![vec![0.4], vec![0.1]],
+            fp_t: vec![vec![vec![1.0, 2.0, 3.0]], vec![vec![1.5, 2.5]]],
+            fp_v: vec![vec![vec![0.5, 1.5, 2.5]], vec![vec![0.2, 3.0]]],
+        };
+        assert_eq!(recorded.first_alarm(0, &[1.0, 1.0]), Some(2.0));
+        assert_eq!(recorded.first_alarm(0, &[2.0, 1.0]), Some(2.5));
+        assert_eq!(recorded.first_alarm(0, &[3.0, 3.0]), None);
+        assert_eq!(recorded.first_alarm(0, &[2.0]), Some(3.0), "the first statistic alone");
+        assert_eq!(recorded.alarms_at(0, &[0.3, 1.0], true), (true, Some(1.0)));
+        assert_eq!(recorded.alarms_at(0, &[0.5, 1.0], false), (false, None), "a fault-free row has no detection");
     }
 }

@@ -28,7 +28,7 @@ use super::method::{Inputs, Method, Opt, OwnPlot};
 use super::runner::{Manifest, RunError, io, read_parquet, write_atomically};
 use super::schema::col;
 use super::summary::Settings;
-use super::tables::{bool_col, column_names, f64_col, read_slice, read_summary, str_col, u64_col};
+use super::tables::{bool_col, column_names, f64_col, read_summary, slices, str_col, u64_col};
 use super::thresholds::{RecordedStatistics, read_thresholds};
 
 /// What a report wrote, for the CLI and tests.
@@ -278,9 +278,11 @@ fn representative_trials(dir: &Path, manifest: &Manifest) -> Result<Vec<(u64, St
             .collect();
     let detector = manifest.detectors.first().map(String::as_str).unwrap_or_default();
     let mut found: [Option<u64>; 3] = [None; 3];
-    let mut offset = 0;
-    while offset < manifest.rows as usize && found.iter().any(Option::is_none) {
-        let df = read_slice(&path, offset, super::thresholds::SLICE_ROWS, Some(select.clone()))?;
+    for df in slices(&path, manifest.rows as usize, super::thresholds::SLICE_ROWS, &select) {
+        if found.iter().all(Option::is_some) {
+            break;
+        }
+        let df = df?;
         let (trial, det) = (u64_col(&df, col::TRIAL, &path)?, str_col(&df, col::DETECTOR, &path)?);
         let (fault_free, detected) = (bool_col(&df, col::FAULT_FREE, &path)?, bool_col(&df, col::DETECTED, &path)?);
         let (false_alarm, failure) = (bool_col(&df, col::FALSE_ALARM, &path)?, str_col(&df, col::FAILURE, &path)?);
@@ -299,7 +301,6 @@ fn representative_trials(dir: &Path, manifest: &Manifest) -> Result<Vec<(u64, St
                 }
             }
         }
-        offset += super::thresholds::SLICE_ROWS;
     }
     // One trial can be two of them (a detected fault that also alarmed before its onset): listed once,
     // with both reasons.
@@ -400,12 +401,9 @@ fn glob(pattern: &str, name: &str) -> bool {
 fn onsets(dir: &Path, rows: u64, trials: &[u64]) -> Result<BTreeMap<u64, f64>, RunError> {
     let path = dir.join("trials.parquet");
     let mut found = BTreeMap::new();
-    let step = 65_536usize;
     let columns = vec![col::TRIAL.to_string(), col::ONSET_S.to_string()];
-    let mut offset = 0usize;
-    while offset < rows as usize {
-        let df = read_slice(&path, offset, step, Some(columns.clone()))?;
-        offset += step;
+    for df in slices(&path, rows as usize, 65_536, &columns) {
+        let df = df?;
         let t = df.column(col::TRIAL).and_then(|c| c.u64().cloned()).map_err(polars_error(&path))?;
         let onset = f64_col(&df, col::ONSET_S, &path)?;
         for i in 0..df.height() {
@@ -533,11 +531,8 @@ fn gather(
     if by_statistic {
         columns.extend(RecordedStatistics::columns(&statistics));
     }
-    let step = 8_192usize;
-    let mut offset = 0usize;
-    while offset < m.rows as usize {
-        let df = read_slice(&path, offset, step, Some(columns.clone()))?;
-        offset += step;
+    for df in slices(&path, m.rows as usize, 8_192, &columns) {
+        let df = df?;
         let det = str_col(&df, col::DETECTOR, &path)?;
         let kind = str_col(&df, col::KIND, &path)?;
         let failure = str_col(&df, col::FAILURE, &path)?;
@@ -584,10 +579,8 @@ fn own_plot(dir: &Path, m: &Manifest, out: &Path, plot: &OwnPlot) -> Result<Path
     let mut select: Vec<String> = [col::DETECTOR, col::KIND, col::FAILURE].iter().map(|s| s.to_string()).collect();
     select.extend(columns.iter().map(|c| c.to_string()));
     let mut points: BTreeMap<String, Vec<(f64, f64)>> = m.detectors.iter().map(|d| (d.clone(), Vec::new())).collect();
-    let mut offset = 0usize;
-    while offset < m.rows as usize {
-        let df = read_slice(&path, offset, 65_536, Some(select.clone()))?;
-        offset += 65_536;
+    for df in slices(&path, m.rows as usize, 65_536, &select) {
+        let df = df?;
         let (det, kind, failure) =
             (str_col(&df, col::DETECTOR, &path)?, str_col(&df, col::KIND, &path)?, str_col(&df, col::FAILURE, &path)?);
         let values: Vec<Vec<f64>> =
