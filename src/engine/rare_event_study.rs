@@ -17,7 +17,7 @@ use super::rare_event::{
     Combined, IMPORTANCE_CHUNK, RareEventModel, SplitOptions, Totals, default_tails, importance_chunks, pilot_mixture,
     pilot_trials, splitting,
 };
-use super::runner::{RunError, Shard, pol, write_atomically};
+use super::runner::{RunError, Shard, pol, read_record, write_atomically};
 
 /// Which unbiased estimator `fdimc rare-event` runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -78,12 +78,7 @@ pub struct RareEventManifest {
 
 impl RareEventManifest {
     pub fn read(dir: &Path) -> Result<Self, RunError> {
-        let path = dir.join("rare_event.json");
-        let text = std::fs::read_to_string(&path).map_err(|e| {
-            RunError::Invalid(format!("{}: cannot read ({e}): not a rare-event folder?", path.display()))
-        })?;
-        serde_json::from_str(&text)
-            .map_err(|e| RunError::Invalid(format!("{}: not a valid rare-event record: {e}", path.display())))
+        read_record(&dir.join("rare_event.json"), "a rare-event folder", "rare-event record")
     }
 
     fn write(&self, dir: &Path) -> Result<(), RunError> {

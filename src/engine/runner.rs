@@ -288,14 +288,17 @@ pub struct PrecisionOutcome {
     pub widest: String,
 }
 
+/// A JSON record a run leaves in its folder: `folder` names the folder it marks (for a file that cannot
+/// be read), `record` what it holds (for one that does not parse).
+pub fn read_record<T: serde::de::DeserializeOwned>(path: &Path, folder: &str, record: &str) -> Result<T, RunError> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| RunError::Invalid(format!("{}: cannot read ({e}): not {folder}?", path.display())))?;
+    serde_json::from_str(&text).map_err(|e| RunError::Invalid(format!("{}: not a valid {record}: {e}", path.display())))
+}
+
 impl Manifest {
     pub fn read(dir: &Path) -> Result<Manifest, RunError> {
-        let path = dir.join("manifest.json");
-        let text = std::fs::read_to_string(&path).map_err(|e| {
-            RunError::Invalid(format!("{}: cannot read ({e}): not an fdimc results folder?", path.display()))
-        })?;
-        serde_json::from_str(&text)
-            .map_err(|e| RunError::Invalid(format!("{}: not a valid fdimc manifest: {e}", path.display())))
+        read_record(&dir.join("manifest.json"), "an fdimc results folder", "fdimc manifest")
     }
 
     pub fn write(&self, dir: &Path) -> Result<(), RunError> {

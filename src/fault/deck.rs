@@ -223,8 +223,14 @@ pub fn fixed_size_unit(mode: &FaultMode) -> &'static str {
 }
 
 impl Validator<'_> {
-    /// One `[[monte_carlo.fault]]` population (the same syntax in every deck with sensor faults).
-    pub(crate) fn fault_kind_spec(&self, prefix: &str, f: &FaultKindSection) -> Result<FaultKindSpec, DeckError> {
+    /// The `[[monte_carlo.fault]]` populations (the same syntax in every deck with sensor faults).
+    pub(crate) fn fault_kind_specs(&self, sections: &[FaultKindSection]) -> Result<Vec<FaultKindSpec>, DeckError> {
+        (sections.iter().enumerate())
+            .map(|(i, f)| self.fault_kind_spec(&format!("monte_carlo.fault[{i}]"), f))
+            .collect()
+    }
+
+    fn fault_kind_spec(&self, prefix: &str, f: &FaultKindSection) -> Result<FaultKindSpec, DeckError> {
         let field = |name: &str| format!("{prefix}.{name}");
         if f.frequency_hz.is_some() && f.kind != "oscillation" {
             return Err(self.err(field("frequency_hz"), format!("only used by kind \"oscillation\", not {:?}", f.kind)));

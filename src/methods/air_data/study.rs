@@ -476,12 +476,7 @@ fn monte_carlo(
             out
         }
     };
-    let faults = own
-        .fault
-        .iter()
-        .enumerate()
-        .map(|(i, f)| v.fault_kind_spec(&format!("monte_carlo.fault[{i}]"), f))
-        .collect::<Result<Vec<_>, _>>()?;
+    let faults = v.fault_kind_specs(&own.fault)?;
     if section_given && faults.is_empty() && !fixed_faults && common.fault_free_fraction < 1.0 {
         return Err(v.err(
             "monte_carlo.fault",

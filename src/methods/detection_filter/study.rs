@@ -325,11 +325,6 @@ fn monte_carlo(
             .map(|(k, n)| chk.index_of(&format!("monte_carlo.outputs[{k}]"), n, &plant.output_names, "plant.outputs"))
             .collect::<Result<Vec<_>, _>>()?,
     };
-    let faults = own
-        .fault
-        .iter()
-        .enumerate()
-        .map(|(i, f)| chk.fault_kind_spec(&format!("monte_carlo.fault[{i}]"), f))
-        .collect::<Result<Vec<_>, _>>()?;
+    let faults = chk.fault_kind_specs(&own.fault)?;
     Ok(LtiMonteCarlo { common, outputs, faults, parameter_errors })
 }
