@@ -23,7 +23,7 @@ use crate::methods::air_data::dual_ukf::{BiasMode, COMPONENTS, DualUkf, DualUkfH
 use crate::methods::air_data::flight::{AirData, AirDataSample, AirDataScenario, ScenarioParams};
 use crate::methods::air_data::scenario::AirDataTrialSpec;
 use crate::methods::air_data::study::{AirDataDetector, DetectorKind};
-use crate::methods::air_data::voting::TriplexVoter;
+use crate::methods::air_data::voting::{TriplexVoter, VoterStep};
 
 /// One step of any air-data detector, as the scoring and the traces read it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -57,6 +57,21 @@ impl From<DualUkfStep> for DetectorStep {
             faulty_set: s.bias_modes.map(|m| m == BiasMode::Estimated),
             air_data: s.air_data,
             bias: Some(s.bias),
+        }
+    }
+}
+
+impl From<VoterStep> for DetectorStep {
+    fn from(s: VoterStep) -> DetectorStep {
+        DetectorStep {
+            p_fault: if s.fault_declared { 1.0 } else { 0.0 },
+            fault_declared: s.fault_declared,
+            decision: s.decision,
+            statistic: s.miscompare_sigma,
+            flagged: s.miscompares,
+            faulty_set: s.failed,
+            air_data: s.air_data,
+            bias: None,
         }
     }
 }
@@ -159,19 +174,7 @@ impl Detectors {
         for (i, running) in self.running.iter_mut().enumerate() {
             steps.push(match running {
                 Running::Dual(f) => f.decide(air, self.innovations[i].as_ref()).into(),
-                Running::Voting(v) => {
-                    let s = v.step(&sample.lanes);
-                    DetectorStep {
-                        p_fault: if s.fault_declared { 1.0 } else { 0.0 },
-                        fault_declared: s.fault_declared,
-                        decision: s.decision,
-                        statistic: s.miscompare_sigma,
-                        flagged: s.miscompares,
-                        faulty_set: s.failed,
-                        air_data: s.air_data,
-                        bias: None,
-                    }
-                }
+                Running::Voting(v) => v.step(&sample.lanes).into(),
             });
         }
     }
@@ -488,7 +491,7 @@ mod tests {
                 let s: DetectorStep = f.step(&sample.inertial, &sample.air_data).into();
                 assert_eq!(format!("{:?}", steps[k]), format!("{s:?}"), "detector {k} at {} s", sample.t_s);
             }
-            let following = &mut if sample.t_s < 20.0 { &mut following_before } else { &mut following_after };
+            let following = if sample.t_s < 20.0 { &mut following_before } else { &mut following_after };
             for (k, leader) in together.leader.iter().enumerate() {
                 following[k] += usize::from(*leader == Some(0));
             }
