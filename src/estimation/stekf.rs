@@ -329,8 +329,9 @@ impl<const N: usize, const M: usize> Stekf<N, M> {
     /// `Q`, `R` and update form, already stepped on the same `y` and `u` from the state this filter is
     /// in now, to the bit (estimates, covariances and health counters). When this step's fading factors
     /// are all 1, `1 * v` is `v`, so this filter's step is the EKF's to the bit: it takes it, at the cost
-    /// of the factors alone. Otherwise it steps itself. Returns whether it took the EKF's step (after
-    /// one it did not, the two differ and it must not be stepped beside `ekf` again).
+    /// of the factors alone. Otherwise (a factor above 1, or `ekf` of another form: with fading, or the
+    /// other update) it steps itself. Returns whether it took the EKF's step (after one it did not, the
+    /// two differ and it must not be stepped beside `ekf` again).
     pub fn step_beside<D: DiscreteModel<N, M>>(
         &mut self,
         ekf: &Stekf<N, M>,
@@ -338,7 +339,12 @@ impl<const N: usize, const M: usize> Stekf<N, M> {
         y: &SVector<f64, M>,
         u: &D::Input,
     ) -> bool {
-        debug_assert!(matches!(ekf.fading, Fading::None) && ekf.joseph == self.joseph);
+        // A filter of another form has another step: this one cannot be taken from it.
+        if !matches!(ekf.fading, Fading::None) || ekf.joseph != self.joseph {
+            self.step(model, y, u);
+            return false;
+        }
+        debug_assert!(ekf.Q == self.Q && ekf.R == self.R, "beside an EKF with other noise covariances");
         let (V, fading) = (self.V, self.fading);
         let lambda = match fading {
             Fading::None => SVector::repeat(1.0),
@@ -526,6 +532,48 @@ pub(super) mod tests {
             assert_eq!(st.health(), FilterHealth::default(), "{fading:?}");
         }
         assert_eq!(ekf.health(), FilterHealth::default());
+    }
+
+    /// Beside an EKF of its own form, a strong-tracking filter takes the EKF's steps while its factors
+    /// are 1 and steps itself from the first factor above 1 on; beside an EKF of the other update form (Joseph) or one
+    /// with fading it steps itself from the first sample. Either way its numbers are those of the same
+    /// filter stepped alone, to the bit.
+    #[test]
+    fn a_filter_beside_an_ekf_takes_its_steps_only_when_they_are_its_own() {
+        let model = Cv { dt_s: 0.1 };
+        let Q = Matrix2::new(1e-6, 0.0, 0.0, 1e-6);
+        let filter = |fading| {
+            Stekf::<2, 1>::new(
+                Vector2::new(0.0, 2.0),
+                Matrix2::identity() * 0.01,
+                Q,
+                SMatrix::from_element(0.09),
+                fading,
+            )
+        };
+        // beta = 4 (the test's choice): the factors stay 1 for a while on noise alone (R = 0.09).
+        let stf = Fading::Symmetric(FadingParams { beta: 4.0, ..FadingParams::seed() });
+        let ys = noisy(160, 100);
+        let ekfs = [filter(Fading::None), filter(Fading::None).with_joseph_update(), filter(stf)];
+        let mut own_from = Vec::new();
+        for mut ekf in ekfs {
+            let (mut alone, mut beside, mut own) = (filter(stf), filter(stf), None);
+            for (k, y) in ys.iter().enumerate() {
+                let y = Vector1::new(*y);
+                ekf.step(&model, &y, &0.0);
+                alone.step(&model, &y, &0.0);
+                if own.is_some() {
+                    beside.step(&model, &y, &0.0);
+                } else if !beside.step_beside(&ekf, &model, &y, &0.0) {
+                    own = Some(k);
+                }
+                let state = |f: &Stekf<2, 1>| (*f.estimate(), *f.predicted_covariance(), *f.fading_factors());
+                assert_eq!(state(&beside), state(&alone), "step {k}");
+            }
+            own_from.push(own);
+        }
+        // Measured: 71 samples taken beside the EKF of the same form, until a factor first leaves 1.
+        assert_eq!(own_from, [Some(71), Some(0), Some(0)]);
     }
 
     /// [`Cv`] with its exact `H = [1 0]`; with `picked`, it also declares that it measures state 0, so
