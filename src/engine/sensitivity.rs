@@ -261,7 +261,9 @@ pub struct Estimate {
 pub const LEVEL: f64 = 0.95;
 
 /// [`indices`] on every base row, with percentile intervals at confidence `level` from `bootstrap`
-/// resamples of the rows drawn from `rng`; `None` when the outcome does not vary over the rows.
+/// resamples of the rows drawn from `rng`, and how many of the resamples gave indices (one on which
+/// the outcome does not vary has none, and the intervals are then over the others); `None` when the
+/// outcome does not vary over the rows.
 pub fn estimate(
     fa: &[f64],
     fb: &[f64],
@@ -269,17 +271,18 @@ pub fn estimate(
     bootstrap: u64,
     level: f64,
     rng: &mut ChaCha8Rng,
-) -> Option<Vec<Estimate>> {
+) -> Option<(Vec<Estimate>, u64)> {
     let n = fa.len();
     let all: Vec<usize> = (0..n).collect();
     let (s1, st) = indices(fa, fb, fab, &all)?;
     let k = fab.len();
     let (mut s1_boot, mut st_boot) = (vec![Vec::new(); k], vec![Vec::new(); k]);
     let mut rows = vec![0; n];
+    let mut resamples = 0;
     for _ in 0..bootstrap {
         rows.iter_mut().for_each(|j| *j = rng.random_range(0..n));
-        // A resample on which the outcome does not vary has no indices; it is left out.
         if let Some((s, t)) = indices(fa, fb, fab, &rows) {
+            resamples += 1;
             for i in 0..k {
                 s1_boot[i].push(s[i]);
                 st_boot[i].push(t[i]);
@@ -291,16 +294,15 @@ pub fn estimate(
         let tail = (1.0 - level) / 2.0;
         (percentile(v, tail).unwrap_or(at), percentile(v, 1.0 - tail).unwrap_or(at))
     };
-    Some(
-        (0..k)
-            .map(|i| Estimate {
-                s1: s1[i],
-                s1_interval: interval(&mut s1_boot[i], s1[i]),
-                st: st[i],
-                st_interval: interval(&mut st_boot[i], st[i]),
-            })
-            .collect(),
-    )
+    let estimates = (0..k)
+        .map(|i| Estimate {
+            s1: s1[i],
+            s1_interval: interval(&mut s1_boot[i], s1[i]),
+            st: st[i],
+            st_interval: interval(&mut st_boot[i], st[i]),
+        })
+        .collect();
+    Some((estimates, resamples))
 }
 
 /// The `p` quantile of sorted values, linear between order statistics.
@@ -353,9 +355,9 @@ pub fn analyse(dir: &Path, thresholds: Option<&Path>) -> Result<DataFrame, RunEr
                 let note = too_few(outcome, &all);
                 let estimates =
                     if note.is_some() { None } else { estimate(&fa, &fb, &fab, design.bootstrap, LEVEL, &mut rng) };
-                let sum_s1 = estimates.as_ref().map(|e| e.iter().map(|e| e.s1).sum::<f64>());
+                let sum_s1 = estimates.as_ref().map(|(e, _)| e.iter().map(|e| e.s1).sum::<f64>());
                 for (i, f) in part.factors.iter().enumerate() {
-                    let e = estimates.as_ref().map(|e| &e[i]);
+                    let e = estimates.as_ref().map(|(e, _)| &e[i]);
                     table.push(Row {
                         outcome,
                         part: part.name(),
@@ -363,6 +365,7 @@ pub fn analyse(dir: &Path, thresholds: Option<&Path>) -> Result<DataFrame, RunEr
                         factor: &f.name,
                         estimate: e,
                         sum_s1,
+                        resamples: estimates.as_ref().map(|(_, r)| *r),
                         base_samples: flown.len() as u64,
                         trials: (flown.len() * (k + 2)) as u64,
                         mean,
@@ -566,6 +569,7 @@ struct Row<'a> {
     factor: &'a str,
     estimate: Option<&'a Estimate>,
     sum_s1: Option<f64>,
+    resamples: Option<u64>,
     base_samples: u64,
     trials: u64,
     mean: f64,
@@ -588,6 +592,7 @@ struct Table {
     st_lo: Vec<Option<f64>>,
     st_hi: Vec<Option<f64>>,
     sum_s1: Vec<Option<f64>>,
+    bootstrap_resamples: Vec<Option<u64>>,
     base_samples: Vec<u64>,
     trials: Vec<u64>,
     outcome_mean: Vec<f64>,
@@ -610,6 +615,7 @@ impl Table {
         self.st_lo.push(e.map(|e| e.st_interval.0));
         self.st_hi.push(e.map(|e| e.st_interval.1));
         self.sum_s1.push(r.sum_s1);
+        self.bootstrap_resamples.push(r.resamples);
         self.base_samples.push(r.base_samples);
         self.trials.push(r.trials);
         self.outcome_mean.push(r.mean);
@@ -630,6 +636,7 @@ impl Table {
             Column::new("st_lo".into(), self.st_lo),
             Column::new("st_hi".into(), self.st_hi),
             Column::new("sum_s1".into(), self.sum_s1),
+            Column::new("bootstrap_resamples".into(), self.bootstrap_resamples),
             Column::new("part".into(), self.part),
             Column::new("base_samples".into(), self.base_samples),
             Column::new("trials".into(), self.trials),
@@ -748,7 +755,25 @@ mod tests {
         let block = |b: usize| y[b * n..(b + 1) * n].to_vec();
         let fab: Vec<Vec<f64>> = (0..3).map(|i| block(2 + i)).collect();
         let mut rng = ChaCha8Rng::seed_from_u64(9);
-        estimate(&block(0), &block(1), &fab, design.bootstrap, 1.0 - 0.05 / 6.0, &mut rng).unwrap()
+        let (estimates, resamples) =
+            estimate(&block(0), &block(1), &fab, design.bootstrap, 1.0 - 0.05 / 6.0, &mut rng).unwrap();
+        assert_eq!(resamples, design.bootstrap, "a continuous outcome varies on every resample");
+        estimates
+    }
+
+    /// A resample on which the outcome does not vary gives no indices, and the count says how many
+    /// did: with one event among four base rows, exactly the resamples that drew its row (replayed
+    /// here from the same stream; about 1 - (3/4)^4 = 68 % of them).
+    #[test]
+    fn resamples_without_variance_are_counted_out() {
+        let (fa, fb, fab) = (vec![1.0, 0.0, 0.0, 0.0], vec![0.0; 4], vec![vec![0.0; 4]]);
+        let (_, resamples) = estimate(&fa, &fb, &fab, 1000, LEVEL, &mut ChaCha8Rng::seed_from_u64(5)).unwrap();
+        let mut replay = ChaCha8Rng::seed_from_u64(5);
+        let with_the_event = (0..1000)
+            .filter(|_| (0..4).map(|_| replay.random_range(0..4usize)).fold(false, |seen, j| seen | (j == 0)))
+            .count();
+        assert_eq!(resamples, with_the_event as u64);
+        assert!((640..730).contains(&resamples), "{resamples}");
     }
 
     /// On four independent designs (seeds 1-4) of 8192 base rows, the family of six intervals holds the
