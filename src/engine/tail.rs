@@ -229,7 +229,9 @@ pub struct Stability {
 
 /// Fits over the thresholds that leave each of `ks` exceedances (skipping those that do not fit).
 pub fn stability(top: &[f64], n: u64, ks: &[usize]) -> Vec<Stability> {
-    ks.iter()
+    use rayon::prelude::*;
+    // Each fit's shape interval is a profile likelihood: the fits run side by side.
+    ks.par_iter()
         .filter_map(|&k| TailFit::fit(top, n, k))
         .map(|f| Stability {
             k: f.k(),
