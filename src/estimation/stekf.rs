@@ -535,9 +535,9 @@ pub(super) mod tests {
     }
 
     /// Beside an EKF of its own form, a strong-tracking filter takes the EKF's steps while its factors
-    /// are 1 and steps itself from the first factor above 1 on; beside an EKF of the other update form (Joseph) or one
-    /// with fading it steps itself from the first sample. Either way its numbers are those of the same
-    /// filter stepped alone, to the bit.
+    /// are 1 and steps itself from the first factor above 1 on; beside an EKF of the other update form
+    /// (Joseph) or one with fading it steps itself from the first sample. Either way its numbers are
+    /// those of the same filter stepped alone, to the bit.
     #[test]
     fn a_filter_beside_an_ekf_takes_its_steps_only_when_they_are_its_own() {
         let model = Cv { dt_s: 0.1 };
