@@ -495,14 +495,23 @@ impl Validator<'_> {
         name: &str,
         choices: &[(&str, T, &str)],
     ) -> Result<T, DeckError> {
-        if let Some((_, value, _)) = choices.iter().find(|(n, ..)| *n == name) {
-            return Ok(value.clone());
+        match choices.iter().find(|(n, ..)| *n == name) {
+            Some((_, value, _)) => Ok(value.clone()),
+            None => {
+                Err(self.not_allowed(field, name, &choices.iter().map(|(n, _, what)| (*n, *what)).collect::<Vec<_>>()))
+            }
         }
-        let allowed: Vec<String> = choices
+    }
+
+    /// The error for a name that is none of `allowed` (each a name and what it means, "" for nothing):
+    /// the one message of every field that takes a name, for those whose names [`Validator::choice`]
+    /// cannot map (each reads other fields of its own).
+    pub(crate) fn not_allowed(&self, field: impl Into<String>, name: &str, allowed: &[(&str, &str)]) -> DeckError {
+        let allowed: Vec<String> = allowed
             .iter()
-            .map(|(n, _, what)| if what.is_empty() { format!("{n:?}") } else { format!("{n:?} ({what})") })
+            .map(|(n, what)| if what.is_empty() { format!("{n:?}") } else { format!("{n:?} ({what})") })
             .collect();
-        Err(self.err(field, format!("{name:?}: allowed {}", allowed.join(", "))))
+        self.err(field, format!("{name:?}: allowed {}", allowed.join(", ")))
     }
 
     /// The sampler of continuous factors (default random).

@@ -246,7 +246,15 @@ impl Validator<'_> {
                 None => return Err(self.err(field("frequency_hz"), "required for kind \"oscillation\"")),
             },
             other => {
-                return Err(self.err(field("kind"), format!("{other:?}: allowed \"stuck\" (held at onset), \"gain\", \"bias\", \"total_failure\", \"drift\", \"oscillation\"")));
+                let kinds = [
+                    ("stuck", "held at onset"),
+                    ("gain", ""),
+                    ("bias", ""),
+                    ("total_failure", ""),
+                    ("drift", ""),
+                    ("oscillation", ""),
+                ];
+                return Err(self.not_allowed(field("kind"), other, &kinds));
             }
         };
         let sized = !matches!(kind, FaultKind::Stuck | FaultKind::TotalFailure);
@@ -344,10 +352,8 @@ impl Validator<'_> {
                 FaultMode::Oscillation { amplitude: need_size()?, frequency_hz }
             }
             other => {
-                return Err(self.err(
-                    field("kind"),
-                    format!("{other:?}: allowed \"stuck\", \"gain\", \"bias\", \"total_failure\", \"drift\", \"oscillation\""),
-                ));
+                let kinds = ["stuck", "gain", "bias", "total_failure", "drift", "oscillation"].map(|k| (k, ""));
+                return Err(self.not_allowed(field("kind"), other, &kinds));
             }
         };
         Ok(SensorFault { channel, onset_s, mode })

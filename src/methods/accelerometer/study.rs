@@ -199,7 +199,7 @@ impl FromDeck for AccelerometerStudy {
                 svm.kernel = SvmKernel::Linear;
             }
             Some(other) => {
-                return Err(v.err("training.kernel", format!("{other:?}: allowed \"gaussian\" or \"linear\"")));
+                return Err(v.not_allowed("training.kernel", other, &[("gaussian", "default"), ("linear", "")]));
             }
         }
         if let Some(c) = t.and_then(|t| t.c) {
@@ -273,10 +273,8 @@ impl FromDeck for AccelerometerStudy {
                 .enumerate()
                 .map(|(k, n)| {
                     FaultClass::ALL.into_iter().find(|c| c.name() == n).ok_or_else(|| {
-                        v.err(
-                            format!("monte_carlo.classes[{k}]"),
-                            format!("{n:?}: allowed \"normal\", \"bias\", \"gain\", \"stuck\""),
-                        )
+                        let names = FaultClass::ALL.map(|c| (c.name(), ""));
+                        v.not_allowed(format!("monte_carlo.classes[{k}]"), n, &names)
                     })
                 })
                 .collect::<Result<Vec<_>, _>>()?,
@@ -308,7 +306,8 @@ impl FromDeck for AccelerometerStudy {
                         ));
                     }
                     Some(other) => {
-                        return Err(v.err(field("trained_on"), format!("{other:?}: allowed \"simulation\", \"log\"")));
+                        let sources = [("simulation", "default"), ("log", "the log's training part")];
+                        return Err(v.not_allowed(field("trained_on"), other, &sources));
                     }
                 };
                 specs.push(ClassifierSpec {

@@ -201,13 +201,12 @@ impl FromDeck for AirDataStudy {
             // The kinematic profile is not flown; it stays for what prints it.
             "aerosonde" => (FlightProfile::seed(), Airframe::Aerosonde { manoeuvre_scale: scale }),
             other => {
-                return Err(v.err(
-                    "flight.profile",
-                    format!(
-                        "{other:?}: allowed \"seed\" (70 m/s and four manoeuvres), \"steady\" or \"aerosonde\" \
-                         (method 004's 6-DoF airframe flying manoeuvres)"
-                    ),
-                ));
+                let profiles = [
+                    ("seed", "70 m/s and four manoeuvres"),
+                    ("steady", ""),
+                    ("aerosonde", "method 004's 6-DoF airframe flying manoeuvres"),
+                ];
+                return Err(v.not_allowed("flight.profile", other, &profiles));
             }
         };
 
@@ -354,12 +353,8 @@ impl FromDeck for AirDataStudy {
                     DetectorKind::TriplexVoting(p)
                 }
                 other => {
-                    return Err(v.err(
-                        field("kind"),
-                        format!(
-                            "{other:?}: allowed \"dual_ukf\" (method 002) or \"triplex_voting\" (the voting baseline)"
-                        ),
-                    ));
+                    let kinds = [("dual_ukf", "method 002"), ("triplex_voting", "the voting baseline")];
+                    return Err(v.not_allowed(field("kind"), other, &kinds));
                 }
             };
             let isolation_delay_s = d.isolation_delay_s.unwrap_or(1.0);

@@ -205,9 +205,7 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
                 }
                 Shape::Step
             }
-            other => {
-                return Err(chk.err(field("shape"), format!("{other:?}: allowed \"square\", \"sine\", \"step\"")));
-            }
+            other => return Err(chk.not_allowed(field("shape"), other, &[("square", ""), ("sine", ""), ("step", "")])),
         };
         excitations.push(Excitation { input, shape, amplitude, start_s });
     }

@@ -600,10 +600,8 @@ fn monte_carlo(
                 (SurfaceFaultSpec::LossOfEffectiveness { effectiveness }, &["effectiveness"])
             }
             other => {
-                return Err(v.err(
-                    field("kind"),
-                    format!("{other:?}: allowed \"stuck\", \"oscillation\", \"loss_of_effectiveness\""),
-                ));
+                let kinds = [("stuck", ""), ("oscillation", ""), ("loss_of_effectiveness", "")];
+                return Err(v.not_allowed(field("kind"), other, &kinds));
             }
         };
         if let Some((name, _)) = given.iter().find(|(n, g)| *g && !used.contains(n)) {

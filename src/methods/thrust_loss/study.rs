@@ -170,10 +170,8 @@ impl FromDeck for LaunchStudy {
             return Err(v.err("study.dt_s", format!("allowed 0.001 to 0.05 s (the seed's D is 0.01), got {dt_s}")));
         }
         if deck.vehicle.model != "medium_launcher" {
-            return Err(v.err(
-                "vehicle.model",
-                format!("{:?}: allowed \"medium_launcher\" (src/methods/thrust_loss/vehicle.rs)", deck.vehicle.model),
-            ));
+            let models = [("medium_launcher", "src/methods/thrust_loss/vehicle.rs")];
+            return Err(v.not_allowed("vehicle.model", &deck.vehicle.model, &models));
         }
         let config = LaunchVehicleConfig { dt_s, ..LaunchVehicleConfig::default() };
         // First-stage burnout ends a flight: a study past it would fail every trial.
@@ -205,7 +203,7 @@ impl FromDeck for LaunchStudy {
         for (i, d) in deck.detector.iter().enumerate() {
             let field = |f: &str| format!("detector[{i}].{f}");
             if d.kind != "ekf_mhe" {
-                return Err(v.err(field("kind"), format!("{:?}: allowed \"ekf_mhe\" (method 001)", d.kind)));
+                return Err(v.not_allowed(field("kind"), &d.kind, &[("ekf_mhe", "method 001")]));
             }
             let mut mhe = MheParams::seed();
             crate::take_given!(mhe, d, [window_n, interval_samples, fault_intensity, window_variance]);
