@@ -19,7 +19,7 @@ use nalgebra::{SMatrix, SVector};
 use rand::{RngExt, SeedableRng, rngs::Xoshiro256PlusPlus};
 use rand_distr::StandardNormal;
 
-use fdimc::engine::deck::FromDeck;
+use fdimc::engine::scenario::deck::FromDeck;
 use fdimc::methods::detection_filter::kernel::LANES;
 use fdimc::methods::detection_filter::study::LtiStudy;
 use fdimc::methods::detection_filter::trials::Engine;

@@ -6,8 +6,8 @@ mod nonlinear;
 
 use std::path::Path;
 
-use fdimc::engine::deck::FromDeck;
-use fdimc::engine::runner::TrialSource;
+use fdimc::engine::run::runner::TrialSource;
+use fdimc::engine::scenario::deck::FromDeck;
 use fdimc::methods::thrust_loss::LaunchTrials;
 use fdimc::methods::thrust_loss::study::LaunchStudy;
 

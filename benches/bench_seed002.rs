@@ -5,8 +5,8 @@ mod nonlinear;
 
 use std::path::Path;
 
-use fdimc::engine::deck::FromDeck;
-use fdimc::engine::runner::TrialSource;
+use fdimc::engine::run::runner::TrialSource;
+use fdimc::engine::scenario::deck::FromDeck;
 use fdimc::methods::air_data::AirDataTrials;
 use fdimc::methods::air_data::study::AirDataStudy;
 

@@ -12,8 +12,8 @@
 use std::collections::VecDeque;
 use std::path::PathBuf;
 
-use fdimc::engine::deck::FromDeck;
-use fdimc::engine::runner::{RunOptions, Shard};
+use fdimc::engine::run::runner::{RunOptions, Shard};
+use fdimc::engine::scenario::deck::FromDeck;
 use fdimc::methods::detection_filter::decision::{Decision, ResidualTest, TestState};
 use fdimc::methods::detection_filter::study::{DetectorConfig, LtiStudy};
 
@@ -102,9 +102,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // 4. The same summaries (thresholds calibrated to the deck's Pfa, paired comparison) and report.
     let method = &fdimc::methods::detection_filter::METHOD;
-    let summary = fdimc::engine::summary::summarize(&out_dir, &method.summary, None)?;
-    fdimc::engine::summary::print(&method.summary, &summary);
-    let report = fdimc::engine::report::write_report(&out_dir, &[], method)?;
+    let summary = fdimc::engine::results::summary::summarize(&out_dir, &method.summary, None)?;
+    fdimc::engine::results::summary::print(&method.summary, &summary);
+    let report = method.write_report(&out_dir, &[])?;
     println!("report: {}", report.files.last().map(|p| p.display().to_string()).unwrap_or_default());
     Ok(())
 }

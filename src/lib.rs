@@ -16,3 +16,4 @@ pub mod kinematics;
 pub mod linalg;
 pub mod lti;
 pub mod methods;
+pub mod vehicles;

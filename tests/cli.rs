@@ -6,11 +6,12 @@ use std::process::{Command, Output};
 const DECK: &str = "studies/seed000_pitch_rate.toml";
 
 fn fdimc(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_fdimc"))
-        .args(args)
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .expect("run fdimc")
+    run_binary(Path::new(env!("CARGO_BIN_EXE_fdimc")), args)
+}
+
+/// `bin` (fdimc, or a user's binary built on its command line) run from the repository's root.
+fn run_binary(bin: &Path, args: &[&str]) -> Output {
+    Command::new(bin).args(args).current_dir(env!("CARGO_MANIFEST_DIR")).output().expect("run the binary")
 }
 
 fn text(b: &[u8]) -> String {
@@ -655,11 +656,25 @@ fn small_surface_deck(dir: &Path) -> PathBuf {
 /// `chunk` trials (a half-written part left behind) then resumed: every trials.parquet and `tables`
 /// identical. Returns the 1-thread run's folder and its stdout.
 fn assert_identical_runs(deck: &str, dir: &Path, trials: u64, chunk: u64, tables: &[&str]) -> (PathBuf, String) {
+    assert_identical_runs_of(Path::new(env!("CARGO_BIN_EXE_fdimc")), deck, dir, trials, chunk, tables)
+}
+
+/// [`assert_identical_runs`] with the binary `bin` and `--trials trials`.
+fn assert_identical_runs_of(
+    bin: &Path,
+    deck: &str,
+    dir: &Path,
+    trials: u64,
+    chunk: u64,
+    tables: &[&str],
+) -> (PathBuf, String) {
     let path = |n: &str| dir.join(n);
     let s = |p: PathBuf| p.to_str().unwrap().to_string();
+    let fdimc = |args: &[&str]| run_binary(bin, args);
+    let n = trials.to_string();
     let run = |extra: &[&str], out: &str| {
         let out = s(path(out));
-        let mut args = vec!["run", deck, "--out", out.as_str()];
+        let mut args = vec!["run", deck, "--trials", n.as_str(), "--out", out.as_str()];
         args.extend_from_slice(extra);
         fdimc(&args)
     };
@@ -685,6 +700,86 @@ fn assert_identical_runs(deck: &str, dir: &Path, trials: u64, chunk: u64, tables
         assert_eq!(a, std::fs::read_to_string(path("merged").join(table)).unwrap(), "{table}");
     }
     (path("one"), one)
+}
+
+/// The checks every kind passes, generated from the registry so that a kind is covered by adding it
+/// there (a kind added from outside the crate runs them through its own binary): its CI deck (the
+/// starter `fdimc new` writes) passes its committed baseline `results/baselines/<deck>.csv`, and its
+/// records are identical at 1 and 2 threads, as two merged shards, and stopped after its first part
+/// file then resumed, over a part file and a quarter.
+fn shared_checks(bin: &Path, deck: &str, baseline: &str, dir: &Path) {
+    let check = ok(&run_binary(bin, &["check", deck, "--baseline", baseline, "--threads", "2"]));
+    assert!(check.contains(": 0 regression(s)"), "{deck}: {check}");
+    // The kind's part-file size, from a one-trial run's manifest.
+    let probe = dir.join("probe");
+    ok(&run_binary(bin, &["run", deck, "--trials", "1", "--quiet", "--out", probe.to_str().unwrap()]));
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(probe.join("manifest.json")).unwrap()).unwrap();
+    let chunk = manifest["chunk_trials"].as_u64().unwrap();
+    let tables = ["summary.csv", "detectors.csv"];
+    assert_identical_runs_of(bin, deck, dir, chunk + chunk.div_ceil(4), chunk, &tables);
+}
+
+#[test]
+fn every_registered_kind_passes_the_shared_checks() {
+    for method in fdimc::methods::REGISTRY {
+        let deck = method.starter.0;
+        let stem = Path::new(deck).file_stem().unwrap().to_str().unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        shared_checks(
+            Path::new(env!("CARGO_BIN_EXE_fdimc")),
+            deck,
+            &format!("results/baselines/{stem}.csv"),
+            tmp.path(),
+        );
+    }
+}
+
+/// `examples/custom_method.rs`, a kind of its own on fdimc's command line: validate, run, summarize at
+/// another Pfa, check, report, and the checks every registered kind passes.
+#[test]
+fn a_kind_added_from_outside_the_crate_runs_every_command() {
+    // `cargo test` builds the examples beside the test binaries' folder.
+    let exe = std::env::current_exe().unwrap();
+    let bin = exe.parent().unwrap().parent().unwrap().join("examples").join("custom_method");
+    assert!(bin.exists(), "{} (built by cargo test)", bin.display());
+    let deck = "examples/random_walk.toml";
+    let run = |args: &[&str]| run_binary(&bin, args);
+    let valid = ok(&run(&["validate", deck]));
+    assert!(valid.contains("detector    cusum_fast: two-sided CUSUM, drift 1, threshold 8.5"), "{valid}");
+    // Its decks are its own: fdimc's binary does not know the kind, and names the kinds it does know.
+    let foreign = fdimc(&["validate", deck]);
+    assert_eq!(foreign.status.code(), Some(2));
+    assert!(text(&foreign.stderr).contains("no kind of study matches"), "{}", text(&foreign.stderr));
+    let help = ok(&run(&["new", "--help"]));
+    assert!(help.contains("random_walk"), "{help}");
+    assert!(ok(&run(&["--help"])).contains("Exit codes: 0 ok, 1 regression found (check), 2 invalid input"));
+
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("run");
+    let d = dir.to_str().unwrap();
+    let stdout = ok(&run(&["run", deck, "--out", d]));
+    assert!(stdout.starts_with("random_walk: trials 0..2000 of 2000"), "{stdout}");
+    let records = read_frame(&dir.join("trials.parquet"));
+    assert_eq!(records.height(), 2 * 2000, "one row per trial and detector");
+    // The recorded statistic replays the alarms: at the deck's thresholds, calibrated at 1 %.
+    let thresholds = csv_frame(&dir.join("thresholds.csv"));
+    // Per detector its statistic's row and the whole detector's; 575 fault-free flights allow 5 alarms at 1 %.
+    assert_eq!(thresholds.height(), 4, "{thresholds}");
+    assert_eq!(thresholds.column("statistic_false_alarms").unwrap().i64().unwrap().get(0), Some(5), "{thresholds}");
+    ok(&run(&["summarize", d, "--target-pfa", "0.05"]));
+    let recalibrated = csv_frame(&dir.join("thresholds.csv"));
+    let pfa = recalibrated.column("statistic_pfa").unwrap().f64().unwrap().get(0).unwrap();
+    assert!(pfa > 0.02 && pfa <= 0.05, "{pfa}");
+    ok(&run(&["summarize", d]));
+    let report = ok(&run(&["report", d, "--trials", "3"]));
+    assert!(dir.join("report/report.html").exists() && dir.join("report/trace_trial3.svg").exists(), "{report}");
+    let trace = std::fs::read_to_string(dir.join("report/trace_trial3.svg")).unwrap();
+    assert!(trace.contains("CUSUM statistics") && trace.contains("cusum_fast_statistic"));
+
+    let baseline = tmp.path().join("baseline.csv");
+    std::fs::copy(dir.join("summary.csv"), &baseline).unwrap();
+    shared_checks(&bin, deck, baseline.to_str().unwrap(), &tmp.path().join("shared"));
 }
 
 #[test]

@@ -1,15 +1,16 @@
-//! Command line: clap definitions, one `exec` per subcommand, exit codes.
+//! Command line: clap definitions, one `exec` per subcommand, the exit codes ([`exit`]).
 //!
-//! Exit codes: 0 ok, 1 regression found, 2 invalid input (deck, arguments, files),
-//! 3 I/O or internal error.
+//! [`main_with`] is the whole program over fdimc's own kinds of study and a caller's: a crate that adds
+//! a kind of its own calls it from its `main` (`examples/custom_method.rs`).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
-use crate::engine::deck::DeckError;
-use crate::engine::output::OutputError;
+use crate::engine::method::Method;
+use crate::engine::run::output::OutputError;
+use crate::engine::scenario::deck::DeckError;
 
 mod run;
 
@@ -21,8 +22,7 @@ mod run;
     long_about = "Monte Carlo robustness studies of fault detection and isolation (FDI) in flight control.\n\n\
 A study deck (TOML, see studies/) names a plant, sensor noise, faults and a detector. Start with\n\
 `fdimc validate DECK` to see what the deck resolves to, `fdimc design DECK` for the detector's gains and\n\
-closed-loop eigenvalues, and `fdimc simulate DECK --trial 0 --out trace.csv` for one trial's residuals.\n\n\
-Exit codes: 0 ok, 1 regression found, 2 invalid input (deck, arguments, files), 3 I/O or internal error."
+closed-loop eigenvalues, and `fdimc simulate DECK --trial 0 --out trace.csv` for one trial's residuals."
 )]
 pub struct Cli {
     #[command(subcommand)]
@@ -34,10 +34,11 @@ pub enum Command {
     /// Write a starter deck of a kind of study (commented; it validates and runs as written).
     #[command(after_help = "Example: fdimc new air_data my_air_data.toml && fdimc run my_air_data.toml")]
     New {
-        /// The kind of study (the registered methods').
-        #[arg(value_parser = clap::builder::PossibleValuesParser::new(crate::methods::REGISTRY.iter().map(|m| m.kind)))]
+        /// The kind of study (one of the registry's, listed by --help).
+        #[arg(index = 1)]
         kind: String,
         /// The deck to write; its name (without .toml) names the study and its results folder.
+        #[arg(index = 2)]
         file: PathBuf,
         /// Replace an existing file.
         #[arg(long)]
@@ -77,9 +78,9 @@ pub enum Command {
     /// Train an accelerometer deck's classifiers (the SVM decision tree and the flat one-against-one
     /// SVM) on the deck's training trials and save them; `run --classifiers FILE` evaluates them.
     Train {
-        /// Accelerometer study deck (TOML, with [imu]).
+        /// Accelerometer study deck (TOML, with `[imu]`).
         deck: PathBuf,
-        /// Classifiers file (default: results/<study>/classifiers.json).
+        /// Classifiers file (default: `results/<study>/classifiers.json`).
         #[arg(long)]
         out: Option<PathBuf>,
     },
@@ -256,7 +257,7 @@ pub struct Placement {
     /// Worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Results folder (default: results/<study name>, and under it sensitivity/ or rare_event/ for
+    /// Results folder (default: `results/<study name>`, and under it sensitivity/ or rare_event/ for
     /// those commands; a shard's in shard-I-of-N under it).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -311,57 +312,121 @@ impl From<OutputError> for CliError {
     }
 }
 
-pub fn run(cli: Cli) -> ExitCode {
-    let result = match cli.command {
-        Command::New { kind, file, force } => run::exec_new(&kind, &file, force),
-        Command::Validate { deck } => run::exec_validate(&deck),
-        Command::Design { deck, json } => run::exec_design(&deck, json),
-        Command::Simulate { deck, trial, detector, out, classifiers } => {
-            run::exec_simulate(&deck, trial, detector.as_deref(), &out, classifiers.as_deref())
+/// The exit codes of every command, in one place (`fdimc --help` lists them, as does docs/commands.md).
+pub mod exit {
+    /// The command did what was asked.
+    pub const OK: u8 = 0;
+    /// `check` found a regression against the baseline.
+    pub const REGRESSION: u8 = 1;
+    /// Invalid input: a deck, an argument or an input file; the message names the file and the field.
+    pub const INVALID_INPUT: u8 = 2;
+    /// An I/O or internal error.
+    pub const INTERNAL: u8 = 3;
+
+    /// The codes as `--help` prints them.
+    pub fn help() -> String {
+        format!(
+            "Exit codes: {OK} ok, {REGRESSION} regression found (check), {INVALID_INPUT} invalid input (deck, \
+             arguments, files), {INTERNAL} I/O or internal error."
+        )
+    }
+}
+
+/// fdimc's command line over its own kinds of study and `extra` ones: what `fdimc` itself runs (with
+/// none), and what a crate that adds a kind of its own calls from its `main`, e.g.
+/// `fdimc::cli::main_with(&[&MY_METHOD])`. Every command then finds the caller's kind as it finds
+/// fdimc's own: by the table that marks a deck, or the kind a results folder's manifest names.
+///
+/// # Panics
+/// When a kind or marker table of `extra` is already taken (a programming error of the caller).
+pub fn main_with(extra: &[&'static Method]) -> ExitCode {
+    // A reader that stops early (`fdimc design deck | head`) ends fdimc quietly, as it does any Unix
+    // tool, instead of a panic on the broken pipe. Results are written by rename, so nothing is left
+    // half-written.
+    #[cfg(unix)]
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+    let kinds = registry_with(extra);
+    let cli = command(kinds).try_get_matches().and_then(|m| Cli::from_arg_matches(&m)).unwrap_or_else(|e| e.exit());
+    run(cli, kinds)
+}
+
+/// fdimc's own kinds followed by `extra`, for the life of the process.
+pub fn registry_with(extra: &[&'static Method]) -> &'static [&'static Method] {
+    let all: Vec<&'static Method> = crate::methods::REGISTRY.iter().chain(extra).copied().collect();
+    for (i, m) in all.iter().enumerate() {
+        for o in &all[..i] {
+            assert!(m.kind != o.kind, "two kinds of study are named {:?}", m.kind);
+            assert!(m.marker != o.marker, "kinds {:?} and {:?} are both marked by [{}]", o.kind, m.kind, m.marker);
         }
-        Command::Train { deck, out } => run::exec_train(&deck, out.as_deref()),
-        Command::Run { deck, trials, folder, classifiers, precision, precision_rates } => run::exec_run(run::RunArgs {
-            precision,
-            precision_rates,
-            deck: &deck,
-            trials,
-            folder,
-            classifiers: classifiers.as_deref(),
-            sensitivity: None,
-        })
-        .map(|_| ()),
-        Command::RareEvent(args) => run::exec_rare_event(args),
+    }
+    Box::leak(all.into_boxed_slice())
+}
+
+/// The clap command over `kinds`: `new` takes their names, and `--help` ends with the exit codes.
+pub fn command(kinds: &[&'static Method]) -> clap::Command {
+    let names: Vec<&'static str> = kinds.iter().map(|m| m.kind).collect();
+    Cli::command().after_help(exit::help()).mut_subcommand("new", |c| {
+        c.mut_arg("kind", |a| a.value_parser(clap::builder::PossibleValuesParser::new(names)))
+    })
+}
+
+/// Runs one parsed command over `kinds` and returns its exit code ([`exit`]).
+pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
+    let commands = run::Kinds(kinds);
+    let result = match cli.command {
+        Command::New { kind, file, force } => commands.exec_new(&kind, &file, force),
+        Command::Validate { deck } => commands.exec_validate(&deck),
+        Command::Design { deck, json } => commands.exec_design(&deck, json),
+        Command::Simulate { deck, trial, detector, out, classifiers } => {
+            commands.exec_simulate(&deck, trial, detector.as_deref(), &out, classifiers.as_deref())
+        }
+        Command::Train { deck, out } => commands.exec_train(&deck, out.as_deref()),
+        Command::Run { deck, trials, folder, classifiers, precision, precision_rates } => commands
+            .exec_run(run::RunArgs {
+                precision,
+                precision_rates,
+                deck: &deck,
+                trials,
+                folder,
+                classifiers: classifiers.as_deref(),
+                sensitivity: None,
+            })
+            .map(|_| ()),
+        Command::RareEvent(args) => commands.exec_rare_event(args),
         Command::Sensitivity { deck, base_samples, bootstrap, folder, thresholds } => {
-            if !(2..=crate::engine::streams::MAX_TRIAL / 64).contains(&base_samples) {
+            if !(2..=crate::engine::scenario::streams::MAX_TRIAL / 64).contains(&base_samples) {
                 Err(CliError::Invalid(format!(
                     "--base-samples {base_samples}: allowed 2 to {}",
-                    crate::engine::streams::MAX_TRIAL / 64
+                    crate::engine::scenario::streams::MAX_TRIAL / 64
                 )))
             } else if !(10..=100_000).contains(&bootstrap) {
                 Err(CliError::Invalid(format!("--bootstrap {bootstrap}: allowed 10 to 100000")))
             } else {
-                run::exec_run(run::RunArgs {
-                    precision: None,
-                    precision_rates: Vec::new(),
-                    deck: &deck,
-                    trials: None,
-                    folder,
-                    classifiers: None,
-                    sensitivity: Some(run::SensitivityArgs { base_samples, bootstrap, thresholds }),
-                })
-                .map(|_| ())
+                commands
+                    .exec_run(run::RunArgs {
+                        precision: None,
+                        precision_rates: Vec::new(),
+                        deck: &deck,
+                        trials: None,
+                        folder,
+                        classifiers: None,
+                        sensitivity: Some(run::SensitivityArgs { base_samples, bootstrap, thresholds }),
+                    })
+                    .map(|_| ())
             }
         }
         Command::Summarize { dir, target_pfa, confidence, target_pfa_per_hour, thresholds } => {
-            run::exec_summarize(&dir, target_pfa, target_pfa_per_hour, confidence, thresholds.as_deref())
+            commands.exec_summarize(&dir, target_pfa, target_pfa_per_hour, confidence, thresholds.as_deref())
         }
-        Command::Merge { dirs, out, force } => run::exec_merge(&dirs, &out, force),
-        Command::Report { dir, trials } => run::exec_report(&dir, &trials),
+        Command::Merge { dirs, out, force } => commands.exec_merge(&dirs, &out, force),
+        Command::Report { dir, trials } => commands.exec_report(&dir, &trials),
         Command::Log { file, topic, instance } => run::exec_log(&file, topic.as_deref(), instance),
         Command::Check { target, baseline, alpha, threads } => {
-            match run::exec_check(&target, &baseline, alpha, threads) {
+            match commands.exec_check(&target, &baseline, alpha, threads) {
                 Ok(true) => Ok(()),
-                Ok(false) => return ExitCode::from(1),
+                Ok(false) => return ExitCode::from(exit::REGRESSION),
                 Err(e) => Err(e),
             }
         }
@@ -370,11 +435,11 @@ pub fn run(cli: Cli) -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(CliError::Invalid(msg)) => {
             eprintln!("error: {msg}");
-            ExitCode::from(2)
+            ExitCode::from(exit::INVALID_INPUT)
         }
         Err(CliError::Internal(msg)) => {
             eprintln!("error: {msg}");
-            ExitCode::from(3)
+            ExitCode::from(exit::INTERNAL)
         }
     }
 }

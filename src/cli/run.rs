@@ -5,10 +5,9 @@ use std::path::{Path, PathBuf};
 
 use crate::cli::{CliError, Placement, RareEventArgs, RunFolder};
 use crate::engine::method::{self, Inputs, Method, Opt, Study};
-use crate::engine::runner::{self, Manifest, RunError, RunOptions, Shard};
-use crate::engine::summary;
-use crate::engine::thresholds::Calibration;
-use crate::methods::REGISTRY;
+use crate::engine::results::summary;
+use crate::engine::results::thresholds::Calibration;
+use crate::engine::run::runner::{self, Manifest, RunError, RunOptions, Shard};
 
 impl From<RunError> for CliError {
     fn from(e: RunError) -> Self {
@@ -38,23 +37,6 @@ pub struct SensitivityArgs {
     pub base_samples: u64,
     pub bootstrap: u64,
     pub thresholds: Option<PathBuf>,
-}
-
-/// The deck's method and study, with `--classifiers` checked against what the method takes.
-pub fn load(deck: &Path, classifiers: Option<&Path>) -> Result<(&'static Method, Box<dyn Study>), CliError> {
-    let (method, study) = method::load(REGISTRY, deck)?;
-    if classifiers.is_some() {
-        method::require(REGISTRY, method, Opt::Classifiers)?;
-    }
-    Ok((method, study))
-}
-
-/// The method of the run in `dir`, from its manifest.
-fn method_of_run(dir: &Path) -> Result<(&'static Method, Manifest), CliError> {
-    let manifest = Manifest::read(dir)?;
-    let method =
-        method::find(REGISTRY, &manifest.kind).map_err(|e| CliError::Invalid(format!("{}: {e}", dir.display())))?;
-    Ok((method, manifest))
 }
 
 /// Refuses `--threads 0` and sets `--seed`; the results folder (`sub` under the study's by default) and
@@ -96,190 +78,6 @@ fn results_folder(out: Option<&Path>, study: &str, sub: Option<&str>, shard: Sha
     }
 }
 
-pub fn exec_run(a: RunArgs) -> Result<PathBuf, CliError> {
-    let f = &a.folder;
-    let (method, mut study) = load(a.deck, a.classifiers)?;
-    if let Some(n) = a.trials {
-        if n == 0 || n > crate::engine::streams::MAX_TRIAL {
-            return Err(CliError::Invalid(format!("--trials {n}: allowed 1 to {}", crate::engine::streams::MAX_TRIAL)));
-        }
-        *study.seed_and_trials().1 = n;
-    }
-    let sub = a.sensitivity.is_some().then_some("sensitivity");
-    let (out_dir, shard, auto) = place(&f.place, study.as_mut(), sub)?;
-    let design = match &a.sensitivity {
-        Some(SensitivityArgs { base_samples, bootstrap, thresholds }) => {
-            method::require(REGISTRY, method, Opt::Sensitivity)?;
-            if let Some(f) = thresholds {
-                // A bad file is refused before any trial is flown.
-                crate::engine::thresholds::read_thresholds(f)?;
-            }
-            let design = study.sensitivity_design(*base_samples, *bootstrap)?;
-            if !f.quiet {
-                for part in &design.parts {
-                    let names: Vec<&str> = part.factors.iter().map(|f| f.name.as_str()).collect();
-                    println!(
-                        "{} trials: {} factors ({}): {} trials",
-                        if part.fault_free { "fault-free" } else { "faulty" },
-                        names.len(),
-                        names.join(", "),
-                        base_samples * (names.len() as u64 + 2)
-                    );
-                }
-            }
-            Some(design)
-        }
-        None => None,
-    };
-    if auto && !f.quiet {
-        println!("shard {}/{} from the scheduler's array task -> {}", shard.index, shard.count, out_dir.display());
-    }
-    let opts = RunOptions {
-        deck: a.deck.into(),
-        out_dir: out_dir.clone(),
-        threads: f.place.threads,
-        shard,
-        resume: f.resume,
-        force: f.force,
-        progress: !f.quiet,
-        stop_after_chunks: f.stop_after,
-        stop: match a.precision {
-            Some(w) => {
-                let monitor = summary::PrecisionMonitor::new(&method.summary, w, &a.precision_rates)
-                    .map_err(CliError::Invalid)?;
-                Some(runner::StopHandle(std::sync::Arc::new(std::sync::Mutex::new(monitor))))
-            }
-            None => None,
-        },
-        sensitivity: design,
-        command_line: std::env::args().collect(),
-    };
-    let report = study.run(&opts, Inputs { classifiers: a.classifiers, quiet: f.quiet })?;
-    let m = &report.manifest;
-    if !f.quiet {
-        let n = m.end_trial - m.first_trial;
-        let rate = if report.seconds > 0.0 { report.trials_run as f64 / report.seconds } else { f64::NAN };
-        println!(
-            "{}: trials {}..{} of {} ({} run, {} resumed) x {} detector(s) in {:.1} s ({:.0} trials/s) -> {}",
-            m.study,
-            m.first_trial,
-            m.end_trial,
-            m.trials,
-            report.trials_run,
-            report.trials_resumed,
-            m.detectors.len(),
-            report.seconds,
-            rate,
-            out_dir.join("trials.parquet").display()
-        );
-        if n == 0 {
-            println!("  (this shard holds no trials)");
-        }
-    }
-    if let (Some(p), false) = (&m.precision, f.quiet) {
-        if p.met {
-            println!(
-                "  precision {} reached at {} of at most {} trials: all {} watched rates ({}) have a 95 % half-width <= {}; the last to get there: {}",
-                p.half_width,
-                m.end_trial,
-                m.trials,
-                p.watched,
-                p.rates.join(", "),
-                p.half_width,
-                p.widest
-            );
-        } else {
-            println!(
-                "  warning: the cap of {} trials came first: {} of {} watched rates are still wider than {}; the widest: {} (run again with a larger --trials)",
-                m.trials, p.wider, p.watched, p.half_width, p.widest
-            );
-        }
-    }
-    if !m.complete {
-        println!(
-            "  stopped after {} part file(s): continue with the same command and --resume",
-            f.stop_after.unwrap_or(0)
-        );
-        return Ok(out_dir);
-    }
-    if shard == Shard::WHOLE {
-        let calibration = a.sensitivity.and_then(|s| s.thresholds).map(Calibration::File);
-        summarize(method, &out_dir, calibration.as_ref(), !f.quiet)?;
-    } else if !f.quiet && m.sensitivity.is_some() {
-        println!("  shard done: join the shards with `fdimc merge <shard dirs>... --out DIR` to get the indices");
-    } else if !f.quiet {
-        println!("  shard done: join the shards with `fdimc merge <shard dirs>... --out DIR` to get the summary");
-    }
-    Ok(out_dir)
-}
-
-pub fn exec_summarize(
-    dir: &Path,
-    target_pfa: Option<f64>,
-    target_pfa_per_hour: Option<f64>,
-    confidence: Option<f64>,
-    thresholds: Option<&Path>,
-) -> Result<(), CliError> {
-    let (method, manifest) = method_of_run(dir)?;
-    let target_pfa = match (target_pfa, target_pfa_per_hour) {
-        (Some(_), Some(_)) => {
-            return Err(CliError::Invalid("give --target-pfa (per trial) or --target-pfa-per-hour, not both".into()));
-        }
-        (_, Some(h)) if !(h > 0.0 && h < 1.0) => {
-            return Err(CliError::Invalid(format!("--target-pfa-per-hour {h}: allowed 0 < p < 1")));
-        }
-        (_, Some(h)) => {
-            let duration_s = manifest.trial_duration_s.ok_or_else(|| {
-                CliError::Invalid(format!(
-                    "{}: the manifest does not give the trial's duration (a run of an older fdimc): use --target-pfa",
-                    dir.display()
-                ))
-            })?;
-            let p = crate::engine::thresholds::per_segment(h, duration_s);
-            println!(
-                "target {h} per flight hour = {p:.4e} per {duration_s} s trial (the hour's trials taken as independent)"
-            );
-            Some(p)
-        }
-        (p, None) => p,
-    };
-    if let Some(c) = confidence
-        && !(c > 0.0 && c < 1.0)
-    {
-        return Err(CliError::Invalid(format!("--confidence {c}: allowed 0 < c < 1 (e.g. 0.95)")));
-    }
-    let calibration = match (target_pfa, thresholds, confidence) {
-        (Some(_), Some(_), _) => {
-            return Err(CliError::Invalid("give --target-pfa or --thresholds, not both".into()));
-        }
-        (_, Some(_), Some(_)) => {
-            return Err(CliError::Invalid("--confidence calibrates; --thresholds applies another run's".into()));
-        }
-        (_, Some(f), None) => Some(Calibration::File(f.into())),
-        (Some(p), None, _) if !(p > 0.0 && p < 1.0) => {
-            return Err(CliError::Invalid(format!("--target-pfa {p}: allowed 0 < p < 1")));
-        }
-        (Some(p), None, None) => Some(Calibration::Target(p)),
-        (p, None, Some(confidence)) => {
-            Some(Calibration::Confident { pfa: p.unwrap_or(manifest.target_pfa), confidence })
-        }
-        (None, None, None) => None,
-    };
-    if matches!(calibration, Some(Calibration::Target(_) | Calibration::Confident { .. }))
-        && manifest.sensitivity.is_some()
-    {
-        return Err(CliError::Invalid(format!(
-            "{}: a sensitivity run calibrates no thresholds: give another run's --thresholds, or none for the deck's",
-            dir.display()
-        )));
-    }
-    if calibration.is_some() {
-        method::require(REGISTRY, method, Opt::Thresholds)
-            .map_err(|e| CliError::Invalid(format!("{}: {e}", dir.display())))?;
-    }
-    summarize(method, dir, calibration.as_ref(), true)
-}
-
 /// The shared summary of the run in `dir`, with what `method` adds, or the indices of a sensitivity run;
 /// printed unless `print` is false.
 fn summarize(method: &Method, dir: &Path, calibration: Option<&Calibration>, print: bool) -> Result<(), CliError> {
@@ -303,252 +101,10 @@ fn summarize(method: &Method, dir: &Path, calibration: Option<&Calibration>, pri
     Ok(())
 }
 
-pub fn exec_merge(dirs: &[PathBuf], out: &Path, force: bool) -> Result<(), CliError> {
-    if dirs.is_empty() {
-        return Err(CliError::Invalid("name the shard folders to merge".into()));
-    }
-    if dirs[0].join("rare_event.json").exists() {
-        return Ok(crate::engine::rare_event_study::merge(dirs, out)?);
-    }
-    let mut manifests = Vec::with_capacity(dirs.len());
-    for d in dirs {
-        let m = Manifest::read(d)?;
-        if !m.complete || !d.join("trials.parquet").exists() {
-            return Err(CliError::Invalid(format!(
-                "{}: shard not complete: finish it with `fdimc run ... --resume`",
-                d.display()
-            )));
-        }
-        manifests.push((d.clone(), m));
-    }
-    manifests.sort_by_key(|(_, m)| m.shard.index);
-    let first = &manifests[0].1;
-    let count = first.shard.count;
-    for (d, m) in &manifests {
-        if m.deck_sha256 != first.deck_sha256
-            || m.seed != first.seed
-            || m.trials != first.trials
-            || m.shard.count != count
-            || m.sensitivity != first.sensitivity
-        {
-            return Err(CliError::Invalid(format!(
-                "{}: from another run (deck, seed, trial count or shard count differ from {})",
-                d.display(),
-                manifests[0].0.display()
-            )));
-        }
-    }
-    let indices: Vec<u64> = manifests.iter().map(|(_, m)| m.shard.index).collect();
-    if indices != (0..count).collect::<Vec<_>>() {
-        return Err(CliError::Invalid(format!("need shards 0..{count} exactly once each, got {indices:?}")));
-    }
-    if out.join("manifest.json").exists() && !force {
-        return Err(CliError::Invalid(format!(
-            "{}: already holds a run; use --force to replace it, or another --out",
-            out.display()
-        )));
-    }
-    std::fs::create_dir_all(out).map_err(|e| CliError::Internal(format!("{}: {e}", out.display())))?;
-    let inputs: Vec<PathBuf> =
-        manifests.iter().filter(|(_, m)| m.rows > 0).map(|(d, _)| d.join("trials.parquet")).collect();
-    runner::concatenate(&inputs, &out.join("trials.parquet"))?;
-    let rows = manifests.iter().map(|(_, m)| m.rows).sum();
-    let merged = Manifest {
-        shard: Shard::WHOLE,
-        first_trial: 0,
-        end_trial: first.trials,
-        rows,
-        complete: true,
-        command_line: std::env::args().collect(),
-        ..first.clone()
-    };
-    merged.write(out)?;
-    println!("merged {} shards: {} rows -> {}", manifests.len(), rows, out.join("trials.parquet").display());
-    summarize(method::find(REGISTRY, &merged.kind)?, out, None, true)
-}
-
-pub fn exec_check(target: &Path, baseline: &Path, alpha: f64, threads: Option<usize>) -> Result<bool, CliError> {
-    if !(alpha > 0.0 && alpha < 1.0) {
-        return Err(CliError::Invalid(format!("--alpha {alpha}: allowed 0 < alpha < 1")));
-    }
-    let base = crate::engine::tables::read_summary(baseline)?;
-    crate::engine::check::consistent(&base, baseline)?;
-    let (current, scratch) = if target.is_dir() {
-        (crate::engine::tables::read_summary(&target.join("summary.csv"))?, None)
-    } else {
-        let scratch = std::env::temp_dir().join(format!("fdimc-check-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&scratch);
-        let args = RunArgs {
-            deck: target,
-            trials: None,
-            folder: RunFolder {
-                place: Placement { threads, out: Some(scratch.clone()), ..Placement::default() },
-                resume: false,
-                force: true,
-                quiet: true,
-                stop_after: None,
-            },
-            classifiers: None,
-            precision: None,
-            precision_rates: Vec::new(),
-            sensitivity: None,
-        };
-        let dir = exec_run(args)?;
-        (crate::engine::tables::read_summary(&dir.join("summary.csv"))?, Some(scratch))
-    };
-    let verdict = crate::engine::check::compare(&current, &base, alpha);
-    if let Some(s) = scratch {
-        let _ = std::fs::remove_dir_all(s);
-    }
-    let verdict = verdict?;
-    for r in &verdict.regressions {
-        println!("REGRESSION {r}");
-    }
-    for g in &verdict.only_in_baseline {
-        println!("warning: group only in the baseline: {g}");
-    }
-    for g in &verdict.only_in_current {
-        println!("warning: group not in the baseline: {g}");
-    }
-    println!(
-        "{}: {} groups compared, {} tests at family-wise alpha {alpha}: {} regression(s)",
-        baseline.display(),
-        verdict.compared_groups,
-        verdict.tests,
-        verdict.regressions.len()
-    );
-    Ok(verdict.regressions.is_empty())
-}
-
-pub fn exec_report(dir: &Path, trials: &[u64]) -> Result<(), CliError> {
-    let (method, _) = method_of_run(dir)?;
-    let report = crate::engine::report::write_report(dir, trials, method)?;
-    for w in &report.warnings {
-        println!("warning: {w}");
-    }
-    if let Some(page) = report.files.last() {
-        println!("{} plots -> {}", report.files.len() - 1, page.display());
-    }
-    Ok(())
-}
-
-pub fn exec_train(deck: &Path, out: Option<&Path>) -> Result<(), CliError> {
-    let (method, study) = method::load(REGISTRY, deck)?;
-    method::require(REGISTRY, method, Opt::Classifiers)?;
-    Ok(study.train(out)?)
-}
-
-/// `fdimc new KIND FILE`: the kind's starter deck, its study named after the file.
-pub fn exec_new(kind: &str, file: &Path, force: bool) -> Result<(), CliError> {
-    let method = method::find(REGISTRY, kind)?;
-    if file.exists() && !force {
-        return Err(CliError::Invalid(format!(
-            "{}: exists; name another file, or --force to replace it",
-            file.display()
-        )));
-    }
-    // The study's name is a folder name: the file's stem, other characters made '_'.
-    let stem = file.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
-    let study: String =
-        stem.chars().map(|c| if c.is_ascii_alphanumeric() || c == '_' || c == '-' { c } else { '_' }).collect();
-    let study = if study.is_empty() { kind.to_string() } else { study };
-    if let Some(parent) = file.parent().filter(|p| !p.as_os_str().is_empty()) {
-        std::fs::create_dir_all(parent).map_err(|e| CliError::Invalid(format!("{}: {e}", parent.display())))?;
-    }
-    crate::engine::runner::write_atomically(file, method.starter_deck(&study).as_bytes())?;
-    println!(
-        "wrote {}: a {kind} deck ({}), study {study:?}\nnext: fdimc validate {0}, then fdimc run {0}",
-        file.display(),
-        method.title
-    );
-    Ok(())
-}
-
-pub fn exec_validate(deck: &Path) -> Result<(), CliError> {
-    Ok(method::load(REGISTRY, deck)?.1.validate()?)
-}
-
-pub fn exec_design(deck: &Path, json: bool) -> Result<(), CliError> {
-    let (method, study) = method::load(REGISTRY, deck)?;
-    method::require(REGISTRY, method, Opt::Design)?;
-    Ok(study.design(json)?)
-}
-
-/// `fdimc rare-event`: checks the options (each estimator's own, the others refused), then runs.
-pub fn exec_rare_event(a: RareEventArgs) -> Result<(), CliError> {
-    use crate::engine::rare_event_study::{Estimator, RareEventOptions};
-    use crate::engine::streams::{MAX_BRANCH, MAX_REPLICA};
-    let bad = |m: String| Err(CliError::Invalid(m));
-    let estimator = if a.estimator == "splitting" { Estimator::Splitting } else { Estimator::Importance };
-    let (own, other): (&[(&str, bool)], &[(&str, bool)]) = (
-        &[("--trials", a.trials.is_some())],
-        &[("--particles", a.particles.is_some()), ("--replicas", a.replicas.is_some())],
-    );
-    let refused = if estimator == Estimator::Splitting { own } else { other };
-    if let Some((flag, _)) = refused.iter().find(|(_, given)| *given) {
-        return bad(format!("{flag} does not apply to --estimator {}", estimator.name()));
-    }
-    let mut levels = a.levels.clone();
-    if let Some(l) = levels.iter().find(|l| !(l.is_finite() && **l > 0.0)) {
-        return bad(format!("--levels {l}: a level is a threshold scale, allowed > 0"));
-    }
-    levels.sort_by(f64::total_cmp);
-    levels.dedup();
-    let trials = a.trials.unwrap_or(20_000);
-    // A trial's importance choices come from branch `trial` of a reserved replica's streams.
-    if !(10..=MAX_BRANCH).contains(&trials) {
-        return bad(format!("--trials {trials}: allowed 10 (a fifth is the pilot) to {MAX_BRANCH}"));
-    }
-    let particles = a.particles.unwrap_or(100);
-    let replicas = a.replicas.unwrap_or(16);
-    if !(2..=1_000_000).contains(&particles) {
-        return bad(format!("--particles {particles}: allowed 2 to 1000000"));
-    }
-    if !(2..=MAX_REPLICA).contains(&replicas) {
-        return bad(format!("--replicas {replicas}: allowed 2 (an interval needs two) to {MAX_REPLICA}"));
-    }
-    let (method, mut study) = load(&a.deck, None)?;
-    method::require(REGISTRY, method, Opt::RareEvent)?;
-    let (out, shard, _) = place(&a.place, study.as_mut(), Some("rare_event"))?;
-    let opts = RareEventOptions {
-        deck: a.deck.into(),
-        shard,
-        estimator,
-        detector: a.detector,
-        levels,
-        trials,
-        particles,
-        replicas,
-        out,
-        quiet: a.quiet,
-    };
-    runner::thread_pool(a.place.threads)?.install(|| study.rare_event(&opts))?;
-    if !a.quiet && shard == Shard::WHOLE {
-        println!("wrote {}", opts.out.join("rare_event.csv").display());
-    }
-    Ok(())
-}
-
-pub fn exec_simulate(
-    deck: &Path,
-    trial: u64,
-    detector: Option<&str>,
-    out: &Path,
-    classifiers: Option<&Path>,
-) -> Result<(), CliError> {
-    // Check the output name before simulating, so a typo costs nothing.
-    crate::engine::output::TableFormat::from_path(out)?;
-    if trial > crate::engine::streams::MAX_TRIAL {
-        return Err(CliError::Invalid(format!("--trial {trial}: allowed 0 to {}", crate::engine::streams::MAX_TRIAL)));
-    }
-    let (_, study) = load(deck, classifiers)?;
-    Ok(study.simulate(trial, detector, out, Inputs { classifiers, quiet: false })?)
-}
-
 /// `fdimc log`: what a flight log holds (every topic instance: samples, span, mean rate, largest gap),
 /// and with `topic` the spread of each of that instance's number fields.
 pub fn exec_log(file: &Path, topic: Option<&str>, instance: u8) -> Result<(), CliError> {
-    use crate::engine::flight_log::{field_spreads, survey};
+    use crate::engine::logs::flight_log::{field_spreads, survey};
     let (topics, ending) = survey(file).map_err(|e| CliError::Invalid(e.to_string()))?;
     println!(
         "{}: {} topic instances, {}",
@@ -578,7 +134,7 @@ pub fn exec_log(file: &Path, topic: Option<&str>, instance: u8) -> Result<(), Cl
         println!(
             "\n{name} instance {instance}: number fields (difference sd = sd of sample-to-sample differences / sqrt 2, the white noise when the signal moves slowly; r(l) = autocorrelation at l samples, 0 for white noise)"
         );
-        let lags = crate::engine::flight_log::AUTOCORRELATION_LAGS.map(|l| format!("r({l})"));
+        let lags = crate::engine::logs::flight_log::AUTOCORRELATION_LAGS.map(|l| format!("r({l})"));
         println!(
             "{:<32} {:>14} {:>14} {:>14} {:>7} {:>7} {:>7} {:>7}",
             "field", "mean", "sd", "difference_sd", lags[0], lags[1], lags[2], lags[3]
@@ -592,4 +148,469 @@ pub fn exec_log(file: &Path, topic: Option<&str>, instance: u8) -> Result<(), Cl
         }
     }
     Ok(())
+}
+
+/// The commands over the kinds of study this command line knows: fdimc's own and, through
+/// [`crate::cli::main_with`], a caller's.
+pub struct Kinds(pub &'static [&'static Method]);
+
+impl Kinds {
+    /// The deck's method and study, with `--classifiers` checked against what the method takes.
+    pub fn load(&self, deck: &Path, classifiers: Option<&Path>) -> Result<(&'static Method, Box<dyn Study>), CliError> {
+        let (method, study) = method::load(self.0, deck)?;
+        if classifiers.is_some() {
+            method::require(self.0, method, Opt::Classifiers)?;
+        }
+        Ok((method, study))
+    }
+
+    /// The method of the run in `dir`, from its manifest.
+    fn method_of_run(&self, dir: &Path) -> Result<(&'static Method, Manifest), CliError> {
+        let manifest = Manifest::read(dir)?;
+        let method =
+            method::find(self.0, &manifest.kind).map_err(|e| CliError::Invalid(format!("{}: {e}", dir.display())))?;
+        Ok((method, manifest))
+    }
+
+    pub fn exec_run(&self, a: RunArgs) -> Result<PathBuf, CliError> {
+        let f = &a.folder;
+        let (method, mut study) = self.load(a.deck, a.classifiers)?;
+        if let Some(n) = a.trials {
+            if n == 0 || n > crate::engine::scenario::streams::MAX_TRIAL {
+                return Err(CliError::Invalid(format!(
+                    "--trials {n}: allowed 1 to {}",
+                    crate::engine::scenario::streams::MAX_TRIAL
+                )));
+            }
+            *study.seed_and_trials().1 = n;
+        }
+        let sub = a.sensitivity.is_some().then_some("sensitivity");
+        let (out_dir, shard, auto) = place(&f.place, study.as_mut(), sub)?;
+        let design = match &a.sensitivity {
+            Some(SensitivityArgs { base_samples, bootstrap, thresholds }) => {
+                method::require(self.0, method, Opt::Sensitivity)?;
+                if let Some(f) = thresholds {
+                    // A bad file is refused before any trial is flown.
+                    crate::engine::results::thresholds::read_thresholds(f)?;
+                }
+                let design = study.sensitivity_design(*base_samples, *bootstrap)?;
+                if !f.quiet {
+                    for part in &design.parts {
+                        let names: Vec<&str> = part.factors.iter().map(|f| f.name.as_str()).collect();
+                        println!(
+                            "{} trials: {} factors ({}): {} trials",
+                            if part.fault_free { "fault-free" } else { "faulty" },
+                            names.len(),
+                            names.join(", "),
+                            base_samples * (names.len() as u64 + 2)
+                        );
+                    }
+                }
+                Some(design)
+            }
+            None => None,
+        };
+        if auto && !f.quiet {
+            println!("shard {}/{} from the scheduler's array task -> {}", shard.index, shard.count, out_dir.display());
+        }
+        let opts = RunOptions {
+            deck: a.deck.into(),
+            out_dir: out_dir.clone(),
+            threads: f.place.threads,
+            shard,
+            resume: f.resume,
+            force: f.force,
+            progress: !f.quiet,
+            stop_after_chunks: f.stop_after,
+            stop: match a.precision {
+                Some(w) => {
+                    let monitor = summary::PrecisionMonitor::new(&method.summary, w, &a.precision_rates)
+                        .map_err(CliError::Invalid)?;
+                    Some(runner::StopHandle(std::sync::Arc::new(std::sync::Mutex::new(monitor))))
+                }
+                None => None,
+            },
+            sensitivity: design,
+            command_line: std::env::args().collect(),
+        };
+        let report = study.run(&opts, Inputs { classifiers: a.classifiers, quiet: f.quiet })?;
+        let m = &report.manifest;
+        if !f.quiet {
+            let n = m.end_trial - m.first_trial;
+            let rate = if report.seconds > 0.0 { report.trials_run as f64 / report.seconds } else { f64::NAN };
+            println!(
+                "{}: trials {}..{} of {} ({} run, {} resumed) x {} detector(s) in {:.1} s ({:.0} trials/s) -> {}",
+                m.study,
+                m.first_trial,
+                m.end_trial,
+                m.trials,
+                report.trials_run,
+                report.trials_resumed,
+                m.detectors.len(),
+                report.seconds,
+                rate,
+                out_dir.join("trials.parquet").display()
+            );
+            if n == 0 {
+                println!("  (this shard holds no trials)");
+            }
+        }
+        if let (Some(p), false) = (&m.precision, f.quiet) {
+            if p.met {
+                println!(
+                    "  precision {} reached at {} of at most {} trials: all {} watched rates ({}) have a 95 % half-width <= {}; the last to get there: {}",
+                    p.half_width,
+                    m.end_trial,
+                    m.trials,
+                    p.watched,
+                    p.rates.join(", "),
+                    p.half_width,
+                    p.widest
+                );
+            } else {
+                println!(
+                    "  warning: the cap of {} trials came first: {} of {} watched rates are still wider than {}; the widest: {} (run again with a larger --trials)",
+                    m.trials, p.wider, p.watched, p.half_width, p.widest
+                );
+            }
+        }
+        if !m.complete {
+            println!(
+                "  stopped after {} part file(s): continue with the same command and --resume",
+                f.stop_after.unwrap_or(0)
+            );
+            return Ok(out_dir);
+        }
+        if shard == Shard::WHOLE {
+            let calibration = a.sensitivity.and_then(|s| s.thresholds).map(Calibration::File);
+            summarize(method, &out_dir, calibration.as_ref(), !f.quiet)?;
+        } else if !f.quiet && m.sensitivity.is_some() {
+            println!("  shard done: join the shards with `fdimc merge <shard dirs>... --out DIR` to get the indices");
+        } else if !f.quiet {
+            println!("  shard done: join the shards with `fdimc merge <shard dirs>... --out DIR` to get the summary");
+        }
+        Ok(out_dir)
+    }
+
+    pub fn exec_summarize(
+        &self,
+        dir: &Path,
+        target_pfa: Option<f64>,
+        target_pfa_per_hour: Option<f64>,
+        confidence: Option<f64>,
+        thresholds: Option<&Path>,
+    ) -> Result<(), CliError> {
+        let (method, manifest) = self.method_of_run(dir)?;
+        let target_pfa = match (target_pfa, target_pfa_per_hour) {
+            (Some(_), Some(_)) => {
+                return Err(CliError::Invalid(
+                    "give --target-pfa (per trial) or --target-pfa-per-hour, not both".into(),
+                ));
+            }
+            (_, Some(h)) if !(h > 0.0 && h < 1.0) => {
+                return Err(CliError::Invalid(format!("--target-pfa-per-hour {h}: allowed 0 < p < 1")));
+            }
+            (_, Some(h)) => {
+                let duration_s = manifest.trial_duration_s.ok_or_else(|| {
+                    CliError::Invalid(format!(
+                        "{}: the manifest does not give the trial's duration (a run of an older fdimc): use --target-pfa",
+                        dir.display()
+                    ))
+                })?;
+                let p = crate::engine::results::thresholds::per_segment(h, duration_s);
+                println!(
+                    "target {h} per flight hour = {p:.4e} per {duration_s} s trial (the hour's trials taken as independent)"
+                );
+                Some(p)
+            }
+            (p, None) => p,
+        };
+        if let Some(c) = confidence
+            && !(c > 0.0 && c < 1.0)
+        {
+            return Err(CliError::Invalid(format!("--confidence {c}: allowed 0 < c < 1 (e.g. 0.95)")));
+        }
+        let calibration = match (target_pfa, thresholds, confidence) {
+            (Some(_), Some(_), _) => {
+                return Err(CliError::Invalid("give --target-pfa or --thresholds, not both".into()));
+            }
+            (_, Some(_), Some(_)) => {
+                return Err(CliError::Invalid("--confidence calibrates; --thresholds applies another run's".into()));
+            }
+            (_, Some(f), None) => Some(Calibration::File(f.into())),
+            (Some(p), None, _) if !(p > 0.0 && p < 1.0) => {
+                return Err(CliError::Invalid(format!("--target-pfa {p}: allowed 0 < p < 1")));
+            }
+            (Some(p), None, None) => Some(Calibration::Target(p)),
+            (p, None, Some(confidence)) => {
+                Some(Calibration::Confident { pfa: p.unwrap_or(manifest.target_pfa), confidence })
+            }
+            (None, None, None) => None,
+        };
+        if matches!(calibration, Some(Calibration::Target(_) | Calibration::Confident { .. }))
+            && manifest.sensitivity.is_some()
+        {
+            return Err(CliError::Invalid(format!(
+                "{}: a sensitivity run calibrates no thresholds: give another run's --thresholds, or none for the deck's",
+                dir.display()
+            )));
+        }
+        if calibration.is_some() {
+            method::require(self.0, method, Opt::Thresholds)
+                .map_err(|e| CliError::Invalid(format!("{}: {e}", dir.display())))?;
+        }
+        summarize(method, dir, calibration.as_ref(), true)
+    }
+
+    pub fn exec_merge(&self, dirs: &[PathBuf], out: &Path, force: bool) -> Result<(), CliError> {
+        if dirs.is_empty() {
+            return Err(CliError::Invalid("name the shard folders to merge".into()));
+        }
+        if dirs[0].join("rare_event.json").exists() {
+            return Ok(crate::engine::rare_event::study::merge(dirs, out)?);
+        }
+        let mut manifests = Vec::with_capacity(dirs.len());
+        for d in dirs {
+            let m = Manifest::read(d)?;
+            if !m.complete || !d.join("trials.parquet").exists() {
+                return Err(CliError::Invalid(format!(
+                    "{}: shard not complete: finish it with `fdimc run ... --resume`",
+                    d.display()
+                )));
+            }
+            manifests.push((d.clone(), m));
+        }
+        manifests.sort_by_key(|(_, m)| m.shard.index);
+        let first = &manifests[0].1;
+        let count = first.shard.count;
+        for (d, m) in &manifests {
+            if m.deck_sha256 != first.deck_sha256
+                || m.seed != first.seed
+                || m.trials != first.trials
+                || m.shard.count != count
+                || m.sensitivity != first.sensitivity
+            {
+                return Err(CliError::Invalid(format!(
+                    "{}: from another run (deck, seed, trial count or shard count differ from {})",
+                    d.display(),
+                    manifests[0].0.display()
+                )));
+            }
+        }
+        let indices: Vec<u64> = manifests.iter().map(|(_, m)| m.shard.index).collect();
+        if indices != (0..count).collect::<Vec<_>>() {
+            return Err(CliError::Invalid(format!("need shards 0..{count} exactly once each, got {indices:?}")));
+        }
+        if out.join("manifest.json").exists() && !force {
+            return Err(CliError::Invalid(format!(
+                "{}: already holds a run; use --force to replace it, or another --out",
+                out.display()
+            )));
+        }
+        std::fs::create_dir_all(out).map_err(|e| CliError::Internal(format!("{}: {e}", out.display())))?;
+        let inputs: Vec<PathBuf> =
+            manifests.iter().filter(|(_, m)| m.rows > 0).map(|(d, _)| d.join("trials.parquet")).collect();
+        runner::concatenate(&inputs, &out.join("trials.parquet"))?;
+        let rows = manifests.iter().map(|(_, m)| m.rows).sum();
+        let merged = Manifest {
+            shard: Shard::WHOLE,
+            first_trial: 0,
+            end_trial: first.trials,
+            rows,
+            complete: true,
+            command_line: std::env::args().collect(),
+            ..first.clone()
+        };
+        merged.write(out)?;
+        println!("merged {} shards: {} rows -> {}", manifests.len(), rows, out.join("trials.parquet").display());
+        summarize(method::find(self.0, &merged.kind)?, out, None, true)
+    }
+
+    pub fn exec_check(
+        &self,
+        target: &Path,
+        baseline: &Path,
+        alpha: f64,
+        threads: Option<usize>,
+    ) -> Result<bool, CliError> {
+        if !(alpha > 0.0 && alpha < 1.0) {
+            return Err(CliError::Invalid(format!("--alpha {alpha}: allowed 0 < alpha < 1")));
+        }
+        let base = crate::engine::results::tables::read_summary(baseline)?;
+        crate::engine::results::check::consistent(&base, baseline)?;
+        let (current, scratch) = if target.is_dir() {
+            (crate::engine::results::tables::read_summary(&target.join("summary.csv"))?, None)
+        } else {
+            let scratch = std::env::temp_dir().join(format!("fdimc-check-{}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&scratch);
+            let args = RunArgs {
+                deck: target,
+                trials: None,
+                folder: RunFolder {
+                    place: Placement { threads, out: Some(scratch.clone()), ..Placement::default() },
+                    resume: false,
+                    force: true,
+                    quiet: true,
+                    stop_after: None,
+                },
+                classifiers: None,
+                precision: None,
+                precision_rates: Vec::new(),
+                sensitivity: None,
+            };
+            let dir = self.exec_run(args)?;
+            (crate::engine::results::tables::read_summary(&dir.join("summary.csv"))?, Some(scratch))
+        };
+        let verdict = crate::engine::results::check::compare(&current, &base, alpha);
+        if let Some(s) = scratch {
+            let _ = std::fs::remove_dir_all(s);
+        }
+        let verdict = verdict?;
+        for r in &verdict.regressions {
+            println!("REGRESSION {r}");
+        }
+        for g in &verdict.only_in_baseline {
+            println!("warning: group only in the baseline: {g}");
+        }
+        for g in &verdict.only_in_current {
+            println!("warning: group not in the baseline: {g}");
+        }
+        println!(
+            "{}: {} groups compared, {} tests at family-wise alpha {alpha}: {} regression(s)",
+            baseline.display(),
+            verdict.compared_groups,
+            verdict.tests,
+            verdict.regressions.len()
+        );
+        Ok(verdict.regressions.is_empty())
+    }
+
+    pub fn exec_report(&self, dir: &Path, trials: &[u64]) -> Result<(), CliError> {
+        let (method, _) = self.method_of_run(dir)?;
+        let report = method.write_report(dir, trials)?;
+        for w in &report.warnings {
+            println!("warning: {w}");
+        }
+        if let Some(page) = report.files.last() {
+            println!("{} plots -> {}", report.files.len() - 1, page.display());
+        }
+        Ok(())
+    }
+
+    pub fn exec_train(&self, deck: &Path, out: Option<&Path>) -> Result<(), CliError> {
+        let (method, study) = method::load(self.0, deck)?;
+        method::require(self.0, method, Opt::Classifiers)?;
+        Ok(study.train(out)?)
+    }
+
+    /// `fdimc new KIND FILE`: the kind's starter deck, its study named after the file.
+    pub fn exec_new(&self, kind: &str, file: &Path, force: bool) -> Result<(), CliError> {
+        let method = method::find(self.0, kind)?;
+        if file.exists() && !force {
+            return Err(CliError::Invalid(format!(
+                "{}: exists; name another file, or --force to replace it",
+                file.display()
+            )));
+        }
+        // The study's name is a folder name: the file's stem, other characters made '_'.
+        let stem = file.file_stem().map(|s| s.to_string_lossy().to_string()).unwrap_or_default();
+        let study: String =
+            stem.chars().map(|c| if c.is_ascii_alphanumeric() || c == '_' || c == '-' { c } else { '_' }).collect();
+        let study = if study.is_empty() { kind.to_string() } else { study };
+        if let Some(parent) = file.parent().filter(|p| !p.as_os_str().is_empty()) {
+            std::fs::create_dir_all(parent).map_err(|e| CliError::Invalid(format!("{}: {e}", parent.display())))?;
+        }
+        crate::engine::run::runner::write_atomically(file, method.starter_deck(&study).as_bytes())?;
+        println!(
+            "wrote {}: a {kind} deck ({}), study {study:?}\nnext: fdimc validate {0}, then fdimc run {0}",
+            file.display(),
+            method.title
+        );
+        Ok(())
+    }
+
+    pub fn exec_validate(&self, deck: &Path) -> Result<(), CliError> {
+        Ok(method::load(self.0, deck)?.1.validate()?)
+    }
+
+    pub fn exec_design(&self, deck: &Path, json: bool) -> Result<(), CliError> {
+        let (method, study) = method::load(self.0, deck)?;
+        method::require(self.0, method, Opt::Design)?;
+        Ok(study.design(json)?)
+    }
+
+    /// `fdimc rare-event`: checks the options (each estimator's own, the others refused), then runs.
+    pub fn exec_rare_event(&self, a: RareEventArgs) -> Result<(), CliError> {
+        use crate::engine::rare_event::study::{Estimator, RareEventOptions};
+        use crate::engine::scenario::streams::{MAX_BRANCH, MAX_REPLICA};
+        let bad = |m: String| Err(CliError::Invalid(m));
+        let estimator = if a.estimator == "splitting" { Estimator::Splitting } else { Estimator::Importance };
+        let (own, other): (&[(&str, bool)], &[(&str, bool)]) = (
+            &[("--trials", a.trials.is_some())],
+            &[("--particles", a.particles.is_some()), ("--replicas", a.replicas.is_some())],
+        );
+        let refused = if estimator == Estimator::Splitting { own } else { other };
+        if let Some((flag, _)) = refused.iter().find(|(_, given)| *given) {
+            return bad(format!("{flag} does not apply to --estimator {}", estimator.name()));
+        }
+        let mut levels = a.levels.clone();
+        if let Some(l) = levels.iter().find(|l| !(l.is_finite() && **l > 0.0)) {
+            return bad(format!("--levels {l}: a level is a threshold scale, allowed > 0"));
+        }
+        levels.sort_by(f64::total_cmp);
+        levels.dedup();
+        let trials = a.trials.unwrap_or(20_000);
+        // A trial's importance choices come from branch `trial` of a reserved replica's streams.
+        if !(10..=MAX_BRANCH).contains(&trials) {
+            return bad(format!("--trials {trials}: allowed 10 (a fifth is the pilot) to {MAX_BRANCH}"));
+        }
+        let particles = a.particles.unwrap_or(100);
+        let replicas = a.replicas.unwrap_or(16);
+        if !(2..=1_000_000).contains(&particles) {
+            return bad(format!("--particles {particles}: allowed 2 to 1000000"));
+        }
+        if !(2..=MAX_REPLICA).contains(&replicas) {
+            return bad(format!("--replicas {replicas}: allowed 2 (an interval needs two) to {MAX_REPLICA}"));
+        }
+        let (method, mut study) = self.load(&a.deck, None)?;
+        method::require(self.0, method, Opt::RareEvent)?;
+        let (out, shard, _) = place(&a.place, study.as_mut(), Some("rare_event"))?;
+        let opts = RareEventOptions {
+            deck: a.deck,
+            shard,
+            estimator,
+            detector: a.detector,
+            levels,
+            trials,
+            particles,
+            replicas,
+            out,
+            quiet: a.quiet,
+        };
+        runner::thread_pool(a.place.threads)?.install(|| study.rare_event(&opts))?;
+        if !a.quiet && shard == Shard::WHOLE {
+            println!("wrote {}", opts.out.join("rare_event.csv").display());
+        }
+        Ok(())
+    }
+
+    pub fn exec_simulate(
+        &self,
+        deck: &Path,
+        trial: u64,
+        detector: Option<&str>,
+        out: &Path,
+        classifiers: Option<&Path>,
+    ) -> Result<(), CliError> {
+        // Check the output name before simulating, so a typo costs nothing.
+        crate::engine::run::output::TableFormat::from_path(out)?;
+        if trial > crate::engine::scenario::streams::MAX_TRIAL {
+            return Err(CliError::Invalid(format!(
+                "--trial {trial}: allowed 0 to {}",
+                crate::engine::scenario::streams::MAX_TRIAL
+            )));
+        }
+        let (_, study) = self.load(deck, classifiers)?;
+        Ok(study.simulate(trial, detector, out, Inputs { classifiers, quiet: false })?)
+    }
 }

@@ -1,4 +1,4 @@
-//! Detection-filter gain design by eigenstructure assignment (method 000, `methods.md`).
+//! Detection-filter gain design by eigenstructure assignment (method 000, `docs/findings-seed000.md`).
 //!
 //! Given `(A, C)`, fault directions `F = [f_1 .. f_r]` (n x r) and distinct eigenvalues `lambda_i`,
 //! find `K` with `(A - K C) f_i = lambda_i f_i`. Then `K C F = A F - F Lambda`, and when `C F` has full

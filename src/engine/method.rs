@@ -7,9 +7,10 @@
 
 use std::path::Path;
 
-use super::deck::{DeckError, StudyHeader, read_deck};
-use super::report::{ReportContext, ReportPart};
-use super::runner::{RunError, RunOptions, RunReport};
+use crate::engine::report::{KindReport, OwnPlot, Report, ReportContext, ReportPart, TracePanel};
+use crate::engine::results::summary_spec::SummarySpec;
+use crate::engine::run::runner::{RunError, RunOptions, RunReport};
+use crate::engine::scenario::deck::{DeckError, StudyHeader, read_deck};
 
 /// A kind of study: how its decks read, what it adds to the shared summary, which options it takes.
 /// Each method folder defines one as a `static`, listed in `methods::REGISTRY`.
@@ -24,9 +25,9 @@ pub struct Method {
     pub options: &'static [Opt],
     /// Parses and validates a deck of this kind; every rejection names the file and the field.
     pub load: fn(&str, &Path) -> Result<Box<dyn Study>, DeckError>,
-    /// What the shared summary adds for this kind ([`super::summary`]).
+    /// What the shared summary adds for this kind ([`crate::engine::results::summary`]).
     pub summary: SummarySpec,
-    /// What the kind adds to the shared report (`fdimc report`, [`super::report`]): its own plots and
+    /// What the kind adds to the shared report (`fdimc report`, [`crate::engine::report`]): its own plots and
     /// sections; one that draws `trace_trial<N>.svg` itself replaces the generic traces.
     pub report: Option<fn(&ReportContext) -> Result<ReportPart, RunError>>,
     /// The panels of `fdimc report --trials N`: the columns of `simulate`'s trace each one draws.
@@ -39,6 +40,40 @@ pub struct Method {
 }
 
 impl Method {
+    /// The kind records a detection statistic whose thresholds `summarize` calibrates after the run
+    /// ([`Opt::Thresholds`]); its decks then take `monte_carlo.target_pfa`.
+    pub fn calibrates(&self) -> bool {
+        self.options.contains(&Opt::Thresholds)
+    }
+
+    /// `fdimc report DIR`: the shared report of the run in `dir` with what this kind adds, `trials`
+    /// re-flown by the kind's `simulate` from the deck the run used.
+    pub fn write_report(&self, dir: &Path, trials: &[u64]) -> Result<Report, RunError> {
+        let kind = KindReport {
+            kind: self.kind,
+            calibrates: self.calibrates(),
+            trains_classifiers: self.options.contains(&Opt::Classifiers),
+            part: self.report,
+            trace_panels: self.trace_panels,
+            own_plots: self.own_plots,
+        };
+        // The deck is read once, at the first trial to re-fly.
+        let mut study: Option<Box<dyn Study>> = None;
+        let mut refly = |ctx: &ReportContext, trial: u64, table: &Path, classifiers: Option<&Path>| {
+            if study.is_none() {
+                let deck = ctx.run_deck()?;
+                let text = read_deck(&deck).map_err(|e| RunError::Invalid(e.to_string()))?;
+                let mut s = (self.load)(&text, &deck).map_err(|e| RunError::Invalid(e.to_string()))?;
+                let (seed, n) = s.seed_and_trials();
+                (*seed, *n) = (ctx.manifest.seed, ctx.manifest.trials);
+                study = Some(s);
+            }
+            let study = study.as_ref().expect("loaded above");
+            study.simulate(trial, None, table, Inputs { classifiers, quiet: true })
+        };
+        crate::engine::report::write_report(dir, trials, &kind, &mut refly)
+    }
+
     /// `fdimc new`: the starter deck with its study named `study` (results go to `results/<study>/`),
     /// under a header that says where it came from instead of the bundled deck's own.
     pub fn starter_deck(&self, study: &str) -> String {
@@ -72,23 +107,6 @@ impl Method {
         }
         out
     }
-}
-
-/// A plot of a kind's own record columns, per detector, over the flown faulty trials where they are set.
-pub enum OwnPlot {
-    /// `y` against `x`, one point per row (at most 4,000 per detector), e.g. an estimate's error against
-    /// the true fault size.
-    /// `diagonal`: draw y = x (both axes the same quantity), else y = 0 (y is an error).
-    Scatter { file: &'static str, title: &'static str, x: &'static str, y: &'static str, diagonal: bool },
-    /// The distribution of `column`.
-    Histogram { file: &'static str, title: &'static str, column: &'static str },
-}
-
-/// One panel of a report's trace plot: `columns` are names of `simulate`'s trace table, `*` matching
-/// any run of characters.
-pub struct TracePanel {
-    pub title: &'static str,
-    pub columns: &'static [&'static str],
 }
 
 /// Options that only some kinds take; a kind that does not list one refuses it (exit 2).
@@ -138,14 +156,14 @@ pub trait Study: Sync {
     fn validate(&self) -> Result<(), RunError>;
     /// `fdimc simulate`: writes one trial's per-sample trace to `out` and prints what happened in it.
     fn simulate(&self, trial: u64, detector: Option<&str>, out: &Path, inputs: Inputs) -> Result<(), RunError>;
-    /// `fdimc run`: the trials through [`super::runner::run`].
+    /// `fdimc run`: the trials through [`crate::engine::run::runner::run`].
     fn run(&self, opts: &RunOptions, inputs: Inputs) -> Result<RunReport, RunError>;
     /// `fdimc design` ([`Opt::Design`]): prints the detectors' gains.
     fn design(&self, _json: bool) -> Result<(), RunError> {
         Err(RunError::Internal("this kind lists no design".into()))
     }
     /// `fdimc rare-event` ([`Opt::RareEvent`]): estimates, writes and prints rare false alarms.
-    fn rare_event(&self, _opts: &super::rare_event_study::RareEventOptions) -> Result<(), RunError> {
+    fn rare_event(&self, _opts: &crate::engine::rare_event::study::RareEventOptions) -> Result<(), RunError> {
         Err(RunError::Internal("this kind lists no rare-event paths".into()))
     }
     /// `fdimc sensitivity` ([`Opt::Sensitivity`]): makes the study's trials the rows of a Saltelli design
@@ -154,7 +172,7 @@ pub trait Study: Sync {
         &mut self,
         _base_samples: u64,
         _bootstrap: u64,
-    ) -> Result<super::sensitivity::Design, RunError> {
+    ) -> Result<crate::engine::scenario::design::Design, RunError> {
         Err(RunError::Internal("this kind lists no sensitivity design".into()))
     }
     /// `fdimc train` ([`Opt::Classifiers`]): trains what the study evaluates and writes it to `out`.
@@ -245,77 +263,12 @@ fn kinds(registry: &[&Method]) -> String {
     registry.iter().map(|m| format!("[{}] ({}: {})", m.marker, m.kind, m.title)).collect::<Vec<_>>().join(", ")
 }
 
-/// What the shared summary ([`super::summary`]) reads of a kind's records beyond the core columns.
-#[derive(Debug, Clone, Copy)]
-pub struct SummarySpec {
-    /// Group keys after the shared ones: bins of the kind's own factors (numbers, e.g. `gust_bin`).
-    pub extra_keys: &'static [&'static str],
-    /// What `isolated` names.
-    pub isolates: Isolates,
-    /// The kind's own aggregates, per group and per detector, at the deck's thresholds.
-    pub extras: &'static [Extra],
-    /// The kind's own columns (delays, estimation errors) whose median paired difference, with its 95 %
-    /// interval, `comparison.csv` reports (`median_<column>_b_minus_a`, `_lo`, `_hi`).
-    pub paired_medians: &'static [&'static str],
-    /// Columns of `detectors.csv` that `run` prints after the shared ones: (header, column).
-    pub printed: &'static [(&'static str, &'static str)],
-}
-
-/// What a kind's detectors name when they isolate.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Isolates {
-    /// The faulty target (output, sensor set, engine, surface), once a fault is detected.
-    Target,
-    /// The fault's kind, for every unit (a classifier: its classes include the fault-free one).
-    Kind,
-}
-
-/// An aggregate of a kind's own columns over the units of a group that were flown to the end.
-#[derive(Debug, Clone, Copy)]
-pub enum Extra {
-    /// Units on which `column` is true, or a number > 0.
-    Count { name: &'static str, column: &'static str },
-    /// Units on which `column` has a value.
-    Present { name: &'static str, column: &'static str },
-    /// Units on which `column` names the unit's target.
-    NamesTarget { name: &'static str, column: &'static str },
-    /// `k / n` with its 95 % Wilson interval (`name_lo`, `name_hi`): `k` a count above, `n` a count
-    /// above or a core count (`flown`, `isolation_decided`); null where `n` is 0, or for fault-free
-    /// groups when `faulty_only`.
-    Rate { name: &'static str, k: &'static str, n: &'static str, faulty_only: bool },
-    /// The `p` quantile of `column` (of its magnitude with `abs`) over the units where it has a value.
-    Quantile { name: &'static str, column: &'static str, p: f64, abs: bool },
-}
-
-impl Extra {
-    pub fn name(&self) -> &'static str {
-        match *self {
-            Extra::Count { name, .. }
-            | Extra::Present { name, .. }
-            | Extra::NamesTarget { name, .. }
-            | Extra::Rate { name, .. }
-            | Extra::Quantile { name, .. } => name,
-        }
-    }
-
-    /// The record column it reads, if any.
-    pub fn column(&self) -> Option<&'static str> {
-        match *self {
-            Extra::Count { column, .. }
-            | Extra::Present { column, .. }
-            | Extra::NamesTarget { column, .. }
-            | Extra::Quantile { column, .. } => Some(column),
-            Extra::Rate { .. } => None,
-        }
-    }
-}
-
 /// The [`Study`] accessors of a study type with a `header` field and its trial count at the given path
 /// (`monte_carlo.common.trials`).
 #[macro_export]
 macro_rules! study_accessors {
     ($($trials:ident).+) => {
-        fn header(&self) -> &$crate::engine::deck::StudyHeader {
+        fn header(&self) -> &$crate::engine::scenario::deck::StudyHeader {
             &self.header
         }
         fn seed_and_trials(&mut self) -> (&mut u64, &mut u64) {
@@ -325,7 +278,7 @@ macro_rules! study_accessors {
 }
 
 /// `impl Study` for a kind whose folder has `commands::{validate, simulate}` and whose trials are a
-/// [`super::runner::TrialSource`] made from the study by `|study| source` (a `Result`: an error is the
+/// [`crate::engine::run::runner::TrialSource`] made from the study by `|study| source` (a `Result`: an error is the
 /// deck's, exit 2); with `sensitivity: |study| parts`, the kind's sensitivity design
 /// ([`Opt::Sensitivity`]) over the parts its scenario names (its trials at `monte_carlo.common`). Kinds
 /// with more to do (a gain design, trained classifiers) write the impl out.
@@ -340,17 +293,17 @@ macro_rules! plain_study {
                 &mut self,
                 base_samples: u64,
                 bootstrap: u64,
-            ) -> Result<$crate::engine::sensitivity::Design, $crate::engine::runner::RunError> {
+            ) -> Result<$crate::engine::scenario::design::Design, $crate::engine::run::runner::RunError> {
                 let $p = &*self;
                 let parts = $parts;
-                Ok($crate::engine::sensitivity::use_design(&mut self.monte_carlo.common, base_samples, bootstrap, parts))
+                Ok(self.monte_carlo.common.use_design(base_samples, bootstrap, parts))
             }
         });
     };
     (@impl $study:ty, [$($trials:ident).+], |$s:ident| $source:expr, { $($extra:tt)* }) => {
         impl $crate::engine::method::Study for $study {
             $crate::study_accessors!($($trials).+);
-            fn validate(&self) -> Result<(), $crate::engine::runner::RunError> {
+            fn validate(&self) -> Result<(), $crate::engine::run::runner::RunError> {
                 commands::validate(self)
             }
             fn simulate(
@@ -359,16 +312,16 @@ macro_rules! plain_study {
                 detector: Option<&str>,
                 out: &std::path::Path,
                 _: $crate::engine::method::Inputs,
-            ) -> Result<(), $crate::engine::runner::RunError> {
+            ) -> Result<(), $crate::engine::run::runner::RunError> {
                 commands::simulate(self, trial, detector, out)
             }
             fn run(
                 &self,
-                opts: &$crate::engine::runner::RunOptions,
+                opts: &$crate::engine::run::runner::RunOptions,
                 _: $crate::engine::method::Inputs,
-            ) -> Result<$crate::engine::runner::RunReport, $crate::engine::runner::RunError> {
+            ) -> Result<$crate::engine::run::runner::RunReport, $crate::engine::run::runner::RunError> {
                 let $s = self;
-                $crate::engine::runner::run(&$source?, opts)
+                $crate::engine::run::runner::run(&$source?, opts)
             }
             $($extra)*
         }

@@ -1,27 +1,27 @@
 //! The engine: everything a study needs that does not depend on its method. It knows methods only
-//! through the traits of [`method`] and [`runner::TrialSource`], never by name.
+//! through the contract of [`method`] and [`run::runner::TrialSource`], never by name.
+//!
+//! Folders in the order data flows, each one job; a folder imports only those above it in this list
+//! (checked by `tests/layers.rs`, the rule is written in `docs/architecture.md`):
+//! 1. [`stats`]: intervals, quantiles, tail fits, paired tests: statistics that know nothing of studies;
+//! 2. [`scenario`]: the decks' common sections, the sensitivity design, the random streams and the
+//!    draws that make a trial's scenario;
+//! 3. [`run`]: the runner (the only parallel code) with its manifest, shards, lock and progress, and
+//!    the writing of tables;
+//! 4. [`results`]: the outcome schema, reading records back, thresholds, the summary and its tail-fit
+//!    tables, the regression check;
+//! 5. [`rare_event`], [`sensitivity`], [`logs`]: the commands that read or feed results (rare false
+//!    alarms by simulation, Sobol indices, recorded flights);
+//! 6. [`report`]: plots and the HTML page;
+//! 7. [`method`]: the plug-in contract a kind of study implements, which ties one piece of every layer
+//!    (its deck, its trials, its summary spec, its report) into one [`method::Method`].
 
-pub mod check;
-pub mod deck;
-pub mod flight_log;
-pub mod intervals;
-pub mod log_source;
+pub mod logs;
 pub mod method;
-pub mod noise;
-pub mod output;
-pub mod paired;
-pub mod progress;
-pub mod quantiles;
-pub mod rare;
 pub mod rare_event;
-pub mod rare_event_study;
 pub mod report;
-pub mod runner;
+pub mod results;
+pub mod run;
 pub mod scenario;
-pub mod schema;
 pub mod sensitivity;
-pub mod streams;
-pub mod summary;
-pub mod tables;
-pub mod tail;
-pub mod thresholds;
+pub mod stats;

@@ -1,5 +1,5 @@
 //! Extended Kalman filter with optional strong tracking by multiple fading factors (method 004 of
-//! `methods.md`, after Zhou & Frank's strong tracking filter and Ma et al.'s improved form).
+//! `docs/findings-seed004.md`, after Zhou & Frank's strong tracking filter and Ma et al.'s improved form).
 //!
 //! Model, discrete time: `x(k+1) = f(x(k), u(k)) + w(k)`, `y(k) = h(x(k)) + v(k)`, `cov w = Q`
 //! (already `G R_W G'`), `cov v = R`. One [`Stekf::step`] takes the measurement `y(k)` and the input
@@ -402,6 +402,7 @@ impl<const N: usize, const M: usize> Stekf<N, M> {
 /// comparisons (and `|P_ij - P_ji| = |P_ji - P_ij|`, so one triangle suffices).
 fn health_of<const N: usize>(P: &SMatrix<f64, N, N>, x: &SVector<f64, N>) -> FilterHealth {
     let mut found = FilterHealth::default();
+    #[allow(clippy::eq_op)] // `v - v` is 0 for a finite v and NaN otherwise: the point of the sum
     let finite = P.as_slice().iter().chain(x.as_slice()).fold(0.0, |acc, v| acc + (v - v)) == 0.0;
     if !finite {
         found.non_finite = 1;

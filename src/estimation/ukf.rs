@@ -1,5 +1,5 @@
 //! Unscented Kalman filter with the scaled unscented transform: a building block for the detectors
-//! (method 002 of `methods.md`, the dual-model air-data detector, and any other detector whose model
+//! (method 002, `docs/findings-seed002.md`, the dual-model air-data detector, and any other detector whose model
 //! implements [`DiscreteModel`]).
 //!
 //! Model, discrete time: `x(k+1) = f(x(k), u(k)) + w(k)`, `y(k) = h(x(k)) + v(k)`, `cov w = Q`,

@@ -4,7 +4,8 @@
 use serde::Deserialize;
 
 use super::{FaultMode, SensorFault};
-use crate::engine::deck::{DeckError, Factor, FactorSpec, Validator};
+use crate::engine::results::schema::unit;
+use crate::engine::scenario::deck::{DeckError, Factor, FactorSpec, Validator};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -76,7 +77,7 @@ pub enum SizeSpec {
 
 impl SizeSpec {
     /// A trial's size and its group label, from dimension `dim` of its draws; NaN for a kind without one.
-    pub fn draw(&self, t: &mut crate::engine::scenario::TrialDraws, dim: usize) -> (f64, f64) {
+    pub fn draw(&self, t: &mut crate::engine::scenario::draws::TrialDraws, dim: usize) -> (f64, f64) {
         match self {
             SizeSpec::None => (f64::NAN, f64::NAN),
             SizeSpec::Output(f) | SizeSpec::SensorSigma(f) => t.factor(f, dim),
@@ -95,17 +96,6 @@ pub struct FaultKindSpec {
     pub size: SizeSpec,
 }
 
-/// Units of fault sizes, as records and summaries name them.
-pub mod unit {
-    pub const SENSOR_SIGMA: &str = "multiples of the sensor sigma";
-    pub const GAIN_FACTOR: &str = "gain factor";
-    pub const OUTPUT_UNITS: &str = "output units";
-    /// A gain whose size bins are deviations `|factor - 1|` of either sign, not factors.
-    pub const GAIN_DEVIATION_BINS: &str = "factor (bin: |factor - 1|)";
-    /// A fault without a size (stuck at the held reading, total failure), or no fault.
-    pub const NONE: &str = "none";
-}
-
 impl FaultKindSpec {
     /// As `validate` prints it: `none`, `1 to 25 in 6 bins (multiples of the sensor sigma)`.
     pub fn size_text(&self) -> String {
@@ -116,7 +106,7 @@ impl FaultKindSpec {
     }
 
     /// The size bins of these populations, per fault kind (ranges only).
-    pub fn size_bins(populations: &[FaultKindSpec]) -> crate::engine::deck::SizeBins {
+    pub fn size_bins(populations: &[FaultKindSpec]) -> crate::engine::scenario::deck::SizeBins {
         let mut bins = Default::default();
         for f in populations {
             if let SizeSpec::Output(x) | SizeSpec::SensorSigma(x) = &f.size {
@@ -168,7 +158,7 @@ impl TrialFaults {
     pub fn none() -> Self {
         TrialFaults {
             faults: Vec::new(),
-            kind: crate::engine::schema::col::NO_FAULT,
+            kind: crate::engine::results::schema::col::NO_FAULT,
             size: f64::NAN,
             size_bin: f64::NAN,
             size_unit: unit::NONE,
@@ -284,10 +274,10 @@ impl Validator<'_> {
                     SizeSpec::SensorSigma(self.factor(&field("size_sigma"), Some(v), Factor::Fixed(0.0))?)
                 }
             };
-        if kind == FaultKind::Gain {
-            if let SizeSpec::Output(factor) = &size {
-                self.factor_within(&field("size"), factor, |v| v != 1.0, "gain factors != 1")?;
-            }
+        if kind == FaultKind::Gain
+            && let SizeSpec::Output(factor) = &size
+        {
+            self.factor_within(&field("size"), factor, |v| v != 1.0, "gain factors != 1")?;
         }
         Ok(FaultKindSpec { kind, size })
     }

@@ -1,5 +1,5 @@
-//! Sensor fault models (`methods.md`, common fault modes), applied to the healthy sensor output;
-//! actuator (control-surface) faults are in [`actuator`].
+//! Sensor fault models (the fault kinds of `docs/deck.md`), applied to the healthy sensor output;
+//! actuator (control-surface) faults are in [`crate::methods::surface_bank::actuator`].
 //!
 //! With `y_in` the healthy (noisy) sensor output and `t0` the onset, for `t >= t0`:
 //!

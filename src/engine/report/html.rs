@@ -83,10 +83,10 @@ pub fn table(df: &DataFrame, skip: &[&str]) -> String {
         // `pfa_achieved` has its interval in `pfa_lo`, `pfa_hi`.
         let base = n.strip_suffix("_achieved").unwrap_or(n);
         let interval = has(&format!("{base}_lo")) && has(&format!("{base}_hi"));
-        if let Some(b) = n.strip_suffix("_lo").or_else(|| n.strip_suffix("_hi")) {
-            if has(b) || has(&format!("{b}_achieved")) {
-                continue;
-            }
+        if let Some(b) = n.strip_suffix("_lo").or_else(|| n.strip_suffix("_hi"))
+            && (has(b) || has(&format!("{b}_achieved")))
+        {
+            continue;
         }
         let mut c = cells(df, n);
         if interval {

@@ -1,6 +1,6 @@
 //! `fdimc report DIR` for every kind of study: plots (SVG) and one self-contained HTML page in
 //! `DIR/report/`, drawn from the shared outcome schema and the shared summary tables, then what the
-//! method adds ([`crate::engine::method::Method::report`]).
+//! method adds ([`KindReport::part`]).
 //!
 //! - `pd_size_<detector>_<kind>.svg`: Pd against fault size per target with 95 % Wilson bands, the
 //!   minimum size with Pd >= 0.9 marked (calibrated thresholds where the kind calibrates, else the deck's);
@@ -23,13 +23,29 @@ use std::path::{Path, PathBuf};
 
 use polars::prelude::*;
 
-use super::intervals::{Z95, wilson};
-use super::method::{Inputs, Method, Opt, OwnPlot};
-use super::runner::{Manifest, RunError, io, read_parquet, write_atomically};
-use super::schema::col;
-use super::summary::Settings;
-use super::tables::{bool_col, column_names, f64_col, read_summary, slices, str_col, u64_col};
-use super::thresholds::{RecordedStatistics, read_thresholds};
+use crate::engine::results::schema::col;
+use crate::engine::results::summary::Settings;
+use crate::engine::results::tables::{bool_col, column_names, f64_col, read_summary, slices, str_col, u64_col};
+use crate::engine::results::thresholds::{RecordedStatistics, read_thresholds};
+use crate::engine::run::runner::{Manifest, RunError, io, read_parquet, write_atomically};
+use crate::engine::stats::intervals::{Z95, wilson};
+
+/// A plot of a kind's own record columns, per detector, over the flown faulty trials where they are set.
+pub enum OwnPlot {
+    /// `y` against `x`, one point per row (at most 4,000 per detector), e.g. an estimate's error against
+    /// the true fault size.
+    /// `diagonal`: draw y = x (both axes the same quantity), else y = 0 (y is an error).
+    Scatter { file: &'static str, title: &'static str, x: &'static str, y: &'static str, diagonal: bool },
+    /// The distribution of `column`.
+    Histogram { file: &'static str, title: &'static str, column: &'static str },
+}
+
+/// One panel of a report's trace plot: `columns` are names of `simulate`'s trace table, `*` matching
+/// any run of characters.
+pub struct TracePanel {
+    pub title: &'static str,
+    pub columns: &'static [&'static str],
+}
 
 /// What a report wrote, for the CLI and tests.
 #[derive(Debug, Default)]
@@ -64,7 +80,8 @@ impl ReportContext<'_> {
     /// The run's deck, for re-flying `--trials`: refused when missing or changed since the run.
     pub fn run_deck(&self) -> Result<PathBuf, RunError> {
         let deck = PathBuf::from(&self.manifest.deck);
-        let same = super::runner::deck_sha256(&deck).map(|h| h == self.manifest.deck_sha256).unwrap_or(false);
+        let same =
+            crate::engine::run::runner::deck_sha256(&deck).map(|h| h == self.manifest.deck_sha256).unwrap_or(false);
         if !same {
             return Err(RunError::Invalid(format!(
                 "--trials: {} is missing or changed since this run (SHA-256 differs): traces need the run's deck",
@@ -86,13 +103,34 @@ struct DetectorData {
     delays: BTreeMap<String, Vec<f64>>,
 }
 
-/// Writes the report of the run in `dir`, drawing `trials` from the deck the run used.
-pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Report, RunError> {
+/// What the report needs of a kind of study (its [`crate::engine::method::Method`] gives it).
+pub struct KindReport<'a> {
+    /// `manifest.json`'s `kind`, for messages.
+    pub kind: &'a str,
+    /// The kind records a detection statistic whose thresholds `summarize` calibrates.
+    pub calibrates: bool,
+    /// The kind's run trains classifiers and writes them beside its results (`classifiers.json`).
+    pub trains_classifiers: bool,
+    /// What the kind adds: its own plots and sections; one that draws `trace_trial<N>.svg` itself
+    /// replaces the generic traces.
+    pub part: Option<fn(&ReportContext) -> Result<ReportPart, RunError>>,
+    /// The panels of `--trials N`: the columns of `simulate`'s trace each one draws.
+    pub trace_panels: &'a [TracePanel],
+    /// Plots of the kind's own `trials.parquet` columns.
+    pub own_plots: &'a [OwnPlot],
+}
+
+/// Re-flies trial `trial` of the run in `ctx` into the trace table `table` (the kind's `simulate`),
+/// with the classifiers the run used, if any.
+pub type Refly<'a> = dyn FnMut(&ReportContext, u64, &Path, Option<&Path>) -> Result<(), RunError> + 'a;
+
+/// Writes the report of the run in `dir`, drawing `trials` re-flown by `refly` from the deck the run used.
+pub fn write_report(dir: &Path, trials: &[u64], method: &KindReport, refly: &mut Refly) -> Result<Report, RunError> {
     let manifest = Manifest::read(dir)?;
     if manifest.sensitivity.is_some() {
         return sensitivity::write(dir, &manifest);
     }
-    let calibrates = method.options.contains(&Opt::Thresholds);
+    let calibrates = method.calibrates;
     let mut needed = vec!["summary.parquet", "curves.csv", "min_detectable.csv", "detectors.csv"];
     if calibrates {
         needed.push("thresholds.csv");
@@ -170,7 +208,7 @@ pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Repor
 
     // Without --trials, the trials a reader wants to see first, where the kind can draw traces and the
     // run's deck is there to re-fly them (asked-for traces refuse a missing deck; picked ones are skipped).
-    let can_trace = !method.trace_panels.is_empty() || method.report.is_some();
+    let can_trace = !method.trace_panels.is_empty() || method.part.is_some();
     let deck_there = ReportContext { dir, out: &out, manifest: &manifest, trials: &[] }.run_deck().is_ok();
     let picked =
         if trials.is_empty() && can_trace && deck_there { representative_trials(dir, &manifest)? } else { Vec::new() };
@@ -189,12 +227,12 @@ pub fn write_report(dir: &Path, trials: &[u64], method: &Method) -> Result<Repor
         );
     }
     let context = ReportContext { dir, out: &out, manifest: &manifest, trials: &chosen };
-    let part = match method.report {
+    let part = match method.part {
         Some(own) => own(&context)?,
         None => ReportPart::default(),
     };
     if part.files.iter().all(|f| !f.to_string_lossy().contains("trace_trial")) {
-        report.files.extend(traces(&context, method)?);
+        report.files.extend(traces(&context, method, refly)?);
     }
     report.files.extend(part.files.iter().cloned());
     report.warnings.extend(part.warnings.iter().cloned());
@@ -239,7 +277,7 @@ fn tail_plots(dir: &Path, out: &Path, data: &BTreeMap<String, DetectorData>) -> 
         return Ok(Vec::new());
     }
     let (tail, diag) = (read_summary(&tail_path)?, read_summary(&diag_path)?);
-    let (t, g) = (super::tables::Table(&tail), super::tables::Table(&diag));
+    let (t, g) = (crate::engine::results::tables::Table(&tail), crate::engine::results::tables::Table(&diag));
     let (dd, dset, chosen) = (g.strs("detector"), g.strs("thresholds"), g.f64s("chosen"));
     let (u, sigma, xi, q) =
         (g.f64s("fit_threshold_scale"), g.f64s("sigma"), g.f64s("xi"), g.f64s("fit_threshold_quantile"));
@@ -278,7 +316,7 @@ fn representative_trials(dir: &Path, manifest: &Manifest) -> Result<Vec<(u64, St
             .collect();
     let detector = manifest.detectors.first().map(String::as_str).unwrap_or_default();
     let mut found: [Option<u64>; 3] = [None; 3];
-    for df in slices(&path, manifest.rows as usize, super::thresholds::SLICE_ROWS, &select) {
+    for df in slices(&path, manifest.rows as usize, crate::engine::results::thresholds::SLICE_ROWS, &select) {
         if found.iter().all(Option::is_some) {
             break;
         }
@@ -324,26 +362,20 @@ fn polars_error(path: &Path) -> impl Fn(PolarsError) -> RunError + '_ {
     move |e| RunError::Invalid(format!("{}: {e}", path.display()))
 }
 
-/// Re-flies each of `ctx.trials` with the method's `simulate` (into a table next to the plot) and
-/// draws the columns of the method's trace panels.
-fn traces(ctx: &ReportContext, method: &Method) -> Result<Vec<PathBuf>, RunError> {
+/// Re-flies each of `ctx.trials` with `refly` (into a table next to the plot) and draws the columns of
+/// the kind's trace panels.
+fn traces(ctx: &ReportContext, method: &KindReport, refly: &mut Refly) -> Result<Vec<PathBuf>, RunError> {
     if ctx.trials.is_empty() {
         return Ok(Vec::new());
     }
-    let deck = ctx.run_deck()?;
+    ctx.run_deck()?;
     if method.trace_panels.is_empty() {
         return Err(RunError::Invalid(format!("--trials: {} studies list no trace to draw", method.kind)));
     }
-    let text = super::deck::read_deck(&deck).map_err(|e| RunError::Invalid(e.to_string()))?;
-    let mut study = (method.load)(&text, &deck).map_err(|e| RunError::Invalid(e.to_string()))?;
-    let (seed, n) = study.seed_and_trials();
-    (*seed, *n) = (ctx.manifest.seed, ctx.manifest.trials);
     let onsets = onsets(ctx.dir, ctx.manifest.rows, ctx.trials)?;
     // The classifiers the run used (written beside its results), not ones trained anew from the deck:
     // they differ when the run took `--classifiers` from another deck.
-    let run_classifiers = (method.options.contains(&super::method::Opt::Classifiers))
-        .then(|| ctx.dir.join("classifiers.json"))
-        .filter(|f| f.exists());
+    let run_classifiers = method.trains_classifiers.then(|| ctx.dir.join("classifiers.json")).filter(|f| f.exists());
     let mut files = Vec::new();
     for &trial in ctx.trials {
         if trial >= ctx.manifest.trials {
@@ -353,7 +385,7 @@ fn traces(ctx: &ReportContext, method: &Method) -> Result<Vec<PathBuf>, RunError
             )));
         }
         let table = ctx.out.join(format!("trace_trial{trial}.parquet"));
-        study.simulate(trial, None, &table, Inputs { classifiers: run_classifiers.as_deref(), quiet: true })?;
+        refly(ctx, trial, &table, run_classifiers.as_deref())?;
         let df = read_parquet(&table)?;
         let t_s = f64_col(&df, "t_s", &table)?.into_no_null_iter().collect::<Vec<_>>();
         let names: Vec<String> = df.get_column_names().iter().map(|n| n.to_string()).collect();
@@ -407,10 +439,10 @@ fn onsets(dir: &Path, rows: u64, trials: &[u64]) -> Result<BTreeMap<u64, f64>, R
         let t = df.column(col::TRIAL).and_then(|c| c.u64().cloned()).map_err(polars_error(&path))?;
         let onset = f64_col(&df, col::ONSET_S, &path)?;
         for i in 0..df.height() {
-            if let (Some(t), Some(o)) = (t.get(i), onset.get(i)) {
-                if trials.contains(&t) {
-                    found.insert(t, o);
-                }
+            if let (Some(t), Some(o)) = (t.get(i), onset.get(i))
+                && trials.contains(&t)
+            {
+                found.insert(t, o);
             }
         }
     }
@@ -458,7 +490,6 @@ fn kinds_with_sizes(curves: &DataFrame, set: &str, d: &str) -> Result<Vec<String
 }
 
 /// `confusion.csv` as counts per detector: (true target, named target) -> units.
-#[allow(clippy::type_complexity)]
 fn read_confusion(dir: &Path) -> Result<BTreeMap<String, BTreeMap<(String, String), u64>>, RunError> {
     let path = dir.join("confusion.csv");
     let mut counts: BTreeMap<String, BTreeMap<(String, String), u64>> = BTreeMap::new();
@@ -466,7 +497,7 @@ fn read_confusion(dir: &Path) -> Result<BTreeMap<String, BTreeMap<(String, Strin
         return Ok(counts);
     }
     let df = read_summary(&path)?;
-    let t = super::tables::Table(&df);
+    let t = crate::engine::results::tables::Table(&df);
     let (d, truth, named, n) = (t.strs(col::DETECTOR), t.strs("truth"), t.strs(col::ISOLATED), t.u64s("units"));
     for i in 0..df.height() {
         *counts.entry(d[i].clone()).or_default().entry((truth[i].clone(), named[i].clone())).or_default() += n[i];
@@ -476,13 +507,12 @@ fn read_confusion(dir: &Path) -> Result<BTreeMap<String, BTreeMap<(String, Strin
 
 /// Per detector: (noise bin, parameter-error bin, Pfa, lo, hi, fault-free trials flown) from the
 /// summary's fault-free rows of threshold set `set`, summed over the kind's own bins.
-#[allow(clippy::type_complexity)]
 fn false_alarms_by_bin(
     dir: &Path,
     set: &str,
 ) -> Result<BTreeMap<String, Vec<(f64, f64, f64, f64, f64, u64)>>, RunError> {
     let df = read_parquet(&dir.join("summary.parquet"))?;
-    let t = super::tables::Table(&df);
+    let t = crate::engine::results::tables::Table(&df);
     let (sets, d, kind) = (t.strs("thresholds"), t.strs(col::DETECTOR), t.strs(col::KIND));
     let (noise, perr) = (t.f64s(col::NOISE_BIN), t.f64s(col::PARAM_ERROR_BIN));
     let (trials, failed, alarms) = (t.u64s("trials"), t.u64s("failed"), t.u64s("false_alarms"));
@@ -584,7 +614,7 @@ fn own_plot(dir: &Path, m: &Manifest, out: &Path, plot: &OwnPlot) -> Result<Path
         let (det, kind, failure) =
             (str_col(&df, col::DETECTOR, &path)?, str_col(&df, col::KIND, &path)?, str_col(&df, col::FAILURE, &path)?);
         let values: Vec<Vec<f64>> =
-            columns.iter().map(|c| super::tables::numbers(&df, c, &path)).collect::<Result<_, _>>()?;
+            columns.iter().map(|c| crate::engine::results::tables::numbers(&df, c, &path)).collect::<Result<_, _>>()?;
         for i in 0..df.height() {
             let (Some(d), Some(k)) = (det.get(i), kind.get(i)) else { continue };
             if k == col::NO_FAULT || failure.get(i).is_some() {
@@ -817,7 +847,7 @@ mod tests {
         )
         .unwrap();
         let dir = tempfile::tempdir().unwrap();
-        crate::engine::runner::write_parquet(&mut df, &dir.path().join("trials.parquet")).unwrap();
+        crate::engine::run::runner::write_parquet(&mut df, &dir.path().join("trials.parquet")).unwrap();
         let manifest = Manifest { rows: 6, detectors: vec!["a".into(), "b".into()], ..Manifest::unstarted() };
         let picked = representative_trials(dir.path(), &manifest).unwrap();
         assert_eq!(

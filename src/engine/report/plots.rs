@@ -7,7 +7,7 @@ use std::sync::Once;
 use plotters::prelude::*;
 use polars::prelude::*;
 
-use crate::engine::schema::col;
+use crate::engine::results::schema::col;
 use crate::engine::sensitivity::Estimate;
 
 pub const FONT: &str = "sans-serif";
@@ -561,7 +561,7 @@ pub fn tail(file: &Path, p: &TailPlot) -> Result<(), String> {
     if let Some((u, sigma, xi, zeta)) = p.fit {
         let curve: Vec<(f64, f64)> = (0..=300)
             .map(|i| u * (x_max / u).powf(i as f64 / 300.0))
-            .map(|x| (x, zeta * crate::engine::tail::gpd_survival(x - u, sigma, xi)))
+            .map(|x| (x, zeta * crate::engine::stats::tail::gpd_survival(x - u, sigma, xi)))
             .filter(|(_, q)| *q >= floor)
             .collect();
         let c = color(1);

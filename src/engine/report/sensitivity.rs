@@ -6,9 +6,9 @@ use std::path::Path;
 use super::html::{escape, figure};
 use super::plots::{self, SensitivityBars};
 use super::{Report, shell, table_of};
-use crate::engine::runner::{Manifest, RunError, io, write_atomically};
+use crate::engine::results::tables::read_summary;
+use crate::engine::run::runner::{Manifest, RunError, io, write_atomically};
 use crate::engine::sensitivity::index_blocks;
-use crate::engine::tables::read_summary;
 
 /// Writes `dir/report/`: `sensitivity_<outcome>_<detector>.svg` and `report.html`.
 pub(super) fn write(dir: &Path, manifest: &Manifest) -> Result<Report, RunError> {

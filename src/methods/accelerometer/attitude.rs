@@ -1,4 +1,4 @@
-//! Quaternion attitude EKF of method 003 (`methods.md`, section 003; the patent "一种飞机飞行控制系统的
+//! Quaternion attitude EKF of method 003 (`docs/findings-seed003.md`; the patent "一种飞机飞行控制系统的
 //! 加速度计故障监测方法", equations (4)-(8) and steps 301-303): the gyros propagate the attitude, the
 //! normalised accelerometer measures the gravity direction, and the residual
 //! `e = z - g(q(k|k-1))` is what the fault classifier reads.

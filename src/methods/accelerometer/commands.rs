@@ -5,8 +5,8 @@ use std::path::Path;
 use super::ekf_svm::SvmKernel;
 use super::study::AccelerometerStudy;
 use super::trial::TrainedClassifiers;
-use crate::engine::output::Trace;
-use crate::engine::runner::RunError;
+use crate::engine::run::output::Trace;
+use crate::engine::run::runner::RunError;
 use std::path::PathBuf;
 
 /// The resolved accelerometer study (method 003).
@@ -81,15 +81,15 @@ pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
     let classes: Vec<&str> = study.classes.iter().map(|c| c.name()).collect();
     println!(
         "monte carlo {} trials, classes [{}] cycled, noise scale {}",
-        study.trials,
+        study.monte_carlo.trials,
         classes.join(", "),
-        study.noise_scale
+        study.monte_carlo.noise_scale
     );
     Ok(())
 }
 
 /// What was read of a replayed log and how it was repaired (the run reports it too).
-pub fn log_line(log: &crate::engine::log_source::ReplayLog) -> String {
+pub fn log_line(log: &crate::engine::logs::log_source::ReplayLog) -> String {
     format!(
         "{} {}: {} samples at {:.2} Hz (largest gap {:.3} s, bridged), resampled to {} samples every {} s (means over each step, interpolated across gaps){}",
         log.file.display(),
@@ -171,7 +171,7 @@ pub fn train(study: &AccelerometerStudy, out: Option<&Path>) -> Result<(), RunEr
     }
     let started = std::time::Instant::now();
     let trained =
-        TrainedClassifiers::train(&study).map_err(|e| RunError::Invalid(format!("{}: {e}", deck.display())))?;
+        TrainedClassifiers::train(study).map_err(|e| RunError::Invalid(format!("{}: {e}", deck.display())))?;
     trained.save(&out)?;
     println!(
         "{}: trained {} on {} trials per class (seed {}) in {:.1} s -> {}",

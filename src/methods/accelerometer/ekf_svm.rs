@@ -1,5 +1,5 @@
 //! Method 003: accelerometer fault detection and classification from attitude-EKF residuals with a
-//! bottom-up SVM decision tree (`methods.md`, section 003; the patent "一种飞机飞行控制系统的加速度计故障
+//! bottom-up SVM decision tree (`docs/findings-seed003.md`; the patent "一种飞机飞行控制系统的加速度计故障
 //! 监测方法", steps 4-5, paragraphs 0146-0148). The residual comes from
 //! [`crate::methods::accelerometer::attitude::AttitudeEkf`]; the trials from [`crate::methods::accelerometer::imu`].
 //!

@@ -1,4 +1,4 @@
-//! IMU scenarios for method 003 (`methods.md`, section 003: accelerometer fault monitoring from
+//! IMU scenarios for method 003 (`docs/findings-seed003.md`: accelerometer fault monitoring from
 //! attitude-EKF residuals): a vehicle turning through prescribed attitude manoeuvres, a three-axis gyro
 //! and a three-axis accelerometer with white noise and small constant biases, and accelerometer faults
 //! (bias, gain, stuck; any axis) through [`crate::fault::ActiveFaults`].

@@ -11,12 +11,14 @@ pub mod trial;
 
 use std::path::Path;
 
-use crate::engine::deck::Factor;
-use crate::engine::deck::FromDeck;
-use crate::engine::method::{Inputs, Isolates, Method, Opt, Study, SummarySpec, TracePanel};
-use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
-use crate::engine::scenario::{GridDigits, draw};
-use crate::engine::streams::{Substream, noise_rng, trial_rng};
+use crate::engine::method::{Inputs, Method, Study};
+use crate::engine::report::TracePanel;
+use crate::engine::results::summary_spec::{Isolates, SummarySpec};
+use crate::engine::run::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
+use crate::engine::scenario::deck::Factor;
+use crate::engine::scenario::deck::FromDeck;
+use crate::engine::scenario::draws::{GridDigits, draw};
+use crate::engine::scenario::streams::{Substream, noise_rng, trial_rng};
 use crate::fault::FaultMode;
 use crate::methods::accelerometer::ekf_svm::{ClassifierWindow, FaultClass, ResidualSample, simulate_trial};
 use crate::methods::accelerometer::study::AccelerometerStudy;
@@ -30,7 +32,7 @@ pub static METHOD: Method = Method {
     kind: KIND,
     marker: "imu",
     title: "attitude-EKF residuals and SVM classifiers, accelerometer faults (method 003)",
-    options: &[Opt::Classifiers],
+    options: study::OPTIONS,
     load: |text, path| Ok(Box::new(AccelerometerStudy::from_toml(text, path)?)),
     summary: SummarySpec { extra_keys: &[], isolates: Isolates::Kind, extras: &[], paired_medians: &[], printed: &[] },
     report: None,
@@ -44,7 +46,7 @@ pub static METHOD: Method = Method {
 };
 
 impl Study for AccelerometerStudy {
-    crate::study_accessors!(trials);
+    crate::study_accessors!(monte_carlo.trials);
     fn validate(&self) -> Result<(), RunError> {
         commands::validate(self)
     }
@@ -105,7 +107,10 @@ impl Study for AccelerometerStudy {
                 );
             }
             let text = serde_json::to_string_pretty(&replay).map_err(|e| RunError::Internal(e.to_string()))?;
-            crate::engine::runner::write_atomically(&opts.out_dir.join("fault_free_replay.json"), text.as_bytes())?;
+            crate::engine::run::runner::write_atomically(
+                &opts.out_dir.join("fault_free_replay.json"),
+                text.as_bytes(),
+            )?;
         }
         Ok(report)
     }
@@ -120,7 +125,7 @@ pub enum TrialPlan<'a> {
     Simulated(crate::methods::accelerometer::imu::ImuScenarioParams),
     /// `log`'s segment from grid sample `start`, with `faults` (onsets from the segment's start).
     Replayed {
-        log: &'a crate::engine::log_source::ReplayLog,
+        log: &'a crate::engine::logs::log_source::ReplayLog,
         start: usize,
         faults: Vec<crate::fault::SensorFault>,
     },
@@ -152,7 +157,7 @@ impl<'a> AccelerometerTrials<'a> {
         let s = self.study;
         let mut grid = GridDigits::new(trial);
         let class = s.classes[grid.next(s.classes.len())];
-        let (noise_scale, _) = draw(&s.noise_scale, 0.0, &mut |n| grid.next(n));
+        let (noise_scale, _) = draw(&s.monte_carlo.noise_scale, 0.0, &mut |n| grid.next(n));
         let mut rng = trial_rng(s.header.seed, trial, Substream::Fault);
         let (plan, onset_s) = match &s.log {
             None => {
@@ -245,14 +250,14 @@ impl TrialSource for AccelerometerTrials<'_> {
             outputs: ["accel_x", "accel_y", "accel_z"].iter().map(|a| a.to_string()).collect(),
             fault_size_units: [
                 ("bias".to_string(), "m/s^2 (bin: |bias|)".to_string()),
-                ("gain".to_string(), crate::fault::deck::unit::GAIN_DEVIATION_BINS.to_string()),
+                ("gain".to_string(), crate::engine::results::schema::unit::GAIN_DEVIATION_BINS.to_string()),
             ]
             .into(),
             // Thirds of the deck's ranges of |bias| and |factor - 1| (see `draw`).
             fault_size_bins: [("bias", ranges.bias_mps2), ("gain", ranges.gain_deviation)]
                 .map(|(kind, [lo, hi])| (kind.to_string(), Factor::Range { lo, hi, bins: 3 }.bin_edges()))
                 .into(),
-            ..Manifest::of(KIND, &s.header, s.trials, s.classifiers.iter().map(|c| c.name.as_str()))
+            ..Manifest::of(KIND, &s.header, &s.monte_carlo, s.classifiers.iter().map(|c| c.name.as_str()))
         }
     }
     fn frame(&self, results: &[AccelTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {

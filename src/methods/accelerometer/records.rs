@@ -1,7 +1,7 @@
 //! The classifiers' `trials.parquet` (method 003): one row per (trial, classifier), by default `tree`
 //! (the seed's bottom-up SVM decision tree) and `flat` (one-against-one), else the deck's
 //! `[[classifier]]`s. The core columns of
-//! [`crate::engine::schema`] come first, where `kind` is the true class (`normal`, `bias`, `gain`,
+//! [`crate::engine::results::schema`] come first, where `kind` is the true class (`normal`, `bias`, `gain`,
 //! `stuck`; a `normal` trial is fault-free), `target` the faulty axis (`x`, `y`, `z`), `size` the bias
 //! (m/s^2) or the gain factor and `size_bin` the centre of its third of the deck's range of \|bias\|
 //! or \|factor - 1\|, `onset_s` the onset (nominal for normal trials), `noise_bin` the noise scale
@@ -22,14 +22,14 @@ use polars::prelude::*;
 
 use super::ekf_svm::FaultClass;
 use super::trial::AccelTrialResult;
-use crate::engine::schema::{CoreColumns, Outcome};
+use crate::engine::results::schema::{CoreColumns, Outcome};
 
 /// The unit of a class's size.
 fn size_unit(class: FaultClass) -> &'static str {
     match class {
         FaultClass::Bias => "m/s^2",
-        FaultClass::Gain => crate::fault::deck::unit::GAIN_FACTOR,
-        _ => crate::fault::deck::unit::NONE,
+        FaultClass::Gain => crate::engine::results::schema::unit::GAIN_FACTOR,
+        _ => crate::engine::results::schema::unit::NONE,
     }
 }
 
@@ -83,7 +83,7 @@ pub fn frame(results: &[AccelTrialResult], names: &[&str], replay: bool) -> Pola
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::summary::hand_made::Summarized;
+    use crate::engine::results::summary::hand_made::Summarized;
     use crate::methods::accelerometer::trial::{AccelOutcome, AccelTrialSpec};
 
     /// Both classifiers on four hand-made trials. Trial 0: a bias on x (0.3 m/s^2) alarmed after 0.2 s,

@@ -1,6 +1,6 @@
 //! Method 003 on a recorded flight (issue 22): the log's gyro and accelerometer are the healthy truth,
 //! the deck's faults are injected into the recorded accelerometer, and the attitude EKF runs on the
-//! result. The log is read once per study by the engine's [`crate::engine::log_source`]; a trial is a
+//! result. The log is read once per study by the engine's [`crate::engine::logs::log_source`]; a trial is a
 //! segment of it (its start drawn inside the evaluation part, or the training part for classifiers that
 //! learn from the log) with one fault drawn as a simulated trial draws it, onset from the segment's
 //! start. Nothing is added to the recorded noise.
@@ -12,7 +12,7 @@ use nalgebra::Vector3;
 use rand::{Rng, RngExt};
 use serde::Serialize;
 
-use crate::engine::log_source::{Needs, Part, ReplayLog, Signal};
+use crate::engine::logs::log_source::{Needs, Part, ReplayLog, Signal};
 use crate::fault::{ActiveFaults, SensorFault};
 use crate::methods::accelerometer::attitude::AttitudeEkfParams;
 use crate::methods::accelerometer::ekf_svm::{
@@ -113,7 +113,7 @@ pub fn fault_free_replay(
     let over = |t: f64| t >= detection.threshold;
     let alarms = (0..watched.len()).filter(|&k| over(watched[k]) && (k == 0 || !over(watched[k - 1]))).count() as u64;
     let hours = watched.len() as f64 * log.dt_s / 3600.0;
-    let upper = crate::engine::intervals::poisson_upper95(alarms);
+    let upper = crate::engine::stats::intervals::poisson_upper95(alarms);
     Ok(FaultFreeReplay {
         part_s: log.seconds(part),
         watched_s: hours * 3600.0,
@@ -142,7 +142,7 @@ pub fn calibrated_threshold(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::deck::FromDeck;
+    use crate::engine::scenario::deck::FromDeck;
     use crate::fault::FaultMode;
     use crate::methods::accelerometer::study::AccelerometerStudy;
 

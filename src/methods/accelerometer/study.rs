@@ -25,14 +25,19 @@ use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::engine::deck::{DeckError, Factor, FromDeck, MonteCarloRules, StudyHeader, open_deck};
-use crate::engine::deck::{FactorSpec, StudySection};
-use crate::engine::log_source::{LogSection, ReplayLog};
+use crate::engine::logs::log_source::{LogSection, ReplayLog};
+use crate::engine::method::Opt;
+use crate::engine::scenario::deck::{DeckError, Factor, FromDeck, MonteCarlo, MonteCarloRules, StudyHeader, open_deck};
+use crate::engine::scenario::deck::{FactorSpec, StudySection};
 use crate::methods::accelerometer::ekf_svm::{
     ClassifierSpec, ClassifierWindow, DetectionParams, FaultClass, Scheme, SvmKernel, SvmParams, TrainingData,
     TrialDesign,
 };
 use std::sync::Arc;
+
+/// The options this kind takes beyond the common ones (its `Method::options`): said here, where its deck
+/// rules read them (`monte_carlo.target_pfa` with [`Opt::Thresholds`]).
+pub const OPTIONS: &[Opt] = &[Opt::Classifiers];
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -44,7 +49,7 @@ struct AccelerometerDeck {
     detection: Option<DetectionSection>,
     #[serde(default)]
     classifier: Vec<ClassifierSection>,
-    monte_carlo: Option<crate::engine::deck::MonteCarloSection>,
+    monte_carlo: Option<crate::engine::scenario::deck::MonteCarloSection>,
     log: Option<LogSection>,
 }
 
@@ -122,12 +127,12 @@ pub struct AccelerometerStudy {
     pub detection: DetectionParams,
     /// Alarms before this time (the filter aligning) are not counted (s).
     pub settle_s: f64,
-    pub trials: u64,
+    /// `[monte_carlo]`: the trial count and the noise scales the evaluation trials cycle through.
+    pub monte_carlo: MonteCarlo,
     /// Classes of the evaluation trials, cycled over the trial index.
     pub classes: Vec<FaultClass>,
     /// The classifiers (the study's detectors), in deck order.
     pub classifiers: Vec<ClassifierSpec>,
-    pub noise_scale: Factor,
     /// The recorded flight trials replay instead of simulated ones (`[log]`), read once.
     pub log: Option<Arc<ReplayLog>>,
     /// The margin when the threshold was calibrated on the log's training part
@@ -258,7 +263,7 @@ impl FromDeck for AccelerometerStudy {
             duration_s: design.scenario.duration_s,
             fault_free_fraction: false,
             sampler: false,
-            target_pfa: false,
+            target_pfa: OPTIONS.contains(&Opt::Thresholds),
             onset_s: false,
             noise_ranges: false,
             parameter_errors: None,
@@ -279,7 +284,6 @@ impl FromDeck for AccelerometerStudy {
                 })
                 .collect::<Result<Vec<_>, _>>()?,
         };
-        let (trials, noise_scale) = (common.trials, common.noise_scale);
 
         let classifiers = if deck.classifier.is_empty() {
             ClassifierSpec::defaults()
@@ -324,7 +328,7 @@ impl FromDeck for AccelerometerStudy {
         let log = match &deck.log {
             None => None,
             Some(section) => {
-                let ones = match &noise_scale {
+                let ones = match &common.noise_scale {
                     Factor::Fixed(x) => *x == 1.0,
                     Factor::Values(list) => list.iter().all(|x| *x == 1.0),
                     Factor::Range { .. } => false,
@@ -374,10 +378,9 @@ impl FromDeck for AccelerometerStudy {
             training: Training { trials_per_class, seed: training_seed, noise_scales, svm },
             detection,
             settle_s,
-            trials,
+            monte_carlo: common,
             classes,
             classifiers,
-            noise_scale,
             log,
             log_threshold_margin: margin,
         })

@@ -23,8 +23,8 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::engine::runner::{RunError, write_atomically};
-use crate::engine::streams::{Substream, trial_rng};
+use crate::engine::run::runner::{RunError, write_atomically};
+use crate::engine::scenario::streams::{Substream, trial_rng};
 use crate::methods::accelerometer::attitude::AttitudeHealth;
 use crate::methods::accelerometer::ekf_svm::{
     Classifier, ClassifierWindow, Example, FaultClass, FeatureParams, ResidualTrace, SvmParams, TrainingData,
@@ -311,12 +311,12 @@ pub struct AccelOutcome {
 }
 
 /// A trial's scenario and both classifiers' outcome, or why it could not be flown.
-pub type AccelTrialResult = crate::engine::runner::TrialResult<AccelTrialSpec, AccelOutcome>;
+pub type AccelTrialResult = crate::engine::run::runner::TrialResult<AccelTrialSpec, AccelOutcome>;
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::deck::FromDeck;
+    use crate::engine::scenario::deck::FromDeck;
     use crate::fault::FaultMode;
     use crate::methods::accelerometer::AccelerometerTrials;
 

@@ -1,5 +1,5 @@
 //! A truth the air-data filters do not share (issue 20.6): the Aerosonde 6-DoF airframe of method 004
-//! ([`crate::methods::surface_bank::uav`]: aerodynamics, propulsion, actuators with lag and limits, the
+//! ([`crate::vehicles::aerosonde`]: aerodynamics, propulsion, actuators with lag and limits, the
 //! PID autopilot) flying manoeuvres like the seed profile's, in the wind the air data see (steady plus
 //! turbulence, which here moves the airframe too). The filters keep the patent's kinematics, which a rigid
 //! body obeys exactly only in steady wind; what they miss is the turbulence's effect on the motion, the
@@ -14,10 +14,10 @@
 
 use nalgebra::Vector3;
 
-use crate::methods::surface_bank::trial::{ENVELOPE_AIRSPEED_MPS, ENVELOPE_MAX_ALPHA_DEG};
-use crate::methods::surface_bank::uav::{
+use crate::vehicles::aerosonde::{
     Actuators, AerosondeParams, Autopilot, AutopilotGains, Setpoints, State, air_data, specific_force, step_rk4, trim,
 };
+use crate::vehicles::aerosonde::{ENVELOPE_AIRSPEED_MPS, ENVELOPE_MAX_ALPHA_DEG};
 
 /// Trim airspeed (m/s) and altitude (m) of the flight.
 pub const TRIM_AIRSPEED_MPS: f64 = 25.0;

@@ -4,8 +4,8 @@ use std::path::Path;
 
 use super::study::{AirDataStudy, DetectorKind};
 use crate::engine::method::keep_detector;
-use crate::engine::output::Trace;
-use crate::engine::runner::RunError;
+use crate::engine::run::output::Trace;
+use crate::engine::run::runner::RunError;
 
 /// The resolved air-data study (method 002).
 pub fn validate(study: &AirDataStudy) -> Result<(), RunError> {

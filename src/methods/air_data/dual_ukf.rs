@@ -1,6 +1,6 @@
 //! Method 002: air-data sensor fault detection, isolation and estimation with two unscented Kalman
 //! filters, model probabilities, per-component chi-square isolation and selective re-initialisation
-//! (`methods.md`, section 002; the patent "一种基于模型的大气数据故障估计方法", Nanjing University of
+//! (`docs/findings-seed002.md`; the patent "一种基于模型的大气数据故障估计方法", Nanjing University of
 //! Aeronautics and Astronautics, 2023; the scheme is the double-model adaptive estimation of Lu, van
 //! Eykeren, van Kampen, de Visser and Chu, Control Engineering Practice 36, 2015).
 //!
@@ -990,7 +990,7 @@ mod tests {
         for j in 0..3 {
             // The target P_fa inside the 99 % Wilson interval of the flag count: a test at twice or half
             // the rate (about 60 or 15 of 30 000 flags) would put it outside.
-            let (lo, hi) = crate::engine::intervals::wilson(flags[j] as u64, steps_total as u64, 2.575_829);
+            let (lo, hi) = crate::engine::stats::intervals::wilson(flags[j] as u64, steps_total as u64, 2.575_829);
             assert!((lo..=hi).contains(&params.false_alarm_probability), "{rates:?}: [{lo}, {hi}]");
             assert!((0.95..1.06).contains(&mean_chi[j]), "{mean_chi:?}");
         }

@@ -1,4 +1,4 @@
-//! Air-data / inertial flight scenarios for method 002 (`methods.md`, section 002): a kinematic flight
+//! Air-data / inertial flight scenarios for method 002 (`docs/findings-seed002.md`): a kinematic flight
 //! with manoeuvres, the inertial measurements `p, q, r, ax, ay, az, roll, pitch` and the air-data
 //! measurements `V, alpha, beta` with white noise, optional turbulence, and sensor faults on the air
 //! data (any mode of [`crate::fault`], on one, two or all three sensors at once).

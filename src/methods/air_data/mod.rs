@@ -10,10 +10,12 @@ pub mod study;
 pub mod trial;
 pub mod voting;
 
-use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Isolates, Method, Opt, OwnPlot, SummarySpec, TracePanel};
-use crate::engine::runner::{Manifest, RunError, TrialSource};
-use crate::engine::streams::{Substream, noise_rng};
+use crate::engine::method::Method;
+use crate::engine::report::{OwnPlot, TracePanel};
+use crate::engine::results::summary_spec::{Extra, Isolates, SummarySpec};
+use crate::engine::run::runner::{Manifest, RunError, TrialSource};
+use crate::engine::scenario::deck::FromDeck;
+use crate::engine::scenario::streams::{Substream, noise_rng};
 use crate::methods::air_data::flight::{AIR_DATA_CHANNEL_NAMES, AirDataSample};
 use crate::methods::air_data::scenario::AirDataScenarioSampler;
 use crate::methods::air_data::study::AirDataStudy;
@@ -27,7 +29,7 @@ pub static METHOD: Method = Method {
     kind: KIND,
     marker: "flight",
     title: "dual-model UKF on air-data sensors, chi-square isolation (method 002)",
-    options: &[Opt::Sensitivity],
+    options: study::OPTIONS,
     load: |text, path| Ok(Box::new(AirDataStudy::from_toml(text, path)?)),
     summary: SummarySpec {
         extra_keys: &[records::col::GUST_BIN, records::col::FAULTY_LANES],
@@ -123,7 +125,7 @@ impl TrialSource for AirDataTrials<'_> {
             outputs: AIR_DATA_CHANNEL_NAMES.iter().map(|n| n.to_string()).collect(),
             fault_size_units: units.collect(),
             fault_size_bins: crate::fault::deck::FaultKindSpec::size_bins(&s.monte_carlo.faults),
-            ..Manifest::of(KIND, &s.header, s.monte_carlo.common.trials, s.detectors.iter().map(|d| d.name.as_str()))
+            ..Manifest::of(KIND, &s.header, &s.monte_carlo.common, s.detectors.iter().map(|d| d.name.as_str()))
         }
     }
     fn frame(&self, results: &[AirDataTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {

@@ -1,5 +1,5 @@
 //! The air-data detectors' `trials.parquet` (method 002): one row per (trial, detector configuration),
-//! the core columns of [`crate::engine::schema`] first, where `target` is the set of faulty sensors
+//! the core columns of [`crate::engine::results::schema`] first, where `target` is the set of faulty sensors
 //! (`airspeed_mps+alpha_rad` for a common-mode fault), `isolated` the detector's faulty set
 //! `isolation_delay_s` after its detection (`none`: empty), `failure` why the flight could not be
 //! flown, `diverged` a filter step with non-finite values, and sizes are as the deck gives them (sensor
@@ -23,8 +23,8 @@ use polars::prelude::*;
 use super::flight::AIR_DATA_CHANNEL_NAMES;
 use super::study::AirDataStudy;
 use super::trial::AirDataTrialResult;
-use crate::engine::schema::col::{self as schema_col, NO_FAULT};
-use crate::engine::schema::{CoreColumns, Outcome};
+use crate::engine::results::schema::col::{self as schema_col, NO_FAULT};
+use crate::engine::results::schema::{CoreColumns, Outcome};
 
 /// Column names of this kind's own columns that its summary reads.
 pub mod col {
@@ -146,8 +146,8 @@ struct Columns {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::deck::FromDeck;
-    use crate::engine::summary::hand_made::Summarized;
+    use crate::engine::results::summary::hand_made::Summarized;
+    use crate::engine::scenario::deck::FromDeck;
     use crate::fault::deck::TrialFaults;
     use crate::fault::{FaultMode, SensorFault};
     use crate::methods::air_data::dual_ukf::DualUkfHealth;
@@ -172,7 +172,11 @@ mod tests {
                 kind: if faulty { "bias" } else { NO_FAULT },
                 size: if faulty { 5.0 } else { f64::NAN },
                 size_bin: if faulty { 5.0 } else { f64::NAN },
-                size_unit: if faulty { crate::fault::deck::unit::SENSOR_SIGMA } else { crate::fault::deck::unit::NONE },
+                size_unit: if faulty {
+                    crate::engine::results::schema::unit::SENSOR_SIGMA
+                } else {
+                    crate::engine::results::schema::unit::NONE
+                },
                 onset_s: 30.0,
             },
             outputs: if faulty { vec![0, 1] } else { vec![] },

@@ -1,11 +1,11 @@
 //! Trial scenarios of air-data studies (method 002): which sensors fail together, how, from when, with
-//! what noise level and turbulence. The scheme of [`crate::sampling::scenario`]: a function of (deck, seed, trial
+//! what noise level and turbulence. The scheme of [`crate::engine::scenario::draws`]: a function of (deck, seed, trial
 //! index) only; listed factors form a grid cycled over the trial index (fault kind fastest, then the
 //! sensor set, size, onset, noise, gust); ranges are drawn by the deck's sampler; whether a trial is
 //! fault-free is the first draw of its scenario stream.
 
-use crate::engine::scenario::{DIM_NOISE, DIM_ONSET, DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
-use crate::engine::sensitivity::{Factors, Part, Slot};
+use crate::engine::scenario::design::{Factors, Part, Slot};
+use crate::engine::scenario::draws::{DIM_NOISE, DIM_ONSET, DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
 use crate::fault::deck::TrialFaults;
 use crate::methods::air_data::flight::ScenarioParams;
 use crate::methods::air_data::study::AirDataStudy;
@@ -136,7 +136,7 @@ pub fn sensitivity_parts(study: &AirDataStudy) -> Vec<Part> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::deck::FromDeck;
+    use crate::engine::scenario::deck::FromDeck;
     use crate::fault::FaultMode;
 
     /// The bundled deck: kind (1) and sensor sets (5) cycle over the trial index, then noise (2 values)

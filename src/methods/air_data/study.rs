@@ -39,9 +39,10 @@ use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::engine::deck::{FactorSpec, FromDeck, StudyHeader, StudySection};
+use crate::engine::method::Opt;
+use crate::engine::scenario::deck::{FactorSpec, FromDeck, StudyHeader, StudySection};
 
-use crate::engine::deck::{DeckError, Factor, MonteCarlo, MonteCarloRules, Validator, open_deck};
+use crate::engine::scenario::deck::{DeckError, Factor, MonteCarlo, MonteCarloRules, Validator, open_deck};
 use crate::fault::SensorFault;
 use crate::fault::deck::FaultKindSpec;
 use crate::fault::deck::{FaultKindSection, FaultSection};
@@ -51,6 +52,10 @@ use crate::methods::air_data::flight::{
     SensorNoise, WindParams,
 };
 use crate::methods::air_data::voting::TriplexParams;
+
+/// The options this kind takes beyond the common ones (its `Method::options`): said here, where its deck
+/// rules read them (`monte_carlo.target_pfa` with [`Opt::Thresholds`]).
+pub const OPTIONS: &[Opt] = &[Opt::Sensitivity];
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -63,7 +68,7 @@ struct AirDataDeck {
     detector: Vec<DetectorSection>,
     #[serde(default)]
     faults: Vec<FaultSection>,
-    monte_carlo: Option<crate::engine::deck::MonteCarloSection>,
+    monte_carlo: Option<crate::engine::scenario::deck::MonteCarloSection>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -432,14 +437,14 @@ fn factor_max(f: &Factor) -> f64 {
 /// Validates `[monte_carlo]`; without one, 1000 trials of the deck's `[[faults]]`.
 fn monte_carlo(
     v: &Validator,
-    mc: Option<crate::engine::deck::MonteCarloSection>,
+    mc: Option<crate::engine::scenario::deck::MonteCarloSection>,
     duration_s: f64,
     outputs: &[String],
     fixed_faults: bool,
     deck_gust_std_mps: f64,
     lanes: usize,
 ) -> Result<AirDataMonteCarlo, DeckError> {
-    let rules = MonteCarloRules::sampled("air-data decks", duration_s);
+    let rules = MonteCarloRules::sampled("air-data decks", duration_s, OPTIONS.contains(&Opt::Thresholds));
     let (common, own, _) = v.monte_carlo(mc, &rules, |_, _| Ok(()))?;
     // Without [monte_carlo], every faulty trial flies the deck's [[faults]] (or none, if it has none).
     let section_given = own.is_some();

@@ -198,7 +198,7 @@ pub struct AirDataOutcome {
 }
 
 /// A trial's scenario and each detector's outcome, or why it could not be flown.
-pub type AirDataTrialResult = crate::engine::runner::TrialResult<AirDataTrialSpec, Vec<AirDataOutcome>>;
+pub type AirDataTrialResult = crate::engine::run::runner::TrialResult<AirDataTrialSpec, Vec<AirDataOutcome>>;
 
 /// Running sums of one detector.
 struct Score {
@@ -351,8 +351,8 @@ fn members(set: &[bool; COMPONENTS]) -> Vec<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::streams::Substream;
-    use crate::engine::streams::noise_rng;
+    use crate::engine::scenario::streams::Substream;
+    use crate::engine::scenario::streams::noise_rng;
     use crate::fault::SensorFault;
     use crate::fault::deck::TrialFaults;
     use crate::methods::air_data::dual_ukf::DualUkfParams;
@@ -369,7 +369,7 @@ mod tests {
                 kind: "bias",
                 size: 10.0,
                 size_bin: 10.0,
-                size_unit: crate::fault::deck::unit::SENSOR_SIGMA,
+                size_unit: crate::engine::results::schema::unit::SENSOR_SIGMA,
                 onset_s: 20.0,
             },
             outputs: vec![ALPHA],

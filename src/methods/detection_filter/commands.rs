@@ -11,8 +11,8 @@ use super::study::{LtiStudy, Shape};
 use super::trials::Engine;
 use crate::design::{Assignment, DesignError};
 use crate::engine::method::select_detector;
-use crate::engine::output::Trace;
-use crate::engine::runner::RunError;
+use crate::engine::run::output::Trace;
+use crate::engine::run::runner::RunError;
 
 /// A deck whose detector cannot be designed is invalid input.
 fn design_error(deck: &Path, what: &str, e: DesignError) -> RunError {
@@ -129,7 +129,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
         print!("{}", indent(&format!("{:.4}", filter.signatures)));
         match for_detector(study, filter, filter.thresholds.as_slice()) {
             Ok(f) => {
-                let hour = |p: f64| crate::engine::thresholds::per_flight_hour(p, study.header.duration_s);
+                let hour = |p: f64| crate::engine::results::thresholds::per_flight_hour(p, study.header.duration_s);
                 println!(
                     "false alarms at the deck's thresholds, analytic (fault-free, model exact, white Gaussian noise, {} samples):",
                     f.samples
@@ -289,7 +289,7 @@ pub fn simulate(study: &LtiStudy, trial: u64, detector: Option<&str>, out: &Path
     let deck = &study.header.path;
     let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
     let index = select_detector(&study.header, &names, detector)?.unwrap_or(0);
-    let engine = Engine::new(&study);
+    let engine = Engine::new(study);
     let mut trace = Trace::default();
     let (spec, outcome) = engine
         .simulate(trial, index, &mut trace)

@@ -11,7 +11,7 @@
 
 use super::decision::{Decision, LaneStatistic, ResidualTest, TestState};
 use super::filter::{DetectionFilterParams, DetectorDeck, read_eigenstructure_filter};
-use crate::engine::deck::DeckError;
+use crate::engine::scenario::deck::DeckError;
 
 /// The CUSUM test with its allowance per sample and output (output units).
 #[derive(Debug, Clone, PartialEq)]

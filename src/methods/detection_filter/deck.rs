@@ -4,7 +4,7 @@
 
 use serde::Deserialize;
 
-use crate::engine::deck::StudySection;
+use crate::engine::scenario::deck::StudySection;
 use crate::fault::deck::FaultSection;
 
 #[derive(Debug, Deserialize)]
@@ -20,7 +20,7 @@ pub struct Deck {
     pub detector: Vec<DetectorSection>,
     #[serde(default)]
     pub faults: Vec<FaultSection>,
-    pub monte_carlo: Option<crate::engine::deck::MonteCarloSection>,
+    pub monte_carlo: Option<crate::engine::scenario::deck::MonteCarloSection>,
 }
 
 /// Matrices are lists of rows.

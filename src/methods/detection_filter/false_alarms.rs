@@ -35,7 +35,7 @@ use nalgebra::{DMatrix, DVector};
 
 use super::filter::DetectionFilter;
 use super::study::LtiStudy;
-use crate::engine::intervals::normal_sf;
+use crate::engine::stats::intervals::normal_sf;
 
 /// The bounds on one detector's false-alarm probability over a trial.
 #[derive(Debug, Clone, PartialEq)]
@@ -78,7 +78,7 @@ pub fn for_detector(
     filter: &DetectionFilter,
     thresholds: &[f64],
 ) -> Result<AnalyticFalseAlarms, String> {
-    use crate::engine::deck::Factor;
+    use crate::engine::scenario::deck::Factor;
     let (p, d) = (&study.plant, &study.design_plant);
     if p.A != d.A || p.B != d.B || p.C != d.C || p.D != d.D {
         return Err("the detector's design plant differs from the simulated plant".into());
@@ -351,7 +351,7 @@ impl Law<'_> {
     /// `S / N` averaged over `draws` draws (see the module docs), with its 95 % interval. Draw `d`
     /// takes its numbers from trial stream `d` of a fixed seed: the same answer every time.
     fn conditional_monte_carlo(&self, sum: f64, draws: usize) -> (f64, f64, f64) {
-        use crate::engine::streams::{Substream, noise_rng};
+        use crate::engine::scenario::streams::{Substream, noise_rng};
         use rand::RngExt;
         use rand_distr::StandardNormal;
         use rayon::prelude::*;
@@ -378,7 +378,7 @@ impl Law<'_> {
                 // The event's value from its conditioned tail: |x| / sigma is chi-square(1) beyond.
                 let sigma = self.sd[k][j];
                 let u: f64 = rng.random::<f64>().max(f64::MIN_POSITIVE);
-                let magnitude = sigma * crate::engine::rare_event::chi2_isf(1, u * p[event]).sqrt();
+                let magnitude = sigma * crate::engine::rare_event::estimators::chi2_isf(1, u * p[event]).sqrt();
                 let x = if rng.random::<bool>() { magnitude } else { -magnitude };
                 // An unconditioned trial of the same recursion.
                 let mut e = vec![0.0; n];
@@ -414,7 +414,7 @@ impl Law<'_> {
             .collect();
         let mean = values.iter().sum::<f64>() / draws as f64;
         let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (draws.max(2) - 1) as f64;
-        let half = crate::engine::intervals::Z95 * (var / draws as f64).sqrt();
+        let half = crate::engine::stats::intervals::Z95 * (var / draws as f64).sqrt();
         // S / N <= S always. When no draw saw a second event (every value S), the share of draws that
         // would is still up to about 3 / draws (95 %), each worth at most S / 2 less: say so.
         let unresolved = if values.iter().all(|v| *v == sum) { sum * 1.5 / draws as f64 } else { 0.0 };

@@ -23,7 +23,7 @@ use nalgebra::{DMatrix, DVector};
 use super::decision::Decision;
 use super::deck::DetectorSection;
 use crate::design::{Assignment, DesignError, Domain, assign_eigenstructure};
-use crate::engine::deck::{DeckError, Validator};
+use crate::engine::scenario::deck::{DeckError, Validator};
 use crate::lti::LtiPlant;
 
 /// A detector of an LTI deck: how its gain is designed, the test its residual meets and how it

@@ -18,7 +18,7 @@ use super::decision::{Decision, ResidualTest, TestState};
 use super::filter::{DetectionFilter, DetectionFilterParams, DetectorDeck, Gain, GainDesign, Isolation};
 use crate::design::kalman::steady_state_kalman;
 use crate::design::{Assignment, DesignError, eigen_report};
-use crate::engine::deck::DeckError;
+use crate::engine::scenario::deck::DeckError;
 use crate::lti::LtiPlant;
 
 /// The noise the filter is designed for (covariances per step) and the test's window (samples).

@@ -16,7 +16,7 @@
 
 use nalgebra::DVector;
 
-use crate::engine::streams::{Substream, noise_rng};
+use crate::engine::scenario::streams::{Substream, noise_rng};
 use crate::fault::ActiveFaults;
 use crate::methods::detection_filter::decision::{Decision, LaneStatistic};
 use crate::methods::detection_filter::filter::{DetectionFilter, DetectionFilterParams};

@@ -22,10 +22,11 @@ use polars::prelude::*;
 
 use std::path::Path;
 
-use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Inputs, Isolates, Method, Opt, Study, SummarySpec};
-use crate::engine::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
-use crate::engine::sensitivity::Design;
+use crate::engine::method::{Inputs, Method, Study};
+use crate::engine::results::summary_spec::{Extra, Isolates, SummarySpec};
+use crate::engine::run::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
+use crate::engine::scenario::deck::FromDeck;
+use crate::engine::scenario::design::Design;
 use kernel::LANES;
 use records::RecordBuilder;
 use study::LtiStudy;
@@ -38,7 +39,7 @@ pub static METHOD: Method = Method {
     kind: KIND,
     marker: "plant",
     title: "eigenstructure-assigned detection filters on an LTI plant, sensor faults (method 000)",
-    options: &[Opt::Thresholds, Opt::Design, Opt::RareEvent, Opt::Sensitivity],
+    options: study::OPTIONS,
     load: |text, path| Ok(Box::new(LtiStudy::from_toml(text, path)?)),
     summary: SummarySpec {
         extra_keys: &[],
@@ -76,12 +77,12 @@ impl Study for LtiStudy {
     fn run(&self, opts: &RunOptions, _: Inputs) -> Result<RunReport, RunError> {
         run_study(self, opts)
     }
-    fn rare_event(&self, opts: &crate::engine::rare_event_study::RareEventOptions) -> Result<(), RunError> {
+    fn rare_event(&self, opts: &crate::engine::rare_event::study::RareEventOptions) -> Result<(), RunError> {
         rare_event::run(self, opts)
     }
     fn sensitivity_design(&mut self, base_samples: u64, bootstrap: u64) -> Result<Design, RunError> {
         let parts = scenario::ScenarioSampler::sensitivity_parts(self);
-        Ok(crate::engine::sensitivity::use_design(&mut self.monte_carlo.common, base_samples, bootstrap, parts))
+        Ok(self.monte_carlo.common.use_design(base_samples, bootstrap, parts))
     }
 }
 use trials::{Engine, TrialResult};
@@ -125,13 +126,12 @@ impl TrialSource for LtiTrials<'_> {
         Manifest {
             outputs: study.plant.output_names.clone(),
             deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
-            target_pfa: study.monte_carlo.common.target_pfa,
             fault_size_units: fault_size_units(study),
             fault_size_bins: crate::fault::deck::FaultKindSpec::size_bins(&study.monte_carlo.faults),
             ..Manifest::of(
                 KIND,
                 &study.header,
-                study.monte_carlo.common.trials,
+                &study.monte_carlo.common,
                 study.detectors.iter().map(|d| d.name.as_str()),
             )
         }

@@ -11,9 +11,9 @@
 use rand::RngExt;
 use rand_distr::StandardNormal;
 
-use crate::engine::noise::NoiseRng;
+use crate::engine::scenario::noise::NoiseRng;
 #[cfg(target_arch = "x86_64")]
-use crate::engine::noise::ZIG_NORM_X;
+use crate::engine::scenario::noise::ZIG_NORM_X;
 use crate::methods::detection_filter::kernel::{LANES, Lane};
 
 /// Eight noise generators advanced together; see the module docs.

@@ -16,11 +16,11 @@ use super::study::LtiStudy;
 use super::trial::{advance, measure};
 use super::trials::Engine;
 use crate::engine::method::select_detector;
-use crate::engine::noise::NoiseRng;
-use crate::engine::rare_event::{Condition, RareEventModel};
-use crate::engine::rare_event_study::{Estimator, RareEventManifest, RareEventOptions, estimate_parts, write};
-use crate::engine::runner::{RunError, deck_sha256};
-use crate::engine::streams::{BranchStream, Substream, noise_rng};
+use crate::engine::rare_event::estimators::{Condition, RareEventModel};
+use crate::engine::rare_event::study::{Estimator, RareEventManifest, RareEventOptions, estimate_parts, write};
+use crate::engine::run::runner::{RunError, deck_sha256};
+use crate::engine::scenario::noise::NoiseRng;
+use crate::engine::scenario::streams::{BranchStream, Substream, noise_rng};
 
 /// What a trial's path needs that does not change along it.
 struct TrialModel {
@@ -117,7 +117,7 @@ impl<'a> FaultFreeTrials<'a> {
 /// Whether trials differ in anything but their noise (parameter errors or noise scale).
 fn spec_varies(study: &LtiStudy) -> bool {
     let mc = &study.monte_carlo;
-    !mc.parameter_errors.is_empty() || !matches!(mc.common.noise_scale, crate::engine::deck::Factor::Fixed(_))
+    !mc.parameter_errors.is_empty() || !matches!(mc.common.noise_scale, crate::engine::scenario::deck::Factor::Fixed(_))
 }
 
 fn model(
@@ -254,9 +254,9 @@ impl TestState for Never {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::deck::FromDeck;
-    use crate::engine::rare_event::{Combined, default_tails, importance_adaptive};
-    use crate::engine::tail::{TailFit, exceedances_for};
+    use crate::engine::rare_event::estimators::{Combined, default_tails, importance_adaptive};
+    use crate::engine::scenario::deck::FromDeck;
+    use crate::engine::stats::tail::{TailFit, exceedances_for};
     use std::path::Path;
 
     const RARE: &str = include_str!("../../../studies/seed000_rare_false_alarms.toml");
@@ -339,22 +339,22 @@ mod tests {
         let model = FaultFreeTrials::new(&study, 0, true).unwrap();
         let levels = [3.0, 4.0];
         let (totals, _) = importance_adaptive(&model, study.header.seed, 20_000, &default_tails(), &levels, &|_| {});
-        let opts = crate::engine::rare_event::SplitOptions {
+        let opts = crate::engine::rare_event::estimators::SplitOptions {
             seed: study.header.seed,
             particles: 100,
             replicas: (0..16).collect(),
             levels: levels.to_vec(),
             max_iterations: 20_000,
         };
-        let results = crate::engine::rare_event::splitting(&model, &opts, &|| {});
+        let results = crate::engine::rare_event::estimators::splitting(&model, &opts, &|| {});
         let cost = results.iter().map(|r| r.steps_simulated).sum::<u64>() as f64;
         for l in 0..2 {
             let is = Combined::new(levels[l], &totals.levels[l]);
-            let ams = Combined::new(levels[l], &crate::engine::rare_event::replica_totals(&results, l));
+            let ams = Combined::new(levels[l], &crate::engine::rare_event::estimators::replica_totals(&results, l));
             assert!(is.low <= ams.high && ams.low <= is.high, "{is:?} vs {ams:?}");
         }
         let is = Combined::new(4.0, &totals.levels[1]);
-        let ams = Combined::new(4.0, &crate::engine::rare_event::replica_totals(&results, 1));
+        let ams = Combined::new(4.0, &crate::engine::rare_event::estimators::replica_totals(&results, 1));
         assert!(
             ams.relative_half_width.powi(2) * cost < is.relative_half_width.powi(2) * 2e7,
             "{is:?} vs {ams:?} at {cost}"
@@ -383,14 +383,14 @@ mod tests {
         assert!(tail.hi / tail.lo.max(f64::MIN_POSITIVE) > 100.0, "{tail:?}");
         // Splitting: unbiased too, but this statistic has no memory (white innovations), so most of
         // its replicas die at 0 and the interval is no use (the engine's tests show why).
-        let opts = crate::engine::rare_event::SplitOptions {
+        let opts = crate::engine::rare_event::estimators::SplitOptions {
             seed: 1,
             particles: 50,
             replicas: (0..8).collect(),
             levels: vec![1.0],
             max_iterations: 10_000,
         };
-        let results = crate::engine::rare_event::splitting(&model, &opts, &|| {});
+        let results = crate::engine::rare_event::estimators::splitting(&model, &opts, &|| {});
         assert!(results.iter().filter(|r| r.estimates[0] == Some(0.0)).count() >= 6);
     }
 }

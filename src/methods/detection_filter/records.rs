@@ -1,5 +1,5 @@
 //! The detection filters' `trials.parquet`: one row per (trial, detector configuration), the core
-//! columns of [`crate::engine::schema`] first, where
+//! columns of [`crate::engine::results::schema`] first, where
 //!
 //! - `target` is the faulty output, `isolated` the output whose bias signature the mean residual after
 //!   the alarm is most parallel to (the paper's "direction of the residual vector");
@@ -24,7 +24,7 @@ use polars::prelude::*;
 use super::filter::Isolation;
 use super::study::LtiStudy;
 use super::trials::TrialResult;
-use crate::engine::schema::{CoreColumns, Outcome, StatisticColumns};
+use crate::engine::results::schema::{CoreColumns, Outcome, StatisticColumns};
 
 /// Accumulates trial results column by column.
 pub struct RecordBuilder<'a> {
@@ -125,9 +125,9 @@ impl<'a> RecordBuilder<'a> {
 mod tests {
     use super::*;
     use crate::design::DesignError;
-    use crate::engine::deck::FromDeck;
-    use crate::engine::runner::Manifest;
-    use crate::engine::summary::hand_made::{Summarized, manifest};
+    use crate::engine::results::summary::hand_made::{Summarized, manifest};
+    use crate::engine::run::runner::Manifest;
+    use crate::engine::scenario::deck::FromDeck;
     use crate::fault::deck::TrialFaults;
     use crate::fault::{FaultMode, SensorFault};
     use crate::methods::detection_filter::scenario::TrialSpec;
@@ -156,7 +156,7 @@ mod tests {
                 kind: if faulty { "bias" } else { "none" },
                 size: if faulty { 3.0 } else { f64::NAN },
                 size_bin: if faulty { 3.0 } else { f64::NAN },
-                size_unit: crate::fault::deck::unit::SENSOR_SIGMA,
+                size_unit: crate::engine::results::schema::unit::SENSOR_SIGMA,
                 onset_s: 5.0,
             },
             noise_scale: 1.0,

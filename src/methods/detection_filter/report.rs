@@ -6,12 +6,12 @@ use std::path::Path;
 
 use plotters::prelude::*;
 
-use crate::engine::deck::FromDeck;
-use crate::engine::output::Trace;
 use crate::engine::report::plots::{FONT, color, e, legend};
 use crate::engine::report::{ReportContext, ReportPart};
-use crate::engine::runner::RunError;
-use crate::engine::thresholds::read_thresholds;
+use crate::engine::results::thresholds::read_thresholds;
+use crate::engine::run::output::Trace;
+use crate::engine::run::runner::RunError;
+use crate::engine::scenario::deck::FromDeck;
 use crate::methods::detection_filter::scenario::TrialSpec;
 use crate::methods::detection_filter::study::LtiStudy;
 use crate::methods::detection_filter::trial::DetectorOutcome;
@@ -62,9 +62,9 @@ fn analytic_section(ctx: &ReportContext, study: &LtiStudy) -> Result<Option<Stri
     let calibrated = read_thresholds(&ctx.dir.join("thresholds.csv")).map(|t| t.detectors).unwrap_or_default();
     // What the run saw at each set's thresholds: tail.csv's `pfa_at_thresholds` rows (none from a
     // summary written before it).
-    let tail = crate::engine::tables::read_summary(&ctx.dir.join("tail.csv")).ok();
+    let tail = crate::engine::results::tables::read_summary(&ctx.dir.join("tail.csv")).ok();
     let tail_row = |detector: &str, set: &str| -> Option<(f64, f64, f64, f64, f64)> {
-        let t = crate::engine::tables::Table(tail.as_ref()?);
+        let t = crate::engine::results::tables::Table(tail.as_ref()?);
         let (d, th, q) = (t.strs("detector"), t.strs("thresholds"), t.strs("query"));
         let i = (0..d.len()).find(|&i| d[i] == detector && th[i] == set && q[i] == "pfa_at_thresholds")?;
         let v = |c: &str| t.f64s(c)[i];

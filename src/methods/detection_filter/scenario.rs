@@ -1,10 +1,10 @@
 //! Detection-filter trial scenarios (method 000): which sensor fault (kind, output, size, onset), noise
-//! level and parameter errors trial i has, by the shared scheme of [`crate::engine::scenario`].
+//! level and parameter errors trial i has, by the shared scheme of [`crate::engine::scenario::draws`].
 
 use super::study::LtiStudy;
-use crate::engine::deck::ModelTarget;
-use crate::engine::scenario::{DIM_NOISE, DIM_ONSET, DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
-use crate::engine::sensitivity::{Factors, Part, Slot};
+use crate::engine::scenario::deck::ModelTarget;
+use crate::engine::scenario::design::{Factors, Part, Slot};
+use crate::engine::scenario::draws::{DIM_NOISE, DIM_ONSET, DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
 use crate::fault::deck::TrialFaults;
 
 /// Continuous-factor dimensions, fixed so a trial's draws do not depend on which factors are present.

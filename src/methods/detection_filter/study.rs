@@ -9,12 +9,17 @@ use super::filter::{DetectionFilterParams, DetectorDeck};
 use super::{cusum, filter, kalman_chi2};
 use serde::Deserialize;
 
-use crate::engine::deck::{
+use crate::engine::method::Opt;
+use crate::engine::scenario::deck::{
     DeckError, FromDeck, MonteCarlo, MonteCarloRules, MonteCarloSection, StudyHeader, Validator, parse_deck,
 };
 use crate::fault::SensorFault;
 use crate::fault::deck::FaultKindSpec;
 use crate::lti::LtiPlant;
+
+/// The options this kind takes beyond the common ones (its `Method::options`): said here, where its deck
+/// rules read them (`monte_carlo.target_pfa` with [`Opt::Thresholds`]).
+pub const OPTIONS: &[Opt] = &[Opt::Thresholds, Opt::Design, Opt::RareEvent, Opt::Sensitivity];
 
 /// The shape of an excitation signal on one input.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -60,7 +65,6 @@ impl Excitation {
 }
 
 /// The detector kinds of LTI decks: the deck's `kind`, what it is, and its reader (in its own file).
-#[allow(clippy::type_complexity)]
 const KINDS: &[(&str, &str, fn(&DetectorDeck) -> Result<DetectionFilterParams, DeckError>)] = &[
     ("detection_filter", "method 000, alarm on |residual|", filter::read),
     ("cusum", "the same filter, a CUSUM on |residual|", cusum::read),
@@ -103,7 +107,7 @@ pub struct MatrixEntries {
     pub entries: Vec<(usize, usize)>,
 }
 
-pub type ParameterError = crate::engine::deck::ParameterError<MatrixEntries>;
+pub type ParameterError = crate::engine::scenario::deck::ParameterError<MatrixEntries>;
 
 /// The Monte Carlo part of a study.
 #[derive(Debug, Clone, PartialEq)]
@@ -288,9 +292,8 @@ fn monte_carlo(
     duration_s: f64,
 ) -> Result<LtiMonteCarlo, DeckError> {
     let rules = MonteCarloRules {
-        target_pfa: true,
         parameter_errors: Some(true),
-        ..MonteCarloRules::sampled("detection-filter decks", duration_s)
+        ..MonteCarloRules::sampled("detection-filter decks", duration_s, OPTIONS.contains(&Opt::Thresholds))
     };
     let (common, own, parameter_errors) = chk.monte_carlo(mc, &rules, |prefix, table| {
         let field = |name: &str| format!("{prefix}.{name}");

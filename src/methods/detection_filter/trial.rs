@@ -24,9 +24,9 @@ use nalgebra::DVector;
 use rand::RngExt;
 use rand_distr::StandardNormal;
 
-use crate::engine::noise::NoiseRng;
-use crate::engine::rare_event::Condition;
-use crate::engine::streams::{Substream, noise_rng};
+use crate::engine::rare_event::estimators::Condition;
+use crate::engine::scenario::noise::NoiseRng;
+use crate::engine::scenario::streams::{Substream, noise_rng};
 use crate::fault::ActiveFaults;
 use crate::methods::detection_filter::filter::DetectionFilter;
 use crate::methods::detection_filter::scenario::TrialSpec;
@@ -34,7 +34,7 @@ use crate::methods::detection_filter::study::LtiStudy;
 
 use super::decision::TestState;
 use super::kernel::{FilterState, FilterStep, PlantState, PlantStep};
-use crate::engine::output::Trace;
+use crate::engine::run::output::Trace;
 
 /// Relative rise of the running maximum that adds a point to a first-passage profile.
 pub const PROFILE_RESOLUTION: f64 = 0.02;
@@ -134,13 +134,14 @@ impl Tracker {
                 self.iso_window = Some((start, start + self.isolation.1));
             }
         }
-        if let Some((start, end)) = self.iso_window {
-            if t >= start && t < end {
-                for (sum, r) in self.iso_sum.iter_mut().zip(residual) {
-                    *sum += r;
-                }
-                self.iso_count += 1;
+        if let Some((start, end)) = self.iso_window
+            && t >= start
+            && t < end
+        {
+            for (sum, r) in self.iso_sum.iter_mut().zip(residual) {
+                *sum += r;
             }
+            self.iso_count += 1;
         }
     }
 
@@ -163,14 +164,14 @@ impl Tracker {
 
 /// Runs trial `spec` on the sampled true plant `plant` with every filter in `filters` (a design and
 /// its products, started at the study's initial state): the general, one-trial path. `trace`, if
-/// given, receives every sample of `filters[0]`. [`lanes`] computes the same numbers for several
+/// given, receives every sample of `filters[0]`. [`super::lanes`] computes the same numbers for several
 /// trials at once.
 pub fn run_trial(
     study: &LtiStudy,
     plant: &PlantStep,
     spec: &TrialSpec,
     filters: &[(&DetectionFilter, FilterStep)],
-    mut trace: Option<&mut Trace>,
+    trace: Option<&mut Trace>,
 ) -> Vec<DetectorOutcome> {
     let s = study;
     let (n, nu, ny) = (s.plant.n_states(), s.plant.n_inputs(), s.plant.n_outputs());
@@ -187,7 +188,7 @@ pub fn run_trial(
     let mut states: Vec<FilterState<f64>> = filters.iter().map(|_| FilterState::new(x0, nu, ny)).collect();
     let mut trackers: Vec<Tracker> =
         filters.iter().map(|(design, _)| Tracker::new(design, ny, s.header.dt_s)).collect();
-    let mut rec = trace.as_deref_mut().map(|t| TraceWriter::new(t, s, n));
+    let mut rec = trace.map(|t| TraceWriter::new(t, s, n));
 
     for k in 0..s.header.steps {
         let t = k as f64 * s.header.dt_s;
@@ -200,17 +201,17 @@ pub fn run_trial(
         for (i, ((_, filter), (state, tracker))) in
             filters.iter().zip(states.iter_mut().zip(trackers.iter_mut())).enumerate()
         {
-            if i == 0 {
-                if let Some(rec) = rec.as_mut() {
-                    rec.before_step(t, u, &y, state.estimate());
-                }
+            if i == 0
+                && let Some(rec) = rec.as_mut()
+            {
+                rec.before_step(t, u, &y, state.estimate());
             }
             filter.step(state, u, &y);
             tracker.observe(t, after_onset, state.residual());
-            if i == 0 {
-                if let Some(rec) = rec.as_mut() {
-                    rec.after_step(state.residual(), &tracker.statistic, &tracker.thresholds);
-                }
+            if i == 0
+                && let Some(rec) = rec.as_mut()
+            {
+                rec.after_step(state.residual(), &tracker.statistic, &tracker.thresholds);
             }
         }
 
@@ -362,7 +363,7 @@ mod tests {
     use super::super::filter::Gain;
     use super::super::trials::Engine;
     use super::*;
-    use crate::engine::deck::FromDeck;
+    use crate::engine::scenario::deck::FromDeck;
     use std::path::Path;
 
     const SEED000: &str = include_str!("../../../studies/seed000_pitch_rate.toml");

@@ -4,13 +4,13 @@
 use std::borrow::Cow;
 
 use crate::design::DesignError;
-use crate::engine::deck::ModelTarget;
+use crate::engine::scenario::deck::ModelTarget;
 use crate::lti::{DiscreteLti, LtiPlant};
 use crate::methods::detection_filter::filter::DetectionFilter;
 use crate::methods::detection_filter::scenario::{ScenarioSampler, TrialSpec};
 use crate::methods::detection_filter::study::LtiStudy;
 
-use crate::engine::output::Trace;
+use crate::engine::run::output::Trace;
 use crate::methods::detection_filter::kernel::{FilterPatterns, LANES, LaneFilter, LanePlant, PlantPatterns};
 use crate::methods::detection_filter::kernel::{FilterStep, PlantStep};
 use crate::methods::detection_filter::lanes::{LaneDetector, run_lanes};
@@ -261,7 +261,7 @@ impl<'a> Engine<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::deck::FromDeck;
+    use crate::engine::scenario::deck::FromDeck;
     use std::path::Path;
 
     const ROBUST: &str = include_str!("../../../studies/seed000_robustness.toml");
@@ -325,7 +325,7 @@ mod tests {
                 over += (*v > quantile) as u64;
             }
         }
-        let (lo, hi) = crate::engine::intervals::wilson(over, windows, crate::engine::intervals::Z95);
+        let (lo, hi) = crate::engine::stats::intervals::wilson(over, windows, crate::engine::stats::intervals::Z95);
         assert_eq!(windows, 5_600);
         assert!(lo <= 0.01 && 0.01 <= hi, "{over} of {windows} windows over the quantile: [{lo}, {hi}]");
     }

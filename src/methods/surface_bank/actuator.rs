@@ -1,7 +1,7 @@
-//! Actuator (control-surface) faults of method 004 (`methods.md`, section 004): "the commanded deflection
+//! Actuator (control-surface) faults of method 004 (`docs/findings-seed004.md`): "the commanded deflection
 //! of surface i is disconnected and replaced by a wrong signal".
 //!
-//! A fault acts on one surface (index into [`crate::methods::surface_bank::uav::SURFACE_NAMES`]) over the window
+//! A fault acts on one surface (index into [`crate::vehicles::aerosonde::SURFACE_NAMES`]) over the window
 //! `onset_s <= t < end_s` (`end_s = None`: to the end of the trial), at one of two places of the chain
 //! `autopilot command -> actuator (lag, limits) -> position -> effective deflection -> airframe`:
 //!
@@ -26,7 +26,7 @@
 //! At most one fault per surface at a time is expected; if several are active on one surface they apply
 //! in list order (a later command replacement wins; effectiveness factors multiply).
 
-use crate::methods::surface_bank::uav::SURFACES;
+use crate::vehicles::aerosonde::SURFACES;
 
 /// Period (s) of a square-wave fault when a Monte Carlo deck does not give one: the seed's scenario
 /// states none; 2 s is the value `studies/seed004_surfaces.toml` documents.
@@ -76,7 +76,7 @@ impl ActuatorFaultKind {
 /// One fault of one control surface over `[onset_s, end_s)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ActuatorFault {
-    /// Surface index, order [`crate::methods::surface_bank::uav::SURFACE_NAMES`] (0..5).
+    /// Surface index, order [`crate::vehicles::aerosonde::SURFACE_NAMES`] (0..5).
     pub surface: usize,
     pub kind: ActuatorFaultKind,
     pub onset_s: f64,

@@ -7,12 +7,12 @@ use super::scenario::SurfaceScenarioSampler;
 use super::stmmae::{CovarianceForm, MODELS};
 use super::study::{SurfaceFaultSpec, SurfaceStudy};
 use super::trial::{SurfaceTrial, run_banks};
-use super::uav::{AerosondeParams, SURFACE_NAMES, trim};
 use crate::engine::method::keep_detector;
-use crate::engine::output::Trace;
-use crate::engine::runner::RunError;
-use crate::engine::streams::{Substream, noise_rng};
+use crate::engine::run::output::Trace;
+use crate::engine::run::runner::RunError;
+use crate::engine::scenario::streams::{Substream, noise_rng};
 use crate::estimation::bank::LikelihoodForm;
+use crate::vehicles::aerosonde::{AerosondeParams, SURFACE_NAMES, trim};
 
 /// The resolved control-surface study (method 004).
 pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {

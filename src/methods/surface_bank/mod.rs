@@ -7,16 +7,17 @@ pub mod scenario;
 pub mod stmmae;
 pub mod study;
 pub mod trial;
-pub mod uav;
 
-use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Isolates, Method, OwnPlot, SummarySpec, TracePanel};
-use crate::engine::runner::{Manifest, RunError, TrialSource};
-use crate::engine::streams::{Substream, noise_rng};
+use crate::engine::method::Method;
+use crate::engine::report::{OwnPlot, TracePanel};
+use crate::engine::results::summary_spec::{Extra, Isolates, SummarySpec};
+use crate::engine::run::runner::{Manifest, RunError, TrialSource};
+use crate::engine::scenario::deck::FromDeck;
+use crate::engine::scenario::streams::{Substream, noise_rng};
 use crate::methods::surface_bank::scenario::SurfaceScenarioSampler;
 use crate::methods::surface_bank::stmmae::BankParams;
 use crate::methods::surface_bank::study::SurfaceStudy;
-use crate::methods::surface_bank::uav::SURFACE_NAMES;
+use crate::vehicles::aerosonde::SURFACE_NAMES;
 use trial::*;
 
 /// `manifest.json`'s kind of these studies.
@@ -27,7 +28,7 @@ pub static METHOD: Method = Method {
     kind: KIND,
     marker: "airframe",
     title: "banks of (strong-tracking) EKFs on a UAV, control-surface faults (method 004)",
-    options: &[],
+    options: study::OPTIONS,
     load: |text, path| Ok(Box::new(SurfaceStudy::from_toml(text, path)?)),
     summary: SummarySpec {
         extra_keys: &[],
@@ -41,10 +42,10 @@ pub static METHOD: Method = Method {
             Extra::Rate { name: "recovery_rate", k: "recovered", n: "recovery_decided", faulty_only: true },
             Extra::Count { name: "post_fault", column: records::col::POST_FAULT_DECLARATIONS },
             Extra::Rate { name: "post_fault_rate", k: "post_fault", n: "flown", faulty_only: true },
-            Extra::Count { name: "asymmetric", column: crate::engine::schema::col::ASYMMETRIC_STEPS },
+            Extra::Count { name: "asymmetric", column: crate::engine::results::schema::col::ASYMMETRIC_STEPS },
             Extra::Count {
                 name: "not_positive_definite",
-                column: crate::engine::schema::col::NOT_POSITIVE_DEFINITE_STEPS,
+                column: crate::engine::results::schema::col::NOT_POSITIVE_DEFINITE_STEPS,
             },
             Extra::Quantile {
                 name: "isolation_delay_p50_s",
@@ -143,7 +144,7 @@ impl TrialSource for SurfaceTrials<'_> {
             chunk_trials: 64,
             outputs: SURFACE_NAMES.iter().map(|n| n.to_string()).collect(),
             fault_size_units: units.iter().map(|(k, u)| (k.to_string(), u.to_string())).collect(),
-            ..Manifest::of(KIND, &s.header, s.monte_carlo.common.trials, s.banks.iter().map(|(n, _)| n.as_str()))
+            ..Manifest::of(KIND, &s.header, &s.monte_carlo.common, s.banks.iter().map(|(n, _)| n.as_str()))
         }
     }
     fn frame(&self, results: &[SurfaceTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {

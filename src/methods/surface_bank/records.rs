@@ -1,5 +1,5 @@
 //! The banks' `trials.parquet` (method 004): one row per (trial, bank, fault window); a fault-free
-//! trial has one row per bank. The core columns of [`crate::engine::schema`] come first, where `target`
+//! trial has one row per bank. The core columns of [`crate::engine::results::schema`] come first, where `target`
 //! is the faulty surface, `size` the stuck position or square-wave amplitude (deg) or the effectiveness
 //! (fraction), `failure` why the flight stopped early (no trim, left the envelope), `diverged` a
 //! covariance that became non-finite, `delay_s` from the onset to the first declaration in the window,
@@ -25,9 +25,9 @@ use polars::prelude::*;
 
 use super::study::SurfaceStudy;
 use super::trial::{BankOutcome, SurfaceTrialResult};
-use super::uav::SURFACE_NAMES;
-use crate::engine::schema::col::NO_FAULT;
-use crate::engine::schema::{CoreColumns, FilterHealthColumns, Outcome};
+use crate::engine::results::schema::col::NO_FAULT;
+use crate::engine::results::schema::{CoreColumns, FilterHealthColumns, Outcome};
+use crate::vehicles::aerosonde::SURFACE_NAMES;
 
 /// Column names of this kind's own columns that its summary reads.
 pub mod col {
@@ -61,7 +61,7 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
                     kind: fault.map_or(NO_FAULT, |f| f.fault.kind.name()),
                     target: fault.map(|f| Cow::Borrowed(SURFACE_NAMES[f.fault.surface])),
                     size: fault.map(|f| f.size),
-                    size_unit: fault.map_or(crate::fault::deck::unit::NONE, |f| f.fault.kind.size_unit()),
+                    size_unit: fault.map_or(crate::engine::results::schema::unit::NONE, |f| f.fault.kind.size_unit()),
                     size_bin: fault.map(|f| f.size_bin),
                     onset_s: fault.map(|f| f.fault.onset_s),
                     fault_free: spec.faults.is_empty(),
@@ -133,9 +133,9 @@ mod tests {
     use polars::prelude::*;
 
     use super::*;
-    use crate::engine::deck::FromDeck;
-    use crate::engine::intervals::{Z95, wilson};
-    use crate::engine::summary::hand_made::Summarized;
+    use crate::engine::results::summary::hand_made::Summarized;
+    use crate::engine::scenario::deck::FromDeck;
+    use crate::engine::stats::intervals::{Z95, wilson};
     use crate::estimation::FilterHealth;
     use crate::methods::surface_bank::actuator::{ActuatorFault, ActuatorFaultKind};
     use crate::methods::surface_bank::scenario::{ScenarioFault, SurfaceTrialSpec};

@@ -1,15 +1,15 @@
 //! Trial scenarios of control-surface studies (method 004): which surface fault, noise level and
-//! airframe-coefficient errors trial i has. The same scheme as the LTI studies' [`crate::sampling::scenario`]:
+//! airframe-coefficient errors trial i has. The same scheme as the LTI studies' [`crate::engine::scenario::draws`]:
 //! a function of (deck, seed, trial index) only; listed factors form a grid cycled over the trial index
 //! (fault kind fastest, then surface, size, onset, noise, fault duration, parameter errors); ranges are
 //! drawn by the deck's sampler, one dimension per factor; whether a trial is fault-free is the first
 //! draw of its scenario stream.
 
-use crate::engine::deck::ModelTarget;
-use crate::engine::scenario::{DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
+use crate::engine::scenario::deck::ModelTarget;
+use crate::engine::scenario::draws::{DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
 use crate::methods::surface_bank::actuator::{ActuatorFault, ActuatorFaultKind};
 use crate::methods::surface_bank::study::{SensorNoise, SurfaceFaultSpec, SurfaceStudy};
-use crate::methods::surface_bank::uav::AerosondeParams;
+use crate::vehicles::aerosonde::AerosondeParams;
 
 /// Continuous-factor dimensions, fixed so a trial's draws do not depend on which factors are present.
 const DIM_DURATION: usize = FIRST_OWN_DIM;
@@ -129,7 +129,7 @@ impl<'a> SurfaceScenarioSampler<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::deck::FromDeck;
+    use crate::engine::scenario::deck::FromDeck;
 
     fn mc_study() -> SurfaceStudy {
         SurfaceStudy::bundled("seed004_monte_carlo.toml")

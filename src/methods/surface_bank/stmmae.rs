@@ -1,9 +1,9 @@
 //! Method 004: control-surface fault detection and isolation by a bank of (strong-tracking) EKFs and
 //! Bayesian model probabilities (Ma, Ni, Xie, Dong: improved strong-tracking multiple-model adaptive
-//! estimation, after Ducard & Geering's EMMAE, JGCD 31(1), 2008). `methods.md`, section 004.
+//! estimation, after Ducard & Geering's EMMAE, JGCD 31(1), 2008). `docs/findings-seed004.md`.
 //!
 //! # The bank
-//! Six filters on the reduced model of [`crate::methods::surface_bank::uav`]: state `x = [p, q, r, alpha, beta]`
+//! Six filters on the reduced model of [`crate::vehicles::aerosonde`]: state `x = [p, q, r, alpha, beta]`
 //! (rad/s, rad), measured directly (`H = [I 0]`), propagated by Euler steps
 //! `x(k+1) = x(k) + dt f(x(k), Va, phi, theta, throttle, surfaces)` with the measured airspeed, roll and
 //! pitch as known inputs and the autopilot's commanded deflections as the surfaces:
@@ -39,7 +39,7 @@ use crate::dual::{Dual, Real};
 use crate::estimation::bank::{Decision, DeclareClear};
 use crate::estimation::stekf::{FadingParams, FilterHealth, Innovation};
 use crate::estimation::{DiscreteModel, Fading, FloorRule, LikelihoodForm, ModelProbabilities, Stekf};
-use crate::methods::surface_bank::uav::{
+use crate::vehicles::aerosonde::{
     AerosondeParams, ReducedInputs, SURFACES, reduced_derivatives, reduced_derivatives_at,
     reduced_rate_and_surface_columns,
 };
@@ -443,7 +443,7 @@ impl SurfaceBank {
 mod tests {
     use super::*;
     use crate::estimation::stekf::central_difference;
-    use crate::methods::surface_bank::uav::{air_data, reduced_derivatives_of, trim};
+    use crate::vehicles::aerosonde::{air_data, reduced_derivatives_of, trim};
 
     /// States `[p, q, r, alpha, beta, surface]` around the trim and far from it (rates up to 1 rad/s,
     /// alpha and beta to +-0.3 rad, a surface at 20 deg), and the inputs at state k (airspeed 18 to 30 m/s).

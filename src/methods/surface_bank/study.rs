@@ -32,15 +32,20 @@ use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::engine::deck::{
+use crate::engine::method::Opt;
+use crate::engine::scenario::deck::{
     DeckError, Factor, FromDeck, MonteCarlo, MonteCarloRules, StudyHeader, Validator, open_deck,
 };
-use crate::engine::deck::{FactorSpec, StudySection};
+use crate::engine::scenario::deck::{FactorSpec, StudySection};
 use crate::estimation::{FloorRule, LikelihoodForm};
 use crate::methods::surface_bank::actuator::DEFAULT_SQUARE_WAVE_PERIOD_S;
 use crate::methods::surface_bank::actuator::{ActuatorFault, ActuatorFaultKind};
 use crate::methods::surface_bank::stmmae::{BankParams, CovarianceForm};
-use crate::methods::surface_bank::uav::{DERIVED_COEFFICIENTS, SCALABLE_COEFFICIENTS, SURFACE_NAMES, Setpoints};
+use crate::vehicles::aerosonde::{DERIVED_COEFFICIENTS, SCALABLE_COEFFICIENTS, SURFACE_NAMES, Setpoints};
+
+/// The options this kind takes beyond the common ones (its `Method::options`): said here, where its deck
+/// rules read them (`monte_carlo.target_pfa` with [`Opt::Thresholds`]).
+pub const OPTIONS: &[Opt] = &[];
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -53,7 +58,7 @@ struct SurfaceDeck {
     #[serde(default)]
     surface_fault: Vec<SurfaceFaultSection>,
     bank: Vec<BankSection>,
-    monte_carlo: Option<crate::engine::deck::MonteCarloSection>,
+    monte_carlo: Option<crate::engine::scenario::deck::MonteCarloSection>,
 }
 
 /// `[monte_carlo]`'s own fields in control-surface decks.
@@ -201,8 +206,7 @@ impl SurfaceFaultSpec {
 pub struct CoefficientNames(pub Vec<String>);
 
 /// Relative errors of airframe coefficients, on the truth or on the banks' model.
-
-pub type CoefficientError = crate::engine::deck::ParameterError<CoefficientNames>;
+pub type CoefficientError = crate::engine::scenario::deck::ParameterError<CoefficientNames>;
 
 /// The Monte Carlo section of a surface study.
 #[derive(Debug, Clone, PartialEq)]
@@ -486,13 +490,13 @@ impl FromDeck for SurfaceStudy {
 /// Validates the `[monte_carlo]` section; without one, 1000 trials of the deck's scenario.
 fn monte_carlo(
     v: &Validator,
-    mc: Option<crate::engine::deck::MonteCarloSection>,
+    mc: Option<crate::engine::scenario::deck::MonteCarloSection>,
     duration_s: f64,
     scenario: &[ActuatorFault],
 ) -> Result<SurfaceMonteCarlo, DeckError> {
     let rules = MonteCarloRules {
         parameter_errors: Some(false),
-        ..MonteCarloRules::sampled("control-surface decks", duration_s)
+        ..MonteCarloRules::sampled("control-surface decks", duration_s, OPTIONS.contains(&Opt::Thresholds))
     };
     let (common, own, parameter_errors) = v.monte_carlo(mc, &rules, |prefix, table| {
         let field = |name: &str| format!("{prefix}.{name}");

@@ -39,14 +39,10 @@ use crate::methods::surface_bank::actuator::{ActuatorFault, effective_positions,
 use crate::methods::surface_bank::scenario::{SurfaceScenarioSampler, SurfaceTrialSpec};
 use crate::methods::surface_bank::stmmae::{BankFilters, BankInput, BankParams, MODELS, SurfaceBank};
 use crate::methods::surface_bank::study::{SensorNoise, SurfaceStudy};
-use crate::methods::surface_bank::uav::{
-    Actuators, AerosondeParams, Autopilot, AutopilotGains, ReducedInputs, SURFACES, Setpoints, air_data, step_rk4, trim,
+use crate::vehicles::aerosonde::{
+    Actuators, AerosondeParams, Autopilot, AutopilotGains, ENVELOPE_AIRSPEED_MPS, ENVELOPE_MAX_ALPHA_DEG,
+    ReducedInputs, SURFACES, Setpoints, air_data, step_rk4, trim,
 };
-
-/// Airspeeds (m/s, inclusive) inside the envelope; outside it a trial stops with its reason.
-pub const ENVELOPE_AIRSPEED_MPS: std::ops::RangeInclusive<f64> = 5.0..=80.0;
-/// Largest |angle of attack| (deg) inside the envelope.
-pub const ENVELOPE_MAX_ALPHA_DEG: f64 = 45.0;
 
 /// What one trial flies: the true airframe, the banks' model of it, the faults and the sensor noise.
 #[derive(Debug, Clone, PartialEq)]
@@ -374,13 +370,13 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
 }
 
 /// One trial's scenario and what each bank made of it, or why the flight stopped.
-pub type SurfaceTrialResult = crate::engine::runner::TrialResult<SurfaceTrialSpec, Vec<BankOutcome>, UavSimError>;
+pub type SurfaceTrialResult = crate::engine::run::runner::TrialResult<SurfaceTrialSpec, Vec<BankOutcome>, UavSimError>;
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::deck::FromDeck;
-    use crate::engine::streams::{Substream, noise_rng};
+    use crate::engine::scenario::deck::FromDeck;
+    use crate::engine::scenario::streams::{Substream, noise_rng};
 
     fn seed_study() -> SurfaceStudy {
         SurfaceStudy::bundled("seed004_surfaces.toml")

@@ -4,8 +4,8 @@ use std::path::Path;
 
 use super::study::LaunchStudy;
 use crate::engine::method::keep_detector;
-use crate::engine::output::Trace;
-use crate::engine::runner::RunError;
+use crate::engine::run::output::Trace;
+use crate::engine::run::runner::RunError;
 
 /// The resolved launch-vehicle study (method 001).
 pub fn validate(study: &LaunchStudy) -> Result<(), RunError> {

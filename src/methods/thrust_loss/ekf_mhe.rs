@@ -1,7 +1,7 @@
 //! Method 001: launch-vehicle thrust-loss detection by an EKF residual on the pitch rate and a
 //! moving-horizon generalised-least-squares (GLS) fault estimator, with the loss converted to a
 //! percentage by a linear fit and the faulty engine named by the signs of the lateral-overload jumps
-//! (Ye, Chen, Xiong, Beijing Institute of Aerospace Automatic Control; `methods.md`, section 001).
+//! (Ye, Chen, Xiong, Beijing Institute of Aerospace Automatic Control; `docs/findings-seed001.md`).
 //!
 //! # Residual
 //! An EKF ([`Stekf`]`<13, 12>`, no fading, Joseph-form update) on the 13-state model of
@@ -84,8 +84,8 @@ use std::sync::Arc;
 use nalgebra::{SMatrix, SVector};
 
 use crate::dual::{Real, value_and_jacobian};
-use crate::engine::noise::NoiseRng;
-use crate::engine::streams::{Substream, noise_rng};
+use crate::engine::scenario::noise::NoiseRng;
+use crate::engine::scenario::streams::{Substream, noise_rng};
 use crate::estimation::{DiscreteModel, Fading, FilterHealth, Stekf};
 use crate::methods::thrust_loss::vehicle::{
     ENGINES, Gimbals, LaunchVehicleConfig, LaunchVehicleError, MEASURED, Measured, Measurement, STATES, SensorNoise,
@@ -207,6 +207,7 @@ impl DiscreteModel<AUGMENTED, MEASURED> for WithMomentStates<'_> {
 /// The filter whose pitch-rate innovation is the residual: the plain 13-state EKF (a loss leaves a
 /// lasting step) or the one with angular-acceleration biases (the step recovers).
 #[derive(Debug, Clone)]
+#[allow(clippy::large_enum_variant)] // one per detector and trial, stepped in place: no box in the hot loop
 enum ResidualFilter {
     Plain(Stekf<STATES, MEASURED>),
     Recovering(Stekf<AUGMENTED, MEASURED>),

@@ -8,10 +8,12 @@ pub mod study;
 pub mod trial;
 pub mod vehicle;
 
-use crate::engine::deck::FromDeck;
-use crate::engine::method::{Extra, Isolates, Method, Opt, OwnPlot, SummarySpec, TracePanel};
-use crate::engine::runner::{Manifest, RunError, TrialSource};
-use crate::engine::streams::{Substream, noise_rng};
+use crate::engine::method::Method;
+use crate::engine::report::{OwnPlot, TracePanel};
+use crate::engine::results::summary_spec::{Extra, Isolates, SummarySpec};
+use crate::engine::run::runner::{Manifest, RunError, TrialSource};
+use crate::engine::scenario::deck::FromDeck;
+use crate::engine::scenario::streams::{Substream, noise_rng};
 use crate::methods::thrust_loss::ekf_mhe::MheStep;
 use crate::methods::thrust_loss::scenario::LaunchScenarioSampler;
 use crate::methods::thrust_loss::study::LaunchStudy;
@@ -27,7 +29,7 @@ pub static METHOD: Method = Method {
     kind: KIND,
     marker: "vehicle",
     title: "EKF residual and moving-horizon least squares on a launch vehicle, thrust loss (method 001)",
-    options: &[Opt::Thresholds, Opt::Sensitivity],
+    options: study::OPTIONS,
     load: |text, path| Ok(Box::new(LaunchStudy::from_toml(text, path)?)),
     summary: SummarySpec {
         extra_keys: &[records::col::GUST_BIN],
@@ -127,13 +129,12 @@ impl TrialSource for LaunchTrials<'_> {
             chunk_trials: 128,
             outputs: (1..=4).map(|e| format!("engine_{e}")).collect(),
             deck_thresholds: s.detectors.iter().map(|d| vec![d.params.threshold_fhat]).collect(),
-            target_pfa: s.monte_carlo.common.target_pfa,
             fault_size_units: [("thrust_loss".to_string(), "percent of one engine's thrust".to_string())].into(),
             fault_size_bins: (s.monte_carlo.loss_percent.iter())
                 .map(|f| ("thrust_loss".to_string(), f.bin_edges()))
                 .filter(|(_, e)| !e.is_empty())
                 .collect(),
-            ..Manifest::of(KIND, &s.header, s.monte_carlo.common.trials, s.detectors.iter().map(|d| d.name.as_str()))
+            ..Manifest::of(KIND, &s.header, &s.monte_carlo.common, s.detectors.iter().map(|d| d.name.as_str()))
         }
     }
     fn frame(&self, results: &[LaunchTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {

@@ -1,5 +1,5 @@
 //! The launch detectors' `trials.parquet` (method 001): one row per (trial, detector configuration),
-//! the core columns of [`crate::engine::schema`] first, where `kind` is `thrust_loss` (`none` when
+//! the core columns of [`crate::engine::results::schema`] first, where `kind` is `thrust_loss` (`none` when
 //! fault-free), `target` the faulty engine (`engine_1` to `engine_4`), `size` the loss in % of one
 //! engine's thrust, `failure` why the flight ended early, alarms at the deck's threshold, and `isolated`
 //! the engine named from the overload jumps at the detection (`none`: no sign pattern); then the
@@ -21,8 +21,8 @@ use polars::prelude::*;
 
 use super::study::LaunchStudy;
 use super::trial::LaunchTrialResult;
-use crate::engine::schema::col::NO_FAULT;
-use crate::engine::schema::{CoreColumns, FilterHealthColumns, Outcome, StatisticColumns};
+use crate::engine::results::schema::col::NO_FAULT;
+use crate::engine::results::schema::{CoreColumns, FilterHealthColumns, Outcome, StatisticColumns};
 
 /// Column names of this kind's own columns that its summary reads.
 pub mod col {
@@ -63,7 +63,7 @@ pub fn frame(study: &LaunchStudy, results: &[LaunchTrialResult]) -> PolarsResult
                 size_unit: if s.fault.is_some() {
                     "percent of one engine's thrust"
                 } else {
-                    crate::fault::deck::unit::NONE
+                    crate::engine::results::schema::unit::NONE
                 },
                 size_bin: s.fault.map(|_| s.loss_bin),
                 onset_s: onset,
@@ -134,10 +134,10 @@ struct Columns {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::deck::FromDeck;
-    use crate::engine::intervals::{Z95, wilson};
-    use crate::engine::runner::Manifest;
-    use crate::engine::summary::hand_made::{Summarized, manifest};
+    use crate::engine::results::summary::hand_made::{Summarized, manifest};
+    use crate::engine::run::runner::Manifest;
+    use crate::engine::scenario::deck::FromDeck;
+    use crate::engine::stats::intervals::{Z95, wilson};
     use crate::methods::thrust_loss::ekf_mhe::DetectorHealth;
     use crate::methods::thrust_loss::scenario::LaunchTrialSpec;
     use crate::methods::thrust_loss::trial::LaunchOutcome;

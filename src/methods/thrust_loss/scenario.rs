@@ -1,11 +1,11 @@
 //! Trial scenarios of launch-vehicle studies (method 001): which engine loses how much thrust from when,
-//! with what sensor noise and gusts. The scheme of [`crate::sampling::scenario`]: a function of (deck, seed, trial
+//! with what sensor noise and gusts. The scheme of [`crate::engine::scenario::draws`]: a function of (deck, seed, trial
 //! index) only; listed factors form a grid cycled over the trial index (engine fastest, then loss,
 //! onset, noise, gust scale); ranges are drawn by the deck's sampler; whether a trial is fault-free is
 //! the first draw of its scenario stream.
 
-use crate::engine::scenario::{DIM_NOISE, DIM_ONSET, DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
-use crate::engine::sensitivity::{Factors, Part, Slot};
+use crate::engine::scenario::design::{Factors, Part, Slot};
+use crate::engine::scenario::draws::{DIM_NOISE, DIM_ONSET, DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
 use crate::methods::thrust_loss::study::LaunchStudy;
 use crate::methods::thrust_loss::vehicle::{Gust, LaunchVehicleConfig, ThrustFault};
 
@@ -103,7 +103,7 @@ pub fn sensitivity_parts(study: &LaunchStudy) -> Vec<Part> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::deck::FromDeck;
+    use crate::engine::scenario::deck::FromDeck;
 
     /// The bundled deck: engines (4) fastest, then the gust scale (2 values); losses in 10-60 % with the
     /// onsets a Latin hypercube over 15-75 s; gusts scaled per trial, the vehicle's noise untouched.

@@ -23,12 +23,17 @@ use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::engine::deck::{
+use crate::engine::method::Opt;
+use crate::engine::scenario::deck::{
     DeckError, Factor, FromDeck, MonteCarlo, MonteCarloRules, StudyHeader, Validator, open_deck,
 };
-use crate::engine::deck::{FactorSpec, StudySection};
+use crate::engine::scenario::deck::{FactorSpec, StudySection};
 use crate::methods::thrust_loss::ekf_mhe::{DetectorParams, EkfParams, MheParams};
 use crate::methods::thrust_loss::vehicle::{ENGINES, Gust, GustAxis, LaunchVehicleConfig};
+
+/// The options this kind takes beyond the common ones (its `Method::options`): said here, where its deck
+/// rules read them (`monte_carlo.target_pfa` with [`Opt::Thresholds`]).
+pub const OPTIONS: &[Opt] = &[Opt::Thresholds, Opt::Sensitivity];
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -40,7 +45,7 @@ struct LaunchDeck {
     detector: Vec<DetectorSection>,
     #[serde(default)]
     faults: Vec<FaultSection>,
-    monte_carlo: Option<crate::engine::deck::MonteCarloSection>,
+    monte_carlo: Option<crate::engine::scenario::deck::MonteCarloSection>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -287,8 +292,7 @@ impl FromDeck for LaunchStudy {
             }),
         };
 
-        let rules =
-            MonteCarloRules { target_pfa: true, ..MonteCarloRules::sampled("launch-vehicle decks", duration_s) };
+        let rules = MonteCarloRules::sampled("launch-vehicle decks", duration_s, OPTIONS.contains(&Opt::Thresholds));
         let (common, own, _) = v.monte_carlo(deck.monte_carlo, &rules, |_, _| Ok(()))?;
         // A loss at lift-off leaves no window before it to calibrate on.
         v.factor_within(

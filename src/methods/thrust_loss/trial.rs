@@ -97,7 +97,7 @@ pub struct LaunchOutcome {
 }
 
 /// A trial's scenario and each detector's outcome, or why the flight ended early.
-pub type LaunchTrialResult = crate::engine::runner::TrialResult<LaunchTrialSpec, Vec<LaunchOutcome>>;
+pub type LaunchTrialResult = crate::engine::run::runner::TrialResult<LaunchTrialSpec, Vec<LaunchOutcome>>;
 
 struct Score {
     outcome: LaunchOutcome,
@@ -214,7 +214,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::streams::{Substream, noise_rng};
+    use crate::engine::scenario::streams::{Substream, noise_rng};
     use crate::methods::thrust_loss::ekf_mhe::DetectorParams;
     use crate::methods::thrust_loss::vehicle::ThrustFault;
 

@@ -9,7 +9,7 @@
 //! The per-step noise substreams are drawn from xoshiro256++ seeded by the substream's ChaCha8 (see
 //! [`noise_rng`]); the scenario draws, a few per trial, come from ChaCha8 itself.
 
-use crate::engine::noise::NoiseRng;
+use crate::engine::scenario::noise::NoiseRng;
 
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
@@ -47,7 +47,7 @@ pub fn noise_rng(seed: u64, trial: u64, substream: Substream) -> NoiseRng {
     NoiseRng::from_rng(&mut trial_rng(seed, trial, substream))
 }
 
-/// The streams of one branch of a splitting replica ([`super::splitting`]): the survivor choices (branch
+/// The streams of one branch of a splitting replica ([`crate::engine::rare_event::estimators`]): the survivor choices (branch
 /// 0) and the new noise of a branch.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(u64)]

@@ -17,9 +17,9 @@ use rand::rngs::ChaCha8Rng;
 
 use std::sync::Arc;
 
-use crate::engine::deck::{Factor, MonteCarlo, ParameterError, Sampler};
-use crate::engine::sensitivity::Design;
-use crate::engine::streams::{Substream, trial_rng};
+use crate::engine::scenario::deck::{Factor, MonteCarlo, ParameterError, Sampler};
+use crate::engine::scenario::design::Design;
+use crate::engine::scenario::streams::{Substream, trial_rng};
 
 /// Continuous dimensions of the factors every kind draws (the fault size's, where its kind has one); a kind's
 /// own factors take [`FIRST_OWN_DIM`] on.

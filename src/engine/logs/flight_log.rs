@@ -179,7 +179,7 @@ pub fn read_table(path: &Path, request: &TableRequest) -> Result<TopicSeries, Lo
     if !path.is_file() {
         return Err(unreadable("no such file".into()));
     }
-    let frame = crate::engine::tables::read_summary(path).map_err(|e| unreadable(e.to_string()))?;
+    let frame = crate::engine::results::tables::read_summary(path).map_err(|e| unreadable(e.to_string()))?;
     let names: Vec<String> = frame.get_column_names().iter().map(|n| n.to_string()).collect();
     let column = |name: &str| -> Result<Vec<f64>, LogError> {
         let missing = || LogError::MissingColumn {

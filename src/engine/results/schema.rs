@@ -307,3 +307,14 @@ impl FilterHealthColumns {
         ]
     }
 }
+
+/// Units of fault sizes (the `size_unit` column), as records and summaries name them.
+pub mod unit {
+    pub const SENSOR_SIGMA: &str = "multiples of the sensor sigma";
+    pub const GAIN_FACTOR: &str = "gain factor";
+    pub const OUTPUT_UNITS: &str = "output units";
+    /// A gain whose size bins are deviations `|factor - 1|` of either sign, not factors.
+    pub const GAIN_DEVIATION_BINS: &str = "factor (bin: |factor - 1|)";
+    /// A fault without a size (stuck at the held reading, total failure), or no fault.
+    pub const NONE: &str = "none";
+}

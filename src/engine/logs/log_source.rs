@@ -1,7 +1,7 @@
 //! A recorded flight as a scenario source any method can replay (issue 22). A method names the signals
 //! it needs ([`Needs`]: a deck name with its unit, and the ULog field it is read from by default); the
 //! deck's `[log]` section names the file and may map each signal to another field or, for a table, a
-//! column. The log is read once per study ([`crate::engine::flight_log`]: checked, streamed), resampled
+//! column. The log is read once per study ([`crate::engine::logs::flight_log`]: checked, streamed), resampled
 //! onto the study's step by linear interpolation (the documented repair for a log's own jittery rate and
 //! for gaps up to `max_gap_s`), and split into parts: trials are drawn from the evaluation part, and
 //! whatever learns from the log (a classifier, a threshold) only from the training part, which may not
@@ -27,8 +27,8 @@ use std::sync::Arc;
 
 use serde::Deserialize;
 
-use crate::engine::deck::{DeckError, Validator};
-use crate::engine::flight_log::{TableRequest, TopicRequest, TopicSeries, read_table, read_ulog};
+use crate::engine::logs::flight_log::{TableRequest, TopicRequest, TopicSeries, read_table, read_ulog};
+use crate::engine::scenario::deck::{DeckError, Validator};
 
 /// The deck's `[log]` section (module docs).
 #[derive(Debug, Clone, Deserialize)]
@@ -153,7 +153,7 @@ impl ReplayLog {
         }
         let mapped = |s: &Signal| section.signals.get(s.name).cloned();
         let extension = file.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-        let log_error = |e: crate::engine::flight_log::LogError| v.err("log.file", e.to_string());
+        let log_error = |e: crate::engine::logs::flight_log::LogError| v.err("log.file", e.to_string());
         let (series, origin) = match extension.as_str() {
             "ulg" => {
                 for (field, given) in
@@ -294,7 +294,7 @@ impl ReplayLog {
 }
 
 /// `series` on the grid `t_0 + k dt_s` up to its last sample (times increase:
-/// [`crate::engine::flight_log`] checked them). Grid sample k is the mean of the log's samples in
+/// [`crate::engine::logs::flight_log`] checked them). Grid sample k is the mean of the log's samples in
 /// `[t_k - dt_s / 2, t_k + dt_s / 2)`: what a sensor read at `1 / dt_s` reports (the mean over its
 /// interval), which keeps the noise density (interpolating between independent samples would shrink
 /// the noise by up to half its variance and fold more of what lies above `1 / (2 dt_s)` in). A bin without

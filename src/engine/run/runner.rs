@@ -12,7 +12,7 @@
 //!
 //! The runner knows nothing of plants or detectors: a study hands it a [`TrialSource`] (simulate trials
 //! `first..end`, turn results into rows) and the study fields of its [`Manifest`]. The LTI studies of
-//! method 000 ([`run_study`]), and the studies of methods 001, 002 and 004 share it.
+//! method 000 (`methods::detection_filter::run_study`), and the studies of methods 001, 002 and 004 share it.
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -22,9 +22,9 @@ use polars::prelude::*;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::engine::deck::StudyHeader;
-use crate::engine::output::temporary_sibling;
-use crate::engine::progress::Progress;
+use crate::engine::run::output::temporary_sibling;
+use crate::engine::run::progress::Progress;
+use crate::engine::scenario::deck::{MonteCarlo, StudyHeader};
 
 /// What the runner needs of a study.
 pub trait TrialSource: Sync {
@@ -86,15 +86,15 @@ pub(crate) fn pol(file: &Path) -> impl FnOnce(PolarsError) -> RunError + '_ {
     move |source| RunError::Polars { file: file.into(), source }
 }
 
-impl From<crate::engine::deck::DeckError> for RunError {
-    fn from(e: crate::engine::deck::DeckError) -> Self {
+impl From<crate::engine::scenario::deck::DeckError> for RunError {
+    fn from(e: crate::engine::scenario::deck::DeckError) -> Self {
         RunError::Invalid(e.to_string())
     }
 }
 
-impl From<crate::engine::output::OutputError> for RunError {
-    fn from(e: crate::engine::output::OutputError) -> Self {
-        use crate::engine::output::OutputError;
+impl From<crate::engine::run::output::OutputError> for RunError {
+    fn from(e: crate::engine::run::output::OutputError) -> Self {
+        use crate::engine::run::output::OutputError;
         match e {
             OutputError::UnknownFormat { .. } => RunError::Invalid(e.to_string()),
             OutputError::Io { file, source } => RunError::Io { file, source },
@@ -230,7 +230,7 @@ impl Shard {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Manifest {
     pub fdimc_version: String,
-    /// The kind of study ([`super::method::Method::kind`]): which method summarizes and reports it.
+    /// The kind of study ([`crate::engine::method::Method::kind`]): which method summarizes and reports it.
     pub kind: String,
     pub study: String,
     pub deck: String,
@@ -260,7 +260,7 @@ pub struct Manifest {
     /// Each fault kind's size bins as `[low, high)` edges where the deck draws sizes from a range (a
     /// listed or fixed size is its own bin); the summary tables give each bin centre its edges.
     #[serde(default)]
-    pub fault_size_bins: crate::engine::deck::SizeBins,
+    pub fault_size_bins: crate::engine::scenario::deck::SizeBins,
     pub command_line: Vec<String>,
     pub complete: bool,
     pub rows: u64,
@@ -269,7 +269,7 @@ pub struct Manifest {
     pub precision: Option<PrecisionOutcome>,
     /// A sensitivity study (`fdimc sensitivity`): its design, whose rows the trials are.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub sensitivity: Option<crate::engine::sensitivity::Design>,
+    pub sensitivity: Option<crate::engine::scenario::design::Design>,
 }
 
 /// What `run --precision` asked and where the run stopped.
@@ -415,7 +415,7 @@ pub struct RunOptions {
     /// --precision`); the trial count is then a cap.
     pub stop: Option<StopHandle>,
     /// The design of a sensitivity study, recorded in the manifest (the study draws its trials from it).
-    pub sensitivity: Option<crate::engine::sensitivity::Design>,
+    pub sensitivity: Option<crate::engine::scenario::design::Design>,
     pub command_line: Vec<String>,
 }
 
@@ -461,19 +461,20 @@ fn part_path(dir: &Path, first_trial: u64) -> PathBuf {
 }
 
 impl Manifest {
-    /// A study's fields (kind, name, seed, trial count, detector names) over [`Manifest::unstarted`];
-    /// a kind sets its outputs, thresholds and units on top.
+    /// A study's fields (kind, name, seed, detector names, and from its `[monte_carlo]` the trial count
+    /// and target Pfa) over [`Manifest::unstarted`]; a kind sets its outputs, thresholds and units on top.
     pub fn of<'a>(
         kind: &str,
         header: &StudyHeader,
-        trials: u64,
+        monte_carlo: &MonteCarlo,
         detectors: impl IntoIterator<Item = &'a str>,
     ) -> Manifest {
         Manifest {
             kind: kind.into(),
             study: header.name.clone(),
             seed: header.seed,
-            trials,
+            trials: monte_carlo.trials,
+            target_pfa: monte_carlo.target_pfa,
             detectors: detectors.into_iter().map(String::from).collect(),
             trial_duration_s: Some(header.duration_s),
             ..Manifest::unstarted()
@@ -580,7 +581,7 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
     } else if existing {
         // What the old run's summaries wrote would describe trials that are gone.
         let summaries = ["trials.parquet", "thresholds.csv", "comparison.csv", "summarize.json"];
-        for name in summaries.into_iter().chain(crate::engine::output::SUMMARY_TABLES) {
+        for name in summaries.into_iter().chain(crate::engine::run::output::SUMMARY_TABLES) {
             let _ = std::fs::remove_file(dir.join(name));
         }
         for sub in ["parts", "validation", "report"] {

@@ -91,13 +91,13 @@ impl Quantiles {
             None => {
                 self.exact.push(v);
                 if self.exact.len() > EXACT_VALUES {
-                    self.to_sketch();
+                    self.switch_to_sketch();
                 }
             }
         }
     }
 
-    fn to_sketch(&mut self) {
+    fn switch_to_sketch(&mut self) {
         let mut s = self.sketch.take().unwrap_or_default();
         for v in self.exact.drain(..) {
             s.add(v, 1);
@@ -110,7 +110,7 @@ impl Quantiles {
     pub fn merge(&mut self, other: &Quantiles) {
         match (&mut self.sketch, &other.sketch) {
             (_, Some(theirs)) => {
-                self.to_sketch();
+                self.switch_to_sketch();
                 if let Some(s) = &mut self.sketch {
                     s.merge(theirs);
                 }

@@ -1,11 +1,11 @@
 //! The one summary of every kind of study, from `trials.parquet` without re-simulating, in memory that
 //! does not grow with the trial count: the file is read a slice at a time, every table is a set of
-//! counts (exact) and quantile sketches ([`super::quantiles`]: exact to 4,096 values per group) that
+//! counts (exact) and quantile sketches ([`crate::engine::stats::quantiles`]: exact to 4,096 values per group) that
 //! the slices add to, and the paired comparison forgets each trial once the next begins.
 //!
 //! Threshold sets: `deck` (the alarms, delays and isolation the trial recorded at the deck's thresholds
 //! or decision rule) and, for kinds that record a detection statistic, `calibrated` (the whole-detector
-//! thresholds of [`super::thresholds`], evaluated from the recorded pre-onset maxima and first-passage
+//! thresholds of [`crate::engine::results::thresholds`], evaluated from the recorded pre-onset maxima and first-passage
 //! profiles; isolation needs the signals after the alarm, so it is the deck's only).
 //!
 //! Rates are over the units flown to the end (`failure` null): Pd is `detected / flown` in faulty
@@ -19,29 +19,30 @@
 //! | `min_detectable.csv` | thresholds x detector x kind x target | the smallest fault (by \|size\|, or \|factor - 1\| for gain) whose size bin has Pd >= 0.9, and whose Wilson lower bound is >= 0.9 |
 //! | `detectors.csv` | thresholds x detector | over the faulty units: Pd, isolation, delays, the kind's aggregates; over every trial once (its first unit): flights, failures, false alarms, Pfa |
 //! | `confusion.csv` | detector x truth x isolated | at the deck's thresholds: units, and their share of the truth's units (truth: the faulty target, or the kind for classifiers) |
-//! | `comparison.csv` | thresholds x pair of detectors | [`super::paired`] |
-//! | `thresholds.csv` | detector x statistic (+ `all`) | kinds with a statistic: [`super::thresholds`] |
+//! | `comparison.csv` | thresholds x pair of detectors | [`crate::engine::stats::paired`] |
+//! | `thresholds.csv` | detector x statistic (+ `all`) | kinds with a statistic: [`crate::engine::results::thresholds`] |
 
 use std::collections::HashMap;
 use std::path::Path;
 
 use polars::prelude::*;
 
-use super::intervals::{Z95, wilson};
-use super::method::{Extra, Isolates, SummarySpec};
-use super::output::write_table;
-use super::paired::{PairedUnits, UnitOutcome};
-use super::quantiles::Quantiles;
-use super::runner::{RunError, pol, write_parquet};
-use super::schema::col;
-use super::tables::{Table, bool_col, column_names, complete_run, f64_col, numbers, slices, str_col, u64_col};
-use super::thresholds::{
-    Calibration, DetectorThresholds, RecordedStatistics, SLICE_ROWS, per_flight_hour, thresholds, write_thresholds,
+use crate::engine::results::schema::col;
+use crate::engine::results::schema::unit;
+use crate::engine::results::summary_spec::{Extra, Isolates, SummarySpec};
+use crate::engine::results::tables::{
+    Table, bool_col, column_names, complete_run, f64_col, numbers, slices, str_col, u64_col,
 };
-use crate::fault::deck::unit;
+use crate::engine::results::thresholds::{
+    Calibration, DECK, DetectorThresholds, RecordedStatistics, SLICE_ROWS, per_flight_hour, thresholds,
+    write_thresholds,
+};
+use crate::engine::run::output::write_table;
+use crate::engine::run::runner::{RunError, pol, write_parquet};
+use crate::engine::stats::intervals::{Z95, wilson};
+use crate::engine::stats::paired::{PairedUnits, UnitOutcome};
+use crate::engine::stats::quantiles::Quantiles;
 
-/// The threshold sets' names.
-pub const DECK: &str = "deck";
 pub const CALIBRATED: &str = "calibrated";
 /// Another run's thresholds (`summarize --thresholds`) on this run's trials.
 pub const VALIDATION: &str = "validation";
@@ -56,8 +57,8 @@ pub struct Summary {
     /// Kinds with a statistic: its names, the thresholds and where they came from.
     pub statistics: Vec<String>,
     pub thresholds: Option<(Vec<DetectorThresholds>, String)>,
-    /// The rare-false-alarm fits ([`super::rare`]), per detector and threshold set.
-    pub tails: Vec<super::rare::DetectorTail>,
+    /// The rare-false-alarm fits ([`crate::engine::results::tails`]), per detector and threshold set.
+    pub tails: Vec<crate::engine::results::tails::DetectorTail>,
     pub summary: DataFrame,
     pub detectors: DataFrame,
     pub confusion: DataFrame,
@@ -88,7 +89,7 @@ impl Settings {
         if !path.exists() {
             return Ok(None);
         }
-        let text = std::fs::read_to_string(&path).map_err(super::runner::io(&path))?;
+        let text = std::fs::read_to_string(&path).map_err(crate::engine::run::runner::io(&path))?;
         serde_json::from_str(&text)
             .map(Some)
             .map_err(|e| RunError::Invalid(format!("{}: not a summarize.json of this fdimc ({e})", path.display())))
@@ -592,7 +593,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     let set = thresholds.as_ref().map(|_| if validating { VALIDATION } else { CALIBRATED });
     let sets: Vec<&'static str> = [Some(DECK), set].into_iter().flatten().collect();
     let dir_out = if validating { dir.join(VALIDATION_DIR) } else { dir.to_path_buf() };
-    std::fs::create_dir_all(&dir_out).map_err(super::runner::io(&dir_out))?;
+    std::fs::create_dir_all(&dir_out).map_err(crate::engine::run::runner::io(&dir_out))?;
 
     // Only the columns the tables read.
     let mut select: Vec<String> = [
@@ -698,8 +699,8 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     if let (Some((t, source)), Some(set)) = (&thresholds, set) {
         write_thresholds(&dir_out, t, &statistics, source)?;
         files.push("thresholds.csv");
-        tails = super::rare::tails(&path, &manifest, &statistics, t, set)?;
-        super::rare::write_tail_tables(&dir_out, &tails, &statistics)?;
+        tails = crate::engine::results::tails::tails(&path, &manifest, &statistics, t, set)?;
+        crate::engine::results::tails::write_tail_tables(&dir_out, &tails, &statistics)?;
         files.extend(["tail.csv", "tail_diagnostics.csv"]);
     }
     write_table(&mut summary, &out("summary.csv"))?;
@@ -708,7 +709,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     write_table(&mut min_detectable, &out("min_detectable.csv"))?;
     write_table(&mut detectors, &out("detectors.csv"))?;
     write_table(&mut confusion, &out("confusion.csv"))?;
-    files.extend(super::output::SUMMARY_TABLES);
+    files.extend(crate::engine::run::output::SUMMARY_TABLES);
     if manifest.detectors.len() > 1 {
         let mut all: Option<DataFrame> = None;
         for (set, pairs) in sets.iter().zip(std::mem::take(&mut agg.pairs)) {
@@ -746,7 +747,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     };
     let json = serde_json::to_string_pretty(&settings).map_err(|e| RunError::Internal(e.to_string()))?;
     let settings_path = out(SETTINGS_FILE);
-    super::runner::write_atomically(&settings_path, json.as_bytes())?;
+    crate::engine::run::runner::write_atomically(&settings_path, json.as_bytes())?;
     files.push(SETTINGS_FILE);
     Ok(Summary { statistics, thresholds, tails, summary, detectors, confusion, warnings, files, out_dir: dir_out, set })
 }
@@ -878,7 +879,11 @@ fn with_size_unit(df: &mut DataFrame, units: &std::collections::BTreeMap<String,
 /// `centre`, from the manifest's bins per fault kind: the bin with that centre (to rounding), or the
 /// value itself where the size was listed or fixed (or the folder predates recorded bins). Last, as
 /// [`with_size_unit`].
-fn with_bin_edges(df: &mut DataFrame, centre: &str, bins: &crate::engine::deck::SizeBins) -> PolarsResult<()> {
+fn with_bin_edges(
+    df: &mut DataFrame,
+    centre: &str,
+    bins: &crate::engine::scenario::deck::SizeBins,
+) -> PolarsResult<()> {
     let kinds = df.column(col::KIND)?.str()?.clone();
     let centres = df.column(centre)?.f64()?.clone();
     let edges: Vec<Option<[f64; 2]>> = (kinds.iter().zip(centres.iter()))
@@ -931,7 +936,7 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
                 t.calibration_units,
             );
         }
-        super::rare::print_tails(&s.tails);
+        crate::engine::results::tails::print_tails(&s.tails);
     }
     let t = Table(&s.detectors);
     let (sets, names, units, flights) =
@@ -1010,9 +1015,10 @@ fn significant(v: f64) -> String {
 pub mod hand_made {
     use polars::prelude::*;
 
-    use crate::engine::method::{Method, SummarySpec};
-    use crate::engine::runner::{Manifest, write_parquet};
-    use crate::engine::tables::read_summary;
+    use crate::engine::method::Method;
+    use crate::engine::results::summary_spec::SummarySpec;
+    use crate::engine::results::tables::read_summary;
+    use crate::engine::run::runner::{Manifest, write_parquet};
 
     /// A results folder with `trials.parquet` from hand-made rows and the tables `summarize` wrote.
     pub struct Summarized {
@@ -1082,7 +1088,7 @@ pub mod hand_made {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::deck::Factor;
+    use crate::engine::scenario::deck::Factor;
 
     /// A gain's smallest detectable fault: by `|factor - 1|` where the bins are factors (0.9 is missed,
     /// 1.3 is nearer 1 than 0.6), by the bin itself where the bins are already deviations (the
@@ -1222,8 +1228,8 @@ impl PrecisionMonitor {
     }
 }
 
-impl super::runner::StopRule for PrecisionMonitor {
-    fn start(&mut self, manifest: &super::runner::Manifest) -> Result<(), RunError> {
+impl crate::engine::run::runner::StopRule for PrecisionMonitor {
+    fn start(&mut self, manifest: &crate::engine::run::runner::Manifest) -> Result<(), RunError> {
         self.agg = Some(Aggregates::new(self.spec, vec![DECK], &manifest.detectors));
         Ok(())
     }
@@ -1239,9 +1245,9 @@ impl super::runner::StopRule for PrecisionMonitor {
         self.status().met()
     }
 
-    fn outcome(&self) -> super::runner::PrecisionOutcome {
+    fn outcome(&self) -> crate::engine::run::runner::PrecisionOutcome {
         let status = self.status();
-        super::runner::PrecisionOutcome {
+        crate::engine::run::runner::PrecisionOutcome {
             half_width: self.half_width,
             rates: self.rates.iter().map(|r| r.to_string()).collect(),
             met: status.met(),

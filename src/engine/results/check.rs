@@ -1,7 +1,7 @@
 //! Baseline comparison: is any group's detection probability or isolation accuracy lower, or
 //! false-alarm rate higher, than the committed baseline's, beyond chance?
 //!
-//! Groups are matched on the key columns of the shared summary ([`super::summary`]): every column before
+//! Groups are matched on the key columns of the shared summary ([`crate::engine::results::summary`]): every column before
 //! `trials` (thresholds, detector, kind, target, size, noise and parameter-error bins, and a kind's own
 //! bins). Units that did not run to the end (`failed`) are left out of every rate.
 //! Each rate is tested one-sided with a pooled two-proportion z-test (continuity-corrected) at level
@@ -12,8 +12,8 @@ use std::collections::HashMap;
 
 use polars::prelude::*;
 
-use crate::engine::intervals::p_lower;
-use crate::engine::runner::RunError;
+use crate::engine::run::runner::RunError;
+use crate::engine::stats::intervals::p_lower;
 
 /// One group's counts.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -99,7 +99,7 @@ pub fn consistent(df: &DataFrame, file: &std::path::Path) -> Result<(), RunError
     ];
     for (rate, count, of) in checks {
         let (r, k) = (f(rate).map_err(bad)?, u(count).map_err(bad)?);
-        let n = of.map(|c| u(c)).transpose().map_err(bad)?;
+        let n = of.map(&u).transpose().map_err(bad)?;
         for i in 0..df.height() {
             let flown = trials.get(i).unwrap_or(0).saturating_sub(failed.get(i).unwrap_or(0));
             let (k, n) = (k.get(i).unwrap_or(0), n.as_ref().map_or(flown, |n| n.get(i).unwrap_or(0)));

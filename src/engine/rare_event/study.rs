@@ -1,4 +1,4 @@
-//! `fdimc rare-event` around the estimators of [`super::rare_event`]: options, shards, the results
+//! `fdimc rare-event` around the estimators of [`crate::engine::rare_event::estimators`]: options, shards, the results
 //! folder and `merge`.
 //!
 //! A run's units are importance sampling's chunks of trials and splitting's replicas; each unit's
@@ -13,11 +13,11 @@ use std::path::{Path, PathBuf};
 use polars::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::rare_event::{
+use crate::engine::rare_event::estimators::{
     Combined, IMPORTANCE_CHUNK, RareEventModel, SplitOptions, Totals, default_tails, importance_chunks, pilot_mixture,
     pilot_trials, splitting,
 };
-use super::runner::{RunError, Shard, pol, read_record, write_atomically};
+use crate::engine::run::runner::{RunError, Shard, pol, read_record, write_atomically};
 
 /// Which unbiased estimator `fdimc rare-event` runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -116,7 +116,8 @@ pub fn estimate_parts<M: RareEventModel>(model: &M, name: &str, seed: u64, opts:
             let (first, last) = (pilot / IMPORTANCE_CHUNK, opts.trials.div_ceil(IMPORTANCE_CHUNK));
             let (a, b) = opts.shard.range(last - first);
             let trials = ((first + a) * IMPORTANCE_CHUNK).max(pilot)..((first + b) * IMPORTANCE_CHUNK).min(opts.trials);
-            let bar = super::progress::Progress::new(name, pilot + (trials.end - trials.start), !opts.quiet);
+            let bar =
+                crate::engine::run::progress::Progress::new(name, pilot + (trials.end - trials.start), !opts.quiet);
             let mix = pilot_mixture(model, seed, opts.trials, &default_tails(), &opts.levels, &|k| bar.inc(k));
             let chunks = importance_chunks(model, seed, trials.clone(), &mix, &opts.levels, &|k| bar.inc(k));
             bar.finish();
@@ -142,7 +143,7 @@ pub fn estimate_parts<M: RareEventModel>(model: &M, name: &str, seed: u64, opts:
                 levels: opts.levels.clone(),
                 max_iterations: opts.particles * 200,
             };
-            let bar = super::progress::Progress::new(&format!("{name} (replicas)"), b - a, !opts.quiet);
+            let bar = crate::engine::run::progress::Progress::new(&format!("{name} (replicas)"), b - a, !opts.quiet);
             let results = splitting(model, &split, &|| bar.inc(1));
             bar.finish();
             results
@@ -220,7 +221,7 @@ fn write_parts(dir: &Path, levels: usize, parts: &[Part]) -> Result<(), RunError
     let names: Vec<&str> = parts.iter().flat_map(|p| std::iter::repeat_n(p.detector.as_str(), levels)).collect();
     let pilots: Vec<bool> = parts.iter().flat_map(|p| std::iter::repeat_n(p.pilot, levels)).collect();
     let mut df = DataFrame::new_infer_height(vec![
-        Column::new(super::schema::col::DETECTOR.into(), names),
+        Column::new(crate::engine::results::schema::col::DETECTOR.into(), names),
         Column::new("unit".into(), eachu(&|p, _| p.unit)),
         Column::new("pilot".into(), pilots),
         Column::new("level_index".into(), eachu(&|_, l| l as u64)),
@@ -231,11 +232,11 @@ fn write_parts(dir: &Path, levels: usize, parts: &[Part]) -> Result<(), RunError
         Column::new("steps".into(), eachu(&|p, _| p.steps)),
     ])
     .map_err(pol(&path))?;
-    Ok(super::output::write_table(&mut df, &path)?)
+    Ok(crate::engine::run::output::write_table(&mut df, &path)?)
 }
 
 fn read_parts(dir: &Path, levels: usize) -> Result<Vec<Part>, RunError> {
-    use super::tables::{bool_col, f64_col, read_slice, str_col, u64_col};
+    use crate::engine::results::tables::{bool_col, f64_col, read_slice, str_col, u64_col};
     let path = dir.join(PARTS);
     let df = read_slice(&path, 0, usize::MAX, None)?;
     let (name, unit, pilot) =
@@ -330,10 +331,13 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(), RunError> {
 /// flight hour with 95 % intervals, the cost in samples and plain Monte Carlo's for the same interval.
 fn write_rows(dir: &Path, rows: &[RareEventRow]) -> Result<(), RunError> {
     let path = dir.join("rare_event.csv");
-    let hour = |r: &RareEventRow, p: f64| super::thresholds::per_flight_hour(p, r.trial_s);
+    let hour = |r: &RareEventRow, p: f64| crate::engine::results::thresholds::per_flight_hour(p, r.trial_s);
     let f = |g: &dyn Fn(&RareEventRow) -> f64| rows.iter().map(g).collect::<Vec<f64>>();
     let mut df = DataFrame::new_infer_height(vec![
-        Column::new(super::schema::col::DETECTOR.into(), rows.iter().map(|r| r.detector.as_str()).collect::<Vec<_>>()),
+        Column::new(
+            crate::engine::results::schema::col::DETECTOR.into(),
+            rows.iter().map(|r| r.detector.as_str()).collect::<Vec<_>>(),
+        ),
         Column::new("estimator".into(), rows.iter().map(|r| r.estimator.name()).collect::<Vec<_>>()),
         Column::new("threshold_scale".into(), f(&|r| r.estimate.level)),
         Column::new("pfa_per_trial".into(), f(&|r| r.estimate.estimate)),
@@ -354,7 +358,7 @@ fn write_rows(dir: &Path, rows: &[RareEventRow]) -> Result<(), RunError> {
         Column::new("trial_s".into(), f(&|r| r.trial_s)),
     ])
     .map_err(pol(&path))?;
-    Ok(super::output::write_table(&mut df, &path)?)
+    Ok(crate::engine::run::output::write_table(&mut df, &path)?)
 }
 
 /// The rows as a table on stdout.
@@ -374,7 +378,7 @@ fn print_rows(rows: &[RareEventRow]) {
             e.low,
             e.high,
             100.0 * e.relative_half_width,
-            super::thresholds::per_flight_hour(e.estimate, r.trial_s),
+            crate::engine::results::thresholds::per_flight_hour(e.estimate, r.trial_s),
             r.steps_simulated,
             plain
         );

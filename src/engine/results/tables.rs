@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use polars::prelude::*;
 
-use super::runner::{Manifest, RunError, io, pol, read_parquet};
+use crate::engine::run::runner::{Manifest, RunError, io, pol, read_parquet};
 
 /// The manifest and the `trials.parquet` path of the complete run in `dir`; a run that is not complete,
 /// or whose file disagrees with its manifest, is refused (exit 2).

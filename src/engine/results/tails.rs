@@ -1,5 +1,5 @@
 //! Rare false alarms of a run: per detector and threshold set, the generalised Pareto fit
-//! ([`super::tail`]) of its calibration units' largest pre-onset statistic measured against the set's
+//! ([`crate::engine::stats::tail`]) of its calibration units' largest pre-onset statistic measured against the set's
 //! thresholds (`r = max_j pre_max_j / threshold_j`: the unit alarms at thresholds scaled by `s` when
 //! `r > s`). From it: the false-alarm probability at the set's thresholds (`s = 1`), and for the
 //! calibrated set the thresholds for the per-flight-hour targets of a safety assessment (or per trial,
@@ -14,13 +14,13 @@ use std::path::Path;
 use polars::prelude::*;
 use rayon::prelude::*;
 
-use super::intervals::{Z95, wilson};
-use super::output::write_table;
-use super::runner::{Manifest, RunError, pol};
-use super::schema::col;
-use super::summary::DECK;
-use super::tail::{Interval, Stability, TailFit, exceedances_for, stability, stability_ks};
-use super::thresholds::{DetectorThresholds, TopValues, for_each_slice, per_flight_hour, per_segment};
+use crate::engine::results::schema::col;
+use crate::engine::results::thresholds::DECK;
+use crate::engine::results::thresholds::{DetectorThresholds, TopValues, for_each_slice, per_flight_hour, per_segment};
+use crate::engine::run::output::write_table;
+use crate::engine::run::runner::{Manifest, RunError, pol};
+use crate::engine::stats::intervals::{Z95, wilson};
+use crate::engine::stats::tail::{Interval, Stability, TailFit, exceedances_for, stability, stability_ks};
 
 /// The per-flight-hour targets every summary gives thresholds for (the major, hazardous and
 /// catastrophic levels of ARP4761 / AC 25.1309); per trial when the trial's duration is not known.
@@ -131,13 +131,18 @@ fn tail_of(
         targets: Vec::new(),
     };
     let Some(k) = exceedances_for(n) else {
-        tail.concerns.push(format!("no fit: {n} calibration units (needs >= {})", 10 * super::tail::MIN_EXCEEDANCES));
+        tail.concerns.push(format!(
+            "no fit: {n} calibration units (needs >= {})",
+            10 * crate::engine::stats::tail::MIN_EXCEEDANCES
+        ));
         return tail;
     };
     let non_finite = values.iter().filter(|v| !v.is_finite()).count();
     let Some(fit) = TailFit::fit(values, n, k) else {
-        tail.concerns
-            .push(format!("no fit: fewer than {} distinct values above the threshold", super::tail::MIN_EXCEEDANCES));
+        tail.concerns.push(format!(
+            "no fit: fewer than {} distinct values above the threshold",
+            crate::engine::stats::tail::MIN_EXCEEDANCES
+        ));
         return tail;
     };
     // The profile likelihoods below are most of a summary's time: independent, they run side by side.

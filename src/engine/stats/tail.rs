@@ -9,7 +9,7 @@
 //! and they are asymmetric as the extrapolation is. They assume the generalised Pareto law holds beyond
 //! the data: [`TailFit::concerns`] lists what the data say against it.
 
-use super::intervals::Z95;
+use crate::engine::stats::intervals::Z95;
 
 /// The 95 % point of chi-square with one degree of freedom: the profile deviance's cut-off.
 const CHI2_1_95: f64 = Z95 * Z95;
@@ -202,7 +202,7 @@ impl TailFit {
             let Some(&x) = sorted.get(m - 1) else { continue };
             // P(X >= x_(m)): the fit just below the m-th largest against m of n.
             let fitted = self.survival(x - 1e-12 * x.abs().max(1.0));
-            let (lo, hi) = super::intervals::wilson(m as u64, self.n, Z95);
+            let (lo, hi) = crate::engine::stats::intervals::wilson(m as u64, self.n, Z95);
             if !(lo..=hi).contains(&fitted) {
                 out.push(format!(
                     "misfit at the {m} largest: fitted {fitted:.2e}, observed {:.2e} [{lo:.2e}, {hi:.2e}]",
@@ -486,7 +486,7 @@ mod tests {
     /// set's shape is often negative and its estimate low; the intervals carry that.)
     #[test]
     fn the_fit_extrapolates_the_maximum_of_a_white_gaussian_residual() {
-        let exact = |x: f64| -(1000.0 * (-2.0 * super::super::intervals::normal_sf(x)).ln_1p()).exp_m1();
+        let exact = |x: f64| -(1000.0 * (-2.0 * crate::engine::stats::intervals::normal_sf(x)).ln_1p()).exp_m1();
         let truth = exact(5.45);
         assert!((truth / 5.0e-5 - 1.0).abs() < 0.02, "exact {truth}");
         let mut covered = 0;

@@ -1,5 +1,5 @@
 //! Thresholds on recorded statistics (kinds whose records carry `pre_max_<s>` and first-passage
-//! profiles, [`super::schema`]), calibrated after the run without re-simulating.
+//! profiles, [`crate::engine::results::schema`]), calibrated after the run without re-simulating.
 //!
 //! Per detector (`thresholds.csv`):
 //! - per statistic: the smallest threshold that at most `floor(p n)` of the `n` calibration units'
@@ -20,11 +20,14 @@ use std::path::{Path, PathBuf};
 
 use polars::prelude::*;
 
-use super::intervals::{Z95, wilson};
-use super::output::write_table;
-use super::runner::{Manifest, RunError, pol};
-use super::schema::col;
-use super::tables::{bool_col, list_col, numbers, read_summary, slices, str_col};
+use crate::engine::results::schema::col;
+use crate::engine::results::tables::{bool_col, list_col, numbers, read_summary, slices, str_col};
+use crate::engine::run::output::write_table;
+use crate::engine::run::runner::{Manifest, RunError, pol};
+use crate::engine::stats::intervals::{Z95, wilson};
+
+/// The threshold sets' names.
+pub const DECK: &str = "deck";
 
 /// Rows read at a time.
 pub const SLICE_ROWS: usize = 16_384;
@@ -331,13 +334,13 @@ pub fn thresholds(
                         allowed(n[d], *p)
                     }
                     Some(c) => confident_allowed(n[d], *p, c).unwrap_or_else(|| {
-                        by_tail[d] = super::tail::exceedances_for(n[d]).is_some();
+                        by_tail[d] = crate::engine::stats::tail::exceedances_for(n[d]).is_some();
                         if !by_tail[d] {
                             warnings.push(format!(
                                 "detector {name}: {} calibration trials cannot give Pfa {p} with {c} confidence (needs >= {} fault-free trials for the order statistic, {} for a tail fit): thresholds are the largest values seen, without that confidence",
                                 n[d],
                                 trials_needed(*p, c),
-                                10 * super::tail::MIN_EXCEEDANCES
+                                10 * crate::engine::stats::tail::MIN_EXCEEDANCES
                             ));
                         }
                         0
@@ -359,7 +362,7 @@ pub fn thresholds(
             })?;
             let per: Vec<Vec<f64>> = top.iter().map(|t| t.iter().map(TopValues::threshold).collect()).collect();
             // Pass 3: the common factor, on each unit's largest statistic-to-threshold ratio.
-            let kept = |d: usize| match super::tail::exceedances_for(n[d]) {
+            let kept = |d: usize| match crate::engine::stats::tail::exceedances_for(n[d]) {
                 Some(e) if by_tail[d] => 2 * e + 1,
                 _ => k[d],
             };
@@ -375,7 +378,7 @@ pub fn thresholds(
                 .map(|d| {
                     let (Some(c), true) = (confidence, by_tail[d]) else { return scale[d].threshold() };
                     let values = scale[d].values();
-                    let fit = super::tail::exceedances_for(n[d]).and_then(|e| super::tail::TailFit::fit(&values, n[d], e));
+                    let fit = crate::engine::stats::tail::exceedances_for(n[d]).and_then(|e| crate::engine::stats::tail::TailFit::fit(&values, n[d], e));
                     let bound = fit.as_ref().map_or(f64::INFINITY, |f| f.quantile_upper(*p, c));
                     let largest = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
                     let name = &manifest.detectors[d];

@@ -11,8 +11,8 @@
 
 use polars::prelude::*;
 
-use super::intervals::mcnemar_exact;
-use super::quantiles::Quantiles;
+use crate::engine::stats::intervals::mcnemar_exact;
+use crate::engine::stats::quantiles::Quantiles;
 
 /// One detector's result on one unit.
 #[derive(Debug, Clone, PartialEq)]
@@ -160,7 +160,7 @@ impl PairedUnits {
                     p_values[k].push(mcnemar_exact(d[0], d[1]));
                 }
                 for (m, q) in medians.iter_mut().zip(&c.differences) {
-                    let interval = q.median_interval(super::intervals::Z95);
+                    let interval = q.median_interval(crate::engine::stats::intervals::Z95);
                     m[0].push(q.median());
                     m[1].push(interval.map(|i| i.0));
                     m[2].push(interval.map(|i| i.1));

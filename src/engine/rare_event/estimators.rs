@@ -43,7 +43,7 @@
 //!
 //! Replica `r` starts its particles from the study's trials `r n .. (r + 1) n` (faults removed) and
 //! draws branch noise and survivor choices from streams keyed by `(seed, r)`
-//! ([`super::streams::branch_rng`]): its numbers depend on nothing else, not on threads, not on
+//! ([`crate::engine::scenario::streams::branch_rng`]): its numbers depend on nothing else, not on threads, not on
 //! which shard ran it. Both estimators' 95 % intervals are Student's t on the spread of independent
 //! unbiased units (trials, or replicas).
 
@@ -51,9 +51,9 @@ use rand::RngExt;
 use rayon::prelude::*;
 use statrs::distribution::{ContinuousCDF, StudentsT};
 
-use super::intervals::Z95;
-use super::noise::NoiseRng;
-use super::streams::{BranchStream, branch_noise, branch_rng, importance_rng};
+use crate::engine::scenario::noise::NoiseRng;
+use crate::engine::scenario::streams::{BranchStream, branch_noise, branch_rng, importance_rng};
+use crate::engine::stats::intervals::Z95;
 
 /// Importance sampling's change to one sample: its sensor draw `draw` (or, `None`, all its draws)
 /// taken from the normal law conditioned on its square (their sum of squares) lying in the upper
@@ -649,8 +649,8 @@ pub fn importance_adaptive<M: RareEventModel>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::intervals::normal_sf;
-    use crate::engine::streams::{Substream, noise_rng};
+    use crate::engine::scenario::streams::{Substream, noise_rng};
+    use crate::engine::stats::intervals::normal_sf;
     use rand_distr::StandardNormal;
 
     /// `x_k = rho x_(k-1) + sqrt(1 - rho^2) e_k` from a stationary start: white for `rho = 0`, where

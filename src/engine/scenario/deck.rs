@@ -1,4 +1,4 @@
-//! Study decks: parse (`deck`), then validate into a [`Study`] that cannot be invalid.
+//! Study decks: parse (`deck`), then validate into a kind's study type, which cannot be invalid.
 //!
 //! Every rejection names the file, the field (as a TOML path) and what is allowed.
 
@@ -7,6 +7,8 @@ use std::path::{Path, PathBuf};
 use nalgebra::{DMatrix, DVector};
 
 use serde::Deserialize;
+
+use crate::engine::scenario::design::{Design, Part};
 
 /// A deck that could not be read or is not a valid study.
 #[derive(Debug, thiserror::Error)]
@@ -121,13 +123,13 @@ impl std::fmt::Display for ModelTarget {
 }
 
 /// A deck file's text; a missing or unreadable file names itself.
-pub(crate) fn read_deck(path: &Path) -> Result<String, DeckError> {
+pub fn read_deck(path: &Path) -> Result<String, DeckError> {
     std::fs::read_to_string(path).map_err(|source| DeckError::Read { file: path.into(), source })
 }
 
 /// The first steps of every kind's reader: parses deck text into `D` (see [`parse_deck`]) and validates
 /// its `[study]` table (`study` finds it); the validator names `path` in every later rejection.
-pub(crate) fn open_deck<'a, D: serde::de::DeserializeOwned>(
+pub fn open_deck<'a, D: serde::de::DeserializeOwned>(
     text: &str,
     path: &'a Path,
     study: impl FnOnce(&D) -> &StudySection,
@@ -140,7 +142,7 @@ pub(crate) fn open_deck<'a, D: serde::de::DeserializeOwned>(
 
 /// A deck's text parsed into its serde type; TOML errors (unknown fields among them) name the file. A
 /// table missing from the deck is named as such (TOML reports it at line 1 of the whole document).
-pub(crate) fn parse_deck<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T, DeckError> {
+pub fn parse_deck<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T, DeckError> {
     toml::from_str(text).map_err(|e| {
         let missing = e.message().strip_prefix("missing field `").and_then(|m| m.strip_suffix('`'));
         // The document's own span: empty or one character at its start (a table's spans its text).
@@ -230,20 +232,20 @@ pub trait FromDeck: Sized {
 }
 
 /// Checks deck values and names the file and field in every rejection; shared by every kind of deck.
-pub(crate) struct Validator<'a> {
-    pub(crate) file: &'a Path,
+pub struct Validator<'a> {
+    pub file: &'a Path,
 }
 
 impl Validator<'_> {
-    pub(crate) fn err(&self, field: impl Into<String>, message: impl Into<String>) -> DeckError {
+    pub fn err(&self, field: impl Into<String>, message: impl Into<String>) -> DeckError {
         DeckError::Invalid { file: self.file.into(), field: field.into(), message: message.into() }
     }
 
-    pub(crate) fn finite(&self, field: &str, v: f64) -> Result<f64, DeckError> {
+    pub fn finite(&self, field: &str, v: f64) -> Result<f64, DeckError> {
         if v.is_finite() { Ok(v) } else { Err(self.err(field, format!("must be a finite number, got {v}"))) }
     }
 
-    pub(crate) fn positive(&self, field: &str, v: f64) -> Result<f64, DeckError> {
+    pub fn positive(&self, field: &str, v: f64) -> Result<f64, DeckError> {
         if v.is_finite() && v > 0.0 {
             Ok(v)
         } else {
@@ -251,7 +253,7 @@ impl Validator<'_> {
         }
     }
 
-    pub(crate) fn non_negative(&self, field: &str, v: f64) -> Result<f64, DeckError> {
+    pub fn non_negative(&self, field: &str, v: f64) -> Result<f64, DeckError> {
         if v.is_finite() && v >= 0.0 {
             Ok(v)
         } else {
@@ -260,7 +262,7 @@ impl Validator<'_> {
     }
 
     /// A finite number >= `min`; `what` says in the message what the number is.
-    pub(crate) fn at_least(&self, field: &str, v: f64, min: f64, what: &str) -> Result<f64, DeckError> {
+    pub fn at_least(&self, field: &str, v: f64, min: f64, what: &str) -> Result<f64, DeckError> {
         if v.is_finite() && v >= min {
             Ok(v)
         } else {
@@ -268,7 +270,7 @@ impl Validator<'_> {
         }
     }
 
-    pub(crate) fn vector(&self, field: &str, v: &[f64], len: usize, what: &str) -> Result<DVector<f64>, DeckError> {
+    pub fn vector(&self, field: &str, v: &[f64], len: usize, what: &str) -> Result<DVector<f64>, DeckError> {
         if v.len() != len {
             return Err(self.err(field, format!("expected {len} numbers ({what}), got {}", v.len())));
         }
@@ -278,7 +280,7 @@ impl Validator<'_> {
         Ok(DVector::from_column_slice(v))
     }
 
-    pub(crate) fn matrix(
+    pub fn matrix(
         &self,
         field: &str,
         rows: &[Vec<f64>],
@@ -304,7 +306,7 @@ impl Validator<'_> {
         Ok(DMatrix::from_fn(nrows, ncols, |i, j| rows[i][j]))
     }
 
-    pub(crate) fn names(&self, field: &str, names: &[String]) -> Result<(), DeckError> {
+    pub fn names(&self, field: &str, names: &[String]) -> Result<(), DeckError> {
         if names.is_empty() {
             return Err(self.err(field, "must name at least one"));
         }
@@ -326,7 +328,7 @@ impl Validator<'_> {
 
     /// The names of a deck's `[[table]]` of detectors (or banks): at least one, each names record rows and
     /// files, so letters, digits, '_' and '-', and none twice.
-    pub(crate) fn detector_names<'n>(
+    pub fn detector_names<'n>(
         &self,
         table: &str,
         names: impl ExactSizeIterator<Item = &'n str>,
@@ -350,7 +352,7 @@ impl Validator<'_> {
 
     /// A deck gives faults one way: a fixed scenario (`fixed`, e.g. `[[faults]]`) or a sampled population
     /// (`sampled`), not both (the population would silently replace the scenario).
-    pub(crate) fn one_fault_source(&self, fixed: &str, sampled: &str, both: bool) -> Result<(), DeckError> {
+    pub fn one_fault_source(&self, fixed: &str, sampled: &str, both: bool) -> Result<(), DeckError> {
         if both {
             let table = fixed.trim_matches(['[', ']']);
             return Err(self.err(
@@ -361,7 +363,7 @@ impl Validator<'_> {
         Ok(())
     }
 
-    pub(crate) fn index_of(&self, field: &str, name: &str, names: &[String], list: &str) -> Result<usize, DeckError> {
+    pub fn index_of(&self, field: &str, name: &str, names: &[String], list: &str) -> Result<usize, DeckError> {
         names
             .iter()
             .position(|n| n == name)
@@ -379,7 +381,7 @@ impl Validator<'_> {
         let duration_s = self.positive("study.duration_s", s.duration_s)?;
         let dt_s = self.positive("study.dt_s", s.dt_s)?;
         let steps_f = (duration_s / dt_s).round();
-        if steps_f < 1.0 || steps_f > 1e8 {
+        if !(1.0..=1e8).contains(&steps_f) {
             return Err(self.err("study.dt_s", format!("duration_s / dt_s = {steps_f} samples; allowed 1 to 1e8")));
         }
         Ok(StudyHeader {
@@ -393,7 +395,7 @@ impl Validator<'_> {
     }
 
     /// Reads a factor (see [`Factor`]); `None` gives `default`.
-    pub(crate) fn factor(&self, field: &str, spec: Option<&FactorSpec>, default: Factor) -> Result<Factor, DeckError> {
+    pub fn factor(&self, field: &str, spec: Option<&FactorSpec>, default: Factor) -> Result<Factor, DeckError> {
         use toml::Value;
         let allowed = "allowed: a number, { range = [lo, hi], bins = k } or { values = [v1, v2, ...] }";
         let number = |field: &str, v: &Value| -> Result<f64, DeckError> {
@@ -453,7 +455,7 @@ impl Validator<'_> {
     }
 
     /// Checks every value a factor can take with `ok`, which describes what is allowed.
-    pub(crate) fn factor_within(
+    pub fn factor_within(
         &self,
         field: &str,
         factor: &Factor,
@@ -471,16 +473,18 @@ impl Validator<'_> {
         }
     }
 
-    /// A trial count: 1 to [`crate::engine::streams::MAX_TRIAL`].
-    pub(crate) fn trials(&self, field: &str, n: u64) -> Result<u64, DeckError> {
-        if n == 0 || n > crate::engine::streams::MAX_TRIAL {
-            return Err(self.err(field, format!("allowed 1 to {}, got {n}", crate::engine::streams::MAX_TRIAL)));
+    /// A trial count: 1 to [`crate::engine::scenario::streams::MAX_TRIAL`].
+    pub fn trials(&self, field: &str, n: u64) -> Result<u64, DeckError> {
+        if n == 0 || n > crate::engine::scenario::streams::MAX_TRIAL {
+            return Err(
+                self.err(field, format!("allowed 1 to {}, got {n}", crate::engine::scenario::streams::MAX_TRIAL))
+            );
         }
         Ok(n)
     }
 
     /// A fraction in [0, 1].
-    pub(crate) fn fraction(&self, field: &str, v: f64) -> Result<f64, DeckError> {
+    pub fn fraction(&self, field: &str, v: f64) -> Result<f64, DeckError> {
         if !(0.0..=1.0).contains(&v) {
             return Err(self.err(field, format!("allowed 0 to 1, got {v}")));
         }
@@ -489,12 +493,7 @@ impl Validator<'_> {
 
     /// One of a field's named values: `choices` pairs each name a deck may write with its value and what
     /// it means for the message ("" for nothing), which lists them all in this order.
-    pub(crate) fn choice<T: Clone>(
-        &self,
-        field: &str,
-        name: &str,
-        choices: &[(&str, T, &str)],
-    ) -> Result<T, DeckError> {
+    pub fn choice<T: Clone>(&self, field: &str, name: &str, choices: &[(&str, T, &str)]) -> Result<T, DeckError> {
         match choices.iter().find(|(n, ..)| *n == name) {
             Some((_, value, _)) => Ok(value.clone()),
             None => {
@@ -506,7 +505,7 @@ impl Validator<'_> {
     /// The error for a name that is none of `allowed` (each a name and what it means, "" for nothing):
     /// the one message of every field that takes a name, for those whose names [`Validator::choice`]
     /// cannot map (each reads other fields of its own).
-    pub(crate) fn not_allowed(&self, field: impl Into<String>, name: &str, allowed: &[(&str, &str)]) -> DeckError {
+    pub fn not_allowed(&self, field: impl Into<String>, name: &str, allowed: &[(&str, &str)]) -> DeckError {
         let allowed: Vec<String> = allowed
             .iter()
             .map(|(n, what)| if what.is_empty() { format!("{n:?}") } else { format!("{n:?} ({what})") })
@@ -515,7 +514,7 @@ impl Validator<'_> {
     }
 
     /// The sampler of continuous factors (default random).
-    pub(crate) fn sampler(&self, field: &str, name: Option<&str>) -> Result<Sampler, DeckError> {
+    pub fn sampler(&self, field: &str, name: Option<&str>) -> Result<Sampler, DeckError> {
         let choices = [
             ("random", Sampler::Random, "default"),
             ("lhs", Sampler::LatinHypercube, ""),
@@ -525,7 +524,7 @@ impl Validator<'_> {
     }
 
     /// A name that becomes a column (`perr_<name>`): letters, digits and '_', not among `earlier`.
-    pub(crate) fn column_name<'n>(
+    pub fn column_name<'n>(
         &self,
         field: &str,
         name: &str,
@@ -541,7 +540,7 @@ impl Validator<'_> {
     }
 
     /// Which model a parameter error perturbs.
-    pub(crate) fn model_target(&self, field: &str, name: &str) -> Result<ModelTarget, DeckError> {
+    pub fn model_target(&self, field: &str, name: &str) -> Result<ModelTarget, DeckError> {
         self.choice(
             field,
             name,
@@ -579,7 +578,18 @@ pub struct MonteCarlo {
     /// Multiplies every sensor's noise standard deviation.
     pub noise_scale: Factor,
     /// Set by `fdimc sensitivity`, never by a deck: the trials are the rows of this design.
-    pub design: Option<std::sync::Arc<crate::engine::sensitivity::Design>>,
+    pub design: Option<std::sync::Arc<Design>>,
+}
+
+impl MonteCarlo {
+    /// Makes the trials the rows of a sensitivity design of `base_samples` rows per matrix over `parts`
+    /// (`fdimc sensitivity`), and returns the design (for the manifest).
+    pub fn use_design(&mut self, base_samples: u64, bootstrap: u64, parts: Vec<Part>) -> Design {
+        let design = Design { base_samples, bootstrap, parts };
+        self.trials = design.trials();
+        self.design = Some(std::sync::Arc::new(design.clone()));
+        design
+    }
 }
 
 /// A `[[monte_carlo.parameter_error]]`: what every kind shares (a name for its `perr_<name>` column, the
@@ -603,7 +613,8 @@ pub struct MonteCarloRules<'a> {
     /// Fault-free trials (a classifier's normal class replaces them).
     pub fault_free_fraction: bool,
     pub sampler: bool,
-    /// Threshold calibration ([`super::method::Opt::Thresholds`]).
+    /// Threshold calibration: the kind's [`crate::engine::method::Method::calibrates`], the one place
+    /// that says it.
     pub target_pfa: bool,
     pub onset_s: bool,
     /// `noise_scale` may be a range (otherwise a number or listed values).
@@ -613,15 +624,15 @@ pub struct MonteCarloRules<'a> {
 }
 
 impl<'a> MonteCarloRules<'a> {
-    /// A kind that samples fault-free trials, onsets and noise ranges with any sampler, and calibrates no
-    /// threshold and has no parameter errors; a kind changes what differs (`target_pfa`, ...).
-    pub fn sampled(decks: &'a str, duration_s: f64) -> Self {
+    /// A kind that samples fault-free trials, onsets and noise ranges with any sampler, calibrates its
+    /// thresholds if `calibrates` says so, and has no parameter errors; a kind changes what differs.
+    pub fn sampled(decks: &'a str, duration_s: f64, calibrates: bool) -> Self {
         MonteCarloRules {
             decks,
             duration_s,
             fault_free_fraction: true,
             sampler: true,
-            target_pfa: false,
+            target_pfa: calibrates,
             onset_s: true,
             noise_ranges: true,
             parameter_errors: None,
@@ -634,7 +645,6 @@ impl Validator<'_> {
     /// fault-free ones, random sampling, target Pfa 0.01, onset at a third of the trial, nominal noise),
     /// then hands the kind its own fields (`None` without the section) and each parameter error's own
     /// fields (`what`, given the error's TOML path and its table without the shared keys).
-    #[allow(clippy::type_complexity)]
     pub fn monte_carlo<T: serde::de::DeserializeOwned, P>(
         &self,
         section: Option<MonteCarloSection>,
@@ -647,7 +657,7 @@ impl Validator<'_> {
                 trials: 1000,
                 fault_free_fraction: 0.0,
                 sampler: Sampler::Random,
-                target_pfa: 0.01,
+                target_pfa: if rules.target_pfa { 0.01 } else { 0.0 },
                 onset_s: Factor::Fixed(duration_s / 3.0),
                 noise_scale: Factor::Fixed(1.0),
                 design: None,
@@ -670,8 +680,9 @@ impl Validator<'_> {
         let fault_free_fraction =
             self.fraction("monte_carlo.fault_free_fraction", mc.fault_free_fraction.unwrap_or(0.0))?;
         let sampler = self.sampler("monte_carlo.sampler", mc.sampler.as_deref())?;
-        let target_pfa = mc.target_pfa.unwrap_or(0.01);
-        if !(target_pfa > 0.0 && target_pfa < 1.0) {
+        // 0: the kind calibrates no threshold (as manifest.json says it).
+        let target_pfa = if rules.target_pfa { mc.target_pfa.unwrap_or(0.01) } else { 0.0 };
+        if rules.target_pfa && !(target_pfa > 0.0 && target_pfa < 1.0) {
             return Err(self.err("monte_carlo.target_pfa", format!("allowed 0 < p < 1, got {target_pfa}")));
         }
         let onset_s = self.factor("monte_carlo.onset_s", mc.onset_s.as_ref(), Factor::Fixed(duration_s / 3.0))?;

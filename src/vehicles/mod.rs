@@ -1,0 +1,6 @@
+//! Airframes more than one method flies: blocks, not a method's property.
+//!
+//! - [`aerosonde`]: the Aerosonde UAV's 6-DoF model with actuators and autopilot, the truth of the
+//!   control-surface study (seed 004) and of the air-data study's high-fidelity truth (seed 002).
+
+pub mod aerosonde;
