@@ -90,8 +90,8 @@ impl PlainLoop {
             bd: SMatrix::from_iterator(truth.Bd.iter().copied()),
             c: SMatrix::from_iterator(truth.C.iter().copied()),
             g: SMatrix::from_iterator(study.output_feedback.iter().copied()),
-            filter_ad: SMatrix::from_iterator(filter.Ad.iter().copied()),
-            filter_bd: SMatrix::from_iterator(filter.Bd.iter().copied()),
+            filter_ad: SMatrix::from_iterator(filter.model.Ad.iter().copied()),
+            filter_bd: SMatrix::from_iterator(filter.model.Bd.iter().copied()),
             filter_k: SMatrix::from_iterator(filter.discrete.K.iter().copied()),
             sigma: SVector::from_iterator(study.sensor_sigma.iter().copied()),
         }

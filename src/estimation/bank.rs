@@ -167,6 +167,62 @@ pub enum Decision {
     Cleared(usize),
 }
 
+/// The decision numbers of a bank of model probabilities: the floor every probability keeps, the level
+/// a fault model's probability must stay above for `declare_hold_s` to be declared, the level below
+/// which a declaration clears. The surface banks (seed 004) and the air-data dual UKF (which borrows
+/// seed 004's numbers) share them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DecisionLevels {
+    pub probability_floor: f64,
+    pub declare_probability: f64,
+    pub clear_probability: f64,
+    /// A fault model's probability must stay above `declare_probability` this long (s).
+    pub declare_hold_s: f64,
+}
+
+impl DecisionLevels {
+    /// Seed 004's: floor 0.001, declare at 0.9 held 0.1 s, clear below 0.05.
+    pub fn seed() -> Self {
+        DecisionLevels {
+            probability_floor: 0.001,
+            declare_probability: 0.9,
+            clear_probability: 0.05,
+            declare_hold_s: 0.1,
+        }
+    }
+
+    /// Checks the numbers for a bank of `models` probabilities: the offending field, its value and what
+    /// is allowed.
+    pub fn check(&self, models: usize) -> Result<(), (&'static str, f64, &'static str)> {
+        if !(self.declare_hold_s >= 0.0 && self.declare_hold_s.is_finite()) {
+            return Err(("declare_hold_s", self.declare_hold_s, "non-negative and finite"));
+        }
+        let floor = self.probability_floor;
+        if !(floor > 0.0 && floor * models as f64 <= 1.0) {
+            return Err(("probability_floor", floor, "positive, at most 1 / the number of models"));
+        }
+        if !(0.0 < self.clear_probability && self.clear_probability < self.declare_probability) {
+            return Err(("clear_probability", self.clear_probability, "in (0, declare_probability)"));
+        }
+        if !(self.declare_probability < 1.0 && self.declare_probability.is_finite()) {
+            return Err(("declare_probability", self.declare_probability, "below 1"));
+        }
+        Ok(())
+    }
+
+    /// The declare/clear rule at the sample period `dt_s`, a declaration clearing once the probability has
+    /// stayed below `clear_probability` for `clear_hold_s` (0: the first sample below).
+    pub fn rule(&self, clear_hold_s: f64, dt_s: f64) -> DeclareClear {
+        DeclareClear::with_holds_s(
+            self.declare_probability,
+            self.clear_probability,
+            self.declare_hold_s,
+            clear_hold_s,
+            dt_s,
+        )
+    }
+}
+
 impl DeclareClear {
     pub fn new(declare: f64, clear: f64, hold_steps: u32, clear_hold_steps: u32) -> Self {
         assert!(0.0 < clear && clear < declare && declare < 1.0);

@@ -4,7 +4,7 @@
 //! score, the statistic over its threshold, so the detector alarms at threshold scale `s` when a score
 //! exceeds `s`).
 //!
-//! **Importance sampling on the sensor noise** ([`importance_adaptive`]), for statistics without
+//! **Importance sampling on the sensor noise** ([`Importance::adaptive`]), for statistics without
 //! memory (the seed's `|residual|`, a one-sample chi-square test). Each trial picks a sample `tau`
 //! and a pair from a mixture: a component of the sample's `m` sensor draws (one draw `j`, or all of
 //! them) and a tail probability `P` (half decades, 1e-1 to 1e-24); it takes that component from the
@@ -526,57 +526,71 @@ pub struct ImportanceTotals {
     pub contributions: Vec<Vec<f64>>,
 }
 
-/// Importance sampling over `trials` with the mixture `mix`, in chunks: each chunk's index and totals,
-/// in order. Chunk boundaries are multiples of [`IMPORTANCE_CHUNK`] from trial 0, so any split of a
-/// range at such multiples (a shard) gives the same chunks.
-pub fn importance_chunks<M: RareEventModel>(
-    model: &M,
-    seed: u64,
-    trials: std::ops::Range<u64>,
-    mix: &Mixture,
-    levels: &[f64],
-    progress: &(dyn Fn(u64) + Sync),
-) -> Vec<(u64, ImportanceTotals)> {
-    let first_chunk = trials.start / IMPORTANCE_CHUNK;
-    let last_chunk = trials.end.div_ceil(IMPORTANCE_CHUNK);
-    (first_chunk..last_chunk)
-        .into_par_iter()
-        .map(|ch| {
-            let (a, b) = ((ch * IMPORTANCE_CHUNK).max(trials.start), ((ch + 1) * IMPORTANCE_CHUNK).min(trials.end));
-            let mut out = ImportanceTotals::empty(levels.len(), mix.weights.len());
-            let mut y = vec![0.0; levels.len()];
-            let mut scratch = TrialScratch::default();
-            for t in a..b {
-                importance_trial(model, seed, t, mix, levels, &mut y, &mut scratch);
-                for (l, v) in y.iter().enumerate() {
-                    out.levels[l].add(*v);
-                    if *v > 0.0 {
-                        for (c, share) in out.contributions[l].iter_mut().zip(&scratch.pair_share) {
-                            *c += v * v * share;
+/// Importance sampling of `model`'s fault-free trials of a study seeded `seed`, at the threshold scales
+/// `levels`, reporting finished trials to `progress`: what every run of it shares.
+pub struct Importance<'a, M> {
+    pub model: &'a M,
+    pub seed: u64,
+    pub levels: &'a [f64],
+    pub progress: &'a (dyn Fn(u64) + Sync),
+}
+
+impl<M: RareEventModel> Importance<'_, M> {
+    /// Importance sampling over `trials` with the mixture `mix`, in chunks: each chunk's index and
+    /// totals, in order. Chunk boundaries are multiples of [`IMPORTANCE_CHUNK`] from trial 0, so any split
+    /// of a range at such multiples (a shard) gives the same chunks.
+    pub fn chunks(&self, trials: std::ops::Range<u64>, mix: &Mixture) -> Vec<(u64, ImportanceTotals)> {
+        let (model, seed, levels) = (self.model, self.seed, self.levels);
+        let first_chunk = trials.start / IMPORTANCE_CHUNK;
+        let last_chunk = trials.end.div_ceil(IMPORTANCE_CHUNK);
+        (first_chunk..last_chunk)
+            .into_par_iter()
+            .map(|ch| {
+                let (a, b) = ((ch * IMPORTANCE_CHUNK).max(trials.start), ((ch + 1) * IMPORTANCE_CHUNK).min(trials.end));
+                let mut out = ImportanceTotals::empty(levels.len(), mix.weights.len());
+                let mut y = vec![0.0; levels.len()];
+                let mut scratch = TrialScratch::default();
+                for t in a..b {
+                    importance_trial(model, seed, t, mix, levels, &mut y, &mut scratch);
+                    for (l, v) in y.iter().enumerate() {
+                        out.levels[l].add(*v);
+                        if *v > 0.0 {
+                            for (c, share) in out.contributions[l].iter_mut().zip(&scratch.pair_share) {
+                                *c += v * v * share;
+                            }
                         }
                     }
                 }
-            }
-            progress(b - a);
-            (ch, out)
-        })
-        .collect()
-}
-
-/// [`importance_chunks`] merged in chunk order (the same totals for any thread count).
-pub fn importance<M: RareEventModel>(
-    model: &M,
-    seed: u64,
-    trials: std::ops::Range<u64>,
-    mix: &Mixture,
-    levels: &[f64],
-    progress: &(dyn Fn(u64) + Sync),
-) -> ImportanceTotals {
-    let mut out = ImportanceTotals::empty(levels.len(), mix.weights.len());
-    for (_, ch) in importance_chunks(model, seed, trials, mix, levels, progress) {
-        out.merge(&ch);
+                (self.progress)(b - a);
+                (ch, out)
+            })
+            .collect()
     }
-    out
+
+    /// [`Importance::chunks`] merged in chunk order (the same totals for any thread count).
+    pub fn run(&self, trials: std::ops::Range<u64>, mix: &Mixture) -> ImportanceTotals {
+        let mut out = ImportanceTotals::empty(self.levels.len(), mix.weights.len());
+        for (_, ch) in self.chunks(trials, mix) {
+            out.merge(&ch);
+        }
+        out
+    }
+
+    /// The pilot ([`pilot_trials`] of `trials`, every pair of `tails` alike) and the mixture it sets:
+    /// the pairs weighted by one variance-minimising step ([`Mixture::adapted`]).
+    pub fn pilot(&self, trials: u64, tails: &[f64]) -> Mixture {
+        let uniform = Mixture::uniform(tails, self.model.noise_draws());
+        let first = self.run(0..pilot_trials(trials), &uniform);
+        first.shares().map_or(uniform.clone(), |s| uniform.adapted(&s))
+    }
+
+    /// As `fdimc rare-event` runs it: the pilot, then the rest of `trials` with the pilot's mixture. The
+    /// estimate is the rest's alone (unbiased for the weights the pilot fixed); the pilot's samples count
+    /// in the cost. Returns the rest's totals and the mixture.
+    pub fn adaptive(&self, trials: u64, tails: &[f64]) -> (ImportanceTotals, Mixture) {
+        let mix = self.pilot(trials, tails);
+        (self.run(pilot_trials(trials)..trials, &mix), mix)
+    }
 }
 
 impl ImportanceTotals {
@@ -614,36 +628,6 @@ impl ImportanceTotals {
 /// The trials of importance sampling's pilot among `trials`: the first fifth.
 pub fn pilot_trials(trials: u64) -> u64 {
     (trials / 5).max(1)
-}
-
-/// Importance sampling's pilot ([`pilot_trials`] trials with every pair alike) and the mixture it
-/// sets: the pairs weighted by one variance-minimising step ([`Mixture::adapted`]).
-pub fn pilot_mixture<M: RareEventModel>(
-    model: &M,
-    seed: u64,
-    trials: u64,
-    tails: &[f64],
-    levels: &[f64],
-    progress: &(dyn Fn(u64) + Sync),
-) -> Mixture {
-    let uniform = Mixture::uniform(tails, model.noise_draws());
-    let first = importance(model, seed, 0..pilot_trials(trials), &uniform, levels, progress);
-    first.shares().map_or(uniform.clone(), |s| uniform.adapted(&s))
-}
-
-/// Importance sampling as `fdimc rare-event` runs it: the pilot, then the rest of `trials` with the
-/// pilot's mixture. The estimate is the rest's alone (unbiased for the weights the pilot fixed); the
-/// pilot's samples count in the cost. Returns the rest's totals and the mixture.
-pub fn importance_adaptive<M: RareEventModel>(
-    model: &M,
-    seed: u64,
-    trials: u64,
-    tails: &[f64],
-    levels: &[f64],
-    progress: &(dyn Fn(u64) + Sync),
-) -> (ImportanceTotals, Mixture) {
-    let mix = pilot_mixture(model, seed, trials, tails, levels, progress);
-    (importance(model, seed, pilot_trials(trials)..trials, &mix, levels, progress), mix)
 }
 
 #[cfg(test)]
@@ -714,7 +698,8 @@ mod tests {
     fn importance_sampling_recovers_white_noise_maxima_five_decades_down() {
         let model = Gaussian { steps: 100, seed: 7, rho: 0.0 };
         let levels = [3.0, 4.5, 5.5];
-        let (totals, mix) = importance_adaptive(&model, 7, 20_000, &default_tails(), &levels, &|_| {});
+        let run = Importance { model: &model, seed: 7, levels: &levels, progress: &|_| {} };
+        let (totals, mix) = run.adaptive(20_000, &default_tails());
         for (l, &level) in levels.iter().enumerate() {
             let e = Combined::new(level, &totals.levels[l]);
             let truth = white_exact(level, 100);
@@ -733,10 +718,10 @@ mod tests {
             mix.weights.iter().zip(&mix.tails).filter(|(_, p)| (1e-8..=1e-4).contains(*p)).map(|(w, _)| w).sum();
         assert!(used > 0.5, "{mix:?}");
         // Thread count and chunking do not change the totals: a split at a chunk boundary merges back.
-        let mut merged = importance(&model, 7, 4_000..5_120, &mix, &levels, &|_| {});
-        merged.merge(&importance(&model, 7, 5_120..20_000, &mix, &levels, &|_| {}));
+        let mut merged = run.run(4_000..5_120, &mix);
+        merged.merge(&run.run(5_120..20_000, &mix));
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        let single = one.install(|| importance(&model, 7, 4_000..20_000, &mix, &levels, &|_| {}));
+        let single = one.install(|| run.run(4_000..20_000, &mix));
         assert_eq!(totals, single);
         assert_eq!(totals.levels[2].units, merged.levels[2].units);
         assert_eq!(totals.levels[2].hits, merged.levels[2].hits);

@@ -14,8 +14,8 @@ use polars::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::engine::rare_event::estimators::{
-    Combined, IMPORTANCE_CHUNK, RareEventModel, SplitOptions, Totals, default_tails, importance_chunks, pilot_mixture,
-    pilot_trials, splitting,
+    Combined, IMPORTANCE_CHUNK, Importance, RareEventModel, SplitOptions, Totals, default_tails, pilot_trials,
+    splitting,
 };
 use crate::engine::run::runner::{RunError, Shard, pol, read_record, write_atomically};
 
@@ -118,8 +118,9 @@ pub fn estimate_parts<M: RareEventModel>(model: &M, name: &str, seed: u64, opts:
             let trials = ((first + a) * IMPORTANCE_CHUNK).max(pilot)..((first + b) * IMPORTANCE_CHUNK).min(opts.trials);
             let bar =
                 crate::engine::run::progress::Progress::new(name, pilot + (trials.end - trials.start), !opts.quiet);
-            let mix = pilot_mixture(model, seed, opts.trials, &default_tails(), &opts.levels, &|k| bar.inc(k));
-            let chunks = importance_chunks(model, seed, trials.clone(), &mix, &opts.levels, &|k| bar.inc(k));
+            let run = Importance { model, seed, levels: &opts.levels, progress: &|k| bar.inc(k) };
+            let mix = run.pilot(opts.trials, &default_tails());
+            let chunks = run.chunks(trials.clone(), &mix);
             bar.finish();
             if !opts.quiet {
                 eprintln!("{name}: {}", mix.describe());

@@ -67,9 +67,9 @@ pub fn validate(study: &AirDataStudy) -> Result<(), RunError> {
                     q.isolation_window as u32,
                     q.false_alarm_probability
                 ),
-                q.declare_probability,
-                q.declare_hold_s,
-                q.clear_probability,
+                q.levels.declare_probability,
+                q.levels.declare_hold_s,
+                q.levels.clear_probability,
                 if q.keep_significant_biases {
                     "faulty set kept while its bias is significant (Wald test, not the patent's)"
                 } else {

@@ -82,7 +82,7 @@
 use nalgebra::{SMatrix, SVector, Vector3};
 use thiserror::Error;
 
-use crate::estimation::bank::{Decision, DeclareClear};
+use crate::estimation::bank::{Decision, DecisionLevels, DeclareClear};
 use crate::estimation::stekf::central_difference;
 use crate::estimation::ukf::{SigmaModel, SigmaPoints, Ukf, UkfError, UkfHealth, UnscentedParams};
 use crate::estimation::{DiscreteModel, Innovation, LikelihoodForm, ModelProbabilities};
@@ -111,11 +111,8 @@ pub struct DualUkfParams {
     pub initial_bias_std: [f64; COMPONENTS],
     /// Prior probability of the fault model.
     pub prior_fault_probability: f64,
-    pub probability_floor: f64,
-    pub declare_probability: f64,
-    pub clear_probability: f64,
-    /// The fault model's probability must stay above `declare_probability` this long (s).
-    pub declare_hold_s: f64,
+    /// Floor, declaration (with its hold) and clearance of the fault model's probability.
+    pub levels: DecisionLevels,
     /// Allowed false-alarm probability of one component's isolation test.
     pub false_alarm_probability: f64,
     /// Samples summed in the isolation statistic (1: the patent's per-sample test).
@@ -150,10 +147,7 @@ impl DualUkfParams {
             bias_random_walk_per_sqrt_s: [0.01, 0.01f64.to_radians(), 0.01f64.to_radians()],
             initial_bias_std: [3.0, 2f64.to_radians(), 2f64.to_radians()],
             prior_fault_probability: 0.01,
-            probability_floor: 0.001,
-            declare_probability: 0.9,
-            clear_probability: 0.05,
-            declare_hold_s: 0.1,
+            levels: DecisionLevels::seed(),
             false_alarm_probability: 0.001,
             isolation_window: 1,
             keep_significant_biases: false,
@@ -186,25 +180,17 @@ impl DualUkfParams {
             ("noise.accelerometer_std_mps2", n.accelerometer_std_mps2),
             ("noise.attitude_std_rad", n.attitude_std_rad),
             ("velocity_random_walk_mps_per_sqrt_s", self.velocity_random_walk_mps_per_sqrt_s),
-            ("declare_hold_s", self.declare_hold_s),
         ] {
             if !(value >= 0.0 && value.is_finite()) {
                 return bad(field, value, "non-negative and finite");
             }
         }
-        let floor = self.probability_floor;
-        if !(floor > 0.0 && floor * MODELS as f64 <= 1.0) {
-            return bad("probability_floor", floor, "in (0, 0.5]");
+        if let Err((field, value, requirement)) = self.levels.check(MODELS) {
+            return bad(field, value, requirement);
         }
-        let prior = self.prior_fault_probability;
+        let (prior, floor) = (self.prior_fault_probability, self.levels.probability_floor);
         if !(prior >= floor && 1.0 - prior >= floor) {
             return bad("prior_fault_probability", prior, "in [floor, 1 - floor]");
-        }
-        if !(0.0 < self.clear_probability && self.clear_probability < self.declare_probability) {
-            return bad("clear_probability", self.clear_probability, "in (0, declare_probability)");
-        }
-        if !(self.declare_probability < 1.0 && self.declare_probability.is_finite()) {
-            return bad("declare_probability", self.declare_probability, "below 1");
         }
         let pfa = self.false_alarm_probability;
         if !(pfa > 0.0 && pfa < 1.0) {
@@ -410,15 +396,9 @@ impl DualUkf {
             dt_s,
             no_fault,
             fault,
-            probabilities: ModelProbabilities::new([1.0 - prior, prior], params.probability_floor),
+            probabilities: ModelProbabilities::new([1.0 - prior, prior], params.levels.probability_floor),
             // Cleared at the first sample below the lower level: the patent names no clearing hold.
-            rule: DeclareClear::with_holds_s(
-                params.declare_probability,
-                params.clear_probability,
-                params.declare_hold_s,
-                0.0,
-                dt_s,
-            ),
+            rule: params.levels.rule(0.0, dt_s),
             history: vec![[0.0; COMPONENTS]; params.isolation_window],
             thresholds,
             history_next: 0,
@@ -569,7 +549,7 @@ impl DualUkf {
         let fault_model_bias = self.bias_estimate();
         // The patent judges the fault from the model probabilities at each step; the hold of the
         // declaration is for the alarm only (module docs, step 4).
-        let fault_present = fault_declared || probabilities[1] > self.params.declare_probability;
+        let fault_present = fault_declared || probabilities[1] > self.params.levels.declare_probability;
         if fault_present {
             self.reinitialise_both(&isolated);
         } else {
@@ -1111,7 +1091,7 @@ mod tests {
             let (x_f, P_f) = (f.state(), f.covariance());
             let velocity_f = x_f.fixed_rows::<3>(0).into_owned();
             let block_f = P_f.fixed_view::<3, 3>(0, 0).into_owned();
-            let present = step.fault_declared || step.probabilities[1] > params.declare_probability;
+            let present = step.fault_declared || step.probabilities[1] > params.levels.declare_probability;
             assert_eq!(step.both_reinitialised, present);
             match (&mut lone, previous) {
                 (None, _) => lone = Some(nf.clone()),
@@ -1274,13 +1254,13 @@ mod tests {
             DualUkf::new(&p, 0.01).unwrap_err()
         };
         for error in [
-            invalid(&|p| p.probability_floor = 0.0),
+            invalid(&|p| p.levels.probability_floor = 0.0),
             invalid(&|p| p.prior_fault_probability = 0.0001),
-            invalid(&|p| p.clear_probability = 0.95),
+            invalid(&|p| p.levels.clear_probability = 0.95),
             invalid(&|p| p.false_alarm_probability = 1.0),
             invalid(&|p| p.isolation_window = 0),
             invalid(&|p| p.noise.alpha_std_rad = 0.0),
-            invalid(&|p| p.declare_hold_s = f64::NAN),
+            invalid(&|p| p.levels.declare_hold_s = f64::NAN),
         ] {
             assert!(matches!(error, DualUkfError::InvalidParameter { .. }), "{error}");
         }

@@ -326,16 +326,9 @@ impl FromDeck for AirDataStudy {
                     crate::take_given!(
                         p,
                         d,
-                        [
-                            false_alarm_probability,
-                            isolation_window,
-                            declare_probability,
-                            clear_probability,
-                            declare_hold_s,
-                            prior_fault_probability,
-                            keep_significant_biases
-                        ]
+                        [false_alarm_probability, isolation_window, prior_fault_probability, keep_significant_biases]
                     );
+                    crate::take_given!(p.levels, d, [declare_probability, clear_probability, declare_hold_s]);
                     // The building blocks name the offending parameter; the deck adds the file and the table.
                     p.validate().map_err(|e| v.err(format!("detector[{i}]"), e.to_string()))?;
                     DetectorKind::DualUkf(p)

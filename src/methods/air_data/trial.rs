@@ -502,7 +502,11 @@ mod tests {
         }
         assert_eq!(before, 2000);
         assert_eq!((following_before, following_after), ([0, 2000, 2000], [0, 4000, 111]));
-        let other = DualUkfParams { declare_probability: 0.5 * seed.declare_probability, ..seed.clone() };
+        let levels = crate::estimation::bank::DecisionLevels {
+            declare_probability: 0.5 * seed.levels.declare_probability,
+            ..seed.levels
+        };
+        let other = DualUkfParams { levels, ..seed.clone() };
         let other = DualUkf::new(&other, flight_dt_s).unwrap();
         assert!(alone[2].filters_like(&alone[0]) && !other.filters_like(&alone[0]));
     }

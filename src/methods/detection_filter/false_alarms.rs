@@ -94,9 +94,9 @@ pub fn for_detector(
         return Err(format!("the test is {} (computed for the |residual| test)", filter.decision.describe()));
     }
     Ok(analytic_false_alarms(
-        &filter.Ad,
+        &filter.model.Ad,
         &filter.discrete.K,
-        &filter.C,
+        &filter.model.C,
         &(&study.sensor_sigma * scale),
         &study.process_sigma_per_step,
         thresholds,

@@ -24,7 +24,7 @@ use super::decision::Decision;
 use super::deck::DetectorSection;
 use crate::design::{Assignment, DesignError, Domain, assign_eigenstructure};
 use crate::engine::scenario::deck::{DeckError, Validator};
-use crate::lti::LtiPlant;
+use crate::lti::{DiscreteLti, LtiPlant};
 
 /// A detector of an LTI deck: how its gain is designed, the test its residual meets and how it
 /// isolates. `kind = "detection_filter"` is the seed's (this file); `cusum.rs` and `kalman_chi2.rs`
@@ -81,10 +81,8 @@ pub enum Isolation {
 /// A designed detection filter (`sim::FilterStep` runs it). If it exists, its gains exist and are stable.
 #[derive(Debug, Clone)]
 pub struct DetectionFilter {
-    pub Ad: DMatrix<f64>,
-    pub Bd: DMatrix<f64>,
-    pub C: DMatrix<f64>,
-    pub D: DMatrix<f64>,
+    /// The sampled design model the filter runs: `Ad`, `Bd`, `C`, `D`.
+    pub model: DiscreteLti,
     /// Continuous-time design (the seed's `K`), for reports; `None` for a design with none (Kalman).
     pub continuous: Option<Assignment>,
     /// Discrete-time design; `discrete.K` is the gain the filter runs.
@@ -114,28 +112,8 @@ impl DetectionFilterParams {
         let z: Vec<f64> = eigenvalues_per_s.iter().map(|l| (l * dt_s).exp()).collect();
         let discrete = assign_eigenstructure(&sampled.Ad, &sampled.C, F, &z, Domain::Discrete)?;
 
-        let n = design.n_states();
-        let m = design.n_outputs();
-        let phi = &sampled.Ad - &discrete.K * &sampled.C;
-        let i_minus_phi = DMatrix::identity(n, n) - phi;
-        let solved =
-            i_minus_phi.lu().solve(&discrete.K).ok_or(DesignError::Decomposition { what: "LU of I - (Ad - Kd C)" })?;
-        let signatures = DMatrix::identity(m, m) - &sampled.C * solved;
-
-        Ok(DetectionFilter {
-            Ad: sampled.Ad,
-            Bd: sampled.Bd,
-            C: sampled.C,
-            D: sampled.D,
-            continuous: Some(continuous),
-            discrete,
-            signatures,
-            thresholds: self.thresholds.clone(),
-            decision: self.decision.clone().unwrap_or_else(Decision::absolute),
-            isolation_scale: self.thresholds.clone(),
-            isolation_delay_s: self.isolation_delay_s,
-            isolation_window_s: self.isolation_window_s,
-        })
+        let decision = self.decision.clone().unwrap_or_else(Decision::absolute);
+        DetectionFilter::new(sampled, Some(continuous), discrete, self, decision, self.thresholds.clone())
     }
 
     /// The deck's `kind` of the detector.
@@ -264,7 +242,44 @@ pub(crate) fn read_eigenstructure_filter(
     })
 }
 
+/// Steady-state residual per unit bias on each output (column j) of a filter running the gain `K` on
+/// `model`: `S = I - C (I - (Ad - K C))^-1 K` (module docs). Every gain design's filter has them.
+pub fn bias_signatures(model: &DiscreteLti, K: &DMatrix<f64>) -> Result<DMatrix<f64>, DesignError> {
+    let (n, m) = (model.Ad.nrows(), model.C.nrows());
+    let phi = &model.Ad - K * &model.C;
+    let solved = (DMatrix::identity(n, n) - phi)
+        .lu()
+        .solve(K)
+        .ok_or(DesignError::Decomposition { what: "LU of I - (Ad - K C)" })?;
+    Ok(DMatrix::identity(m, m) - &model.C * solved)
+}
+
 impl DetectionFilter {
+    /// The filter running `discrete.K` on the sampled design model `model`, with its bias signatures; its
+    /// thresholds and isolation window from `params`, its test `decision`, isolation dividing by
+    /// `isolation_scale`. What every gain design ends with.
+    pub fn new(
+        model: DiscreteLti,
+        continuous: Option<Assignment>,
+        discrete: Assignment,
+        params: &DetectionFilterParams,
+        decision: Decision,
+        isolation_scale: DVector<f64>,
+    ) -> Result<DetectionFilter, DesignError> {
+        let signatures = bias_signatures(&model, &discrete.K)?;
+        Ok(DetectionFilter {
+            model,
+            continuous,
+            discrete,
+            signatures,
+            thresholds: params.thresholds.clone(),
+            decision,
+            isolation_scale,
+            isolation_delay_s: params.isolation_delay_s,
+            isolation_window_s: params.isolation_window_s,
+        })
+    }
+
     /// Output whose scaled residual is largest (threshold-scaled; innovation-normalised for a Kalman
     /// filter).
     pub fn isolate_by_max(&self, mean_residual: &DVector<f64>) -> usize {

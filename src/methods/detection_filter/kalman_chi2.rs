@@ -51,28 +51,10 @@ impl GainDesign for KalmanChi2 {
             eigenvector_condition,
             relative_residual: f64::NAN,
         };
-        let (n, m) = (design.n_states(), design.n_outputs());
-        let solved = (DMatrix::identity(n, n) - phi)
-            .lu()
-            .solve(&steady.K)
-            .ok_or(DesignError::Decomposition { what: "LU of I - (Ad - K C)" })?;
-        let signatures = DMatrix::identity(m, m) - &sampled.C * solved;
         let s_inv = steady.S.clone().try_inverse().ok_or(DesignError::Decomposition { what: "inverse of S" })?;
         let test = WindowedNis { window: self.window, s_inv, false_alarm_probability: self.false_alarm_probability };
-        Ok(DetectionFilter {
-            Ad: sampled.Ad,
-            Bd: sampled.Bd,
-            C: sampled.C,
-            D: sampled.D,
-            continuous: None,
-            discrete,
-            signatures,
-            thresholds: params.thresholds.clone(),
-            decision: Decision::new(test),
-            isolation_scale: steady.S.diagonal().map(f64::sqrt),
-            isolation_delay_s: params.isolation_delay_s,
-            isolation_window_s: params.isolation_window_s,
-        })
+        let isolation_scale = steady.S.diagonal().map(f64::sqrt);
+        DetectionFilter::new(sampled, None, discrete, params, Decision::new(test), isolation_scale)
     }
 
     fn describe(&self) -> String {

@@ -259,8 +259,8 @@ impl FilterPatterns {
             _ => Pattern::full(rows, cols),
         };
         FilterPatterns {
-            ad: of(nominal.map(|f| &f.Ad), n, n),
-            bd: of(nominal.map(|f| &f.Bd), n, m),
+            ad: of(nominal.map(|f| &f.model.Ad), n, n),
+            bd: of(nominal.map(|f| &f.model.Bd), n, m),
             k: of(nominal.map(|f| &f.discrete.K), n, p),
             c: Pattern::nonzeros(&design_plant.C),
             d: Pattern::nonzeros(&design_plant.D),
@@ -391,12 +391,16 @@ impl<E: Element> Filter<E> {
         Filter {
             n,
             nu,
-            residual: Product::new(ny, &[block(0, &p.c, -1.0, |f| &f.C), block(n, &p.d, -1.0, |f| &f.D)], designs),
+            residual: Product::new(
+                ny,
+                &[block(0, &p.c, -1.0, |f| &f.model.C), block(n, &p.d, -1.0, |f| &f.model.D)],
+                designs,
+            ),
             advance: Product::new(
                 n,
                 &[
-                    block(0, &p.ad, 1.0, |f| &f.Ad),
-                    block(n, &p.bd, 1.0, |f| &f.Bd),
+                    block(0, &p.ad, 1.0, |f| &f.model.Ad),
+                    block(n, &p.bd, 1.0, |f| &f.model.Bd),
                     block(n + nu, &p.k, 1.0, |f| &f.discrete.K),
                 ],
                 designs,

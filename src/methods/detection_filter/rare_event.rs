@@ -254,7 +254,7 @@ impl TestState for Never {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::rare_event::estimators::{Combined, default_tails, importance_adaptive};
+    use crate::engine::rare_event::estimators::{Combined, Importance, default_tails};
     use crate::engine::scenario::deck::FromDeck;
     use crate::engine::stats::tail::{TailFit, exceedances_for};
     use std::path::Path;
@@ -321,7 +321,8 @@ mod tests {
             let exact = super::super::false_alarms::for_detector(&study, filter, filter.thresholds.as_slice()).unwrap();
             assert!(exact.upper() / exact.lower < 1.001, "{exact:?}");
             let model = FaultFreeTrials::new(&study, d, false).unwrap();
-            let (totals, _) = importance_adaptive(&model, study.header.seed, 20_000, &default_tails(), &[1.0], &|_| {});
+            let (totals, _) = Importance { model: &model, seed: study.header.seed, levels: &[1.0], progress: &|_| {} }
+                .adaptive(20_000, &default_tails());
             let e = Combined::new(1.0, &totals.levels[0]);
             assert!(e.low <= exact.upper() && exact.lower <= e.high, "detector {d}: {e:?} vs {exact:?}");
             assert!(e.relative_half_width < 0.15, "{e:?}");
@@ -338,7 +339,8 @@ mod tests {
         let study = LtiStudy::from_toml(CUSUM, Path::new("studies/seed000_rare_cusum.toml")).unwrap();
         let model = FaultFreeTrials::new(&study, 0, true).unwrap();
         let levels = [3.0, 4.0];
-        let (totals, _) = importance_adaptive(&model, study.header.seed, 20_000, &default_tails(), &levels, &|_| {});
+        let (totals, _) = Importance { model: &model, seed: study.header.seed, levels: &levels, progress: &|_| {} }
+            .adaptive(20_000, &default_tails());
         let opts = crate::engine::rare_event::estimators::SplitOptions {
             seed: study.header.seed,
             particles: 100,
@@ -370,7 +372,8 @@ mod tests {
         let exact = -(1000.0 * (-1e-10f64).ln_1p()).exp_m1();
         let model = FaultFreeTrials::new(&study, 0, true).unwrap();
         // 20,000 trials' worth of samples: importance sampling within 25 %, its interval holding it.
-        let (totals, _) = importance_adaptive(&model, study.header.seed, 20_000, &default_tails(), &[1.0], &|_| {});
+        let (totals, _) = Importance { model: &model, seed: study.header.seed, levels: &[1.0], progress: &|_| {} }
+            .adaptive(20_000, &default_tails());
         let e = Combined::new(1.0, &totals.levels[0]);
         assert!(e.low <= exact && exact <= e.high, "{e:?} vs {exact:e}");
         assert!((e.estimate / exact - 1.0).abs() <= 0.25 && e.relative_half_width <= 0.25, "{e:?} vs {exact:e}");

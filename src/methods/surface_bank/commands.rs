@@ -135,10 +135,10 @@ pub fn simulate(study: &SurfaceStudy, trial: u64, detector: Option<&str>, out: &
         for ((bank, _), r) in banks.iter().zip(rows) {
             for m in 0..MODELS {
                 let model = if m == 0 { "no_fault" } else { SURFACE_NAMES[m - 1] };
-                row.float(|| format!("{bank}_p_{model}"), r.probabilities[m]);
+                row.float(|| format!("{bank}_p_{model}"), r.step.probabilities[m]);
             }
             for (j, name) in SURFACE_NAMES.iter().enumerate() {
-                row.float(|| format!("{bank}_{name}_estimate_rad"), r.surface_estimates_rad[j]);
+                row.float(|| format!("{bank}_{name}_estimate_rad"), r.step.surface_estimates_rad[j]);
             }
         }
         for ((bank, _), r) in banks.iter().zip(rows) {

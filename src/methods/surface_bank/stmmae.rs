@@ -36,7 +36,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use crate::dual::{Dual, Real};
-use crate::estimation::bank::{Decision, DeclareClear};
+use crate::estimation::bank::{Decision, DecisionLevels, DeclareClear};
 use crate::estimation::stekf::{FadingParams, FilterHealth, Innovation};
 use crate::estimation::{DiscreteModel, Fading, FloorRule, LikelihoodForm, ModelProbabilities, Stekf};
 use crate::vehicles::aerosonde::{
@@ -74,11 +74,8 @@ pub struct BankParams {
     pub beta: f64,
     pub a: [f64; 5],
     pub a_surface: f64,
-    pub probability_floor: f64,
-    pub declare_probability: f64,
-    pub clear_probability: f64,
-    /// A probability must stay above `declare_probability` this long before a declaration.
-    pub declare_hold_s: f64,
+    /// Floor, declaration (with its hold) and clearance of the models' probabilities.
+    pub levels: DecisionLevels,
     /// The declared model's probability must stay below `clear_probability` this long before the
     /// declaration clears (0: the first sample below).
     pub clear_hold_s: f64,
@@ -107,10 +104,7 @@ impl BankParams {
             beta: 1.0,
             a: [1.0; 5],
             a_surface: 1.0,
-            probability_floor: 0.001,
-            declare_probability: 0.9,
-            clear_probability: 0.05,
-            declare_hold_s: 0.1,
+            levels: DecisionLevels::seed(),
             clear_hold_s: 0.0,
             floor_rule: FloorRule::EveryStep,
         }
@@ -401,15 +395,9 @@ impl SurfaceBank {
     pub fn new(params: &BankParams, dt_s: f64) -> Self {
         SurfaceBank {
             likelihood: params.likelihood,
-            probabilities: ModelProbabilities::new([1.0 / MODELS as f64; MODELS], params.probability_floor)
+            probabilities: ModelProbabilities::new([1.0 / MODELS as f64; MODELS], params.levels.probability_floor)
                 .with_floor_rule(params.floor_rule),
-            rule: DeclareClear::with_holds_s(
-                params.declare_probability,
-                params.clear_probability,
-                params.declare_hold_s,
-                params.clear_hold_s,
-                dt_s,
-            ),
+            rule: params.levels.rule(params.clear_hold_s, dt_s),
         }
     }
 

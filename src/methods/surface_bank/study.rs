@@ -453,7 +453,7 @@ impl FromDeck for SurfaceStudy {
                 p.a_surface = v.at_least(&field("a_surface"), a, 1.0, "a prior weight")?;
             }
             if let Some(h) = b.declare_hold_s {
-                p.declare_hold_s = v.non_negative(&field("declare_hold_s"), h)?;
+                p.levels.declare_hold_s = v.non_negative(&field("declare_hold_s"), h)?;
             }
             if let Some(h) = b.clear_hold_s {
                 p.clear_hold_s = v.non_negative(&field("clear_hold_s"), h)?;

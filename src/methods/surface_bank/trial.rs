@@ -37,7 +37,7 @@ use crate::estimation::bank::Decision;
 use crate::estimation::stekf::FilterHealth;
 use crate::methods::surface_bank::actuator::{ActuatorFault, effective_positions, faulty_commands};
 use crate::methods::surface_bank::scenario::{SurfaceScenarioSampler, SurfaceTrialSpec};
-use crate::methods::surface_bank::stmmae::{BankFilters, BankInput, BankParams, MODELS, SurfaceBank};
+use crate::methods::surface_bank::stmmae::{BankFilters, BankInput, BankParams, BankStep, SurfaceBank};
 use crate::methods::surface_bank::study::{SensorNoise, SurfaceStudy};
 use crate::vehicles::aerosonde::{
     Actuators, AerosondeParams, Autopilot, AutopilotGains, ENVELOPE_AIRSPEED_MPS, ENVELOPE_MAX_ALPHA_DEG,
@@ -196,12 +196,10 @@ pub struct BankOutcome {
     pub floor_steps: u32,
 }
 
-/// Per-sample values of one bank, for traces.
+/// Per-sample values of one bank, for traces: its step and the model declared after it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BankTraceRow {
-    pub probabilities: [f64; MODELS],
-    pub surface_estimates_rad: [f64; SURFACES],
-    pub blended: SVector<f64, 5>,
+    pub step: BankStep,
     pub declared: Option<usize>,
 }
 
@@ -324,7 +322,7 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
                 if t >= o.end_s
                     && o.detection_delay_s.is_some()
                     && o.recovery_delay_s.is_none()
-                    && step.probabilities[0] >= banks[b].declare_probability
+                    && step.probabilities[0] >= banks[b].levels.declare_probability
                 {
                     o.recovery_delay_s = Some(t - o.end_s);
                 }
@@ -334,12 +332,7 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
                     w.error_samples += 1;
                 }
             }
-            rows.push(BankTraceRow {
-                probabilities: step.probabilities,
-                surface_estimates_rad: step.surface_estimates_rad,
-                blended: step.blended,
-                declared,
-            });
+            rows.push(BankTraceRow { step, declared });
         }
         on_sample(sample, &rows);
     })?;
