@@ -1,0 +1,367 @@
+//! The one summary of every kind of study, from `trials.parquet` without re-simulating, in memory that
+//! does not grow with the trial count: the file is read a slice at a time, every table is a set of
+//! counts (exact) and quantile sketches ([`crate::engine::stats::quantiles`]: exact to 4,096 values per group) that
+//! the slices add to, and the paired comparison forgets each trial once the next begins.
+//!
+//! Threshold sets: `deck` (the alarms, delays and isolation the trial recorded at the deck's thresholds
+//! or decision rule) and, for kinds that record a detection statistic, `calibrated` (the whole-detector
+//! thresholds of [`crate::engine::results::thresholds`], evaluated from the recorded pre-onset maxima and first-passage
+//! profiles; isolation needs the signals after the alarm, so it is the deck's only).
+//!
+//! Rates are over the units flown to the end (`failure` null): Pd is `detected / flown` in faulty
+//! groups, Pfa `false_alarms / flown`, isolation accuracy `isolated_correctly / isolation_decided`;
+//! each with its 95 % Wilson interval. Written to the results folder:
+//!
+//! | file | one row per | what |
+//! |---|---|---|
+//! | `summary.csv`, `summary.parquet` | thresholds x detector x kind x target x size bin x noise bin x parameter-error bin (x the kind's own bins) | the key columns, then `trials` (units), `failed`, `diverged`, `false_alarms`, `detected`, `missed`, `isolation_decided`, `isolated_correctly`, Pd, Pfa and isolation accuracy with intervals, delay p50/p90/p99, then the kind's own aggregates |
+//! | `curves.csv` | thresholds x detector x kind x target x size bin | the same counts and rates (noise and parameter-error bins pooled): Pd against fault size |
+//! | `min_detectable.csv` | thresholds x detector x kind x target | the smallest fault (by \|size\|, or \|factor - 1\| for gain) whose size bin has Pd >= 0.9, and whose Wilson lower bound is >= 0.9 |
+//! | `detectors.csv` | thresholds x detector | over the faulty units: Pd, isolation, delays, the kind's aggregates; over every trial once (its first unit): flights, failures, false alarms, Pfa |
+//! | `confusion.csv` | detector x truth x isolated | at the deck's thresholds: units, and their share of the truth's units (truth: the faulty target, or the kind for classifiers) |
+//! | `comparison.csv` | thresholds x pair of detectors | [`crate::engine::stats::paired`] |
+//! | `thresholds.csv` | detector x statistic (+ `all`) | kinds with a statistic: [`crate::engine::results::thresholds`] |
+//!
+//! The parts, in the order data flows: `aggregate.rs` (what the slices add to: interned names, a unit's
+//! result, a group's counts and sketches, the run's aggregates), `tables.rs` (the tables from the
+//! aggregates), `written.rs` (what was written, the settings left in `summarize.json`), `print.rs` (what
+//! the commands print) and `precision.rs` (the stopping rule of `run --precision`); this file reads the
+//! run slice by slice and writes the tables.
+
+mod aggregate;
+mod precision;
+mod print;
+mod tables;
+mod written;
+
+pub use precision::{PRECISION_RATES, PrecisionMonitor, PrecisionStatus};
+pub use print::print;
+pub use written::{CALIBRATED, SETTINGS_FILE, Settings, Summary, VALIDATION, VALIDATION_DIR};
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use polars::prelude::*;
+
+use crate::engine::results::schema::col;
+use crate::engine::results::summary_spec::{Extra, SummarySpec};
+use crate::engine::results::tables::{column_names, complete_run, slices};
+use crate::engine::results::thresholds::{Calibration, DECK, SLICE_ROWS, thresholds, write_thresholds};
+use crate::engine::run::output::write_table;
+use crate::engine::run::runner::{RunError, pol, write_parquet};
+
+use aggregate::{Aggregates, Counts};
+use tables::{
+    KeyColumns, confusion_table, detector_table, group_table, min_detectable, with_bin_edges, with_size_unit,
+};
+
+/// Reads the run in `dir`, writes the tables of the module docs and returns what `print` shows.
+/// `calibration` applies to kinds that record statistics (default: the deck's target Pfa).
+pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibration>) -> Result<Summary, RunError> {
+    let (manifest, path) = complete_run(dir)?;
+    let columns = column_names(&path)?;
+    let statistics: Vec<String> =
+        columns.iter().filter_map(|c| c.strip_prefix(col::PRE_MAX_PREFIX)).map(str::to_string).collect();
+    let mut warnings = Vec::new();
+    let thresholds = if statistics.is_empty() {
+        None
+    } else {
+        let calibration = calibration.cloned().unwrap_or(Calibration::Target(manifest.target_pfa));
+        Some(thresholds(&path, &manifest, &statistics, &calibration, &mut warnings)?)
+    };
+    let validating = matches!(calibration, Some(Calibration::File(_)));
+    let set = thresholds.as_ref().map(|_| if validating { VALIDATION } else { CALIBRATED });
+    let sets: Vec<&'static str> = [Some(DECK), set].into_iter().flatten().collect();
+    let dir_out = if validating { dir.join(VALIDATION_DIR) } else { dir.to_path_buf() };
+    std::fs::create_dir_all(&dir_out).map_err(crate::engine::run::runner::io(&dir_out))?;
+
+    // Only the columns the tables read.
+    let mut select: Vec<String> = [
+        col::TRIAL,
+        col::DETECTOR,
+        col::KIND,
+        col::TARGET,
+        col::SIZE_BIN,
+        col::ONSET_S,
+        col::FAULT_FREE,
+        col::FAILURE,
+        col::DIVERGED,
+        col::FALSE_ALARM,
+        col::DETECTED,
+        col::DELAY_S,
+        col::ISOLATED,
+        col::ISOLATED_CORRECTLY,
+        col::NOISE_BIN,
+        col::PARAM_ERROR_BIN,
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let own = spec
+        .extra_keys
+        .iter()
+        .copied()
+        .chain(spec.extras.iter().filter_map(Extra::column))
+        .chain(spec.paired_medians.iter().copied());
+    for c in own {
+        if !select.iter().any(|s| s == c) {
+            select.push(c.to_string());
+        }
+    }
+    if thresholds.is_some() {
+        for s in &statistics {
+            select.extend([col::pre_max(s), col::fp_t(s), col::fp_v(s)]);
+        }
+    }
+    for c in &select {
+        if !columns.contains(c) {
+            return Err(RunError::Invalid(format!(
+                "{}: has no column {c:?}: not a {} run of this fdimc (re-run the study)",
+                path.display(),
+                manifest.kind
+            )));
+        }
+    }
+
+    let mut agg = Aggregates::new(spec, sets.clone(), &manifest.detectors);
+    let calibrated = thresholds.as_ref().map(|(t, _)| (t.as_slice(), statistics.as_slice()));
+    for df in slices(&path, manifest.rows as usize, SLICE_ROWS, &select) {
+        agg.add_slice(&df?, &path, calibrated)?;
+    }
+
+    let mut key_names: Vec<String> =
+        ["thresholds", col::DETECTOR, col::KIND, col::TARGET, col::SIZE_BIN, col::NOISE_BIN, col::PARAM_ERROR_BIN]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+    key_names.extend(spec.extra_keys.iter().map(|s| s.to_string()));
+    let mut text = vec![true, true, true, true, false, false, false];
+    text.extend(spec.extra_keys.iter().map(|_| false));
+    let keys = KeyColumns { names: key_names, text };
+    // The detector's name in tables: its index in the key becomes its interned name.
+    let mut names = std::mem::take(&mut agg.names);
+    let detector_ids: Vec<u32> = manifest.detectors.iter().map(|d| names.id(Some(d))).collect();
+    let groups: Vec<(Vec<u64>, Counts)> = agg
+        .groups
+        .drain()
+        .map(|(mut k, c)| {
+            k[1] = detector_ids[k[1] as usize] as u64;
+            (k, c)
+        })
+        .collect();
+    let mut summary = group_table(&groups, &keys, &names, &sets, spec, true).map_err(pol(&path))?;
+
+    let mut curves_map: HashMap<Vec<u64>, Counts> = HashMap::new();
+    for (k, c) in &groups {
+        curves_map.entry(k[..5].to_vec()).or_insert_with(|| Counts::new(spec.extras.len())).merge(c);
+    }
+    let curve_groups: Vec<(Vec<u64>, Counts)> = curves_map.into_iter().collect();
+    let curve_keys = KeyColumns { names: keys.names[..5].to_vec(), text: keys.text[..5].to_vec() };
+    let mut curves = group_table(&curve_groups, &curve_keys, &names, &sets, spec, false).map_err(pol(&path))?;
+    let mut min_detectable = min_detectable(&curves, &manifest.fault_size_units).map_err(pol(&path))?;
+    for df in [&mut summary, &mut curves, &mut min_detectable] {
+        with_size_unit(df, &manifest.fault_size_units).map_err(pol(&path))?;
+    }
+    let bins = &manifest.fault_size_bins;
+    for df in [&mut summary, &mut curves] {
+        with_bin_edges(df, col::SIZE_BIN, bins).map_err(pol(&path))?;
+    }
+    for centre in ["min_size_pd90", "min_size_pd90_lower_bound"] {
+        with_bin_edges(&mut min_detectable, centre, bins).map_err(pol(&path))?;
+    }
+
+    let mut detectors = detector_table(&agg, &sets, spec).map_err(pol(&path))?;
+    let mut confusion = confusion_table(&agg, &names).map_err(pol(&path))?;
+
+    let out = |f: &str| dir_out.join(f);
+    let mut files = Vec::new();
+    let mut tails = Vec::new();
+    if let (Some((t, source)), Some(set)) = (&thresholds, set) {
+        write_thresholds(&dir_out, t, &statistics, source)?;
+        files.push("thresholds.csv");
+        tails = crate::engine::results::tails::tails(&path, &manifest, &statistics, t, set)?;
+        crate::engine::results::tails::write_tail_tables(&dir_out, &tails, &statistics)?;
+        files.extend(["tail.csv", "tail_diagnostics.csv"]);
+    }
+    write_table(&mut summary, &out("summary.csv"))?;
+    write_parquet(&mut summary, &out("summary.parquet"))?;
+    write_table(&mut curves, &out("curves.csv"))?;
+    write_table(&mut min_detectable, &out("min_detectable.csv"))?;
+    write_table(&mut detectors, &out("detectors.csv"))?;
+    write_table(&mut confusion, &out("confusion.csv"))?;
+    files.extend(crate::engine::run::output::SUMMARY_TABLES);
+    if manifest.detectors.len() > 1 {
+        let mut all: Option<DataFrame> = None;
+        for (set, pairs) in sets.iter().zip(std::mem::take(&mut agg.pairs)) {
+            let mut df = pairs.finish().map_err(pol(&path))?;
+            let height = df.height();
+            df.insert_column(0, Column::new("thresholds".into(), vec![*set; height])).map_err(pol(&path))?;
+            match &mut all {
+                Some(a) => {
+                    a.vstack_mut(&df).map_err(pol(&path))?;
+                }
+                None => all = Some(df),
+            }
+        }
+        if let Some(mut c) = all {
+            write_table(&mut c, &out("comparison.csv"))?;
+            files.push("comparison.csv");
+        }
+    }
+
+    // Failures and divergence, counted once per unit (every threshold set holds the same units).
+    let (failed, diverged) = agg.per_detector[..manifest.detectors.len()]
+        .iter()
+        .fold((0, 0), |(f, d), (units, _, _)| (f + units.failed, d + units.diverged));
+    if failed > 0 {
+        warnings.push(format!("{failed} trial x detector units were not flown to the end (failure in trials.parquet)"));
+    }
+    if diverged > 0 {
+        warnings.push(format!("{diverged} trial x detector units had a filter diverge (diverged in trials.parquet)"));
+    }
+    let settings = Settings {
+        thresholds: set.map(str::to_string),
+        target_pfa: thresholds.as_ref().and_then(|(t, _)| t.first().and_then(|t| t.target_pfa)),
+        source: thresholds.as_ref().map(|(_, s)| s.clone()),
+        warnings: warnings.clone(),
+    };
+    let json = serde_json::to_string_pretty(&settings).map_err(|e| RunError::Internal(e.to_string()))?;
+    let settings_path = out(SETTINGS_FILE);
+    crate::engine::run::runner::write_atomically(&settings_path, json.as_bytes())?;
+    files.push(SETTINGS_FILE);
+    Ok(Summary { statistics, thresholds, tails, summary, detectors, confusion, warnings, files, out_dir: dir_out, set })
+}
+
+/// Summaries of hand-made records for the kinds' tests: written, summarised and read back.
+#[cfg(test)]
+pub mod hand_made {
+    use polars::prelude::*;
+
+    use crate::engine::method::Method;
+    use crate::engine::results::summary_spec::SummarySpec;
+    use crate::engine::results::tables::read_summary;
+    use crate::engine::run::runner::{Manifest, write_parquet};
+
+    /// A results folder with `trials.parquet` from hand-made rows and the tables `summarize` wrote.
+    pub struct Summarized {
+        pub dir: tempfile::TempDir,
+        pub summary: DataFrame,
+    }
+
+    /// The manifest of a hand-made run of `method`: `trials` trials flown by `detectors`.
+    pub fn manifest(method: &Method, trials: u64, detectors: &[&str]) -> Manifest {
+        Manifest {
+            kind: method.kind.into(),
+            trials,
+            detectors: detectors.iter().map(|d| d.to_string()).collect(),
+            ..Manifest::unstarted()
+        }
+    }
+
+    impl Summarized {
+        /// [`Summarized::new`] under [`manifest`], by `method`'s summary.
+        pub fn of(records: DataFrame, method: &Method, trials: u64, detectors: &[&str]) -> Self {
+            Summarized::new(records, manifest(method, trials, detectors), &method.summary)
+        }
+
+        /// Writes `records` under `manifest` (its rows and completeness set here), summarises them by
+        /// `spec` and reads `summary.csv` back.
+        pub fn new(mut records: DataFrame, manifest: Manifest, spec: &SummarySpec) -> Self {
+            let dir = tempfile::tempdir().unwrap();
+            write_parquet(&mut records, &dir.path().join("trials.parquet")).unwrap();
+            Manifest { rows: records.height() as u64, complete: true, ..manifest }.write(dir.path()).unwrap();
+            super::summarize(dir.path(), spec, None).unwrap();
+            let summary = read_summary(&dir.path().join("summary.csv")).unwrap();
+            Summarized { dir, summary }
+        }
+
+        pub fn table(&self, name: &str) -> DataFrame {
+            read_summary(&self.dir.path().join(name)).unwrap()
+        }
+
+        fn text(&self, column: &str, i: usize) -> Option<String> {
+            self.summary.column(column).unwrap().str().unwrap().get(i).map(String::from)
+        }
+
+        /// The row of `detector` and fault kind `kind` at the deck's thresholds (one per pair in these tests).
+        pub fn row(&self, detector: &str, kind: &str) -> usize {
+            let at = |i: usize, c: &str, v: &str| self.text(c, i).as_deref() == Some(v);
+            (0..self.summary.height())
+                .find(|&i| at(i, "thresholds", "deck") && at(i, "detector", detector) && at(i, "kind", kind))
+                .unwrap_or_else(|| panic!("no row {detector}/{kind}: {}", self.summary))
+        }
+
+        pub fn count(&self, column: &str, row: usize) -> Option<u64> {
+            self.summary.column(column).unwrap().cast(&DataType::UInt64).unwrap().u64().unwrap().get(row)
+        }
+
+        pub fn value(&self, column: &str, row: usize) -> Option<f64> {
+            self.summary.column(column).unwrap().cast(&DataType::Float64).unwrap().f64().unwrap().get(row)
+        }
+
+        /// `column` at `row` is `want` to rounding (a median, an interpolated quantile).
+        pub fn assert_close(&self, column: &str, row: usize, want: f64) {
+            let got = self.value(column, row);
+            assert!(got.is_some_and(|g| (g - want).abs() < 1e-12), "{column} row {row}: {got:?}, want {want}");
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::tables::{min_detectable, with_bin_edges};
+    use super::*;
+    use crate::engine::results::schema::unit;
+    use crate::engine::scenario::deck::Factor;
+
+    /// A gain's smallest detectable fault: by `|factor - 1|` where the bins are factors (0.9 is missed,
+    /// 1.3 is nearer 1 than 0.6), by the bin itself where the bins are already deviations (the
+    /// accelerometer's: every bin detected, the smallest wins).
+    #[test]
+    fn a_gains_smallest_detectable_bin_follows_what_its_bins_are() {
+        let curves = |bins: [f64; 3], pd: [f64; 3]| {
+            df!(
+                "thresholds" => ["deck"; 3],
+                col::DETECTOR => ["d"; 3],
+                col::KIND => ["gain"; 3],
+                col::TARGET => ["x"; 3],
+                col::SIZE_BIN => bins,
+                "pd" => pd,
+                "pd_lo" => pd,
+            )
+            .unwrap()
+        };
+        let smallest = |df: &DataFrame, units: &std::collections::BTreeMap<String, String>| {
+            let m = min_detectable(df, units).unwrap();
+            m.column("min_size_pd90").unwrap().f64().unwrap().get(0)
+        };
+        let factors = curves([0.6, 0.9, 1.3], [1.0, 0.5, 1.0]);
+        let none = Default::default();
+        assert_eq!(smallest(&factors, &none), Some(1.3));
+        let deviations = curves([0.0917, 0.175, 0.2583], [1.0, 1.0, 1.0]);
+        let units = [("gain".to_string(), unit::GAIN_DEVIATION_BINS.to_string())].into();
+        assert_eq!(smallest(&deviations, &units), Some(0.0917));
+        assert_eq!(smallest(&deviations, &none), Some(0.2583), "read as factors, the largest is nearest 1");
+    }
+
+    /// Each centre gets the edges of its kind's bin: a range of 2-20 in 3 bins, a second population of
+    /// the same kind in 0-1 in 2 bins, a listed size (its own bin), a kind without bins, a fault-free row.
+    #[test]
+    fn bin_centres_get_their_kinds_edges() {
+        let mut bins = Default::default();
+        Factor::Range { lo: 2.0, hi: 20.0, bins: 3 }.add_bins_to("bias", &mut bins);
+        Factor::Range { lo: 0.0, hi: 1.0, bins: 2 }.add_bins_to("bias", &mut bins);
+        Factor::Values(vec![4.0]).add_bins_to("drift", &mut bins);
+        assert_eq!(bins["bias"], vec![[2.0, 8.0], [8.0, 14.0], [14.0, 20.0], [0.0, 0.5], [0.5, 1.0]]);
+        assert!(!bins.contains_key("drift"), "a listed size has no bins");
+        let mut df = df!(
+            col::KIND => ["bias", "bias", "bias", "drift", "stuck", "none"],
+            col::SIZE_BIN => [Some(11.0), Some(0.25), Some(17.0 + 1e-14), Some(4.0), Some(3.0), None],
+        )
+        .unwrap();
+        with_bin_edges(&mut df, col::SIZE_BIN, &bins).unwrap();
+        let edges = |name: &str| df.column(name).unwrap().f64().unwrap().iter().collect::<Vec<_>>();
+        assert_eq!(edges("size_bin_lo"), [Some(8.0), Some(0.0), Some(14.0), Some(4.0), Some(3.0), None]);
+        assert_eq!(edges("size_bin_hi"), [Some(14.0), Some(0.5), Some(20.0), Some(4.0), Some(3.0), None]);
+    }
+}
