@@ -432,7 +432,7 @@ pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
         }
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) => ExitCode::from(exit::OK),
         Err(CliError::Invalid(msg)) => {
             eprintln!("error: {msg}");
             ExitCode::from(exit::INVALID_INPUT)

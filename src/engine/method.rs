@@ -9,7 +9,7 @@ use std::path::Path;
 
 use crate::engine::report::{KindReport, OwnPlot, Report, ReportContext, ReportPart, TracePanel};
 use crate::engine::results::summary_spec::SummarySpec;
-use crate::engine::run::runner::{RunError, RunOptions, RunReport};
+use crate::engine::run::runner::{Manifest, RunError, RunOptions, RunReport};
 use crate::engine::scenario::deck::{DeckError, StudyHeader, read_deck};
 
 /// A kind of study: how its decks read, what it adds to the shared summary, which options it takes.
@@ -59,13 +59,12 @@ impl Method {
         };
         // The deck is read once, at the first trial to re-fly.
         let mut study: Option<Box<dyn Study>> = None;
-        let mut refly = |ctx: &ReportContext, trial: u64, table: &Path, classifiers: Option<&Path>| {
+        let mut refly = |deck: &Path, manifest: &Manifest, trial: u64, table: &Path, classifiers: Option<&Path>| {
             if study.is_none() {
-                let deck = ctx.run_deck()?;
-                let text = read_deck(&deck).map_err(|e| RunError::Invalid(e.to_string()))?;
-                let mut s = (self.load)(&text, &deck).map_err(|e| RunError::Invalid(e.to_string()))?;
+                let text = read_deck(deck).map_err(|e| RunError::Invalid(e.to_string()))?;
+                let mut s = (self.load)(&text, deck).map_err(|e| RunError::Invalid(e.to_string()))?;
                 let (seed, n) = s.seed_and_trials();
-                (*seed, *n) = (ctx.manifest.seed, ctx.manifest.trials);
+                (*seed, *n) = (manifest.seed, manifest.trials);
                 study = Some(s);
             }
             let study = study.as_ref().expect("loaded above");

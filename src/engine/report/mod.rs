@@ -120,9 +120,10 @@ pub struct KindReport<'a> {
     pub own_plots: &'a [OwnPlot],
 }
 
-/// Re-flies trial `trial` of the run in `ctx` into the trace table `table` (the kind's `simulate`),
-/// with the classifiers the run used, if any.
-pub type Refly<'a> = dyn FnMut(&ReportContext, u64, &Path, Option<&Path>) -> Result<(), RunError> + 'a;
+/// Re-flies trial `trial` of the run whose manifest is given from its deck (checked unchanged,
+/// [`ReportContext::run_deck`]) into the trace table `table` (the kind's `simulate`), with the
+/// classifiers the run used, if any.
+pub type Refly<'a> = dyn FnMut(&Path, &Manifest, u64, &Path, Option<&Path>) -> Result<(), RunError> + 'a;
 
 /// Writes the report of the run in `dir`, drawing `trials` re-flown by `refly` from the deck the run used.
 pub fn write_report(dir: &Path, trials: &[u64], method: &KindReport, refly: &mut Refly) -> Result<Report, RunError> {
@@ -368,7 +369,7 @@ fn traces(ctx: &ReportContext, method: &KindReport, refly: &mut Refly) -> Result
     if ctx.trials.is_empty() {
         return Ok(Vec::new());
     }
-    ctx.run_deck()?;
+    let deck = ctx.run_deck()?;
     if method.trace_panels.is_empty() {
         return Err(RunError::Invalid(format!("--trials: {} studies list no trace to draw", method.kind)));
     }
@@ -385,7 +386,7 @@ fn traces(ctx: &ReportContext, method: &KindReport, refly: &mut Refly) -> Result
             )));
         }
         let table = ctx.out.join(format!("trace_trial{trial}.parquet"));
-        refly(ctx, trial, &table, run_classifiers.as_deref())?;
+        refly(&deck, ctx.manifest, trial, &table, run_classifiers.as_deref())?;
         let df = read_parquet(&table)?;
         let t_s = f64_col(&df, "t_s", &table)?.into_no_null_iter().collect::<Vec<_>>();
         let names: Vec<String> = df.get_column_names().iter().map(|n| n.to_string()).collect();
