@@ -26,7 +26,8 @@ use fdimc::engine::results::summary_spec::{Isolates, SummarySpec};
 use fdimc::engine::run::output::write_table;
 use fdimc::engine::run::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
 use fdimc::engine::scenario::deck::{
-    DeckError, Factor, MonteCarlo, MonteCarloRules, MonteCarloSection, StudyHeader, StudySection, Validator, open_deck,
+    DeckError, Factor, FactorSpec, MonteCarlo, MonteCarloRules, MonteCarloSection, StudyHeader, StudySection,
+    Validator, open_deck,
 };
 use fdimc::engine::scenario::draws::{DIM_SIZE, UnitSampler};
 use fdimc::engine::scenario::streams::{Substream, trial_rng};
@@ -95,7 +96,7 @@ struct DetectorSection {
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct MonteCarloOwn {
-    bias_sigma: Option<toml::Value>,
+    bias_sigma: Option<FactorSpec>,
 }
 
 /// A CUSUM, validated.
@@ -332,17 +333,12 @@ impl Study for RandomWalkStudy {
             println!("detector    {}: two-sided CUSUM, drift {}, threshold {}", d.name, d.drift, d.threshold);
         }
         let mc = &self.monte_carlo;
-        let text = |f: &Factor| match f {
-            Factor::Fixed(v) => format!("{v}"),
-            Factor::Range { lo, hi, bins } => format!("{lo} to {hi} in {bins} bins"),
-            Factor::Values(v) => format!("{v:?}"),
-        };
         println!(
             "trials      {} ({:.0} % fault-free), bias {} sensor sigmas from onset {} s, target Pfa {}",
             mc.trials,
             100.0 * mc.fault_free_fraction,
-            text(&self.bias_sigma),
-            text(&mc.onset_s),
+            self.bias_sigma,
+            mc.onset_s,
             mc.target_pfa
         );
         Ok(())
