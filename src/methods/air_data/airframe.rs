@@ -3,7 +3,7 @@
 //! PID autopilot) flying manoeuvres like the seed profile's, in the wind the air data see (steady plus
 //! turbulence, which here moves the airframe too). The filters keep the patent's kinematics, which a rigid
 //! body obeys exactly only in steady wind; what they miss is the turbulence's effect on the motion, the
-//! autopilot's and the airframe's own dynamics between samples, and (in `flight.rs`) the sensors' lag,
+//! autopilot's and the airframe's own dynamics between samples, and (in `flight/scenario.rs`) the sensors' lag,
 //! scale factor, misalignment and coloured noise.
 //!
 //! The manoeuvres (choices, scaled by the deck's `manoeuvre_scale`), from trim at 25 m/s and 100 m: a
