@@ -2237,3 +2237,27 @@ fn the_cluster_job_files_take_their_shard_from_the_scheduler() {
     assert_eq!(bare.status.code(), Some(2));
     assert!(text(&bare.stderr).contains("no array task in the environment"), "{}", text(&bare.stderr));
 }
+
+/// A calibration allows floor(p n) alarms on its trials, and that many alarm, on every seed: the whole
+/// detector's thresholds (per-statistic thresholds times a common factor) once rounded one ulp below
+/// the value that set the factor, and one trial more alarmed (seed 1003 at 2000 trials: 21 of 20).
+#[test]
+fn a_calibration_lets_through_exactly_the_alarms_it_allows() {
+    let tmp = tempfile::tempdir().unwrap();
+    for seed in ["1000", "1001", "1002", "1003", "1004"] {
+        let dir = tmp.path().join(seed);
+        let d = dir.to_str().unwrap();
+        let deck = "studies/seed000_rare_false_alarms.toml";
+        ok(&fdimc(&["run", deck, "--seed", seed, "--trials", "2000", "--quiet", "--out", d]));
+        let t = csv_frame(&dir.join("thresholds.csv"));
+        let statistic = t.column("statistic").unwrap().str().unwrap();
+        let alarms = t.column("detector_false_alarms").unwrap().i64().unwrap();
+        let trials = t.column("trials").unwrap().i64().unwrap();
+        let whole: Vec<usize> = (0..t.height()).filter(|&i| statistic.get(i) == Some("all")).collect();
+        assert!(!whole.is_empty(), "{t}");
+        for i in whole {
+            let allowed = (0.01 * trials.get(i).unwrap() as f64).floor() as i64;
+            assert_eq!(alarms.get(i), Some(allowed), "seed {seed}, row {i}:\n{t}");
+        }
+    }
+}

@@ -399,7 +399,23 @@ pub fn thresholds(
                     }
                 })
                 .collect();
-            let whole = per.iter().zip(&factor).map(|(p, s)| p.iter().map(|t| t * s).collect()).collect();
+            let mut whole: Vec<Vec<f64>> =
+                per.iter().zip(&factor).map(|(p, s)| p.iter().map(|t| t * s).collect()).collect();
+            // `per * factor` can round one ulp below the value whose ratio set the factor, and that unit
+            // would alarm beyond the allowed count: raise each threshold to the largest value of the
+            // units the factor lets through.
+            for_each_slice(path, rows, manifest, statistics, fault_free_rows, |s| {
+                for (i, d) in s.detector.iter().enumerate() {
+                    if let Some(d) = *d {
+                        let ratio = (0..ns).map(|j| s.pre[j][i] / per[d][j]).fold(0.0, f64::max);
+                        if ratio <= factor[d] {
+                            for j in 0..ns {
+                                whole[d][j] = whole[d][j].max(s.pre[j][i]);
+                            }
+                        }
+                    }
+                }
+            })?;
             (per, whole)
         }
     };
