@@ -768,7 +768,7 @@ fn a_kind_added_from_outside_the_crate_runs_every_command() {
     assert_eq!(thresholds.height(), 4, "{thresholds}");
     assert_eq!(thresholds.column("statistic_false_alarms").unwrap().i64().unwrap().get(0), Some(5), "{thresholds}");
     ok(&run(&["summarize", d, "--target-pfa", "0.05"]));
-    let recalibrated = csv_frame(&dir.join("thresholds.csv"));
+    let recalibrated = csv_frame(&dir.join("calibrations/pfa_0.05/thresholds.csv"));
     let pfa = recalibrated.column("statistic_pfa").unwrap().f64().unwrap().get(0).unwrap();
     assert!(pfa > 0.02 && pfa <= 0.05, "{pfa}");
     ok(&run(&["summarize", d]));
@@ -1198,17 +1198,43 @@ fn launch_records_are_identical_for_any_threads_shards_and_resume() {
             ("loss_error.svg", &["y = 0", "loss_error_percent", "true fault size (percent of one engine", "seed ("]),
         ],
     );
-    // Thresholds recalibrated at another false-alarm probability: a fifth of the flights may alarm.
-    ok(&fdimc(&["summarize", &s(one.clone()), "--target-pfa", "0.2"]));
-    let thresholds = csv_frame(&one.join("thresholds.csv"));
+    // Thresholds recalibrated at another false-alarm probability: a fifth of the flights may alarm. The
+    // calibration is written apart, every table saying its target; the run's own tables stay.
+    let own = std::fs::read(one.join("summary.csv")).unwrap();
+    let stdout = ok(&fdimc(&["summarize", &s(one.clone()), "--target-pfa", "0.2"]));
+    let apart = one.join("calibrations/pfa_0.2");
+    assert!(stdout.contains(&format!("in {}", apart.display())), "{stdout}");
+    let thresholds = csv_frame(&apart.join("thresholds.csv"));
     let pfa = thresholds.column("statistic_pfa").unwrap().f64().unwrap().get(0).unwrap();
     let source = thresholds.column("source").unwrap().str().unwrap().get(0).unwrap().to_string();
     assert_eq!(source, "calibrated at Pfa 0.2 on the fault-free trials");
     assert!(pfa > 0.1 && pfa <= 0.2, "{pfa}");
-    // The report shows what summarize did, not the deck's target.
+    for table in ["summary.csv", "curves.csv", "min_detectable.csv", "detectors.csv"] {
+        let t = csv_frame(&apart.join(table));
+        let (set, target) = (t.column("thresholds").unwrap().str().unwrap(), t.column("target_pfa").unwrap());
+        let target = target.cast(&polars::prelude::DataType::Float64).unwrap();
+        for i in 0..t.height() {
+            let want = (set.get(i) != Some("deck")).then_some(0.2);
+            assert_eq!(target.f64().unwrap().get(i), want, "{table} row {i}");
+        }
+    }
+    assert_eq!(std::fs::read(one.join("summary.csv")).unwrap(), own, "the run's own summary is untouched");
+    let thresholds = csv_frame(&one.join("thresholds.csv"));
+    let source = thresholds.column("source").unwrap().str().unwrap().get(0).unwrap().to_string();
+    assert_eq!(source, "calibrated at Pfa 0.01 on the fault-free trials");
+    // check refuses to compare rates calibrated at another target, and says why.
+    let out = fdimc(&["check", &s(apart.clone()), "--baseline", &s(one.join("summary.csv"))]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out.stdout));
+    assert!(
+        text(&out.stderr).contains("calibrated thresholds are at Pfa 0.2, the baseline's at Pfa 0.01"),
+        "{}",
+        text(&out.stderr)
+    );
+    ok(&fdimc(&["check", &s(one.clone()), "--baseline", &s(one.join("summary.csv"))]));
+    // The report shows the run's own calibration.
     ok(&fdimc(&["report", &s(one.clone())]));
     let html = std::fs::read_to_string(one.join("report/report.html")).unwrap();
-    assert!(html.contains("<tr><th>target Pfa</th><td>0.2</td></tr>"), "{html}");
+    assert!(html.contains("<tr><th>target Pfa</th><td>0.01</td></tr>"), "{html}");
 }
 
 #[test]
@@ -1411,7 +1437,7 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
     // Thresholds that claim a target the fresh trials contradict are flagged (here a file edited to
     // say 0.3: about 1 % of the trials alarm).
     let claimed = tmp.path().join("claimed.csv");
-    let edited = std::fs::read_to_string(&cal_thr).unwrap().replace(",0.01,calibrated at", ",0.3,calibrated at");
+    let edited = std::fs::read_to_string(&cal_thr).unwrap().replace(",0.01,,calibrated at", ",0.3,,calibrated at");
     std::fs::write(&claimed, edited).unwrap();
     let stdout = ok(&fdimc(&["summarize", val.to_str().unwrap(), "--thresholds", claimed.to_str().unwrap()]));
     assert!(
@@ -1437,12 +1463,15 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
     let plain = detector_thresholds(&cal_thr);
     let stdout = ok(&fdimc(&["summarize", cal.to_str().unwrap(), "--target-pfa", "0.01", "--confidence", "0.95"]));
     assert!(stdout.contains("calibrated at Pfa 0.01 with 0.95 confidence (order statistic;"), "{stdout}");
-    let confident = detector_thresholds(&cal_thr);
+    let confident_thr = cal.join("calibrations/pfa_0.01_confidence_0.95/thresholds.csv");
+    assert_eq!(detector_thresholds(&cal_thr), plain, "the run's own thresholds stay");
+    let confident = detector_thresholds(&confident_thr);
     assert_eq!(plain.len(), confident.len());
     for ((d, _, p), (_, _, c)) in plain.iter().zip(&confident) {
         assert!(c >= p, "{d}: the confident threshold {c} is below the plain {p}");
     }
-    let t = csv_frame(&cal_thr);
+    let t = csv_frame(&confident_thr);
+    assert_eq!(t.column("confidence").unwrap().f64().unwrap().get(0), Some(0.95));
     let out = t.column("statistic").unwrap().str().unwrap().clone();
     let whole = t.column("detector_false_alarms").unwrap().i64().unwrap().clone();
     let n = t.column("trials").unwrap().i64().unwrap().clone();
@@ -1461,13 +1490,14 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
         stdout.contains("needs >= 29956 fault-free trials): thresholds at the tail fit's 0.95 upper bound"),
         "{stdout}"
     );
-    let t = csv_frame(&cal_thr);
+    let tail_thr = cal.join("calibrations/pfa_1e-4_confidence_0.95/thresholds.csv");
+    let t = csv_frame(&tail_thr);
     let out = t.column("statistic").unwrap().str().unwrap().clone();
     let whole = t.column("detector_false_alarms").unwrap().i64().unwrap().clone();
     for i in (0..t.height()).filter(|&i| out.get(i) == Some("all")) {
         assert_eq!(whole.get(i), Some(0), "row {i}: {t}");
     }
-    for ((d, _, p), (_, _, c)) in plain.iter().zip(&detector_thresholds(&cal_thr)) {
+    for ((d, _, p), (_, _, c)) in plain.iter().zip(&detector_thresholds(&tail_thr)) {
         assert!(c > p, "{d}: the tail-bound threshold {c} is not above the plain one at 0.01 ({p})");
     }
     // Per flight hour (issue 23, item 4): 0.5 per hour over 10 s trials is 1 - 0.5^(1/360) per trial,
@@ -2260,4 +2290,68 @@ fn a_calibration_lets_through_exactly_the_alarms_it_allows() {
             assert_eq!(alarms.get(i), Some(allowed), "seed {seed}, row {i}:\n{t}");
         }
     }
+    // The deck can ask for the confidence: the run's own thresholds are then Wilks' order statistic,
+    // and say so.
+    let deck = edited_deck(
+        tmp.path(),
+        "seed000_rare_false_alarms.toml",
+        &[("[monte_carlo]\n", "[monte_carlo]\nconfidence = 0.95\n")],
+        "confident.toml",
+    );
+    let dir = tmp.path().join("confident");
+    let d = dir.to_str().unwrap();
+    ok(&fdimc(&["run", deck.to_str().unwrap(), "--seed", "1003", "--trials", "2000", "--quiet", "--out", d]));
+    let t = csv_frame(&dir.join("thresholds.csv"));
+    let statistic = t.column("statistic").unwrap().str().unwrap();
+    let (alarms, trials) =
+        (t.column("detector_false_alarms").unwrap().i64().unwrap(), t.column("trials").unwrap().i64().unwrap());
+    assert_eq!(t.column("confidence").unwrap().f64().unwrap().get(0), Some(0.95), "{t}");
+    for i in (0..t.height()).filter(|&i| statistic.get(i) == Some("all")) {
+        let n = trials.get(i).unwrap() as u64;
+        let allowed = fdimc::engine::results::thresholds::confident_allowed(n, 0.01, 0.95).unwrap() as i64;
+        assert!(allowed < (0.01 * n as f64).floor() as i64, "{allowed}");
+        assert_eq!(alarms.get(i), Some(allowed), "row {i}:\n{t}");
+    }
+}
+
+/// ROC (`roc.csv`): per detector, points whose Pfa rises as Pd does; the calibrated point repeats
+/// thresholds.csv's false alarms and the calibrated Pd of detectors.csv exactly, and the report draws
+/// every detector's curve from it.
+#[test]
+fn the_roc_passes_through_the_calibrated_point() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("run");
+    ok(&fdimc(&["run", CI_DECK, "--quiet", "--out", dir.to_str().unwrap()]));
+    let roc = csv_frame(&dir.join("roc.csv"));
+    let thresholds = csv_frame(&dir.join("thresholds.csv"));
+    let detectors = csv_frame(&dir.join("detectors.csv"));
+    let s = |df: &polars::prelude::DataFrame, c: &str| df.column(c).unwrap().str().unwrap().clone();
+    let n = |df: &polars::prelude::DataFrame, c: &str| {
+        df.column(c).unwrap().cast(&polars::prelude::DataType::Float64).unwrap().f64().unwrap().clone()
+    };
+    let (det, calibrated) = (s(&roc, "detector"), roc.column("calibrated").unwrap().bool().unwrap().clone());
+    let (pfa, pd, false_alarms, detected) =
+        (n(&roc, "pfa"), n(&roc, "pd"), n(&roc, "false_alarms"), n(&roc, "detected"));
+    assert_eq!(s(&roc, "pfa_read_on").get(0), Some("calibration trials"));
+    for name in ["seed", "fast"] {
+        let rows: Vec<usize> = (0..roc.height()).filter(|&i| det.get(i) == Some(name)).collect();
+        assert!(rows.len() > 20, "{name}: {} points", rows.len());
+        // Scales descend: Pfa and Pd never fall; the first point lets no calibration trial alarm.
+        assert_eq!(false_alarms.get(rows[0]), Some(0.0));
+        for w in rows.windows(2) {
+            assert!(pfa.get(w[1]) >= pfa.get(w[0]) && pd.get(w[1]) >= pd.get(w[0]), "{roc}");
+        }
+        let c = *rows.iter().find(|&&i| calibrated.get(i) == Some(true)).unwrap();
+        let (td, ts) = (s(&thresholds, "detector"), s(&thresholds, "statistic"));
+        let t = (0..thresholds.height()).find(|&i| td.get(i) == Some(name) && ts.get(i) == Some("all")).unwrap();
+        assert_eq!(false_alarms.get(c), n(&thresholds, "detector_false_alarms").get(t), "{name}");
+        let (dd, dset) = (s(&detectors, "detector"), s(&detectors, "thresholds"));
+        let d =
+            (0..detectors.height()).find(|&i| dd.get(i) == Some(name) && dset.get(i) == Some("calibrated")).unwrap();
+        assert_eq!(detected.get(c), n(&detectors, "detected").get(d), "{name}");
+        assert_eq!(pd.get(c), n(&detectors, "pd").get(d), "{name}");
+    }
+    ok(&fdimc(&["report", dir.to_str().unwrap()]));
+    let svg = std::fs::read_to_string(dir.join("report/roc.svg")).unwrap();
+    assert!(svg.contains("seed calibrated: Pfa") && svg.contains("fast calibrated: Pfa"), "{svg}");
 }

@@ -475,6 +475,9 @@ impl Kinds {
         for g in &verdict.only_in_current {
             println!("warning: group not in the baseline: {g}");
         }
+        for n in &verdict.notes {
+            println!("warning: {n}");
+        }
         println!(
             "{}: {} groups compared, {} tests at family-wise alpha {alpha}: {} regression(s)",
             baseline.display(),

@@ -88,12 +88,16 @@ mod tests {
                 assert!(got.starts_with(want), "{}: {key}: {got}", m.kind);
             }
             let pfa = broken("target_pfa", toml::Value::Float(0.05));
+            let confidence = broken("confidence", toml::Value::Float(0.95));
             if m.options.contains(&Opt::Thresholds) {
-                assert_eq!(pfa, "accepted", "{}", m.kind);
+                assert_eq!((pfa.as_str(), confidence.as_str()), ("accepted", "accepted"), "{}", m.kind);
                 let bad = broken("target_pfa", toml::Value::Float(1.5));
                 assert!(bad.starts_with("x.toml: monte_carlo.target_pfa: allowed 0 < p < 1"), "{bad}");
+                let bad = broken("confidence", toml::Value::Float(1.0));
+                assert!(bad.starts_with("x.toml: monte_carlo.confidence: allowed 0 < c < 1"), "{bad}");
             } else {
                 assert!(pfa.starts_with("x.toml: monte_carlo.target_pfa: not used by "), "{}: {pfa}", m.kind);
+                assert!(confidence.starts_with("x.toml: monte_carlo.confidence: not used by "), "{}", m.kind);
             }
         }
     }

@@ -97,8 +97,6 @@ impl ReportContext<'_> {
 struct DetectorData {
     /// Largest statistic over its calibrated threshold on fault-free trials, before the end.
     z_fault_free: Vec<f64>,
-    /// The same on faulty trials after the onset.
-    z_faulty: Vec<f64>,
     /// Delays per fault kind at the report's threshold set.
     delays: BTreeMap<String, Vec<f64>>,
 }
@@ -164,12 +162,8 @@ pub fn write_report(dir: &Path, trials: &[u64], method: &KindReport, refly: &mut
         }
     }
     if calibrates {
-        let roc: Vec<(String, Vec<f64>, Vec<f64>)> = manifest
-            .detectors
-            .iter()
-            .map(|d| (d.clone(), data[d].z_fault_free.clone(), data[d].z_faulty.clone()))
-            .collect();
-        if roc.iter().any(|(_, ff, f)| !ff.is_empty() && !f.is_empty()) {
+        let roc = read_roc(&dir.join("roc.csv"), &manifest.detectors)?;
+        if roc.iter().any(|c| c.trials > 0 && c.points.iter().any(|p| !p.1.is_nan())) {
             let file = out.join("roc.svg");
             plots::roc(&file, &roc).map_err(internal(&file))?;
             report.files.push(file);
@@ -543,6 +537,31 @@ fn false_alarms_by_bin(
         .collect())
 }
 
+/// Each detector's ROC from `roc.csv` (written by `summarize`; none from a folder summarised before it
+/// was).
+fn read_roc(path: &Path, detectors: &[String]) -> Result<Vec<plots::RocCurve>, RunError> {
+    if !path.exists() {
+        return Ok(Vec::new());
+    }
+    let df = crate::engine::results::tables::read_summary(path)?;
+    let det = str_col(&df, col::DETECTOR, path)?;
+    let number = |name: &str| crate::engine::results::tables::numbers(&df, name, path);
+    let (pfa, pd, trials) = (number("pfa")?, number("pd")?, number("trials")?);
+    let calibrated = bool_col(&df, "calibrated", path)?;
+    Ok(detectors
+        .iter()
+        .map(|d| {
+            let rows: Vec<usize> = (0..df.height()).filter(|&i| det.get(i) == Some(d.as_str())).collect();
+            plots::RocCurve {
+                detector: d.clone(),
+                points: rows.iter().map(|&i| (pfa[i], pd[i])).collect(),
+                calibrated: rows.iter().find(|&&i| calibrated.get(i) == Some(true)).map(|&i| (pfa[i], pd[i])),
+                trials: rows.iter().map(|&i| trials[i] as u64).min().unwrap_or(0),
+            }
+        })
+        .collect())
+}
+
 /// Delays and ROC values per detector, streamed from `trials.parquet`. With calibrated `thresholds`
 /// (kinds that record a statistic) delays are the first passage over them; otherwise the recorded delay.
 fn gather(
@@ -589,8 +608,6 @@ fn gather(
                 dd.z_fault_free.push(z);
                 continue;
             }
-            let z = (0..j_max).map(|j| recorded.fp_v[j][i].last().copied().unwrap_or(0.0) / th[j]).fold(0.0, f64::max);
-            dd.z_faulty.push(z);
             if let (Some(t), Some(t0)) = (recorded.first_alarm(i, &th[..j_max]), onset.get(i)) {
                 dd.delays.entry(k.to_string()).or_default().push(t - t0);
             }

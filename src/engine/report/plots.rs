@@ -180,12 +180,21 @@ pub fn pd_against_size(
     root.present().map_err(e)
 }
 
-/// ROC: Pd against Pfa as the whole-detector thresholds are scaled; the calibrated threshold marked.
-pub fn roc(file: &Path, detectors: &[(String, Vec<f64>, Vec<f64>)]) -> Result<(), String> {
-    let n_min = detectors.iter().map(|d| d.1.len()).filter(|&n| n > 0).min().unwrap_or(1) as f64;
+/// One detector's ROC as `roc.csv` gives it: its points `(Pfa, Pd)` and the calibrated one, and the
+/// fewest calibration trials a point's Pfa was read on.
+pub struct RocCurve {
+    pub detector: String,
+    pub points: Vec<(f64, f64)>,
+    pub calibrated: Option<(f64, f64)>,
+    pub trials: u64,
+}
+
+/// ROC: Pd against Pfa as the whole-detector thresholds are scaled (`roc.csv`); the calibrated point marked.
+pub fn roc(file: &Path, detectors: &[RocCurve]) -> Result<(), String> {
+    let n_min = detectors.iter().map(|d| d.trials).filter(|&n| n > 0).min().unwrap_or(1) as f64;
     let floor = (0.5 / n_min).min(1e-2);
     let root = canvas(file)?;
-    let mut chart = builder(&root, "ROC: thresholds scaled 0.2x to 5x around the calibrated ones", 20)
+    let mut chart = builder(&root, "ROC: the thresholds of every statistic scaled together", 20)
         .build_cartesian_2d((floor..1.0).log_scale(), 0f64..1.05)
         .map_err(e)?;
     chart
@@ -195,24 +204,19 @@ pub fn roc(file: &Path, detectors: &[(String, Vec<f64>, Vec<f64>)]) -> Result<()
         .label_style((FONT, 14))
         .draw()
         .map_err(e)?;
-    let rate = |z: &[f64], s: f64| {
-        if z.is_empty() { f64::NAN } else { z.iter().filter(|&&v| v > s).count() as f64 / z.len() as f64 }
-    };
-    for (i, (name, ff, f)) in detectors.iter().enumerate() {
-        if ff.is_empty() || f.is_empty() {
+    for (i, curve) in detectors.iter().enumerate() {
+        if curve.points.is_empty() {
             continue;
         }
-        let c = color(i);
-        let pts: Vec<(f64, f64)> = (0..=200)
-            .map(|k| 0.2 * 25f64.powf(k as f64 / 200.0))
-            .map(|s| (rate(ff, s).max(floor), rate(f, s)))
-            .collect();
+        let (name, c) = (&curve.detector, color(i));
+        let pts: Vec<(f64, f64)> = curve.points.iter().map(|&(pfa, pd)| (pfa.max(floor), pd)).collect();
         chart
             .draw_series(LineSeries::new(pts, c.stroke_width(2)))
             .map_err(e)?
             .label(name.as_str())
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
-        let chosen = (rate(ff, 1.0).max(floor), rate(f, 1.0));
+        let Some((pfa, pd)) = curve.calibrated else { continue };
+        let chosen = (pfa.max(floor), pd);
         chart.draw_series(std::iter::once(Circle::new(chosen, 6, c.filled()))).map_err(e)?;
         chart
             .draw_series(std::iter::once(Text::new(

@@ -12,6 +12,7 @@ use std::collections::HashMap;
 
 use polars::prelude::*;
 
+use crate::engine::results::thresholds::DECK;
 use crate::engine::run::runner::RunError;
 use crate::engine::stats::intervals::p_lower;
 
@@ -63,6 +64,29 @@ pub struct Verdict {
     pub tests: usize,
     pub only_in_baseline: Vec<String>,
     pub only_in_current: Vec<String>,
+    /// What the comparison could not check (printed as warnings).
+    pub notes: Vec<String>,
+}
+
+/// What a summary's calibrated rows (any threshold set but the deck's) were calibrated for: `Ok(None)`
+/// without such rows; `Err(())` when the summary does not say (no `target_pfa` column: an older fdimc).
+fn calibration_of(df: &DataFrame) -> Result<Option<(f64, Option<f64>)>, ()> {
+    let Ok(sets) = df.column("thresholds").and_then(|c| c.str().cloned()) else { return Ok(None) };
+    let calibrated: Vec<usize> = (0..df.height()).filter(|&i| sets.get(i).is_some_and(|s| s != DECK)).collect();
+    let Some(&first) = calibrated.first() else { return Ok(None) };
+    let number = |name: &str| df.column(name).ok().and_then(|c| c.cast(&DataType::Float64).ok());
+    let target = number("target_pfa").ok_or(())?;
+    let confidence = number("confidence");
+    let value = |c: &Column| c.f64().ok().and_then(|c| c.get(first));
+    Ok(value(&target).map(|t| (t, confidence.as_ref().and_then(value))))
+}
+
+fn describe(c: Option<(f64, Option<f64>)>) -> String {
+    match c {
+        Some((p, Some(conf))) => format!("Pfa {p} with {conf} confidence"),
+        Some((p, None)) => format!("Pfa {p}"),
+        None => "no target".into(),
+    }
 }
 
 /// Each row's group, named by its key columns (every column before `trials`): `detector=seed kind=bias ...`.
@@ -152,6 +176,20 @@ pub fn compare(current: &DataFrame, baseline: &DataFrame, alpha: f64) -> Result<
     let cur = groups(current).map_err(bad)?;
     let base = groups(baseline).map_err(bad)?;
     let mut verdict = Verdict::default();
+    // Rates bought at different false-alarm rates do not compare: a looser calibration detects more.
+    match (calibration_of(current), calibration_of(baseline)) {
+        (Ok(c), Ok(b)) if c.is_some() && b.is_some() && c != b => {
+            return Err(RunError::Invalid(format!(
+                "the summary's calibrated thresholds are at {}, the baseline's at {}: rates bought at different false-alarm rates do not compare; summarize both at one target (`fdimc summarize DIR --target-pfa P [--confidence C]` writes DIR/calibrations/<target>/summary.csv)",
+                describe(c),
+                describe(b)
+            )));
+        }
+        (Ok(Some(_)), Err(())) => verdict.notes.push(
+            "the baseline does not say at what false-alarm rate its thresholds were calibrated (made by an older fdimc): compared as if at the summary's".into(),
+        ),
+        _ => {}
+    }
     let mut keys: Vec<&String> = base.keys().collect();
     keys.sort();
     let mut candidates = Vec::new();
@@ -283,5 +321,35 @@ mod tests {
             "b.csv: line 2 (thresholds=deck detector=d target=a): pd = 0.999 but detected / (trials - failed) = 900/1000: the rates must follow from the counts (check compares counts; renew the baseline from a run instead of editing it)"
         );
         assert!(consistent(&summary(&[("a", 1000, 900, 0, 900, 880, true)]), std::path::Path::new("b.csv")).is_ok());
+    }
+
+    /// The same counts, read as calibrated at `target` (with `confidence`), or saying nothing (`None`).
+    fn calibrated(target: Option<f64>, confidence: Option<f64>) -> DataFrame {
+        let mut df = summary(&[("a", 1000, 900, 0, 900, 880, true), ("c", 200, 0, 1, 0, 0, false)]);
+        df.with_column(Column::new("thresholds".into(), vec!["calibrated"; 2])).unwrap();
+        if let Some(t) = target {
+            df.with_column(Column::new("target_pfa".into(), vec![Some(t); 2])).unwrap();
+            df.with_column(Column::new("confidence".into(), vec![confidence; 2])).unwrap();
+        }
+        df
+    }
+
+    /// Rates calibrated at another false-alarm rate are refused, naming both; the same calibration
+    /// compares; a baseline that does not say is compared with a warning.
+    #[test]
+    fn summaries_calibrated_differently_are_refused() {
+        let at = |t, c| calibrated(Some(t), c);
+        let err = compare(&at(0.05, None), &at(0.01, None), 0.05).unwrap_err().to_string();
+        assert!(err.contains("at Pfa 0.05, the baseline's at Pfa 0.01"), "{err}");
+        let err = compare(&at(0.01, Some(0.95)), &at(0.01, None), 0.05).unwrap_err().to_string();
+        assert!(err.contains("Pfa 0.01 with 0.95 confidence, the baseline's at Pfa 0.01"), "{err}");
+        let same = compare(&at(0.01, Some(0.95)), &at(0.01, Some(0.95)), 0.05).unwrap();
+        assert_eq!((same.compared_groups, same.regressions.len(), same.notes.len()), (2, 0, 0));
+        let unsaid = compare(&at(0.01, None), &calibrated(None, None), 0.05).unwrap();
+        assert_eq!((unsaid.compared_groups, unsaid.notes.len()), (2, 1), "{:?}", unsaid.notes);
+        // The deck's thresholds carry no calibration: nothing to refuse.
+        assert!(
+            compare(&summary(&[("a", 10, 9, 0, 9, 9, true)]), &summary(&[("a", 10, 9, 0, 9, 9, true)]), 0.05).is_ok()
+        );
     }
 }

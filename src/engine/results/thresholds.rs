@@ -22,7 +22,7 @@ use polars::prelude::*;
 
 use crate::engine::results::schema::col;
 use crate::engine::results::tables::{bool_col, list_col, numbers, read_summary, slices, str_col};
-use crate::engine::run::output::write_table;
+use crate::engine::run::output::{VALIDATION_DIR, write_table};
 use crate::engine::run::runner::{Manifest, RunError, pol};
 use crate::engine::stats::intervals::{Z95, wilson};
 
@@ -44,6 +44,43 @@ pub enum Calibration {
     File(PathBuf),
 }
 
+impl Calibration {
+    /// The calibration a run's deck asks for (`monte_carlo.target_pfa`, `monte_carlo.confidence`): the
+    /// one its own tables are at.
+    pub fn of_deck(manifest: &Manifest) -> Self {
+        match manifest.confidence {
+            Some(confidence) => Calibration::Confident { pfa: manifest.target_pfa, confidence },
+            None => Calibration::Target(manifest.target_pfa),
+        }
+    }
+
+    /// The folder (under the run's `calibrations/`) a calibration other than the deck's is written to:
+    /// `pfa_<p>` or `pfa_<p>_confidence_<c>`, numbers in Rust's shortest form (`pfa_0.05`, `pfa_1e-5`).
+    pub fn folder_name(&self) -> String {
+        match self {
+            Calibration::Target(p) => format!("pfa_{}", short(*p)),
+            Calibration::Confident { pfa, confidence } => {
+                format!("pfa_{}_confidence_{}", short(*pfa), short(*confidence))
+            }
+            Calibration::File(_) => VALIDATION_DIR.to_string(),
+        }
+    }
+
+    /// The confidence of the calibration, where it has one.
+    pub fn confidence(&self) -> Option<f64> {
+        match self {
+            Calibration::Confident { confidence, .. } => Some(*confidence),
+            _ => None,
+        }
+    }
+}
+
+/// `x` in the shorter of Rust's plain and exponent forms (`0.05`, `1e-5`, `1.6666666666666667e-8`).
+fn short(x: f64) -> String {
+    let (plain, exp) = (format!("{x}"), format!("{x:e}"));
+    if exp.len() < plain.len() { exp } else { plain }
+}
+
 /// Thresholds of one detector configuration.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DetectorThresholds {
@@ -60,6 +97,9 @@ pub struct DetectorThresholds {
     /// The false-alarm probability the thresholds were calibrated for (`None`: a thresholds file that
     /// does not say).
     pub target_pfa: Option<f64>,
+    /// The confidence they were calibrated with (`None`: plain calibration, or a file that does not
+    /// say).
+    pub confidence: Option<f64>,
     /// How long each calibration unit flew (s): a whole trial when calibrated on fault-free trials;
     /// `None` on pre-onset windows (of differing lengths) or without a trial duration.
     pub unit_duration_s: Option<f64>,
@@ -285,6 +325,10 @@ pub fn thresholds(
         (Calibration::Target(p) | Calibration::Confident { pfa: p, .. }, _) => Some(*p),
         (_, file) => file.as_ref().and_then(|f| f.target_pfa),
     };
+    let confidence = match &file {
+        Some(f) => f.confidence,
+        None => calibration.confidence(),
+    };
     let source = match calibration {
         Calibration::File(f) => format!(
             "thresholds from {}{}, validated on this run's {}",
@@ -446,6 +490,7 @@ pub fn thresholds(
             per_statistic_false_alarms: per_fa[d].clone(),
             whole_false_alarms: whole_fa[d],
             target_pfa,
+            confidence,
             unit_duration_s: manifest.trial_duration_s.filter(|_| fault_free_rows),
             on_fault_free_trials: fault_free_rows,
         })
@@ -482,7 +527,7 @@ pub fn write_thresholds(
     // Per statistic rows: that statistic alone over its own threshold; `all` rows: the whole detector.
     let (mut alone, mut alone_pfa, mut alone_lo, mut alone_hi) = (vec![], vec![], vec![], vec![]);
     let (mut whole_fa, mut whole_pfa, mut whole_lo, mut whole_hi) = (vec![], vec![], vec![], vec![]);
-    let mut target = vec![];
+    let (mut target, mut confidence) = (vec![], vec![]);
     let rate = |k: u64, n: u64| {
         let (lo, hi) = wilson(k, n, Z95);
         (n > 0).then(|| (k as f64 / n as f64, lo, hi))
@@ -517,6 +562,7 @@ pub fn write_thresholds(
             whole_lo.push(r.map(|r| r.1));
             whole_hi.push(r.map(|r| r.2));
             target.push(t.target_pfa);
+            confidence.push(t.confidence);
         }
     }
     let height = detector.len();
@@ -536,6 +582,7 @@ pub fn write_thresholds(
         Column::new("detector_pfa_lo".into(), whole_lo),
         Column::new("detector_pfa_hi".into(), whole_hi),
         Column::new("target_pfa".into(), target),
+        Column::new("confidence".into(), confidence),
         Column::new("source".into(), vec![source; height]),
     ])
     .map_err(pol(&path))?;
@@ -547,6 +594,8 @@ pub fn write_thresholds(
 pub struct ThresholdsFile {
     pub detectors: Vec<(String, Vec<f64>, Vec<f64>)>,
     pub target_pfa: Option<f64>,
+    /// The confidence they were calibrated with (`None`: plain, or a file without the column).
+    pub confidence: Option<f64>,
 }
 
 impl ThresholdsFile {
@@ -596,6 +645,9 @@ pub fn read_thresholds(path: &Path) -> Result<ThresholdsFile, RunError> {
     let target_pfa = (number("target_pfa").ok())
         .and_then(|c| c.f64().ok().and_then(|c| c.iter().flatten().next()))
         .filter(|p| *p > 0.0 && *p < 1.0);
+    let confidence = (number("confidence").ok())
+        .and_then(|c| c.f64().ok().and_then(|c| c.iter().flatten().next()))
+        .filter(|c| *c > 0.0 && *c < 1.0);
     let mut result: Vec<(String, Vec<f64>, Vec<f64>)> = Vec::new();
     for i in 0..df.height() {
         if stat.get(i) == Some("all") {
@@ -615,7 +667,7 @@ pub fn read_thresholds(path: &Path) -> Result<ThresholdsFile, RunError> {
             None => result.push((d, vec![p], vec![w])),
         }
     }
-    Ok(ThresholdsFile { detectors: result, target_pfa })
+    Ok(ThresholdsFile { detectors: result, target_pfa, confidence })
 }
 
 #[cfg(test)]

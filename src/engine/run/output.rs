@@ -22,6 +22,13 @@ pub enum OutputError {
 pub const SUMMARY_TABLES: [&str; 6] =
     ["summary.csv", "summary.parquet", "curves.csv", "min_detectable.csv", "detectors.csv", "confusion.csv"];
 
+/// Where `summarize --thresholds` writes, inside the run's folder: the run's own tables stay.
+pub const VALIDATION_DIR: &str = "validation";
+/// Where `summarize --target-pfa`, `--target-pfa-per-hour` and `--confidence` write, inside the run's
+/// folder, each calibration in a folder of its own (`Calibration::folder_name` of the results layer): the
+/// run's own tables stay at the deck's calibration.
+pub const CALIBRATIONS_DIR: &str = "calibrations";
+
 /// Table formats fdimc writes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TableFormat {

@@ -251,6 +251,9 @@ pub struct Manifest {
     pub deck_thresholds: Vec<Vec<f64>>,
     /// Calibration target of detection filters; 0 for banks, which declare by model probability.
     pub target_pfa: f64,
+    /// The confidence the deck calibrates with (`monte_carlo.confidence`; `None`: plain calibration).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub confidence: Option<f64>,
     /// A trial's duration (s), for false-alarm rates per flight hour (`None` in runs written before).
     #[serde(default)]
     pub trial_duration_s: Option<f64>,
@@ -475,6 +478,7 @@ impl Manifest {
             seed: header.seed,
             trials: monte_carlo.trials,
             target_pfa: monte_carlo.target_pfa,
+            confidence: monte_carlo.confidence,
             detectors: detectors.into_iter().map(String::from).collect(),
             trial_duration_s: Some(header.duration_s),
             ..Manifest::unstarted()
@@ -499,6 +503,7 @@ impl Manifest {
             outputs: Vec::new(),
             deck_thresholds: Vec::new(),
             target_pfa: 0.0,
+            confidence: None,
             trial_duration_s: None,
             fault_size_units: Default::default(),
             fault_size_bins: Default::default(),
@@ -584,7 +589,8 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
         for name in summaries.into_iter().chain(crate::engine::run::output::SUMMARY_TABLES) {
             let _ = std::fs::remove_file(dir.join(name));
         }
-        for sub in ["parts", "validation", "report"] {
+        use crate::engine::run::output::{CALIBRATIONS_DIR, VALIDATION_DIR};
+        for sub in ["parts", VALIDATION_DIR, CALIBRATIONS_DIR, "report"] {
             let _ = std::fs::remove_dir_all(dir.join(sub));
         }
     }

@@ -557,6 +557,7 @@ pub struct MonteCarloSection {
     pub fault_free_fraction: Option<f64>,
     pub sampler: Option<String>,
     pub target_pfa: Option<f64>,
+    pub confidence: Option<f64>,
     pub onset_s: Option<FactorSpec>,
     pub noise_scale: Option<FactorSpec>,
     #[serde(default)]
@@ -574,6 +575,9 @@ pub struct MonteCarlo {
     pub sampler: Sampler,
     /// Target false-alarm probability per trial of threshold calibration (kinds with a statistic).
     pub target_pfa: f64,
+    /// Calibrate conservatively: thresholds whose true false-alarm probability is at most
+    /// `target_pfa` with this confidence (`None`: at the target on the calibration trials).
+    pub confidence: Option<f64>,
     pub onset_s: Factor,
     /// Multiplies every sensor's noise standard deviation.
     pub noise_scale: Factor,
@@ -658,6 +662,7 @@ impl Validator<'_> {
                 fault_free_fraction: 0.0,
                 sampler: Sampler::Random,
                 target_pfa: if rules.target_pfa { 0.01 } else { 0.0 },
+                confidence: None,
                 onset_s: Factor::Fixed(duration_s / 3.0),
                 noise_scale: Factor::Fixed(1.0),
                 design: None,
@@ -673,6 +678,7 @@ impl Validator<'_> {
         refuse("fault_free_fraction", mc.fault_free_fraction.is_some(), rules.fault_free_fraction)?;
         refuse("sampler", mc.sampler.is_some(), rules.sampler)?;
         refuse("target_pfa", mc.target_pfa.is_some(), rules.target_pfa)?;
+        refuse("confidence", mc.confidence.is_some(), rules.target_pfa)?;
         refuse("onset_s", mc.onset_s.is_some(), rules.onset_s)?;
         refuse("parameter_error", !mc.parameter_error.is_empty(), rules.parameter_errors.is_some())?;
 
@@ -684,6 +690,11 @@ impl Validator<'_> {
         let target_pfa = if rules.target_pfa { mc.target_pfa.unwrap_or(0.01) } else { 0.0 };
         if rules.target_pfa && !(target_pfa > 0.0 && target_pfa < 1.0) {
             return Err(self.err("monte_carlo.target_pfa", format!("allowed 0 < p < 1, got {target_pfa}")));
+        }
+        if let Some(c) = mc.confidence
+            && !(c > 0.0 && c < 1.0)
+        {
+            return Err(self.err("monte_carlo.confidence", format!("allowed 0 < c < 1 (e.g. 0.95), got {c}")));
         }
         let onset_s = self.factor("monte_carlo.onset_s", mc.onset_s.as_ref(), Factor::Fixed(duration_s / 3.0))?;
         self.factor_within(
@@ -744,7 +755,16 @@ impl Validator<'_> {
             parameter_errors.push(ParameterError { name, model, absolute, value, what });
         }
         Ok((
-            MonteCarlo { trials, fault_free_fraction, sampler, target_pfa, onset_s, noise_scale, design: None },
+            MonteCarlo {
+                trials,
+                fault_free_fraction,
+                sampler,
+                target_pfa,
+                confidence: mc.confidence,
+                onset_s,
+                noise_scale,
+                design: None,
+            },
             Some(own),
             parameter_errors,
         ))

@@ -36,7 +36,7 @@ mod written;
 
 pub use precision::{PRECISION_RATES, PrecisionMonitor, PrecisionStatus};
 pub use print::print;
-pub use written::{CALIBRATED, SETTINGS_FILE, Settings, Summary, VALIDATION, VALIDATION_DIR};
+pub use written::{CALIBRATED, CALIBRATIONS_DIR, SETTINGS_FILE, Settings, Summary, VALIDATION, VALIDATION_DIR};
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -52,7 +52,8 @@ use crate::engine::run::runner::{RunError, pol, write_parquet};
 
 use aggregate::{Aggregates, Counts};
 use tables::{
-    KeyColumns, confusion_table, detector_table, group_table, min_detectable, with_bin_edges, with_size_unit,
+    KeyColumns, confusion_table, detector_table, group_table, min_detectable, with_bin_edges, with_calibration,
+    with_size_unit,
 };
 
 /// Reads the run in `dir`, writes the tables of the module docs and returns what `print` shows.
@@ -66,13 +67,18 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     let thresholds = if statistics.is_empty() {
         None
     } else {
-        let calibration = calibration.cloned().unwrap_or(Calibration::Target(manifest.target_pfa));
+        let calibration = calibration.cloned().unwrap_or_else(|| Calibration::of_deck(&manifest));
         Some(thresholds(&path, &manifest, &statistics, &calibration, &mut warnings)?)
     };
     let validating = matches!(calibration, Some(Calibration::File(_)));
     let set = thresholds.as_ref().map(|_| if validating { VALIDATION } else { CALIBRATED });
     let sets: Vec<&'static str> = [Some(DECK), set].into_iter().flatten().collect();
-    let dir_out = if validating { dir.join(VALIDATION_DIR) } else { dir.to_path_buf() };
+    // The run's own tables are at the deck's calibration; any other is written apart.
+    let dir_out = match calibration {
+        Some(Calibration::File(_)) => dir.join(VALIDATION_DIR),
+        Some(c) => dir.join(CALIBRATIONS_DIR).join(c.folder_name()),
+        None => dir.to_path_buf(),
+    };
     std::fs::create_dir_all(&dir_out).map_err(crate::engine::run::runner::io(&dir_out))?;
 
     // Only the columns the tables read.
@@ -171,6 +177,11 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     }
 
     let mut detectors = detector_table(&agg, &sets, spec).map_err(pol(&path))?;
+    let target_pfa = thresholds.as_ref().and_then(|(t, _)| t.first().and_then(|t| t.target_pfa));
+    let confidence = thresholds.as_ref().and_then(|(t, _)| t.first().and_then(|t| t.confidence));
+    for df in [&mut summary, &mut curves, &mut min_detectable, &mut detectors] {
+        with_calibration(df, target_pfa, confidence).map_err(pol(&path))?;
+    }
     let mut confusion = confusion_table(&agg, &names).map_err(pol(&path))?;
 
     let out = |f: &str| dir_out.join(f);
@@ -182,6 +193,9 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
         tails = crate::engine::results::tails::tails(&path, &manifest, &statistics, t, set)?;
         crate::engine::results::tails::write_tail_tables(&dir_out, &tails, &statistics)?;
         files.extend(["tail.csv", "tail_diagnostics.csv"]);
+        let points = crate::engine::results::roc::roc(&path, &manifest, &statistics, t)?;
+        crate::engine::results::roc::write_roc(&dir_out, &points, target_pfa, confidence, validating)?;
+        files.push("roc.csv");
     }
     write_table(&mut summary, &out("summary.csv"))?;
     write_parquet(&mut summary, &out("summary.parquet"))?;
@@ -196,6 +210,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
             let mut df = pairs.finish().map_err(pol(&path))?;
             let height = df.height();
             df.insert_column(0, Column::new("thresholds".into(), vec![*set; height])).map_err(pol(&path))?;
+            with_calibration(&mut df, target_pfa, confidence).map_err(pol(&path))?;
             match &mut all {
                 Some(a) => {
                     a.vstack_mut(&df).map_err(pol(&path))?;
@@ -221,7 +236,8 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     }
     let settings = Settings {
         thresholds: set.map(str::to_string),
-        target_pfa: thresholds.as_ref().and_then(|(t, _)| t.first().and_then(|t| t.target_pfa)),
+        target_pfa,
+        confidence,
         source: thresholds.as_ref().map(|(_, s)| s.clone()),
         warnings: warnings.clone(),
     };

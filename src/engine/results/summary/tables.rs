@@ -280,6 +280,22 @@ pub(super) fn with_size_unit(
     Ok(())
 }
 
+/// Appends `target_pfa` and `confidence`: what the thresholds of each row's set were calibrated for
+/// (null on the deck's rows, whose thresholds the deck gives; `confidence` null for a plain
+/// calibration), so a table read on its own says at what false-alarm rate its rates were bought.
+/// Last, as [`with_size_unit`].
+pub(super) fn with_calibration(
+    df: &mut DataFrame,
+    target_pfa: Option<f64>,
+    confidence: Option<f64>,
+) -> PolarsResult<()> {
+    let sets = df.column("thresholds")?.str()?.clone();
+    let of = |v: Option<f64>| -> Vec<Option<f64>> { sets.iter().map(|s| v.filter(|_| s != Some(DECK))).collect() };
+    df.with_column(Column::new("target_pfa".into(), of(target_pfa)))?;
+    df.with_column(Column::new("confidence".into(), of(confidence)))?;
+    Ok(())
+}
+
 /// Appends `<centre>_lo` and `<centre>_hi`, the edges of the size bin whose centre is in column
 /// `centre`, from the manifest's bins per fault kind: the bin with that centre (to rounding), or the
 /// value itself where the size was listed or fixed (or the folder predates recorded bins). Last, as

@@ -11,8 +11,7 @@ use crate::engine::run::runner::RunError;
 pub const CALIBRATED: &str = "calibrated";
 /// Another run's thresholds (`summarize --thresholds`) on this run's trials.
 pub const VALIDATION: &str = "validation";
-/// Where `summarize --thresholds` writes, inside the run's folder: the run's own tables stay.
-pub const VALIDATION_DIR: &str = "validation";
+pub use crate::engine::run::output::{CALIBRATIONS_DIR, VALIDATION_DIR};
 /// What `summarize` was asked and warned of, for the report (`summarize.json`).
 pub const SETTINGS_FILE: &str = "summarize.json";
 
@@ -42,6 +41,9 @@ pub struct Settings {
     pub thresholds: Option<String>,
     /// The false-alarm probability the thresholds are for.
     pub target_pfa: Option<f64>,
+    /// The confidence they were calibrated with, if any.
+    #[serde(default)]
+    pub confidence: Option<f64>,
     /// Where the thresholds came from, as `thresholds.csv`'s `source` says.
     pub source: Option<String>,
     pub warnings: Vec<String>,
