@@ -717,7 +717,61 @@ fn shared_checks(bin: &Path, deck: &str, baseline: &str, dir: &Path) {
         serde_json::from_str(&std::fs::read_to_string(probe.join("manifest.json")).unwrap()).unwrap();
     let chunk = manifest["chunk_trials"].as_u64().unwrap();
     let tables = ["summary.csv", "detectors.csv"];
-    assert_identical_runs_of(bin, deck, dir, chunk + chunk.div_ceil(4), chunk, &tables);
+    let (one, _) = assert_identical_runs_of(bin, deck, dir, chunk + chunk.div_ceil(4), chunk, &tables);
+    assert_replay_repeats_the_trials(&one);
+}
+
+/// A kind that records a detection statistic: replayed at the deck's own thresholds, the recorded
+/// statistics give exactly the alarms the trials recorded, row by row (a false alarm when a pre-onset
+/// maximum exceeds its threshold, a detection when a first-passage profile does).
+fn assert_replay_repeats_the_trials(dir: &Path) {
+    use polars::prelude::*;
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("manifest.json")).unwrap()).unwrap();
+    let records = read_frame(&dir.join("trials.parquet"));
+    let statistics: Vec<String> =
+        records.get_column_names().iter().filter_map(|c| c.strip_prefix("pre_max_").map(str::to_string)).collect();
+    if statistics.is_empty() {
+        return;
+    }
+    let detectors: Vec<String> =
+        manifest["detectors"].as_array().unwrap().iter().map(|d| d.as_str().unwrap().to_string()).collect();
+    let thresholds: Vec<Vec<f64>> = manifest["deck_thresholds"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t.as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect())
+        .collect();
+    assert_eq!(thresholds.len(), detectors.len(), "{}: the deck's thresholds of every detector", dir.display());
+    let det = records.column("detector").unwrap().str().unwrap().clone();
+    let failure = records.column("failure").unwrap().str().unwrap().clone();
+    let fault_free = records.column("fault_free").unwrap().bool().unwrap().clone();
+    let (false_alarm, detected) = (
+        records.column("false_alarm").unwrap().bool().unwrap().clone(),
+        records.column("detected").unwrap().bool().unwrap().clone(),
+    );
+    let pre: Vec<Float64Chunked> =
+        statistics.iter().map(|s| records.column(&format!("pre_max_{s}")).unwrap().f64().unwrap().clone()).collect();
+    let profiles: Vec<ListChunked> =
+        statistics.iter().map(|s| records.column(&format!("fp_v_{s}")).unwrap().list().unwrap().clone()).collect();
+    let mut replayed = 0;
+    for i in 0..records.height() {
+        if failure.get(i).is_some() {
+            continue;
+        }
+        let d = detectors.iter().position(|x| Some(x.as_str()) == det.get(i)).unwrap();
+        let th = &thresholds[d];
+        let fa = (0..statistics.len()).any(|j| pre[j].get(i).is_some_and(|v| v > th[j]));
+        assert_eq!(Some(fa), false_alarm.get(i), "{}: row {i}: false alarm", dir.display());
+        if fault_free.get(i) != Some(true) {
+            let hit = (0..statistics.len()).any(|j| {
+                profiles[j].get_as_series(i).is_some_and(|v| v.f64().unwrap().iter().flatten().any(|v| v > th[j]))
+            });
+            assert_eq!(Some(hit), detected.get(i), "{}: row {i}: detection", dir.display());
+        }
+        replayed += 1;
+    }
+    assert!(replayed > 0);
 }
 
 #[test]
@@ -1272,7 +1326,8 @@ fn accelerometer_classifiers_train_save_load_and_runs_are_identical() {
     let failed = reference.column("failure").unwrap().is_not_null().sum().unwrap() as u64;
     assert_eq!(units, 600 * 2 - failed);
     assert!(confusion.height() <= 2 * 16);
-    assert_eq!(csv_frame(&one.join("detectors.csv")).height(), 2);
+    // Two classifiers x the deck's and the calibrated thresholds of the residual detector.
+    assert_eq!(csv_frame(&one.join("detectors.csv")).height(), 4);
 
     // `fdimc train` writes the classifiers the run trained; a run with them gives the same records.
     let file = s(tmp.path().join("classifiers.json"));
@@ -1839,7 +1894,12 @@ fn report_draws_every_plot_with_its_series_and_links_only_existing_files() {
     assert!(fa.contains("parameter error bin 0") && fa.contains("noise scale (bin)"), "false_alarms_seed.svg");
     // The tables are for reading: the thresholds' calibration trials an integer, the source said once.
     assert!(html.contains("<code>trials</code>: 441; "), "{html}");
-    assert!(html.contains("<code>target_pfa</code>: 0.01; <code>source</code>: calibrated at Pfa"), "{html}");
+    assert!(
+        html.contains(
+            "<code>target_pfa</code>: 0.01; <code>confidence</code>: -; <code>source</code>: calibrated at Pfa"
+        ),
+        "{html}"
+    );
     assert!(!html.contains(".00000<"), "numbers padded with zeros");
     assert_report_loads_in_a_browser(&dir);
     // Without --trials the report picks what a reader looks at first, says why, and draws each.
@@ -2354,4 +2414,36 @@ fn the_roc_passes_through_the_calibrated_point() {
     ok(&fdimc(&["report", dir.to_str().unwrap()]));
     let svg = std::fs::read_to_string(dir.join("report/roc.svg")).unwrap();
     assert!(svg.contains("seed calibrated: Pfa") && svg.contains("fast calibrated: Pfa"), "{svg}");
+}
+
+/// An ROC against its closed form: the residual of `tests/data/white_residual.toml` is white N(0, 1)
+/// (plus a bias of 1 from the onset), so at threshold c a fault-free flight of 200 samples alarms with
+/// probability 1 - (1 - 2 Q(c))^200 and a faulty one detects within its 100 samples after the onset
+/// with probability 1 - (Phi(c - 1) - Phi(-c - 1))^100. Every point of roc.csv (about 2,000 trials of
+/// each) holds both within its 99.9 % Wilson interval; a point off by one threshold step of the
+/// calibration (a wrong scale, a wrong count) would not.
+#[test]
+fn the_roc_of_a_white_residual_meets_its_closed_form() {
+    use fdimc::engine::stats::intervals::{normal_sf, wilson};
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("run");
+    ok(&fdimc(&["run", "tests/data/white_residual.toml", "--quiet", "--out", dir.to_str().unwrap()]));
+    let roc = csv_frame(&dir.join("roc.csv"));
+    let thresholds = csv_frame(&dir.join("thresholds.csv"));
+    let whole = thresholds.column("detector_threshold").unwrap().f64().unwrap().get(0).unwrap();
+    let n = |c: &str| roc.column(c).unwrap().cast(&polars::prelude::DataType::Float64).unwrap().f64().unwrap().clone();
+    let (scale, trials, false_alarms, faulty, detected) =
+        (n("scale"), n("trials"), n("false_alarms"), n("faulty"), n("detected"));
+    assert!(roc.height() > 30, "{roc}");
+    let phi = |x: f64| 1.0 - normal_sf(x);
+    for i in 0..roc.height() {
+        let c = whole * scale.get(i).unwrap();
+        let pfa = 1.0 - (1.0 - 2.0 * normal_sf(c)).powi(200);
+        let pd = 1.0 - (phi(c - 1.0) - phi(-c - 1.0)).powi(100);
+        let count = |x: &polars::prelude::Float64Chunked| x.get(i).unwrap() as u64;
+        let (lo, hi) = wilson(count(&false_alarms), count(&trials), 3.29);
+        assert!(lo <= pfa && pfa <= hi, "point {i}, threshold {c}: Pfa {pfa} outside [{lo}, {hi}]");
+        let (lo, hi) = wilson(count(&detected), count(&faulty), 3.29);
+        assert!(lo <= pd && pd <= hi, "point {i}, threshold {c}: Pd {pd} outside [{lo}, {hi}]");
+    }
 }

@@ -577,7 +577,10 @@ fn gather(
         column_names(&path)?.iter().filter_map(|n| n.strip_prefix(col::PRE_MAX_PREFIX).map(str::to_string)).collect();
     let by_statistic = !whole.is_empty() && !statistics.is_empty();
     let mut columns: Vec<String> =
-        [col::DETECTOR, col::KIND, col::FAILURE, col::ONSET_S, col::DELAY_S].iter().map(|s| s.to_string()).collect();
+        [col::DETECTOR, col::KIND, col::FAULT_FREE, col::FAILURE, col::ONSET_S, col::DELAY_S]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
     if by_statistic {
         columns.extend(RecordedStatistics::columns(&statistics));
     }
@@ -585,6 +588,7 @@ fn gather(
         let df = df?;
         let det = str_col(&df, col::DETECTOR, &path)?;
         let kind = str_col(&df, col::KIND, &path)?;
+        let fault_free = bool_col(&df, col::FAULT_FREE, &path)?;
         let failure = str_col(&df, col::FAILURE, &path)?;
         let onset = f64_col(&df, col::ONSET_S, &path)?;
         let delay = f64_col(&df, col::DELAY_S, &path)?;
@@ -595,15 +599,17 @@ fn gather(
                 continue;
             }
             let Some(dd) = data.get_mut(d) else { continue };
+            // By `fault_free`, as the summary: a classifier's fault-free class has a name (`normal`).
+            let is_fault_free = fault_free.get(i) == Some(true);
             if !by_statistic {
-                if let (false, Some(t)) = (k == col::NO_FAULT, delay.get(i)) {
+                if let (false, Some(t)) = (is_fault_free, delay.get(i)) {
                     dd.delays.entry(k.to_string()).or_default().push(t);
                 }
                 continue;
             }
             let Some(th) = whole.get(d) else { continue };
             let j_max = statistics.len().min(th.len());
-            if k == col::NO_FAULT {
+            if is_fault_free {
                 let z = (0..j_max).map(|j| recorded.pre[j][i] / th[j]).fold(0.0, f64::max);
                 dd.z_fault_free.push(z);
                 continue;

@@ -90,7 +90,7 @@ pub fn roc(
     let nd = manifest.detectors.len();
     let ns = statistics.len();
     let mut select: Vec<String> =
-        [col::DETECTOR, col::KIND, col::FAULT_FREE, col::FAILURE, col::ONSET_S].iter().map(|s| s.to_string()).collect();
+        [col::DETECTOR, col::FAULT_FREE, col::FAILURE, col::ONSET_S].iter().map(|s| s.to_string()).collect();
     select.extend(RecordedStatistics::columns(statistics));
     let whole: Vec<&[f64]> = (0..nd)
         .map(|d| {
@@ -149,9 +149,8 @@ pub fn roc(
     // Pass 2: at each point, the alarms of the calibration units and the detections of the faulty ones.
     for df in slices(path, manifest.rows as usize, SLICE_ROWS, &select) {
         let df = df?;
-        let (det, kind, fault_free, failure, onset) = (
+        let (det, fault_free, failure, onset) = (
             str_col(&df, col::DETECTOR, path)?,
-            str_col(&df, col::KIND, path)?,
             bool_col(&df, col::FAULT_FREE, path)?,
             str_col(&df, col::FAILURE, path)?,
             f64_col(&df, col::ONSET_S, path)?,
@@ -163,7 +162,8 @@ pub fn roc(
                 continue;
             }
             let failed = failure.get(i).is_some();
-            let faulty = !failed && kind.get(i).is_some_and(|k| k != col::NO_FAULT);
+            // By `fault_free`, as the summary: a classifier's fault-free class has a name (`normal`).
+            let faulty = !failed && fault_free.get(i) != Some(true);
             let calibration = calibrates(fault_free.get(i), failed);
             for (p, thr) in points[d].iter_mut().zip(&scaled[d]) {
                 let (false_alarm, first) = recorded.alarms_at(i, thr, faulty);

@@ -25,7 +25,7 @@
 //! | `param_error_bin` | f64 | largest \|group label\| of the trial's parameter errors (0 without any) |
 //! | `perr_<name>` | f64 | each parameter error of the deck, as the deck gives it (relative or absolute) |
 //!
-//! A kind that records a detection statistic per trial (methods 000 and 001) adds, per statistic `s`,
+//! A kind that records a detection statistic per trial (methods 000, 001 and 003) adds, per statistic `s`,
 //! `pre_max_<s>` (its largest value before the onset, the whole trial when fault-free) and the lists
 //! `fp_t_s_<s>`, `fp_v_<s>` (the first-passage profile after the onset: times and values at which its
 //! running maximum rises), so any threshold can be evaluated later without re-simulating.
@@ -235,6 +235,50 @@ impl<'a> CoreColumns<'a> {
             columns.push(Column::new(col::perr(name).into(), v));
         }
         columns
+    }
+}
+
+/// Relative rise of the running maximum that adds a point to a first-passage profile.
+pub const PROFILE_RESOLUTION: f64 = 0.02;
+
+/// A statistic's first-passage profile after the onset while a unit is flown: a point `(t, value)`
+/// each time its running maximum rises by more than [`PROFILE_RESOLUTION`] over the last point kept,
+/// and the final maximum to close it ([`FirstPassage::close`]), so "alarm or not" is exact at every
+/// threshold and the alarm time is that of the first sample within the resolution of it. The points go
+/// to the caller's vectors (a unit's outcome holds them).
+#[derive(Debug, Clone, Copy)]
+pub struct FirstPassage {
+    running_max: f64,
+    running_max_t: f64,
+    last_kept: f64,
+}
+
+impl Default for FirstPassage {
+    fn default() -> Self {
+        FirstPassage { running_max: 0.0, running_max_t: f64::NAN, last_kept: f64::NAN }
+    }
+}
+
+impl FirstPassage {
+    /// The statistic's value `a` at `t` (s), after the onset.
+    pub fn observe(&mut self, t: f64, a: f64, profile_t_s: &mut Vec<f64>, profile_value: &mut Vec<f64>) {
+        if a > self.running_max || self.running_max_t.is_nan() {
+            self.running_max = a;
+            self.running_max_t = t;
+            if self.last_kept.is_nan() || a > self.last_kept * (1.0 + PROFILE_RESOLUTION) {
+                profile_t_s.push(t);
+                profile_value.push(a);
+                self.last_kept = a;
+            }
+        }
+    }
+
+    /// Closes the profile with the final maximum, where the last point kept is not it.
+    pub fn close(&self, profile_t_s: &mut Vec<f64>, profile_value: &mut Vec<f64>) {
+        if !self.running_max_t.is_nan() && profile_value.last() != Some(&self.running_max) {
+            profile_t_s.push(self.running_max_t);
+            profile_value.push(self.running_max);
+        }
     }
 }
 

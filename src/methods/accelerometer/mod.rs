@@ -229,6 +229,7 @@ impl<'a> AccelerometerTrials<'a> {
                 predicted,
                 false_alarm_s: alarms.false_alarm.map(at),
                 alarm_s: alarms.alarm.map(at),
+                statistic: alarms.recorded,
                 health: trace.health,
             })
         })();
@@ -248,6 +249,8 @@ impl TrialSource for AccelerometerTrials<'_> {
             // A 20 s trial costs a few milliseconds: 512 make a part file of about a second.
             chunk_trials: 512,
             outputs: ["accel_x", "accel_y", "accel_z"].iter().map(|a| a.to_string()).collect(),
+            // The residual detector's threshold on T, the same for every classifier's rows.
+            deck_thresholds: vec![vec![s.detection.threshold]; s.classifiers.len()],
             fault_size_units: [
                 ("bias".to_string(), "m/s^2 (bin: |bias|)".to_string()),
                 ("gain".to_string(), crate::engine::results::schema::unit::GAIN_DEVIATION_BINS.to_string()),

@@ -15,6 +15,7 @@
 //! | `alarm_s` | the residual detector's first alarm at or after the onset |
 //! | `unusable_accelerometer_samples` | samples the filter could not use (zero or non-finite) |
 //! | `log_start_s` | replay decks only: the trial's segment start, log seconds from its first sample |
+//! | `pre_max_residual_t`, `fp_t_s_residual_t`, `fp_v_residual_t` | the residual detector's statistic `T` recorded ([`STATISTIC`]): its largest value from `settle_s` to the onset (the whole normal trial) and its first-passage profile after the onset, so `summarize` calibrates its threshold and draws its ROC |
 
 use std::borrow::Cow;
 
@@ -22,7 +23,10 @@ use polars::prelude::*;
 
 use super::ekf_svm::FaultClass;
 use super::trial::AccelTrialResult;
-use crate::engine::results::schema::{CoreColumns, Outcome};
+use crate::engine::results::schema::{CoreColumns, Outcome, StatisticColumns};
+
+/// The recorded statistic: the residual detector's `T`.
+pub const STATISTIC: &str = "residual_t";
 
 /// The unit of a class's size.
 fn size_unit(class: FaultClass) -> &'static str {
@@ -38,6 +42,7 @@ fn size_unit(class: FaultClass) -> &'static str {
 pub fn frame(results: &[AccelTrialResult], names: &[&str], replay: bool) -> PolarsResult<DataFrame> {
     let n = results.len() * names.len();
     let mut core = CoreColumns::new(Vec::new(), n);
+    let mut statistics = StatisticColumns::new(&[STATISTIC.to_string()], n);
     let (mut alarm, mut unusable, mut log_start) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::new());
     for r in results {
         let s = &r.spec;
@@ -66,6 +71,12 @@ pub fn frame(results: &[AccelTrialResult], names: &[&str], replay: bool) -> Pola
                 param_error_bin: 0.0,
                 param_errors: &[],
             });
+            match o {
+                Some(o) => {
+                    statistics.push(0, Some(o.statistic.pre_max), &o.statistic.profile_t_s, &o.statistic.profile_value)
+                }
+                None => statistics.push(0, None, &[], &[]),
+            }
             alarm.push(o.and_then(|o| o.alarm_s));
             unusable.push(o.map(|o| o.health.unusable_measurement));
             log_start.push(s.log_start_s);
@@ -77,6 +88,7 @@ pub fn frame(results: &[AccelTrialResult], names: &[&str], replay: bool) -> Pola
     if replay {
         columns.push(Column::new("log_start_s".into(), log_start));
     }
+    columns.extend(statistics.finish());
     DataFrame::new_infer_height(columns)
 }
 
@@ -108,6 +120,7 @@ mod tests {
             predicted: vec![tree, flat],
             false_alarm_s: false_alarm,
             alarm_s: alarm,
+            statistic: Default::default(),
             health: Default::default(),
         };
         let results = vec![

@@ -37,7 +37,7 @@ use std::sync::Arc;
 
 /// The options this kind takes beyond the common ones (its `Method::options`): said here, where its deck
 /// rules read them (`monte_carlo.target_pfa` with [`Opt::Thresholds`]).
-pub const OPTIONS: &[Opt] = &[Opt::Classifiers];
+pub const OPTIONS: &[Opt] = &[Opt::Classifiers, Opt::Thresholds];
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -23,6 +23,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::engine::results::schema::FirstPassage;
 use crate::engine::run::runner::{RunError, write_atomically};
 use crate::engine::scenario::streams::{Substream, trial_rng};
 use crate::methods::accelerometer::attitude::AttitudeHealth;
@@ -81,11 +82,22 @@ pub struct TrainedClassifier {
 
 /// The residual detector on one trial: its statistic per sample, the first alarm before the onset (a
 /// false alarm; anywhere after `settle_s` for the normal class) and the first at or after it, as sample
-/// indices.
+/// indices; and the statistic as recorded for thresholds set after the run: its largest value from
+/// `settle_s` to the onset (to the end for the normal class) and its first-passage profile after the
+/// onset ([`FirstPassage`]).
 pub struct Alarms {
     pub statistics: Vec<f64>,
     pub false_alarm: Option<usize>,
     pub alarm: Option<usize>,
+    pub recorded: RecordedStatistic,
+}
+
+/// A trial's residual statistic `T` as recorded ([`Alarms`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RecordedStatistic {
+    pub pre_max: f64,
+    pub profile_t_s: Vec<f64>,
+    pub profile_value: Vec<f64>,
 }
 
 impl Alarms {
@@ -110,7 +122,23 @@ impl Alarms {
                 first_alarm(&statistics, threshold, onset),
             )
         };
-        Alarms { statistics, false_alarm, alarm }
+        // The same windows as the alarms: before the onset from settle_s (all of a normal trial), after it.
+        let pre_end = if class == FaultClass::Normal { statistics.len() } else { onset.min(statistics.len()) };
+        let mut recorded = RecordedStatistic {
+            pre_max: statistics.get(settle.min(pre_end)..pre_end).unwrap_or(&[]).iter().fold(0.0, |m, &t| m.max(t)),
+            ..Default::default()
+        };
+        if class != FaultClass::Normal {
+            let mut first_passage = FirstPassage::default();
+            for (k, &t) in statistics.iter().enumerate().skip(onset) {
+                if !t.is_nan() {
+                    let r = &mut recorded;
+                    first_passage.observe(k as f64 * trace.dt_s, t, &mut r.profile_t_s, &mut r.profile_value);
+                }
+            }
+            first_passage.close(&mut recorded.profile_t_s, &mut recorded.profile_value);
+        }
+        Alarms { statistics, false_alarm, alarm, recorded }
     }
 
     /// Where an online classifier's window starts: the alarm (a normal trial's false alarm); none
@@ -307,6 +335,8 @@ pub struct AccelOutcome {
     pub predicted: Vec<FaultClass>,
     pub false_alarm_s: Option<f64>,
     pub alarm_s: Option<f64>,
+    /// The residual statistic `T` as recorded for thresholds set after the run.
+    pub statistic: RecordedStatistic,
     pub health: AttitudeHealth,
 }
 

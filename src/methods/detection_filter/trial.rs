@@ -36,8 +36,8 @@ use super::decision::TestState;
 use super::kernel::{FilterState, FilterStep, PlantState, PlantStep};
 use crate::engine::run::output::Trace;
 
-/// Relative rise of the running maximum that adds a point to a first-passage profile.
-pub const PROFILE_RESOLUTION: f64 = 0.02;
+use crate::engine::results::schema::FirstPassage;
+pub use crate::engine::results::schema::PROFILE_RESOLUTION;
 
 /// What one detector made of one trial, in compact form.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -61,9 +61,7 @@ pub struct DetectorOutcome {
 struct Tracker {
     out: DetectorOutcome,
     thresholds: DVector<f64>,
-    running_max: Vec<f64>,
-    running_max_t: Vec<f64>,
-    last_kept: Vec<f64>,
+    first_passage: Vec<FirstPassage>,
     iso_sum: DVector<f64>,
     iso_count: usize,
     iso_window: Option<(f64, f64)>,
@@ -83,9 +81,7 @@ impl Tracker {
                 ..Default::default()
             },
             thresholds: filter.thresholds.clone(),
-            running_max: vec![0.0; ny],
-            running_max_t: vec![f64::NAN; ny],
-            last_kept: vec![f64::NAN; ny],
+            first_passage: vec![FirstPassage::default(); ny],
             iso_sum: DVector::zeros(ny),
             iso_count: 0,
             iso_window: None,
@@ -108,16 +104,7 @@ impl Tracker {
         for j in 0..residual.len() {
             let a = self.statistic[j];
             if after_onset {
-                if a > self.running_max[j] || self.running_max_t[j].is_nan() {
-                    self.running_max[j] = a;
-                    self.running_max_t[j] = t;
-                    let kept = self.last_kept[j];
-                    if kept.is_nan() || a > kept * (1.0 + PROFILE_RESOLUTION) {
-                        self.out.profile_t_s[j].push(t);
-                        self.out.profile_value[j].push(a);
-                        self.last_kept[j] = a;
-                    }
-                }
+                self.first_passage[j].observe(t, a, &mut self.out.profile_t_s[j], &mut self.out.profile_value[j]);
             } else if a > self.out.pre_onset_max_abs_residual[j] {
                 self.out.pre_onset_max_abs_residual[j] = a;
             }
@@ -146,12 +133,8 @@ impl Tracker {
     }
 
     fn finish(mut self, filter: &DetectionFilter) -> DetectorOutcome {
-        for j in 0..self.running_max.len() {
-            // The final maximum closes the profile, so "alarm or not" is exact for every threshold.
-            if !self.running_max_t[j].is_nan() && self.out.profile_value[j].last() != Some(&self.running_max[j]) {
-                self.out.profile_t_s[j].push(self.running_max_t[j]);
-                self.out.profile_value[j].push(self.running_max[j]);
-            }
+        for (j, fp) in self.first_passage.iter().enumerate() {
+            fp.close(&mut self.out.profile_t_s[j], &mut self.out.profile_value[j]);
         }
         if self.iso_count > 0 {
             let mean = &self.iso_sum / self.iso_count as f64;
