@@ -138,7 +138,7 @@ mod tests {
         let df = frame(&results, &["tree", "flat"], false).unwrap();
         assert_eq!(df.height(), 8);
         let s = Summarized::of(df, &super::super::METHOD, 4, &["tree", "flat"]);
-        assert_eq!(s.summary.height(), 6, "3 kinds x 2 classifiers");
+        assert_eq!(s.summary.height(), 12, "3 kinds x 2 classifiers x the deck's and the calibrated thresholds");
         for detector in ["flat", "tree"] {
             let (bias, normal, stuck) = (s.row(detector, "bias"), s.row(detector, "normal"), s.row(detector, "stuck"));
             assert_eq!(["trials", "failed", "detected"].map(|c| s.count(c, bias)), [Some(2), Some(1), Some(1)]);
