@@ -3,7 +3,8 @@
 //!
 //! The points are the scales at which the calibration units' alarms step: for `n` units whose largest
 //! statistic-to-threshold ratios are `r(1) >= r(2) >= ...`, the scale `r(k + 1)` lets exactly `k` of them
-//! alarm (ties aside). About forty `k` are taken, spaced evenly in `log k` from 0 to `n - 1`, plus the
+//! alarm (ties aside; each point's thresholds let through the units its scale does, as the calibration's
+//! own, [`let_through`]). About forty `k` are taken, spaced evenly in `log k` from 0 to `n - 1`, plus the
 //! scale 1 (the calibrated thresholds themselves, `calibrated = true`). At each point the alarms are
 //! counted as everywhere else: a unit alarms when a statistic's pre-onset maximum exceeds its scaled
 //! threshold, and a faulty unit is detected at the first post-onset profile point above one
@@ -20,7 +21,7 @@ use polars::prelude::*;
 
 use crate::engine::results::schema::col;
 use crate::engine::results::tables::{bool_col, f64_col, slices, str_col};
-use crate::engine::results::thresholds::{DetectorThresholds, RecordedStatistics, SLICE_ROWS};
+use crate::engine::results::thresholds::{DetectorThresholds, RecordedStatistics, SLICE_ROWS, let_through, unit_ratio};
 use crate::engine::run::output::write_table;
 use crate::engine::run::runner::{Manifest, RunError, pol};
 use crate::engine::stats::intervals::{Z95, wilson};
@@ -101,31 +102,36 @@ pub fn roc(
     // Which rows calibrate: flown, and fault-free where there are fault-free trials (as thresholds.rs).
     let calibrates = |fault_free: Option<bool>, failed: bool| !failed && (!on_fault_free || fault_free == Some(true));
 
-    // Pass 1: each calibration unit's largest ratio to its detector's thresholds.
-    let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); nd];
+    // Each calibration unit of a detector with thresholds, with its pre-onset maxima (one pass).
     let pre_only: Vec<String> = [col::DETECTOR, col::FAULT_FREE, col::FAILURE]
         .iter()
         .map(|s| s.to_string())
         .chain(statistics.iter().map(|s| col::pre_max(s)))
         .collect();
-    for df in slices(path, manifest.rows as usize, SLICE_ROWS, &pre_only) {
-        let df = df?;
-        let (det, fault_free, failure) = (
-            str_col(&df, col::DETECTOR, path)?,
-            bool_col(&df, col::FAULT_FREE, path)?,
-            str_col(&df, col::FAILURE, path)?,
-        );
-        let pre: Vec<&Float64Chunked> =
-            statistics.iter().map(|s| f64_col(&df, &col::pre_max(s), path)).collect::<Result<_, _>>()?;
-        for i in 0..df.height() {
-            let Some(d) = det.get(i).and_then(|n| manifest.detectors.iter().position(|x| x == n)) else { continue };
-            if whole[d].len() != ns || !calibrates(fault_free.get(i), failure.get(i).is_some()) {
-                continue;
+    let for_each_calibration_unit = |visit: &mut dyn FnMut(usize, &dyn Fn(usize) -> f64)| -> Result<(), RunError> {
+        for df in slices(path, manifest.rows as usize, SLICE_ROWS, &pre_only) {
+            let df = df?;
+            let (det, fault_free, failure) = (
+                str_col(&df, col::DETECTOR, path)?,
+                bool_col(&df, col::FAULT_FREE, path)?,
+                str_col(&df, col::FAILURE, path)?,
+            );
+            let pre: Vec<&Float64Chunked> =
+                statistics.iter().map(|s| f64_col(&df, &col::pre_max(s), path)).collect::<Result<_, _>>()?;
+            for i in 0..df.height() {
+                let Some(d) = det.get(i).and_then(|n| manifest.detectors.iter().position(|x| x == n)) else {
+                    continue;
+                };
+                if whole[d].len() == ns && calibrates(fault_free.get(i), failure.get(i).is_some()) {
+                    visit(d, &|j| pre[j].get(i).unwrap_or(f64::NAN));
+                }
             }
-            let r = (0..ns).map(|j| pre[j].get(i).unwrap_or(f64::NAN) / whole[d][j]).fold(0.0, f64::max);
-            ratios[d].push(r);
         }
-    }
+        Ok(())
+    };
+    // Pass 1: each calibration unit's largest ratio to its detector's thresholds.
+    let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); nd];
+    for_each_calibration_unit(&mut |d, value| ratios[d].push(unit_ratio(value, whole[d])))?;
     let mut points: Vec<Vec<RocPoint>> = (0..nd)
         .map(|d| {
             scales(std::mem::take(&mut ratios[d]))
@@ -143,8 +149,14 @@ pub fn roc(
                 .collect()
         })
         .collect();
-    let scaled: Vec<Vec<Vec<f64>>> =
+    let mut scaled: Vec<Vec<Vec<f64>>> =
         (0..nd).map(|d| points[d].iter().map(|p| whole[d].iter().map(|t| t * p.scale).collect()).collect()).collect();
+    // Pass 1b: as the calibration itself, each point's thresholds let through the units its scale does.
+    for_each_calibration_unit(&mut |d, value| {
+        for (thr, p) in scaled[d].iter_mut().zip(&points[d]) {
+            let_through(thr, value, whole[d], p.scale);
+        }
+    })?;
 
     // Pass 2: at each point, the alarms of the calibration units and the detections of the faulty ones.
     for df in slices(path, manifest.rows as usize, SLICE_ROWS, &select) {

@@ -6,7 +6,9 @@
 //!   pre-onset maxima exceed (so each statistic alone has false-alarm probability <= p on calibration
 //!   data);
 //! - whole detector: those thresholds times one common factor, the smallest at which at most
-//!   `floor(p n)` calibration units alarm on any statistic: the detector's false-alarm probability is p.
+//!   `floor(p n)` calibration units alarm on any statistic: the detector's false-alarm probability is p
+//!   (each threshold raised, where the product rounds below it, to the largest value of the units the
+//!   factor lets through: [`let_through`]; so exactly `floor(p n)` alarm unless units tie).
 //!
 //! Calibration units are the fault-free ones flown to the end (their whole duration); without any, the
 //! pre-onset windows of all units. `--thresholds F` applies another run's thresholds instead, and the
@@ -88,7 +90,7 @@ pub struct DetectorThresholds {
     pub deck: Vec<f64>,
     /// Per statistic, each at the target false-alarm probability alone.
     pub per_statistic: Vec<f64>,
-    /// Whole-detector thresholds (`per_statistic * scale`).
+    /// Whole-detector thresholds (`per_statistic * scale`, [`let_through`] applied).
     pub whole: Vec<f64>,
     /// The fault-free units the thresholds were calibrated on, or (`--thresholds`) validated on.
     pub calibration_units: u64,
@@ -162,6 +164,27 @@ impl RecordedStatistics {
                 t.iter().zip(v).find(|(_, v)| **v > thr[j]).map(|(t, _)| *t)
             })
             .reduce(f64::min)
+    }
+}
+
+/// A unit's largest ratio of its statistics (`value(j)`) to the thresholds `base` (NaN values and
+/// thresholds ignored): the unit alarms at `base * scale` when this exceeds `scale`.
+pub fn unit_ratio(value: impl Fn(usize) -> f64, base: &[f64]) -> f64 {
+    (0..base.len()).map(|j| value(j) / base[j]).fold(0.0, f64::max)
+}
+
+/// Makes `scaled` (`base * scale`) let through a unit whose ratio to `base` ([`unit_ratio`]) is at most
+/// `scale`: the product can round one ulp below the value whose ratio set the scale, and that unit would
+/// alarm. Each threshold is raised to the unit's value; a NaN threshold (a statistic that calibrates
+/// nothing) stays NaN. Units with a larger ratio still alarm: their value on some statistic is above
+/// that of every unit let through.
+pub fn let_through(scaled: &mut [f64], value: impl Fn(usize) -> f64, base: &[f64], scale: f64) {
+    if unit_ratio(&value, base) <= scale {
+        for (j, t) in scaled.iter_mut().enumerate() {
+            if !t.is_nan() {
+                *t = t.max(value(j));
+            }
+        }
     }
 }
 
@@ -414,7 +437,7 @@ pub fn thresholds(
             for_each_slice(path, rows, manifest, statistics, fault_free_rows, |s| {
                 for (i, d) in s.detector.iter().enumerate() {
                     if let Some(d) = *d {
-                        scale[d].push((0..ns).map(|j| s.pre[j][i] / per[d][j]).fold(0.0, f64::max));
+                        scale[d].push(unit_ratio(|j| s.pre[j][i], &per[d]));
                     }
                 }
             })?;
@@ -445,18 +468,10 @@ pub fn thresholds(
                 .collect();
             let mut whole: Vec<Vec<f64>> =
                 per.iter().zip(&factor).map(|(p, s)| p.iter().map(|t| t * s).collect()).collect();
-            // `per * factor` can round one ulp below the value whose ratio set the factor, and that unit
-            // would alarm beyond the allowed count: raise each threshold to the largest value of the
-            // units the factor lets through.
             for_each_slice(path, rows, manifest, statistics, fault_free_rows, |s| {
                 for (i, d) in s.detector.iter().enumerate() {
                     if let Some(d) = *d {
-                        let ratio = (0..ns).map(|j| s.pre[j][i] / per[d][j]).fold(0.0, f64::max);
-                        if ratio <= factor[d] {
-                            for j in 0..ns {
-                                whole[d][j] = whole[d][j].max(s.pre[j][i]);
-                            }
-                        }
+                        let_through(&mut whole[d], |j| s.pre[j][i], &per[d], factor[d]);
                     }
                 }
             })?;
@@ -673,6 +688,31 @@ pub fn read_thresholds(path: &Path) -> Result<ThresholdsFile, RunError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A scale that is one unit's ratio lets that unit through even where the product rounds one ulp
+    /// below its value (about one pair in 20 does); a unit above the scale still alarms; a NaN
+    /// threshold stays NaN, and a NaN value is no ratio.
+    #[test]
+    fn a_scale_lets_through_the_unit_that_set_it() {
+        let (a, b) = (1..10_000)
+            .map(|i| (1.0 + i as f64 * 1e-4 * std::f64::consts::PI, 0.3 + i as f64 * 1e-3))
+            .find(|&(a, b)| b * (a / b) < a)
+            .unwrap();
+        let (base, unit) = ([b, f64::NAN], [a, 1.0]);
+        let scale = unit_ratio(|j| unit[j], &base);
+        assert_eq!(scale, a / b);
+        let mut thresholds = [b * scale, f64::NAN];
+        assert!(a > thresholds[0], "the product alone would let the unit alarm");
+        let_through(&mut thresholds, |j| unit[j], &base, scale);
+        assert_eq!(thresholds[0], a);
+        assert!(thresholds[1].is_nan());
+        let above = a * (1.0 + 1e-12);
+        assert!(unit_ratio(|j| [above, 1.0][j], &base) > scale && above > thresholds[0]);
+        // A unit above the scale raises nothing.
+        let before = thresholds;
+        let_through(&mut thresholds, |j| [above, 1.0][j], &base, scale);
+        assert_eq!(thresholds[0], before[0]);
+    }
 
     /// Per flight hour from 60 s trials: 60 independent segments an hour, so 1 - (1 - p)^60 (1e-3 per
     /// trial is 0.0583 per hour (0.058264); 1e-9 per trial is 6e-8 per hour), and back.
