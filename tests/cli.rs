@@ -2373,6 +2373,10 @@ fn a_calibration_lets_through_exactly_the_alarms_it_allows() {
         assert!(allowed < (0.01 * n as f64).floor() as i64, "{allowed}");
         assert_eq!(alarms.get(i), Some(allowed), "row {i}:\n{t}");
     }
+    // Another target keeps the deck's confidence (each from the command line where given, else the deck).
+    let stdout = ok(&fdimc(&["summarize", d, "--target-pfa", "0.05"]));
+    assert!(stdout.contains("calibrated at Pfa 0.05 with 0.95 confidence"), "{stdout}");
+    assert!(dir.join("calibrations/pfa_0.05_confidence_0.95/thresholds.csv").is_file());
 }
 
 /// ROC (`roc.csv`): per detector, points whose Pfa rises as Pd does; the calibrated point repeats

@@ -124,8 +124,8 @@ Precision: `--precision 0.01 --precision-rates pd,pfa --trials 1000000` runs unt
         /// Target false-alarm probability per trial (default: the deck's monte_carlo.target_pfa).
         #[arg(long)]
         target_pfa: Option<f64>,
-        /// Calibrate conservatively: thresholds whose true false-alarm probability is at most the target
-        /// with this confidence (e.g. 0.95: Wilks' order statistic; says how many fault-free trials it
+        /// Calibrate conservatively (default: the deck's monte_carlo.confidence, if it sets one):
+        /// thresholds whose true false-alarm probability is at most the target with this confidence (e.g. 0.95: Wilks' order statistic; says how many fault-free trials it
         /// needs when there are too few).
         #[arg(long)]
         confidence: Option<f64>,

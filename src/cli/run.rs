@@ -341,7 +341,11 @@ impl Kinds {
             (Some(p), None, _) if !(p > 0.0 && p < 1.0) => {
                 return Err(CliError::Invalid(format!("--target-pfa {p}: allowed 0 < p < 1")));
             }
-            (Some(p), None, None) => Some(Calibration::Target(p)),
+            // Target and confidence each from the command line where given, else from the deck.
+            (Some(p), None, None) => Some(match manifest.confidence {
+                Some(confidence) => Calibration::Confident { pfa: p, confidence },
+                None => Calibration::Target(p),
+            }),
             (p, None, Some(confidence)) => {
                 Some(Calibration::Confident { pfa: p.unwrap_or(manifest.target_pfa), confidence })
             }

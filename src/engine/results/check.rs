@@ -188,6 +188,9 @@ pub fn compare(current: &DataFrame, baseline: &DataFrame, alpha: f64) -> Result<
         (Ok(Some(_)), Err(())) => verdict.notes.push(
             "the baseline does not say at what false-alarm rate its thresholds were calibrated (made by an older fdimc): compared as if at the summary's".into(),
         ),
+        (Err(()), Ok(Some(_))) => verdict.notes.push(
+            "the summary does not say at what false-alarm rate its thresholds were calibrated (made by an older fdimc): compared as if at the baseline's".into(),
+        ),
         _ => {}
     }
     let mut keys: Vec<&String> = base.keys().collect();
@@ -347,6 +350,8 @@ mod tests {
         assert_eq!((same.compared_groups, same.regressions.len(), same.notes.len()), (2, 0, 0));
         let unsaid = compare(&at(0.01, None), &calibrated(None, None), 0.05).unwrap();
         assert_eq!((unsaid.compared_groups, unsaid.notes.len()), (2, 1), "{:?}", unsaid.notes);
+        let unsaid = compare(&calibrated(None, None), &at(0.01, None), 0.05).unwrap();
+        assert!(unsaid.notes.iter().any(|n| n.starts_with("the summary does not say")), "{:?}", unsaid.notes);
         // The deck's thresholds carry no calibration: nothing to refuse.
         assert!(
             compare(&summary(&[("a", 10, 9, 0, 9, 9, true)]), &summary(&[("a", 10, 9, 0, 9, 9, true)]), 0.05).is_ok()
