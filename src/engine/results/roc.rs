@@ -21,7 +21,9 @@ use polars::prelude::*;
 
 use crate::engine::results::schema::col;
 use crate::engine::results::tables::{bool_col, f64_col, slices, str_col};
-use crate::engine::results::thresholds::{DetectorThresholds, RecordedStatistics, SLICE_ROWS, let_through, unit_ratio};
+use crate::engine::results::thresholds::{
+    DetectorThresholds, RecordedStatistics, SLICE_ROWS, for_each_slice, let_through, unit_ratio,
+};
 use crate::engine::run::output::write_table;
 use crate::engine::run::runner::{Manifest, RunError, pol};
 use crate::engine::stats::intervals::{Z95, wilson};
@@ -102,32 +104,18 @@ pub fn roc(
     // Which rows calibrate: flown, and fault-free where there are fault-free trials (as thresholds.rs).
     let calibrates = |fault_free: Option<bool>, failed: bool| !failed && (!on_fault_free || fault_free == Some(true));
 
-    // Each calibration unit of a detector with thresholds, with its pre-onset maxima (one pass).
-    let pre_only: Vec<String> = [col::DETECTOR, col::FAULT_FREE, col::FAILURE]
-        .iter()
-        .map(|s| s.to_string())
-        .chain(statistics.iter().map(|s| col::pre_max(s)))
-        .collect();
-    let for_each_calibration_unit = |visit: &mut dyn FnMut(usize, &dyn Fn(usize) -> f64)| -> Result<(), RunError> {
-        for df in slices(path, manifest.rows as usize, SLICE_ROWS, &pre_only) {
-            let df = df?;
-            let (det, fault_free, failure) = (
-                str_col(&df, col::DETECTOR, path)?,
-                bool_col(&df, col::FAULT_FREE, path)?,
-                str_col(&df, col::FAILURE, path)?,
-            );
-            let pre: Vec<&Float64Chunked> =
-                statistics.iter().map(|s| f64_col(&df, &col::pre_max(s), path)).collect::<Result<_, _>>()?;
-            for i in 0..df.height() {
-                let Some(d) = det.get(i).and_then(|n| manifest.detectors.iter().position(|x| x == n)) else {
-                    continue;
-                };
-                if whole[d].len() == ns && calibrates(fault_free.get(i), failure.get(i).is_some()) {
-                    visit(d, &|j| pre[j].get(i).unwrap_or(f64::NAN));
+    // Each calibration unit of a detector with thresholds, with its pre-onset maxima: the calibration's
+    // own reader, so the ROC calibrates on the same units.
+    let for_each_calibration_unit = |visit: &mut dyn FnMut(usize, &dyn Fn(usize) -> f64)| {
+        for_each_slice(path, manifest.rows, manifest, statistics, on_fault_free, |rows| {
+            for (i, d) in rows.detector.iter().enumerate() {
+                if let Some(d) = *d
+                    && whole[d].len() == ns
+                {
+                    visit(d, &|j| rows.pre[j][i]);
                 }
             }
-        }
-        Ok(())
+        })
     };
     // Pass 1: each calibration unit's largest ratio to its detector's thresholds.
     let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); nd];
