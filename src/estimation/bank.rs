@@ -147,6 +147,13 @@ impl<const K: usize> ModelProbabilities<K> {
 /// below `clear` (0.05) for `clear_hold_steps` (the seed says "within a certain time" for both; 1 step
 /// clears at the first sample below). Another model above `declare` for `hold_steps` replaces the
 /// declared one.
+///
+/// Its decision statistic ([`DeclareClear::held_samples`]) is how many samples in a row some fault
+/// model's probability has stayed above `declare`: the rule declares when it reaches `hold_steps`, so a
+/// study records it ([`held_s`]) and applies any other hold after the run. The declared state does not
+/// enter it (a declaration standing from before is no reason not to alarm again), and the probability
+/// itself is not the statistic: it saturates at 1 minus the floors, so flights above the declare level
+/// tie and no threshold between them exists.
 #[derive(Debug, Clone, PartialEq)]
 pub struct DeclareClear {
     pub declare: f64,
@@ -156,6 +163,25 @@ pub struct DeclareClear {
     declared: Option<usize>,
     candidate: Option<(usize, u32)>,
     below_clear: u32,
+    /// Per model (index 0 unused): samples in a row above `declare`.
+    above: Vec<u32>,
+}
+
+/// Samples a hold of `hold_s` takes at the sample period `dt_s` (at least one).
+pub fn hold_steps(hold_s: f64, dt_s: f64) -> u32 {
+    (hold_s / dt_s).round().max(1.0) as u32
+}
+
+/// A hold detector's decision statistic in seconds: `samples` in a row with its condition met, each
+/// counting its period `dt_s`. The detector alarms when it exceeds [`held_threshold_s`].
+pub fn held_s(samples: u32, dt_s: f64) -> f64 {
+    samples as f64 * dt_s
+}
+
+/// The threshold on [`held_s`] of a hold of `hold_steps` samples: `(hold_steps - 1) dt_s`, exceeded at
+/// the `hold_steps`-th sample in a row (the same product as the statistic's, so the comparison is exact).
+pub fn held_threshold_s(hold_steps: u32, dt_s: f64) -> f64 {
+    held_s(hold_steps.max(1) - 1, dt_s)
 }
 
 /// What changed at a step.
@@ -210,6 +236,12 @@ impl DecisionLevels {
         Ok(())
     }
 
+    /// The threshold on the rule's decision statistic ([`held_s`] of [`DeclareClear::held_samples`]) that
+    /// `declare_hold_s` sets at the sample period `dt_s`.
+    pub fn alarm_threshold_s(&self, dt_s: f64) -> f64 {
+        held_threshold_s(hold_steps(self.declare_hold_s, dt_s), dt_s)
+    }
+
     /// The declare/clear rule at the sample period `dt_s`, a declaration clearing once the probability has
     /// stayed below `clear_probability` for `clear_hold_s` (0: the first sample below).
     pub fn rule(&self, clear_hold_s: f64, dt_s: f64) -> DeclareClear {
@@ -226,21 +258,47 @@ impl DecisionLevels {
 impl DeclareClear {
     pub fn new(declare: f64, clear: f64, hold_steps: u32, clear_hold_steps: u32) -> Self {
         assert!(0.0 < clear && clear < declare && declare < 1.0);
-        DeclareClear { declare, clear, hold_steps, clear_hold_steps, declared: None, candidate: None, below_clear: 0 }
+        DeclareClear {
+            declare,
+            clear,
+            hold_steps,
+            clear_hold_steps,
+            declared: None,
+            candidate: None,
+            below_clear: 0,
+            above: Vec::new(),
+        }
     }
 
     /// The rule with its holds given in seconds at the sample period `dt_s` (at least one sample each).
     pub fn with_holds_s(declare: f64, clear: f64, declare_hold_s: f64, clear_hold_s: f64, dt_s: f64) -> Self {
-        let steps = |hold_s: f64| (hold_s / dt_s).round().max(1.0) as u32;
-        DeclareClear::new(declare, clear, steps(declare_hold_s), steps(clear_hold_s))
+        DeclareClear::new(declare, clear, hold_steps(declare_hold_s, dt_s), hold_steps(clear_hold_s, dt_s))
     }
 
     pub fn declared(&self) -> Option<usize> {
         self.declared
     }
 
+    /// The decision statistic after the last [`DeclareClear::observe`] (type docs): the most samples in a
+    /// row any fault model has stayed above `declare`, and the first model with that many (none before
+    /// any sample). With `declare >= 0.5` (or one fault model) at most one model is above it at a time,
+    /// and a declaration is made exactly when this reaches `hold_steps` with no declaration standing.
+    pub fn held_samples(&self) -> (u32, Option<usize>) {
+        let mut best = (0, None);
+        for (i, &n) in self.above.iter().enumerate().skip(1) {
+            if n > best.0 {
+                best = (n, Some(i));
+            }
+        }
+        best
+    }
+
     /// Feeds one step's probabilities (index 0: no fault); returns what changed, if anything.
     pub fn observe(&mut self, p: &[f64]) -> Option<Decision> {
+        self.above.resize(p.len(), 0);
+        for (n, &p) in self.above.iter_mut().zip(p).skip(1) {
+            *n = if p > self.declare { *n + 1 } else { 0 };
+        }
         let mut cleared = None;
         if let Some(i) = self.declared {
             self.below_clear = if p[i] < self.clear { self.below_clear + 1 } else { 0 };
@@ -374,6 +432,46 @@ mod tests {
         rule.observe(&faulty);
         assert_eq!(rule.observe(&faulty), None);
         assert_eq!(rule.observe(&faulty), Some(Decision::Declared(1)));
+    }
+
+    /// The statistic on pseudo-random probabilities of three models hovering about the declare level:
+    /// with no declaration standing, the rule declares exactly when the statistic reaches the hold, and
+    /// names the model that has it; the statistic also counts on while a declaration stands.
+    #[test]
+    fn the_held_statistic_reaches_the_hold_exactly_when_the_rule_declares() {
+        let mut rule = DeclareClear::new(0.9, 0.05, 4, 2);
+        let mut state = 12345u64;
+        let mut next = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut declarations, mut standing_runs, mut leader) = (0, 0, 0);
+        for _ in 0..20_000 {
+            // One model leads for about 10 samples, above 0.9 about half the time.
+            if next() < 0.1 {
+                leader = (next() * 3.0) as usize;
+            }
+            let lead = 0.85 + 0.12 * next();
+            let p = match leader {
+                0 => [lead, 1.0 - lead - 0.001, 0.001],
+                1 => [1.0 - lead - 0.001, lead, 0.001],
+                _ => [1.0 - lead - 0.001, 0.001, lead],
+            };
+            let standing = rule.declared();
+            let decision = rule.observe(&p);
+            let (held, model) = rule.held_samples();
+            if standing.is_none() {
+                let declares = matches!(decision, Some(Decision::Declared(_)));
+                assert_eq!(declares, held >= 4, "{p:?} held {held}");
+                if let Some(Decision::Declared(i)) = decision {
+                    assert_eq!(model, Some(i));
+                    declarations += 1;
+                }
+            } else if held > 4 {
+                standing_runs += 1;
+            }
+        }
+        assert!(declarations > 100 && standing_runs > 10, "{declarations} {standing_runs}");
     }
 
     #[test]

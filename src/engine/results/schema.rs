@@ -282,6 +282,46 @@ impl FirstPassage {
     }
 }
 
+/// One statistic of one unit as recorded: its largest value before the onset (0 when none) and its
+/// first-passage profile after it ([`FirstPassage`]); a row's `pre_max_<s>`, `fp_t_s_<s>`, `fp_v_<s>`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RecordedStatistic {
+    pub pre_max: f64,
+    pub profile_t_s: Vec<f64>,
+    pub profile_value: Vec<f64>,
+}
+
+/// A [`RecordedStatistic`] while its unit is flown: values before the onset, then after it.
+#[derive(Debug, Clone, Default)]
+pub struct StatisticRecorder {
+    recorded: RecordedStatistic,
+    first_passage: FirstPassage,
+}
+
+impl StatisticRecorder {
+    /// A value before the onset (NaN: none).
+    pub fn before_onset(&mut self, value: f64) {
+        if value > self.recorded.pre_max {
+            self.recorded.pre_max = value;
+        }
+    }
+
+    /// The value at `t_s`, at or after the onset (NaN: none).
+    pub fn after_onset(&mut self, t_s: f64, value: f64) {
+        if !value.is_nan() {
+            let r = &mut self.recorded;
+            self.first_passage.observe(t_s, value, &mut r.profile_t_s, &mut r.profile_value);
+        }
+    }
+
+    /// The statistic as recorded, its profile closed.
+    pub fn finish(mut self) -> RecordedStatistic {
+        let r = &mut self.recorded;
+        self.first_passage.close(&mut r.profile_t_s, &mut r.profile_value);
+        self.recorded
+    }
+}
+
 /// Recorded statistics (pre-onset maxima and first-passage profiles), one per name, while rows are
 /// added; a kind that records them puts these columns after its core columns.
 pub struct StatisticColumns {
@@ -301,6 +341,14 @@ impl StatisticColumns {
             pre_max: names.iter().map(|_| Vec::with_capacity(rows)).collect(),
             fp_t: names.iter().map(|n| list(col::fp_t(n))).collect(),
             fp_v: names.iter().map(|n| list(col::fp_v(n))).collect(),
+        }
+    }
+
+    /// Statistic `j` of the next row as recorded (none: the unit was not flown).
+    pub fn push_recorded(&mut self, j: usize, recorded: Option<&RecordedStatistic>) {
+        match recorded {
+            Some(r) => self.push(j, Some(r.pre_max), &r.profile_t_s, &r.profile_value),
+            None => self.push(j, None, &[], &[]),
         }
     }
 

@@ -71,12 +71,7 @@ pub fn frame(results: &[AccelTrialResult], names: &[&str], replay: bool) -> Pola
                 param_error_bin: 0.0,
                 param_errors: &[],
             });
-            match o {
-                Some(o) => {
-                    statistics.push(0, Some(o.statistic.pre_max), &o.statistic.profile_t_s, &o.statistic.profile_value)
-                }
-                None => statistics.push(0, None, &[], &[]),
-            }
+            statistics.push_recorded(0, o.map(|o| &o.statistic));
             alarm.push(o.and_then(|o| o.alarm_s));
             unusable.push(o.map(|o| o.health.unusable_measurement));
             log_start.push(s.log_start_s);

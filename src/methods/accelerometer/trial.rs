@@ -23,7 +23,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::engine::results::schema::FirstPassage;
+use crate::engine::results::schema::{RecordedStatistic, StatisticRecorder};
 use crate::engine::run::runner::{RunError, write_atomically};
 use crate::engine::scenario::streams::{Substream, trial_rng};
 use crate::methods::accelerometer::attitude::AttitudeHealth;
@@ -84,20 +84,12 @@ pub struct TrainedClassifier {
 /// false alarm; anywhere after `settle_s` for the normal class) and the first at or after it, as sample
 /// indices; and the statistic as recorded for thresholds set after the run: its largest value from
 /// `settle_s` to the onset (to the end for the normal class) and its first-passage profile after the
-/// onset ([`FirstPassage`]).
+/// onset ([`StatisticRecorder`]).
 pub struct Alarms {
     pub statistics: Vec<f64>,
     pub false_alarm: Option<usize>,
     pub alarm: Option<usize>,
     pub recorded: RecordedStatistic,
-}
-
-/// A trial's residual statistic `T` as recorded ([`Alarms`]).
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct RecordedStatistic {
-    pub pre_max: f64,
-    pub profile_t_s: Vec<f64>,
-    pub profile_value: Vec<f64>,
 }
 
 impl Alarms {
@@ -124,21 +116,14 @@ impl Alarms {
         };
         // The same windows as the alarms: before the onset from settle_s (all of a normal trial), after it.
         let pre_end = if class == FaultClass::Normal { statistics.len() } else { onset.min(statistics.len()) };
-        let mut recorded = RecordedStatistic {
-            pre_max: statistics.get(settle.min(pre_end)..pre_end).unwrap_or(&[]).iter().fold(0.0, |m, &t| m.max(t)),
-            ..Default::default()
-        };
+        let mut recorder = StatisticRecorder::default();
+        statistics.get(settle.min(pre_end)..pre_end).unwrap_or(&[]).iter().for_each(|&t| recorder.before_onset(t));
         if class != FaultClass::Normal {
-            let mut first_passage = FirstPassage::default();
             for (k, &t) in statistics.iter().enumerate().skip(onset) {
-                if !t.is_nan() {
-                    let r = &mut recorded;
-                    first_passage.observe(k as f64 * trace.dt_s, t, &mut r.profile_t_s, &mut r.profile_value);
-                }
+                recorder.after_onset(k as f64 * trace.dt_s, t);
             }
-            first_passage.close(&mut recorded.profile_t_s, &mut recorded.profile_value);
         }
-        Alarms { statistics, false_alarm, alarm, recorded }
+        Alarms { statistics, false_alarm, alarm, recorded: recorder.finish() }
     }
 
     /// Where an online classifier's window starts: the alarm (a normal trial's false alarm); none

@@ -125,6 +125,7 @@ impl TrialSource for AirDataTrials<'_> {
             outputs: AIR_DATA_CHANNEL_NAMES.iter().map(|n| n.to_string()).collect(),
             fault_size_units: units.collect(),
             fault_size_bins: crate::fault::deck::FaultKindSpec::size_bins(&s.monte_carlo.faults),
+            deck_thresholds: s.detectors.iter().map(|d| vec![d.alarm_threshold_s(s.header.dt_s)]).collect(),
             ..Manifest::of(KIND, &s.header, &s.monte_carlo.common, s.detectors.iter().map(|d| d.name.as_str()))
         }
     }

@@ -15,6 +15,7 @@
 //! | `<channel>_estimate_rms`, `<channel>_raw_rms` | the same per channel, in its units (`airspeed_mps`, `alpha_deg`, `beta_deg`) |
 //! | `covariance_repairs`, `singular_innovation_steps`, `non_finite_steps` | UKF health, both filters |
 //! | `floor_steps`, `both_reinitialisations` | steps with the probability floor applied; steps re-initialising both models |
+//! | `pre_max_held_s`, `fp_t_s_held_s`, `fp_v_held_s` | the detector's decision statistic `held_s` recorded ([`STATISTIC`], [`crate::methods::air_data::trial`]): how long its alarm condition held, largest before the onset (the whole fault-free flight) and its first-passage profile after it, so `summarize` calibrates the hold and draws the ROC |
 
 use std::borrow::Cow;
 
@@ -24,7 +25,7 @@ use super::flight::AIR_DATA_CHANNEL_NAMES;
 use super::study::AirDataStudy;
 use super::trial::AirDataTrialResult;
 use crate::engine::results::schema::col::{self as schema_col, NO_FAULT};
-use crate::engine::results::schema::{CoreColumns, Outcome};
+use crate::engine::results::schema::{CoreColumns, Outcome, StatisticColumns};
 
 /// Column names of this kind's own columns that its summary reads.
 pub mod col {
@@ -35,6 +36,9 @@ pub mod col {
     pub const RAW_RMS_SIGMA: &str = "raw_rms_sigma";
     pub const COVARIANCE_REPAIRS: &str = "covariance_repairs";
 }
+
+/// The recorded statistic: how long the detector's alarm condition has held (s).
+pub const STATISTIC: &str = "held_s";
 
 /// Per-channel error columns: name and the factor from the channel's SI unit (m/s, rad) to the column's.
 const CHANNEL_COLUMNS: [(&str, f64); 3] =
@@ -52,6 +56,7 @@ pub fn sensor_set(channels: &[usize]) -> String {
 pub fn frame(study: &AirDataStudy, results: &[AirDataTrialResult]) -> PolarsResult<DataFrame> {
     let rows = results.len() * study.detectors.len();
     let mut core = CoreColumns::new(Vec::new(), rows);
+    let mut statistics = StatisticColumns::new(&[STATISTIC.to_string()], rows);
     let mut t = Columns::default();
     for r in results {
         let s = &r.spec;
@@ -82,6 +87,7 @@ pub fn frame(study: &AirDataStudy, results: &[AirDataTrialResult]) -> PolarsResu
                 param_error_bin: 0.0,
                 param_errors: &[],
             });
+            statistics.push_recorded(0, o.map(|o| &o.statistic));
             t.faulty_sensors.push(s.outputs.len() as u32);
             t.gust.push(s.gust_std_mps);
             t.gust_bin.push(s.gust_bin);
@@ -121,6 +127,7 @@ pub fn frame(study: &AirDataStudy, results: &[AirDataTrialResult]) -> PolarsResu
         Column::new("floor_steps".into(), t.floor),
         Column::new("both_reinitialisations".into(), t.both),
     ]);
+    columns.extend(statistics.finish());
     DataFrame::new_infer_height(columns)
 }
 
@@ -197,6 +204,7 @@ mod tests {
                 estimate_rms_sigma: est,
                 raw_rms_sigma: est.map(|_| 3.0),
                 health: DualUkfHealth::default(),
+                statistic: Default::default(),
             }
         };
         let mut repaired = out(Some(31.0), Some(vec![0]), Some(0.6), Some(1.5));

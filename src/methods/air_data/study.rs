@@ -41,6 +41,7 @@ use serde::Deserialize;
 
 use crate::engine::method::Opt;
 use crate::engine::scenario::deck::{FactorSpec, FromDeck, StudyHeader, StudySection};
+use crate::estimation::bank::{held_threshold_s, hold_steps};
 
 use crate::engine::scenario::deck::{DeckError, Factor, MonteCarlo, MonteCarloRules, Validator, open_deck};
 use crate::fault::SensorFault;
@@ -55,7 +56,7 @@ use crate::methods::air_data::voting::TriplexParams;
 
 /// The options this kind takes beyond the common ones (its `Method::options`): said here, where its deck
 /// rules read them (`monte_carlo.target_pfa` with [`Opt::Thresholds`]).
-pub const OPTIONS: &[Opt] = &[Opt::Sensitivity];
+pub const OPTIONS: &[Opt] = &[Opt::Thresholds, Opt::Sensitivity];
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -155,6 +156,18 @@ pub struct AirDataDetector {
     pub kind: DetectorKind,
     /// The isolated set is the detector's faulty set this long after its declaration (s).
     pub isolation_delay_s: f64,
+}
+
+impl AirDataDetector {
+    /// The threshold on the detector's decision statistic (`held_s`, [`crate::estimation::bank::held_s`])
+    /// that its deck sets at the sample period `dt_s`: the dual UKF's declaration hold, the voter's
+    /// persistence.
+    pub fn alarm_threshold_s(&self, dt_s: f64) -> f64 {
+        match &self.kind {
+            DetectorKind::DualUkf(p) => p.levels.alarm_threshold_s(dt_s),
+            DetectorKind::TriplexVoting(p) => held_threshold_s(hold_steps(p.persistence_s, dt_s), dt_s),
+        }
+    }
 }
 
 /// The Monte Carlo section of an air-data study.

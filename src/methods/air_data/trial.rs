@@ -2,9 +2,19 @@
 //! streamed sample by sample into every detector configuration of the deck (the same samples, so their
 //! comparison is paired), and each detector scored:
 //!
-//! - false alarm: a declaration made before the first onset (anywhere in a fault-free flight);
-//! - detection: the first declaration made at or after the onset, and its delay (a declaration left
-//!   standing by a false alarm is not a detection: the detector cannot declare again until it clears);
+//! - decision statistic `held_s`: how long the detector's alarm condition has held in a row (the dual
+//!   UKF's fault probability above its declare level; a voter lane's miscompare, as if all three lanes
+//!   voted), recorded as its largest value before the onset and its first-passage profile after it, so
+//!   `summarize` applies any hold or persistence after the run. The records read it at the deck's own
+//!   (the hold or persistence, [`AirDataDetector::alarm_threshold_s`]), so replaying it there gives them;
+//!   another threshold is read on the same flights, whose dual-UKF filters followed the deck's
+//!   declarations (a declaration re-initialises both models), so it is that detector with another alarm
+//!   hold, not one re-flown with it;
+//! - false alarm: the statistic above the threshold before the first onset (anywhere in a fault-free
+//!   flight): the first declaration;
+//! - detection: the statistic above the threshold at or after the onset, and its delay. A declaration
+//!   left standing by a false alarm does not stop it, as in every kind: the condition holding again
+//!   after the onset is an alarm (the detector's own rule would not declare again until it cleared);
 //! - isolated set: the sensors in the detector's faulty set (bias mode `Estimated`) `isolation_delay_s`
 //!   after the detection (at the last sample if the flight ends first); correct when it is exactly the
 //!   set of faulty sensors;
@@ -16,6 +26,7 @@
 //!   faulty sensors in sigmas: the patent's claim of accurate air data under fault, against what the
 //!   faulty sensor itself says.
 
+use crate::engine::results::schema::{RecordedStatistic, StatisticRecorder};
 use crate::estimation::Innovation;
 use crate::estimation::bank::Decision;
 use crate::fault::FaultMode;
@@ -33,6 +44,8 @@ pub struct DetectorStep {
     pub fault_declared: bool,
     /// A declaration or clearance made at this step.
     pub decision: Option<Decision>,
+    /// The decision statistic (module docs), s.
+    pub held_s: f64,
     /// Per component: the dual UKF's chi-square isolation statistic; the voter's largest lane
     /// miscompare in sigmas.
     pub statistic: [f64; COMPONENTS],
@@ -52,6 +65,7 @@ impl From<DualUkfStep> for DetectorStep {
             p_fault: s.probabilities[1],
             fault_declared: s.fault_declared,
             decision: s.decision,
+            held_s: s.held_s,
             statistic: s.chi_square,
             flagged: s.isolated,
             faulty_set: s.bias_modes.map(|m| m == BiasMode::Estimated),
@@ -67,6 +81,7 @@ impl From<VoterStep> for DetectorStep {
             p_fault: if s.fault_declared { 1.0 } else { 0.0 },
             fault_declared: s.fault_declared,
             decision: s.decision,
+            held_s: s.held_s,
             statistic: s.miscompare_sigma,
             flagged: s.miscompares,
             faulty_set: s.failed,
@@ -195,6 +210,8 @@ pub struct AirDataOutcome {
     pub estimate_rms_sigma: Option<f64>,
     pub raw_rms_sigma: Option<f64>,
     pub health: DualUkfHealth,
+    /// The decision statistic `held_s` as recorded (module docs).
+    pub statistic: RecordedStatistic,
 }
 
 /// A trial's scenario and each detector's outcome, or why it could not be flown.
@@ -209,6 +226,7 @@ struct Score {
     samples: u32,
     bias_sq_sigma: f64,
     bias_samples: u32,
+    statistic: StatisticRecorder,
 }
 
 /// Flies `scenario` and runs every detector on the same samples; `spec` says which sensors are faulty
@@ -222,6 +240,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
 ) -> Result<Vec<AirDataOutcome>, String> {
     let sigma = scenario.noise.air_data_std();
     let duration_s = scenario.duration_s;
+    let thresholds_s: Vec<f64> = detectors.iter().map(|d| d.alarm_threshold_s(scenario.dt_s)).collect();
     let offsets: Vec<(usize, FaultMode)> = scenario.faults.iter().map(|f| (f.channel, f.mode)).collect();
     let mut filters = Detectors::new(detectors, &scenario)?;
     let mut flight = AirDataScenario::new(scenario).map_err(|e| e.to_string())?;
@@ -243,6 +262,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
                 estimate_rms_sigma: None,
                 raw_rms_sigma: None,
                 health: DualUkfHealth::default(),
+                statistic: RecordedStatistic::default(),
             },
             isolate_at_s: None,
             estimate_sq: [0.0; COMPONENTS],
@@ -250,6 +270,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
             samples: 0,
             bias_sq_sigma: 0.0,
             bias_samples: 0,
+            statistic: StatisticRecorder::default(),
         })
         .collect();
     let faulty = &spec.outputs;
@@ -258,19 +279,23 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
     while let Some(sample) = flight.next_sample(rng) {
         let t = sample.t_s;
         filters.step(&sample, &mut steps);
-        for (((&step, d), score), set) in steps.iter().zip(detectors).zip(&mut scores).zip(&mut last_sets) {
+        for ((((&step, d), score), set), &threshold_s) in
+            steps.iter().zip(detectors).zip(&mut scores).zip(&mut last_sets).zip(&thresholds_s)
+        {
             *set = step.faulty_set;
             let o = &mut score.outcome;
-            // Declarations made, not standing: one left over from a false alarm is no detection.
-            if let Some(Decision::Declared(_)) = step.decision {
-                match onset_s {
-                    Some(t0) if t >= t0 => {
-                        if o.detection_s.is_none() {
-                            o.detection_s = Some(t);
-                            score.isolate_at_s = Some(t + d.isolation_delay_s);
-                        }
+            let alarm = step.held_s > threshold_s;
+            match onset_s {
+                Some(t0) if t >= t0 => {
+                    score.statistic.after_onset(t, step.held_s);
+                    if alarm && o.detection_s.is_none() {
+                        o.detection_s = Some(t);
+                        score.isolate_at_s = Some(t + d.isolation_delay_s);
                     }
-                    _ => {
+                }
+                _ => {
+                    score.statistic.before_onset(step.held_s);
+                    if alarm {
                         o.false_alarm_s.get_or_insert(t);
                     }
                 }
@@ -338,6 +363,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
                 o.bias_error_rms_sigma = Some((score.bias_sq_sigma / score.bias_samples as f64).sqrt());
             }
             o.health = filter.health();
+            o.statistic = score.statistic.finish();
             o
         })
         .collect())

@@ -10,13 +10,17 @@
 //!   naming a lane (which of two is wrong cannot be voted). The threshold is `miscompare_sigma` times
 //!   the sensor noise sigma the deck states.
 //!
-//! A fault is declared at the first failure; the faulty set is every quantity with a failed lane. A
+//! A fault is declared at the first failure; the faulty set is every quantity with a failed lane. The
+//! voter's decision statistic is how long (s) a lane has miscompared in a row as if no lane had failed
+//! (the three lanes' middle value): the first failure comes when it reaches the persistence, and a
+//! study records it ([`crate::estimation::bank::held_s`]) to apply any other persistence after the run.
+//! A
 //! common-mode fault (all lanes alike) never miscompares: that is the case voting cannot see. The
 //! numbers (5 sigma, 0.2 s) are choices, not any standard's: on `studies/seed002_hifi_truth.toml`'s
 //! coloured air-data noise, 400 fault-free flights never tripped them (4 sigma for 0.1 s tripped in 46,
 //! 5 sigma for 0.1 s in 3).
 
-use crate::estimation::bank::Decision;
+use crate::estimation::bank::{Decision, held_s, hold_steps};
 use crate::methods::air_data::dual_ukf::COMPONENTS;
 use crate::methods::air_data::flight::{AirData, MAX_LANES};
 
@@ -49,6 +53,8 @@ pub struct VoterStep {
     pub failed: [bool; COMPONENTS],
     /// A fault is declared (latched).
     pub fault_declared: bool,
+    /// The decision statistic (module docs), s.
+    pub held_s: f64,
     /// The declaration, at the step it is made.
     pub decision: Option<Decision>,
 }
@@ -57,8 +63,9 @@ pub struct VoterStep {
 #[derive(Debug, Clone)]
 pub struct TriplexVoter {
     sigma: [f64; COMPONENTS],
-    threshold: [f64; COMPONENTS],
-    persistence_steps: u32,
+    miscompare_sigma: f64,
+    dt_s: f64,
+    pub persistence_steps: u32,
     /// Per quantity and lane: still voting.
     working: [[bool; MAX_LANES]; COMPONENTS],
     /// Per quantity and lane: consecutive steps miscomparing (with two lanes, index 0 counts their
@@ -66,6 +73,8 @@ pub struct TriplexVoter {
     counts: [[u32; MAX_LANES]; COMPONENTS],
     /// Per quantity: two lanes disagreed for the persistence time.
     disagreed: [bool; COMPONENTS],
+    /// Per quantity and lane: consecutive steps miscomparing with all three lanes voting (the statistic).
+    all_lanes_counts: [[u32; MAX_LANES]; COMPONENTS],
     declared: bool,
 }
 
@@ -74,11 +83,13 @@ impl TriplexVoter {
     pub fn new(params: &TriplexParams, sigma: [f64; COMPONENTS], dt_s: f64) -> Self {
         TriplexVoter {
             sigma,
-            threshold: sigma.map(|s| params.miscompare_sigma * s),
-            persistence_steps: (params.persistence_s / dt_s).round().max(1.0) as u32,
+            miscompare_sigma: params.miscompare_sigma,
+            dt_s,
+            persistence_steps: hold_steps(params.persistence_s, dt_s),
             working: [[true; MAX_LANES]; COMPONENTS],
             counts: [[0; MAX_LANES]; COMPONENTS],
             disagreed: [false; COMPONENTS],
+            all_lanes_counts: [[0; MAX_LANES]; COMPONENTS],
             declared: false,
         }
     }
@@ -90,7 +101,15 @@ impl TriplexVoter {
         let mut distance = [0.0f64; COMPONENTS];
         let mut miscompares = [false; COMPONENTS];
         let mut newly_failed = false;
+        let mut held = 0;
         for j in 0..COMPONENTS {
+            // The statistic's counts, as the first branch below counts while all three lanes vote.
+            let middle = median3(values[0][j], values[1][j], values[2][j]);
+            for (i, count) in self.all_lanes_counts[j].iter_mut().enumerate() {
+                let d = (values[i][j] - middle).abs() / self.sigma[j];
+                *count = if d > self.miscompare_sigma { *count + 1 } else { 0 };
+                held = held.max(*count);
+            }
             // The working lanes and their values, without allocating on every sample.
             let (mut working, mut y, mut n) = ([0usize; MAX_LANES], [0.0; MAX_LANES], 0);
             for i in (0..MAX_LANES).filter(|&i| self.working[j][i]) {
@@ -98,15 +117,14 @@ impl TriplexVoter {
                 n += 1;
             }
             let (working, y) = (&working[..n], &y[..n]);
-            let threshold = self.threshold[j];
+            // Compared in sigmas, as the statistic is, so the two agree to the bit.
+            let threshold = self.miscompare_sigma;
             match n {
                 3 => {
-                    let mut sorted = [y[0], y[1], y[2]];
-                    sorted.sort_by(f64::total_cmp);
-                    voted[j] = sorted[1];
+                    voted[j] = median3(y[0], y[1], y[2]);
                     for (k, &i) in working.iter().enumerate() {
-                        let d = (y[k] - voted[j]).abs();
-                        distance[j] = distance[j].max(d / self.sigma[j]);
+                        let d = (y[k] - voted[j]).abs() / self.sigma[j];
+                        distance[j] = distance[j].max(d);
                         let count = &mut self.counts[j][i];
                         *count = if d > threshold { *count + 1 } else { 0 };
                         miscompares[j] |= d > threshold;
@@ -121,8 +139,8 @@ impl TriplexVoter {
                 }
                 2 => {
                     voted[j] = 0.5 * (y[0] + y[1]);
-                    let d = (y[0] - y[1]).abs();
-                    distance[j] = d / self.sigma[j];
+                    let d = (y[0] - y[1]).abs() / self.sigma[j];
+                    distance[j] = d;
                     miscompares[j] = d > threshold;
                     let count = &mut self.counts[j][0];
                     *count = if d > threshold { *count + 1 } else { 0 };
@@ -145,8 +163,16 @@ impl TriplexVoter {
             failed,
             fault_declared: self.declared,
             decision,
+            held_s: held_s(held, self.dt_s),
         }
     }
+}
+
+/// The middle of three values.
+fn median3(a: f64, b: f64, c: f64) -> f64 {
+    let mut sorted = [a, b, c];
+    sorted.sort_by(f64::total_cmp);
+    sorted[1]
 }
 
 #[cfg(test)]
@@ -170,13 +196,16 @@ mod tests {
         assert!((step.miscompare_sigma[0] - 2.4 / 0.5).abs() < 1e-12, "{:?}", step.miscompare_sigma);
         let step = voter.step(&lanes([70.0, 70.1, 69.9]));
         assert!(!step.miscompares[0], "the glitch is over: the count restarts");
+        let threshold_s = crate::estimation::bank::held_threshold_s(voter.persistence_steps, 0.01);
         for k in 1..=10 {
             let step = voter.step(&lanes([72.5, 70.1, 69.9]));
             assert_eq!(step.decision.is_some(), k == 10, "sample {k}");
             assert_eq!(step.failed[0], k == 10);
+            assert_eq!(step.held_s > threshold_s, k == 10, "the statistic crosses at the failure");
         }
         let step = voter.step(&lanes([72.5, 70.1, 69.9]));
         assert_eq!((step.air_data.airspeed_mps, step.decision, step.fault_declared), (70.0, None, true));
+        assert!((step.held_s - 0.11).abs() < 1e-12, "counted on as if lane 0 still voted: {}", step.held_s);
         assert_eq!(step.failed, [true, false, false]);
 
         let mut voter = TriplexVoter::new(&TriplexParams { miscompare_sigma: 4.0, persistence_s: 0.1 }, sigma, 0.01);

@@ -144,6 +144,7 @@ impl TrialSource for SurfaceTrials<'_> {
             chunk_trials: 64,
             outputs: SURFACE_NAMES.iter().map(|n| n.to_string()).collect(),
             fault_size_units: units.iter().map(|(k, u)| (k.to_string(), u.to_string())).collect(),
+            deck_thresholds: s.banks.iter().map(|(_, p)| vec![p.levels.alarm_threshold_s(s.header.dt_s)]).collect(),
             ..Manifest::of(KIND, &s.header, &s.monte_carlo.common, s.banks.iter().map(|(n, _)| n.as_str()))
         }
     }

@@ -18,6 +18,7 @@
 //! | `post_fault_declarations` | declarations while no fault was active after one had ended (relapses during the recovery) |
 //! | `singular_innovation_steps`, `asymmetric_steps`, `not_positive_definite_steps`, `non_finite_steps` | covariance health, filter-steps summed over the bank's six filters |
 //! | `floor_steps` | steps on which the probability floor was applied |
+//! | `pre_max_held_s`, `fp_t_s_held_s`, `fp_v_held_s` | the bank's decision statistic `held_s` recorded ([`STATISTIC`], [`crate::methods::surface_bank::trial`]): how long a surface model's probability has stayed above the declare level, largest while no fault was active and none had ended (it repeats on each window row), and its first-passage profile over the window, so `summarize` calibrates the hold and draws the ROC |
 
 use std::borrow::Cow;
 
@@ -26,7 +27,7 @@ use polars::prelude::*;
 use super::study::SurfaceStudy;
 use super::trial::{BankOutcome, SurfaceTrialResult};
 use crate::engine::results::schema::col::NO_FAULT;
-use crate::engine::results::schema::{CoreColumns, FilterHealthColumns, Outcome};
+use crate::engine::results::schema::{CoreColumns, FilterHealthColumns, Outcome, StatisticColumns};
 use crate::vehicles::aerosonde::SURFACE_NAMES;
 
 /// Column names of this kind's own columns that its summary reads.
@@ -40,11 +41,15 @@ pub mod col {
     pub const POST_FAULT_DECLARATIONS: &str = "post_fault_declarations";
 }
 
+/// The recorded statistic: how long a surface model's probability has stayed above the declare level (s).
+pub const STATISTIC: &str = "held_s";
+
 /// The rows of `results` (trial order); see the module docs.
 pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResult<DataFrame> {
     let perr = study.monte_carlo.parameter_errors.iter().map(|p| p.name.clone());
     let mut core = CoreColumns::new(perr, results.len() * study.banks.len());
     let mut t = Columns::default();
+    let mut statistics = StatisticColumns::new(&[STATISTIC.to_string()], results.len() * study.banks.len());
     for r in results {
         let spec = &r.spec;
         for (b, (bank, _)) in study.banks.iter().enumerate() {
@@ -76,6 +81,7 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
                     param_error_bin: spec.parameter_error_bin,
                     param_errors: &spec.parameter_errors,
                 });
+                statistics.push_recorded(0, outcome.and_then(|o| o.statistics.get(w)));
                 t.end_s.push(fault.map(|f| f.fault.end_s.unwrap_or(study.header.duration_s)));
                 t.window.push(fault.map(|_| w as u32));
                 t.isolation_delay_s.push(scored.and_then(|s| s.isolation_delay_s));
@@ -107,6 +113,7 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
     ]);
     columns.extend(t.health.finish());
     columns.push(Column::new("floor_steps".into(), t.floor));
+    columns.extend(statistics.finish());
     DataFrame::new_infer_height(columns)
 }
 
@@ -179,6 +186,7 @@ mod tests {
         };
         let bank = |w: Option<WindowOutcome>, false_alarms: u32| BankOutcome {
             windows: w.into_iter().collect(),
+            statistics: Vec::new(),
             false_alarms,
             first_false_alarm_s: (false_alarms > 0).then_some(2.0),
             post_fault_declarations: 0,
@@ -223,7 +231,7 @@ mod tests {
         let (_, df) = hand_made();
         assert_eq!(df.height(), 10, "one row per trial and bank");
         let summarized = Summarized::of(df, &super::super::METHOD, 5, &["a", "b"]);
-        let table = |name: &str| summarized.table(name);
+        let table = |name: &str| summarized.deck_table(name);
 
         let summary = table("summary.csv");
         let u = |n: &str| -> Vec<u64> {

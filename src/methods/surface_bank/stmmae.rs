@@ -36,7 +36,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use crate::dual::{Dual, Real};
-use crate::estimation::bank::{Decision, DecisionLevels, DeclareClear};
+use crate::estimation::bank::{Decision, DecisionLevels, DeclareClear, held_s};
 use crate::estimation::stekf::{FadingParams, FilterHealth, Innovation};
 use crate::estimation::{DiscreteModel, Fading, FloorRule, LikelihoodForm, ModelProbabilities, Stekf};
 use crate::vehicles::aerosonde::{
@@ -255,6 +255,10 @@ pub struct BankStep {
     pub blended: SVector<f64, 5>,
     /// A declaration or clearance made at this step.
     pub decision: Option<Decision>,
+    /// The decision statistic: how long (s) a surface model's probability has stayed above
+    /// `declare_probability` ([`DeclareClear::held_samples`]), and that surface (0-based).
+    pub held_s: f64,
+    pub held_surface: Option<usize>,
 }
 
 /// The six filters of a bank: they depend on the bank's covariance form and tuning, not on its
@@ -385,6 +389,7 @@ impl BankFilters {
 /// which banks with the same filters share); see the module docs.
 #[derive(Debug, Clone)]
 pub struct SurfaceBank {
+    dt_s: f64,
     likelihood: LikelihoodForm,
     probabilities: ModelProbabilities<MODELS>,
     rule: DeclareClear,
@@ -394,6 +399,7 @@ impl SurfaceBank {
     /// A bank with equal prior probabilities.
     pub fn new(params: &BankParams, dt_s: f64) -> Self {
         SurfaceBank {
+            dt_s,
             likelihood: params.likelihood,
             probabilities: ModelProbabilities::new([1.0 / MODELS as f64; MODELS], params.levels.probability_floor)
                 .with_floor_rule(params.floor_rule),
@@ -408,7 +414,10 @@ impl SurfaceBank {
         self.probabilities.update(&log_likelihood);
         let probabilities = *self.probabilities.probabilities();
         let decision = self.rule.observe(&probabilities);
+        let (held, model) = self.rule.held_samples();
         BankStep {
+            held_s: held_s(held, self.dt_s),
+            held_surface: model.map(|i| i - 1),
             probabilities,
             surface_estimates_rad: filters.surface_estimates_rad(),
             blended: self.probabilities.blend(&filters.estimates()),

@@ -45,7 +45,7 @@ use crate::vehicles::aerosonde::{DERIVED_COEFFICIENTS, SCALABLE_COEFFICIENTS, SU
 
 /// The options this kind takes beyond the common ones (its `Method::options`): said here, where its deck
 /// rules read them (`monte_carlo.target_pfa` with [`Opt::Thresholds`]).
-pub const OPTIONS: &[Opt] = &[];
+pub const OPTIONS: &[Opt] = &[Opt::Thresholds];
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]

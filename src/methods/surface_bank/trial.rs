@@ -11,10 +11,19 @@
 //! get the measurements and the autopilot's *commands* (the detector knows what was commanded, not
 //! where the surfaces are), so even without a fault they see the actuator lag as model error.
 //!
-//! Scoring, per bank and fault window `[onset, end)` of surface s:
-//! - detection delay: from the onset to the first declaration (of any surface) before the window ends;
-//! - isolation: the first declaration in the window names s (a wrong surface first is a mis-isolation,
-//!   even if s is declared later); isolation delay: from the onset to the first declaration of s;
+//! Scoring, per bank and fault window `[onset, end)` of surface s, reads the bank's decision statistic
+//! `held_s` (how long a surface model's probability has stayed above the declare level,
+//! [`crate::estimation::bank::DeclareClear::held_samples`]) at the threshold the deck's declaration hold
+//! sets: where no declaration stands, that is where the rule declares, and the statistic recorded (its
+//! largest value while no fault is active and none has ended, its first-passage profile over each
+//! window) replays the records at any other hold. A declaration standing at the onset (a false alarm, or
+//! an earlier window's surface not yet cleared) does not stop a detection: the statistic above the
+//! threshold in the window is one, as in every kind, even where the rule, already declared, would not
+//! declare again.
+//! - detection delay: from the onset to the first alarm (of any surface) before the window ends;
+//! - isolation: the surface whose model holds the statistic at that alarm is s (a wrong surface first is
+//!   a mis-isolation, even if s comes later; one surface at a time with a declare level of 0.5 or more);
+//!   isolation delay: from the onset to the first alarm on s;
 //! - clearing delay: from the end of the window to the first step at which s is no longer declared
 //!   (only when s was declared in the window); a declaration that is still standing at the end of the
 //!   trial is "not cleared";
@@ -24,15 +33,17 @@
 //! - surface-estimate error: RMS of filter s's position estimate against the true position over the
 //!   second half of the window (after the filters have had time to converge).
 //!
-//! A declaration made while no fault is active is a false alarm before any fault has ended (before the
-//! first onset, or in a fault-free flight), and a post-fault declaration after one has (between windows,
-//! after the last): a bank relapsing while the airframe recovers is a different failure from one that
-//! alarms on a healthy airframe.
+//! An alarm while no fault is active is a false alarm before any fault has ended (before the first
+//! onset, or in a fault-free flight: the first is the rule's first declaration, and the rule's
+//! declarations there are counted), and a post-fault declaration after one has (between windows, after
+//! the last, counted from the rule): a bank relapsing while the airframe recovers is a different failure
+//! from one that alarms on a healthy airframe.
 
 use nalgebra::{SVector, Vector3};
 use rand::RngExt;
 use rand_distr::StandardNormal;
 
+use crate::engine::results::schema::{RecordedStatistic, StatisticRecorder};
 use crate::estimation::bank::Decision;
 use crate::estimation::stekf::FilterHealth;
 use crate::methods::surface_bank::actuator::{ActuatorFault, effective_positions, faulty_commands};
@@ -185,6 +196,9 @@ impl WindowOutcome {
 #[derive(Debug, Clone, PartialEq)]
 pub struct BankOutcome {
     pub windows: Vec<WindowOutcome>,
+    /// The decision statistic `held_s` as recorded, one per row: per window (its profile over the
+    /// window), or one for a fault-free flight; the largest value before the first onset on each.
+    pub statistics: Vec<RecordedStatistic>,
     /// Declarations while no fault was active and none had yet ended (before the first onset, or in a
     /// fault-free flight).
     pub false_alarms: u32,
@@ -208,6 +222,7 @@ struct WindowScore {
     outcome: WindowOutcome,
     square_error: f64,
     error_samples: u32,
+    statistic: StatisticRecorder,
 }
 
 /// Flies `trial` once and runs every bank in `banks` on the same samples, on the trial's design
@@ -253,9 +268,21 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
     let mut running: Vec<SurfaceBank> = banks.iter().map(|p| SurfaceBank::new(p, study.header.dt_s)).collect();
     let mut scores: Vec<Vec<WindowScore>> = banks
         .iter()
-        .map(|_| windows.iter().map(|&outcome| WindowScore { outcome, square_error: 0.0, error_samples: 0 }).collect())
+        .map(|_| {
+            (windows.iter())
+                .map(|&outcome| WindowScore {
+                    outcome,
+                    square_error: 0.0,
+                    error_samples: 0,
+                    statistic: StatisticRecorder::default(),
+                })
+                .collect()
+        })
         .collect();
     let mut false_alarms = vec![(0u32, None::<f64>, 0u32); banks.len()];
+    // The statistic while no fault is active and none has ended, and the threshold the deck sets.
+    let mut before_onsets = vec![StatisticRecorder::default(); banks.len()];
+    let thresholds_s: Vec<f64> = banks.iter().map(|p| p.levels.alarm_threshold_s(study.header.dt_s)).collect();
     let mut rows = Vec::with_capacity(banks.len());
 
     simulate(study, trial, rng, |sample| {
@@ -291,10 +318,13 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
             let t = sample.t_s;
             let after_a_fault = scores[b].iter().any(|w| t >= w.outcome.end_s);
             let window = scores[b].iter_mut().find(|w| w.outcome.onset_s <= t && t < w.outcome.end_s);
-            if let Some(Decision::Declared(model)) = step.decision {
-                let surface = model - 1;
-                match window {
-                    Some(w) => {
+            // Detection, isolation and the first false alarm read the decision statistic at the deck's
+            // threshold (module docs); the counts of declarations are the rule's.
+            let alarm = step.held_s > thresholds_s[b];
+            match window {
+                Some(w) => {
+                    w.statistic.after_onset(t, step.held_s);
+                    if let (true, Some(surface)) = (alarm, step.held_surface) {
                         let o = &mut w.outcome;
                         o.first_declared.get_or_insert(surface);
                         o.detection_delay_s.get_or_insert(t - o.onset_s);
@@ -302,10 +332,19 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
                             o.isolation_delay_s = Some(t - o.onset_s);
                         }
                     }
-                    None if after_a_fault => false_alarms[b].2 += 1,
-                    None => {
-                        false_alarms[b].0 += 1;
+                }
+                None if after_a_fault => {
+                    if let Some(Decision::Declared(_)) = step.decision {
+                        false_alarms[b].2 += 1;
+                    }
+                }
+                None => {
+                    before_onsets[b].before_onset(step.held_s);
+                    if alarm {
                         false_alarms[b].1.get_or_insert(t);
+                    }
+                    if let Some(Decision::Declared(_)) = step.decision {
+                        false_alarms[b].0 += 1;
                     }
                 }
             }
@@ -340,24 +379,42 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
     Ok((running.iter().enumerate())
         .zip(scores)
         .zip(false_alarms)
-        .map(|(((b, bank), scores), (false_alarms, first_false_alarm_s, post_fault_declarations))| BankOutcome {
-            windows: scores
+        .zip(before_onsets)
+        .map(|((((b, bank), scores), (false_alarms, first_false_alarm_s, post_fault_declarations)), before)| {
+            let pre_max = before.finish().pre_max;
+            let mut statistics = Vec::with_capacity(scores.len().max(1));
+            let windows = scores
                 .into_iter()
-                .map(|w| WindowOutcome {
-                    // No sample in the window's second half (the flight stopped first): no estimate error.
-                    surface_estimate_rms_rad: if w.error_samples > 0 {
-                        (w.square_error / w.error_samples as f64).sqrt()
-                    } else {
-                        f64::NAN
-                    },
-                    ..w.outcome
+                .map(|w| {
+                    statistics.push(RecordedStatistic { pre_max, ..w.statistic.finish() });
+                    WindowOutcome {
+                        // No sample in the window's second half (the flight stopped first): no estimate
+                        // error.
+                        surface_estimate_rms_rad: if w.error_samples > 0 {
+                            (w.square_error / w.error_samples as f64).sqrt()
+                        } else {
+                            f64::NAN
+                        },
+                        ..w.outcome
+                    }
                 })
-                .collect(),
-            false_alarms,
-            first_false_alarm_s,
-            post_fault_declarations,
-            health: filters.get(filters_of[b]).and_then(Option::as_ref).map(BankFilters::health).unwrap_or_default(),
-            floor_steps: bank.floor_steps(),
+                .collect();
+            if statistics.is_empty() {
+                statistics.push(RecordedStatistic { pre_max, ..Default::default() });
+            }
+            BankOutcome {
+                windows,
+                statistics,
+                false_alarms,
+                first_false_alarm_s,
+                post_fault_declarations,
+                health: filters
+                    .get(filters_of[b])
+                    .and_then(Option::as_ref)
+                    .map(BankFilters::health)
+                    .unwrap_or_default(),
+                floor_steps: bank.floor_steps(),
+            }
         })
         .collect())
 }
@@ -456,7 +513,14 @@ mod tests {
         let literal = &outcomes[2];
         assert!(literal.windows[0].clearing_delay_s.unwrap() > 100.0, "{:?}", literal.windows[0]);
         assert_eq!(literal.windows[0].recovery_delay_s, None);
-        assert_eq!((literal.windows[1].detection_delay_s, literal.windows[4].detection_delay_s), (None, None));
+        // A declaration still stands (a surface model's probability above the declare level, the
+        // no-fault model never back) when the right aileron and right elevator fail: an alarm at their
+        // onsets, naming another surface.
+        for w in [1, 4] {
+            let o = &literal.windows[w];
+            assert_eq!((o.detection_delay_s, o.isolation_delay_s), (Some(0.0), None), "{o:?}");
+            assert!(o.first_declared.is_some_and(|s| s != o.surface), "{o:?}");
+        }
         assert!(literal.floor_steps < outcomes[0].floor_steps / 100);
     }
 

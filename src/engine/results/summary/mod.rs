@@ -295,6 +295,18 @@ pub mod hand_made {
             read_summary(&self.dir.path().join(name)).unwrap()
         }
 
+        /// Table `name`'s rows at the deck's thresholds (all of them in a table without sets).
+        pub fn deck_table(&self, name: &str) -> DataFrame {
+            let df = self.table(name);
+            match df.column("thresholds") {
+                Ok(sets) => {
+                    let mask = sets.str().unwrap().equal("deck");
+                    df.filter(&mask).unwrap()
+                }
+                Err(_) => df,
+            }
+        }
+
         fn text(&self, column: &str, i: usize) -> Option<String> {
             self.summary.column(column).unwrap().str().unwrap().get(i).map(String::from)
         }

@@ -8,7 +8,7 @@ use nalgebra::{SMatrix, SVector, Vector3};
 use super::chi_square::*;
 use super::models::*;
 use super::params::*;
-use crate::estimation::bank::{Decision, DeclareClear};
+use crate::estimation::bank::{Decision, DeclareClear, held_s};
 use crate::estimation::stekf::central_difference;
 use crate::estimation::ukf::{Ukf, UkfHealth};
 use crate::estimation::{Innovation, ModelProbabilities};
@@ -37,6 +37,11 @@ pub struct DualUkfStep {
     pub fault_declared: bool,
     /// Declared or cleared at this step.
     pub decision: Option<Decision>,
+    /// The decision statistic: how long (s) the fault model's probability has stayed above
+    /// `declare_probability` ([`DeclareClear::held_samples`]); the fault is declared when it exceeds
+    /// the threshold the declaration hold sets ([`crate::estimation::bank::held_threshold_s`]) with no
+    /// declaration standing.
+    pub held_s: f64,
     /// Both models were re-initialised at this step (a fault is present: declared, or the fault model's
     /// probability above `declare_probability`); otherwise only the fault model.
     pub both_reinitialised: bool,
@@ -246,6 +251,7 @@ impl DualUkf {
                 probabilities: *self.probabilities.probabilities(),
                 fault_declared: false,
                 decision: None,
+                held_s: 0.0,
                 both_reinitialised: false,
                 chi_square: [0.0; COMPONENTS],
                 chi_square_threshold: self.thresholds[0],
@@ -279,6 +285,7 @@ impl DualUkf {
             probabilities,
             fault_declared,
             decision,
+            held_s: held_s(self.rule.held_samples().0, self.dt_s),
             both_reinitialised: fault_present,
             chi_square,
             chi_square_threshold,
