@@ -852,8 +852,12 @@ fn surface_records_are_identical_for_any_threads_shards_and_resume() {
     }
     let reference = read_frame(&one_dir.join("trials.parquet"));
     assert_eq!(reference.height(), 130 * 4, "one row per trial and bank: one fault window per faulty trial");
-    assert_eq!(csv_frame(&dir("one").join("detectors.csv")).height(), 4);
-    assert_eq!(csv_frame(&dir("one").join("comparison.csv")).height(), 6, "every pair of the four variants");
+    assert_eq!(csv_frame(&dir("one").join("detectors.csv")).height(), 2 * 4, "deck and calibrated holds");
+    assert_eq!(
+        csv_frame(&dir("one").join("comparison.csv")).height(),
+        2 * 6,
+        "every pair of the four variants, per set"
+    );
 
     // `simulate --trial N` flies trial N of the run: the same declaration delay.
     use polars::prelude::*;
@@ -1163,8 +1167,8 @@ fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
     }
     let reference = read_frame(&one.join("trials.parquet"));
     assert_eq!(reference.height(), 300 * 3, "one row per trial and detector");
-    assert_eq!(csv_frame(&one.join("detectors.csv")).height(), 3);
-    assert_eq!(csv_frame(&one.join("comparison.csv")).height(), 3, "one row per pair of detectors");
+    assert_eq!(csv_frame(&one.join("detectors.csv")).height(), 2 * 3, "deck and calibrated holds");
+    assert_eq!(csv_frame(&one.join("comparison.csv")).height(), 2 * 3, "one row per pair of detectors and set");
 
     // `simulate --trial N` flies trial N of the run: the same detection delay and isolated set.
     use polars::prelude::*;

@@ -111,8 +111,10 @@ Precision: `--precision 0.01 --precision-rates pd,pfa --trials 1000000` runs unt
         #[arg(long, value_name = "R,...", value_delimiter = ',', requires = "precision")]
         precision_rates: Vec<String>,
     },
-    /// Recompute thresholds and summaries from DIR/trials.parquet, without simulating; kinds with a
-    /// detection statistic also get roc.csv (Pd against Pfa as the thresholds scale) and tail.csv:
+    /// Recompute thresholds and summaries from DIR/trials.parquet, without simulating; every kind
+    /// records a detection statistic (for detectors that declare on a held probability, how long it
+    /// held: the threshold is the hold), so every run also gets roc.csv (Pd against Pfa as the
+    /// thresholds scale) and tail.csv:
     /// false-alarm rates and thresholds below 1/trials (1e-5 to 1e-9 per flight hour) from a
     /// generalised Pareto fit, with 95 % intervals and when not to trust it. A calibration other than
     /// the deck's (--target-pfa, --target-pfa-per-hour, --confidence) is written to

@@ -671,8 +671,9 @@ pub fn read_thresholds(path: &Path) -> Result<ThresholdsFile, RunError> {
         let d = det.get(i).ok_or_else(|| bad("empty detector"))?.to_string();
         let (p, w) =
             (per.get(i).ok_or_else(|| bad("empty threshold"))?, whole.get(i).ok_or_else(|| bad("empty threshold"))?);
-        if !(p.is_finite() && w.is_finite() && p > 0.0 && w > 0.0) {
-            return Err(bad(&format!("row {}: thresholds must be finite and > 0", i + 1)));
+        // 0 is a threshold: a held time's (any sample above the level alarms) where few units hold at all.
+        if !(p.is_finite() && w.is_finite() && p >= 0.0 && w >= 0.0) {
+            return Err(bad(&format!("row {}: thresholds must be finite and >= 0", i + 1)));
         }
         match result.iter_mut().find(|r| r.0 == d) {
             Some(r) => {
