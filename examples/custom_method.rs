@@ -274,7 +274,7 @@ impl TrialSource for Trials<'_> {
     fn frame(&self, results: &[TrialResult]) -> PolarsResult<DataFrame> {
         let s = self.study;
         let rows = results.len() * s.detectors.len();
-        let mut core = CoreColumns::new(std::iter::empty(), rows);
+        let mut core = CoreColumns::new(std::iter::empty(), rows, s.monte_carlo.detection_window_s);
         let mut statistics = StatisticColumns::new(&[OUTPUT.to_string()], rows);
         for r in results {
             let sc = &r.scenario;

@@ -69,12 +69,25 @@ def compare(kind, old, new):
     problems = []
     if old.height != new.height:
         return [f"rows: {old.height} before, {new.height} now"]
-    if old.columns == new.columns:
-        # Both binaries write the one outcome schema: every column identical (NaN equal to NaN).
+    if "target" in old.columns:
+        # Both binaries write the one outcome schema: every column of the old table identical in the new
+        # (NaN equal to NaN); a column the new one adds is listed, and a late alarm (issue 46) must be the
+        # old detection's delay.
         for c in old.columns:
+            if c not in new.columns:
+                problems.append(f"column {c!r} is gone")
+                continue
             bad = [i for i, e in enumerate(same(old[c], new[c])) if not e]
             if bad:
                 problems.append(f"{c!r}: {len(bad)} rows differ, first row {bad[0]}: {old[c][bad[0]]!r} vs {new[c][bad[0]]!r}")
+        added = [c for c in new.columns if c not in old.columns]
+        if added:
+            print(f"    new columns: {', '.join(added)}")
+        if "late_alarm_s" in added:
+            late = new["late_alarm_s"].to_list()
+            bad = [i for i, x in enumerate(late) if x is not None and old["delay_s"][i] != x]
+            if bad:
+                problems.append(f"'late_alarm_s': {len(bad)} rows are not the old delay, first row {bad[0]}")
         return problems
     renames = RENAMES[kind]
     for c in old.columns:

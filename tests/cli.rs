@@ -258,6 +258,65 @@ fn the_seeds_tuning_lets_strong_tracking_find_the_rudder() {
     }
 }
 
+/// `monte_carlo.detection_window_s`: the hi-fi air-data deck (60 trials) with a 2 s window against the
+/// same trials without one. Row by row, an alarm within 2 s of the onset stays a detection and a later
+/// one becomes a miss with its delay in `late_alarm_s` and nothing isolated; summary.csv counts them;
+/// replaying the statistic at the deck's holds repeats the windowed records.
+#[test]
+fn a_detection_window_turns_late_alarms_into_misses() {
+    use polars::prelude::*;
+    let tmp = tempfile::tempdir().unwrap();
+    let windowed = edited_deck(
+        tmp.path(),
+        "seed002_hifi_truth.toml",
+        &[("[monte_carlo]\n", "[monte_carlo]\ndetection_window_s = 2.0\n")],
+        "windowed.toml",
+    );
+    let (open, closed) = (tmp.path().join("open"), tmp.path().join("closed"));
+    run_deck("studies/seed002_hifi_truth.toml", Some(60), &open);
+    run_deck(windowed.to_str().unwrap(), Some(60), &closed);
+    let (a, b) = (read_frame(&open.join("trials.parquet")), read_frame(&closed.join("trials.parquet")));
+    assert_eq!(a.height(), b.height());
+    let delay = |df: &DataFrame| df.column("delay_s").unwrap().f64().unwrap().clone();
+    let (delay_a, delay_b) = (delay(&a), delay(&b));
+    let late_a = a.column("late_alarm_s").unwrap().f64().unwrap().clone();
+    let late_b = b.column("late_alarm_s").unwrap().f64().unwrap().clone();
+    let isolated_b = b.column("isolated").unwrap().str().unwrap().clone();
+    let (mut late, mut kept) = (0, 0);
+    for i in 0..a.height() {
+        assert_eq!(late_a.get(i), None, "no window, no late alarm");
+        match delay_a.get(i) {
+            Some(d) if d > 2.0 => {
+                assert_eq!((delay_b.get(i), late_b.get(i), isolated_b.get(i)), (None, Some(d), None), "row {i}");
+                late += 1;
+            }
+            d => {
+                assert_eq!((delay_b.get(i), late_b.get(i)), (d, None), "row {i}");
+                kept += d.is_some() as usize;
+            }
+        }
+    }
+    assert!(late >= 20 && kept >= 100, "{late} late, {kept} kept");
+    let summary = csv_frame(&closed.join("summary.csv"));
+    let deck_late: u64 = summary
+        .clone()
+        .lazy()
+        .filter(col("thresholds").eq(lit("deck")))
+        .select([col("late_alarms").cast(DataType::UInt64).sum()])
+        .collect()
+        .unwrap()
+        .column("late_alarms")
+        .unwrap()
+        .u64()
+        .unwrap()
+        .get(0)
+        .unwrap();
+    assert_eq!(deck_late, late as u64);
+    assert_replay_repeats_the_trials(&closed);
+    let manifest = std::fs::read_to_string(closed.join("manifest.json")).unwrap();
+    assert!(manifest.contains("\"detection_window_s\": 2.0"), "{manifest}");
+}
+
 /// The hi-fi air-data deck end to end (60 trials): the voting baseline never detects a fault that hits
 /// all three lanes alike and detects most that hit one; the patent's detector, on lane 0, detects
 /// common-mode faults too; `faulty_lanes` groups the summary; the triplex voter never alarms falsely.
@@ -724,7 +783,8 @@ fn shared_checks(bin: &Path, deck: &str, baseline: &str, dir: &Path) {
 
 /// A kind that records a detection statistic: replayed at the deck's own thresholds, the recorded
 /// statistics give exactly the alarms the trials recorded, row by row (a false alarm when a pre-onset
-/// maximum exceeds its threshold, a detection when a first-passage profile does).
+/// maximum exceeds its threshold, a detection when a first-passage profile does within the detection
+/// window).
 fn assert_replay_repeats_the_trials(dir: &Path) {
     use polars::prelude::*;
     let manifest: serde_json::Value =
@@ -755,6 +815,10 @@ fn assert_replay_repeats_the_trials(dir: &Path) {
         statistics.iter().map(|s| records.column(&format!("pre_max_{s}")).unwrap().f64().unwrap().clone()).collect();
     let profiles: Vec<ListChunked> =
         statistics.iter().map(|s| records.column(&format!("fp_v_{s}")).unwrap().list().unwrap().clone()).collect();
+    let times: Vec<ListChunked> =
+        statistics.iter().map(|s| records.column(&format!("fp_t_s_{s}")).unwrap().list().unwrap().clone()).collect();
+    let onset = records.column("onset_s").unwrap().f64().unwrap().clone();
+    let window_s = manifest["detection_window_s"].as_f64().unwrap_or(f64::INFINITY);
     let mut replayed = 0;
     for i in 0..records.height() {
         if failure.get(i).is_some() {
@@ -765,8 +829,14 @@ fn assert_replay_repeats_the_trials(dir: &Path) {
         let fa = (0..statistics.len()).any(|j| pre[j].get(i).is_some_and(|v| v > th[j]));
         assert_eq!(Some(fa), false_alarm.get(i), "{}: row {i}: false alarm", dir.display());
         if fault_free.get(i) != Some(true) {
+            // Above the threshold within the detection window (the profile rises, so any such point).
+            let t0 = onset.get(i).unwrap();
             let hit = (0..statistics.len()).any(|j| {
-                profiles[j].get_as_series(i).is_some_and(|v| v.f64().unwrap().iter().flatten().any(|v| v > th[j]))
+                let (Some(v), Some(t)) = (profiles[j].get_as_series(i), times[j].get_as_series(i)) else {
+                    return false;
+                };
+                let (v, t) = (v.f64().unwrap().clone(), t.f64().unwrap().clone());
+                v.iter().zip(t.iter()).any(|(v, t)| v.unwrap() > th[j] && t.unwrap() - t0 <= window_s)
             });
             assert_eq!(Some(hit), detected.get(i), "{}: row {i}: detection", dir.display());
         }

@@ -314,7 +314,7 @@ fn at_thresholds(
 ) -> Result<(), RunError> {
     let (trial, detector) = (u64_col(records, col::TRIAL, path)?, str_col(records, col::DETECTOR, path)?);
     let fault_free = bool_col(records, col::FAULT_FREE, path)?;
-    let recorded = RecordedStatistics::read(records, statistics, path)?;
+    let recorded = RecordedStatistics::read(records, statistics, manifest.detection_window_s, path)?;
     for r in 0..records.height() {
         let (t, name) = (trial.get(r).unwrap_or(0) as usize, detector.get(r).unwrap_or(""));
         let d = manifest.detectors.iter().position(|n| n == name).unwrap_or(0);

@@ -592,7 +592,8 @@ fn gather(
         let failure = str_col(&df, col::FAILURE, &path)?;
         let onset = f64_col(&df, col::ONSET_S, &path)?;
         let delay = f64_col(&df, col::DELAY_S, &path)?;
-        let recorded = RecordedStatistics::read(&df, if by_statistic { &statistics } else { &[] }, &path)?;
+        let recorded =
+            RecordedStatistics::read(&df, if by_statistic { &statistics } else { &[] }, m.detection_window_s, &path)?;
         for i in 0..df.height() {
             let (Some(d), Some(k)) = (det.get(i), kind.get(i)) else { continue };
             if failure.get(i).is_some() {

@@ -11,6 +11,11 @@
 //! ([`RecordedStatistics::alarms_at`]); so the calibrated point repeats `thresholds.csv`'s false alarms
 //! and the `calibrated` set's Pd exactly.
 //!
+//! A threshold of 0 cannot be scaled (a held time, [`crate::estimation::bank::held_s`], calibrates to 0
+//! when fewer units than the calibration lets through hold at all): a detector of one statistic whose
+//! calibrated threshold is 0 is scaled from its deck threshold instead (from 1 if that is 0 too), and
+//! its calibrated point is the scale 0.
+//!
 //! A point's Pfa is read on the units that set the calibrated thresholds (`pfa_read_on`
 //! `calibration trials`: in-sample, so a point is about as optimistic as the calibration itself), or,
 //! for thresholds of another run (`summarize --thresholds`), on this run's units (`fresh trials`).
@@ -61,8 +66,9 @@ impl RocPoint {
     }
 }
 
-/// The scales of the module docs from one detector's calibration ratios (any order), descending.
-fn scales(mut ratios: Vec<f64>) -> Vec<f64> {
+/// The scales of the module docs from one detector's calibration ratios (any order), descending, with
+/// `calibrated` (the calibrated thresholds' scale) among them.
+fn scales(mut ratios: Vec<f64>, calibrated: f64) -> Vec<f64> {
     ratios.retain(|r| !r.is_nan());
     ratios.sort_by(|a, b| b.total_cmp(a));
     let n = ratios.len();
@@ -76,7 +82,7 @@ fn scales(mut ratios: Vec<f64>) -> Vec<f64> {
             s.push(ratios[k.min(n - 1)]);
         }
     }
-    s.push(1.0);
+    s.push(calibrated);
     s.sort_by(|a, b| b.total_cmp(a));
     s.dedup();
     s
@@ -100,6 +106,16 @@ pub fn roc(
             thresholds.iter().find(|t| t.detector == manifest.detectors[d]).map_or(&[][..], |t| t.whole.as_slice())
         })
         .collect();
+    // What the points scale, and the scale of the calibrated thresholds (module docs).
+    let (base, calibrated_scale): (Vec<Vec<f64>>, Vec<f64>) = (0..nd)
+        .map(|d| match whole[d] {
+            [t] if *t == 0.0 => {
+                let deck = manifest.deck_thresholds.get(d).and_then(|t| t.first()).copied().unwrap_or(0.0);
+                (vec![if deck > 0.0 { deck } else { 1.0 }], 0.0)
+            }
+            w => (w.to_vec(), 1.0),
+        })
+        .unzip();
     let on_fault_free = thresholds.first().is_some_and(|t| t.on_fault_free_trials);
     // Which rows calibrate: flown, and fault-free where there are fault-free trials (as thresholds.rs).
     let calibrates = |fault_free: Option<bool>, failed: bool| !failed && (!on_fault_free || fault_free == Some(true));
@@ -119,15 +135,15 @@ pub fn roc(
     };
     // Pass 1: each calibration unit's largest ratio to its detector's thresholds.
     let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); nd];
-    for_each_calibration_unit(&mut |d, value| ratios[d].push(unit_ratio(value, whole[d])))?;
+    for_each_calibration_unit(&mut |d, value| ratios[d].push(unit_ratio(value, &base[d])))?;
     let mut points: Vec<Vec<RocPoint>> = (0..nd)
         .map(|d| {
-            scales(std::mem::take(&mut ratios[d]))
+            scales(std::mem::take(&mut ratios[d]), calibrated_scale[d])
                 .into_iter()
                 .map(|scale| RocPoint {
                     detector: manifest.detectors[d].clone(),
                     scale,
-                    calibrated: scale == 1.0,
+                    calibrated: scale == calibrated_scale[d],
                     calibration_units: 0,
                     false_alarms: 0,
                     faulty_units: 0,
@@ -138,11 +154,11 @@ pub fn roc(
         })
         .collect();
     let mut scaled: Vec<Vec<Vec<f64>>> =
-        (0..nd).map(|d| points[d].iter().map(|p| whole[d].iter().map(|t| t * p.scale).collect()).collect()).collect();
+        (0..nd).map(|d| points[d].iter().map(|p| base[d].iter().map(|t| t * p.scale).collect()).collect()).collect();
     // Pass 1b: as the calibration itself, each point's thresholds let through the units its scale does.
     for_each_calibration_unit(&mut |d, value| {
         for (thr, p) in scaled[d].iter_mut().zip(&points[d]) {
-            let_through(thr, value, whole[d], p.scale);
+            let_through(thr, value, &base[d], p.scale);
         }
     })?;
 
@@ -155,7 +171,7 @@ pub fn roc(
             str_col(&df, col::FAILURE, path)?,
             f64_col(&df, col::ONSET_S, path)?,
         );
-        let recorded = RecordedStatistics::read(&df, statistics, path)?;
+        let recorded = RecordedStatistics::read(&df, statistics, manifest.detection_window_s, path)?;
         for i in 0..df.height() {
             let Some(d) = det.get(i).and_then(|n| manifest.detectors.iter().position(|x| x == n)) else { continue };
             if whole[d].len() != ns {
@@ -236,7 +252,7 @@ mod tests {
     #[test]
     fn scales_step_through_the_calibration_ratios() {
         let ratios: Vec<f64> = (1..=1000).map(|i| i as f64 / 500.0).collect();
-        let s = scales(ratios.clone());
+        let s = scales(ratios.clone(), 1.0);
         assert_eq!(s[0], 2.0, "the largest ratio: no unit above it");
         assert_eq!(*s.last().unwrap(), 0.002, "k = n - 1: all but the smallest alarm");
         assert!(s.contains(&1.0) && s.windows(2).all(|w| w[0] > w[1]), "{s:?}");
@@ -245,6 +261,7 @@ mod tests {
             let k = ratios.iter().filter(|&&r| r > x).count();
             assert_eq!(k, 1000 - (x * 500.0).round() as usize, "{x}");
         }
-        assert_eq!(scales(Vec::new()), vec![1.0]);
+        assert_eq!(scales(Vec::new(), 1.0), vec![1.0]);
+        assert_eq!(*scales(ratios, 0.0).last().unwrap(), 0.0, "a calibrated threshold of 0: the scale 0");
     }
 }

@@ -19,13 +19,14 @@
 //! | `failure` | str | why the unit was not flown to the end (design failure, left the envelope, ...); null: flown. Failed units are left out of every rate |
 //! | `diverged` | bool | a filter of the detector became non-finite (the unit still counts) |
 //! | `false_alarm`, `false_alarm_s` | bool, f64 | an alarm before the onset (anywhere when fault-free), and the first one's time |
-//! | `detected`, `delay_s` | bool, f64 | the fault detected at or after its onset, and the delay from the onset |
+//! | `detected`, `delay_s` | bool, f64 | the fault detected at or after its onset, within `monte_carlo.detection_window_s` of it, and the delay from the onset |
+//! | `late_alarm_s` | f64 | the first alarm after the onset when it came later than the detection window: then a miss (`detected` false, nothing isolated), its delay here; null otherwise |
 //! | `isolated`, `isolated_correctly` | str, bool | what the detector named (a target, or a class for classifiers; null: nothing named), and whether it is the truth |
 //! | `noise_scale`, `noise_bin` | f64 | factor on every sensor's noise, and its group label |
 //! | `param_error_bin` | f64 | largest \|group label\| of the trial's parameter errors (0 without any) |
 //! | `perr_<name>` | f64 | each parameter error of the deck, as the deck gives it (relative or absolute) |
 //!
-//! A kind that records a detection statistic per trial (methods 000, 001 and 003) adds, per statistic `s`,
+//! Every kind records a detection statistic per unit, and adds, per statistic `s`,
 //! `pre_max_<s>` (its largest value before the onset, the whole trial when fault-free) and the lists
 //! `fp_t_s_<s>`, `fp_v_<s>` (the first-passage profile after the onset: times and values at which its
 //! running maximum rises), so any threshold can be evaluated later without re-simulating.
@@ -53,6 +54,7 @@ pub mod col {
     pub const FALSE_ALARM_S: &str = "false_alarm_s";
     pub const DETECTED: &str = "detected";
     pub const DELAY_S: &str = "delay_s";
+    pub const LATE_ALARM_S: &str = "late_alarm_s";
     pub const ISOLATED: &str = "isolated";
     pub const ISOLATED_CORRECTLY: &str = "isolated_correctly";
     pub const NOISE_SCALE: &str = "noise_scale";
@@ -111,6 +113,7 @@ pub struct Outcome<'a> {
 
 /// The core columns while rows are added; a method's frame builder puts its own columns after them.
 pub struct CoreColumns<'a> {
+    detection_window_s: f64,
     perr_names: Vec<String>,
     trial: Vec<u64>,
     detector: Vec<&'a str>,
@@ -127,6 +130,7 @@ pub struct CoreColumns<'a> {
     false_alarm_s: Vec<Option<f64>>,
     detected: Vec<bool>,
     delay_s: Vec<Option<f64>>,
+    late_alarm_s: Vec<Option<f64>>,
     isolated: Vec<Option<Cow<'a, str>>>,
     isolated_correctly: Vec<Option<bool>>,
     noise_scale: Vec<f64>,
@@ -136,10 +140,14 @@ pub struct CoreColumns<'a> {
 }
 
 impl<'a> CoreColumns<'a> {
-    /// A builder for about `rows` rows whose parameter errors are named `perr_names` (deck order).
-    pub fn new(perr_names: impl IntoIterator<Item = String>, rows: usize) -> Self {
+    /// A builder for about `rows` rows whose parameter errors are named `perr_names` (deck order), an
+    /// alarm later than `detection_window_s` after the onset (`monte_carlo.detection_window_s`) being a
+    /// late alarm, not a detection.
+    pub fn new(perr_names: impl IntoIterator<Item = String>, rows: usize, detection_window_s: f64) -> Self {
         let perr_names: Vec<String> = perr_names.into_iter().collect();
         CoreColumns {
+            detection_window_s,
+            late_alarm_s: Vec::with_capacity(rows),
             perr: perr_names.iter().map(|_| Vec::with_capacity(rows)).collect(),
             perr_names,
             trial: Vec::with_capacity(rows),
@@ -183,10 +191,14 @@ impl<'a> CoreColumns<'a> {
         self.diverged.push(o.diverged);
         self.false_alarm.push(o.false_alarm_s.is_some());
         self.false_alarm_s.push(o.false_alarm_s);
-        self.detected.push(o.delay_s.is_some());
-        self.delay_s.push(o.delay_s);
-        self.isolated.push(o.isolated);
-        self.isolated_correctly.push(o.isolated_correctly);
+        // The same rule as the replay's (RecordedStatistics::first_alarm): late is after the window.
+        let late = o.delay_s.filter(|&d| d > self.detection_window_s);
+        let delay_s = o.delay_s.filter(|_| late.is_none());
+        self.detected.push(delay_s.is_some());
+        self.delay_s.push(delay_s);
+        self.late_alarm_s.push(late);
+        self.isolated.push(if late.is_some() { None } else { o.isolated });
+        self.isolated_correctly.push(if late.is_some() { None } else { o.isolated_correctly });
         self.noise_scale.push(o.noise_scale);
         self.noise_bin.push(o.noise_bin);
         self.param_error_bin.push(o.param_error_bin);
@@ -225,6 +237,7 @@ impl<'a> CoreColumns<'a> {
             Column::new(col::FALSE_ALARM_S.into(), self.false_alarm_s),
             Column::new(col::DETECTED.into(), self.detected),
             Column::new(col::DELAY_S.into(), self.delay_s),
+            Column::new(col::LATE_ALARM_S.into(), self.late_alarm_s),
             text(col::ISOLATED, &self.isolated),
             Column::new(col::ISOLATED_CORRECTLY.into(), self.isolated_correctly),
             Column::new(col::NOISE_SCALE.into(), self.noise_scale),
@@ -409,4 +422,47 @@ pub mod unit {
     pub const GAIN_DEVIATION_BINS: &str = "factor (bin: |factor - 1|)";
     /// A fault without a size (stuck at the held reading, total failure), or no fault.
     pub const NONE: &str = "none";
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// With a 2 s window: a delay of 1 s is a detection, 3 s a late alarm (a miss, nothing isolated),
+    /// none neither; 2 s exactly is still within.
+    #[test]
+    fn an_alarm_after_the_detection_window_is_a_late_alarm_and_a_miss() {
+        let mut core = CoreColumns::new(Vec::new(), 4, 2.0);
+        for (trial, delay) in [(0, Some(1.0)), (1, Some(3.0)), (2, None), (3, Some(2.0))] {
+            core.push(Outcome {
+                trial,
+                detector: "d",
+                kind: "bias",
+                target: Some(Cow::Borrowed("x")),
+                size: Some(1.0),
+                size_unit: unit::NONE,
+                size_bin: Some(1.0),
+                onset_s: Some(5.0),
+                fault_free: false,
+                failure: None,
+                diverged: false,
+                false_alarm_s: None,
+                delay_s: delay,
+                isolated: delay.map(|_| Cow::Borrowed("x")),
+                isolated_correctly: delay.map(|_| true),
+                noise_scale: 1.0,
+                noise_bin: 1.0,
+                param_error_bin: 0.0,
+                param_errors: &[],
+            });
+        }
+        let df = DataFrame::new_infer_height(core.finish()).unwrap();
+        let f = |c: &str| df.column(c).unwrap().f64().unwrap().iter().collect::<Vec<_>>();
+        let detected: Vec<_> = df.column(col::DETECTED).unwrap().bool().unwrap().iter().collect();
+        let isolated: Vec<_> = df.column(col::ISOLATED).unwrap().str().unwrap().iter().collect();
+        assert_eq!(detected, [Some(true), Some(false), Some(false), Some(true)]);
+        assert_eq!(f(col::DELAY_S), [Some(1.0), None, None, Some(2.0)]);
+        assert_eq!(f(col::LATE_ALARM_S), [None, Some(3.0), None, None]);
+        assert_eq!(isolated, [Some("x"), None, None, Some("x")]);
+    }
 }

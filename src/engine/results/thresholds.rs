@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use polars::prelude::*;
 
 use crate::engine::results::schema::col;
-use crate::engine::results::tables::{bool_col, list_col, numbers, read_summary, slices, str_col};
+use crate::engine::results::tables::{bool_col, f64_col, list_col, numbers, read_summary, slices, str_col};
 use crate::engine::run::output::{VALIDATION_DIR, write_table};
 use crate::engine::run::runner::{Manifest, RunError, pol};
 use crate::engine::stats::intervals::{Z95, wilson};
@@ -129,17 +129,33 @@ pub struct RecordedStatistics {
     /// `fp_t[j][i]`, `fp_v[j][i]`: statistic j's first-passage profile in row i, times (s) and values.
     pub fp_t: Vec<Vec<Vec<f64>>>,
     pub fp_v: Vec<Vec<Vec<f64>>>,
+    /// Each row's onset (s; NaN when fault-free), and the run's detection window (s; infinite: none).
+    pub onset_s: Vec<f64>,
+    pub detection_window_s: f64,
 }
 
 impl RecordedStatistics {
-    /// The columns that hold `statistics`, to select when reading a slice.
+    /// The columns that hold `statistics`, to select when reading a slice (with the onset).
     pub fn columns(statistics: &[String]) -> impl Iterator<Item = String> + '_ {
         statistics.iter().flat_map(|s| [col::pre_max(s), col::fp_t(s), col::fp_v(s)])
     }
 
-    /// `statistics`' columns of `df` (read from `file`, for messages).
-    pub fn read(df: &DataFrame, statistics: &[String], file: &Path) -> Result<Self, RunError> {
-        let mut r = RecordedStatistics { pre: Vec::new(), fp_t: Vec::new(), fp_v: Vec::new() };
+    /// `statistics`' columns and the onsets of `df` (read from `file`, for messages), for a run whose
+    /// manifest gives `detection_window_s`.
+    pub fn read(
+        df: &DataFrame,
+        statistics: &[String],
+        detection_window_s: Option<f64>,
+        file: &Path,
+    ) -> Result<Self, RunError> {
+        let onset_s = f64_col(df, col::ONSET_S, file)?.iter().map(|v| v.unwrap_or(f64::NAN)).collect();
+        let mut r = RecordedStatistics {
+            pre: Vec::new(),
+            fp_t: Vec::new(),
+            fp_v: Vec::new(),
+            onset_s,
+            detection_window_s: detection_window_s.unwrap_or(f64::INFINITY),
+        };
         for s in statistics {
             r.pre.push(numbers(df, &col::pre_max(s), file)?);
             r.fp_t.push(list_col(df, &col::fp_t(s), file)?);
@@ -155,15 +171,31 @@ impl RecordedStatistics {
         (false_alarm, if faulty { self.first_alarm(i, whole) } else { None })
     }
 
-    /// Row `i`'s first post-onset alarm at thresholds `thr` (of the first `thr.len()` statistics): for
-    /// each statistic the first profile point above its threshold, then the earliest over statistics.
+    /// Row `i`'s first post-onset alarm at thresholds `thr` (of the first `thr.len()` statistics) within
+    /// the detection window: for each statistic the first profile point above its threshold, then the
+    /// earliest over statistics, if it came within the window of the onset.
     pub fn first_alarm(&self, i: usize, thr: &[f64]) -> Option<f64> {
+        self.first_alarm_any_time(i, thr).filter(|&t| !self.late(i, t))
+    }
+
+    /// Row `i`'s first post-onset alarm at thresholds `thr`, when it came after the detection window: a
+    /// late alarm (a miss).
+    pub fn late_alarm(&self, i: usize, thr: &[f64]) -> Option<f64> {
+        self.first_alarm_any_time(i, thr).filter(|&t| self.late(i, t))
+    }
+
+    fn first_alarm_any_time(&self, i: usize, thr: &[f64]) -> Option<f64> {
         (0..thr.len())
             .filter_map(|j| {
                 let (t, v) = (&self.fp_t[j][i], &self.fp_v[j][i]);
                 t.iter().zip(v).find(|(_, v)| **v > thr[j]).map(|(t, _)| *t)
             })
             .reduce(f64::min)
+    }
+
+    /// An alarm at `t_s` in row `i` is later than the window (the records' rule, `CoreColumns::push`).
+    fn late(&self, i: usize, t_s: f64) -> bool {
+        t_s - self.onset_s[i] > self.detection_window_s
     }
 }
 
@@ -783,6 +815,8 @@ mod tests {
             pre: vec![vec![0.4], vec![0.1]],
             fp_t: vec![vec![vec![1.0, 2.0, 3.0]], vec![vec![1.5, 2.5]]],
             fp_v: vec![vec![vec![0.5, 1.5, 2.5]], vec![vec![0.2, 3.0]]],
+            onset_s: vec![0.5],
+            detection_window_s: f64::INFINITY,
         };
         assert_eq!(recorded.first_alarm(0, &[1.0, 1.0]), Some(2.0));
         assert_eq!(recorded.first_alarm(0, &[2.0, 1.0]), Some(2.5));
@@ -790,5 +824,10 @@ mod tests {
         assert_eq!(recorded.first_alarm(0, &[2.0]), Some(3.0), "the first statistic alone");
         assert_eq!(recorded.alarms_at(0, &[0.3, 1.0], true), (true, Some(1.0)));
         assert_eq!(recorded.alarms_at(0, &[0.5, 1.0], false), (false, None), "a fault-free row has no detection");
+        // A 2 s window from the onset at 0.5 s: the alarm at 2.5 s is still a detection, at 3 s late.
+        let windowed = RecordedStatistics { detection_window_s: 2.0, ..recorded };
+        assert_eq!((windowed.first_alarm(0, &[2.0, 1.0]), windowed.late_alarm(0, &[2.0, 1.0])), (Some(2.5), None));
+        assert_eq!((windowed.first_alarm(0, &[2.0]), windowed.late_alarm(0, &[2.0])), (None, Some(3.0)));
+        assert_eq!(windowed.alarms_at(0, &[2.0], true), (false, None), "late: a miss");
     }
 }

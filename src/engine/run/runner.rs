@@ -257,6 +257,10 @@ pub struct Manifest {
     /// A trial's duration (s), for false-alarm rates per flight hour (`None` in runs written before).
     #[serde(default)]
     pub trial_duration_s: Option<f64>,
+    /// `monte_carlo.detection_window_s`: an alarm later than this after the onset is a late alarm, not a
+    /// detection (`None`: to the end of the trial).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub detection_window_s: Option<f64>,
     /// Unit of each fault kind's size bins (for plot axes).
     #[serde(default)]
     pub fault_size_units: std::collections::BTreeMap<String, String>,
@@ -479,6 +483,7 @@ impl Manifest {
             trials: monte_carlo.trials,
             target_pfa: monte_carlo.target_pfa,
             confidence: monte_carlo.confidence,
+            detection_window_s: monte_carlo.detection_window_s.is_finite().then_some(monte_carlo.detection_window_s),
             detectors: detectors.into_iter().map(String::from).collect(),
             trial_duration_s: Some(header.duration_s),
             ..Manifest::unstarted()
@@ -505,6 +510,7 @@ impl Manifest {
             target_pfa: 0.0,
             confidence: None,
             trial_duration_s: None,
+            detection_window_s: None,
             fault_size_units: Default::default(),
             fault_size_bins: Default::default(),
             command_line: Vec::new(),

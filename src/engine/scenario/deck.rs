@@ -560,6 +560,7 @@ pub struct MonteCarloSection {
     pub confidence: Option<f64>,
     pub onset_s: Option<FactorSpec>,
     pub noise_scale: Option<FactorSpec>,
+    pub detection_window_s: Option<f64>,
     #[serde(default)]
     pub parameter_error: Vec<toml::Table>,
     #[serde(flatten)]
@@ -581,6 +582,9 @@ pub struct MonteCarlo {
     pub onset_s: Factor,
     /// Multiplies every sensor's noise standard deviation.
     pub noise_scale: Factor,
+    /// An alarm is a detection only this long after the onset (s); a later one is a miss and a late
+    /// alarm ([`crate::engine::results::schema::col::LATE_ALARM_S`]). Infinite: to the end of the trial.
+    pub detection_window_s: f64,
     /// Set by `fdimc sensitivity`, never by a deck: the trials are the rows of this design.
     pub design: Option<std::sync::Arc<Design>>,
 }
@@ -625,6 +629,8 @@ pub struct MonteCarloRules<'a> {
     pub noise_ranges: bool,
     /// Absolute parameter errors (otherwise relative only); `None`: no parameter errors.
     pub parameter_errors: Option<bool>,
+    /// The kind's default `detection_window_s` (infinite: to the end of the trial).
+    pub detection_window_s: f64,
 }
 
 impl<'a> MonteCarloRules<'a> {
@@ -640,6 +646,7 @@ impl<'a> MonteCarloRules<'a> {
             onset_s: true,
             noise_ranges: true,
             parameter_errors: None,
+            detection_window_s: f64::INFINITY,
         }
     }
 }
@@ -665,6 +672,7 @@ impl Validator<'_> {
                 confidence: None,
                 onset_s: Factor::Fixed(duration_s / 3.0),
                 noise_scale: Factor::Fixed(1.0),
+                detection_window_s: rules.detection_window_s,
                 design: None,
             };
             return Ok((defaults, None, Vec::new()));
@@ -711,6 +719,10 @@ impl Validator<'_> {
             ));
         }
         self.factor_within("monte_carlo.noise_scale", &noise_scale, |x| x >= 0.0, ">= 0")?;
+        let detection_window_s = match mc.detection_window_s {
+            Some(w) => self.positive("monte_carlo.detection_window_s", w)?,
+            None => rules.detection_window_s,
+        };
 
         let own = T::deserialize(toml::Value::Table(mc.rest))
             .map_err(|e| self.err("monte_carlo", e.to_string().trim_end().to_string()))?;
@@ -763,6 +775,7 @@ impl Validator<'_> {
                 confidence: mc.confidence,
                 onset_s,
                 noise_scale,
+                detection_window_s,
                 design: None,
             },
             Some(own),

@@ -265,6 +265,6 @@ impl TrialSource for AccelerometerTrials<'_> {
     }
     fn frame(&self, results: &[AccelTrialResult]) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {
         let names: Vec<&str> = self.classifiers.classifiers.iter().map(|c| c.name.as_str()).collect();
-        records::frame(results, &names, self.study.log.is_some())
+        records::frame(results, &names, self.study.log.is_some(), self.study.monte_carlo.detection_window_s)
     }
 }

@@ -37,11 +37,16 @@ fn size_unit(class: FaultClass) -> &'static str {
     }
 }
 
-/// The rows of `results` (trial order) for the classifiers `names` (the outcomes' order); see the
-/// module docs.
-pub fn frame(results: &[AccelTrialResult], names: &[&str], replay: bool) -> PolarsResult<DataFrame> {
+/// The rows of `results` (trial order) for the classifiers `names` (the outcomes' order), an alarm
+/// later than `detection_window_s` after the onset a late alarm; see the module docs.
+pub fn frame(
+    results: &[AccelTrialResult],
+    names: &[&str],
+    replay: bool,
+    detection_window_s: f64,
+) -> PolarsResult<DataFrame> {
     let n = results.len() * names.len();
-    let mut core = CoreColumns::new(Vec::new(), n);
+    let mut core = CoreColumns::new(Vec::new(), n, detection_window_s);
     let mut statistics = StatisticColumns::new(&[STATISTIC.to_string()], n);
     let (mut alarm, mut unusable, mut log_start) = (Vec::with_capacity(n), Vec::with_capacity(n), Vec::new());
     for r in results {
@@ -130,7 +135,7 @@ mod tests {
             },
             AccelTrialResult { spec: spec(3, Bias, Some(0), 0.3), outcome: Err("unusable".into()) },
         ];
-        let df = frame(&results, &["tree", "flat"], false).unwrap();
+        let df = frame(&results, &["tree", "flat"], false, f64::INFINITY).unwrap();
         assert_eq!(df.height(), 8);
         let s = Summarized::of(df, &super::super::METHOD, 4, &["tree", "flat"]);
         assert_eq!(s.summary.height(), 12, "3 kinds x 2 classifiers x the deck's and the calibrated thresholds");

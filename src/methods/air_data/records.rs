@@ -55,7 +55,7 @@ pub fn sensor_set(channels: &[usize]) -> String {
 /// The rows of `results` (trial order); see the module docs.
 pub fn frame(study: &AirDataStudy, results: &[AirDataTrialResult]) -> PolarsResult<DataFrame> {
     let rows = results.len() * study.detectors.len();
-    let mut core = CoreColumns::new(Vec::new(), rows);
+    let mut core = CoreColumns::new(Vec::new(), rows, study.monte_carlo.common.detection_window_s);
     let mut statistics = StatisticColumns::new(&[STATISTIC.to_string()], rows);
     let mut t = Columns::default();
     for r in results {

@@ -43,7 +43,7 @@ impl<'a> RecordBuilder<'a> {
         let perr = study.monte_carlo.parameter_errors.iter().map(|p| p.name.clone());
         RecordBuilder {
             study,
-            core: CoreColumns::new(perr, capacity),
+            core: CoreColumns::new(perr, capacity, study.monte_carlo.common.detection_window_s),
             diverged_at_s: Vec::with_capacity(capacity),
             false_alarm_output: Vec::with_capacity(capacity),
             alarm_s: Vec::with_capacity(capacity),

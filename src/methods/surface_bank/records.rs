@@ -47,7 +47,8 @@ pub const STATISTIC: &str = "held_s";
 /// The rows of `results` (trial order); see the module docs.
 pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResult<DataFrame> {
     let perr = study.monte_carlo.parameter_errors.iter().map(|p| p.name.clone());
-    let mut core = CoreColumns::new(perr, results.len() * study.banks.len());
+    let mut core =
+        CoreColumns::new(perr, results.len() * study.banks.len(), study.monte_carlo.common.detection_window_s);
     let mut t = Columns::default();
     let mut statistics = StatisticColumns::new(&[STATISTIC.to_string()], results.len() * study.banks.len());
     for r in results {

@@ -69,7 +69,7 @@ pub fn validate(study: &LaunchStudy) -> Result<(), RunError> {
         mc.common.onset_s,
         mc.common.noise_scale,
         mc.gust_scale,
-        mc.detection_window_s
+        mc.common.detection_window_s
     );
     Ok(())
 }

@@ -110,7 +110,7 @@ impl<'a> LaunchTrials<'a> {
         let spec = self.sampler.spec(trial);
         let config = self.sampler.config(&spec);
         let mut rng = noise_rng(self.study.header.seed, self.sampler.noise_trial(trial), Substream::SensorNoise);
-        let (duration_s, window_s) = (self.study.header.duration_s, self.study.monte_carlo.detection_window_s);
+        let (duration_s, window_s) = (self.study.header.duration_s, self.study.monte_carlo.common.detection_window_s);
         let outcome = run_detectors(&config, &spec, duration_s, window_s, &self.detectors, &mut rng, on_sample);
         LaunchTrialResult { spec, outcome }
     }

@@ -43,7 +43,7 @@ pub mod col {
 /// The rows of `results` (trial order); see the module docs.
 pub fn frame(study: &LaunchStudy, results: &[LaunchTrialResult]) -> PolarsResult<DataFrame> {
     let rows = results.len() * study.detectors.len();
-    let mut core = CoreColumns::new(Vec::new(), rows);
+    let mut core = CoreColumns::new(Vec::new(), rows, study.monte_carlo.common.detection_window_s);
     let mut statistics = StatisticColumns::new(&[col::FHAT.to_string()], rows);
     let mut t = Columns::default();
     for r in results {

@@ -95,7 +95,6 @@ struct MonteCarloOwn {
     engines: Option<Vec<usize>>,
     loss_percent: Option<FactorSpec>,
     gust_scale: Option<FactorSpec>,
-    detection_window_s: Option<f64>,
 }
 
 /// The loss-percentage table of a detector: linear fits of the loss against the peak `|fhat|` at each
@@ -150,9 +149,6 @@ pub struct LaunchMonteCarlo {
     /// `None`: every faulty trial flies the deck's `[[faults]]`.
     pub loss_percent: Option<Factor>,
     pub gust_scale: Factor,
-    /// An alarm is the loss's detection only this long after the onset (s): a 10 % loss takes up to
-    /// about 1.5 s to alarm, and an alarm seconds later says more of a gust or the noise than of the loss.
-    pub detection_window_s: f64,
 }
 
 /// A validated launch study.
@@ -292,7 +288,12 @@ impl FromDeck for LaunchStudy {
             }),
         };
 
-        let rules = MonteCarloRules::sampled("launch-vehicle decks", duration_s, OPTIONS.contains(&Opt::Thresholds));
+        // An alarm is the loss's detection only 2 s after the onset by default: a 10 % loss takes up to
+        // about 1.5 s to alarm, and an alarm seconds later says more of a gust or the noise than of the loss.
+        let rules = MonteCarloRules {
+            detection_window_s: 2.0,
+            ..MonteCarloRules::sampled("launch-vehicle decks", duration_s, OPTIONS.contains(&Opt::Thresholds))
+        };
         let (common, own, _) = v.monte_carlo(deck.monte_carlo, &rules, |_, _| Ok(()))?;
         // A loss at lift-off leaves no window before it to calibrate on.
         v.factor_within(
@@ -329,9 +330,8 @@ impl FromDeck for LaunchStudy {
         let gust_scale = v.factor("monte_carlo.gust_scale", own.gust_scale.as_ref(), Factor::Fixed(1.0))?;
         // Negative would reverse every gust: refused rather than read as a sign convention.
         v.factor_within("monte_carlo.gust_scale", &gust_scale, |x| x >= 0.0, ">= 0 (0: no gusts)")?;
-        let detection_window_s = v.positive("monte_carlo.detection_window_s", own.detection_window_s.unwrap_or(2.0))?;
         v.one_fault_source("[[faults]]", "monte_carlo.loss_percent", loss_percent.is_some() && fault.is_some())?;
-        let monte_carlo = LaunchMonteCarlo { common, engines, loss_percent, gust_scale, detection_window_s };
+        let monte_carlo = LaunchMonteCarlo { common, engines, loss_percent, gust_scale };
 
         Ok(LaunchStudy { header, config, gusts, detectors, fault, monte_carlo })
     }

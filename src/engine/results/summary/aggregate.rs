@@ -57,6 +57,8 @@ pub(super) struct Unit {
     pub(super) false_alarm: bool,
     pub(super) detected: bool,
     pub(super) delay_s: Option<f64>,
+    /// The first alarm after the onset came after the detection window (then not detected).
+    pub(super) late_alarm: bool,
     pub(super) isolated: Option<u32>,
     pub(super) correct: bool,
 }
@@ -69,6 +71,7 @@ pub(super) struct Counts {
     pub(super) diverged: u64,
     pub(super) false_alarms: u64,
     pub(super) detected: u64,
+    pub(super) late_alarms: u64,
     pub(super) decided: u64,
     pub(super) correct: u64,
     pub(super) faulty: bool,
@@ -94,6 +97,7 @@ impl Counts {
         }
         self.diverged += u.diverged as u64;
         self.false_alarms += u.false_alarm as u64;
+        self.late_alarms += (u.faulty && u.late_alarm) as u64;
         if u.faulty && u.detected {
             self.detected += 1;
             if let Some(d) = u.delay_s {
@@ -121,6 +125,7 @@ impl Counts {
         self.diverged += o.diverged;
         self.false_alarms += o.false_alarms;
         self.detected += o.detected;
+        self.late_alarms += o.late_alarms;
         self.decided += o.decided;
         self.correct += o.correct;
         self.faulty |= o.faulty;
@@ -192,10 +197,17 @@ pub(super) struct Aggregates<'s> {
     /// The current trial and how many units each detector has had in it.
     pub(super) trial: Option<u64>,
     pub(super) units_seen: Vec<usize>,
+    /// The run's `monte_carlo.detection_window_s` (none: to the end of the trial).
+    pub(super) detection_window_s: Option<f64>,
 }
 
 impl<'s> Aggregates<'s> {
-    pub(super) fn new(spec: &'s SummarySpec, sets: Vec<&'static str>, detectors: &[String]) -> Self {
+    pub(super) fn new(
+        spec: &'s SummarySpec,
+        sets: Vec<&'static str>,
+        detectors: &[String],
+        detection_window_s: Option<f64>,
+    ) -> Self {
         let nd = detectors.len();
         let n_extras = spec.extras.len();
         let isolation_on_all = spec.isolates == Isolates::Kind;
@@ -210,6 +222,7 @@ impl<'s> Aggregates<'s> {
             confusion: HashMap::new(),
             trial: None,
             units_seen: vec![0; nd],
+            detection_window_s,
         }
     }
 
@@ -234,6 +247,7 @@ impl<'s> Aggregates<'s> {
         let false_alarm = bool_col(df, col::FALSE_ALARM, file)?;
         let detected = bool_col(df, col::DETECTED, file)?;
         let delay = f64_col(df, col::DELAY_S, file)?;
+        let late = f64_col(df, col::LATE_ALARM_S, file)?;
         let isolated = str_col(df, col::ISOLATED, file)?;
         let correct = bool_col(df, col::ISOLATED_CORRECTLY, file)?;
         let noise_bin = f64_col(df, col::NOISE_BIN, file)?;
@@ -244,7 +258,7 @@ impl<'s> Aggregates<'s> {
         let paired_medians =
             spec.paired_medians.iter().map(|c| numbers(df, c, file)).collect::<Result<Vec<Vec<f64>>, RunError>>()?;
         let profiles = match calibrated {
-            Some((_, statistics)) => Some(RecordedStatistics::read(df, statistics, file)?),
+            Some((_, statistics)) => Some(RecordedStatistics::read(df, statistics, self.detection_window_s, file)?),
             None => None,
         };
 
@@ -282,6 +296,7 @@ impl<'s> Aggregates<'s> {
                         false_alarm: false_alarm.get(i) == Some(true),
                         detected: detected.get(i) == Some(true),
                         delay_s: delay.get(i),
+                        late_alarm: late.get(i).is_some(),
                         isolated: iso,
                         correct: correct.get(i) == Some(true),
                     }
@@ -296,6 +311,7 @@ impl<'s> Aggregates<'s> {
                         false_alarm: fa,
                         detected: alarm.is_some(),
                         delay_s: alarm.map(|a| a - onset.get(i).unwrap_or(f64::NAN)),
+                        late_alarm: faulty && profiles.late_alarm(i, &thresholds[d].whole).is_some(),
                         isolated: None,
                         correct: false,
                     }

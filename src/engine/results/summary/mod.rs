@@ -14,7 +14,7 @@
 //!
 //! | file | one row per | what |
 //! |---|---|---|
-//! | `summary.csv`, `summary.parquet` | thresholds x detector x kind x target x size bin x noise bin x parameter-error bin (x the kind's own bins) | the key columns, then `trials` (units), `failed`, `diverged`, `false_alarms`, `detected`, `missed`, `isolation_decided`, `isolated_correctly`, Pd, Pfa and isolation accuracy with intervals, delay p50/p90/p99, then the kind's own aggregates |
+//! | `summary.csv`, `summary.parquet` | thresholds x detector x kind x target x size bin x noise bin x parameter-error bin (x the kind's own bins) | the key columns, then `trials` (units), `failed`, `diverged`, `false_alarms`, `detected`, `missed`, `late_alarms`, `isolation_decided`, `isolated_correctly`, Pd, Pfa and isolation accuracy with intervals, delay p50/p90/p99, then the kind's own aggregates |
 //! | `curves.csv` | thresholds x detector x kind x target x size bin | the same counts and rates (noise and parameter-error bins pooled): Pd against fault size |
 //! | `min_detectable.csv` | thresholds x detector x kind x target | the smallest fault (by \|size\|, or \|factor - 1\| for gain) whose size bin has Pd >= 0.9, and whose Wilson lower bound is >= 0.9 |
 //! | `detectors.csv` | thresholds x detector | over the faulty units: Pd, isolation, delays, the kind's aggregates; over every trial once (its first unit): flights, failures, false alarms, Pfa |
@@ -95,6 +95,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
         col::FALSE_ALARM,
         col::DETECTED,
         col::DELAY_S,
+        col::LATE_ALARM_S,
         col::ISOLATED,
         col::ISOLATED_CORRECTLY,
         col::NOISE_BIN,
@@ -129,7 +130,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
         }
     }
 
-    let mut agg = Aggregates::new(spec, sets.clone(), &manifest.detectors);
+    let mut agg = Aggregates::new(spec, sets.clone(), &manifest.detectors, manifest.detection_window_s);
     let calibrated = thresholds.as_ref().map(|(t, _)| (t.as_slice(), statistics.as_slice()));
     for df in slices(&path, manifest.rows as usize, SLICE_ROWS, &select) {
         agg.add_slice(&df?, &path, calibrated)?;

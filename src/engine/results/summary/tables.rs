@@ -82,6 +82,7 @@ pub(super) fn count_columns(counts: &[&Counts], spec: &SummarySpec, at_deck: Opt
             "missed".into(),
             counts.iter().map(|c| c.faulty.then(|| c.flown() - c.detected)).collect::<Vec<Option<u64>>>(),
         ),
+        Column::new("late_alarms".into(), u(&|c| c.late_alarms)),
         Column::new("isolation_decided".into(), u(&|c| c.decided)),
         Column::new("isolated_correctly".into(), u(&|c| c.correct)),
     ];
@@ -177,6 +178,7 @@ pub(super) fn detector_table(agg: &Aggregates, sets: &[&'static str], spec: &Sum
         Column::new(col::DETECTOR.into(), det_col),
         Column::new("faulty_units".into(), f.iter().map(|c| c.units).collect::<Vec<u64>>()),
         Column::new("detected".into(), f.iter().map(|c| c.detected).collect::<Vec<u64>>()),
+        Column::new("late_alarms".into(), f.iter().map(|c| c.late_alarms).collect::<Vec<u64>>()),
     ];
     columns.extend(rate_columns("pd", &f.iter().map(|c| (c.detected, c.flown(), true)).collect::<Vec<_>>()));
     columns.push(Column::new("isolation_decided".into(), isolation.iter().map(|i| i.1).collect::<Vec<u64>>()));
