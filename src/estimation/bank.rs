@@ -172,6 +172,11 @@ pub fn hold_steps(hold_s: f64, dt_s: f64) -> u32 {
     (hold_s / dt_s).round().max(1.0) as u32
 }
 
+/// The threshold on [`held_s`] that a hold of `hold_s` sets at the sample period `dt_s`.
+pub fn hold_threshold_s(hold_s: f64, dt_s: f64) -> f64 {
+    held_threshold_s(hold_steps(hold_s, dt_s), dt_s)
+}
+
 /// A hold detector's decision statistic in seconds: `samples` in a row with its condition met, each
 /// counting its period `dt_s`. The detector alarms when it exceeds [`held_threshold_s`].
 pub fn held_s(samples: u32, dt_s: f64) -> f64 {
@@ -239,7 +244,7 @@ impl DecisionLevels {
     /// The threshold on the rule's decision statistic ([`held_s`] of [`DeclareClear::held_samples`]) that
     /// `declare_hold_s` sets at the sample period `dt_s`.
     pub fn alarm_threshold_s(&self, dt_s: f64) -> f64 {
-        held_threshold_s(hold_steps(self.declare_hold_s, dt_s), dt_s)
+        hold_threshold_s(self.declare_hold_s, dt_s)
     }
 
     /// The declare/clear rule at the sample period `dt_s`, a declaration clearing once the probability has

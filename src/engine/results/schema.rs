@@ -191,8 +191,7 @@ impl<'a> CoreColumns<'a> {
         self.diverged.push(o.diverged);
         self.false_alarm.push(o.false_alarm_s.is_some());
         self.false_alarm_s.push(o.false_alarm_s);
-        // The same rule as the replay's (RecordedStatistics::first_alarm): late is after the window.
-        let late = o.delay_s.filter(|&d| d > self.detection_window_s);
+        let late = o.delay_s.filter(|&d| is_late(d, self.detection_window_s));
         let delay_s = o.delay_s.filter(|_| late.is_none());
         self.detected.push(delay_s.is_some());
         self.delay_s.push(delay_s);
@@ -249,6 +248,13 @@ impl<'a> CoreColumns<'a> {
         }
         columns
     }
+}
+
+/// An alarm `delay_s` after the onset is late (a miss, `late_alarm_s`) with a detection window of
+/// `detection_window_s`: the one rule of the records ([`CoreColumns::push`]) and of the replay
+/// ([`crate::engine::results::thresholds::RecordedStatistics::first_alarm`]).
+pub fn is_late(delay_s: f64, detection_window_s: f64) -> bool {
+    delay_s > detection_window_s
 }
 
 /// Relative rise of the running maximum that adds a point to a first-passage profile.

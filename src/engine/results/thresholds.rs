@@ -22,7 +22,7 @@ use std::path::{Path, PathBuf};
 
 use polars::prelude::*;
 
-use crate::engine::results::schema::col;
+use crate::engine::results::schema::{col, is_late};
 use crate::engine::results::tables::{bool_col, f64_col, list_col, numbers, read_summary, slices, str_col};
 use crate::engine::run::output::{VALIDATION_DIR, write_table};
 use crate::engine::run::runner::{Manifest, RunError, pol};
@@ -135,7 +135,8 @@ pub struct RecordedStatistics {
 }
 
 impl RecordedStatistics {
-    /// The columns that hold `statistics`, to select when reading a slice (with the onset).
+    /// The columns that hold `statistics`, to select when reading a slice ([`RecordedStatistics::read`]
+    /// also reads `onset_s`, which callers select with them).
     pub fn columns(statistics: &[String]) -> impl Iterator<Item = String> + '_ {
         statistics.iter().flat_map(|s| [col::pre_max(s), col::fp_t(s), col::fp_v(s)])
     }
@@ -193,9 +194,9 @@ impl RecordedStatistics {
             .reduce(f64::min)
     }
 
-    /// An alarm at `t_s` in row `i` is later than the window (the records' rule, `CoreColumns::push`).
+    /// An alarm at `t_s` in row `i` is later than the window ([`is_late`], as the records).
     fn late(&self, i: usize, t_s: f64) -> bool {
-        t_s - self.onset_s[i] > self.detection_window_s
+        is_late(t_s - self.onset_s[i], self.detection_window_s)
     }
 }
 

@@ -41,7 +41,7 @@ use serde::Deserialize;
 
 use crate::engine::method::Opt;
 use crate::engine::scenario::deck::{FactorSpec, FromDeck, StudyHeader, StudySection};
-use crate::estimation::bank::{held_threshold_s, hold_steps};
+use crate::estimation::bank::hold_threshold_s;
 
 use crate::engine::scenario::deck::{DeckError, Factor, MonteCarlo, MonteCarloRules, Validator, open_deck};
 use crate::fault::SensorFault;
@@ -165,7 +165,7 @@ impl AirDataDetector {
     pub fn alarm_threshold_s(&self, dt_s: f64) -> f64 {
         match &self.kind {
             DetectorKind::DualUkf(p) => p.levels.alarm_threshold_s(dt_s),
-            DetectorKind::TriplexVoting(p) => held_threshold_s(hold_steps(p.persistence_s, dt_s), dt_s),
+            DetectorKind::TriplexVoting(p) => hold_threshold_s(p.persistence_s, dt_s),
         }
     }
 }
