@@ -12,6 +12,7 @@ pub mod dual;
 pub mod engine;
 pub mod estimation;
 pub mod fault;
+pub mod fmu;
 pub mod kinematics;
 pub mod linalg;
 pub mod lti;

@@ -1,5 +1,8 @@
 //! Runs the real `fdimc` binary on the bundled deck and on broken copies of it.
 
+#[path = "support/build_fmus.rs"]
+mod build_fmus;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -2530,4 +2533,36 @@ fn the_roc_of_a_white_residual_meets_its_closed_form() {
         let (lo, hi) = wilson(count(&detected), count(&faulty), 3.29);
         assert!(lo <= pd && pd <= hi, "point {i}, threshold {c}: Pd {pd} outside [{lo}, {hi}]");
     }
+}
+
+#[test]
+fn fmu_prints_what_a_deck_needs_and_refuses_a_file_that_is_not_an_fmu() {
+    let dir = tempfile::tempdir().unwrap();
+    let built = build_fmus::build_all(Path::new(env!("CARGO_MANIFEST_DIR")), dir.path()).unwrap();
+    let aircraft = built.iter().find(|p| p.ends_with("aircraft.fmu")).unwrap();
+    let out = fdimc(&["fmu", aircraft.to_str().unwrap()]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    for line in [
+        "FMI 2.0",
+        "continuous states 5, event indicators 0",
+        "model_exchange  library aircraft",
+        "instances per process many: runs here",
+        "inputs (commands, actuators, the model's own fault inputs): 3",
+        "parameters (set before initialisation; a deck's parameter errors act on these): 26",
+    ] {
+        assert!(stdout.contains(line), "{line:?} not in\n{stdout}");
+    }
+    let throttle = stdout.lines().find(|l| l.trim_start().starts_with("throttle ")).unwrap();
+    assert_eq!(throttle.split_whitespace().take(6).collect::<Vec<_>>(), ["throttle", "14", "real", "0.0", "1", "0"]);
+    let fmi3 = built.iter().find(|p| p.ends_with("aircraft_fmi3.fmu")).unwrap();
+    let stdout = text(&fdimc(&["fmu", fmi3.to_str().unwrap()]).stdout);
+    assert!(stdout.contains("model_exchange  library aircraft") && stdout.contains("does not run here: "), "{stdout}");
+    let out = fdimc(&["fmu", "studies/ci_seed000.toml"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("studies/ci_seed000.toml: not an FMU: an FMU is a zip archive"),
+        "{}",
+        text(&out.stderr)
+    );
 }

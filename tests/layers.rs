@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 /// the folder, `linalg` the file); a file belongs to the longest name that is a prefix of its path.
 const LAYERS: &[&[&str]] = &[
     // Blocks that know nothing of studies.
-    &["linalg", "dual", "lti", "kinematics", "estimation", "design"],
+    &["linalg", "dual", "lti", "kinematics", "estimation", "design", "fmu"],
     // The engine, in the order data flows.
     &["engine/stats"],
     &["engine/scenario"],

@@ -12,6 +12,7 @@ use crate::engine::method::Method;
 use crate::engine::run::output::OutputError;
 use crate::engine::scenario::deck::DeckError;
 
+mod fmu;
 mod run;
 
 #[derive(Debug, Parser)]
@@ -206,6 +207,16 @@ It prints the factors before it runs. Shards, --resume and `fdimc merge` work as
         /// The topic's instance (multi_id; 0 for the first or only one).
         #[arg(long, default_value_t = 0)]
         instance: u8,
+    },
+    /// What an FMU (FMI 2.0 or 3.0) offers a deck: its interfaces and whether they run here, its
+    /// capabilities (get/set state, directional derivatives, instances per process), inputs, outputs
+    /// and parameters with start values, units and declared ranges, and the default experiment.
+    #[command(
+        after_help = "Example: fdimc fmu target/fmus/aircraft.fmu   (cargo run --release --example build_fmus builds the test FMUs)"
+    )]
+    Fmu {
+        /// The FMU file (.fmu).
+        file: PathBuf,
     },
     /// Statistical regression check against a baseline summary; exit 1 on regression.
     #[command(after_help = "Make a baseline: cp results/<study>/summary.csv results/baselines/<study>.csv")]
@@ -429,6 +440,7 @@ pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
         Command::Merge { dirs, out, force } => commands.exec_merge(&dirs, &out, force),
         Command::Report { dir, trials } => commands.exec_report(&dir, &trials),
         Command::Log { file, topic, instance } => run::exec_log(&file, topic.as_deref(), instance),
+        Command::Fmu { file } => fmu::exec_fmu(&file),
         Command::Check { target, baseline, alpha, threads } => {
             match commands.exec_check(&target, &baseline, alpha, threads) {
                 Ok(true) => Ok(()),

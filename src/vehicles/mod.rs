@@ -2,5 +2,8 @@
 //!
 //! - [`aerosonde`]: the Aerosonde UAV's 6-DoF model with actuators and autopilot, the truth of the
 //!   control-surface study (seed 004) and of the air-data study's high-fidelity truth (seed 002).
+//! - [`longitudinal`]: a nonlinear longitudinal light airplane, the equations of the test FMU
+//!   `fmus/aircraft` in Rust (the FMU studies compare against it).
 
 pub mod aerosonde;
+pub mod longitudinal;

@@ -1,0 +1,239 @@
+//! FMUs through the path a user's FMU takes: the test FMUs of `fmus/` are compiled and packed into real
+//! `.fmu` archives (tests/support/build_fmus.rs), opened with `fdimc::fmu::Fmu::open` and stepped.
+//! Reference values from FMPy 0.3.32 (an independent FMI simulator, BSD-2-Clause) were produced by
+//! `scripts/fmpy_reference.py` on the same FMUs (fmus/README.md, "FMPy reference values").
+
+#[path = "support/build_fmus.rs"]
+mod build_fmus;
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use fdimc::fmu::{Causality, Fmu, FmuError, Instance, Interface};
+use fdimc::vehicles::longitudinal::{LongitudinalParams, derivatives};
+
+/// The built FMUs, once per test process.
+fn fmus() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = std::env::temp_dir().join(format!("fdimc-test-fmus-{}", std::process::id()));
+        build_fmus::build_all(Path::new(env!("CARGO_MANIFEST_DIR")), &dir).expect("the test FMUs build");
+        dir
+    })
+}
+
+fn open(name: &str) -> Fmu {
+    Fmu::open(&fmus().join(format!("{name}.fmu"))).unwrap()
+}
+
+/// The aircraft's value references of the states, as the FMU names them.
+fn vrs(fmu: &Fmu, names: &[&str]) -> Vec<u32> {
+    names.iter().map(|n| fmu.description.variable(n).unwrap().value_reference).collect()
+}
+
+const STATES: [&str; 5] = ["V_m_s", "alpha_rad", "q_rad_s", "theta_rad", "h_m"];
+
+/// Flies `instance` from t = 0 with the inputs held at elevator 0.02 rad, throttle 0.46, in steps of
+/// 0.01 s, and returns the states at the steps `at` (step counts).
+fn fly(fmu: &Fmu, instance: &mut Instance, at: &[usize]) -> Result<Vec<[f64; 5]>, FmuError> {
+    let inputs = vrs(fmu, &["elevator_rad", "throttle"]);
+    let states = vrs(fmu, &STATES);
+    instance.set_real(&inputs, &[0.02, 0.46])?;
+    instance.initialise(0.0, 10.0)?;
+    let mut out = Vec::new();
+    for k in 0..=*at.iter().max().unwrap() {
+        if at.contains(&k) {
+            let mut x = [0.0; 5];
+            instance.get_real(&states, &mut x)?;
+            out.push(x);
+        }
+        instance.step(k as f64 * 0.01, 0.01)?;
+    }
+    Ok(out)
+}
+
+/// FMPy, FMI 2.0 co-simulation of aircraft.fmu (its internal Euler step of 1e-3 s), elevator 0.02,
+/// throttle 0.46, states at t = 0.5, 1, 2 s.
+const FMPY_CS: [[f64; 5]; 3] = [
+    [53.583920466744381, 0.045376794125924089, -0.003042055264560009, 0.048251145945704677, 1000.049280428889],
+    [53.56953806903455, 0.04486607797260992, 0.0018493158776448433, 0.048088322807766155, 1000.1318582785906],
+    [53.530930790772238, 0.045582643910343799, 0.0018169509891448282, 0.05038415250124148, 1000.341293875346],
+];
+
+/// FMPy, model exchange of aircraft.fmu with CVode at relative tolerance 1e-10: the exact trajectory
+/// to about 1e-9.
+const FMPY_ME_CVODE: [[f64; 5]; 3] = [
+    [53.583923776488348, 0.045381878235326023, -0.0030371385467602595, 0.048253883516146616, 1000.0493030209418],
+    [53.569532161994118, 0.04486763386528337, 0.0018385676787244923, 0.04809101976457273, 1000.1318768148362],
+    [53.530915655820301, 0.045582093888145526, 0.0018193678217185926, 0.050383178182713401, 1000.3413940872622],
+];
+
+#[test]
+fn the_aircraft_fmu_describes_itself_with_units_ranges_and_both_interfaces() {
+    let fmu = open("aircraft");
+    let d = &fmu.description;
+    assert_eq!((d.fmi_version.as_str(), d.n_states, d.n_event_indicators), ("2.0", 5, 0));
+    assert!(d.model_exchange.is_some() && d.co_simulation.is_some());
+    assert_eq!(d.names_of(&[Causality::Input]), ["elevator_rad", "throttle", "elevator_effectiveness"]);
+    let throttle = d.variable("throttle").unwrap();
+    assert_eq!((throttle.min, throttle.max), (Some(0.0), Some(1.0)));
+    assert_eq!(d.variable("m_kg").unwrap().unit.as_deref(), Some("kg"));
+    assert_eq!(d.variable("Cma").unwrap().start_f64(), Some(-0.683));
+    assert_eq!(fmu.sha256.len(), 64);
+    fmu.supports(Interface::ModelExchange).unwrap();
+    let cs_only = open("aircraft_cs");
+    let e = cs_only.supports(Interface::ModelExchange).unwrap_err().to_string();
+    assert!(e.contains("aircraft_cs.fmu: the FMU has no model_exchange interface; it offers co_simulation"), "{e}");
+    let fmi3 = open("aircraft_fmi3");
+    assert!(fmi3.supports(Interface::ModelExchange).unwrap_err().to_string().contains("FMI 3.0 model exchange"));
+}
+
+#[test]
+fn fmi2_and_fmi3_co_simulation_reproduce_fmpy_to_the_bit() {
+    for name in ["aircraft", "aircraft_fmi3"] {
+        let fmu = open(name);
+        let mut i = fmu.instantiate(Interface::CoSimulation, "cs").unwrap();
+        let got = fly(&fmu, &mut i, &[50, 100, 200]).unwrap();
+        assert_eq!(got, FMPY_CS, "{name}");
+    }
+}
+
+#[test]
+fn model_exchange_stepped_by_rk4_equals_the_native_equations_to_the_bit_and_cvode_closely() {
+    let fmu = open("aircraft");
+    let mut i = fmu.instantiate(Interface::ModelExchange, "me").unwrap();
+    let got = fly(&fmu, &mut i, &[50, 100, 200]).unwrap();
+    // The same equations in Rust, stepped by the same integrator from the FMU's initial state.
+    let p = LongitudinalParams::default();
+    let mut x = [53.6, 0.05, 0.0, 0.05, 1000.0];
+    let mut rk4 = fdimc::fmu::integrator::Rk4::new(5);
+    let mut native = Vec::new();
+    for k in 0..=200 {
+        if [50, 100, 200].contains(&k) {
+            native.push(x);
+        }
+        rk4.step::<()>(&mut x, k as f64 * 0.01, 0.01, |_, s, dx| {
+            dx.copy_from_slice(&derivatives(&p, &[s[0], s[1], s[2], s[3], s[4]], &[0.02, 0.46, 1.0]));
+            Ok(())
+        })
+        .unwrap();
+    }
+    assert_eq!(got, native);
+    // RK4 at 0.01 s against CVode at 1e-10: the integrator's error, far below the Euler CS's 1.5e-5.
+    for (g, c) in got.iter().zip(&FMPY_ME_CVODE) {
+        for j in 0..5 {
+            assert!((g[j] - c[j]).abs() < 1e-8 * c[j].abs().max(1.0), "{}: {} vs {}", STATES[j], g[j], c[j]);
+        }
+    }
+    assert!((got[2][0] - FMPY_CS[2][0]).abs() > 1e-6, "RK4 and the FMU's own Euler differ");
+}
+
+#[test]
+fn a_reset_instance_flies_the_same_trial_as_a_fresh_one() {
+    let fmu = open("aircraft");
+    for interface in [Interface::ModelExchange, Interface::CoSimulation] {
+        let mut fresh = fmu.instantiate(interface, "fresh").unwrap();
+        let first = fly(&fmu, &mut fresh, &[100]).unwrap();
+        // A different trial in between: another mass, set before initialisation.
+        fresh.reset().unwrap();
+        fresh.set_real(&vrs(&fmu, &["m_kg"]), &[1400.0]).unwrap();
+        let heavier = fly(&fmu, &mut fresh, &[100]).unwrap();
+        assert_ne!(first, heavier, "{interface:?}: the mass changed the flight");
+        fresh.reset().unwrap();
+        assert_eq!(fly(&fmu, &mut fresh, &[100]).unwrap(), first, "{interface:?}");
+    }
+}
+
+#[test]
+fn an_fmu_error_at_a_known_time_fails_the_call_that_reaches_it_with_the_fmus_message() {
+    let fmu = open("aircraft");
+    for interface in [Interface::ModelExchange, Interface::CoSimulation] {
+        let mut i = fmu.instantiate(interface, "failing").unwrap();
+        i.set_real(&vrs(&fmu, &["fail_at_s"]), &[1.0]).unwrap();
+        let e = fly(&fmu, &mut i, &[150]).unwrap_err();
+        let FmuError::Failed(text) = e else { panic!("{e:?}") };
+        assert!(text.contains("aircraft.fmu:") && text.contains("failing at t=1 as asked by fail_at_s"), "{text}");
+        // ME: the step from 0.99 s reaches t = 1 s in its last RK4 stage; CS: the step from 1 s, in its
+        // first internal Euler step.
+        assert!(text.contains("at t = 1 s"), "{text}");
+        let last_good_s = if interface == Interface::ModelExchange { 0.99 } else { 1.0 };
+        assert!((i.time_s() - last_good_s).abs() < 1e-12, "{interface:?}: the steps before succeeded");
+    }
+}
+
+#[test]
+fn the_ewma_detector_fmu_gives_fmpys_statistic_and_channel() {
+    let fmu = open("ewma_detector");
+    let mut i = fmu.instantiate(Interface::CoSimulation, "det").unwrap();
+    let inputs = vrs(&fmu, &["in_1", "in_2", "in_3"]);
+    let stat = vrs(&fmu, &["statistic"]);
+    let channel = vrs(&fmu, &["isolated_channel"]);
+    i.initialise(0.0, 1.0).unwrap();
+    // FMPy, constant inputs 1, -3, 0.5, lambda 0.05, ten steps of 0.01 s.
+    let fmpy = [
+        0.15000000000000002,
+        0.29250000000000004,
+        0.42787500000000006,
+        0.55648125000000004,
+        0.67865718750000004,
+        0.79472432812500005,
+        0.90498811171875004,
+        1.0097387061328125,
+        1.1092517708261718,
+        1.2037891822848632,
+    ];
+    for (k, want) in fmpy.iter().enumerate() {
+        i.set_real(&inputs, &[1.0, -3.0, 0.5]).unwrap();
+        i.step(k as f64 * 0.01, 0.01).unwrap();
+        let (mut s, mut c) = ([0.0], [0]);
+        i.get_real(&stat, &mut s).unwrap();
+        i.get_integer(&channel, &mut c).unwrap();
+        assert_eq!((s[0], c[0]), (*want, 2), "step {}", k + 1);
+    }
+}
+
+#[test]
+fn instances_on_four_threads_fly_independently() {
+    let fmu = open("aircraft");
+    let serial: Vec<_> = (0..4)
+        .map(|k| {
+            let mut i = fmu.instantiate(Interface::ModelExchange, "serial").unwrap();
+            i.set_real(&vrs(&fmu, &["m_kg"]), &[1200.0 + 50.0 * k as f64]).unwrap();
+            fly(&fmu, &mut i, &[100]).unwrap()
+        })
+        .collect();
+    let parallel: Vec<_> = std::thread::scope(|s| {
+        let handles: Vec<_> = (0..4)
+            .map(|k| {
+                let fmu = &fmu;
+                s.spawn(move || {
+                    let mut i = fmu.instantiate(Interface::ModelExchange, "thread").unwrap();
+                    i.set_real(&vrs(fmu, &["m_kg"]), &[1200.0 + 50.0 * k as f64]).unwrap();
+                    fly(fmu, &mut i, &[100]).unwrap()
+                })
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().unwrap()).collect()
+    });
+    assert_eq!(serial, parallel);
+}
+
+#[test]
+fn an_fmu_without_a_binary_for_this_platform_is_refused_with_what_it_has() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("win.fmu");
+    let mut zip = zip::ZipWriter::new(std::fs::File::create(&path).unwrap());
+    let options = zip::write::SimpleFileOptions::default();
+    zip.start_file("modelDescription.xml", options).unwrap();
+    use std::io::Write;
+    zip.write_all(&std::fs::read(Path::new(env!("CARGO_MANIFEST_DIR")).join("fmus/aircraft/FMI2.xml")).unwrap())
+        .unwrap();
+    zip.start_file("binaries/win64/aircraft.dll", options).unwrap();
+    zip.write_all(b"MZ").unwrap();
+    zip.finish().unwrap();
+    let e = Fmu::open(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("win.fmu: no binary for this platform: expected binaries/linux64/aircraft.so; it has binaries/win64/aircraft.dll"),
+        "{e}"
+    );
+}
