@@ -35,7 +35,7 @@ struct Continuous {
     rk4: Rk4,
 }
 
-/// One FMU instance. Set parameters after [`new`](Instance::new) or [`reset`](Instance::reset), then
+/// One FMU instance. Set parameters after [`Fmu::instantiate`] or [`reset`](Instance::reset), then
 /// [`initialise`](Instance::initialise), then per step: inputs, [`step`](Instance::step), outputs.
 pub struct Instance {
     inner: Inner,
