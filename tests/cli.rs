@@ -661,8 +661,20 @@ fn csv_frame(path: &Path) -> polars::prelude::DataFrame {
         .unwrap()
 }
 
+/// The test FMUs in studies/fmus/, where the FMU decks find them (`cargo run --example build_fmus`).
+fn bundled_fmus() -> &'static Path {
+    static BUILT: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    BUILT.get_or_init(|| {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let dir = root.join("studies").join("fmus");
+        build_fmus::build_all(root, &dir).unwrap();
+        dir
+    })
+}
+
 #[test]
 fn every_bundled_deck_validates() {
+    bundled_fmus();
     for entry in std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("studies")).unwrap() {
         let path = entry.unwrap().path();
         if path.extension().is_none_or(|e| e != "toml") {
@@ -2565,4 +2577,80 @@ fn fmu_prints_what_a_deck_needs_and_refuses_a_file_that_is_not_an_fmu() {
         "{}",
         text(&out.stderr)
     );
+}
+
+#[test]
+fn an_fmu_truth_flies_closed_loop_with_identical_records_and_a_failing_fmu_fails_its_trials() {
+    bundled_fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let deck = std::fs::read_to_string("studies/fmu_aircraft.toml")
+        .unwrap()
+        .replace("fmu = \"fmus/aircraft.fmu\"", &format!("fmu = {:?}", bundled_fmus().join("aircraft.fmu")));
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_string()
+    };
+    let good = write("fmu.toml", &deck);
+    let run = |deck: &str, out: &str, threads: &str| {
+        let out = dir.path().join(out);
+        let o =
+            fdimc(&["run", deck, "--trials", "120", "--threads", threads, "--out", out.to_str().unwrap(), "--quiet"]);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        out
+    };
+    let one = run(&good, "one", "1");
+    let two = run(&good, "two", "2");
+    let (a, b) = (read_frame(&one.join("trials.parquet")), read_frame(&two.join("trials.parquet")));
+    assert_eq!(a.height(), 120);
+    assert!(a.equals_missing(&b), "records differ between 1 and 2 threads");
+    assert_eq!(a.column("failure").unwrap().null_count(), 120, "no trial failed");
+    let manifest = std::fs::read_to_string(one.join("manifest.json")).unwrap();
+    assert!(manifest.contains("\"file\": \"aircraft.fmu\"") && manifest.contains("\"sha256\""), "{manifest}");
+    // Detections happen through the loop: the bias on alpha or q is found in most faulty trials.
+    let detected = a.column("delay_s").unwrap().null_count();
+    assert!(detected < 60, "{detected} of 120 rows without a detection");
+
+    // The aircraft told to fail at 12 s: trials fail with the FMU's message, and the run goes on.
+    let failing = write("failing.toml", &deck.replace("h0_m = 1000.0 }", "h0_m = 1000.0, fail_at_s = 12.0 }"));
+    let out = run(&failing, "failing", "2");
+    let df = read_frame(&out.join("trials.parquet"));
+    assert_eq!(df.height(), 120);
+    let failure = df.column("failure").unwrap().str().unwrap().clone();
+    assert_eq!(failure.null_count(), 0);
+    let first = failure.get(0).unwrap();
+    assert!(
+        first.contains("the FMU truth failed: aircraft.fmu: getDerivatives returned Error at t = 12 s")
+            && first.contains("failing at t=12 as asked by fail_at_s"),
+        "{first}"
+    );
+
+    // Bad mappings: exit 2 naming the deck, the field and what the FMU has.
+    for (edit, field, says) in [
+        (
+            "\"gamma_rad\", \"h_m\"]",
+            "truth.outputs[4]",
+            "aircraft.fmu has no variable \"gamma\"; an output must be one of: V_m_s, der(V_m_s), alpha_rad",
+        ),
+        (
+            "theta0_rad = 0.0443566119725",
+            "truth.parameters.theta0_rad",
+            "\"elevator_rad\" of aircraft.fmu has causality input and type Real; a parameter must be one of: m_kg",
+        ),
+        ("trim_inputs = [0.459166130340,", "truth.trim_inputs[0]", "throttle: 1.5 is above its declared max 1"),
+        ("interface = \"model_exchange\"", "truth.interface", "model_exchange"),
+    ] {
+        let bad = match field {
+            "truth.outputs[4]" => deck.replace(edit, "\"gamma\", \"h_m\"]"),
+            "truth.parameters.theta0_rad" => deck.replace(edit, "theta0_rad = 0.0443566119725, elevator_rad = 0.1"),
+            "truth.trim_inputs[0]" => deck.replace(edit, "trim_inputs = [1.5,"),
+            _ => deck.replace(edit, "interface = \"cosim\""),
+        };
+        let path = write("bad.toml", &bad);
+        let o = fdimc(&["validate", &path]);
+        let err = text(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{field}: {err}");
+        let field_shown = if field == "truth.parameters.theta0_rad" { "truth.parameters.elevator_rad" } else { field };
+        assert!(err.contains(&format!("bad.toml: {field_shown}")) && err.contains(says), "{field}: {err}");
+    }
 }

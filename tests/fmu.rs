@@ -237,3 +237,52 @@ fn an_fmu_without_a_binary_for_this_platform_is_refused_with_what_it_has() {
         "{e}"
     );
 }
+
+#[test]
+fn the_linearisation_at_trim_equals_the_analytic_jacobian_within_1e_6() {
+    use fdimc::dual::{Dual, value_and_jacobian};
+    use fdimc::fmu::plant::{FmuPlant, PlantMapping};
+    use nalgebra::SVector;
+    // Level flight at 53.6 m/s (fmus/README.md): theta = alpha, q = 0.
+    let (alpha, elevator, throttle) = (0.0443566119725, 0.0211591440454, 0.459166130340);
+    let names = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    let parameters =
+        [("V0_m_s", 53.6), ("alpha0_rad", alpha), ("theta0_rad", alpha)].map(|(n, v)| (n.to_string(), v)).to_vec();
+    let mapping = PlantMapping {
+        interface: Interface::ModelExchange,
+        inputs: &names(&["elevator_rad", "throttle"]),
+        outputs: &names(&["q_rad_s", "gamma_rad"]),
+        parameters: &parameters,
+        input_trim: &[elevator, throttle],
+        stop_s: 10.0,
+    };
+    let plant = FmuPlant::open(&fmus().join("aircraft.fmu"), "truth", &mapping).unwrap().unwrap();
+    assert_eq!(plant.output_trim, [0.0, 0.0]);
+    let lin = plant.linearise().unwrap();
+    // Exact Jacobians of the same equations (dual numbers) over z = [x; elevator, throttle].
+    let p = LongitudinalParams::default();
+    let z = SVector::<f64, 7>::from_column_slice(&[53.6, alpha, 0.0, alpha, 1000.0, elevator, throttle]);
+    let (f0, jac) = value_and_jacobian(&z, |z: &SVector<Dual<7>, 7>| {
+        let one = <Dual<7> as fdimc::dual::Real>::cst(1.0);
+        SVector::<Dual<7>, 5>::from(derivatives(&p, &[z[0], z[1], z[2], z[3], z[4]], &[z[5], z[6], one]))
+    });
+    assert!(f0.amax() < 1e-9, "the trim is an equilibrium: {f0}");
+    let close = |got: f64, want: f64, what: String| {
+        assert!((got - want).abs() <= 1e-6 * want.abs().max(1e-3), "{what}: {got} vs {want}");
+    };
+    for r in 0..5 {
+        for c in 0..5 {
+            close(lin.a[(r, c)], jac[(r, c)], format!("A[{r},{c}]"));
+        }
+        for c in 0..2 {
+            close(lin.b[(r, c)], jac[(r, 5 + c)], format!("B[{r},{c}]"));
+        }
+    }
+    // Outputs q and gamma = theta - alpha: C rows exactly these, no feedthrough.
+    assert_eq!(lin.c.row(0).iter().map(|v| v.round()).collect::<Vec<_>>(), [0.0, 0.0, 1.0, 0.0, 0.0]);
+    close(lin.c[(1, 1)], -1.0, "C[1,1]".into());
+    close(lin.c[(1, 3)], 1.0, "C[1,3]".into());
+    assert!(lin.d.amax() < 1e-9);
+    // The short period is there: A's pitch-moment entry M_alpha (per rad) is strongly negative.
+    assert!(lin.a[(2, 1)] < -8.0, "{}", lin.a);
+}

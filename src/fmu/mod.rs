@@ -12,6 +12,7 @@ pub mod description;
 pub mod instance;
 pub mod integrator;
 pub mod messages;
+pub mod plant;
 
 use std::io::Read;
 use std::path::{Path, PathBuf};

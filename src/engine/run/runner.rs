@@ -277,6 +277,17 @@ pub struct Manifest {
     /// A sensitivity study (`fdimc sensitivity`): its design, whose rows the trials are.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensitivity: Option<crate::engine::scenario::design::Design>,
+    /// The model files the study flies besides its deck (an FMU truth): file name and SHA-256. A resume
+    /// with another file is refused, as with another deck.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub models: Vec<ModelFile>,
+}
+
+/// A model file a study flies, for provenance.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelFile {
+    pub file: String,
+    pub sha256: String,
 }
 
 /// What `run --precision` asked and where the run stopped.
@@ -321,6 +332,7 @@ impl Manifest {
             && self.trials == other.trials
             && self.chunk_trials == other.chunk_trials
             && self.sensitivity == other.sensitivity
+            && self.models == other.models
     }
 }
 
@@ -518,6 +530,7 @@ impl Manifest {
             rows: 0,
             precision: None,
             sensitivity: None,
+            models: Vec::new(),
         }
     }
 }

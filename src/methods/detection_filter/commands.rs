@@ -9,14 +9,36 @@ use super::false_alarms::for_detector;
 use super::filter::{DetectionFilterParams, Gain, Isolation};
 use super::study::{LtiStudy, Shape};
 use super::trials::Engine;
-use crate::design::{Assignment, DesignError};
+use crate::design::Assignment;
 use crate::engine::method::select_detector;
 use crate::engine::run::output::Trace;
 use crate::engine::run::runner::RunError;
 
 /// A deck whose detector cannot be designed is invalid input.
-fn design_error(deck: &Path, what: &str, e: DesignError) -> RunError {
+fn design_error(deck: &Path, what: &str, e: impl std::fmt::Display) -> RunError {
     RunError::Invalid(format!("{}: detector: {what}: {e}", deck.display()))
+}
+
+/// The FMU truth, if the deck has one: file, interface, trim, and where `[plant]` came from.
+fn print_truth(study: &LtiStudy) {
+    let Some(t) = &study.truth else { return };
+    let nums = |v: &[f64]| v.iter().map(|x| format!("{x}")).collect::<Vec<_>>().join(", ");
+    println!(
+        "truth       FMU {} ({}, FMI {}, sha256 {}), {}",
+        t.fmu.file_name(),
+        t.fmu.description.model_name,
+        t.fmu.description.fmi_version,
+        &t.fmu.sha256[..16],
+        t.interface.name()
+    );
+    println!("            trim inputs [{}], outputs at the trim [{}]", nums(&t.input_trim), nums(&t.output_trim));
+    println!(
+        "            [plant] is {}",
+        match &study.linearisation {
+            Some(_) => "the FMU's linearisation at the trim (fdimc design prints it)",
+            None => "the deck's matrices, in deviations from the trim",
+        }
+    );
 }
 
 /// `fdimc design`: gains, closed-loop eigenvalues, conditioning and bias signatures per detector.
@@ -90,6 +112,12 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
             "states": p.state_names,
             "outputs": p.output_names,
             "ranks": ranks,
+            "linear_model": study.linearisation.as_ref().map(|l| json!({
+                "method": l.method,
+                "a": rows(&l.a), "b": rows(&l.b), "c": rows(&l.c), "d": rows(&l.d),
+                "x_trim": l.x_trim,
+                "derivative_at_trim": l.derivative_at_trim,
+            })),
             "detectors": detectors,
         });
         println!("{}", serde_json::to_string_pretty(&doc).map_err(|e| RunError::Internal(e.to_string()))?);
@@ -97,6 +125,19 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
     }
 
     println!("{}: {}", deck.display(), study.header.name);
+    print_truth(study);
+    if let Some(l) = &study.linearisation {
+        println!("linear model (deviations from the trim), from {}:", l.method);
+        for (name, m) in [("A", &l.a), ("B", &l.b), ("C", &l.c), ("D", &l.d)] {
+            println!("  {name} =");
+            print!("{}", indent(&format!("{m:.6}")));
+        }
+        let worst = l.derivative_at_trim.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        println!(
+            "  the trim's state derivatives (zero at an equilibrium): [{}], largest {worst:.3e}",
+            l.derivative_at_trim.iter().map(|v| format!("{v:.3e}")).collect::<Vec<_>>().join(", ")
+        );
+    }
     println!(
         "rank ctrb(A, B) = {} of {}, rank obsv(A, C) = {} of {}",
         ranks.controllability_rank, ranks.states, ranks.observability_rank, ranks.states
@@ -199,10 +240,12 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
         ranks.controllability_rank, ranks.states, ranks.observability_rank, ranks.states
     );
     let same = study.design_plant.A == p.A && study.design_plant.B == p.B;
+    let model = if study.truth.is_some() { "plant" } else { "true plant" };
     println!(
         "design      {}",
-        if same { "on the true plant" } else { "on a design model that differs from the true plant" }
+        if same { format!("on the {model}") } else { format!("on a design model that differs from the {model}") }
     );
+    print_truth(study);
     if study.output_feedback.amax() > 0.0 {
         println!("controller  u = r - G y, G =");
         print!("{}", indent(&format!("{:.6}", study.output_feedback)));

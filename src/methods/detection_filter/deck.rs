@@ -13,6 +13,7 @@ pub struct Deck {
     pub study: StudySection,
     pub plant: PlantSection,
     pub design_model: Option<DesignModelSection>,
+    pub truth: Option<TruthSection>,
     pub controller: Option<ControllerSection>,
     #[serde(default)]
     pub excitation: Vec<ExcitationSection>,
@@ -30,11 +31,35 @@ pub struct PlantSection {
     pub states: Vec<String>,
     pub inputs: Vec<String>,
     pub outputs: Vec<String>,
-    pub a: Vec<Vec<f64>>,
-    pub b: Vec<Vec<f64>>,
-    pub c: Vec<Vec<f64>>,
+    /// Required unless `[truth] linearise = true` gives them.
+    pub a: Option<Vec<Vec<f64>>>,
+    pub b: Option<Vec<Vec<f64>>>,
+    pub c: Option<Vec<Vec<f64>>>,
     pub d: Option<Vec<Vec<f64>>>,
     pub initial_state: Option<Vec<f64>>,
+}
+
+/// An FMU as the true plant: `[plant]` is then the linear model in deviations from the FMU's trim (the
+/// detectors' design model and the loop's coordinates).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TruthSection {
+    /// The FMU file, relative to the deck's folder.
+    pub fmu: String,
+    /// `model_exchange` or `co_simulation`.
+    pub interface: String,
+    /// The FMU input each `[plant]` input drives.
+    pub inputs: Vec<String>,
+    /// The FMU output each `[plant]` output reads.
+    pub outputs: Vec<String>,
+    /// The FMU inputs' values at the trim; the plant's inputs are deviations from them.
+    pub trim_inputs: Vec<f64>,
+    /// FMU parameters set before initialisation in every trial (the trim's initial state among them).
+    #[serde(default)]
+    pub parameters: std::collections::BTreeMap<String, f64>,
+    /// `[plant]`'s a, b, c, d from the FMU's linearisation at the trim (model exchange) instead of the deck.
+    #[serde(default)]
+    pub linearise: bool,
 }
 
 /// The model the detector is designed on and runs, when it differs from the true plant.

@@ -24,7 +24,7 @@ use std::path::Path;
 
 use crate::engine::method::{Inputs, Method, Study};
 use crate::engine::results::summary_spec::{Extra, Isolates, SummarySpec};
-use crate::engine::run::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
+use crate::engine::run::runner::{Manifest, ModelFile, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::scenario::deck::FromDeck;
 use crate::engine::scenario::design::Design;
 use kernel::LANES;
@@ -78,6 +78,12 @@ impl Study for LtiStudy {
         run_study(self, opts)
     }
     fn rare_event(&self, opts: &crate::engine::rare_event::study::RareEventOptions) -> Result<(), RunError> {
+        if self.truth.is_some() {
+            return Err(RunError::Invalid(format!(
+                "{}: rare-event runs on a linear truth; this deck's truth is an FMU ([truth]): use run with the tail fit",
+                self.header.path.display()
+            )));
+        }
         rare_event::run(self, opts)
     }
     fn sensitivity_design(&mut self, base_samples: u64, bootstrap: u64) -> Result<Design, RunError> {
@@ -128,6 +134,11 @@ impl TrialSource for LtiTrials<'_> {
             deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
             fault_size_units: fault_size_units(study),
             fault_size_bins: crate::fault::deck::FaultKindSpec::size_bins(&study.monte_carlo.faults),
+            models: study
+                .truth
+                .iter()
+                .map(|t| ModelFile { file: t.fmu.file_name(), sha256: t.fmu.sha256.clone() })
+                .collect(),
             ..Manifest::of(
                 KIND,
                 &study.header,

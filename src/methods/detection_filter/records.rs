@@ -193,7 +193,7 @@ mod tests {
             TrialResult {
                 spec: spec(3, true),
                 detectors: vec![
-                    Err(DesignError::RepeatedEigenvalues { first: -1.0, second: -1.0 }),
+                    Err(DesignError::RepeatedEigenvalues { first: -1.0, second: -1.0 }.into()),
                     out(Some(5.4), Some(q), Some(q), None),
                 ],
             },

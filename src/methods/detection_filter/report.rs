@@ -43,9 +43,8 @@ pub fn report_part(ctx: &ReportContext) -> Result<ReportPart, RunError> {
             return Err(RunError::Invalid(format!("--trials: trial {trial} is not in this run (0..{})", m.trials)));
         }
         let mut trace = Trace::default();
-        let (spec, outcome) = engine
-            .simulate(trial, 0, &mut trace)
-            .map_err(|e| RunError::Invalid(format!("trial {trial}: design failed: {e}")))?;
+        let (spec, outcome) =
+            engine.simulate(trial, 0, &mut trace).map_err(|e| RunError::Invalid(format!("trial {trial}: {e}")))?;
         let file = ctx.out.join(format!("trace_trial{trial}.svg"));
         draw(&file, &study, &spec, &outcome, &trace, calibrated.as_deref())
             .map_err(|e| RunError::Internal(format!("{}: {e}", file.display())))?;

@@ -4,17 +4,19 @@ use std::path::Path;
 
 use nalgebra::{DMatrix, DVector};
 
-use super::deck::Deck;
+use super::deck::{Deck, TruthSection};
 use super::filter::{DetectionFilterParams, DetectorDeck};
 use super::{cusum, filter, kalman_chi2};
 use serde::Deserialize;
 
 use crate::engine::method::Opt;
 use crate::engine::scenario::deck::{
-    DeckError, FromDeck, MonteCarlo, MonteCarloRules, MonteCarloSection, StudyHeader, Validator, parse_deck,
+    DeckError, FromDeck, ModelTarget, MonteCarlo, MonteCarloRules, MonteCarloSection, StudyHeader, Validator,
+    parse_deck,
 };
 use crate::fault::SensorFault;
 use crate::fault::deck::FaultKindSpec;
+use crate::fmu::plant::{FmuPlant, Linearisation, PlantMapping};
 use crate::lti::LtiPlant;
 
 /// The options this kind takes beyond the common ones (its `Method::options`): said here, where its deck
@@ -90,6 +92,11 @@ pub struct LtiStudy {
     /// Faults of the deck's fixed scenario (`[[faults]]`); used when `monte_carlo.faults` is empty.
     pub faults: Vec<SensorFault>,
     pub monte_carlo: LtiMonteCarlo,
+    /// `[truth]`: an FMU flies instead of `plant`, which is then the linear model in deviations from the
+    /// FMU's trim.
+    pub truth: Option<FmuPlant>,
+    /// `[truth] linearise = true`: the FMU's linearisation `plant` was made from.
+    pub linearisation: Option<Linearisation>,
 }
 
 /// A named detector configuration.
@@ -107,7 +114,16 @@ pub struct MatrixEntries {
     pub entries: Vec<(usize, usize)>,
 }
 
-pub type ParameterError = crate::engine::scenario::deck::ParameterError<MatrixEntries>;
+/// What a parameter error perturbs: matrix entries of the linear plant or design model, or parameters of
+/// the FMU truth (value reference and nominal value: the deck's `[truth] parameters` value, else the
+/// FMU's start value), scaled together.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Perturbs {
+    Matrix(MatrixEntries),
+    FmuParameters(Vec<(u32, f64)>),
+}
+
+pub type ParameterError = crate::engine::scenario::deck::ParameterError<Perturbs>;
 
 /// The Monte Carlo part of a study.
 #[derive(Debug, Clone, PartialEq)]
@@ -145,12 +161,46 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
     chk.names("plant.outputs", &p.outputs)?;
     let (n, nu, ny) = (p.states.len(), p.inputs.len(), p.outputs.len());
     let dims = format!("{n} states, {nu} inputs, {ny} outputs");
-    let a = chk.matrix("plant.a", &p.a, n, n, &format!("n x n, {dims}"))?;
-    let b = chk.matrix("plant.b", &p.b, n, nu, &format!("n x inputs, {dims}"))?;
-    let c = chk.matrix("plant.c", &p.c, ny, n, &format!("outputs x n, {dims}"))?;
-    let d = match &p.d {
-        Some(d) => chk.matrix("plant.d", d, ny, nu, &format!("outputs x inputs, {dims}"))?,
-        None => DMatrix::zeros(ny, nu),
+    let truth = match &deck.truth {
+        Some(t) => Some(fmu_truth(chk, t, &p.inputs, &p.outputs, header.duration_s)?),
+        None => None,
+    };
+    let linearisation = match (&deck.truth, &truth) {
+        (Some(t), Some(fmu)) if t.linearise => {
+            for (field, given) in [("plant.a", &p.a), ("plant.b", &p.b), ("plant.c", &p.c), ("plant.d", &p.d)] {
+                if given.is_some() {
+                    return Err(chk.err(field, "[truth] linearise = true gives the matrices: remove it"));
+                }
+            }
+            let lin = fmu.linearise().map_err(|e| chk.err("truth.linearise", e.to_string()))?;
+            if lin.x_trim.len() != n {
+                return Err(chk.err(
+                    "plant.states",
+                    format!(
+                        "{n} names for the FMU's {} continuous states: one name per state, in its order",
+                        lin.x_trim.len()
+                    ),
+                ));
+            }
+            Some(lin)
+        }
+        _ => None,
+    };
+    let given = |field: &str, m: &Option<Vec<Vec<f64>>>, rows, cols, shape: &str| match m {
+        Some(m) => chk.matrix(field, m, rows, cols, &format!("{shape}, {dims}")),
+        None => Err(chk.err(field, "required (or, with an FMU truth, [truth] linearise = true)")),
+    };
+    let (a, b, c, d) = match &linearisation {
+        Some(l) => (l.a.clone(), l.b.clone(), l.c.clone(), l.d.clone()),
+        None => (
+            given("plant.a", &p.a, n, n, "n x n")?,
+            given("plant.b", &p.b, n, nu, "n x inputs")?,
+            given("plant.c", &p.c, ny, n, "outputs x n")?,
+            match &p.d {
+                Some(d) => chk.matrix("plant.d", d, ny, nu, &format!("outputs x inputs, {dims}"))?,
+                None => DMatrix::zeros(ny, nu),
+            },
+        ),
     };
     let initial_state = match &p.initial_state {
         Some(x0) => chk.vector("plant.initial_state", x0, n, "one per state")?,
@@ -250,7 +300,13 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
     for (i, f) in deck.faults.iter().enumerate() {
         faults.push(chk.fault(i, f, &p.outputs, "plant.outputs", duration_s)?);
     }
-    let monte_carlo = monte_carlo(chk, deck.monte_carlo, &plant, duration_s)?;
+    if truth.is_some() && process_sigma_per_step.amax() > 0.0 {
+        return Err(chk.err(
+            "noise.process_sigma_per_step",
+            "not with an FMU truth ([truth]): its states are the FMU's own; remove it",
+        ));
+    }
+    let monte_carlo = monte_carlo(chk, deck.monte_carlo, &plant, truth.as_ref(), duration_s)?;
     chk.one_fault_source("[[faults]]", "[[monte_carlo.fault]]", !monte_carlo.faults.is_empty() && !faults.is_empty())?;
 
     Ok(LtiStudy {
@@ -265,7 +321,57 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
         detectors,
         faults,
         monte_carlo,
+        truth,
+        linearisation,
     })
+}
+
+/// `[truth]`: the FMU opened and its variables mapped to `[plant]`'s inputs and outputs.
+fn fmu_truth(
+    chk: &Validator,
+    t: &TruthSection,
+    inputs: &[String],
+    outputs: &[String],
+    duration_s: f64,
+) -> Result<FmuPlant, DeckError> {
+    let interface = crate::fmu::Interface::from_name(&t.interface).ok_or_else(|| {
+        chk.not_allowed("truth.interface", &t.interface, &[("model_exchange", ""), ("co_simulation", "")])
+    })?;
+    for (field, names, model, list) in
+        [("truth.inputs", &t.inputs, inputs, "plant.inputs"), ("truth.outputs", &t.outputs, outputs, "plant.outputs")]
+    {
+        if names.len() != model.len() {
+            return Err(chk.err(
+                field,
+                format!(
+                    "{} names for {} {list}: one FMU variable per entry of {list}, in its order",
+                    names.len(),
+                    model.len()
+                ),
+            ));
+        }
+    }
+    for (k, v) in t.trim_inputs.iter().enumerate() {
+        chk.finite(&format!("truth.trim_inputs[{k}]"), *v)?;
+    }
+    for (name, v) in &t.parameters {
+        chk.finite(&format!("truth.parameters.{name}"), *v)?;
+    }
+    let path = chk.file.parent().unwrap_or(Path::new(".")).join(&t.fmu);
+    let parameters: Vec<(String, f64)> = t.parameters.iter().map(|(k, v)| (k.clone(), *v)).collect();
+    let mapping = PlantMapping {
+        interface,
+        inputs: &t.inputs,
+        outputs: &t.outputs,
+        parameters: &parameters,
+        input_trim: &t.trim_inputs,
+        stop_s: duration_s,
+    };
+    match FmuPlant::open(&path, "truth", &mapping) {
+        Err(e) => Err(chk.err("truth.fmu", e.to_string())),
+        Ok(Err((field, message))) => Err(chk.err(field, message)),
+        Ok(Ok(plant)) => Ok(plant),
+    }
 }
 
 /// `[monte_carlo]`'s own fields in detection-filter decks.
@@ -281,14 +387,16 @@ struct MonteCarloOwn {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct MatrixEntriesSection {
-    matrix: String,
-    entries: Vec<(String, String)>,
+    matrix: Option<String>,
+    entries: Option<Vec<(String, String)>>,
+    fmu_parameters: Option<Vec<String>>,
 }
 
 fn monte_carlo(
     chk: &Validator,
     mc: Option<MonteCarloSection>,
     plant: &LtiPlant,
+    truth: Option<&FmuPlant>,
     duration_s: f64,
 ) -> Result<LtiMonteCarlo, DeckError> {
     let rules = MonteCarloRules {
@@ -299,23 +407,77 @@ fn monte_carlo(
         let field = |name: &str| format!("{prefix}.{name}");
         let pe: MatrixEntriesSection =
             toml::Value::Table(table).try_into().map_err(|e| chk.err(prefix, e.to_string().trim_end().to_string()))?;
+        if let Some(names) = &pe.fmu_parameters {
+            let Some(fmu) = truth else {
+                return Err(
+                    chk.err(field("fmu_parameters"), "only with an FMU truth ([truth]); use matrix and entries")
+                );
+            };
+            if pe.matrix.is_some() || pe.entries.is_some() {
+                return Err(chk.err(field("fmu_parameters"), "names FMU parameters: remove matrix and entries"));
+            }
+            if names.is_empty() {
+                return Err(chk.err(field("fmu_parameters"), "name at least one parameter of the FMU"));
+            }
+            let d = &fmu.fmu.description;
+            let mut perturbed = Vec::with_capacity(names.len());
+            for (k, name) in names.iter().enumerate() {
+                let f = field(&format!("fmu_parameters[{k}]"));
+                let parameters = d.names_of(&[crate::fmu::Causality::Parameter]);
+                let v =
+                    d.variable(name).filter(|v| v.causality == crate::fmu::Causality::Parameter).ok_or_else(|| {
+                        chk.err(
+                            &f,
+                            format!(
+                                "{} has no parameter {name:?}; its parameters: {}",
+                                fmu.fmu.file_name(),
+                                parameters.join(", ")
+                            ),
+                        )
+                    })?;
+                let set = fmu.parameters.iter().find(|(vr, _)| *vr == v.value_reference).map(|p| p.1);
+                let nominal = set.or(v.start_f64()).ok_or_else(|| {
+                    chk.err(&f, format!("{name:?} has no start value: give it in [truth] parameters"))
+                })?;
+                perturbed.push((v.value_reference, nominal));
+            }
+            return Ok(Perturbs::FmuParameters(perturbed));
+        }
+        let (Some(matrix), Some(pe_entries)) = (&pe.matrix, &pe.entries) else {
+            return Err(chk.err(prefix, "name the matrix and its entries (or, with an FMU truth, fmu_parameters)"));
+        };
         let matrices = [
             ("a", (false, &plant.state_names, "plant.states"), ""),
             ("b", (true, &plant.input_names, "plant.inputs"), ""),
         ];
-        let (matrix_b, col_names, col_list) = chk.choice(&field("matrix"), &pe.matrix, &matrices)?;
-        if pe.entries.is_empty() {
+        let (matrix_b, col_names, col_list) = chk.choice(&field("matrix"), matrix, &matrices)?;
+        if pe_entries.is_empty() {
             return Err(chk.err(field("entries"), "list at least one [row, column] pair of names"));
         }
-        let mut entries = Vec::with_capacity(pe.entries.len());
-        for (k, (row, col)) in pe.entries.iter().enumerate() {
+        let mut entries = Vec::with_capacity(pe_entries.len());
+        for (k, (row, col)) in pe_entries.iter().enumerate() {
             let f = field(&format!("entries[{k}]"));
             let r = chk.index_of(&f, row, &plant.state_names, "plant.states (rows)")?;
             let c = chk.index_of(&f, col, col_names, col_list)?;
             entries.push((r, c));
         }
-        Ok(MatrixEntries { matrix_b, entries })
+        Ok(Perturbs::Matrix(MatrixEntries { matrix_b, entries }))
     })?;
+    for (k, pe) in parameter_errors.iter().enumerate() {
+        let field = format!("monte_carlo.parameter_error[{k}]");
+        match (&pe.what, pe.model, truth.is_some()) {
+            (Perturbs::Matrix(_), ModelTarget::Plant, true) => {
+                return Err(chk.err(
+                    field,
+                    "the truth is an FMU: a plant parameter error names fmu_parameters (the matrices are the design model's)",
+                ));
+            }
+            (Perturbs::FmuParameters(_), ModelTarget::Design, _) => {
+                return Err(chk.err(field, "fmu_parameters perturb the truth: model = \"plant\""));
+            }
+            _ => {}
+        }
+    }
     let own: MonteCarloOwn = own.unwrap_or(MonteCarloOwn { outputs: None, fault: Vec::new() });
     let outputs = match &own.outputs {
         None => (0..plant.n_outputs()).collect(),

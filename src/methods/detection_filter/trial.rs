@@ -28,9 +28,10 @@ use crate::engine::rare_event::estimators::Condition;
 use crate::engine::scenario::noise::NoiseRng;
 use crate::engine::scenario::streams::{Substream, noise_rng};
 use crate::fault::ActiveFaults;
+use crate::fmu::FmuError;
 use crate::methods::detection_filter::filter::DetectionFilter;
 use crate::methods::detection_filter::scenario::TrialSpec;
-use crate::methods::detection_filter::study::LtiStudy;
+use crate::methods::detection_filter::study::{LtiStudy, Perturbs};
 
 use super::decision::TestState;
 use super::kernel::{FilterState, FilterStep, PlantState, PlantStep};
@@ -155,7 +156,7 @@ pub fn run_trial(
     spec: &TrialSpec,
     filters: &[(&DetectionFilter, FilterStep)],
     trace: Option<&mut Trace>,
-) -> Vec<DetectorOutcome> {
+) -> Result<Vec<DetectorOutcome>, FmuError> {
     let s = study;
     let (n, nu, ny) = (s.plant.n_states(), s.plant.n_inputs(), s.plant.n_outputs());
     let mut sensor_rng = noise_rng(s.header.seed, spec.noise_trial, Substream::SensorNoise);
@@ -172,10 +173,22 @@ pub fn run_trial(
     let mut trackers: Vec<Tracker> =
         filters.iter().map(|(design, _)| Tracker::new(design, ny, s.header.dt_s)).collect();
     let mut rec = trace.map(|t| TraceWriter::new(t, s, n));
+    // An FMU truth flies instead of the LTI plant, which then only closes the loop (`u = r - G y`).
+    let mut flight = match &s.truth {
+        Some(truth) => Some(truth.start(&fmu_parameter_errors(s, spec))?),
+        None => None,
+    };
 
     for k in 0..s.header.steps {
         let t = k as f64 * s.header.dt_s;
-        measure(s, plant, &mut plant_state, t, sensor_sigma.as_slice(), &mut sensor_rng, &mut y, None);
+        match flight.as_mut() {
+            None => measure(s, plant, &mut plant_state, t, sensor_sigma.as_slice(), &mut sensor_rng, &mut y, None),
+            Some(f) => {
+                reference(s, &mut plant_state, t);
+                f.outputs(&mut y)?;
+                add_sensor_noise(&mut y, sensor_sigma.as_slice(), &mut sensor_rng, None);
+            }
+        }
         faults.apply(t, &mut y);
         plant.close_loop(&mut plant_state, &y);
         let u = plant_state.inputs();
@@ -198,12 +211,29 @@ pub fn run_trial(
             }
         }
 
-        advance(s, plant, &mut plant_state, &mut process_rng, has_process_noise);
+        match flight.as_mut() {
+            None => advance(s, plant, &mut plant_state, &mut process_rng, has_process_noise),
+            Some(f) => f.step(t, s.header.dt_s, plant_state.inputs())?,
+        }
     }
     if let Some(rec) = rec {
         rec.finish();
     }
-    trackers.into_iter().zip(filters).map(|(tr, (design, _))| tr.finish(design)).collect()
+    Ok(trackers.into_iter().zip(filters).map(|(tr, (design, _))| tr.finish(design)).collect())
+}
+
+/// The trial's parameter errors on the FMU truth's parameters: (value reference, perturbed value).
+fn fmu_parameter_errors(s: &LtiStudy, spec: &TrialSpec) -> Vec<(u32, f64)> {
+    let mut out = Vec::new();
+    for (pe, &value) in s.monte_carlo.parameter_errors.iter().zip(&spec.parameter_errors) {
+        if let Perturbs::FmuParameters(list) = &pe.what {
+            out.extend(
+                list.iter()
+                    .map(|&(vr, nominal)| (vr, if pe.absolute { nominal + value } else { nominal * (1.0 + value) })),
+            );
+        }
+    }
+    out
 }
 
 /// Sample `k`'s measurement at `t = k dt`: the excitation into the reference, `y = C x + D r`, then
@@ -222,12 +252,29 @@ pub(super) fn measure(
     y: &mut [f64],
     rare: Option<(Option<&Condition>, &mut [f64])>,
 ) {
+    reference(s, state, t);
+    plant.measure(state, y);
+    add_sensor_noise(y, sensor_sigma, rng, rare);
+}
+
+/// The excitation at `t` into the loop's reference `r`.
+#[inline]
+fn reference(s: &LtiStudy, state: &mut PlantState<f64>, t: f64) {
     let r = state.reference_mut();
     r.fill(0.0);
     for e in &s.excitations {
         r[e.input] += e.value(t);
     }
-    plant.measure(state, y);
+}
+
+/// Each output's sensor noise `sigma_j z_j`, `z_j` standard normal, added to `y`.
+#[inline]
+fn add_sensor_noise(
+    y: &mut [f64],
+    sensor_sigma: &[f64],
+    rng: &mut NoiseRng,
+    rare: Option<(Option<&Condition>, &mut [f64])>,
+) {
     match rare {
         None => {
             for (yj, sigma) in y.iter_mut().zip(sensor_sigma) {

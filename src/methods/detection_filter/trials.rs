@@ -5,10 +5,11 @@ use std::borrow::Cow;
 
 use crate::design::DesignError;
 use crate::engine::scenario::deck::ModelTarget;
+use crate::fmu::FmuError;
 use crate::lti::{DiscreteLti, LtiPlant};
 use crate::methods::detection_filter::filter::DetectionFilter;
 use crate::methods::detection_filter::scenario::{ScenarioSampler, TrialSpec};
-use crate::methods::detection_filter::study::LtiStudy;
+use crate::methods::detection_filter::study::{LtiStudy, Perturbs};
 
 use crate::engine::run::output::Trace;
 use crate::methods::detection_filter::kernel::{FilterPatterns, LANES, LaneFilter, LanePlant, PlantPatterns};
@@ -16,12 +17,22 @@ use crate::methods::detection_filter::kernel::{FilterStep, PlantStep};
 use crate::methods::detection_filter::lanes::{LaneDetector, run_lanes};
 use crate::methods::detection_filter::trial::{DetectorOutcome, run_trial};
 
-/// One trial's scenario and, per detector configuration (deck order), its outcome or why its design
-/// failed for this trial's design model.
+/// One trial's scenario and, per detector configuration (deck order), its outcome or why it has none.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrialResult {
     pub spec: TrialSpec,
-    pub detectors: Vec<Result<DetectorOutcome, DesignError>>,
+    pub detectors: Vec<Result<DetectorOutcome, TrialFailure>>,
+}
+
+/// Why a detector configuration has no outcome in a trial (the record's `failure`).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TrialFailure {
+    /// Its design failed for this trial's design model.
+    #[error(transparent)]
+    Design(#[from] DesignError),
+    /// The FMU truth failed during the trial (every detector of the trial fails with it).
+    #[error("the FMU truth failed: {0}")]
+    Truth(FmuError),
 }
 
 pub struct Engine<'a> {
@@ -95,8 +106,9 @@ impl<'a> Engine<'a> {
             if pe.model != target {
                 continue;
             }
-            let m = if pe.what.matrix_b { &mut p.B } else { &mut p.A };
-            for &(r, c) in &pe.what.entries {
+            let Perturbs::Matrix(what) = &pe.what else { continue };
+            let m = if what.matrix_b { &mut p.B } else { &mut p.A };
+            for &(r, c) in &what.entries {
                 if pe.absolute {
                     m[(r, c)] += rel;
                 } else {
@@ -143,7 +155,7 @@ impl<'a> Engine<'a> {
         spec: &TrialSpec,
         filters: impl Iterator<Item = (usize, &'d DetectionFilter)>,
         trace: Option<&mut Trace>,
-    ) -> Vec<DetectorOutcome> {
+    ) -> Result<Vec<DetectorOutcome>, FmuError> {
         let s = self.study;
         let plant = PlantStep::new(&self.plant_patterns, &[Some(&*self.truth(spec))], &s.output_feedback);
         let filters: Vec<(&DetectionFilter, FilterStep)> =
@@ -169,16 +181,29 @@ impl<'a> Engine<'a> {
         let spec = self.spec(trial);
         let designs = self.designs(&spec);
         let ok = designs.iter().enumerate().filter_map(|(d, f)| Some((d, f.as_deref().ok()?)));
-        let mut outcomes = self.run_one(&spec, ok, None).into_iter();
-        let detectors =
-            designs.into_iter().map(|d| d.map(|_| outcomes.next().expect("one outcome per designed filter"))).collect();
+        let detectors = match self.run_one(&spec, ok, None) {
+            Ok(outcomes) => {
+                let mut outcomes = outcomes.into_iter();
+                designs
+                    .into_iter()
+                    .map(|d| match d {
+                        Ok(_) => Ok(outcomes.next().expect("one outcome per designed filter")),
+                        Err(e) => Err(TrialFailure::Design(e)),
+                    })
+                    .collect()
+            }
+            Err(e) => designs
+                .into_iter()
+                .map(|d| Err(d.err().map_or_else(|| TrialFailure::Truth(e.clone()), TrialFailure::Design)))
+                .collect(),
+        };
         TrialResult { spec, detectors }
     }
 
     /// Trials `first..end` (at most [`LANES`]): on the lane path when every detector's test is built
     /// in, else one at a time (a user's test is a trait object); the results are the same.
     pub fn run_group(&self, first: u64, end: u64) -> Vec<TrialResult> {
-        if self.study.detectors.iter().all(|d| d.params.runs_on_lanes()) {
+        if self.study.truth.is_none() && self.study.detectors.iter().all(|d| d.params.runs_on_lanes()) {
             self.run_lanes(first, end)
         } else {
             (first..end).map(|t| self.run(t)).collect()
@@ -235,7 +260,7 @@ impl<'a> Engine<'a> {
                     .zip(outcomes.iter_mut())
                     .map(|(d, o)| {
                         let outcome = o.next().expect("one entry per trial");
-                        d.map(|()| outcome.expect("a designed lane has an outcome"))
+                        d.map(|()| outcome.expect("a designed lane has an outcome")).map_err(TrialFailure::Design)
                     })
                     .collect();
                 TrialResult { spec, detectors }
@@ -249,11 +274,14 @@ impl<'a> Engine<'a> {
         trial: u64,
         detector: usize,
         trace: &mut Trace,
-    ) -> Result<(TrialSpec, DetectorOutcome), DesignError> {
+    ) -> Result<(TrialSpec, DetectorOutcome), TrialFailure> {
         let spec = self.spec(trial);
         let designs = self.designs(&spec);
-        let design = designs[detector].as_deref().map_err(Clone::clone)?;
-        let outcome = self.run_one(&spec, std::iter::once((detector, design)), Some(trace)).remove(0);
+        let design = designs[detector].as_deref().map_err(|e| TrialFailure::Design(e.clone()))?;
+        let outcome = self
+            .run_one(&spec, std::iter::once((detector, design)), Some(trace))
+            .map_err(TrialFailure::Truth)?
+            .remove(0);
         Ok((spec, outcome))
     }
 }
