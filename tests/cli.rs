@@ -2676,3 +2676,269 @@ fn an_fmu_truth_flies_closed_loop_with_identical_records_and_a_failing_fmu_fails
         assert!(err.contains(&format!("bad.toml: {field_shown}")) && err.contains(says), "{field}: {err}");
     }
 }
+
+#[test]
+fn a_controller_fmu_closes_the_loop_as_the_decks_gain_matrix_does() {
+    let fmus = bundled_fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let deck = std::fs::read_to_string("studies/fmu_aircraft.toml")
+        .unwrap()
+        .replace("fmu = \"fmus/aircraft.fmu\"", &format!("fmu = {:?}", fmus.join("aircraft.fmu")));
+    let gain =
+        "[controller]\noutput_feedback = [\n  [0.0, 0.0, 0.0,  0.0, 0.0, 0.0],\n  [0.0, 0.0, -0.5, -2.0, 0.0, 0.0],\n]";
+    assert!(deck.contains(gain));
+    // fmus/pitch_controller with its speed loop off and its trims at the aircraft's trim: elevator =
+    // trim + command + 0.5 q + 2 (theta - theta_trim), throttle = trim, the gain matrix's law.
+    let controller = format!(
+        "[controller]\nfmu = {:?}\n\
+         measured = {{ q_meas_rad_s = \"q_rad_s\", theta_meas_rad = \"theta_rad\", V_meas_m_s = \"v_m_s\" }}\n\
+         commands = {{ elevator_cmd_rad = \"elevator_rad\" }}\n\
+         drives = {{ elevator_rad = \"elevator_rad\", throttle = \"throttle\" }}\n\
+         parameters = {{ kq = -0.5, ktheta = -2.0, theta_ref_rad = 0.0443566119725, elevator_trim_rad = 0.0211591440454, \
+         kv = 0.0, ki_v = 0.0, V_ref_m_s = 53.6, throttle_trim = 0.459166130340 }}",
+        fmus.join("pitch_controller.fmu")
+    );
+    let with_fmu = deck.replace(gain, &controller);
+    let (a, b) = (dir.path().join("gain.toml"), dir.path().join("fmu.toml"));
+    std::fs::write(&a, &deck).unwrap();
+    std::fs::write(&b, &with_fmu).unwrap();
+    let out = fdimc(&["validate", b.to_str().unwrap()]);
+    let stdout = ok(&out);
+    assert!(
+        stdout.contains("controller  FMU pitch_controller.fmu (co-simulation")
+            && stdout.contains("sees the measured [v_m_s, q_rad_s, theta_rad] and the commands on [elevator_rad], drives [elevator_rad, throttle]"),
+        "{stdout}"
+    );
+    let trace = |deck: &Path, name: &str| {
+        let file = dir.path().join(name);
+        ok(&fdimc(&["simulate", deck.to_str().unwrap(), "--trial", "7", "--out", file.to_str().unwrap()]));
+        read_frame(&file)
+    };
+    let (ta, tb) = (trace(&a, "gain.parquet"), trace(&b, "fmu.parquet"));
+    assert_eq!(ta.height(), 2000);
+    for (column, tolerance) in
+        [("u_elevator_rad", 1e-12), ("u_throttle", 0.0), ("y_q_rad_s", 1e-12), ("r_q_rad_s", 1e-12)]
+    {
+        let (x, y) =
+            (ta.column(column).unwrap().f64().unwrap().clone(), tb.column(column).unwrap().f64().unwrap().clone());
+        let worst = (0..ta.height()).map(|i| (x.get(i).unwrap() - y.get(i).unwrap()).abs()).fold(0.0, f64::max);
+        assert!(worst <= tolerance, "{column}: the two loops differ by {worst}");
+    }
+    // The loop acts: the elevator moves with the measured pitch, not only with the square wave.
+    let u = tb.column("u_elevator_rad").unwrap().f64().unwrap().clone();
+    let moved = (0..tb.height()).filter(|&i| (u.get(i).unwrap().abs() - 0.02).abs() > 1e-3).count();
+    assert!(moved > 1000, "{moved}");
+    // A fixed-step controller at another step is refused by name.
+    let other = with_fmu.replace("dt_s = 0.01", "dt_s = 0.02");
+    std::fs::write(&b, other).unwrap();
+    let out = fdimc(&["validate", b.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("controller.fmu: ")
+            && text(&out.stderr).contains("steps only at a fixed communication step (0.01 s, its default experiment) and the study's dt_s is 0.02 s"),
+        "{}",
+        text(&out.stderr)
+    );
+}
+
+/// EWMA of `|y_i / scale_i|` per channel as fmus/ewma_detector computes it (same operations, same
+/// order): the statistic (the largest) and the channel (1-based, first on ties, 0 while all are 0).
+fn native_ewma(y: [&[f64]; 3], lambda: f64, scale: [f64; 3]) -> (Vec<f64>, Vec<usize>) {
+    let mut e = [0.0f64; 3];
+    let (mut statistic, mut channel) = (Vec::new(), Vec::new());
+    for k in 0..y[0].len() {
+        for i in 0..3 {
+            e[i] = (1.0 - lambda) * e[i] + lambda * ((y[i][k] - 0.0) / scale[i]).abs();
+        }
+        let (mut s, mut c) = (e[0], 1);
+        if e[1] > s {
+            (s, c) = (e[1], 2);
+        }
+        if e[2] > s {
+            (s, c) = (e[2], 3);
+        }
+        statistic.push(s);
+        channel.push(if e == [0.0; 3] { 0 } else { c });
+    }
+    (statistic, channel)
+}
+
+#[test]
+fn a_detector_fmu_alarms_as_the_same_test_written_natively() {
+    let fmus = bundled_fmus();
+    let dir = tempfile::tempdir().unwrap();
+    // The LTI twin of the FMU study without its excitation: the measured outputs are noise and faults,
+    // which an EWMA of |y / sigma| can test; the trims are zero, so the FMU sees what fdimc measures.
+    let detector = format!(
+        "[[detector]]\nname = \"ewma\"\nkind = \"fmu\"\nfmu = {:?}\n\
+         measured = {{ in_1 = \"alpha_rad\", in_2 = \"q_rad_s\", in_3 = \"theta_rad\" }}\n\
+         statistic = \"statistic\"\nisolated_channel = \"isolated_channel\"\n\
+         channels = [\"alpha_rad\", \"q_rad_s\", \"theta_rad\"]\n\
+         parameters = {{ lambda = 0.05, scale_1 = 0.002, scale_2 = 0.005, scale_3 = 0.002 }}\n\
+         thresholds = [1.6]\n\n[monte_carlo]\n",
+        fmus.join("ewma_detector.fmu")
+    );
+    let deck = std::fs::read_to_string("studies/fmu_aircraft_lti.toml")
+        .unwrap()
+        .replace("amplitude = 0.02", "amplitude = 0.0")
+        .replacen("[monte_carlo]\n", &detector, 1);
+    let path = dir.path().join("ewma.toml");
+    std::fs::write(&path, &deck).unwrap();
+    let deck_path = path.to_str().unwrap();
+    let stdout = ok(&fdimc(&["validate", deck_path]));
+    assert!(
+        stdout.contains("alarm when the output \"statistic\" of the detector FMU ewma_detector.fmu (co-simulation")
+            && stdout.contains("isolation: the channel the detector names by the end of the window, 0 s to 1 s"),
+        "{stdout}"
+    );
+
+    let run = |out: &str, threads: &str| {
+        let out = dir.path().join(out);
+        ok(&fdimc(&[
+            "run",
+            deck_path,
+            "--trials",
+            "40",
+            "--threads",
+            threads,
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ]));
+        read_frame(&out.join("trials.parquet"))
+    };
+    let (a, b) = (run("one", "1"), run("two", "2"));
+    assert_eq!(a.height(), 4 * 40);
+    assert!(a.equals_missing(&b), "records differ between 1 and 2 threads");
+    let manifest = std::fs::read_to_string(dir.path().join("one").join("manifest.json")).unwrap();
+    assert!(manifest.contains("\"file\": \"ewma_detector.fmu\""), "{manifest}");
+
+    let column = |name: &str| a.column(name).unwrap().clone();
+    let detectors = column("detector");
+    let rows: Vec<usize> = (0..a.height()).filter(|&i| detectors.str().unwrap().get(i) == Some("ewma")).collect();
+    assert_eq!(rows.len(), 40);
+    let f64_at = |name: &str, i: usize| column(name).f64().unwrap().get(i);
+    let (mut alarms, mut false_alarms, mut isolated) = (0, 0, 0);
+    for (trial, &row) in rows.iter().enumerate().take(12) {
+        let file = dir.path().join(format!("trace{trial}.parquet"));
+        let trial_s = trial.to_string();
+        ok(&fdimc(&[
+            "simulate",
+            deck_path,
+            "--trial",
+            &trial_s,
+            "--detector",
+            "ewma",
+            "--out",
+            file.to_str().unwrap(),
+        ]));
+        let trace = read_frame(&file);
+        let series = |name: &str| -> Vec<f64> {
+            let c = trace.column(name).unwrap().f64().unwrap().clone();
+            (0..trace.height()).map(|i| c.get(i).unwrap()).collect()
+        };
+        let (alpha, q, theta, t) = (series("y_alpha_rad"), series("y_q_rad_s"), series("y_theta_rad"), series("t_s"));
+        let (statistic, channel) = native_ewma([&alpha, &q, &theta], 0.05, [0.002, 0.005, 0.002]);
+        // The FMU's statistic, sample by sample, is the native one to the bit.
+        assert_eq!(series("stat_q_rad_s"), statistic, "trial {trial}");
+        // The alarms the run recorded are where the native statistic first exceeds 1.6.
+        let onset = f64_at("onset_s", row).unwrap_or(f64::INFINITY);
+        let first = |from: f64, to: f64| (0..t.len()).find(|&k| t[k] >= from && t[k] < to && statistic[k] > 1.6);
+        let false_alarm = first(f64::NEG_INFINITY, onset).map(|k| t[k]);
+        let alarm = first(onset, f64::INFINITY);
+        assert_eq!(f64_at("false_alarm_s", row), false_alarm, "trial {trial}");
+        assert_eq!(f64_at("alarm_s", row), alarm.map(|k| t[k]), "trial {trial}");
+        // Isolation: the channel the FMU names at the last sample of [alarm, alarm + 1 s).
+        let named = alarm.map(|k| {
+            let last = (0..t.len()).rev().find(|&m| t[m] >= t[k] && t[m] < t[k] + 1.0).unwrap();
+            ["", "alpha_rad", "q_rad_s", "theta_rad"][channel[last]]
+        });
+        let recorded = column("isolated").str().unwrap().get(row).map(str::to_string);
+        assert_eq!(recorded.as_deref(), named.filter(|n| !n.is_empty()), "trial {trial}");
+        alarms += usize::from(alarm.is_some());
+        false_alarms += usize::from(false_alarm.is_some());
+        isolated += usize::from(named.is_some_and(|n| !n.is_empty()));
+    }
+    assert!(alarms >= 3 && isolated >= 3, "{alarms} alarms, {isolated} isolated of 12 trials");
+    assert!(false_alarms < 12, "{false_alarms} false alarms of 12 trials");
+
+    // A detector FMU field on another kind, and a statistic the FMU lacks: exit 2 naming the field.
+    for (from, to, field, says) in [
+        (
+            "name = \"seed\"\nkind = \"detection_filter\"",
+            "name = \"seed\"\nkind = \"detection_filter\"\nstatistic = \"s\"",
+            "detector[0].statistic",
+            "applies to kind = \"fmu\" only",
+        ),
+        (
+            "statistic = \"statistic\"",
+            "statistic = \"stat\"",
+            "detector[3].statistic",
+            "ewma_detector.fmu has no variable \"stat\"",
+        ),
+        ("thresholds = [1.6]", "thresholds = [1.6, 2.0]", "detector[3].thresholds", "one number for kind = \"fmu\""),
+        ("in_3 = \"theta_rad\"", "in_3 = \"theta\"", "detector[3].measured.in_3", "\"theta\""),
+    ] {
+        assert!(deck.contains(from), "{from}");
+        std::fs::write(&path, deck.replacen(from, to, 1)).unwrap();
+        let out = fdimc(&["validate", deck_path]);
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(&format!("{field}: ")) && err.contains(says), "{field}: {err}");
+    }
+}
+
+/// `from` repacked as `to` with its modelDescription.xml edited by `edit` (a user's FMU that declares
+/// other capabilities).
+fn repacked_fmu(from: &Path, to: &Path, edit: impl Fn(&str) -> String) {
+    use std::io::{Read, Write};
+    let mut archive = zip::ZipArchive::new(std::fs::File::open(from).unwrap()).unwrap();
+    let mut out = zip::ZipWriter::new(std::fs::File::create(to).unwrap());
+    for k in 0..archive.len() {
+        let mut entry = archive.by_index(k).unwrap();
+        let name = entry.name().to_string();
+        let mut bytes = Vec::new();
+        entry.read_to_end(&mut bytes).unwrap();
+        if name == "modelDescription.xml" {
+            bytes = edit(std::str::from_utf8(&bytes).unwrap()).into_bytes();
+        }
+        out.start_file(name, zip::write::SimpleFileOptions::default()).unwrap();
+        out.write_all(&bytes).unwrap();
+    }
+    out.finish().unwrap();
+}
+
+#[test]
+fn an_fmu_allowed_one_instance_per_process_runs_on_one_thread_with_the_same_records() {
+    let fmus = bundled_fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let once = dir.path().join("aircraft_once.fmu");
+    repacked_fmu(&fmus.join("aircraft.fmu"), &once, |xml| {
+        let flag = " canBeInstantiatedOnlyOncePerProcess=\"true\"";
+        xml.replace("<ModelExchange", &format!("<ModelExchange{flag}"))
+            .replace("<CoSimulation", &format!("<CoSimulation{flag}"))
+    });
+    let shown = ok(&fdimc(&["fmu", once.to_str().unwrap()]));
+    assert!(shown.contains("instances per process one (runs on one thread)"), "{shown}");
+    let deck = std::fs::read_to_string("studies/fmu_aircraft.toml").unwrap();
+    let write = |name: &str, fmu: &Path| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, deck.replace("fmu = \"fmus/aircraft.fmu\"", &format!("fmu = {fmu:?}"))).unwrap();
+        p
+    };
+    let (many, one) = (write("many.toml", &fmus.join("aircraft.fmu")), write("once.toml", &once));
+    let run = |deck: &Path, out: &str| {
+        let out = dir.path().join(out);
+        let o =
+            fdimc(&["run", deck.to_str().unwrap(), "--trials", "30", "--threads", "2", "--out", out.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        (read_frame(&out.join("trials.parquet")), text(&o.stderr))
+    };
+    let ((a, quiet), (b, said)) = (run(&many, "many"), run(&one, "once"));
+    assert!(!quiet.contains("once per process"), "{quiet}");
+    assert!(
+        said.contains("aircraft_once.fmu may be instantiated only once per process") && said.contains("one thread"),
+        "{said}"
+    );
+    assert!(a.equals_missing(&b), "the one-thread run's records differ");
+}

@@ -251,10 +251,13 @@ fn the_linearisation_at_trim_equals_the_analytic_jacobian_within_1e_6() {
     let mapping = PlantMapping {
         interface: Interface::ModelExchange,
         inputs: &names(&["elevator_rad", "throttle"]),
+        input_fields: &names(&["truth.inputs[0]", "truth.inputs[1]"]),
         outputs: &names(&["q_rad_s", "gamma_rad"]),
+        output_fields: &names(&["truth.outputs[0]", "truth.outputs[1]"]),
         parameters: &parameters,
         input_trim: &[elevator, throttle],
         stop_s: 10.0,
+        dt_s: 0.01,
     };
     let plant = FmuPlant::open(&fmus().join("aircraft.fmu"), "truth", &mapping).unwrap().unwrap();
     assert_eq!(plant.output_trim, [0.0, 0.0]);

@@ -7,6 +7,7 @@ use std::path::Path;
 use std::sync::{Arc, Weak};
 
 use super::{Causality, Fmu, FmuError, Instance, Interface, ValueType};
+use crate::engine::scenario::deck::{DeckError, Validator};
 
 /// A mapped FMU plant: what every trial starts from.
 #[derive(Debug, Clone)]
@@ -32,10 +33,17 @@ pub struct FmuPlant {
 pub struct PlantMapping<'a> {
     pub interface: Interface,
     pub inputs: &'a [String],
+    /// The deck field that names each input, for errors (e.g. `truth.inputs[0]`).
+    pub input_fields: &'a [String],
     pub outputs: &'a [String],
+    /// The deck field that names each output, for errors.
+    pub output_fields: &'a [String],
     pub parameters: &'a [(String, f64)],
     pub input_trim: &'a [f64],
     pub stop_s: f64,
+    /// The study's step: a co-simulation FMU that cannot vary its communication step must have it as
+    /// its default step.
+    pub dt_s: f64,
 }
 
 /// Why a mapping is refused: the deck field and the message (the caller adds the deck's file).
@@ -46,7 +54,30 @@ impl FmuPlant {
     pub fn open(path: &Path, prefix: &str, m: &PlantMapping) -> Result<Result<FmuPlant, MappingError>, FmuError> {
         let fmu = Fmu::open(path)?;
         fmu.supports(m.interface)?;
+        let d = &fmu.description;
+        if let (Interface::CoSimulation, Some(info)) = (m.interface, d.co_simulation.as_ref())
+            && !info.variable_step
+            && d.default_experiment.step_size_s.is_none_or(|h| (h - m.dt_s).abs() > 1e-12 * h.abs().max(m.dt_s))
+        {
+            return Err(FmuError::Invalid(format!(
+                "{}: the FMU steps only at a fixed communication step ({} s, its default experiment) and the study's dt_s is {} s",
+                path.display(),
+                d.default_experiment.step_size_s.map_or_else(|| "not given".to_string(), |h| h.to_string()),
+                m.dt_s
+            )));
+        }
         Ok(Self::map(Arc::new(fmu), prefix, m))
+    }
+
+    /// A deck's FMU (`file` relative to the deck's folder), opened and mapped; errors name `prefix`'s
+    /// fields of the deck.
+    pub fn from_deck(chk: &Validator, prefix: &str, file: &str, mapping: &PlantMapping) -> Result<FmuPlant, DeckError> {
+        let path = chk.file.parent().unwrap_or(Path::new(".")).join(file);
+        match FmuPlant::open(&path, prefix, mapping) {
+            Err(e) => Err(chk.err(format!("{prefix}.fmu"), e.to_string())),
+            Ok(Err((field, message))) => Err(chk.err(field, message)),
+            Ok(Ok(plant)) => Ok(plant),
+        }
     }
 
     fn map(fmu: Arc<Fmu>, prefix: &str, m: &PlantMapping) -> Result<FmuPlant, MappingError> {
@@ -78,16 +109,14 @@ impl FmuPlant {
             .inputs
             .iter()
             .enumerate()
-            .map(|(k, n)| lookup(format!("{prefix}.inputs[{k}]"), n, &[Causality::Input], "an input"))
+            .map(|(k, n)| lookup(m.input_fields[k].clone(), n, &[Causality::Input], "an input"))
             .collect::<Result<Vec<_>, _>>()?;
         // Outputs: what a sensor measures; a state (local) is as good as an output where the FMU exposes it.
         let output_vrs = m
             .outputs
             .iter()
             .enumerate()
-            .map(|(k, n)| {
-                lookup(format!("{prefix}.outputs[{k}]"), n, &[Causality::Output, Causality::Local], "an output")
-            })
+            .map(|(k, n)| lookup(m.output_fields[k].clone(), n, &[Causality::Output, Causality::Local], "an output"))
             .collect::<Result<Vec<_>, _>>()?;
         let mut parameters = Vec::with_capacity(m.parameters.len());
         for (name, value) in m.parameters {
@@ -125,6 +154,9 @@ impl FmuPlant {
             t.outputs(&mut y)?;
             Ok(y)
         });
+        // This thread's instance is not kept: an FMU allowed one instance per process gets it back on
+        // the worker thread.
+        release(&plant.fmu);
         match trim {
             Ok(y) => plant.output_trim = y,
             Err(e) => return Err((prefix.to_string(), format!("the FMU fails at its trim: {e}"))),
@@ -135,17 +167,48 @@ impl FmuPlant {
     /// A trial's flight: this thread's instance (instantiated once, reset between trials), the deck's
     /// parameters then `errors` (value reference, value) set, the trim inputs applied, initialised.
     pub fn start(&self, errors: &[(u32, f64)]) -> Result<Flight<'_>, FmuError> {
+        let instance = self.ready(errors)?;
+        Ok(Flight {
+            plant: PlantRef::Borrowed(self),
+            instance: Some(instance),
+            inputs: vec![0.0; self.input_vrs.len()],
+        })
+    }
+
+    /// [`start`](Self::start) for a flight that owns its plant (a detector's test state, which outlives
+    /// no borrow).
+    pub fn start_shared(self: &Arc<Self>, errors: &[(u32, f64)]) -> Result<Flight<'static>, FmuError> {
+        let instance = self.ready(errors)?;
+        Ok(Flight {
+            plant: PlantRef::Shared(Arc::clone(self)),
+            instance: Some(instance),
+            inputs: vec![0.0; self.input_vrs.len()],
+        })
+    }
+
+    fn ready(&self, errors: &[(u32, f64)]) -> Result<Instance, FmuError> {
         let mut instance = take_instance(&self.fmu, self.interface)?;
-        let ready = (|| {
-            for &(vr, v) in self.parameters.iter().chain(errors) {
-                instance.set_real(&[vr], &[v])?;
-            }
-            instance.set_real(&self.input_vrs, &self.input_trim)?;
-            instance.initialise(0.0, self.stop_s)
-        })();
-        match ready {
-            Ok(()) => Ok(Flight { plant: self, instance: Some(instance), inputs: vec![0.0; self.input_vrs.len()] }),
-            Err(e) => Err(e),
+        for &(vr, v) in self.parameters.iter().chain(errors) {
+            instance.set_real(&[vr], &[v])?;
+        }
+        instance.set_real(&self.input_vrs, &self.input_trim)?;
+        instance.initialise(0.0, self.stop_s)?;
+        Ok(instance)
+    }
+}
+
+/// The plant a flight flies: borrowed for a trial's truth, shared for a state that must own it.
+enum PlantRef<'p> {
+    Borrowed(&'p FmuPlant),
+    Shared(Arc<FmuPlant>),
+}
+
+impl std::ops::Deref for PlantRef<'_> {
+    type Target = FmuPlant;
+    fn deref(&self) -> &FmuPlant {
+        match self {
+            PlantRef::Borrowed(p) => p,
+            PlantRef::Shared(p) => p,
         }
     }
 }
@@ -153,7 +216,7 @@ impl FmuPlant {
 /// One trial on an FMU plant. Its instance returns to the thread's pool when the flight ends well; an
 /// instance that failed is dropped (freed), and the next trial instantiates a fresh one.
 pub struct Flight<'p> {
-    plant: &'p FmuPlant,
+    plant: PlantRef<'p>,
     instance: Option<Instance>,
     inputs: Vec<f64>,
 }
@@ -161,13 +224,12 @@ pub struct Flight<'p> {
 impl Flight<'_> {
     /// The model's outputs: the FMU's mapped outputs minus their trim.
     pub fn outputs(&mut self, y: &mut [f64]) -> Result<(), FmuError> {
-        let trim = &self.plant.output_trim;
         let vrs = &self.plant.output_vrs;
         let instance =
             self.instance.as_mut().ok_or_else(|| FmuError::Failed("the FMU instance failed earlier".into()))?;
         let r = instance.get_real(vrs, y);
         self.fail_on(r)?;
-        for (v, t) in y.iter_mut().zip(trim) {
+        for (v, t) in y.iter_mut().zip(&self.plant.output_trim) {
             *v -= t;
         }
         Ok(())
@@ -175,13 +237,43 @@ impl Flight<'_> {
 
     /// Applies the model's inputs `u` (deviations: the FMU gets trim + u) and steps from `t_s` by `dt_s`.
     pub fn step(&mut self, t_s: f64, dt_s: f64, u: &[f64]) -> Result<(), FmuError> {
+        self.set_inputs(u)?;
+        self.advance(t_s, dt_s)
+    }
+
+    /// Sets the model's inputs `u` (deviations: the FMU gets trim + u), for outputs that feed through.
+    pub fn set_inputs(&mut self, u: &[f64]) -> Result<(), FmuError> {
         for ((x, trim), du) in self.inputs.iter_mut().zip(&self.plant.input_trim).zip(u) {
             *x = trim + du;
         }
         let (vrs, inputs) = (&self.plant.input_vrs, &self.inputs);
         let instance =
             self.instance.as_mut().ok_or_else(|| FmuError::Failed("the FMU instance failed earlier".into()))?;
-        let r = instance.set_real(vrs, inputs).and_then(|()| instance.step(t_s, dt_s));
+        let r = instance.set_real(vrs, inputs);
+        self.fail_on(r)
+    }
+
+    /// Real variables `vrs` beyond the mapped outputs, as they are now.
+    pub fn reals(&mut self, vrs: &[u32], out: &mut [f64]) -> Result<(), FmuError> {
+        let instance =
+            self.instance.as_mut().ok_or_else(|| FmuError::Failed("the FMU instance failed earlier".into()))?;
+        let r = instance.get_real(vrs, out);
+        self.fail_on(r)
+    }
+
+    /// Integer variables `vrs` (an isolated channel), as they are now.
+    pub fn integers(&mut self, vrs: &[u32], out: &mut [i32]) -> Result<(), FmuError> {
+        let instance =
+            self.instance.as_mut().ok_or_else(|| FmuError::Failed("the FMU instance failed earlier".into()))?;
+        let r = instance.get_integer(vrs, out);
+        self.fail_on(r)
+    }
+
+    /// Steps from `t_s` by `dt_s` with the inputs as set.
+    pub fn advance(&mut self, t_s: f64, dt_s: f64) -> Result<(), FmuError> {
+        let instance =
+            self.instance.as_mut().ok_or_else(|| FmuError::Failed("the FMU instance failed earlier".into()))?;
+        let r = instance.step(t_s, dt_s);
         self.fail_on(r)
     }
 
@@ -312,4 +404,9 @@ impl FmuPlant {
             ),
         })
     }
+}
+
+/// Frees this thread's pooled instances of `fmu`.
+pub fn release(fmu: &Arc<Fmu>) {
+    POOL.with(|p| p.borrow_mut().retain(|(w, _, _)| w.upgrade().is_some_and(|f| !Arc::ptr_eq(&f, fmu))));
 }

@@ -246,7 +246,17 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
         if same { format!("on the {model}") } else { format!("on a design model that differs from the {model}") }
     );
     print_truth(study);
-    if study.output_feedback.amax() > 0.0 {
+    if let Some(c) = &study.controller_fmu {
+        let names = |idx: &[usize], of: &[String]| idx.iter().map(|&j| of[j].as_str()).collect::<Vec<_>>().join(", ");
+        println!(
+            "controller  FMU {} (co-simulation, sha256 {}): sees the measured [{}] and the commands on [{}], drives [{}]",
+            c.fmu.fmu.file_name(),
+            &c.fmu.fmu.sha256[..16],
+            names(&c.measured, &p.output_names),
+            names(&c.commands, &p.input_names),
+            names(&c.drives, &p.input_names)
+        );
+    } else if study.output_feedback.amax() > 0.0 {
         println!("controller  u = r - G y, G =");
         print!("{}", indent(&format!("{:.6}", study.output_feedback)));
     } else {
@@ -273,14 +283,18 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
             nums(params.thresholds.as_slice())
         );
         let rule = match params.isolation {
-            Isolation::Signature => "the bias signature nearest the",
-            Isolation::LargestNormalised => "the largest normalised",
+            Isolation::Signature => "the bias signature nearest the mean residual",
+            Isolation::LargestNormalised => "the largest normalised mean residual",
+            Isolation::Named => "the channel the detector names by the end of the window,",
         };
         println!(
-            "            isolation: {rule} mean residual {} s to {} s after the alarm",
+            "            isolation: {rule} {} s to {} s after the alarm",
             params.isolation_delay_s,
             params.isolation_delay_s + params.isolation_window_s
         );
+        if filter.decision.fmu().is_some() {
+            continue; // no filter runs for a detector FMU: no eigenvalues to show
+        }
         // The continuous design's eigenvalues (1/s) where there is one, else the discrete ones.
         let (a, unit) = match &filter.continuous {
             Some(c) => (c, "1/s"),

@@ -25,6 +25,15 @@ pub trait ResidualTest: Send + Sync {
     fn on_lanes(&self) -> Option<LaneStatistic> {
         None
     }
+    /// Whether the test names the faulty output itself ([`TestState::isolated`], a detector FMU's
+    /// isolated channel) instead of the filter's isolation from the mean residual.
+    fn isolates(&self) -> bool {
+        false
+    }
+    /// The FMU the test runs, if it runs one (for the manifest and the thread count).
+    fn fmu(&self) -> Option<&crate::fmu::plant::FmuPlant> {
+        None
+    }
 }
 
 /// One trial's memory of a [`ResidualTest`].
@@ -35,6 +44,17 @@ pub trait TestState {
     /// A copy of this memory, for `fdimc rare-event`'s splitting (which copies trials mid-way); a test
     /// that does not give one is refused there with a message, and runs everywhere else.
     fn fork(&self) -> Option<Box<dyn TestState>> {
+        None
+    }
+    /// This sample's inputs to the plant (deviations from any trim), given before [`step`](Self::step)
+    /// for a test that reads them.
+    fn inputs(&mut self, _u: &[f64]) {}
+    /// The output the test names now, for a test that [isolates](ResidualTest::isolates).
+    fn isolated(&self) -> Option<usize> {
+        None
+    }
+    /// Why the test cannot go on (a detector FMU that returned an error), taken once: the trial fails.
+    fn failure(&mut self) -> Option<String> {
         None
     }
 }
@@ -82,6 +102,14 @@ impl Decision {
 
     pub fn on_lanes(&self) -> Option<LaneStatistic> {
         self.0.on_lanes()
+    }
+
+    pub fn isolates(&self) -> bool {
+        self.0.isolates()
+    }
+
+    pub fn fmu(&self) -> Option<&crate::fmu::plant::FmuPlant> {
+        self.0.fmu()
     }
 
     /// Whether the lane path can run it.

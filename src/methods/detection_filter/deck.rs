@@ -70,11 +70,27 @@ pub struct DesignModelSection {
     pub b: Option<Vec<Vec<f64>>>,
 }
 
-/// `u = u_excitation - G y_measured`: the loop that keeps an open-loop-unstable airframe flying.
+/// The loop: `u = u_excitation - G y_measured` (`output_feedback`), or a controller FMU (`fmu`).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ControllerSection {
-    pub output_feedback: Vec<Vec<f64>>,
+    pub output_feedback: Option<Vec<Vec<f64>>>,
+    /// A co-simulation FMU, relative to the deck's folder; it sees and drives absolute values (the
+    /// plant's outputs and inputs plus their trim).
+    pub fmu: Option<String>,
+    /// Controller input = measured plant output (`{ controller_input = "plant_output" }`).
+    #[serde(default)]
+    pub measured: std::collections::BTreeMap<String, String>,
+    /// Controller input = the excitation on a plant input, the command (`{ controller_input = "plant_input" }`).
+    #[serde(default)]
+    pub commands: std::collections::BTreeMap<String, String>,
+    /// Plant input = controller output (`{ controller_output = "plant_input" }`); an input no output
+    /// drives gets its excitation.
+    #[serde(default)]
+    pub drives: std::collections::BTreeMap<String, String>,
+    /// Controller parameters set before initialisation.
+    #[serde(default)]
+    pub parameters: std::collections::BTreeMap<String, f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -110,6 +126,19 @@ pub struct DetectorSection {
     pub design_process_sigma_per_step: Option<Vec<f64>>,
     /// `kind = "cusum"`: the allowance per sample and output.
     pub drift: Option<Vec<f64>>,
+    /// `kind = "fmu"`: the detector's co-simulation FMU (relative to the deck's folder), what it sees
+    /// (`{ fmu_input = "plant_output" }`, `{ fmu_input = "plant_input" }`), its statistic output, its
+    /// isolated-channel output and the outputs its channels 1, 2, ... name, and its parameters.
+    pub fmu: Option<String>,
+    #[serde(default)]
+    pub measured: std::collections::BTreeMap<String, String>,
+    #[serde(default)]
+    pub applied: std::collections::BTreeMap<String, String>,
+    pub statistic: Option<String>,
+    pub isolated_channel: Option<String>,
+    pub channels: Option<Vec<String>>,
+    #[serde(default)]
+    pub parameters: std::collections::BTreeMap<String, f64>,
     pub isolation_delay_s: Option<f64>,
     pub isolation_window_s: Option<f64>,
 }

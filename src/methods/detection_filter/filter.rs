@@ -76,6 +76,8 @@ pub enum Isolation {
     Signature,
     /// The output with the largest normalised innovation (`kalman_chi2`).
     LargestNormalised,
+    /// The output the test itself names at the end of the window (a detector FMU's channel).
+    Named,
 }
 
 /// A designed detection filter (`sim::FilterStep` runs it). If it exists, its gains exist and are stable.
@@ -141,6 +143,9 @@ pub(crate) struct DetectorDeck<'a> {
     /// The true plant (dimensions).
     pub plant: &'a LtiPlant,
     pub sensor_sigma: &'a DVector<f64>,
+    /// The FMU truth, whose trims an FMU detector's signals get back.
+    pub truth: Option<&'a crate::fmu::plant::FmuPlant>,
+    pub header: &'a crate::engine::scenario::deck::StudyHeader,
 }
 
 impl DetectorDeck<'_> {

@@ -121,7 +121,7 @@ impl TestState for NisState {
 /// `design_process_sigma_per_step` (one per state), optional isolation timing; no eigenvalues,
 /// directions, thresholds or drift.
 pub(crate) fn read(r: &DetectorDeck) -> Result<DetectionFilterParams, DeckError> {
-    let DetectorDeck { chk, i, d, plant, sensor_sigma } = *r;
+    let DetectorDeck { chk, i, d, plant, sensor_sigma, .. } = *r;
     use statrs::distribution::{ChiSquared, ContinuousCDF};
     let f = |name: &str| format!("detector[{i}].{name}");
     let (n, ny) = (plant.n_states(), plant.n_outputs());

@@ -356,6 +356,13 @@ impl<E: Element> PlantState<E> {
     pub fn inputs(&self) -> &[E] {
         &self.v[self.n + self.nu..]
     }
+
+    /// The reference `r` and the inputs `u`, for a loop closed outside [`Plant::close_loop`] (a
+    /// controller FMU).
+    pub fn reference_and_inputs_mut(&mut self) -> (&[E], &mut [E]) {
+        let (head, u) = self.v.split_at_mut(self.n + self.nu);
+        (&head[self.n..], u)
+    }
 }
 
 /// A detection filter, for one trial ([`FilterStep`]) or a group of lanes ([`LaneFilter`]):

@@ -6,6 +6,7 @@ pub mod decision;
 pub mod deck;
 pub mod false_alarms;
 pub mod filter;
+pub mod fmu_detector;
 pub mod kalman_chi2;
 pub mod kernel;
 pub mod lanes;
@@ -78,9 +79,9 @@ impl Study for LtiStudy {
         run_study(self, opts)
     }
     fn rare_event(&self, opts: &crate::engine::rare_event::study::RareEventOptions) -> Result<(), RunError> {
-        if self.truth.is_some() {
+        if !self.fmus().is_empty() {
             return Err(RunError::Invalid(format!(
-                "{}: rare-event runs on a linear truth; this deck's truth is an FMU ([truth]): use run with the tail fit",
+                "{}: rare-event runs on a linear truth and loop; this deck flies an FMU: use run with the tail fit",
                 self.header.path.display()
             )));
         }
@@ -110,6 +111,26 @@ pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunEr
             _ => {}
         }
     }
+    // An FMU that may be instantiated only once per process gets one worker thread: one instance.
+    let once = study
+        .fmus()
+        .into_iter()
+        .find(|p| p.fmu.description.interface(p.interface).is_some_and(|i| i.only_one_instance_per_process));
+    let one_thread;
+    let opts = match once {
+        Some(p) if opts.threads != Some(1) => {
+            if opts.progress {
+                eprintln!(
+                    "note: {} may be instantiated only once per process (canBeInstantiatedOnlyOncePerProcess): \
+                     the run uses one thread",
+                    p.fmu.file_name()
+                );
+            }
+            one_thread = RunOptions { threads: Some(1), ..opts.clone() };
+            &one_thread
+        }
+        _ => opts,
+    };
     run(&LtiTrials { study, engine }, opts)
 }
 
@@ -134,9 +155,7 @@ impl TrialSource for LtiTrials<'_> {
             deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
             fault_size_units: fault_size_units(study),
             fault_size_bins: crate::fault::deck::FaultKindSpec::size_bins(&study.monte_carlo.faults),
-            models: study
-                .truth
-                .iter()
+            models: (study.fmus().into_iter())
                 .map(|t| ModelFile { file: t.fmu.file_name(), sha256: t.fmu.sha256.clone() })
                 .collect(),
             ..Manifest::of(

@@ -63,7 +63,7 @@ impl<'a> RecordBuilder<'a> {
             let o = outcome.as_ref().ok();
             let truth = name(spec.output());
             let isolated = match d.params.isolation {
-                Isolation::LargestNormalised => o.and_then(|o| name(o.isolated_by_max)),
+                Isolation::LargestNormalised | Isolation::Named => o.and_then(|o| name(o.isolated_by_max)),
                 Isolation::Signature => o.and_then(|o| name(o.isolated_by_direction)),
             };
             self.core.push(Outcome {

@@ -4,9 +4,9 @@ use std::path::Path;
 
 use nalgebra::{DMatrix, DVector};
 
-use super::deck::{Deck, TruthSection};
+use super::deck::{ControllerSection, Deck, TruthSection};
 use super::filter::{DetectionFilterParams, DetectorDeck};
-use super::{cusum, filter, kalman_chi2};
+use super::{cusum, filter, fmu_detector, kalman_chi2};
 use serde::Deserialize;
 
 use crate::engine::method::Opt;
@@ -71,6 +71,7 @@ const KINDS: &[(&str, &str, fn(&DetectorDeck) -> Result<DetectionFilterParams, D
     ("detection_filter", "method 000, alarm on |residual|", filter::read),
     ("cusum", "the same filter, a CUSUM on |residual|", cusum::read),
     ("kalman_chi2", "a steady-state Kalman filter's windowed chi-square test", kalman_chi2::read),
+    ("fmu", "a detector FMU: its statistic on the measured signals", fmu_detector::read),
 ];
 
 /// A validated study: every dimension agrees, every number is finite and in range.
@@ -97,6 +98,21 @@ pub struct LtiStudy {
     pub truth: Option<FmuPlant>,
     /// `[truth] linearise = true`: the FMU's linearisation `plant` was made from.
     pub linearisation: Option<Linearisation>,
+    /// `[controller] fmu`: a controller FMU closes the loop instead of `output_feedback`.
+    pub controller_fmu: Option<ControllerFmu>,
+}
+
+/// A controller FMU and where its signals come from and go: its inputs are the measured outputs
+/// `measured` (plant output indices) then the commands `commands` (the excitation on those plant
+/// inputs), in that order; its outputs drive the plant inputs `drives`.
+#[derive(Debug, Clone)]
+pub struct ControllerFmu {
+    pub fmu: FmuPlant,
+    pub measured: Vec<usize>,
+    pub commands: Vec<usize>,
+    pub drives: Vec<usize>,
+    /// Subtracted from the controller's outputs: the plant's inputs are deviations from its trim.
+    pub plant_input_trim: Vec<f64>,
 }
 
 /// A named detector configuration.
@@ -141,6 +157,12 @@ impl LtiStudy {
     pub fn has_process_noise(&self) -> bool {
         self.process_sigma_per_step.iter().any(|&v| v > 0.0)
     }
+
+    /// Every FMU the study runs: its truth, its controller, its detectors'.
+    pub fn fmus(&self) -> Vec<&FmuPlant> {
+        let detectors = self.detectors.iter().filter_map(|d| d.params.decision.as_ref().and_then(|t| t.fmu()));
+        self.truth.iter().chain(self.controller_fmu.iter().map(|c| &c.fmu)).chain(detectors).collect()
+    }
 }
 
 impl FromDeck for LtiStudy {
@@ -162,7 +184,7 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
     let (n, nu, ny) = (p.states.len(), p.inputs.len(), p.outputs.len());
     let dims = format!("{n} states, {nu} inputs, {ny} outputs");
     let truth = match &deck.truth {
-        Some(t) => Some(fmu_truth(chk, t, &p.inputs, &p.outputs, header.duration_s)?),
+        Some(t) => Some(fmu_truth(chk, t, &p.inputs, &p.outputs, &header)?),
         None => None,
     };
     let linearisation = match (&deck.truth, &truth) {
@@ -225,11 +247,30 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
         }
     }
 
-    let output_feedback = match &deck.controller {
-        Some(cs) => {
-            chk.matrix("controller.output_feedback", &cs.output_feedback, nu, ny, &format!("inputs x outputs, {dims}"))?
-        }
-        None => DMatrix::zeros(nu, ny),
+    let (output_feedback, controller_fmu) = match &deck.controller {
+        Some(cs) => match (&cs.output_feedback, &cs.fmu) {
+            (Some(g), None) => {
+                for (field, empty) in [
+                    ("controller.measured", cs.measured.is_empty()),
+                    ("controller.commands", cs.commands.is_empty()),
+                    ("controller.drives", cs.drives.is_empty()),
+                    ("controller.parameters", cs.parameters.is_empty()),
+                ] {
+                    if !empty {
+                        return Err(chk.err(field, "only with a controller FMU (controller.fmu): remove it"));
+                    }
+                }
+                (chk.matrix("controller.output_feedback", g, nu, ny, &format!("inputs x outputs, {dims}"))?, None)
+            }
+            (None, Some(file)) => {
+                (DMatrix::zeros(nu, ny), Some(controller_fmu(chk, cs, file, &plant, truth.as_ref(), &header)?))
+            }
+            _ => {
+                return Err(chk
+                    .err("controller", "give output_feedback (a gain matrix) or fmu (a controller FMU), one of them"));
+            }
+        },
+        None => (DMatrix::zeros(nu, ny), None),
     };
     if output_feedback.amax() > 0.0 && plant.D.amax() > 0.0 {
         return Err(chk.err(
@@ -284,8 +325,22 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
     chk.detector_names("detector", deck.detector.iter().map(|d| d.name.as_str()))?;
     let mut detectors = Vec::with_capacity(deck.detector.len());
     for (i, d) in deck.detector.iter().enumerate() {
+        if d.kind != "fmu"
+            && let Some((field, _)) = fmu_detector::own_fields(d).into_iter().find(|(_, given)| *given)
+        {
+            return Err(chk.err(format!("detector[{i}].{field}"), "applies to kind = \"fmu\" only (a detector FMU)"));
+        }
+        let deck = DetectorDeck {
+            chk,
+            i,
+            d,
+            plant: &plant,
+            sensor_sigma: &sensor_sigma,
+            truth: truth.as_ref(),
+            header: &header,
+        };
         let params = match KINDS.iter().find(|k| k.0 == d.kind) {
-            Some((_, _, read)) => read(&DetectorDeck { chk, i, d, plant: &plant, sensor_sigma: &sensor_sigma })?,
+            Some((_, _, read)) => read(&deck)?,
             None => {
                 let allowed: Vec<String> = KINDS.iter().map(|(k, what, _)| format!("{k:?} ({what})")).collect();
                 return Err(
@@ -323,6 +378,7 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
         monte_carlo,
         truth,
         linearisation,
+        controller_fmu,
     })
 }
 
@@ -332,7 +388,7 @@ fn fmu_truth(
     t: &TruthSection,
     inputs: &[String],
     outputs: &[String],
-    duration_s: f64,
+    header: &StudyHeader,
 ) -> Result<FmuPlant, DeckError> {
     let interface = crate::fmu::Interface::from_name(&t.interface).ok_or_else(|| {
         chk.not_allowed("truth.interface", &t.interface, &[("model_exchange", ""), ("co_simulation", "")])
@@ -357,21 +413,81 @@ fn fmu_truth(
     for (name, v) in &t.parameters {
         chk.finite(&format!("truth.parameters.{name}"), *v)?;
     }
-    let path = chk.file.parent().unwrap_or(Path::new(".")).join(&t.fmu);
     let parameters: Vec<(String, f64)> = t.parameters.iter().map(|(k, v)| (k.clone(), *v)).collect();
+    let fields = |list: &str, len: usize| (0..len).map(|k| format!("truth.{list}[{k}]")).collect::<Vec<_>>();
     let mapping = PlantMapping {
         interface,
         inputs: &t.inputs,
+        input_fields: &fields("inputs", t.inputs.len()),
         outputs: &t.outputs,
+        output_fields: &fields("outputs", t.outputs.len()),
         parameters: &parameters,
         input_trim: &t.trim_inputs,
-        stop_s: duration_s,
+        stop_s: header.duration_s,
+        dt_s: header.dt_s,
     };
-    match FmuPlant::open(&path, "truth", &mapping) {
-        Err(e) => Err(chk.err("truth.fmu", e.to_string())),
-        Ok(Err((field, message))) => Err(chk.err(field, message)),
-        Ok(Ok(plant)) => Ok(plant),
+    FmuPlant::from_deck(chk, "truth", &t.fmu, &mapping)
+}
+
+/// `[controller] fmu`: a co-simulation FMU closing the loop on absolute values (trims added back).
+fn controller_fmu(
+    chk: &Validator,
+    cs: &ControllerSection,
+    file: &str,
+    plant: &LtiPlant,
+    truth: Option<&FmuPlant>,
+    header: &StudyHeader,
+) -> Result<ControllerFmu, DeckError> {
+    let output_trim = |j: usize| truth.map_or(0.0, |t| t.output_trim[j]);
+    let input_trim = |j: usize| truth.map_or(0.0, |t| t.input_trim[j]);
+    let (mut inputs, mut trims, mut measured, mut commands) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut input_fields, mut output_fields) = (Vec::new(), Vec::new());
+    for (input, output) in &cs.measured {
+        let j = chk.index_of(&format!("controller.measured.{input}"), output, &plant.output_names, "plant.outputs")?;
+        input_fields.push(format!("controller.measured.{input}"));
+        inputs.push(input.clone());
+        trims.push(output_trim(j));
+        measured.push(j);
     }
+    for (input, plant_input) in &cs.commands {
+        let j =
+            chk.index_of(&format!("controller.commands.{input}"), plant_input, &plant.input_names, "plant.inputs")?;
+        input_fields.push(format!("controller.commands.{input}"));
+        inputs.push(input.clone());
+        trims.push(0.0);
+        commands.push(j);
+    }
+    let (mut outputs, mut drives) = (Vec::new(), Vec::new());
+    for (output, plant_input) in &cs.drives {
+        let j =
+            chk.index_of(&format!("controller.drives.{output}"), plant_input, &plant.input_names, "plant.inputs")?;
+        if drives.contains(&j) {
+            return Err(chk.err(format!("controller.drives.{output}"), format!("{plant_input:?} is driven twice")));
+        }
+        output_fields.push(format!("controller.drives.{output}"));
+        outputs.push(output.clone());
+        drives.push(j);
+    }
+    if drives.is_empty() {
+        return Err(chk.err("controller.drives", "map at least one controller output to a plant input"));
+    }
+    let parameters: Vec<(String, f64)> = cs.parameters.iter().map(|(k, v)| (k.clone(), *v)).collect();
+    let mapping = PlantMapping {
+        interface: crate::fmu::Interface::CoSimulation,
+        inputs: &inputs,
+        input_fields: &input_fields,
+        outputs: &outputs,
+        output_fields: &output_fields,
+        parameters: &parameters,
+        input_trim: &trims,
+        stop_s: header.duration_s,
+        dt_s: header.dt_s,
+    };
+    let mut fmu = FmuPlant::from_deck(chk, "controller", file, &mapping)?;
+    // The controller's outputs are the plant's absolute inputs, not deviations from its own trim.
+    fmu.output_trim.iter_mut().for_each(|v| *v = 0.0);
+    let plant_input_trim = (0..plant.n_inputs()).map(input_trim).collect();
+    Ok(ControllerFmu { fmu, measured, commands, drives, plant_input_trim })
 }
 
 /// `[monte_carlo]`'s own fields in detection-filter decks.

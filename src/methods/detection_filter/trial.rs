@@ -70,6 +70,9 @@ struct Tracker {
     /// The residual test's memory and this sample's statistics.
     test: Box<dyn TestState>,
     statistic: Vec<f64>,
+    /// The test names the output itself (a detector FMU): what it named last in the isolation window.
+    isolates: bool,
+    named: Option<usize>,
 }
 
 impl Tracker {
@@ -89,10 +92,12 @@ impl Tracker {
             isolation: (filter.isolation_delay_s, filter.isolation_window_s),
             test: filter.decision.start(ny, dt_s),
             statistic: vec![0.0; ny],
+            isolates: filter.decision.isolates(),
+            named: None,
         }
     }
 
-    fn observe(&mut self, t: f64, after_onset: bool, residual: &[f64]) {
+    fn observe(&mut self, t: f64, after_onset: bool, u: &[f64], residual: &[f64]) {
         if self.out.diverged_at_s.is_some() {
             return;
         }
@@ -100,6 +105,7 @@ impl Tracker {
             self.out.diverged_at_s = Some(t);
             return;
         }
+        self.test.inputs(u);
         self.test.step(residual, &mut self.statistic);
         let mut alarm_channel = None;
         for j in 0..residual.len() {
@@ -130,6 +136,9 @@ impl Tracker {
                 *sum += r;
             }
             self.iso_count += 1;
+            if self.isolates {
+                self.named = self.test.isolated();
+            }
         }
     }
 
@@ -137,7 +146,9 @@ impl Tracker {
         for (j, fp) in self.first_passage.iter().enumerate() {
             fp.close(&mut self.out.profile_t_s[j], &mut self.out.profile_value[j]);
         }
-        if self.iso_count > 0 {
+        if self.iso_count > 0 && self.isolates {
+            (self.out.isolated_by_max, self.out.isolated_by_direction) = (self.named, self.named);
+        } else if self.iso_count > 0 {
             let mean = &self.iso_sum / self.iso_count as f64;
             self.out.isolated_by_max = Some(filter.isolate_by_max(&mean));
             self.out.isolated_by_direction = Some(filter.isolate_by_direction(&mean));
@@ -156,7 +167,7 @@ pub fn run_trial(
     spec: &TrialSpec,
     filters: &[(&DetectionFilter, FilterStep)],
     trace: Option<&mut Trace>,
-) -> Result<Vec<DetectorOutcome>, FmuError> {
+) -> Result<Vec<DetectorOutcome>, FmuFailure> {
     let s = study;
     let (n, nu, ny) = (s.plant.n_states(), s.plant.n_inputs(), s.plant.n_outputs());
     let mut sensor_rng = noise_rng(s.header.seed, spec.noise_trial, Substream::SensorNoise);
@@ -175,7 +186,16 @@ pub fn run_trial(
     let mut rec = trace.map(|t| TraceWriter::new(t, s, n));
     // An FMU truth flies instead of the LTI plant, which then only closes the loop (`u = r - G y`).
     let mut flight = match &s.truth {
-        Some(truth) => Some(truth.start(&fmu_parameter_errors(s, spec))?),
+        Some(truth) => Some(truth.start(&fmu_parameter_errors(s, spec)).map_err(FmuFailure::truth)?),
+        None => None,
+    };
+    let mut controller = match &s.controller_fmu {
+        Some(c) => Some((
+            c,
+            c.fmu.start(&[]).map_err(FmuFailure::controller)?,
+            vec![0.0; c.fmu.input_vrs.len()],
+            vec![0.0; c.drives.len()],
+        )),
         None => None,
     };
 
@@ -185,12 +205,32 @@ pub fn run_trial(
             None => measure(s, plant, &mut plant_state, t, sensor_sigma.as_slice(), &mut sensor_rng, &mut y, None),
             Some(f) => {
                 reference(s, &mut plant_state, t);
-                f.outputs(&mut y)?;
+                f.outputs(&mut y).map_err(FmuFailure::truth)?;
                 add_sensor_noise(&mut y, sensor_sigma.as_slice(), &mut sensor_rng, None);
             }
         }
         faults.apply(t, &mut y);
-        plant.close_loop(&mut plant_state, &y);
+        match controller.as_mut() {
+            None => plant.close_loop(&mut plant_state, &y),
+            Some((c, ctrl, inputs, outputs)) => {
+                // Its inputs (deviations; the FMU gets them plus their trims): the measured outputs,
+                // then the commands. Its outputs (absolute) drive their plant inputs, the others take
+                // their excitation.
+                let (r, u) = plant_state.reference_and_inputs_mut();
+                for (k, &j) in c.measured.iter().enumerate() {
+                    inputs[k] = y[j];
+                }
+                for (k, &j) in c.commands.iter().enumerate() {
+                    inputs[c.measured.len() + k] = r[j];
+                }
+                ctrl.set_inputs(inputs).map_err(FmuFailure::controller)?;
+                ctrl.outputs(outputs).map_err(FmuFailure::controller)?;
+                u.copy_from_slice(r);
+                for (&j, v) in c.drives.iter().zip(outputs.iter()) {
+                    u[j] = v - c.plant_input_trim[j];
+                }
+            }
+        }
         let u = plant_state.inputs();
 
         let after_onset = onset_s.is_some_and(|t0| t >= t0);
@@ -203,7 +243,10 @@ pub fn run_trial(
                 rec.before_step(t, u, &y, state.estimate());
             }
             filter.step(state, u, &y);
-            tracker.observe(t, after_onset, state.residual());
+            tracker.observe(t, after_onset, u, state.residual());
+            if let Some(why) = tracker.test.failure() {
+                return Err(FmuFailure { role: "detector".into(), error: FmuError::Failed(why) });
+            }
             if i == 0
                 && let Some(rec) = rec.as_mut()
             {
@@ -213,13 +256,35 @@ pub fn run_trial(
 
         match flight.as_mut() {
             None => advance(s, plant, &mut plant_state, &mut process_rng, has_process_noise),
-            Some(f) => f.step(t, s.header.dt_s, plant_state.inputs())?,
+            Some(f) => f.step(t, s.header.dt_s, plant_state.inputs()).map_err(FmuFailure::truth)?,
+        }
+        if let Some((_, ctrl, _, _)) = controller.as_mut() {
+            ctrl.advance(t, s.header.dt_s).map_err(FmuFailure::controller)?;
         }
     }
     if let Some(rec) = rec {
         rec.finish();
     }
     Ok(trackers.into_iter().zip(filters).map(|(tr, (design, _))| tr.finish(design)).collect())
+}
+
+/// An FMU of the trial returned an error: which one (`truth`, `controller`, `detector <index>`) and
+/// what it said. The trial fails, every detector with it.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("the FMU {role} failed: {error}")]
+pub struct FmuFailure {
+    pub role: String,
+    pub error: FmuError,
+}
+
+impl FmuFailure {
+    fn truth(error: FmuError) -> Self {
+        FmuFailure { role: "truth".into(), error }
+    }
+
+    fn controller(error: FmuError) -> Self {
+        FmuFailure { role: "controller".into(), error }
+    }
 }
 
 /// The trial's parameter errors on the FMU truth's parameters: (value reference, perturbed value).

@@ -5,7 +5,6 @@ use std::borrow::Cow;
 
 use crate::design::DesignError;
 use crate::engine::scenario::deck::ModelTarget;
-use crate::fmu::FmuError;
 use crate::lti::{DiscreteLti, LtiPlant};
 use crate::methods::detection_filter::filter::DetectionFilter;
 use crate::methods::detection_filter::scenario::{ScenarioSampler, TrialSpec};
@@ -15,7 +14,7 @@ use crate::engine::run::output::Trace;
 use crate::methods::detection_filter::kernel::{FilterPatterns, LANES, LaneFilter, LanePlant, PlantPatterns};
 use crate::methods::detection_filter::kernel::{FilterStep, PlantStep};
 use crate::methods::detection_filter::lanes::{LaneDetector, run_lanes};
-use crate::methods::detection_filter::trial::{DetectorOutcome, run_trial};
+use crate::methods::detection_filter::trial::{DetectorOutcome, FmuFailure, run_trial};
 
 /// One trial's scenario and, per detector configuration (deck order), its outcome or why it has none.
 #[derive(Debug, Clone, PartialEq)]
@@ -30,9 +29,10 @@ pub enum TrialFailure {
     /// Its design failed for this trial's design model.
     #[error(transparent)]
     Design(#[from] DesignError),
-    /// The FMU truth failed during the trial (every detector of the trial fails with it).
-    #[error("the FMU truth failed: {0}")]
-    Truth(FmuError),
+    /// An FMU of the trial (its truth, controller or a detector) failed during it: every detector of
+    /// the trial fails with it.
+    #[error(transparent)]
+    Fmu(FmuFailure),
 }
 
 pub struct Engine<'a> {
@@ -155,7 +155,7 @@ impl<'a> Engine<'a> {
         spec: &TrialSpec,
         filters: impl Iterator<Item = (usize, &'d DetectionFilter)>,
         trace: Option<&mut Trace>,
-    ) -> Result<Vec<DetectorOutcome>, FmuError> {
+    ) -> Result<Vec<DetectorOutcome>, FmuFailure> {
         let s = self.study;
         let plant = PlantStep::new(&self.plant_patterns, &[Some(&*self.truth(spec))], &s.output_feedback);
         let filters: Vec<(&DetectionFilter, FilterStep)> =
@@ -194,7 +194,7 @@ impl<'a> Engine<'a> {
             }
             Err(e) => designs
                 .into_iter()
-                .map(|d| Err(d.err().map_or_else(|| TrialFailure::Truth(e.clone()), TrialFailure::Design)))
+                .map(|d| Err(d.err().map_or_else(|| TrialFailure::Fmu(e.clone()), TrialFailure::Design)))
                 .collect(),
         };
         TrialResult { spec, detectors }
@@ -203,7 +203,7 @@ impl<'a> Engine<'a> {
     /// Trials `first..end` (at most [`LANES`]): on the lane path when every detector's test is built
     /// in, else one at a time (a user's test is a trait object); the results are the same.
     pub fn run_group(&self, first: u64, end: u64) -> Vec<TrialResult> {
-        if self.study.truth.is_none() && self.study.detectors.iter().all(|d| d.params.runs_on_lanes()) {
+        if self.study.fmus().is_empty() && self.study.detectors.iter().all(|d| d.params.runs_on_lanes()) {
             self.run_lanes(first, end)
         } else {
             (first..end).map(|t| self.run(t)).collect()
@@ -278,10 +278,8 @@ impl<'a> Engine<'a> {
         let spec = self.spec(trial);
         let designs = self.designs(&spec);
         let design = designs[detector].as_deref().map_err(|e| TrialFailure::Design(e.clone()))?;
-        let outcome = self
-            .run_one(&spec, std::iter::once((detector, design)), Some(trace))
-            .map_err(TrialFailure::Truth)?
-            .remove(0);
+        let outcome =
+            self.run_one(&spec, std::iter::once((detector, design)), Some(trace)).map_err(TrialFailure::Fmu)?.remove(0);
         Ok((spec, outcome))
     }
 }
