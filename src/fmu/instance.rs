@@ -155,22 +155,22 @@ impl Instance {
     /// rounding accumulates) by `dt_s`, inputs held (model exchange: RK4 with events).
     pub fn step(&mut self, t_s: f64, dt_s: f64) -> Result<(), FmuError> {
         let t = t_s;
-        let label = self.label.clone();
+        let label = self.label.as_str();
         match &mut self.inner {
             Inner::Cs2(i) => {
-                i.do_step(t, dt_s, true).map_err(|e| failed(&label, "doStep", t, e))?;
+                i.do_step(t, dt_s, true).map_err(|e| failed(label, "doStep", t, e))?;
             }
             Inner::Cs3(i) => {
                 let (mut event, mut terminate, mut early, mut last) = (false, false, false, t);
                 i.do_step(t, dt_s, true, &mut event, &mut terminate, &mut early, &mut last)
-                    .map_err(|e| failed(&label, "doStep", t, e))?;
+                    .map_err(|e| failed(label, "doStep", t, e))?;
                 if terminate {
                     return Err(FmuError::Failed(format!("{label}: the FMU asked to terminate at t = {last} s")));
                 }
             }
             Inner::Me2(i) => {
                 let c = self.continuous.as_mut().expect("model exchange keeps its states");
-                step_model_exchange(i, c, &label, t, dt_s)?;
+                step_model_exchange(i, c, label, t, dt_s)?;
             }
         }
         self.time_s = t + dt_s;
@@ -183,7 +183,8 @@ impl Instance {
         let Inner::Me2(i) = &mut self.inner else {
             return Err(FmuError::Invalid(format!("{label}: state derivatives need the model-exchange interface")));
         };
-        rhs(i, &label, t_s, x, dx)
+        let mut time_unset = f64::NAN;
+        rhs(i, &label, t_s, x, dx, &mut time_unset)
     }
 
     /// Model exchange: the current continuous states.
@@ -204,9 +205,13 @@ impl Instance {
     }
 }
 
-/// `dx = f(t, x)` through the FMU: set time and states, get the derivatives.
-fn rhs(i: &mut InstanceME, label: &str, t_s: f64, x: &[f64], dx: &mut [f64]) -> Result<(), FmuError> {
-    FmiModelExchange::set_time(i, t_s).map_err(|e| failed(label, "setTime", t_s, e))?;
+/// `dx = f(t, x)` through the FMU: set time (unless `t_set`, the time last set, is it already) and
+/// states, get the derivatives.
+fn rhs(i: &mut InstanceME, label: &str, t_s: f64, x: &[f64], dx: &mut [f64], t_set: &mut f64) -> Result<(), FmuError> {
+    if *t_set != t_s {
+        FmiModelExchange::set_time(i, t_s).map_err(|e| failed(label, "setTime", t_s, e))?;
+        *t_set = t_s;
+    }
     FmiModelExchange::set_continuous_states(i, x).map_err(|e| failed(label, "setContinuousStates", t_s, e))?;
     i.get_derivatives(dx).map_err(|e| failed(label, "getDerivatives", t_s, e))?;
     Ok(())
@@ -239,14 +244,19 @@ fn step_model_exchange(
 ) -> Result<(), FmuError> {
     let end = t0 + dt_s;
     let mut t = t0;
+    // RK4's two middle stages share a time, and its last is the step's end: each is set once.
+    let mut t_set = f64::NAN;
     // Sub-steps: the whole step, or up to a time event inside it and then the rest.
     while t < end {
         let time_event = c.next_event_s.filter(|&te| te <= end && te > t);
         let to = time_event.unwrap_or(end);
         // The whole step is `dt_s` itself: `(t0 + dt) - t0` is not `dt` in floating point.
         let h = if to == end && t == t0 { dt_s } else { to - t };
-        c.rk4.step(&mut c.x, t, h, |ts, x, dx| rhs(i, label, ts, x, dx))?;
-        FmiModelExchange::set_time(i, to).map_err(|e| failed(label, "setTime", to, e))?;
+        c.rk4.step(&mut c.x, t, h, |ts, x, dx| rhs(i, label, ts, x, dx, &mut t_set))?;
+        if t_set != to {
+            FmiModelExchange::set_time(i, to).map_err(|e| failed(label, "setTime", to, e))?;
+            t_set = to;
+        }
         FmiModelExchange::set_continuous_states(i, &c.x).map_err(|e| failed(label, "setContinuousStates", to, e))?;
         let (mut step_event, mut terminate) = (false, false);
         FmiModelExchange::completed_integrator_step(i, true, &mut step_event, &mut terminate)

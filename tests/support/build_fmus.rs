@@ -14,6 +14,7 @@ pub const FMUS: &[(&str, &str, &str, u8)] = &[
     ("aircraft", "FMI3.xml", "aircraft_fmi3", 3),
     ("pitch_controller", "FMI2.xml", "pitch_controller", 2),
     ("ewma_detector", "FMI2.xml", "ewma_detector", 2),
+    ("aircraft_actuated", "FMI2.xml", "aircraft_actuated", 2),
 ];
 
 /// Builds every FMU of [`FMUS`] from the sources under `root/fmus` into `out/<name>.fmu`.
