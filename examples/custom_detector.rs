@@ -96,6 +96,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         stop: None,
         sensitivity: None,
         command_line: std::env::args().collect(),
+        fmu_processes: false,
     };
     let run = fdimc::methods::detection_filter::run_study(&study, &opts)?;
     println!("{} trials x {:?} -> {}", run.manifest.trials, run.manifest.detectors, out_dir.display());

@@ -2942,3 +2942,70 @@ fn an_fmu_allowed_one_instance_per_process_runs_on_one_thread_with_the_same_reco
     );
     assert!(a.equals_missing(&b), "the one-thread run's records differ");
 }
+
+#[test]
+fn an_fmu_that_crashes_its_process_fails_only_its_trials_in_worker_processes() {
+    let fmus = bundled_fmus();
+    let dir = tempfile::tempdir().unwrap();
+    let base = std::fs::read_to_string("studies/fmu_aircraft.toml")
+        .unwrap()
+        .replace("fmu = \"fmus/aircraft.fmu\"", &format!("fmu = {:?}", fmus.join("aircraft.fmu")));
+    // Half the trials tell the aircraft to abort() the process at 12 s (abort_at_s 30 - 18); the twin
+    // deck has the same draws make it return an error there instead (fail_at_s), in process.
+    let deck = |hook: &str| {
+        // The pitch-stiffness error held at 0: listed values are drawn as a grid in trial order, and
+        // 24 trials would not reach the crash error's second value behind its five.
+        let mut text = base
+            .replace("h0_m = 1000.0 }", &format!("h0_m = 1000.0, {hook} = 30.0 }}"))
+            .replace("relative = { values = [-0.2, -0.1, 0.0, 0.1, 0.2] }", "relative = { values = [0.0] }");
+        text.push_str(&format!(
+            "\n[[monte_carlo.parameter_error]]\nname = \"crash\"\nmodel = \"plant\"\nfmu_parameters = [\"{hook}\"]\n\
+             absolute = {{ values = [0.0, -18.0] }}\n"
+        ));
+        let path = dir.path().join(format!("{hook}.toml"));
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let (aborting, failing) = (deck("abort_at_s"), deck("fail_at_s"));
+    let run = |deck: &Path, out: &str, extra: &[&str]| {
+        let out = dir.path().join(out);
+        let mut args = vec!["run", deck.to_str().unwrap(), "--trials", "24", "--threads", "2", "--quiet", "--out"];
+        args.push(out.to_str().unwrap());
+        args.extend_from_slice(extra);
+        let o = fdimc(&args);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        read_frame(&out.join("trials.parquet"))
+    };
+    let crashed = run(&aborting, "crashed", &["--fmu-processes"]);
+    let errored = run(&failing, "errored", &[]);
+    assert_eq!(crashed.height(), 3 * 24);
+    let failure = crashed.column("failure").unwrap().str().unwrap().clone();
+    let failed: Vec<usize> = (0..crashed.height()).filter(|&i| failure.get(i).is_some()).collect();
+    assert!(failed.len() >= 3 * 6 && failed.len() <= 3 * 18, "{} of {} rows failed", failed.len(), crashed.height());
+    for &i in &failed {
+        let why = failure.get(i).unwrap();
+        assert!(why.contains("the worker process died while flying trial") && why.contains("SIGABRT"), "{why}");
+    }
+    // Exactly the trials whose FMU was told to stop failed, and every other record is the one the
+    // in-process run of the twin deck wrote.
+    let other = errored.column("failure").unwrap().str().unwrap().clone();
+    let failed_twin: Vec<usize> = (0..errored.height()).filter(|&i| other.get(i).is_some()).collect();
+    assert_eq!(failed, failed_twin);
+    let flown = |df: &polars::prelude::DataFrame| df.drop("failure").unwrap();
+    assert!(flown(&crashed).equals_missing(&flown(&errored)), "the records of the trials that flew differ");
+
+    // Without an FMU there is nothing to isolate.
+    let out = fdimc(
+        &["run", "studies/fmu_aircraft_lti.toml", "--trials", "8", "--fmu-processes", "--out"]
+            .iter()
+            .copied()
+            .chain([dir.path().join("lti").to_str().unwrap()])
+            .collect::<Vec<_>>(),
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("--fmu-processes: studies/fmu_aircraft_lti.toml runs no FMU"),
+        "{}",
+        text(&out.stderr)
+    );
+}

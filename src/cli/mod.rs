@@ -175,6 +175,16 @@ It prints the factors before it runs. Shards, --resume and `fdimc merge` work as
         #[arg(long, value_name = "THRESHOLDS_CSV")]
         thresholds: Option<PathBuf>,
     },
+    /// (Internal) `run --fmu-processes`' worker: flies a detection-filter deck's trials as its parent
+    /// asks on stdin, answering on stdout.
+    #[command(hide = true)]
+    FmuWorker {
+        deck: PathBuf,
+        #[arg(long)]
+        seed: u64,
+        #[arg(long)]
+        trials: u64,
+    },
     /// Join the results folders of all shards of one run into one, then summarize.
     Merge {
         /// Shard results folders (any order).
@@ -303,6 +313,11 @@ pub struct RunFolder {
     /// if interrupted; continue later with --resume.
     #[arg(long, value_name = "N")]
     pub stop_after: Option<u64>,
+    /// Fly each thread's trials in a worker process of its own (detection-filter decks with FMUs):
+    /// an FMU that crashes the process then fails only the trial it was flying, recorded as failed
+    /// with how the process died, and the run goes on. The records are otherwise the same.
+    #[arg(long)]
+    pub fmu_processes: bool,
 }
 
 /// An error the CLI reports, with its exit code.
@@ -438,6 +453,9 @@ pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
             commands.exec_summarize(&dir, target_pfa, target_pfa_per_hour, confidence, thresholds.as_deref())
         }
         Command::Merge { dirs, out, force } => commands.exec_merge(&dirs, &out, force),
+        Command::FmuWorker { deck, seed, trials } => {
+            crate::methods::detection_filter::workers::serve(&deck, seed, trials).map_err(CliError::from)
+        }
         Command::Report { dir, trials } => commands.exec_report(&dir, &trials),
         Command::Log { file, topic, instance } => run::exec_log(&file, topic.as_deref(), instance),
         Command::Fmu { file } => fmu::exec_fmu(&file),

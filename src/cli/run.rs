@@ -184,6 +184,9 @@ impl Kinds {
             }
             *study.seed_and_trials().1 = n;
         }
+        if f.fmu_processes {
+            method::require(self.0, method, Opt::FmuProcesses)?;
+        }
         let sub = a.sensitivity.is_some().then_some("sensitivity");
         let (out_dir, shard, auto) = place(&f.place, study.as_mut(), sub)?;
         let design = match &a.sensitivity {
@@ -232,6 +235,7 @@ impl Kinds {
             },
             sensitivity: design,
             command_line: std::env::args().collect(),
+            fmu_processes: f.fmu_processes,
         };
         let report = study.run(&opts, Inputs { classifiers: a.classifiers, quiet: f.quiet })?;
         let m = &report.manifest;
@@ -456,6 +460,7 @@ impl Kinds {
                     force: true,
                     quiet: true,
                     stop_after: None,
+                    fmu_processes: false,
                 },
                 classifiers: None,
                 precision: None,

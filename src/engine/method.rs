@@ -122,6 +122,8 @@ pub enum Opt {
     RareEvent,
     /// `fdimc sensitivity`: the kind's trials can be drawn from a sensitivity design.
     Sensitivity,
+    /// `run --fmu-processes`: the kind can fly its trials in worker processes (its decks run FMUs).
+    FmuProcesses,
 }
 
 impl Opt {
@@ -133,6 +135,7 @@ impl Opt {
             Opt::Design => "fdimc design",
             Opt::RareEvent => "fdimc rare-event",
             Opt::Sensitivity => "fdimc sensitivity",
+            Opt::FmuProcesses => "--fmu-processes",
         }
     }
 }

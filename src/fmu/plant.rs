@@ -7,7 +7,6 @@ use std::path::Path;
 use std::sync::{Arc, Weak};
 
 use super::{Causality, Fmu, FmuError, Instance, Interface, ValueType};
-use crate::engine::scenario::deck::{DeckError, Validator};
 
 /// A mapped FMU plant: what every trial starts from.
 #[derive(Debug, Clone)]
@@ -67,17 +66,6 @@ impl FmuPlant {
             )));
         }
         Ok(Self::map(Arc::new(fmu), prefix, m))
-    }
-
-    /// A deck's FMU (`file` relative to the deck's folder), opened and mapped; errors name `prefix`'s
-    /// fields of the deck.
-    pub fn from_deck(chk: &Validator, prefix: &str, file: &str, mapping: &PlantMapping) -> Result<FmuPlant, DeckError> {
-        let path = chk.file.parent().unwrap_or(Path::new(".")).join(file);
-        match FmuPlant::open(&path, prefix, mapping) {
-            Err(e) => Err(chk.err(format!("{prefix}.fmu"), e.to_string())),
-            Ok(Err((field, message))) => Err(chk.err(field, message)),
-            Ok(Ok(plant)) => Ok(plant),
-        }
     }
 
     fn map(fmu: Arc<Fmu>, prefix: &str, m: &PlantMapping) -> Result<FmuPlant, MappingError> {

@@ -436,6 +436,9 @@ pub struct RunOptions {
     /// The design of a sensitivity study, recorded in the manifest (the study draws its trials from it).
     pub sensitivity: Option<crate::engine::scenario::design::Design>,
     pub command_line: Vec<String>,
+    /// Fly the trials in worker processes, one per thread (`run --fmu-processes`), so that an FMU
+    /// that crashes its process fails only the trial it was flying.
+    pub fmu_processes: bool,
 }
 
 /// What decides, chunk by chunk in trial order, that a run has enough trials (the summary's

@@ -237,6 +237,22 @@ pub struct Validator<'a> {
 }
 
 impl Validator<'_> {
+    /// A deck's FMU (`file` relative to the deck's folder), opened and mapped as `mapping` says;
+    /// errors name `prefix`'s fields (`truth.fmu`, the mapping's own fields).
+    pub fn fmu(
+        &self,
+        prefix: &str,
+        file: &str,
+        mapping: &crate::fmu::plant::PlantMapping,
+    ) -> Result<crate::fmu::plant::FmuPlant, DeckError> {
+        let path = self.file.parent().unwrap_or(Path::new(".")).join(file);
+        match crate::fmu::plant::FmuPlant::open(&path, prefix, mapping) {
+            Err(e) => Err(self.err(format!("{prefix}.fmu"), e.to_string())),
+            Ok(Err((field, message))) => Err(self.err(field, message)),
+            Ok(Ok(plant)) => Ok(plant),
+        }
+    }
+
     pub fn err(&self, field: impl Into<String>, message: impl Into<String>) -> DeckError {
         DeckError::Invalid { file: self.file.into(), field: field.into(), message: message.into() }
     }

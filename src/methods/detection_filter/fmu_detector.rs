@@ -315,7 +315,7 @@ pub(crate) fn read(r: &DetectorDeck) -> Result<DetectionFilterParams, DeckError>
         stop_s: header.duration_s,
         dt_s: header.dt_s,
     };
-    let mut fmu = FmuPlant::from_deck(chk, &format!("detector[{i}]"), file, &mapping)?;
+    let mut fmu = chk.fmu(&format!("detector[{i}]"), file, &mapping)?;
     // Its statistic is read as it is, not as a deviation from its value at the start.
     fmu.output_trim.iter_mut().for_each(|v| *v = 0.0);
     let described = &fmu.fmu;

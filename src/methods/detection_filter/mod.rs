@@ -18,6 +18,7 @@ pub mod scenario;
 pub mod study;
 pub mod trial;
 pub mod trials;
+pub mod workers;
 
 use polars::prelude::*;
 
@@ -111,14 +112,34 @@ pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunEr
             _ => {}
         }
     }
-    // An FMU that may be instantiated only once per process gets one worker thread: one instance.
+    let workers = match opts.fmu_processes {
+        false => None,
+        true if study.fmus().is_empty() => {
+            return Err(RunError::Invalid(format!(
+                "--fmu-processes: {} runs no FMU (it isolates FMU crashes in worker processes)",
+                opts.deck.display()
+            )));
+        }
+        true if opts.sensitivity.is_some() => {
+            return Err(RunError::Invalid("--fmu-processes: not with a sensitivity design (not yet)".into()));
+        }
+        true => Some(workers::WorkerSpec {
+            executable: std::env::current_exe()
+                .map_err(|e| RunError::Internal(format!("--fmu-processes: where is this program? {e}")))?,
+            deck: opts.deck.clone(),
+            seed: study.header.seed,
+            trials: study.monte_carlo.common.trials,
+        }),
+    };
+    // An FMU that may be instantiated only once per process gets one worker thread: one instance
+    // (in worker processes, each process has its own).
     let once = study
         .fmus()
         .into_iter()
         .find(|p| p.fmu.description.interface(p.interface).is_some_and(|i| i.only_one_instance_per_process));
     let one_thread;
     let opts = match once {
-        Some(p) if opts.threads != Some(1) => {
+        Some(p) if opts.threads != Some(1) && workers.is_none() => {
             if opts.progress {
                 eprintln!(
                     "note: {} may be instantiated only once per process (canBeInstantiatedOnlyOncePerProcess): \
@@ -131,13 +152,15 @@ pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunEr
         }
         _ => opts,
     };
-    run(&LtiTrials { study, engine }, opts)
+    run(&LtiTrials { study, engine, workers }, opts)
 }
 
 /// Method 000's trials: 8 at a time in SIMD lanes (when every test is built in).
 struct LtiTrials<'a> {
     study: &'a LtiStudy,
     engine: Engine<'a>,
+    /// `run --fmu-processes`: the trials are flown in worker processes.
+    workers: Option<workers::WorkerSpec>,
 }
 
 impl TrialSource for LtiTrials<'_> {
@@ -167,7 +190,10 @@ impl TrialSource for LtiTrials<'_> {
         }
     }
     fn simulate(&self, first: u64, end: u64) -> Vec<TrialResult> {
-        self.engine.run_group(first, end)
+        match &self.workers {
+            Some(w) => w.run_group(&self.engine, first, end),
+            None => self.engine.run_group(first, end),
+        }
     }
     fn frame(&self, results: &[TrialResult]) -> PolarsResult<DataFrame> {
         let mut builder = RecordBuilder::new(self.study, results.len() * self.study.detectors.len());

@@ -21,7 +21,7 @@ use crate::lti::LtiPlant;
 
 /// The options this kind takes beyond the common ones (its `Method::options`): said here, where its deck
 /// rules read them (`monte_carlo.target_pfa` with [`Opt::Thresholds`]).
-pub const OPTIONS: &[Opt] = &[Opt::Thresholds, Opt::Design, Opt::RareEvent, Opt::Sensitivity];
+pub const OPTIONS: &[Opt] = &[Opt::Thresholds, Opt::Design, Opt::RareEvent, Opt::Sensitivity, Opt::FmuProcesses];
 
 /// The shape of an excitation signal on one input.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -426,7 +426,7 @@ fn fmu_truth(
         stop_s: header.duration_s,
         dt_s: header.dt_s,
     };
-    FmuPlant::from_deck(chk, "truth", &t.fmu, &mapping)
+    chk.fmu("truth", &t.fmu, &mapping)
 }
 
 /// `[controller] fmu`: a co-simulation FMU closing the loop on absolute values (trims added back).
@@ -483,7 +483,7 @@ fn controller_fmu(
         stop_s: header.duration_s,
         dt_s: header.dt_s,
     };
-    let mut fmu = FmuPlant::from_deck(chk, "controller", file, &mapping)?;
+    let mut fmu = chk.fmu("controller", file, &mapping)?;
     // The controller's outputs are the plant's absolute inputs, not deviations from its own trim.
     fmu.output_trim.iter_mut().for_each(|v| *v = 0.0);
     let plant_input_trim = (0..plant.n_inputs()).map(input_trim).collect();

@@ -33,6 +33,9 @@ pub enum TrialFailure {
     /// the trial fails with it.
     #[error(transparent)]
     Fmu(FmuFailure),
+    /// A failure as a worker process reported it, or the worker's own death (`run --fmu-processes`).
+    #[error("{0}")]
+    Reported(String),
 }
 
 pub struct Engine<'a> {
@@ -97,6 +100,11 @@ impl<'a> Engine<'a> {
 
     pub fn spec(&self, trial: u64) -> TrialSpec {
         self.sampler.spec(trial)
+    }
+
+    /// The detector configurations every trial flies.
+    pub fn detectors(&self) -> usize {
+        self.study.detectors.len()
     }
 
     /// `base` with the trial's parameter errors on `target` applied.

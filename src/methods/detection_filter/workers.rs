@@ -1,0 +1,309 @@
+//! `run --fmu-processes`: each worker thread's trials flown in a child process of its own (the hidden
+//! `fdimc fmu-worker`), so that an FMU whose own code crashes the process (an abort, a segmentation
+//! fault) fails only the trial it was flying. That trial is recorded as failed with how the process
+//! died, a fresh child flies the rest, and the run goes on. A trial is a function of the deck, the
+//! seed and its index, so a child computes what the thread would have: the records are the same.
+//!
+//! One line each way per request: the parent writes `first end`; the child answers one line per trial
+//! as it finishes it (so a crash loses only the trial in flight): per detector `O` and its outcome, or
+//! `E` and its failure message (hex UTF-8); every f64 as its bit pattern, so nothing is rounded.
+
+use std::cell::RefCell;
+use std::fmt::Write as _;
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
+
+use super::study::LtiStudy;
+use super::trial::DetectorOutcome;
+use super::trials::{Engine, TrialFailure, TrialResult};
+use crate::engine::method::Study;
+use crate::engine::run::runner::RunError;
+use crate::engine::scenario::deck::FromDeck;
+
+/// What a child needs to build the parent's study: the deck, and the run's seed and trial count.
+#[derive(Debug, Clone, PartialEq)]
+pub struct WorkerSpec {
+    pub executable: PathBuf,
+    pub deck: PathBuf,
+    pub seed: u64,
+    pub trials: u64,
+}
+
+struct Worker {
+    spec: WorkerSpec,
+    child: Child,
+    stdin: ChildStdin,
+    stdout: BufReader<ChildStdout>,
+}
+
+thread_local! {
+    /// This thread's child, for the study it was started for.
+    static WORKER: RefCell<Option<Worker>> = const { RefCell::new(None) };
+}
+
+impl WorkerSpec {
+    /// Trials `first..end` flown by this thread's child; a trial whose child dies is failed with why.
+    pub fn run_group(&self, engine: &Engine, first: u64, end: u64) -> Vec<TrialResult> {
+        let mut out = Vec::with_capacity((end - first) as usize);
+        while first + (out.len() as u64) < end {
+            let next = first + out.len() as u64;
+            if let Err(why) = self.fly(engine, next, end, &mut out) {
+                let t = first + out.len() as u64;
+                let failure = TrialFailure::Reported(why);
+                out.push(TrialResult { spec: engine.spec(t), detectors: vec![Err(failure); engine.detectors()] });
+            }
+        }
+        out
+    }
+
+    /// Asks the child for `next..end` and appends what it answers; `Err`: the child died (or could
+    /// not start) before answering trial `next + answered`, and why.
+    fn fly(&self, engine: &Engine, next: u64, end: u64, out: &mut Vec<TrialResult>) -> Result<(), String> {
+        WORKER.with(|w| {
+            let mut w = w.borrow_mut();
+            if w.as_ref().is_none_or(|w| w.spec != *self) {
+                *w = None; // a child of another study: dropped, its stdin closes, it exits
+                *w = Some(self.spawn()?);
+            }
+            let worker = w.as_mut().expect("started above");
+            let asked = writeln!(worker.stdin, "{next} {end}").and_then(|()| worker.stdin.flush());
+            for t in next..end {
+                let mut line = String::new();
+                let read = match asked {
+                    Ok(()) => worker.stdout.read_line(&mut line).map_err(|e| e.to_string()),
+                    Err(ref e) => Err(e.to_string()),
+                };
+                let answer = match read {
+                    Ok(n) if n > 0 => decode_trial(&line, engine.detectors())
+                        .ok_or_else(|| format!("the worker process answered trial {t} unreadably: {line:?}")),
+                    Ok(_) | Err(_) => Err(died(worker, t)),
+                };
+                match answer {
+                    Ok(detectors) => out.push(TrialResult { spec: engine.spec(t), detectors }),
+                    Err(why) => {
+                        let _ = worker.child.kill();
+                        let _ = worker.child.wait();
+                        *w = None;
+                        return Err(why);
+                    }
+                }
+            }
+            Ok(())
+        })
+    }
+
+    fn spawn(&self) -> Result<Worker, String> {
+        let mut command = Command::new(&self.executable);
+        command
+            .arg("fmu-worker")
+            .arg(&self.deck)
+            .args(["--seed", &self.seed.to_string(), "--trials", &self.trials.to_string()])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit());
+        #[cfg(unix)]
+        {
+            use std::os::unix::process::CommandExt;
+            // A crashing FMU is expected here: no core file in the user's folder.
+            // SAFETY: setrlimit is async-signal-safe and touches no memory of the parent.
+            unsafe {
+                command.pre_exec(|| {
+                    let none = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
+                    libc::setrlimit(libc::RLIMIT_CORE, &none);
+                    Ok(())
+                });
+            }
+        }
+        let mut child = command
+            .spawn()
+            .map_err(|e| format!("cannot start a worker process ({}): {e}", self.executable.display()))?;
+        let stdin = child.stdin.take().expect("piped");
+        let stdout = BufReader::new(child.stdout.take().expect("piped"));
+        Ok(Worker { spec: self.clone(), child, stdin, stdout })
+    }
+}
+
+/// How the child died while flying trial `t`.
+fn died(worker: &mut Worker, t: u64) -> String {
+    let status = worker.child.wait().map_or_else(|e| format!("status unknown: {e}"), |s| s.to_string());
+    format!("the worker process died while flying trial {t} ({status}): an FMU crashed the process")
+}
+
+/// `fdimc fmu-worker DECK --seed S --trials N`: answers `first end` requests on stdin until it closes.
+pub fn serve(deck: &Path, seed: u64, trials: u64) -> Result<(), RunError> {
+    let mut study = LtiStudy::load(deck).map_err(|e| RunError::Invalid(e.to_string()))?;
+    let (s, n) = study.seed_and_trials();
+    (*s, *n) = (seed, trials);
+    let engine = Engine::new(&study);
+    let stdin = std::io::stdin();
+    let mut stdout = std::io::stdout().lock();
+    let io = |e: std::io::Error| RunError::Internal(format!("fmu-worker: {e}"));
+    for request in stdin.lock().lines() {
+        let request = request.map_err(io)?;
+        let mut words = request.split_ascii_whitespace().map(str::parse::<u64>);
+        let (Some(Ok(first)), Some(Ok(end)), None) = (words.next(), words.next(), words.next()) else {
+            return Err(RunError::Internal(format!("fmu-worker: not a request: {request:?}")));
+        };
+        for t in first..end {
+            let line = encode_trial(&engine.run(t).detectors);
+            // One line per trial, flushed: what a crash loses is the trial in flight.
+            stdout.write_all(line.as_bytes()).and_then(|()| stdout.flush()).map_err(io)?;
+        }
+    }
+    Ok(())
+}
+
+fn encode_trial(detectors: &[Result<DetectorOutcome, TrialFailure>]) -> String {
+    let mut s = String::new();
+    for d in detectors {
+        match d {
+            Ok(o) => {
+                s.push_str("O ");
+                encode_outcome(o, &mut s);
+            }
+            Err(e) => {
+                s.push_str("E ");
+                let text = e.to_string();
+                let hex: String = text.bytes().map(|b| format!("{b:02x}")).collect();
+                s.push_str(if hex.is_empty() { "-" } else { &hex });
+                s.push(' ');
+            }
+        }
+    }
+    s.push('\n');
+    s
+}
+
+fn encode_outcome(o: &DetectorOutcome, s: &mut String) {
+    let f = |s: &mut String, v: f64| {
+        let _ = write!(s, "{:x} ", v.to_bits());
+    };
+    let vec = |s: &mut String, v: &[f64]| {
+        let _ = write!(s, "{} ", v.len());
+        v.iter().for_each(|&x| f(s, x));
+    };
+    let alarm = |s: &mut String, a: Option<(f64, usize)>| match a {
+        Some((t, j)) => {
+            f(s, t);
+            let _ = write!(s, "{j} ");
+        }
+        None => s.push_str("- "),
+    };
+    let index = |s: &mut String, i: Option<usize>| match i {
+        Some(j) => {
+            let _ = write!(s, "{j} ");
+        }
+        None => s.push_str("- "),
+    };
+    vec(s, &o.pre_onset_max_abs_residual);
+    let _ = write!(s, "{} ", o.profile_t_s.len());
+    o.profile_t_s.iter().chain(&o.profile_value).for_each(|p| vec(s, p));
+    alarm(s, o.false_alarm);
+    alarm(s, o.detection);
+    index(s, o.isolated_by_max);
+    index(s, o.isolated_by_direction);
+    match o.diverged_at_s {
+        Some(t) => f(s, t),
+        None => s.push_str("- "),
+    }
+}
+
+/// The detectors' results of one trial line, or `None` if it is not one.
+fn decode_trial(line: &str, detectors: usize) -> Option<Vec<Result<DetectorOutcome, TrialFailure>>> {
+    let mut w = line.split_ascii_whitespace();
+    let mut out = Vec::with_capacity(detectors);
+    for _ in 0..detectors {
+        match w.next()? {
+            "O" => out.push(Ok(decode_outcome(&mut w)?)),
+            "E" => {
+                let hex = w.next()?;
+                let bytes: Option<Vec<u8>> = if hex == "-" {
+                    Some(Vec::new())
+                } else {
+                    (0..hex.len())
+                        .step_by(2)
+                        .map(|i| hex.get(i..i + 2).and_then(|b| u8::from_str_radix(b, 16).ok()))
+                        .collect()
+                };
+                out.push(Err(TrialFailure::Reported(String::from_utf8(bytes?).ok()?)));
+            }
+            _ => return None,
+        }
+    }
+    w.next().is_none().then_some(out)
+}
+
+fn decode_outcome<'a>(w: &mut impl Iterator<Item = &'a str>) -> Option<DetectorOutcome> {
+    let mut r = Tokens(w.peekable());
+    let pre_onset_max_abs_residual = r.vec()?;
+    let outputs = r.count()?;
+    let profile_t_s = (0..outputs).map(|_| r.vec()).collect::<Option<Vec<_>>>()?;
+    let profile_value = (0..outputs).map(|_| r.vec()).collect::<Option<Vec<_>>>()?;
+    Some(DetectorOutcome {
+        pre_onset_max_abs_residual,
+        profile_t_s,
+        profile_value,
+        false_alarm: if r.none() { None } else { Some((r.f64()?, r.count()?)) },
+        detection: if r.none() { None } else { Some((r.f64()?, r.count()?)) },
+        isolated_by_max: if r.none() { None } else { Some(r.count()?) },
+        isolated_by_direction: if r.none() { None } else { Some(r.count()?) },
+        diverged_at_s: if r.none() { None } else { Some(r.f64()?) },
+    })
+}
+
+/// The tokens of an outcome, read in [`encode_outcome`]'s order.
+struct Tokens<I: Iterator>(std::iter::Peekable<I>);
+
+impl<'a, I: Iterator<Item = &'a str>> Tokens<I> {
+    fn f64(&mut self) -> Option<f64> {
+        u64::from_str_radix(self.0.next()?, 16).ok().map(f64::from_bits)
+    }
+
+    fn count(&mut self) -> Option<usize> {
+        self.0.next()?.parse().ok()
+    }
+
+    fn vec(&mut self) -> Option<Vec<f64>> {
+        let n = self.count()?;
+        (0..n).map(|_| self.f64()).collect()
+    }
+
+    /// Takes a `-` (nothing) if it is next.
+    fn none(&mut self) -> bool {
+        self.0.next_if_eq(&"-").is_some()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_outcome_and_a_failure_cross_the_pipe_unchanged() {
+        let outcome = DetectorOutcome {
+            pre_onset_max_abs_residual: vec![0.1, f64::NAN, -0.0],
+            profile_t_s: vec![vec![5.0, 5.01], vec![], vec![7.5]],
+            profile_value: vec![vec![1e-300, f64::INFINITY], vec![], vec![0.3]],
+            false_alarm: Some((1.23, 2)),
+            detection: None,
+            isolated_by_max: Some(1),
+            isolated_by_direction: None,
+            diverged_at_s: Some(19.99),
+        };
+        let failure = TrialFailure::Reported("the FMU truth failed: x.fmu: ü at t = 1 s".into());
+        let line = encode_trial(&[Ok(outcome.clone()), Err(failure.clone())]);
+        let back = decode_trial(&line, 2).unwrap();
+        let got = back[0].as_ref().unwrap();
+        // Bit for bit, NaN and the sign of zero included.
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&got.pre_onset_max_abs_residual), bits(&outcome.pre_onset_max_abs_residual));
+        assert_eq!((&got.profile_t_s, &got.profile_value), (&outcome.profile_t_s, &outcome.profile_value));
+        assert_eq!((got.false_alarm, got.detection, got.diverged_at_s), (Some((1.23, 2)), None, Some(19.99)));
+        assert_eq!((got.isolated_by_max, got.isolated_by_direction), (Some(1), None));
+        assert_eq!(back[1].as_ref().unwrap_err().to_string(), failure.to_string());
+        // A truncated line (a child that died mid-write) is not taken for an answer.
+        assert!(decode_trial(&line[..line.len() / 2], 2).is_none());
+        assert!(decode_trial(&line, 3).is_none());
+    }
+}
