@@ -3009,3 +3009,60 @@ fn an_fmu_that_crashes_its_process_fails_only_its_trials_in_worker_processes() {
         text(&out.stderr)
     );
 }
+
+#[test]
+fn the_engine_solves_the_trim_on_the_fmu_and_prints_its_residual() {
+    let fmus = bundled_fmus();
+    let dir = tempfile::tempdir().unwrap();
+    // Start the trim away from level flight; the engine finds fmus/README.md's trim (Newton in Python).
+    let deck = std::fs::read_to_string("studies/fmu_aircraft.toml")
+        .unwrap()
+        .replace("fmu = \"fmus/aircraft.fmu\"", &format!("fmu = {:?}", fmus.join("aircraft.fmu")))
+        .replace("trim_inputs = [0.459166130340, 0.0211591440454]", "trim_inputs = [0.6, 0.0]")
+        .replace("alpha0_rad = 0.0443566119725", "alpha0_rad = 0.02")
+        .replace("theta0_rad = 0.0443566119725", "theta0_rad = 0.1")
+        .replace(
+            "linearise = true\n",
+            "linearise = true\n\n[truth.trim]\nfree = [\"throttle\", \"elevator_rad\", \"alpha0_rad\", \"theta0_rad\"]\n\
+             zero = [\"der(V_m_s)\", \"der(alpha_rad)\", \"der(q_rad_s)\", \"der(h_m)\"]\n",
+        );
+    assert!(deck.contains("[truth.trim]") && deck.contains("[0.6, 0.0]"));
+    let path = dir.path().join("trim.toml");
+    std::fs::write(&path, &deck).unwrap();
+    let out = ok(&fdimc(&["validate", path.to_str().unwrap()]));
+    let line = out.lines().find(|l| l.contains("trim solved in")).unwrap_or_else(|| panic!("{out}"));
+    let value = |name: &str| -> f64 {
+        let at = line.find(&format!("{name} ")).unwrap_or_else(|| panic!("{name}: {line}")) + name.len() + 1;
+        line[at..].split([',', ';']).next().unwrap().trim().parse().unwrap()
+    };
+    for (name, want) in [
+        ("throttle", 0.459166130340),
+        ("elevator_rad", 0.0211591440454),
+        ("alpha0_rad", 0.0443566119725),
+        ("theta0_rad", 0.0443566119725),
+    ] {
+        assert!((value(name) - want).abs() < 1e-10, "{name}: {} vs {want}\n{line}", value(name));
+    }
+    // The linear model is then the one at the true trim: the trim's derivatives vanish.
+    let design = ok(&fdimc(&["design", path.to_str().unwrap()]));
+    let largest = design.lines().find(|l| l.contains("the trim's state derivatives")).unwrap();
+    let worst: f64 = largest.rsplit("largest ").next().unwrap().trim().parse().unwrap();
+    assert!(worst < 1e-9, "{largest}");
+
+    for (from, to, field, says) in [
+        ("\"der(h_m)\"]", "]", "truth.trim.zero", "3 variables for 4 free values"),
+        (
+            "free = [\"throttle\"",
+            "free = [\"thrust\"",
+            "truth.trim.free[0]",
+            "aircraft.fmu has no such Real variable \"thrust\"",
+        ),
+        ("\"der(h_m)\"]", "\"h_m\"]", "truth.trim", "the trim's Jacobian is singular"),
+    ] {
+        std::fs::write(&path, deck.replace(from, to)).unwrap();
+        let out = fdimc(&["validate", path.to_str().unwrap()]);
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(&format!("{field}: ")) && err.contains(says), "{field}: {err}");
+    }
+}

@@ -289,3 +289,39 @@ fn the_linearisation_at_trim_equals_the_analytic_jacobian_within_1e_6() {
     // The short period is there: A's pitch-moment entry M_alpha (per rad) is strongly negative.
     assert!(lin.a[(2, 1)] < -8.0, "{}", lin.a);
 }
+
+#[test]
+fn a_co_simulation_only_fmu_is_trimmed_as_its_model_exchange_twin() {
+    // The trim only sets values before initialisation and reads derivatives after it: the
+    // co-simulation-only export (as Simulink makes them) trims to the same point as model exchange.
+    let mut found = Vec::new();
+    for (name, interface) in [("aircraft", Interface::ModelExchange), ("aircraft_cs", Interface::CoSimulation)] {
+        let fmu = open(name);
+        let v = |n: &str| fmu.description.variable(n).unwrap().value_reference;
+        let fixed = [(v("V0_m_s"), 53.6), (v("q0_rad_s"), 0.0), (v("h0_m"), 1000.0)];
+        let free = [(v("throttle"), 0.6), (v("elevator_rad"), 0.0), (v("alpha0_rad"), 0.02), (v("theta0_rad"), 0.1)];
+        let zero = [v("der(V_m_s)"), v("der(alpha_rad)"), v("der(q_rad_s)"), v("der(h_m)")];
+        let problem = fdimc::fmu::trim::TrimProblem {
+            interface,
+            fixed: &fixed,
+            free: &free,
+            zero: &zero,
+            stop_s: 10.0,
+            tolerance: 1e-11,
+        };
+        let trim = fdimc::fmu::trim::solve(&fmu, &problem).unwrap();
+        assert!(trim.residual.iter().all(|r| r.abs() <= 1e-11), "{name}: {:?}", trim.residual);
+        assert!(trim.steps >= 2, "{name}: from a guess this far the trim takes Newton steps");
+        found.push(trim.values);
+    }
+    // fmus/README.md's trim (Newton in Python), and the two interfaces agree.
+    let want = [0.459166130340, 0.0211591440454, 0.0443566119725, 0.0443566119725];
+    for values in &found {
+        for (got, want) in values.iter().zip(want) {
+            assert!((got - want).abs() < 1e-10, "{got} vs {want}");
+        }
+    }
+    for (a, b) in found[0].iter().zip(&found[1]) {
+        assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+    }
+}

@@ -13,6 +13,7 @@ pub mod instance;
 pub mod integrator;
 pub mod messages;
 pub mod plant;
+pub mod trim;
 
 use std::io::Read;
 use std::path::{Path, PathBuf};

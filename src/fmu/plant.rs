@@ -329,7 +329,7 @@ pub struct Linearisation {
 
 /// The central-difference step of a variable at `v`: `RELATIVE_STEP * max(|v|, 1)`. Truncation error
 /// O(h^2) and rounding O(eps / h) are both near 1e-10 relative for smooth models at this step.
-const RELATIVE_STEP: f64 = 1e-6;
+pub(super) const RELATIVE_STEP: f64 = 1e-6;
 
 impl FmuPlant {
     /// The linearisation at the trim (the deck's parameters and trim inputs) by central differences on

@@ -31,6 +31,17 @@ fn print_truth(study: &LtiStudy) {
         &t.fmu.sha256[..16],
         t.interface.name()
     );
+    if let Some(s) = &study.trim {
+        let pairs = |names: &[String], v: &[f64]| {
+            names.iter().zip(v).map(|(n, x)| format!("{n} {x}")).collect::<Vec<_>>().join(", ")
+        };
+        println!(
+            "            trim solved in {} Newton steps: {}; residual {}",
+            s.trim.steps,
+            pairs(&s.free, &s.trim.values),
+            s.zero.iter().zip(&s.trim.residual).map(|(n, x)| format!("{n} {x:.3e}")).collect::<Vec<_>>().join(", ")
+        );
+    }
     println!("            trim inputs [{}], outputs at the trim [{}]", nums(&t.input_trim), nums(&t.output_trim));
     println!(
         "            [plant] is {}",

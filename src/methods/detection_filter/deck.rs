@@ -60,6 +60,18 @@ pub struct TruthSection {
     /// `[plant]`'s a, b, c, d from the FMU's linearisation at the trim (model exchange) instead of the deck.
     #[serde(default)]
     pub linearise: bool,
+    /// `[truth.trim]`: the trim solved on the FMU instead of given.
+    pub trim: Option<TrimSection>,
+}
+
+/// The FMU inputs and parameters the engine adjusts (from their deck values) until the variables
+/// `zero` are zero after initialisation.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrimSection {
+    pub free: Vec<String>,
+    pub zero: Vec<String>,
+    pub tolerance: Option<f64>,
 }
 
 /// The model the detector is designed on and runs, when it differs from the true plant.

@@ -98,8 +98,18 @@ pub struct LtiStudy {
     pub truth: Option<FmuPlant>,
     /// `[truth] linearise = true`: the FMU's linearisation `plant` was made from.
     pub linearisation: Option<Linearisation>,
+    /// `[truth.trim]`: the trim solved on the FMU.
+    pub trim: Option<SolvedTrim>,
     /// `[controller] fmu`: a controller FMU closes the loop instead of `output_feedback`.
     pub controller_fmu: Option<ControllerFmu>,
+}
+
+/// A trim solved on the FMU (`[truth.trim]`): the free inputs and parameters, the variables made zero.
+#[derive(Debug, Clone)]
+pub struct SolvedTrim {
+    pub free: Vec<String>,
+    pub zero: Vec<String>,
+    pub trim: crate::fmu::trim::Trim,
 }
 
 /// A controller FMU and where its signals come from and go: its inputs are the measured outputs
@@ -186,6 +196,10 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
     let truth = match &deck.truth {
         Some(t) => Some(fmu_truth(chk, t, &p.inputs, &p.outputs, &header)?),
         None => None,
+    };
+    let (truth, trim) = match truth {
+        Some((plant, trim)) => (Some(plant), trim),
+        None => (None, None),
     };
     let linearisation = match (&deck.truth, &truth) {
         (Some(t), Some(fmu)) if t.linearise => {
@@ -378,6 +392,7 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
         monte_carlo,
         truth,
         linearisation,
+        trim,
         controller_fmu,
     })
 }
@@ -389,7 +404,7 @@ fn fmu_truth(
     inputs: &[String],
     outputs: &[String],
     header: &StudyHeader,
-) -> Result<FmuPlant, DeckError> {
+) -> Result<(FmuPlant, Option<SolvedTrim>), DeckError> {
     let interface = crate::fmu::Interface::from_name(&t.interface).ok_or_else(|| {
         chk.not_allowed("truth.interface", &t.interface, &[("model_exchange", ""), ("co_simulation", "")])
     })?;
@@ -413,7 +428,12 @@ fn fmu_truth(
     for (name, v) in &t.parameters {
         chk.finite(&format!("truth.parameters.{name}"), *v)?;
     }
-    let parameters: Vec<(String, f64)> = t.parameters.iter().map(|(k, v)| (k.clone(), *v)).collect();
+    let mut parameters: Vec<(String, f64)> = t.parameters.iter().map(|(k, v)| (k.clone(), *v)).collect();
+    let mut trim_inputs = t.trim_inputs.clone();
+    let trim = match &t.trim {
+        Some(ts) => Some(solve_trim(chk, t, ts, interface, &mut parameters, &mut trim_inputs, header)?),
+        None => None,
+    };
     let fields = |list: &str, len: usize| (0..len).map(|k| format!("truth.{list}[{k}]")).collect::<Vec<_>>();
     let mapping = PlantMapping {
         interface,
@@ -422,11 +442,110 @@ fn fmu_truth(
         outputs: &t.outputs,
         output_fields: &fields("outputs", t.outputs.len()),
         parameters: &parameters,
-        input_trim: &t.trim_inputs,
+        input_trim: &trim_inputs,
         stop_s: header.duration_s,
         dt_s: header.dt_s,
     };
-    chk.fmu("truth", &t.fmu, &mapping)
+    Ok((chk.fmu("truth", &t.fmu, &mapping)?, trim))
+}
+
+/// `[truth.trim]`: solves the trim on the FMU and writes the solved values into the trial's
+/// `parameters` and `trim_inputs`.
+fn solve_trim(
+    chk: &Validator,
+    t: &TruthSection,
+    ts: &super::deck::TrimSection,
+    interface: crate::fmu::Interface,
+    parameters: &mut Vec<(String, f64)>,
+    trim_inputs: &mut [f64],
+    header: &StudyHeader,
+) -> Result<SolvedTrim, DeckError> {
+    use crate::fmu::{Causality, ValueType};
+    let tolerance = match ts.tolerance {
+        Some(v) => chk.positive("truth.trim.tolerance", v)?,
+        None => 1e-10,
+    };
+    if ts.free.is_empty() || ts.free.len() != ts.zero.len() {
+        return Err(chk.err(
+            "truth.trim.zero",
+            format!(
+                "{} variables for {} free values: as many variables made zero as inputs and parameters left free, at least one",
+                ts.zero.len(),
+                ts.free.len()
+            ),
+        ));
+    }
+    let path = chk.file.parent().unwrap_or(Path::new(".")).join(&t.fmu);
+    let fmu = crate::fmu::Fmu::open(&path).map_err(|e| chk.err("truth.fmu", e.to_string()))?;
+    let d = &fmu.description;
+    let real = |field: String, name: &str, causality: &[Causality]| -> Result<u32, DeckError> {
+        match d.variable(name) {
+            Some(v) if v.value_type == ValueType::Real && causality.contains(&v.causality) => Ok(v.value_reference),
+            _ => Err(chk.err(
+                field,
+                format!(
+                    "{} has no such Real variable {name:?}; allowed: {}",
+                    fmu.file_name(),
+                    d.names_of(causality).join(", ")
+                ),
+            )),
+        }
+    };
+    // Fixed: every parameter and every trim input that is not free.
+    let mut fixed = Vec::new();
+    for (name, v) in parameters.iter() {
+        if !ts.free.contains(name) {
+            fixed.push((real(format!("truth.parameters.{name}"), name, &[Causality::Parameter])?, *v));
+        }
+    }
+    for (name, v) in t.inputs.iter().zip(trim_inputs.iter()) {
+        if !ts.free.contains(name) {
+            fixed.push((real("truth.inputs".into(), name, &[Causality::Input])?, *v));
+        }
+    }
+    // Free: a mapped input starts at its trim_inputs value, a parameter at its deck or start value.
+    let mut free = Vec::new();
+    for (k, name) in ts.free.iter().enumerate() {
+        let field = format!("truth.trim.free[{k}]");
+        let vr = real(field.clone(), name, &[Causality::Input, Causality::Parameter])?;
+        let guess = match t.inputs.iter().position(|n| n == name) {
+            Some(j) => trim_inputs[j],
+            None => match parameters.iter().find(|(n, _)| n == name) {
+                Some((_, v)) => *v,
+                None => d.variable(name).and_then(|v| v.start_f64()).ok_or_else(|| {
+                    chk.err(&field, format!("{name:?} has no start value: give one in [truth] parameters"))
+                })?,
+            },
+        };
+        free.push((vr, guess));
+    }
+    let zero = ts
+        .zero
+        .iter()
+        .enumerate()
+        .map(|(k, name)| {
+            real(format!("truth.trim.zero[{k}]"), name, &[Causality::Local, Causality::Output, Causality::Parameter])
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let problem = crate::fmu::trim::TrimProblem {
+        interface,
+        fixed: &fixed,
+        free: &free,
+        zero: &zero,
+        stop_s: header.duration_s,
+        tolerance,
+    };
+    let solved = crate::fmu::trim::solve(&fmu, &problem).map_err(|e| chk.err("truth.trim", e.to_string()))?;
+    for (name, &v) in ts.free.iter().zip(&solved.values) {
+        match t.inputs.iter().position(|n| n == name) {
+            Some(j) => trim_inputs[j] = v,
+            None => match parameters.iter_mut().find(|(n, _)| n == name) {
+                Some(p) => p.1 = v,
+                None => parameters.push((name.clone(), v)),
+            },
+        }
+    }
+    Ok(SolvedTrim { free: ts.free.clone(), zero: ts.zero.clone(), trim: solved })
 }
 
 /// `[controller] fmu`: a co-simulation FMU closing the loop on absolute values (trims added back).
