@@ -3058,6 +3058,7 @@ fn the_engine_solves_the_trim_on_the_fmu_and_prints_its_residual() {
             "aircraft.fmu has no such Real variable \"thrust\"",
         ),
         ("\"der(h_m)\"]", "\"h_m\"]", "truth.trim", "the trim's Jacobian is singular"),
+        ("trim_inputs = [0.6, 0.0]", "trim_inputs = []", "truth.trim_inputs", "0 values for 2 inputs"),
     ] {
         std::fs::write(&path, deck.replace(from, to)).unwrap();
         let out = fdimc(&["validate", path.to_str().unwrap()]);

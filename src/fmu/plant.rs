@@ -123,7 +123,9 @@ impl FmuPlant {
         }
         for (k, (&u, name)) in m.input_trim.iter().zip(m.inputs).enumerate() {
             if let Some(why) = d.variable(name).and_then(|v| v.out_of_range(u)) {
-                return Err((format!("{prefix}.trim_inputs[{k}]"), format!("{name}: {why}")));
+                let field =
+                    if prefix == "truth" { format!("truth.trim_inputs[{k}]") } else { m.input_fields[k].clone() };
+                return Err((field, format!("{name}: {why}")));
             }
         }
         let mut plant = FmuPlant {

@@ -51,7 +51,8 @@ pub fn solve(fmu: &Fmu, p: &TrimProblem) -> Result<Trim, FmuError> {
         instance.get_real(p.zero, &mut f)?;
         Ok(f)
     };
-    let worst = |f: &[f64]| f.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    // NaN is the worst residual, never a small one (f64::max would drop it).
+    let worst = |f: &[f64]| f.iter().fold(0.0f64, |m, v| if v.is_nan() { f64::INFINITY } else { m.max(v.abs()) });
     let mut z: Vec<f64> = p.free.iter().map(|f| f.1).collect();
     let mut f = eval(&z)?;
     for steps in 0..=MAX_STEPS {

@@ -87,8 +87,8 @@ pub struct DesignModelSection {
 #[serde(deny_unknown_fields)]
 pub struct ControllerSection {
     pub output_feedback: Option<Vec<Vec<f64>>>,
-    /// A co-simulation FMU, relative to the deck's folder; it sees and drives absolute values (the
-    /// plant's outputs and inputs plus their trim).
+    /// A co-simulation FMU, relative to the deck's folder; it sees the measured outputs and drives the
+    /// inputs as absolute values (plus their trims), and sees the commands as deviations.
     pub fmu: Option<String>,
     /// Controller input = measured plant output (`{ controller_input = "plant_output" }`).
     #[serde(default)]

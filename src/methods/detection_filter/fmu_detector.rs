@@ -74,6 +74,7 @@ impl ResidualTest for FmuTest {
             read: vec![0.0; self.plant.output_vrs.len()],
             named: None,
             outputs,
+            label: self.plant.fmu.file_name(),
         })
     }
 
@@ -106,6 +107,8 @@ struct FmuTestState {
     read: Vec<f64>,
     named: Option<usize>,
     outputs: usize,
+    /// The FMU's file name, for a failure's message.
+    label: String,
 }
 
 impl FmuTestState {
@@ -123,6 +126,15 @@ impl FmuTestState {
         flight.advance(self.k as f64 * self.dt_s, self.dt_s)?;
         self.k += 1;
         flight.outputs(&mut self.read)?;
+        // A statistic that is not a number would never alarm: the trial fails instead of looking quiet.
+        if !self.read[0].is_finite() {
+            return Err(crate::fmu::FmuError::Failed(format!(
+                "{}: its statistic is {} after the step to t = {} s",
+                self.label,
+                self.read[0],
+                self.k as f64 * self.dt_s
+            )));
+        }
         let index = match self.channel {
             Channel::None => None,
             Channel::Real(vr) => {

@@ -123,13 +123,13 @@ pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunEr
         true if opts.sensitivity.is_some() => {
             return Err(RunError::Invalid("--fmu-processes: not with a sensitivity design (not yet)".into()));
         }
-        true => Some(workers::WorkerSpec {
-            executable: std::env::current_exe()
+        true => Some(workers::WorkerSpec::new(
+            std::env::current_exe()
                 .map_err(|e| RunError::Internal(format!("--fmu-processes: where is this program? {e}")))?,
-            deck: opts.deck.clone(),
-            seed: study.header.seed,
-            trials: study.monte_carlo.common.trials,
-        }),
+            &opts.deck,
+            study.header.seed,
+            study.monte_carlo.common.trials,
+        )?),
     };
     // An FMU that may be instantiated only once per process gets one worker thread: one instance
     // (in worker processes, each process has its own).

@@ -292,6 +292,13 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
             "output feedback with a non-zero plant.d is an algebraic loop (u depends on y, y on u): use d = 0 or no controller",
         ));
     }
+    // A linear truth measures y = C x + D r before the loop closes: with a controller FMU u is not r.
+    if controller_fmu.is_some() && truth.is_none() && plant.D.amax() > 0.0 {
+        return Err(chk.err(
+            "controller.fmu",
+            "a controller FMU on a linear truth with a non-zero plant.d is an algebraic loop (u depends on y, y on u): use d = 0",
+        ));
+    }
 
     let mut excitations = Vec::with_capacity(deck.excitation.len());
     for (i, e) in deck.excitation.iter().enumerate() {
@@ -430,6 +437,16 @@ fn fmu_truth(
     }
     let mut parameters: Vec<(String, f64)> = t.parameters.iter().map(|(k, v)| (k.clone(), *v)).collect();
     let mut trim_inputs = t.trim_inputs.clone();
+    if trim_inputs.len() != t.inputs.len() {
+        return Err(chk.err(
+            "truth.trim_inputs",
+            format!(
+                "{} values for {} inputs: one per input (a solved trim starts from them)",
+                trim_inputs.len(),
+                t.inputs.len()
+            ),
+        ));
+    }
     let trim = match &t.trim {
         Some(ts) => Some(solve_trim(chk, t, ts, interface, &mut parameters, &mut trim_inputs, header)?),
         None => None,
@@ -498,16 +515,19 @@ fn solve_trim(
             fixed.push((real(format!("truth.parameters.{name}"), name, &[Causality::Parameter])?, *v));
         }
     }
-    for (name, v) in t.inputs.iter().zip(trim_inputs.iter()) {
+    for (k, (name, v)) in t.inputs.iter().zip(trim_inputs.iter()).enumerate() {
         if !ts.free.contains(name) {
-            fixed.push((real("truth.inputs".into(), name, &[Causality::Input])?, *v));
+            fixed.push((real(format!("truth.inputs[{k}]"), name, &[Causality::Input])?, *v));
         }
     }
     // Free: a mapped input starts at its trim_inputs value, a parameter at its deck or start value.
     let mut free = Vec::new();
     for (k, name) in ts.free.iter().enumerate() {
         let field = format!("truth.trim.free[{k}]");
-        let vr = real(field.clone(), name, &[Causality::Input, Causality::Parameter])?;
+        // An input is free only if the deck maps it (it has a trim value); otherwise it is a parameter.
+        let causality: &[Causality] =
+            if t.inputs.contains(name) { &[Causality::Input] } else { &[Causality::Parameter] };
+        let vr = real(field.clone(), name, causality)?;
         let guess = match t.inputs.iter().position(|n| n == name) {
             Some(j) => trim_inputs[j],
             None => match parameters.iter().find(|(n, _)| n == name) {

@@ -213,9 +213,9 @@ pub fn run_trial(
         match controller.as_mut() {
             None => plant.close_loop(&mut plant_state, &y),
             Some((c, ctrl, inputs, outputs)) => {
-                // Its inputs (deviations; the FMU gets them plus their trims): the measured outputs,
-                // then the commands. Its outputs (absolute) drive their plant inputs, the others take
-                // their excitation.
+                // Its inputs: the measured outputs (the FMU gets them plus the output trims), then the
+                // commands (the excitation, no trim). Its outputs (absolute) drive their plant inputs,
+                // the others take their excitation.
                 let (r, u) = plant_state.reference_and_inputs_mut();
                 for (k, &j) in c.measured.iter().enumerate() {
                     inputs[k] = y[j];
@@ -268,8 +268,8 @@ pub fn run_trial(
     Ok(trackers.into_iter().zip(filters).map(|(tr, (design, _))| tr.finish(design)).collect())
 }
 
-/// An FMU of the trial returned an error: which one (`truth`, `controller`, `detector <index>`) and
-/// what it said. The trial fails, every detector with it.
+/// An FMU of the trial returned an error: which one (`truth`, `controller`, `detector`; the message
+/// names the FMU's file) and what it said. The trial fails, every detector with it.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error("the FMU {role} failed: {error}")]
 pub struct FmuFailure {

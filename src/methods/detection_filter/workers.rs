@@ -21,13 +21,31 @@ use crate::engine::method::Study;
 use crate::engine::run::runner::RunError;
 use crate::engine::scenario::deck::FromDeck;
 
-/// What a child needs to build the parent's study: the deck, and the run's seed and trial count.
+/// What a child needs to build the parent's study: the deck, and the run's seed and trial count. A
+/// child rebuilds the study from the deck file: a study changed in code after loading (a library
+/// caller's) is not what it flies.
 #[derive(Debug, Clone, PartialEq)]
 pub struct WorkerSpec {
     pub executable: PathBuf,
     pub deck: PathBuf,
     pub seed: u64,
     pub trials: u64,
+    /// SHA-256 of the deck file as the run read it; a child that reads another refuses to fly.
+    pub deck_sha256: String,
+}
+
+impl WorkerSpec {
+    /// The spec of a run of `deck` (its SHA-256 read now).
+    pub fn new(executable: PathBuf, deck: &Path, seed: u64, trials: u64) -> Result<Self, RunError> {
+        let deck_sha256 = deck_sha256(deck)?;
+        Ok(WorkerSpec { executable, deck: deck.to_path_buf(), seed, trials, deck_sha256 })
+    }
+}
+
+fn deck_sha256(deck: &Path) -> Result<String, RunError> {
+    use sha2::{Digest, Sha256};
+    let bytes = std::fs::read(deck).map_err(|e| RunError::Invalid(format!("{}: {e}", deck.display())))?;
+    Ok(Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect())
 }
 
 struct Worker {
@@ -37,9 +55,29 @@ struct Worker {
     stdout: BufReader<ChildStdout>,
 }
 
+impl Drop for Worker {
+    /// A worker holds nothing unsaved: it is stopped and reaped (no zombie stays behind).
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// This thread's child for the study it was started for, or why no child can fly that study (then
+/// every trial fails with it at once, instead of a process start per trial).
+enum Slot {
+    Empty,
+    Running(Worker),
+    Broken(WorkerSpec, String),
+}
+
 thread_local! {
-    /// This thread's child, for the study it was started for.
-    static WORKER: RefCell<Option<Worker>> = const { RefCell::new(None) };
+    static WORKER: RefCell<Slot> = const { RefCell::new(Slot::Empty) };
+}
+
+/// What a child says once it has built its study, for the parent to check it flies the same one.
+fn fingerprint(detectors: usize, seed: u64, trials: u64, deck_sha256: &str) -> String {
+    format!("READY {detectors} {seed} {trials} {deck_sha256}")
 }
 
 impl WorkerSpec {
@@ -62,29 +100,43 @@ impl WorkerSpec {
     fn fly(&self, engine: &Engine, next: u64, end: u64, out: &mut Vec<TrialResult>) -> Result<(), String> {
         WORKER.with(|w| {
             let mut w = w.borrow_mut();
-            if w.as_ref().is_none_or(|w| w.spec != *self) {
-                *w = None; // a child of another study: dropped, its stdin closes, it exits
-                *w = Some(self.spawn()?);
+            match &*w {
+                Slot::Running(worker) if worker.spec == *self => {}
+                Slot::Broken(spec, why) if spec == self => return Err(why.clone()),
+                _ => {
+                    *w = Slot::Empty; // a child of another study is stopped
+                    *w = match self.spawn(engine.detectors()) {
+                        Ok(worker) => Slot::Running(worker),
+                        Err(why) => {
+                            let why = format!("no worker process can fly this study: {why}");
+                            Slot::Broken(self.clone(), why.clone())
+                        }
+                    };
+                    if let Slot::Broken(_, why) = &*w {
+                        return Err(why.clone());
+                    }
+                }
             }
-            let worker = w.as_mut().expect("started above");
+            let Slot::Running(worker) = &mut *w else { unreachable!("running above") };
             let asked = writeln!(worker.stdin, "{next} {end}").and_then(|()| worker.stdin.flush());
             for t in next..end {
-                let mut line = String::new();
+                let mut line = Vec::new();
                 let read = match asked {
-                    Ok(()) => worker.stdout.read_line(&mut line).map_err(|e| e.to_string()),
+                    Ok(()) => worker.stdout.read_until(b'\n', &mut line).map_err(|e| e.to_string()),
                     Err(ref e) => Err(e.to_string()),
                 };
+                // Only a whole line is an answer: a child that died mid-write left a truncated one.
                 let answer = match read {
-                    Ok(n) if n > 0 => decode_trial(&line, engine.detectors())
-                        .ok_or_else(|| format!("the worker process answered trial {t} unreadably: {line:?}")),
+                    Ok(_) if line.ends_with(b"\n") => std::str::from_utf8(&line)
+                        .ok()
+                        .and_then(|l| decode_trial(l, engine.detectors()))
+                        .ok_or_else(|| format!("the worker process answered trial {t} unreadably")),
                     Ok(_) | Err(_) => Err(died(worker, t)),
                 };
                 match answer {
                     Ok(detectors) => out.push(TrialResult { spec: engine.spec(t), detectors }),
                     Err(why) => {
-                        let _ = worker.child.kill();
-                        let _ = worker.child.wait();
-                        *w = None;
+                        *w = Slot::Empty; // stopped and reaped
                         return Err(why);
                     }
                 }
@@ -93,7 +145,8 @@ impl WorkerSpec {
         })
     }
 
-    fn spawn(&self) -> Result<Worker, String> {
+    /// A started child that has built the study and said so with the parent's [`fingerprint`].
+    fn spawn(&self, detectors: usize) -> Result<Worker, String> {
         let mut command = Command::new(&self.executable);
         command
             .arg("fmu-worker")
@@ -120,24 +173,43 @@ impl WorkerSpec {
             .map_err(|e| format!("cannot start a worker process ({}): {e}", self.executable.display()))?;
         let stdin = child.stdin.take().expect("piped");
         let stdout = BufReader::new(child.stdout.take().expect("piped"));
-        Ok(Worker { spec: self.clone(), child, stdin, stdout })
+        let mut worker = Worker { spec: self.clone(), child, stdin, stdout };
+        let mut ready = String::new();
+        let _ = worker.stdout.read_line(&mut ready);
+        let want = fingerprint(detectors, self.seed, self.trials, &self.deck_sha256);
+        if ready.trim_end() != want {
+            let status = match worker.child.try_wait() {
+                Ok(Some(s)) => format!("it exited ({s}); its error is above"),
+                _ => format!(
+                    "it built another study ({:?}, not {want:?}): the deck changed since the run began?",
+                    ready.trim_end()
+                ),
+            };
+            return Err(format!("{}: {status}", self.deck.display()));
+        }
+        Ok(worker)
     }
 }
 
-/// How the child died while flying trial `t`.
+/// How the child died while flying trial `t` (stopped first, should it still be alive).
 fn died(worker: &mut Worker, t: u64) -> String {
+    let _ = worker.child.kill();
     let status = worker.child.wait().map_or_else(|e| format!("status unknown: {e}"), |s| s.to_string());
     format!("the worker process died while flying trial {t} ({status}): an FMU crashed the process")
 }
 
 /// `fdimc fmu-worker DECK --seed S --trials N`: answers `first end` requests on stdin until it closes.
 pub fn serve(deck: &Path, seed: u64, trials: u64) -> Result<(), RunError> {
+    // First: whatever the FMUs print while the study is built goes to stderr, not into the answers.
+    let mut stdout = protocol_channel()?;
     let mut study = LtiStudy::load(deck).map_err(|e| RunError::Invalid(e.to_string()))?;
     let (s, n) = study.seed_and_trials();
     (*s, *n) = (seed, trials);
     let engine = Engine::new(&study);
+    writeln!(stdout, "{}", fingerprint(engine.detectors(), seed, trials, &deck_sha256(deck)?))
+        .and_then(|()| stdout.flush())
+        .map_err(|e| RunError::Internal(format!("fmu-worker: {e}")))?;
     let stdin = std::io::stdin();
-    let mut stdout = std::io::stdout().lock();
     let io = |e: std::io::Error| RunError::Internal(format!("fmu-worker: {e}"));
     for request in stdin.lock().lines() {
         let request = request.map_err(io)?;
@@ -152,6 +224,29 @@ pub fn serve(deck: &Path, seed: u64, trials: u64) -> Result<(), RunError> {
         }
     }
     Ok(())
+}
+
+/// The pipe to the parent: the process's stdout as it started, with stdout itself then pointed at
+/// stderr, so that what an FMU prints cannot mix with the answers.
+fn protocol_channel() -> Result<std::fs::File, RunError> {
+    #[cfg(unix)]
+    {
+        use std::os::fd::FromRawFd;
+        std::io::stdout().flush().map_err(|e| RunError::Internal(format!("fmu-worker: {e}")))?;
+        // SAFETY: dup and dup2 on the standard descriptors, before any other thread exists; the
+        // duplicate is owned by the File alone.
+        unsafe {
+            let fd = libc::dup(1);
+            if fd < 0 || libc::dup2(2, 1) < 0 {
+                return Err(RunError::Internal("fmu-worker: cannot set up its pipe".into()));
+            }
+            Ok(std::fs::File::from_raw_fd(fd))
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        Err(RunError::Invalid("--fmu-processes: worker processes need a Unix system".into()))
+    }
 }
 
 fn encode_trial(detectors: &[Result<DetectorOutcome, TrialFailure>]) -> String {
