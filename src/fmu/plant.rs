@@ -215,8 +215,7 @@ impl Flight<'_> {
     /// The model's outputs: the FMU's mapped outputs minus their trim.
     pub fn outputs(&mut self, y: &mut [f64]) -> Result<(), FmuError> {
         let vrs = &self.plant.output_vrs;
-        let instance =
-            self.instance.as_mut().ok_or_else(|| FmuError::Failed("the FMU instance failed earlier".into()))?;
+        let instance = live(&mut self.instance)?;
         let r = instance.get_real(vrs, y);
         self.fail_on(r)?;
         for (v, t) in y.iter_mut().zip(&self.plant.output_trim) {
@@ -237,32 +236,28 @@ impl Flight<'_> {
             *x = trim + du;
         }
         let (vrs, inputs) = (&self.plant.input_vrs, &self.inputs);
-        let instance =
-            self.instance.as_mut().ok_or_else(|| FmuError::Failed("the FMU instance failed earlier".into()))?;
+        let instance = live(&mut self.instance)?;
         let r = instance.set_real(vrs, inputs);
         self.fail_on(r)
     }
 
     /// Real variables `vrs` beyond the mapped outputs, as they are now.
     pub fn reals(&mut self, vrs: &[u32], out: &mut [f64]) -> Result<(), FmuError> {
-        let instance =
-            self.instance.as_mut().ok_or_else(|| FmuError::Failed("the FMU instance failed earlier".into()))?;
+        let instance = live(&mut self.instance)?;
         let r = instance.get_real(vrs, out);
         self.fail_on(r)
     }
 
     /// Integer variables `vrs` (an isolated channel), as they are now.
     pub fn integers(&mut self, vrs: &[u32], out: &mut [i32]) -> Result<(), FmuError> {
-        let instance =
-            self.instance.as_mut().ok_or_else(|| FmuError::Failed("the FMU instance failed earlier".into()))?;
+        let instance = live(&mut self.instance)?;
         let r = instance.get_integer(vrs, out);
         self.fail_on(r)
     }
 
     /// Steps from `t_s` by `dt_s` with the inputs as set.
     pub fn advance(&mut self, t_s: f64, dt_s: f64) -> Result<(), FmuError> {
-        let instance =
-            self.instance.as_mut().ok_or_else(|| FmuError::Failed("the FMU instance failed earlier".into()))?;
+        let instance = live(&mut self.instance)?;
         let r = instance.step(t_s, dt_s);
         self.fail_on(r)
     }
@@ -273,6 +268,11 @@ impl Flight<'_> {
         }
         r
     }
+}
+
+/// The flight's instance, unless a failed call dropped it.
+fn live(instance: &mut Option<Instance>) -> Result<&mut Instance, FmuError> {
+    instance.as_mut().ok_or_else(|| FmuError::Failed("the FMU instance failed earlier".into()))
 }
 
 impl Drop for Flight<'_> {

@@ -50,6 +50,9 @@ pub struct Engine<'a> {
     /// Lane forms of the nominal models, built once when no parameter error changes them per trial.
     lane_plant: Option<LanePlant>,
     lane_filters: Vec<Option<LaneFilter>>,
+    /// Every detector's test is built in and no FMU flies: groups go on the lane path (decided once,
+    /// not per group).
+    on_lanes: bool,
 }
 
 /// A trial's design of one detector configuration: the nominal one when the design model is not
@@ -90,6 +93,7 @@ impl<'a> Engine<'a> {
             filter_patterns,
             lane_plant,
             lane_filters,
+            on_lanes: study.fmus().is_empty() && study.detectors.iter().all(|d| d.params.runs_on_lanes()),
         }
     }
 
@@ -211,11 +215,7 @@ impl<'a> Engine<'a> {
     /// Trials `first..end` (at most [`LANES`]): on the lane path when every detector's test is built
     /// in, else one at a time (a user's test is a trait object); the results are the same.
     pub fn run_group(&self, first: u64, end: u64) -> Vec<TrialResult> {
-        if self.study.fmus().is_empty() && self.study.detectors.iter().all(|d| d.params.runs_on_lanes()) {
-            self.run_lanes(first, end)
-        } else {
-            (first..end).map(|t| self.run(t)).collect()
-        }
+        if self.on_lanes { self.run_lanes(first, end) } else { (first..end).map(|t| self.run(t)).collect() }
     }
 
     /// Runs every detector configuration on trials `first..end` (at most [`LANES`]) together on the
