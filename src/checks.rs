@@ -1,7 +1,7 @@
 //! Checks of a scenario generator's numbers that name the offending parameter: the generators' own
 //! validation, beneath the decks' (which name the file and the TOML field).
 
-use crate::fault::SensorFault;
+use crate::fault::ChannelFault;
 
 /// A number or a sensor fault a generator cannot take.
 #[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
@@ -34,7 +34,7 @@ pub fn non_negative(field: &'static str, value: f64) -> Result<(), ValueError> {
 
 /// Every fault on one of `channels` sensors (described by `names`, e.g. "accelerometer channels are
 /// 0 (x), 1 (y), 2 (z)"), with a finite onset.
-pub fn sensor_faults(faults: &[SensorFault], channels: usize, names: &'static str) -> Result<(), ValueError> {
+pub fn sensor_faults(faults: &[ChannelFault], channels: usize, names: &'static str) -> Result<(), ValueError> {
     for (index, f) in faults.iter().enumerate() {
         if f.channel >= channels {
             return Err(ValueError::FaultChannel { index, channel: f.channel, channels: names });

@@ -3067,3 +3067,201 @@ fn the_engine_solves_the_trim_on_the_fmu_and_prints_its_residual() {
         assert!(err.contains(&format!("{field}: ")) && err.contains(says), "{field}: {err}");
     }
 }
+
+/// The fmu_aircraft decks (FMU truth and its LTI twin) without their sampled fault population, every
+/// trial faulty, the nominal airframe.
+fn actuator_decks() -> [(&'static str, String); 2] {
+    let population = "[[monte_carlo.fault]]\nkind = \"bias\"\nsize_sigma = { values = [3.0, 6.0, 10.0] }\n";
+    let stiffness = "relative = { values = [-0.2, -0.1, 0.0, 0.1, 0.2] }";
+    let edit = |deck: String| {
+        assert!(deck.contains(population) && deck.contains("fault_free_fraction = 0.3") && deck.contains(stiffness));
+        (deck.replace(population, "").replace("fault_free_fraction = 0.3", "fault_free_fraction = 0.0"))
+            .replace(stiffness, "relative = 0.0")
+    };
+    let fmu = std::fs::read_to_string("studies/fmu_aircraft.toml")
+        .unwrap()
+        .replace("fmu = \"fmus/aircraft.fmu\"", &format!("fmu = {:?}", bundled_fmus().join("aircraft.fmu")));
+    [("fmu", edit(fmu)), ("lti", edit(std::fs::read_to_string("studies/fmu_aircraft_lti.toml").unwrap()))]
+}
+
+fn f64_column(df: &polars::prelude::DataFrame, name: &str) -> Vec<f64> {
+    let c = df.column(name).unwrap().f64().unwrap().clone();
+    (0..df.height()).map(|i| c.get(i).unwrap_or(f64::NAN)).collect()
+}
+
+#[test]
+fn an_actuator_fault_reaches_the_plant_while_the_detectors_see_the_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_string()
+    };
+    let trace = |deck: &str, name: &str| {
+        let file = dir.path().join(name);
+        let out = fdimc(&["simulate", deck, "--trial", "3", "--out", file.to_str().unwrap()]);
+        (ok(&out), read_frame(&file))
+    };
+    // A 0.01 rad elevator bias from 6 s through the pitch loop, against the same command added to the
+    // reference (a step in the excitation): the plant gets the same input either way, so it flies the
+    // same trajectory; the detectors of the faulty deck see the command without the bias.
+    let bias = "\n[[faults]]\ninput = \"elevator_rad\"\nkind = \"bias\"\nsize = 0.01\nonset_s = 6.0\n";
+    let step = "[[excitation]]\ninput = \"elevator_rad\"\nshape = \"step\"\namplitude = 0.01\nstart_s = 6.0\n\n[noise]";
+    for (truth, deck) in actuator_decks() {
+        let faulty = write(&format!("{truth}_bias.toml"), &(deck.clone() + bias));
+        let twin = write(&format!("{truth}_twin.toml"), &deck.replace("[noise]", step));
+        let validated = ok(&fdimc(&["validate", &faulty]));
+        assert!(validated.contains("fault       elevator_rad actuator_bias 0.01 from 6 s"), "{validated}");
+        let (said, f) = trace(&faulty, &format!("{truth}_bias.parquet"));
+        assert!(said.contains("fault               elevator_rad actuator_bias size 0.01 from 6 s"), "{said}");
+        let (_, t) = trace(&twin, &format!("{truth}_twin.parquet"));
+        let time = f64_column(&f, "t_s");
+        for y in ["y_v_m_s", "y_alpha_rad", "y_q_rad_s", "y_theta_rad", "y_gamma_rad", "y_h_m"] {
+            let (a, b) = (f64_column(&f, y), f64_column(&t, y));
+            let worst = a.iter().zip(&b).map(|(a, b)| (a - b).abs() / (1.0 + b.abs())).fold(0.0, f64::max);
+            assert!(worst < 1e-9, "{truth} {y}: the plant flew differently ({worst})");
+        }
+        let (command, reference) = (f64_column(&f, "u_elevator_rad"), f64_column(&t, "u_elevator_rad"));
+        for k in 0..time.len() {
+            let seen = reference[k] - command[k];
+            let want = if time[k] >= 6.0 { 0.01 } else { 0.0 };
+            assert!((seen - want).abs() < 1e-9, "{truth} at {} s: the detectors saw {seen} of the bias", time[k]);
+        }
+        // The faulty deck's residual shows the fault; the twin's (whose filter knows the input) does not.
+        let after = |df: &polars::prelude::DataFrame| {
+            let r = f64_column(df, "r_q_rad_s");
+            (0..time.len()).filter(|&k| time[k] >= 6.0).map(|k| r[k].abs()).fold(0.0, f64::max)
+        };
+        let (seen, quiet) = (after(&f), after(&t));
+        assert!(seen > 3.0 * quiet, "{truth}: residual after the onset {seen} against {quiet} without the fault");
+    }
+}
+
+#[test]
+fn a_models_own_fault_input_is_a_fault_kind_and_actuator_populations_are_sampled_and_summarized() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_string()
+    };
+    let run = |deck: &str, out: &str, trials: &str| {
+        let out = dir.path().join(out);
+        let o = fdimc(&["run", deck, "--trials", trials, "--out", out.to_str().unwrap(), "--quiet"]);
+        assert!(o.status.success(), "{}", text(&o.stderr));
+        out
+    };
+    let [(_, deck), _] = actuator_decks();
+    let deck =
+        deck.replace("\nlinearise = true\n", "\nlinearise = true\nfault_inputs = [\"elevator_effectiveness\"]\n");
+    assert!(deck.contains("fault_inputs"));
+    // The aircraft's elevator effectiveness dropped to 0 (the model's own fault: the deflection times
+    // 0) and the elevator jammed at 0 rad absolute (its deviation -trim): the same airframe, the same
+    // commands, so the same records to the bit, but for the fault's labels.
+    let own = "\n[[faults]]\ninput = \"elevator_effectiveness\"\nkind = \"stuck\"\nsize = 0.0\nonset_s = 6.0\n";
+    let jam = "\n[[faults]]\ninput = \"elevator_rad\"\nkind = \"stuck\"\nsize = -0.0211591440454\nonset_s = 6.0\n";
+    let (a, b) = (
+        run(&write("own.toml", &(deck.clone() + own)), "own", "24"),
+        run(&write("jam.toml", &(deck.clone() + jam)), "jam", "24"),
+    );
+    let (a, b) = (read_frame(&a.join("trials.parquet")), read_frame(&b.join("trials.parquet")));
+    assert_eq!(a.height(), 3 * 24);
+    let labels = ["kind", "target", "size", "size_bin", "size_unit"];
+    let rest = |df: &polars::prelude::DataFrame| df.drop_many(labels);
+    assert!(rest(&a).equals_missing(&rest(&b)), "the two faults flew differently");
+    let target = a.column("target").unwrap().str().unwrap().clone();
+    assert_eq!(target.get(0), Some("elevator_effectiveness"));
+    assert_eq!(a.column("kind").unwrap().str().unwrap().get(0), Some("actuator_stuck"));
+    assert_eq!(a.column("size_unit").unwrap().str().unwrap().get(0), Some("input units"));
+    // The fault matters: with no elevator the pitch loop is open and the seed filter sees it.
+    let detected = a.column("detected").unwrap().bool().unwrap().clone();
+    assert!(detected.sum().unwrap_or(0) >= 12, "{} of 72 rows detected", detected.sum().unwrap_or(0));
+    // Nothing a detector names is an input: no isolation decision counts.
+    assert_eq!(a.column("isolated_correctly").unwrap().null_count(), a.height());
+
+    // Sampled: a sensor bias, an actuator bias on either input, a stuck effectiveness; every group in
+    // the summary with its own unit, and no isolation decided on the actuator groups.
+    let populations = "[[monte_carlo.fault]]\nkind = \"bias\"\nsize_sigma = 6.0\n\n\
+        [[monte_carlo.fault]]\nkind = \"bias\"\ninputs = [\"elevator_rad\", \"throttle\"]\nsize = 0.01\n\n\
+        [[monte_carlo.fault]]\nkind = \"stuck\"\ninputs = [\"elevator_effectiveness\"]\nsize = { range = [0.0, 0.5] }\n";
+    let sampled = write("sampled.toml", &(deck.clone() + "\n" + populations));
+    let out = run(&sampled, "sampled", "36");
+    let df = read_frame(&out.join("trials.parquet"));
+    assert_eq!(df.height(), 3 * 36);
+    let str_column = |name: &str| {
+        let c = df.column(name).unwrap().str().unwrap().clone();
+        (0..df.height()).map(|i| c.get(i).map(str::to_string)).collect::<Vec<_>>()
+    };
+    let (detector, kind, target) = (str_column("detector"), str_column("kind"), str_column("target"));
+    let count = |k: &str, t: Option<&str>| {
+        (0..df.height())
+            .filter(|&i| detector[i].as_deref() == Some("seed") && kind[i].as_deref() == Some(k))
+            .filter(|&i| t.is_none_or(|t| target[i].as_deref() == Some(t)))
+            .count()
+    };
+    // Every trial faulty; the kind is the fastest grid digit, so the three populations take turns.
+    assert_eq!((count("bias", None), count("actuator_bias", None), count("actuator_stuck", None)), (12, 12, 12));
+    assert!(count("actuator_bias", Some("elevator_rad")) >= 4 && count("actuator_bias", Some("throttle")) >= 4);
+    assert_eq!(count("actuator_stuck", Some("elevator_effectiveness")), 12);
+    let manifest = std::fs::read_to_string(out.join("manifest.json")).unwrap();
+    assert!(
+        manifest.contains("\"actuator_bias\": \"input units\"")
+            && manifest.contains("\"bias\": \"multiples of the sensor sigma\""),
+        "{manifest}"
+    );
+    ok(&fdimc(&["summarize", out.to_str().unwrap()]));
+    let summary = csv_frame(&out.join("summary.csv"));
+    let (skind, decided) = (
+        summary.column("kind").unwrap().str().unwrap().clone(),
+        summary.column("isolation_decided").unwrap().i64().unwrap().clone(),
+    );
+    let actuator_rows: Vec<usize> =
+        (0..summary.height()).filter(|&i| skind.get(i).is_some_and(|k| k.starts_with("actuator_"))).collect();
+    assert!(!actuator_rows.is_empty());
+    assert!(
+        actuator_rows.iter().all(|&i| decided.get(i) == Some(0)),
+        "an actuator group counted an isolation decision"
+    );
+
+    // Bad actuator faults: exit 2 naming the field and what is allowed.
+    let bad_fixed = |f: &str| deck.clone() + "\n[[faults]]\n" + f + "\nonset_s = 6.0\n";
+    for (bad, field, says) in [
+        (
+            bad_fixed("input = \"elevator_rad\"\nkind = \"total_failure\""),
+            "faults[0].kind",
+            "allowed \"stuck\", \"gain\", \"bias\", \"float\"",
+        ),
+        (
+            bad_fixed("output = \"q_rad_s\"\nkind = \"float\""),
+            "faults[0].kind",
+            "allowed \"stuck\", \"gain\", \"bias\", \"total_failure\"",
+        ),
+        (
+            bad_fixed("output = \"q_rad_s\"\ninput = \"elevator_rad\"\nkind = \"bias\"\nsize = 1.0"),
+            "faults[0].input",
+            "not both",
+        ),
+        (bad_fixed("input = \"rudder\"\nkind = \"float\""), "faults[0].input", "plant.inputs or truth.fault_inputs"),
+        (
+            deck.clone() + "\n[[monte_carlo.fault]]\nkind = \"bias\"\ninputs = [\"throttle\"]\nsize_sigma = 2.0\n",
+            "monte_carlo.fault[0].size_sigma",
+            "an actuator has no sensor sigma",
+        ),
+        (
+            deck.replace("fault_inputs = [\"elevator_effectiveness\"]", "fault_inputs = [\"elevator_rad\"]"),
+            "truth.fault_inputs[0]",
+            "is mapped to a model input",
+        ),
+        (
+            deck.replace("fault_inputs = [\"elevator_effectiveness\"]", "fault_inputs = [\"V0_m_s\"]"),
+            "truth.fault_inputs[0]",
+            "a fault input must be one of: elevator_rad, throttle, elevator_effectiveness",
+        ),
+    ] {
+        let path = write("bad.toml", &bad);
+        let o = fdimc(&["validate", &path]);
+        let err = text(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{field}: {err}");
+        assert!(err.contains(&format!("bad.toml: {field}")) && err.contains(says), "{field}: {err}");
+    }
+}

@@ -239,9 +239,9 @@ fn an_fmu_without_a_binary_for_this_platform_is_refused_with_what_it_has() {
 }
 
 #[test]
-fn the_linearisation_at_trim_equals_the_analytic_jacobian_within_1e_6() {
+fn the_linearisation_at_trim_equals_the_analytic_jacobian_within_1e_6_and_directional_derivatives_to_rounding() {
     use fdimc::dual::{Dual, value_and_jacobian};
-    use fdimc::fmu::plant::{FmuPlant, PlantMapping};
+    use fdimc::fmu::plant::{FmuPlant, Jacobian, PlantMapping};
     use nalgebra::SVector;
     // Level flight at 53.6 m/s (fmus/README.md): theta = alpha, q = 0.
     let (alpha, elevator, throttle) = (0.0443566119725, 0.0211591440454, 0.459166130340);
@@ -250,6 +250,7 @@ fn the_linearisation_at_trim_equals_the_analytic_jacobian_within_1e_6() {
         [("V0_m_s", 53.6), ("alpha0_rad", alpha), ("theta0_rad", alpha)].map(|(n, v)| (n.to_string(), v)).to_vec();
     let mapping = PlantMapping {
         interface: Interface::ModelExchange,
+        fault_inputs: &[],
         inputs: &names(&["elevator_rad", "throttle"]),
         input_fields: &names(&["truth.inputs[0]", "truth.inputs[1]"]),
         outputs: &names(&["q_rad_s", "gamma_rad"]),
@@ -261,7 +262,8 @@ fn the_linearisation_at_trim_equals_the_analytic_jacobian_within_1e_6() {
     };
     let plant = FmuPlant::open(&fmus().join("aircraft.fmu"), "truth", &mapping).unwrap().unwrap();
     assert_eq!(plant.output_trim, [0.0, 0.0]);
-    let lin = plant.linearise().unwrap();
+    let lin = plant.linearise_by(Jacobian::CentralDifferences).unwrap();
+    assert!(lin.method.starts_with("central differences"), "{}", lin.method);
     // Exact Jacobians of the same equations (dual numbers) over z = [x; elevator, throttle].
     let p = LongitudinalParams::default();
     let z = SVector::<f64, 7>::from_column_slice(&[53.6, alpha, 0.0, alpha, 1000.0, elevator, throttle]);
@@ -288,6 +290,25 @@ fn the_linearisation_at_trim_equals_the_analytic_jacobian_within_1e_6() {
     assert!(lin.d.amax() < 1e-9);
     // The short period is there: A's pitch-moment entry M_alpha (per rad) is strongly negative.
     assert!(lin.a[(2, 1)] < -8.0, "{}", lin.a);
+
+    // The FMU provides directional derivatives (fmus/aircraft/model.c differentiates its equations by
+    // hand): `linearise` takes them, and they are the dual numbers' Jacobian to rounding.
+    let exact = plant.linearise().unwrap();
+    assert!(exact.method.contains("directional derivatives"), "{}", exact.method);
+    let within = |got: f64, want: f64, what: String| {
+        assert!((got - want).abs() <= 1e-12 * want.abs().max(1.0), "{what}: {got} vs {want}");
+    };
+    for r in 0..5 {
+        for c in 0..5 {
+            within(exact.a[(r, c)], jac[(r, c)], format!("A[{r},{c}]"));
+        }
+        for c in 0..2 {
+            within(exact.b[(r, c)], jac[(r, 5 + c)], format!("B[{r},{c}]"));
+        }
+    }
+    assert_eq!(exact.c.row(0).iter().copied().collect::<Vec<_>>(), [0.0, 0.0, 1.0, 0.0, 0.0]);
+    assert_eq!(exact.c.row(1).iter().copied().collect::<Vec<_>>(), [0.0, -1.0, 0.0, 1.0, 0.0]);
+    assert_eq!(exact.d.amax(), 0.0);
 }
 
 #[test]

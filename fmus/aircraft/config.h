@@ -14,6 +14,7 @@
 #define MAX_CONTINUOUS_STATES 5
 
 #define SET_FLOAT64
+#define GET_PARTIAL_DERIVATIVE
 
 // forward Euler step of the framework's fixed-step co-simulation solver (cosimulation.c)
 #define FIXED_SOLVER_STEP 1e-3

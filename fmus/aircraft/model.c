@@ -132,6 +132,85 @@ Status calculateValues(ModelInstance *comp) {
 
 #define UPDATE_IF_DIRTY() do { if (comp->isDirtyValues) calculateValues(comp); } while (0)
 
+// Directional derivatives (fmi2GetDirectionalDerivative, FMI 3.0 likewise): the exact partial
+// derivative of a derivative or output with respect to a state or input, by forward-mode
+// differentiation of computeDerivatives() written out by hand (checked against dual numbers in
+// tests/fmu.rs).
+Status getPartialDerivative(ModelInstance *comp, ValueReference unknown, ValueReference known, double *partialDerivative) {
+    ASSERT_NOT_NULL2(comp);
+    ASSERT_NOT_NULL2(partialDerivative);
+
+    UPDATE_IF_DIRTY();
+
+    // The seed: 1 on the known variable, 0 elsewhere.
+    double dV = 0, dalpha = 0, dq = 0, dtheta = 0, dh = 0, delevator = 0, dthrottle = 0, deffectiveness = 0;
+    switch (known) {
+        case vr_V_m_s:                  dV = 1; break;
+        case vr_alpha_rad:              dalpha = 1; break;
+        case vr_q_rad_s:                dq = 1; break;
+        case vr_theta_rad:              dtheta = 1; break;
+        case vr_h_m:                    dh = 1; break;
+        case vr_elevator_rad:           delevator = 1; break;
+        case vr_throttle:               dthrottle = 1; break;
+        case vr_elevator_effectiveness: deffectiveness = 1; break;
+        default:
+            logError(comp, "aircraft: no partial derivative with respect to value reference %u (a state or an input).", known);
+            return Error;
+    }
+
+    const double V = M(V_m_s), alpha = M(alpha_rad), q = M(q_rad_s), theta = M(theta_rad);
+    const double m = M(m_kg), S = M(S_m2), cbar = M(cbar_m), g = M(g_m_s2);
+
+    const double qbar = 0.5 * M(rho_kg_m3) * V * V;
+    const double qhat = q * cbar / (2.0 * V);
+    const double de   = M(elevator_effectiveness) * M(elevator_rad);
+    const double CL = M(CL0) + M(CLa) * alpha - M(CLa3) * alpha * alpha * alpha + M(CLq) * qhat + M(CLde) * de;
+    const double CD = M(CD0) + M(k_induced) * CL * CL;
+    const double Cm = M(Cm0) + M(Cma) * alpha + M(Cma3) * alpha * alpha * alpha + M(Cmq) * qhat + M(Cmde) * de;
+    const double L_N = qbar * S * CL;
+    const double T_N = M(T_max_N) * M(throttle);
+    const double gamma = theta - alpha;
+
+    const double dqbar  = M(rho_kg_m3) * V * dV;
+    const double dqhat  = cbar / (2.0 * V) * dq - q * cbar / (2.0 * V * V) * dV;
+    const double dde    = M(elevator_effectiveness) * delevator + M(elevator_rad) * deffectiveness;
+    const double dCL    = (M(CLa) - 3.0 * M(CLa3) * alpha * alpha) * dalpha + M(CLq) * dqhat + M(CLde) * dde;
+    const double dCD    = 2.0 * M(k_induced) * CL * dCL;
+    const double dCm    = (M(Cma) + 3.0 * M(Cma3) * alpha * alpha) * dalpha + M(Cmq) * dqhat + M(Cmde) * dde;
+    const double dL     = dqbar * S * CL + qbar * S * dCL;
+    const double dD     = dqbar * S * CD + qbar * S * dCD;
+    const double dM     = S * cbar * (dqbar * Cm + qbar * dCm);
+    const double dT     = M(T_max_N) * dthrottle;
+    const double dgamma = dtheta - dalpha;
+
+    double d;
+    switch (unknown) {
+        case vr_der_V_m_s:
+            d = (dT * cos(alpha) - T_N * sin(alpha) * dalpha - dD) / m - g * cos(gamma) * dgamma;
+            break;
+        case vr_der_alpha_rad:
+            d = dq - (dT * sin(alpha) + T_N * cos(alpha) * dalpha + dL) / (m * V)
+                + (T_N * sin(alpha) + L_N) * dV / (m * V * V)
+                - g * sin(gamma) * dgamma / V - g * cos(gamma) * dV / (V * V);
+            break;
+        case vr_der_q_rad_s:    d = dM / M(Iyy_kg_m2); break;
+        case vr_der_theta_rad:  d = dq; break;
+        case vr_der_h_m:        d = dV * sin(gamma) + V * cos(gamma) * dgamma; break;
+        case vr_gamma_rad:      d = dgamma; break;
+        case vr_nz_g:           d = dL / (m * g); break;
+        case vr_V_m_s:          d = dV; break;
+        case vr_alpha_rad:      d = dalpha; break;
+        case vr_q_rad_s:        d = dq; break;
+        case vr_theta_rad:      d = dtheta; break;
+        case vr_h_m:            d = dh; break;
+        default:
+            logError(comp, "aircraft: no partial derivative of value reference %u (a derivative or an output).", unknown);
+            return Error;
+    }
+    *partialDerivative = d;
+    return OK;
+}
+
 Status getFloat64(ModelInstance* comp, ValueReference vr, double values[], size_t nValues, size_t* index) {
     ASSERT_NOT_NULL2(comp);
     ASSERT_NOT_NULL2(values);

@@ -1,16 +1,22 @@
-//! Sensor faults as decks write them: a fixed scenario (`[[faults]]`) and sampled populations
+//! Channel faults as decks write them: a fixed scenario (`[[faults]]`) and sampled populations
 //! (`[[monte_carlo.fault]]`), the same syntax in every deck with sensor faults (methods 000 and 002).
+//! A kind whose model has inputs that can fail (detection-filter decks) also takes actuator faults:
+//! `input = "..."` in `[[faults]]`, `inputs = [...]` in a population. Their records name the kind
+//! `actuator_<kind>` (so a sensor bias and an actuator bias are different rows, with their own units).
 
 use serde::Deserialize;
 
-use super::{FaultMode, SensorFault};
+use super::{ChannelFault, FaultMode};
 use crate::engine::results::schema::unit;
 use crate::engine::scenario::deck::{DeckError, Factor, FactorSpec, Validator};
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FaultSection {
-    pub output: String,
+    /// The faulty sensor's output, or
+    pub output: Option<String>,
+    /// the faulty actuator's input (kinds with actuator faults).
+    pub input: Option<String>,
     pub kind: String,
     pub onset_s: f64,
     pub size: Option<f64>,
@@ -24,6 +30,8 @@ pub struct FaultKindSection {
     pub size: Option<FactorSpec>,
     pub size_sigma: Option<FactorSpec>,
     pub frequency_hz: Option<f64>,
+    /// Actuator faults on one of these inputs (drawn per trial) instead of a sensor fault.
+    pub inputs: Option<Vec<String>>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -33,6 +41,8 @@ pub enum FaultKind {
     Gain,
     Bias,
     TotalFailure,
+    /// An actuator whose surface trails at its trim (inputs only).
+    Float,
     Drift,
     Oscillation {
         frequency_hz: f64,
@@ -46,18 +56,21 @@ impl FaultKind {
             FaultKind::Gain => "gain",
             FaultKind::Bias => "bias",
             FaultKind::TotalFailure => "total_failure",
+            FaultKind::Float => "float",
             FaultKind::Drift => "drift",
             FaultKind::Oscillation { .. } => "oscillation",
         }
     }
 
-    /// The fault with a given size (output units, or a factor for gain).
+    /// The fault with a given size (channel units, or a factor for gain; a stuck fault with a NaN size
+    /// holds the value at onset).
     pub fn mode(&self, size: f64) -> FaultMode {
         match *self {
-            FaultKind::Stuck => FaultMode::Stuck { value: None },
+            FaultKind::Stuck => FaultMode::Stuck { value: (!size.is_nan()).then_some(size) },
             FaultKind::Gain => FaultMode::Gain { factor: size },
             FaultKind::Bias => FaultMode::Bias { bias: size },
             FaultKind::TotalFailure => FaultMode::TotalFailure,
+            FaultKind::Float => FaultMode::Float,
             FaultKind::Drift => FaultMode::Drift { rate_per_s: size },
             FaultKind::Oscillation { frequency_hz } => FaultMode::Oscillation { amplitude: size, frequency_hz },
         }
@@ -94,9 +107,18 @@ impl SizeSpec {
 pub struct FaultKindSpec {
     pub kind: FaultKind,
     pub size: SizeSpec,
+    /// The inputs an actuator fault of this population may hit (indices of the deck's failing inputs);
+    /// empty: a sensor fault on one of `monte_carlo.outputs`.
+    pub inputs: Vec<usize>,
 }
 
 impl FaultKindSpec {
+    /// The `kind` of its records: the kind's name, `actuator_<kind>` for an actuator population.
+    pub fn record_kind(&self) -> &'static str {
+        let mode = self.kind.mode(f64::NAN);
+        if self.inputs.is_empty() { mode.name() } else { mode.actuator_name() }
+    }
+
     /// As `validate` prints it: `none`, `1 to 25 in 6 bins (multiples of the sensor sigma)`.
     pub fn size_text(&self) -> String {
         match &self.size {
@@ -110,7 +132,7 @@ impl FaultKindSpec {
         let mut bins = Default::default();
         for f in populations {
             if let SizeSpec::Output(x) | SizeSpec::SensorSigma(x) = &f.size {
-                x.add_bins_to(f.kind.name(), &mut bins);
+                x.add_bins_to(f.record_kind(), &mut bins);
             }
         }
         bins
@@ -122,6 +144,7 @@ impl FaultKindSpec {
             (SizeSpec::None, _) => unit::NONE,
             (SizeSpec::SensorSigma(_), _) => unit::SENSOR_SIGMA,
             (SizeSpec::Output(_), FaultKind::Gain) => unit::GAIN_FACTOR,
+            (SizeSpec::Output(_), _) if !self.inputs.is_empty() => unit::INPUT_UNITS,
             (SizeSpec::Output(_), _) => unit::OUTPUT_UNITS,
         }
     }
@@ -136,13 +159,15 @@ impl FaultKindSpec {
     }
 }
 
-/// One trial's sensor faults and how the tables label them (the core columns `kind`, `size`,
-/// `size_bin`, `size_unit`, `onset_s`), for kinds whose faults are [`SensorFault`]s.
+/// One trial's faults and how the tables label them (the core columns `kind`, `target`, `size`,
+/// `size_bin`, `size_unit`, `onset_s`), for kinds whose faults are [`ChannelFault`]s.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrialFaults {
-    /// The faults (empty: fault-free).
-    pub faults: Vec<SensorFault>,
-    /// Kind of the (first) fault, "none" when fault-free.
+    /// The sensor faults (channels: outputs).
+    pub faults: Vec<ChannelFault>,
+    /// The actuator faults (channels: the deck's failing inputs).
+    pub actuators: Vec<ChannelFault>,
+    /// Kind of the (first) fault as records name it, "none" when fault-free.
     pub kind: &'static str,
     /// The size as the deck gives it, in `size_unit` (the faults themselves are in their outputs'
     /// units); NaN when fault-free or for a kind without a size.
@@ -158,6 +183,7 @@ impl TrialFaults {
     pub fn none() -> Self {
         TrialFaults {
             faults: Vec::new(),
+            actuators: Vec::new(),
             kind: crate::engine::results::schema::col::NO_FAULT,
             size: f64::NAN,
             size_bin: f64::NAN,
@@ -166,8 +192,24 @@ impl TrialFaults {
         }
     }
 
-    /// `population`'s fault on each of `channels` from `onset_s`, its size drawn as `(size, size_bin)`
-    /// in the deck's unit; `sigma(j)`: channel `j`'s nominal sensor sigma.
+    /// No fault at all, sensor or actuator.
+    pub fn is_fault_free(&self) -> bool {
+        self.faults.is_empty() && self.actuators.is_empty()
+    }
+
+    /// The faulty channel the records name: the first sensor fault's output, else the first actuator
+    /// fault's input; `None` when fault-free.
+    pub fn target(&self) -> Option<FaultTarget> {
+        match (self.faults.first(), self.actuators.first()) {
+            (Some(f), _) => Some(FaultTarget::Output(f.channel)),
+            (None, Some(f)) => Some(FaultTarget::Input(f.channel)),
+            (None, None) => None,
+        }
+    }
+
+    /// `population`'s fault on each of `channels` (outputs, or inputs for an actuator population) from
+    /// `onset_s`, its size drawn as `(size, size_bin)` in the deck's unit; `sigma(j)`: output `j`'s
+    /// nominal sensor sigma.
     pub fn drawn(
         population: &FaultKindSpec,
         channels: &[usize],
@@ -177,11 +219,15 @@ impl TrialFaults {
     ) -> Self {
         let fault = |channel| {
             let mode = population.kind.mode(population.in_output_units(size, sigma(channel)));
-            SensorFault { channel, onset_s, mode }
+            ChannelFault { channel, onset_s, mode }
         };
+        let faults: Vec<ChannelFault> = channels.iter().map(|&j| fault(j)).collect();
+        let (faults, actuators) =
+            if population.inputs.is_empty() { (faults, Vec::new()) } else { (Vec::new(), faults) };
         TrialFaults {
-            faults: channels.iter().map(|&j| fault(j)).collect(),
-            kind: population.kind.name(),
+            faults,
+            actuators,
+            kind: population.record_kind(),
             size,
             size_bin,
             size_unit: population.size_unit(),
@@ -189,75 +235,129 @@ impl TrialFaults {
         }
     }
 
-    /// The deck's fixed faults (`[[faults]]`), labelled by the first; none when there are none.
-    pub fn fixed(faults: &[SensorFault]) -> Self {
-        let Some(first) = faults.first() else { return TrialFaults::none() };
+    /// The deck's fixed faults (`[[faults]]`) on sensors and actuators, labelled by the first sensor
+    /// fault (the first actuator fault without one); none when there are none.
+    pub fn fixed(sensors: &[ChannelFault], actuators: &[ChannelFault]) -> Self {
+        let (first, actuator) = match (sensors.first(), actuators.first()) {
+            (Some(f), _) => (f, false),
+            (None, Some(f)) => (f, true),
+            (None, None) => return TrialFaults::none(),
+        };
         TrialFaults {
-            faults: faults.to_vec(),
-            kind: first.mode.name(),
+            faults: sensors.to_vec(),
+            actuators: actuators.to_vec(),
+            kind: if actuator { first.mode.actuator_name() } else { first.mode.name() },
             size: first.mode.size(),
             size_bin: first.mode.size(),
-            size_unit: fixed_size_unit(&first.mode),
-            onset_s: faults.iter().map(|f| f.onset_s).fold(f64::INFINITY, f64::min),
+            size_unit: fixed_size_unit(&first.mode, actuator),
+            onset_s: sensors.iter().chain(actuators).map(|f| f.onset_s).fold(f64::INFINITY, f64::min),
         }
     }
 }
 
-/// The unit of a fixed (`[[faults]]`) fault's size: the output's own, a factor for gain.
-pub fn fixed_size_unit(mode: &FaultMode) -> &'static str {
+/// Which channel a trial's labelled fault is on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FaultTarget {
+    Output(usize),
+    /// Among the deck's failing inputs.
+    Input(usize),
+}
+
+/// The unit of a fixed (`[[faults]]`) fault's size: the channel's own, a factor for gain.
+pub fn fixed_size_unit(mode: &FaultMode, actuator: bool) -> &'static str {
     match mode {
         FaultMode::Gain { .. } => unit::GAIN_FACTOR,
         m if m.size().is_nan() => unit::NONE,
+        _ if actuator => unit::INPUT_UNITS,
         _ => unit::OUTPUT_UNITS,
     }
 }
 
+/// Whether a `[[faults]]` entry is on a sensor or an actuator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FaultSide {
+    Sensor,
+    Actuator,
+}
+
 impl Validator<'_> {
-    /// The `[[monte_carlo.fault]]` populations (the same syntax in every deck with sensor faults).
-    pub(crate) fn fault_kind_specs(&self, sections: &[FaultKindSection]) -> Result<Vec<FaultKindSpec>, DeckError> {
+    /// The `[[monte_carlo.fault]]` populations (the same syntax in every deck with sensor faults);
+    /// `inputs` names the inputs an actuator population may list (`[]`: the kind has no actuator
+    /// faults), `list` what they are in messages.
+    pub(crate) fn fault_kind_specs(
+        &self,
+        sections: &[FaultKindSection],
+        (inputs, list): (&[String], &str),
+    ) -> Result<Vec<FaultKindSpec>, DeckError> {
         (sections.iter().enumerate())
-            .map(|(i, f)| self.fault_kind_spec(&format!("monte_carlo.fault[{i}]"), f))
+            .map(|(i, f)| self.fault_kind_spec(&format!("monte_carlo.fault[{i}]"), f, (inputs, list)))
             .collect()
     }
 
-    fn fault_kind_spec(&self, prefix: &str, f: &FaultKindSection) -> Result<FaultKindSpec, DeckError> {
+    fn fault_kind_spec(
+        &self,
+        prefix: &str,
+        f: &FaultKindSection,
+        (names, list): (&[String], &str),
+    ) -> Result<FaultKindSpec, DeckError> {
         let field = |name: &str| format!("{prefix}.{name}");
         if f.frequency_hz.is_some() && f.kind != "oscillation" {
             return Err(self.err(field("frequency_hz"), format!("only used by kind \"oscillation\", not {:?}", f.kind)));
         }
+        let inputs = match &f.inputs {
+            None => Vec::new(),
+            Some(_) if names.is_empty() => {
+                return Err(self.err(field("inputs"), "this kind of study has no actuator faults: remove it"));
+            }
+            Some(given) if given.is_empty() => {
+                return Err(self.err(field("inputs"), format!("name at least one of {list}")));
+            }
+            Some(given) => (given.iter().enumerate())
+                .map(|(k, n)| self.index_of(&format!("{prefix}.inputs[{k}]"), n, names, list))
+                .collect::<Result<_, _>>()?,
+        };
+        let actuator = !inputs.is_empty();
         let kind = match f.kind.as_str() {
             "stuck" => FaultKind::Stuck,
             "gain" => FaultKind::Gain,
             "bias" => FaultKind::Bias,
-            "total_failure" => FaultKind::TotalFailure,
+            "total_failure" if !actuator => FaultKind::TotalFailure,
+            "float" if actuator => FaultKind::Float,
             "drift" => FaultKind::Drift,
             "oscillation" => match f.frequency_hz {
                 Some(v) => FaultKind::Oscillation { frequency_hz: self.positive(&field("frequency_hz"), v)? },
                 None => return Err(self.err(field("frequency_hz"), "required for kind \"oscillation\"")),
             },
             other => {
+                let last = if actuator { ("float", "the surface trails at its trim") } else { ("total_failure", "") };
                 let kinds = [
-                    ("stuck", "held at onset"),
+                    ("stuck", "held at onset, or at size"),
                     ("gain", ""),
                     ("bias", ""),
-                    ("total_failure", ""),
+                    last,
                     ("drift", ""),
                     ("oscillation", ""),
                 ];
                 return Err(self.not_allowed(field("kind"), other, &kinds));
             }
         };
-        let sized = !matches!(kind, FaultKind::Stuck | FaultKind::TotalFailure);
+        let sized = !matches!(kind, FaultKind::Stuck | FaultKind::TotalFailure | FaultKind::Float);
         let size =
             match (sized, &f.size, &f.size_sigma) {
                 (false, None, None) => SizeSpec::None,
+                // Stuck at a value: the value is its size (in the channel's units).
+                (false, Some(v), None) if kind == FaultKind::Stuck => {
+                    SizeSpec::Output(self.factor(&field("size"), Some(v), Factor::Fixed(0.0))?)
+                }
                 (false, _, _) => {
-                    return Err(
-                        self.err(field("size"), format!("kind {:?} has no size: remove size and size_sigma", f.kind))
-                    );
+                    let what = if kind == FaultKind::Stuck { "size (the value it is stuck at)" } else { "no size" };
+                    return Err(self.err(field("size"), format!("kind {:?} takes {what}: remove size_sigma", f.kind)));
                 }
                 (true, Some(_), Some(_)) => {
                     return Err(self.err(field("size_sigma"), "give size or size_sigma, not both"));
+                }
+                (true, None, None) if actuator => {
+                    return Err(self.err(field("size"), format!("kind {:?} needs size (input units)", f.kind)));
                 }
                 (true, None, None) => return Err(self.err(
                     field("size"),
@@ -271,6 +371,9 @@ impl Validator<'_> {
                     if kind == FaultKind::Gain {
                         return Err(self.err(field("size_sigma"), "a gain is a factor: use size"));
                     }
+                    if actuator {
+                        return Err(self.err(field("size_sigma"), "an actuator has no sensor sigma: use size"));
+                    }
                     SizeSpec::SensorSigma(self.factor(&field("size_sigma"), Some(v), Factor::Fixed(0.0))?)
                 }
             };
@@ -279,21 +382,41 @@ impl Validator<'_> {
         {
             self.factor_within(&field("size"), factor, |v| v != 1.0, "gain factors != 1")?;
         }
-        Ok(FaultKindSpec { kind, size })
+        Ok(FaultKindSpec { kind, size, inputs })
     }
 
-    /// `[[faults]][i]`: its output among `outputs` (named `list` in messages), an onset within the
-    /// trial (a fault after the end would never happen), a size its kind accepts.
+    /// `[[faults]][i]`: its output among `outputs` or its input among `inputs` (each `(names, what
+    /// they are in messages)`; no inputs: the kind has no actuator faults), an onset within the trial
+    /// (a fault after the end would never happen), a size its kind accepts.
     pub(crate) fn fault(
         &self,
         i: usize,
         f: &FaultSection,
-        outputs: &[String],
-        list: &str,
+        (outputs, list): (&[String], &str),
+        (inputs, input_list): (&[String], &str),
         duration_s: f64,
-    ) -> Result<SensorFault, DeckError> {
+    ) -> Result<(FaultSide, ChannelFault), DeckError> {
         let field = |name: &str| format!("faults[{i}].{name}");
-        let channel = self.index_of(&field("output"), &f.output, outputs, list)?;
+        let (side, channel) = match (&f.output, &f.input) {
+            (Some(o), None) => (FaultSide::Sensor, self.index_of(&field("output"), o, outputs, list)?),
+            (None, Some(_)) if inputs.is_empty() => {
+                return Err(self.err(field("input"), "this kind of study has no actuator faults: name an output"));
+            }
+            (None, Some(n)) => (FaultSide::Actuator, self.index_of(&field("input"), n, inputs, input_list)?),
+            (Some(_), Some(_)) => {
+                return Err(self.err(field("input"), "give output (a sensor) or input (an actuator), not both"));
+            }
+            (None, None) if inputs.is_empty() => {
+                return Err(self.err(field("output"), format!("required: one of {list}")));
+            }
+            (None, None) => {
+                return Err(self.err(
+                    field("output"),
+                    format!("required: output (a sensor, one of {list}) or input (an actuator, one of {input_list})"),
+                ));
+            }
+        };
+        let actuator = side == FaultSide::Actuator;
         let onset_s = self.finite(&field("onset_s"), f.onset_s)?;
         if !(0.0..duration_s).contains(&onset_s) {
             return Err(self.err(
@@ -325,7 +448,15 @@ impl Validator<'_> {
                 }
                 FaultMode::Bias { bias }
             }
-            "total_failure" => {
+            "float" if actuator => {
+                if size.is_some() {
+                    return Err(
+                        self.err(field("size"), "not used by kind \"float\" (the input trails at its trim): remove it")
+                    );
+                }
+                FaultMode::Float
+            }
+            "total_failure" if !actuator => {
                 if size.is_some() {
                     return Err(
                         self.err(field("size"), "not used by kind \"total_failure\" (the output is 0): remove it")
@@ -342,11 +473,12 @@ impl Validator<'_> {
                 FaultMode::Oscillation { amplitude: need_size()?, frequency_hz }
             }
             other => {
-                let kinds = ["stuck", "gain", "bias", "total_failure", "drift", "oscillation"].map(|k| (k, ""));
+                let last = if actuator { "float" } else { "total_failure" };
+                let kinds = ["stuck", "gain", "bias", last, "drift", "oscillation"].map(|k| (k, ""));
                 return Err(self.not_allowed(field("kind"), other, &kinds));
             }
         };
-        Ok(SensorFault { channel, onset_s, mode })
+        Ok((side, ChannelFault { channel, onset_s, mode }))
     }
 }
 
@@ -357,7 +489,8 @@ mod tests {
     #[test]
     fn trial_faults_label_drawn_and_fixed_faults() {
         // A bias of 3 sensor sigmas on channels 1 and 4, whose sigmas are 0.5 and 2.
-        let population = FaultKindSpec { kind: FaultKind::Bias, size: SizeSpec::SensorSigma(Factor::Fixed(3.0)) };
+        let population =
+            FaultKindSpec { kind: FaultKind::Bias, size: SizeSpec::SensorSigma(Factor::Fixed(3.0)), inputs: vec![] };
         let drawn = TrialFaults::drawn(&population, &[1, 4], (3.0, 2.5), 12.0, |j| if j == 1 { 0.5 } else { 2.0 });
         let biases: Vec<(usize, FaultMode)> = drawn.faults.iter().map(|f| (f.channel, f.mode)).collect();
         assert_eq!(biases, [(1, FaultMode::Bias { bias: 1.5 }), (4, FaultMode::Bias { bias: 6.0 })]);
@@ -365,14 +498,17 @@ mod tests {
         assert_eq!((drawn.kind, drawn.size, drawn.size_bin, drawn.size_unit), ("bias", 3.0, 2.5, unit::SENSOR_SIGMA));
 
         // The deck's fixed faults: labelled by the first, from the earliest onset.
-        let fixed = TrialFaults::fixed(&[
-            SensorFault { channel: 2, onset_s: 9.0, mode: FaultMode::Gain { factor: 1.2 } },
-            SensorFault { channel: 0, onset_s: 4.0, mode: FaultMode::Bias { bias: 0.1 } },
-        ]);
+        let fixed = TrialFaults::fixed(
+            &[
+                ChannelFault { channel: 2, onset_s: 9.0, mode: FaultMode::Gain { factor: 1.2 } },
+                ChannelFault { channel: 0, onset_s: 4.0, mode: FaultMode::Bias { bias: 0.1 } },
+            ],
+            &[],
+        );
         assert_eq!((fixed.kind, fixed.size, fixed.size_bin, fixed.size_unit), ("gain", 1.2, 1.2, unit::GAIN_FACTOR));
         assert_eq!((fixed.faults.len(), fixed.onset_s), (2, 4.0));
 
-        let none = TrialFaults::fixed(&[]);
+        let none = TrialFaults::fixed(&[], &[]);
         assert!(none.faults.is_empty() && none.onset_s.is_nan() && none.size.is_nan());
         assert_eq!((none.kind, none.size_unit), ("none", unit::NONE));
     }

@@ -1,19 +1,26 @@
-//! Sensor fault models (the fault kinds of `docs/deck.md`), applied to the healthy sensor output;
-//! actuator (control-surface) faults are in [`crate::methods::surface_bank::actuator`].
+//! Fault models on one channel (the fault kinds of `docs/deck.md`): a sensor's output, or an
+//! actuator's input (detection-filter decks: the command the controller sends is what the detectors
+//! see, the faulty value is what the plant gets). Method 004's control-surface faults, with their
+//! actuator lag, are in [`crate::methods::surface_bank::actuator`].
 //!
-//! With `y_in` the healthy (noisy) sensor output and `t0` the onset, for `t >= t0`:
+//! With `y_in` the healthy value (a noisy sensor output, or the commanded input) and `t0` the onset,
+//! for `t >= t0`:
 //!
-//! | mode          | faulty output                               | `size` means                    |
+//! | mode          | faulty value                                | `size` means                    |
 //! |---------------|---------------------------------------------|---------------------------------|
-//! | stuck         | `c`: a given value, or `y_in` held at onset | the value (output units), or none |
+//! | stuck         | `c`: a given value, or `y_in` held at onset | the value (channel units), or none |
 //! | gain          | `a * y_in`                                  | `a` (dimensionless, != 1)       |
-//! | bias          | `y_in + b`                                  | `b` (output units, != 0)        |
-//! | total failure | `0`                                         | none                            |
-//! | drift         | `y_in + s (t - t0)`                         | `s` (output units per second)   |
-//! | oscillation   | `y_in + A sin(2 pi f (t - t0))`             | `A` (output units), plus `f`    |
+//! | bias          | `y_in + b`                                  | `b` (channel units, != 0)       |
+//! | total failure | `0` (sensors)                               | none                            |
+//! | float         | `0` (actuators: the deviation from trim)    | none                            |
+//! | drift         | `y_in + s (t - t0)`                         | `s` (channel units per second)  |
+//! | oscillation   | `y_in + A sin(2 pi f (t - t0))`             | `A` (channel units), plus `f`   |
 //!
-//! A held stuck value is the sensor's reading at the first sample at or after onset (noise included):
-//! a frozen sensor repeats what it last produced. Several faults on one channel apply in deck order.
+//! A held stuck value is the channel's value at the first sample at or after onset (noise included):
+//! a frozen sensor repeats what it last produced, a jammed actuator stays where it was commanded last.
+//! A floating surface carries no hinge moment and trails with the airflow; a model's inputs cannot
+//! say where that is, so fdimc puts it at the trim (deviation 0), its own choice. Several faults on one
+//! channel apply in deck order.
 
 pub mod deck;
 
@@ -27,6 +34,7 @@ pub enum FaultMode {
     Gain { factor: f64 },
     Bias { bias: f64 },
     TotalFailure,
+    Float,
     Drift { rate_per_s: f64 },
     Oscillation { amplitude: f64, frequency_hz: f64 },
 }
@@ -39,8 +47,22 @@ impl FaultMode {
             FaultMode::Gain { .. } => "gain",
             FaultMode::Bias { .. } => "bias",
             FaultMode::TotalFailure => "total_failure",
+            FaultMode::Float => "float",
             FaultMode::Drift { .. } => "drift",
             FaultMode::Oscillation { .. } => "oscillation",
+        }
+    }
+
+    /// The records' `kind` of the mode on an actuator: `actuator_<name>`.
+    pub fn actuator_name(&self) -> &'static str {
+        match self {
+            FaultMode::Stuck { .. } => "actuator_stuck",
+            FaultMode::Gain { .. } => "actuator_gain",
+            FaultMode::Bias { .. } => "actuator_bias",
+            FaultMode::TotalFailure => "actuator_total_failure",
+            FaultMode::Float => "actuator_float",
+            FaultMode::Drift { .. } => "actuator_drift",
+            FaultMode::Oscillation { .. } => "actuator_oscillation",
         }
     }
 
@@ -50,17 +72,17 @@ impl FaultMode {
             FaultMode::Stuck { value } => value.unwrap_or(f64::NAN),
             FaultMode::Gain { factor } => factor,
             FaultMode::Bias { bias } => bias,
-            FaultMode::TotalFailure => f64::NAN,
+            FaultMode::TotalFailure | FaultMode::Float => f64::NAN,
             FaultMode::Drift { rate_per_s } => rate_per_s,
             FaultMode::Oscillation { amplitude, .. } => amplitude,
         }
     }
 }
 
-/// One fault on one output channel.
+/// One fault on one channel: a sensor output, or an actuator input (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct SensorFault {
-    /// Index of the faulty output channel.
+pub struct ChannelFault {
+    /// Index of the faulty channel among the outputs (sensor faults) or the inputs (actuator faults).
     pub channel: usize,
     pub onset_s: f64,
     #[serde(flatten)]
@@ -70,12 +92,12 @@ pub struct SensorFault {
 /// The faults of one trial with their run-time state (the values held by stuck sensors).
 #[derive(Debug, Clone)]
 pub struct ActiveFaults {
-    faults: Vec<SensorFault>,
+    faults: Vec<ChannelFault>,
     held: Vec<Option<f64>>,
 }
 
 impl ActiveFaults {
-    pub fn new(faults: Vec<SensorFault>) -> Self {
+    pub fn new(faults: Vec<ChannelFault>) -> Self {
         let held = vec![None; faults.len()];
         ActiveFaults { faults, held }
     }
@@ -106,7 +128,7 @@ impl ActiveFaults {
     }
 }
 
-impl SensorFault {
+impl ChannelFault {
     /// What the sensor reports at `t_s >= onset_s` when the healthy reading is `y_in`; `held` keeps a
     /// held stuck value.
     #[inline]
@@ -117,7 +139,7 @@ impl SensorFault {
             FaultMode::Stuck { value: None } => *held.get_or_insert(y_in),
             FaultMode::Gain { factor } => factor * y_in,
             FaultMode::Bias { bias } => y_in + bias,
-            FaultMode::TotalFailure => 0.0,
+            FaultMode::TotalFailure | FaultMode::Float => 0.0,
             FaultMode::Drift { rate_per_s } => y_in + rate_per_s * dt,
             FaultMode::Oscillation { amplitude, frequency_hz } => {
                 y_in + amplitude * (std::f64::consts::TAU * frequency_hz * dt).sin()
@@ -132,7 +154,7 @@ mod tests {
 
     /// Applies `mode` on channel 1 with onset 2 s to a healthy signal y = [10, 3 + t], returns channel 1.
     fn run(mode: FaultMode, times: &[f64]) -> Vec<f64> {
-        let mut f = ActiveFaults::new(vec![SensorFault { channel: 1, onset_s: 2.0, mode }]);
+        let mut f = ActiveFaults::new(vec![ChannelFault { channel: 1, onset_s: 2.0, mode }]);
         times
             .iter()
             .map(|&t| {
@@ -149,12 +171,13 @@ mod tests {
     #[test]
     fn every_mode_follows_its_formula() {
         let healthy = [3.0, 4.99];
-        let cases: [(FaultMode, [f64; 2]); 7] = [
+        let cases: [(FaultMode, [f64; 2]); 8] = [
             (FaultMode::Stuck { value: Some(-1.5) }, [-1.5, -1.5]),
             (FaultMode::Stuck { value: None }, [5.0, 5.0]),
             (FaultMode::Gain { factor: 1.5 }, [7.5, 12.0]),
             (FaultMode::Bias { bias: 0.1 }, [5.1, 8.1]),
             (FaultMode::TotalFailure, [0.0, 0.0]),
+            (FaultMode::Float, [0.0, 0.0]),
             (FaultMode::Drift { rate_per_s: 0.5 }, [5.0, 8.0 + 1.5]),
             (
                 FaultMode::Oscillation { amplitude: 2.0, frequency_hz: 0.25 },
@@ -173,8 +196,8 @@ mod tests {
     #[test]
     fn faults_on_one_channel_compose_in_order() {
         let mut f = ActiveFaults::new(vec![
-            SensorFault { channel: 0, onset_s: 1.0, mode: FaultMode::Gain { factor: 2.0 } },
-            SensorFault { channel: 0, onset_s: 3.0, mode: FaultMode::Bias { bias: 1.0 } },
+            ChannelFault { channel: 0, onset_s: 1.0, mode: FaultMode::Gain { factor: 2.0 } },
+            ChannelFault { channel: 0, onset_s: 3.0, mode: FaultMode::Bias { bias: 1.0 } },
         ]);
         let mut at = |t: f64| {
             let mut y = [4.0];

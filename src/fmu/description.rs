@@ -161,6 +161,9 @@ pub struct Description {
     pub variables: Vec<Variable>,
     pub default_experiment: DefaultExperiment,
     pub n_states: usize,
+    /// FMI 2.0: each continuous state's value reference and its derivative's, in state order (the
+    /// order of `<Derivatives>`); what directional derivatives are asked of. Empty when not declared.
+    pub state_derivative_vrs: Vec<(u32, u32)>,
     pub n_event_indicators: usize,
 }
 
@@ -237,13 +240,37 @@ impl Description {
             None => Vec::new(),
         };
         let structure = child("ModelStructure");
+        let mut state_derivative_vrs = Vec::new();
         let (n_states, n_event_indicators) = match version {
             FmiVersion::V2 => {
-                let derivatives = structure
+                let unknowns: Vec<roxmltree::Node> = structure
                     .and_then(|s| s.children().find(|n| n.has_tag_name("Derivatives")))
-                    .map_or(0, |d| d.children().filter(|n| n.has_tag_name("Unknown")).count());
+                    .map_or_else(Vec::new, |d| d.children().filter(|n| n.has_tag_name("Unknown")).collect());
+                // Unknown index -> the derivative's ScalarVariable (1-based), whose `derivative`
+                // attribute is its state's index.
+                let scalars: Vec<roxmltree::Node> = child("ModelVariables")
+                    .map_or_else(Vec::new, |v| v.children().filter(|n| n.has_tag_name("ScalarVariable")).collect());
+                let index = |n: roxmltree::Node, a: &str| {
+                    n.attribute(a)
+                        .and_then(|v| v.trim().parse::<usize>().ok())
+                        .and_then(|i| scalars.get(i.checked_sub(1)?))
+                };
+                let vr = |n: &roxmltree::Node| n.attribute("valueReference").and_then(|v| v.trim().parse::<u32>().ok());
+                for u in &unknowns {
+                    let derivative = index(*u, "index");
+                    let state = derivative
+                        .and_then(|d| d.children().find(|n| n.has_tag_name("Real")))
+                        .and_then(|real| index(real, "derivative"));
+                    match (state.and_then(vr), derivative.and_then(vr)) {
+                        (Some(s), Some(d)) => state_derivative_vrs.push((s, d)),
+                        _ => {
+                            state_derivative_vrs.clear();
+                            break;
+                        }
+                    }
+                }
                 let z = root.attribute("numberOfEventIndicators").and_then(|v| v.trim().parse().ok()).unwrap_or(0);
-                (derivatives, z)
+                (unknowns.len(), z)
             }
             FmiVersion::V3 => {
                 let count = |tag: &str| structure.map_or(0, |s| s.children().filter(|n| n.has_tag_name(tag)).count());
@@ -264,6 +291,7 @@ impl Description {
             variables,
             default_experiment,
             n_states,
+            state_derivative_vrs,
             n_event_indicators,
         })
     }
@@ -444,6 +472,8 @@ mod tests {
         let d = Description::parse(FMI2).unwrap();
         assert_eq!(d.version, FmiVersion::V2);
         assert_eq!((d.n_states, d.n_event_indicators), (1, 1));
+        // The state v (value reference 1) and its derivative der(v) (2), through the 1-based indices.
+        assert_eq!(d.state_derivative_vrs, [(1, 2)]);
         let me = d.model_exchange.as_ref().unwrap();
         assert!(me.can_get_and_set_state && !me.only_one_instance_per_process);
         assert!(d.co_simulation.as_ref().unwrap().only_one_instance_per_process);

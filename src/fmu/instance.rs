@@ -187,6 +187,24 @@ impl Instance {
         rhs(i, &label, t_s, x, dx, &mut time_unset)
     }
 
+    /// FMI 2.0: the partial derivative of variable `unknown` (a state derivative or an output) with
+    /// respect to `known` (a state or an input), from the FMU (`fmi2GetDirectionalDerivative`, seed 1).
+    pub fn partial_derivative(&mut self, unknown: u32, known: u32) -> Result<f64, FmuError> {
+        let mut d = [0.0];
+        let r = match &mut self.inner {
+            Inner::Cs2(i) => i.get_directional_derivative(&[unknown], &[known], &[1.0], &mut d),
+            Inner::Me2(i) => i.get_directional_derivative(&[unknown], &[known], &[1.0], &mut d),
+            Inner::Cs3(_) => {
+                return Err(FmuError::Invalid(format!(
+                    "{}: directional derivatives are read from FMI 2.0 FMUs",
+                    self.label
+                )));
+            }
+        };
+        r.map_err(|e| failed(&self.label, "get directional derivative", self.time_s, format!("{e:?}")))?;
+        Ok(d[0])
+    }
+
     /// Model exchange: the current continuous states.
     pub fn states(&self) -> Option<&[f64]> {
         self.continuous.as_ref().map(|c| c.x.as_slice())

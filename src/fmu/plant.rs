@@ -19,6 +19,9 @@ pub struct FmuPlant {
     pub output_vrs: Vec<u32>,
     /// Parameters set before initialisation in every trial (value reference, value).
     pub parameters: Vec<(u32, f64)>,
+    /// The FMU's own fault inputs (a fault the model implements, e.g. a loss of effectiveness): value
+    /// reference and healthy value (its start value), which a trial's actuator faults change.
+    pub fault_inputs: Vec<(u32, f64)>,
     /// The FMU's input values the model's inputs are deviations from.
     pub input_trim: Vec<f64>,
     /// The outputs at the trim (the nominal FMU, initialised with the trim inputs): the model's outputs
@@ -38,6 +41,8 @@ pub struct PlantMapping<'a> {
     /// The deck field that names each output, for errors.
     pub output_fields: &'a [String],
     pub parameters: &'a [(String, f64)],
+    /// FMU inputs the model implements faults with, left at their start values unless a fault acts.
+    pub fault_inputs: &'a [String],
     pub input_trim: &'a [f64],
     pub stop_s: f64,
     /// The study's step: a co-simulation FMU that cannot vary its communication step must have it as
@@ -106,6 +111,21 @@ impl FmuPlant {
             .enumerate()
             .map(|(k, n)| lookup(m.output_fields[k].clone(), n, &[Causality::Output, Causality::Local], "an output"))
             .collect::<Result<Vec<_>, _>>()?;
+        let mut fault_inputs = Vec::with_capacity(m.fault_inputs.len());
+        for (k, name) in m.fault_inputs.iter().enumerate() {
+            let field = format!("{prefix}.fault_inputs[{k}]");
+            if m.inputs.contains(name) {
+                return Err((
+                    field,
+                    format!("{name:?} is mapped to a model input ({prefix}.inputs): a fault input is not"),
+                ));
+            }
+            let vr = lookup(field.clone(), name, &[Causality::Input], "a fault input")?;
+            let healthy = d.variable(name).and_then(|v| v.start_f64()).ok_or_else(|| {
+                (field, format!("{name:?} has no start value: its healthy value must be the FMU's start value"))
+            })?;
+            fault_inputs.push((vr, healthy));
+        }
         let mut parameters = Vec::with_capacity(m.parameters.len());
         for (name, value) in m.parameters {
             let field = format!("{prefix}.parameters.{name}");
@@ -134,6 +154,7 @@ impl FmuPlant {
             input_vrs,
             output_vrs,
             parameters,
+            fault_inputs,
             input_trim: m.input_trim.to_vec(),
             output_trim: Vec::new(),
             stop_s: m.stop_s,
@@ -182,6 +203,9 @@ impl FmuPlant {
             instance.set_real(&[vr], &[v])?;
         }
         instance.set_real(&self.input_vrs, &self.input_trim)?;
+        for &(vr, healthy) in &self.fault_inputs {
+            instance.set_real(&[vr], &[healthy])?;
+        }
         instance.initialise(0.0, self.stop_s)?;
         Ok(instance)
     }
@@ -238,6 +262,19 @@ impl Flight<'_> {
         let (vrs, inputs) = (&self.plant.input_vrs, &self.inputs);
         let instance = live(&mut self.instance)?;
         let r = instance.set_real(vrs, inputs);
+        self.fail_on(r)
+    }
+
+    /// Sets the FMU's own fault inputs (absolute values, in [`FmuPlant::fault_inputs`] order).
+    pub fn set_fault_inputs(&mut self, values: &[f64]) -> Result<(), FmuError> {
+        let instance = live(&mut self.instance)?;
+        let mut r = Ok(());
+        for (&(vr, _), v) in self.plant.fault_inputs.iter().zip(values) {
+            r = instance.set_real(&[vr], &[*v]);
+            if r.is_err() {
+                break;
+            }
+        }
         self.fail_on(r)
     }
 
@@ -333,11 +370,29 @@ pub struct Linearisation {
 /// O(h^2) and rounding O(eps / h) are both near 1e-10 relative for smooth models at this step.
 pub(super) const RELATIVE_STEP: f64 = 1e-6;
 
+/// Where a linearisation's Jacobian comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Jacobian {
+    /// The FMU's own directional derivatives (`fmi2GetDirectionalDerivative`), one entry at a time.
+    Directional,
+    /// Central differences of its state derivatives and outputs.
+    CentralDifferences,
+}
+
 impl FmuPlant {
-    /// The linearisation at the trim (the deck's parameters and trim inputs) by central differences on
-    /// the FMU's model-exchange interface: derivatives and mapped outputs, perturbing one state or
-    /// input at a time. An FMU without model exchange cannot be linearised this way.
+    /// The linearisation at the trim (the deck's parameters and trim inputs) on the FMU's
+    /// model-exchange interface: from its directional derivatives where it provides them (and declares
+    /// its states), else by central differences. An FMU without model exchange cannot be linearised.
     pub fn linearise(&self) -> Result<Linearisation, FmuError> {
+        let d = &self.fmu.description;
+        let directional = d.model_exchange.as_ref().is_some_and(|me| me.provides_directional_derivatives)
+            && d.state_derivative_vrs.len() == d.n_states;
+        self.linearise_by(if directional { Jacobian::Directional } else { Jacobian::CentralDifferences })
+    }
+
+    /// [`linearise`](Self::linearise) with the Jacobian from `how`: derivatives and mapped outputs with
+    /// respect to the states and the mapped inputs.
+    pub fn linearise_by(&self, how: Jacobian) -> Result<Linearisation, FmuError> {
         let fmu = &self.fmu;
         if fmu.supports(Interface::ModelExchange).is_err() {
             return Err(FmuError::Invalid(format!(
@@ -364,35 +419,50 @@ impl FmuPlant {
             Ok((dx, y))
         };
         let (f0, _) = eval(&x0, &u0)?;
-        // Column k of [A B; C D]: variable k of z = [x; u] perturbed by +/- h, the others at the trim.
-        let z0: Vec<f64> = x0.iter().chain(&u0).copied().collect();
         let mut jacobian = nalgebra::DMatrix::zeros(n + ny, n + nu);
-        for k in 0..n + nu {
-            let h = RELATIVE_STEP * z0[k].abs().max(1.0);
-            let (mut zp, mut zm) = (z0.clone(), z0.clone());
-            zp[k] += h;
-            zm[k] -= h;
-            let ((fp, yp), (fm, ym)) = (eval(&zp[..n], &zp[n..])?, eval(&zm[..n], &zm[n..])?);
-            let span = zp[k] - zm[k];
-            for (r, (p, m)) in fp.iter().chain(&yp).zip(fm.iter().chain(&ym)).enumerate() {
-                jacobian[(r, k)] = (p - m) / span;
+        let method = match how {
+            Jacobian::CentralDifferences => {
+                // Column k of [A B; C D]: variable k of z = [x; u] perturbed by +/- h, the others at the trim.
+                let z0: Vec<f64> = x0.iter().chain(&u0).copied().collect();
+                for k in 0..n + nu {
+                    let h = RELATIVE_STEP * z0[k].abs().max(1.0);
+                    let (mut zp, mut zm) = (z0.clone(), z0.clone());
+                    zp[k] += h;
+                    zm[k] -= h;
+                    let ((fp, yp), (fm, ym)) = (eval(&zp[..n], &zp[n..])?, eval(&zm[..n], &zm[n..])?);
+                    let span = zp[k] - zm[k];
+                    for (r, (p, m)) in fp.iter().chain(&yp).zip(fm.iter().chain(&ym)).enumerate() {
+                        jacobian[(r, k)] = (p - m) / span;
+                    }
+                }
+                format!(
+                    "central differences on {}'s model exchange at the trim (step {RELATIVE_STEP:e} x max(|value|, 1) \
+                     per state and input)",
+                    fmu.file_name()
+                )
             }
-        }
+            Jacobian::Directional => {
+                let states = &fmu.description.state_derivative_vrs;
+                if states.len() != n {
+                    return Err(FmuError::Invalid(format!(
+                        "{}: directional derivatives need the states and their derivatives declared in <Derivatives>",
+                        fmu.path.display()
+                    )));
+                }
+                // The instance is at the trim (the last evaluation): x0, u0.
+                let rows: Vec<u32> = states.iter().map(|s| s.1).chain(self.output_vrs.iter().copied()).collect();
+                let columns: Vec<u32> = states.iter().map(|s| s.0).chain(self.input_vrs.iter().copied()).collect();
+                for (r, &unknown) in rows.iter().enumerate() {
+                    for (c, &known) in columns.iter().enumerate() {
+                        jacobian[(r, c)] = i.partial_derivative(unknown, known)?;
+                    }
+                }
+                format!("{}'s directional derivatives at the trim (fmi2GetDirectionalDerivative)", fmu.file_name())
+            }
+        };
         let (a, b) = (jacobian.view((0, 0), (n, n)).into_owned(), jacobian.view((0, n), (n, nu)).into_owned());
         let (c, d) = (jacobian.view((n, 0), (ny, n)).into_owned(), jacobian.view((n, n), (ny, nu)).into_owned());
-        Ok(Linearisation {
-            a,
-            b,
-            c,
-            d,
-            x_trim: x0,
-            derivative_at_trim: f0,
-            method: format!(
-                "central differences on {}'s model exchange at the trim (step {RELATIVE_STEP:e} x max(|value|, 1) per \
-                 state and input)",
-                fmu.file_name()
-            ),
-        })
+        Ok(Linearisation { a, b, c, d, x_trim: x0, derivative_at_trim: f0, method })
     }
 }
 

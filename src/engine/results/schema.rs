@@ -424,6 +424,8 @@ pub mod unit {
     pub const SENSOR_SIGMA: &str = "multiples of the sensor sigma";
     pub const GAIN_FACTOR: &str = "gain factor";
     pub const OUTPUT_UNITS: &str = "output units";
+    /// An actuator fault's size: the input's units (a deviation from the trim for a mapped FMU input).
+    pub const INPUT_UNITS: &str = "input units";
     /// A gain whose size bins are deviations `|factor - 1|` of either sign, not factors.
     pub const GAIN_DEVIATION_BINS: &str = "factor (bin: |factor - 1|)";
     /// A fault without a size (stuck at the held reading, total failure), or no fault.

@@ -373,7 +373,7 @@ impl AttitudeEkf {
 mod tests {
     use super::*;
     use crate::estimation::stekf::central_difference;
-    use crate::fault::{FaultMode, SensorFault};
+    use crate::fault::{ChannelFault, FaultMode};
     use crate::methods::accelerometer::imu::{
         ACCEL_X, ACCEL_Y, ACCEL_Z, AttitudeManoeuvre, ImuSample, ImuScenario, ImuScenarioParams,
     };
@@ -499,7 +499,7 @@ mod tests {
         ];
         for (manoeuvre, axis, mode) in cases {
             let healthy_params = ImuScenarioParams { manoeuvre, ..ImuScenarioParams::seed() };
-            let fault = SensorFault { channel: axis, onset_s, mode };
+            let fault = ChannelFault { channel: axis, onset_s, mode };
             let faulty_params = ImuScenarioParams { faults: vec![fault], ..healthy_params.clone() };
             let (samples, healthy, _, _) = run_filter(healthy_params, 7, None);
             let (_, faulty, _, _) = run_filter(faulty_params, 7, None);

@@ -50,10 +50,10 @@ use rand_distr::{Distribution, StandardNormal};
 use thiserror::Error;
 
 use crate::checks::{ValueError, finite, non_negative, positive, sensor_faults};
-use crate::fault::{ActiveFaults, FaultMode, SensorFault};
+use crate::fault::{ActiveFaults, ChannelFault, FaultMode};
 use crate::kinematics::{GRAVITY_MPS2, body_from_ned};
 
-/// Accelerometer channel indices (the `channel` of a [`SensorFault`]).
+/// Accelerometer channel indices (the `channel` of a [`ChannelFault`]).
 pub const ACCEL_X: usize = 0;
 pub const ACCEL_Y: usize = 1;
 pub const ACCEL_Z: usize = 2;
@@ -250,7 +250,7 @@ pub struct ImuScenarioParams {
     /// Constant accelerometer bias of this trial (m/s^2).
     pub accel_bias_mps2: [f64; 3],
     /// Accelerometer faults; `channel` is [`ACCEL_X`], [`ACCEL_Y`] or [`ACCEL_Z`], sizes in m/s^2.
-    pub faults: Vec<SensorFault>,
+    pub faults: Vec<ChannelFault>,
 }
 
 impl ImuScenarioParams {
@@ -309,7 +309,7 @@ impl AccelFaultRanges {
     /// Draws a fault of `kind` (or only an onset for `None`, the fault-free class): 4 uniforms in the
     /// order axis, size, sign, onset, whatever the kind (module docs). A stuck fault holds the reading
     /// at its onset. Returns the fault (if any) and the onset.
-    pub fn draw<R: Rng + ?Sized>(&self, kind: Option<AccelFaultKind>, rng: &mut R) -> (Option<SensorFault>, f64) {
+    pub fn draw<R: Rng + ?Sized>(&self, kind: Option<AccelFaultKind>, rng: &mut R) -> (Option<ChannelFault>, f64) {
         let u: [f64; 4] = std::array::from_fn(|_| rng.random::<f64>());
         let channel = ((u[0] * 3.0) as usize).min(ACCEL_Z);
         let sign = if u[2] < 0.5 { -1.0 } else { 1.0 };
@@ -321,7 +321,7 @@ impl AccelFaultRanges {
             Some(AccelFaultKind::Gain) => FaultMode::Gain { factor: 1.0 + sign * within(self.gain_deviation, u[1]) },
             Some(AccelFaultKind::Stuck) => FaultMode::Stuck { value: None },
         };
-        (Some(SensorFault { channel, onset_s, mode }), onset_s)
+        (Some(ChannelFault { channel, onset_s, mode }), onset_s)
     }
 }
 
@@ -507,7 +507,7 @@ mod tests {
             (ACCEL_Z, FaultMode::Stuck { value: None }),
         ];
         for (channel, mode) in cases {
-            let fault = SensorFault { channel, onset_s: 7.005, mode };
+            let fault = ChannelFault { channel, onset_s: 7.005, mode };
             let faulty = run(ImuScenarioParams { faults: vec![fault], ..ImuScenarioParams::seed() }, 4);
             let held = faulty.iter().find(|s| s.t_s >= 7.005).unwrap().healthy_accel_mps2[channel];
             for (h, f) in healthy.iter().zip(&faulty) {
@@ -589,16 +589,16 @@ mod tests {
         ));
         assert!(matches!(bad(|p| p.manoeuvre.pitch.amplitude_rad = 1.5), ImuScenarioError::PitchEnvelope { .. }));
         assert!(matches!(bad(|p| p.manoeuvre.roll.period_s = 0.0), ImuScenarioError::Manoeuvre { angle: "roll", .. }));
-        let fault = SensorFault { channel: 3, onset_s: 1.0, mode: FaultMode::Bias { bias: 1.0 } };
+        let fault = ChannelFault { channel: 3, onset_s: 1.0, mode: FaultMode::Bias { bias: 1.0 } };
         assert!(matches!(
             bad_with(fault),
             ImuScenarioError::Value(ValueError::FaultChannel { index: 0, channel: 3, .. })
         ));
-        let fault = SensorFault { channel: 0, onset_s: f64::INFINITY, mode: FaultMode::Bias { bias: 1.0 } };
+        let fault = ChannelFault { channel: 0, onset_s: f64::INFINITY, mode: FaultMode::Bias { bias: 1.0 } };
         assert!(matches!(bad_with(fault), ImuScenarioError::Value(ValueError::FaultOnset { index: 0, .. })));
     }
 
-    fn bad_with(fault: SensorFault) -> ImuScenarioError {
+    fn bad_with(fault: ChannelFault) -> ImuScenarioError {
         ImuScenario::new(ImuScenarioParams { faults: vec![fault], ..ImuScenarioParams::seed() }).unwrap_err()
     }
 }

@@ -127,12 +127,12 @@ pub enum TrialPlan<'a> {
     Replayed {
         log: &'a crate::engine::logs::log_source::ReplayLog,
         start: usize,
-        faults: Vec<crate::fault::SensorFault>,
+        faults: Vec<crate::fault::ChannelFault>,
     },
 }
 
 impl TrialPlan<'_> {
-    pub fn faults(&self) -> &[crate::fault::SensorFault] {
+    pub fn faults(&self) -> &[crate::fault::ChannelFault] {
         match self {
             TrialPlan::Simulated(scenario) => &scenario.faults,
             TrialPlan::Replayed { faults, .. } => faults,

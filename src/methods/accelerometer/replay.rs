@@ -13,7 +13,7 @@ use rand::{Rng, RngExt};
 use serde::Serialize;
 
 use crate::engine::logs::log_source::{Needs, Part, ReplayLog, Signal};
-use crate::fault::{ActiveFaults, SensorFault};
+use crate::fault::{ActiveFaults, ChannelFault};
 use crate::methods::accelerometer::attitude::AttitudeEkfParams;
 use crate::methods::accelerometer::ekf_svm::{
     DetectionParams, FaultClass, ResidualTrace, TrialError, detection_statistics, filter_trial, window_start,
@@ -37,7 +37,7 @@ pub const NEEDS: Needs = Needs {
 /// A replayed trial's segment and fault.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReplayDraw {
-    pub fault: Option<SensorFault>,
+    pub fault: Option<ChannelFault>,
     /// Onset from the segment's start (nominal for the normal class).
     pub onset_s: f64,
     /// The segment's first grid sample in the log.
@@ -64,7 +64,7 @@ pub fn replay_trace(
     log: &ReplayLog,
     start: usize,
     samples: usize,
-    faults: &[SensorFault],
+    faults: &[ChannelFault],
     ekf: &AttitudeEkfParams,
 ) -> Result<ResidualTrace, TrialError> {
     let s = &log.signals;
@@ -170,7 +170,7 @@ mod tests {
 
     /// The bench log replayed from sample `start` for the study's length with `faults`, by the study's
     /// filter at the nominal noise.
-    fn replayed(study: &AccelerometerStudy, start: usize, faults: &[SensorFault]) -> ResidualTrace {
+    fn replayed(study: &AccelerometerStudy, start: usize, faults: &[ChannelFault]) -> ResidualTrace {
         let (log, ekf) = (study.log.as_ref().unwrap(), study.design.ekf_for(1.0));
         replay_trace(log, start, study.header.steps, faults, &ekf).unwrap()
     }
@@ -183,14 +183,14 @@ mod tests {
         assert_eq!(clean.samples.len(), 600);
         for mode in [FaultMode::Bias { bias: 0.0 }, FaultMode::Gain { factor: 1.0 }] {
             for channel in 0..3 {
-                let zero = SensorFault { channel, onset_s: 2.5, mode };
+                let zero = ChannelFault { channel, onset_s: 2.5, mode };
                 let faulty = replayed(&study, 7, &[zero]);
                 // Equal residuals: equal statistics, alarms and features, which are functions of them.
                 assert_eq!(faulty.samples, clean.samples, "{mode:?} on axis {channel}");
             }
         }
         // A real fault does move it (the comparison above can fail).
-        let bias = SensorFault { channel: 0, onset_s: 2.5, mode: FaultMode::Bias { bias: 0.05 } };
+        let bias = ChannelFault { channel: 0, onset_s: 2.5, mode: FaultMode::Bias { bias: 0.05 } };
         assert_ne!(replayed(&study, 7, &[bias]).samples, clean.samples);
     }
 
@@ -207,7 +207,7 @@ mod tests {
         let clean = replayed(&study, 0, &[]);
         let (onset_s, b) = (3.0, 0.1);
         let k0 = window_start(onset_s, 0.0, log.dt_s);
-        let fault = SensorFault { channel: 0, onset_s, mode: FaultMode::Bias { bias: b } };
+        let fault = ChannelFault { channel: 0, onset_s, mode: FaultMode::Bias { bias: b } };
         let faulty = replayed(&study, 0, &[fault]);
         // The measured direction's shift at the onset, from the recorded sample.
         let a = Vector3::new(log.signals[3][k0], log.signals[4][k0], log.signals[5][k0]);

@@ -156,7 +156,7 @@ mod tests {
     use crate::engine::results::summary::hand_made::Summarized;
     use crate::engine::scenario::deck::FromDeck;
     use crate::fault::deck::TrialFaults;
-    use crate::fault::{FaultMode, SensorFault};
+    use crate::fault::{ChannelFault, FaultMode};
     use crate::methods::air_data::dual_ukf::DualUkfHealth;
     use crate::methods::air_data::scenario::AirDataTrialSpec;
     use crate::methods::air_data::trial::AirDataOutcome;
@@ -171,11 +171,12 @@ mod tests {
         study.detectors.push(study.detectors[0].clone());
         study.detectors[0].name = "a".into();
         study.detectors[1].name = "b".into();
-        let fault = |channel| SensorFault { channel, onset_s: 30.0, mode: FaultMode::Bias { bias: 5.0 } };
+        let fault = |channel| ChannelFault { channel, onset_s: 30.0, mode: FaultMode::Bias { bias: 5.0 } };
         let spec = |trial: u64, faulty: bool| AirDataTrialSpec {
             trial,
             fault: TrialFaults {
                 faults: if faulty { vec![fault(0), fault(1)] } else { vec![] },
+                actuators: Vec::new(),
                 kind: if faulty { "bias" } else { NO_FAULT },
                 size: if faulty { 5.0 } else { f64::NAN },
                 size_bin: if faulty { 5.0 } else { f64::NAN },

@@ -83,7 +83,7 @@ impl<'a> AirDataScenarioSampler<'a> {
                 spec.outputs = set.to_vec();
             }
             None => {
-                spec.fault = TrialFaults::fixed(&s.faults);
+                spec.fault = TrialFaults::fixed(&s.faults, &[]);
                 let mut outputs: Vec<usize> = s.faults.iter().map(|f| f.channel).collect();
                 outputs.sort_unstable();
                 outputs.dedup();

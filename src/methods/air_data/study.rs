@@ -44,7 +44,7 @@ use crate::engine::scenario::deck::{FactorSpec, FromDeck, StudyHeader, StudySect
 use crate::estimation::bank::hold_threshold_s;
 
 use crate::engine::scenario::deck::{DeckError, Factor, MonteCarlo, MonteCarloRules, Validator, open_deck};
-use crate::fault::SensorFault;
+use crate::fault::ChannelFault;
 use crate::fault::deck::FaultKindSpec;
 use crate::fault::deck::{FaultKindSection, FaultSection};
 use crate::methods::air_data::dual_ukf::DualUkfParams;
@@ -197,7 +197,7 @@ pub struct AirDataStudy {
     /// Air-data lanes per quantity (1 or 3).
     pub lanes: usize,
     pub detectors: Vec<AirDataDetector>,
-    pub faults: Vec<SensorFault>,
+    pub faults: Vec<ChannelFault>,
     pub monte_carlo: AirDataMonteCarlo,
 }
 
@@ -380,7 +380,7 @@ impl FromDeck for AirDataStudy {
             .faults
             .iter()
             .enumerate()
-            .map(|(i, f)| v.fault(i, f, &outputs, "the air-data outputs", duration_s))
+            .map(|(i, f)| v.fault(i, f, (&outputs, "the air-data outputs"), (&[], ""), duration_s).map(|(_, f)| f))
             .collect::<Result<Vec<_>, _>>()?;
 
         let monte_carlo =
@@ -482,7 +482,7 @@ fn monte_carlo(
             out
         }
     };
-    let faults = v.fault_kind_specs(&own.fault)?;
+    let faults = v.fault_kind_specs(&own.fault, (&[], ""))?;
     if section_given && faults.is_empty() && !fixed_faults && common.fault_free_fraction < 1.0 {
         return Err(v.err(
             "monte_carlo.fault",

@@ -379,7 +379,7 @@ mod tests {
     use super::*;
     use crate::engine::scenario::streams::Substream;
     use crate::engine::scenario::streams::noise_rng;
-    use crate::fault::SensorFault;
+    use crate::fault::ChannelFault;
     use crate::fault::deck::TrialFaults;
     use crate::methods::air_data::dual_ukf::DualUkfParams;
     use crate::methods::air_data::flight::ALPHA;
@@ -387,11 +387,13 @@ mod tests {
     /// `scenario` with an alpha bias of 10 sigma from 20 s on its faulty lanes, and the trial's spec.
     fn alpha_bias(mut scenario: ScenarioParams) -> (ScenarioParams, AirDataTrialSpec) {
         let bias_rad = 10.0 * scenario.noise.alpha_std_rad;
-        scenario.faults = vec![SensorFault { channel: ALPHA, onset_s: 20.0, mode: FaultMode::Bias { bias: bias_rad } }];
+        scenario.faults =
+            vec![ChannelFault { channel: ALPHA, onset_s: 20.0, mode: FaultMode::Bias { bias: bias_rad } }];
         let spec = AirDataTrialSpec {
             trial: 0,
             fault: TrialFaults {
                 faults: scenario.faults.clone(),
+                actuators: Vec::new(),
                 kind: "bias",
                 size: 10.0,
                 size_bin: 10.0,

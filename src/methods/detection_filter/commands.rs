@@ -334,20 +334,28 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
             mc.common.noise_scale
         );
         for f in &mc.faults {
-            println!("            fault kind {}: size {}", f.kind.name(), f.size_text());
+            let on = if f.inputs.is_empty() {
+                String::new()
+            } else {
+                let names: Vec<&str> = f.inputs.iter().map(|&k| study.failing_inputs[k].as_str()).collect();
+                format!(" on inputs [{}]", names.join(", "))
+            };
+            println!("            fault kind {}{on}: size {}", f.record_kind(), f.size_text());
         }
     }
     for pe in &mc.parameter_errors {
         let how = if pe.absolute { "absolute" } else { "relative" };
         println!("            parameter error {} on the {} model: {how} {}", pe.name, pe.model, pe.value);
     }
-    if study.faults.is_empty() && mc.faults.is_empty() {
+    if study.faults.is_empty() && study.actuator_faults.is_empty() && mc.faults.is_empty() {
         println!("faults      none");
     }
-    for f in &study.faults {
+    let sensors = study.faults.iter().map(|f| (&p.output_names[f.channel], f.mode.name(), f));
+    let actuators = study.actuator_faults.iter().map(|f| (&study.failing_inputs[f.channel], f.mode.actuator_name(), f));
+    for (target, kind, f) in sensors.chain(actuators) {
         let size = f.mode.size();
         let size = if size.is_nan() { String::new() } else { format!(" {size}") };
-        println!("fault       {} {}{} from {} s", p.output_names[f.channel], f.mode.name(), size, f.onset_s);
+        println!("fault       {target} {kind}{size} from {} s", f.onset_s);
     }
     Ok(())
 }
@@ -364,7 +372,6 @@ pub fn simulate(study: &LtiStudy, trial: u64, detector: Option<&str>, out: &Path
         .map_err(|e| design_error(deck, &format!("trial {trial}, detector {}", names[index]), e))?;
     trace.write(out)?;
 
-    let outputs = &study.plant.output_names;
     println!(
         "{}: trial {trial}, detector {}, {} samples -> {}",
         study.header.name,
@@ -372,12 +379,11 @@ pub fn simulate(study: &LtiStudy, trial: u64, detector: Option<&str>, out: &Path
         study.header.steps,
         out.display()
     );
-    match spec.output() {
-        Some(j) => {
-            println!(
-                "  fault               {} {} size {} from {} s",
-                outputs[j], spec.fault.kind, spec.fault.size, spec.fault.onset_s
-            )
+    let outputs = &study.plant.output_names;
+    match spec.target_name(study) {
+        Some(target) => {
+            let size = if spec.fault.size.is_nan() { String::new() } else { format!(" size {}", spec.fault.size) };
+            println!("  fault               {target} {}{size} from {} s", spec.fault.kind, spec.fault.onset_s)
         }
         None => println!("  fault-free trial"),
     }

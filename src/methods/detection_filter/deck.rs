@@ -60,6 +60,10 @@ pub struct TruthSection {
     /// `[plant]`'s a, b, c, d from the FMU's linearisation at the trim (model exchange) instead of the deck.
     #[serde(default)]
     pub linearise: bool,
+    /// FMU inputs the model implements faults with (e.g. a loss of effectiveness), which actuator
+    /// faults may target (`input = "..."`); healthy: their start values.
+    #[serde(default)]
+    pub fault_inputs: Vec<String>,
     /// `[truth.trim]`: the trim solved on the FMU instead of given.
     pub trim: Option<TrimSection>,
 }

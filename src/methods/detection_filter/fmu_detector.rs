@@ -318,6 +318,7 @@ pub(crate) fn read(r: &DetectorDeck) -> Result<DetectionFilterParams, DeckError>
     }
     let mapping = PlantMapping {
         interface: Interface::CoSimulation,
+        fault_inputs: &[],
         inputs: &inputs,
         input_fields: &input_fields,
         outputs: std::slice::from_ref(statistic),

@@ -209,10 +209,13 @@ fn fault_size_units(study: &LtiStudy) -> std::collections::BTreeMap<String, Stri
     use crate::fault::deck::fixed_size_unit;
     let mut units = std::collections::BTreeMap::new();
     for f in &study.monte_carlo.faults {
-        units.insert(f.kind.name().to_string(), f.size_unit().to_string());
+        units.insert(f.record_kind().to_string(), f.size_unit().to_string());
     }
     for f in &study.faults {
-        units.entry(f.mode.name().to_string()).or_insert_with(|| fixed_size_unit(&f.mode).to_string());
+        units.entry(f.mode.name().to_string()).or_insert_with(|| fixed_size_unit(&f.mode, false).to_string());
+    }
+    for f in &study.actuator_faults {
+        units.entry(f.mode.actuator_name().to_string()).or_insert_with(|| fixed_size_unit(&f.mode, true).to_string());
     }
     units
 }

@@ -61,7 +61,9 @@ impl<'a> RecordBuilder<'a> {
         let spec = &result.spec;
         for (d, outcome) in s.detectors.iter().zip(&result.detectors) {
             let o = outcome.as_ref().ok();
-            let truth = name(spec.output());
+            let truth = spec.target_name(s);
+            // A detector names outputs: an actuator fault's input is nothing it could name.
+            let nameable = !spec.fault.faults.is_empty();
             let isolated = match d.params.isolation {
                 Isolation::LargestNormalised | Isolation::Named => o.and_then(|o| name(o.isolated_by_max)),
                 Isolation::Signature => o.and_then(|o| name(o.isolated_by_direction)),
@@ -75,13 +77,13 @@ impl<'a> RecordBuilder<'a> {
                 size_unit: spec.fault.size_unit,
                 size_bin: Some(spec.fault.size_bin),
                 onset_s: Some(spec.fault.onset_s),
-                fault_free: spec.fault.faults.is_empty(),
+                fault_free: spec.fault.is_fault_free(),
                 failure: outcome.as_ref().err().map(ToString::to_string),
                 diverged: o.is_some_and(|o| o.diverged_at_s.is_some()),
                 false_alarm_s: o.and_then(|o| o.false_alarm.map(|a| a.0)),
                 delay_s: o.and_then(|o| o.detection.map(|a| a.0 - spec.fault.onset_s)),
                 isolated: isolated.map(Cow::Borrowed),
-                isolated_correctly: isolated.map(|i| Some(i) == truth),
+                isolated_correctly: isolated.filter(|_| nameable).map(|i| Some(i) == truth),
                 noise_scale: spec.noise_scale,
                 noise_bin: spec.noise_bin,
                 param_error_bin: spec.parameter_error_bin,
@@ -129,7 +131,7 @@ mod tests {
     use crate::engine::run::runner::Manifest;
     use crate::engine::scenario::deck::FromDeck;
     use crate::fault::deck::TrialFaults;
-    use crate::fault::{FaultMode, SensorFault};
+    use crate::fault::{ChannelFault, FaultMode};
     use crate::methods::detection_filter::scenario::TrialSpec;
     use crate::methods::detection_filter::trial::DetectorOutcome;
 
@@ -149,10 +151,11 @@ mod tests {
             noise_trial: trial,
             fault: TrialFaults {
                 faults: if faulty {
-                    vec![SensorFault { channel: q, onset_s: 5.0, mode: FaultMode::Bias { bias: 0.015 } }]
+                    vec![ChannelFault { channel: q, onset_s: 5.0, mode: FaultMode::Bias { bias: 0.015 } }]
                 } else {
                     vec![]
                 },
+                actuators: Vec::new(),
                 kind: if faulty { "bias" } else { "none" },
                 size: if faulty { 3.0 } else { f64::NAN },
                 size_bin: if faulty { 3.0 } else { f64::NAN },

@@ -138,9 +138,9 @@ fn draw(
     let rows = outputs.len().div_ceil(2) as u32;
     let root = SVGBackend::new(file, (1100, 80 + 260 * rows)).into_drawing_area();
     root.fill(&WHITE).map_err(e)?;
-    let fault = match spec.output() {
-        Some(j) => {
-            format!("{} {} size {:.4} from {:.2} s", outputs[j], spec.fault.kind, spec.fault.size, spec.fault.onset_s)
+    let fault = match spec.target_name(study) {
+        Some(target) => {
+            format!("{target} {} size {:.4} from {:.2} s", spec.fault.kind, spec.fault.size, spec.fault.onset_s)
         }
         None => "fault-free".into(),
     };

@@ -5,7 +5,7 @@ use super::study::LtiStudy;
 use crate::engine::scenario::deck::ModelTarget;
 use crate::engine::scenario::design::{Factors, Part, Slot};
 use crate::engine::scenario::draws::{DIM_NOISE, DIM_ONSET, DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
-use crate::fault::deck::TrialFaults;
+use crate::fault::deck::{FaultTarget, TrialFaults};
 
 /// Continuous-factor dimensions, fixed so a trial's draws do not depend on which factors are present.
 const DIM_PARAMETERS: usize = FIRST_OWN_DIM;
@@ -27,9 +27,13 @@ pub struct TrialSpec {
 }
 
 impl TrialSpec {
-    /// The faulty output (the first fault's), `None` when fault-free.
-    pub fn output(&self) -> Option<usize> {
-        self.fault.faults.first().map(|f| f.channel)
+    /// The name of the faulty channel the records give (an output, or an input for an actuator
+    /// fault); `None` when fault-free.
+    pub fn target_name<'s>(&self, study: &'s LtiStudy) -> Option<&'s str> {
+        self.fault.target().map(|t| match t {
+            FaultTarget::Output(j) => study.plant.output_names[j].as_str(),
+            FaultTarget::Input(j) => study.failing_inputs[j].as_str(),
+        })
     }
 }
 
@@ -52,9 +56,13 @@ impl<'a> ScenarioSampler<'a> {
         let mc = &s.monte_carlo;
         let mut t = self.units.trial(trial);
 
-        // Sampled population: kind and output first (the fastest grid digits).
-        let sampled =
-            (!mc.faults.is_empty()).then(|| (t.digit(mc.faults.len()), mc.outputs[t.digit(mc.outputs.len())]));
+        // Sampled population: kind and channel first (the fastest grid digits): an output, or one of
+        // an actuator population's inputs.
+        let sampled = (!mc.faults.is_empty()).then(|| {
+            let k = t.digit(mc.faults.len());
+            let channels = if mc.faults[k].inputs.is_empty() { &mc.outputs } else { &mc.faults[k].inputs };
+            (k, channels[t.digit(channels.len())])
+        });
         let size_pick = sampled.map(|(k, _)| mc.faults[k].size.draw(&mut t, DIM_SIZE));
         let (onset, noise_scale, noise_bin) = t.onset_and_noise(&mc.common);
         let (parameter_errors, parameter_error_bin) = t.parameter_errors(&mc.parameter_errors, DIM_PARAMETERS);
@@ -72,11 +80,11 @@ impl<'a> ScenarioSampler<'a> {
             return spec;
         }
         match (sampled, size_pick) {
-            (Some((k, output)), Some(size)) => {
-                spec.fault = TrialFaults::drawn(&mc.faults[k], &[output], size, onset, |j| s.sensor_sigma[j]);
+            (Some((k, channel)), Some(size)) => {
+                spec.fault = TrialFaults::drawn(&mc.faults[k], &[channel], size, onset, |j| s.sensor_sigma[j]);
             }
             _ => {
-                spec.fault = TrialFaults::fixed(&s.faults);
+                spec.fault = TrialFaults::fixed(&s.faults, &s.actuator_faults);
             }
         }
         spec
@@ -84,7 +92,8 @@ impl<'a> ScenarioSampler<'a> {
 
     /// The factors a sensitivity design varies: those of the deck that trials draw, where [`Self::spec`]
     /// takes them. Faulty trials: fault kind and output (the first two grid digits), size, onset, noise
-    /// scale, parameter errors; fault-free trials: noise scale and parameter errors.
+    /// scale, parameter errors; fault-free trials: noise scale and parameter errors. (With actuator
+    /// populations the `output` digit picks the population's input.)
     pub fn sensitivity_parts(study: &LtiStudy) -> Vec<Part> {
         let mc = &study.monte_carlo;
         let mut shared = Factors::default();
@@ -95,11 +104,14 @@ impl<'a> ScenarioSampler<'a> {
         let mut faulty = Factors::default();
         if !mc.faults.is_empty() {
             faulty.add("fault_kind", Slot::Digit(0), mc.faults.len() > 1);
-            faulty.add("output", Slot::Digit(1), mc.outputs.len() > 1);
+            let channels = |f: &crate::fault::deck::FaultKindSpec| {
+                if f.inputs.is_empty() { mc.outputs.len() } else { f.inputs.len() }
+            };
+            faulty.add("output", Slot::Digit(1), mc.faults.iter().any(|f| channels(f) > 1));
             faulty.add("size", Slot::Dim(DIM_SIZE), mc.faults.iter().any(|f| f.size.is_sampled()));
             faulty.add("onset_s", Slot::Dim(DIM_ONSET), mc.common.onset_s.is_sampled());
         }
-        let has_faults = !mc.faults.is_empty() || !study.faults.is_empty();
+        let has_faults = !mc.faults.is_empty() || !study.faults.is_empty() || !study.actuator_faults.is_empty();
         Factors::parts(has_faults.then_some(faulty), shared)
     }
 

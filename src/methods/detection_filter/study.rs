@@ -14,8 +14,8 @@ use crate::engine::scenario::deck::{
     DeckError, FromDeck, ModelTarget, MonteCarlo, MonteCarloRules, MonteCarloSection, StudyHeader, Validator,
     parse_deck,
 };
-use crate::fault::SensorFault;
-use crate::fault::deck::FaultKindSpec;
+use crate::fault::ChannelFault;
+use crate::fault::deck::{FaultKindSpec, FaultSide};
 use crate::fmu::plant::{FmuPlant, Linearisation, PlantMapping};
 use crate::lti::LtiPlant;
 
@@ -90,8 +90,15 @@ pub struct LtiStudy {
     pub process_sigma_per_step: DVector<f64>,
     /// Detector configurations; every one runs on the same trials (same faults, same noise).
     pub detectors: Vec<DetectorConfig>,
-    /// Faults of the deck's fixed scenario (`[[faults]]`); used when `monte_carlo.faults` is empty.
-    pub faults: Vec<SensorFault>,
+    /// Sensor faults of the deck's fixed scenario (`[[faults]]`); used when `monte_carlo.faults` is
+    /// empty.
+    pub faults: Vec<ChannelFault>,
+    /// Actuator faults of the deck's fixed scenario (channels: [`LtiStudy::failing_inputs`]).
+    pub actuator_faults: Vec<ChannelFault>,
+    /// The inputs an actuator fault may hit: the plant's inputs (the command the detectors see is
+    /// what the controller sends; the plant gets the faulty value), then the FMU truth's own fault
+    /// inputs (`[truth] fault_inputs`).
+    pub failing_inputs: Vec<String>,
     pub monte_carlo: LtiMonteCarlo,
     /// `[truth]`: an FMU flies instead of `plant`, which is then the linear model in deviations from the
     /// FMU's trim.
@@ -166,6 +173,11 @@ impl LtiStudy {
     /// Whether any state has process noise: without it a trial draws no process normals at all.
     pub fn has_process_noise(&self) -> bool {
         self.process_sigma_per_step.iter().any(|&v| v > 0.0)
+    }
+
+    /// Whether any trial can have an actuator fault.
+    pub fn has_actuator_faults(&self) -> bool {
+        !self.actuator_faults.is_empty() || self.monte_carlo.faults.iter().any(|f| !f.inputs.is_empty())
     }
 
     /// Every FMU the study runs: its truth, its controller, its detectors'.
@@ -372,9 +384,15 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
         detectors.push(DetectorConfig { name: d.name.clone(), params });
     }
 
-    let mut faults = Vec::with_capacity(deck.faults.len());
+    let failing_inputs: Vec<String> =
+        p.inputs.iter().chain(deck.truth.iter().flat_map(|t| &t.fault_inputs)).cloned().collect();
+    let input_list = if truth.is_some() { "plant.inputs or truth.fault_inputs" } else { "plant.inputs" };
+    let (mut faults, mut actuator_faults) = (Vec::new(), Vec::new());
     for (i, f) in deck.faults.iter().enumerate() {
-        faults.push(chk.fault(i, f, &p.outputs, "plant.outputs", duration_s)?);
+        match chk.fault(i, f, (&p.outputs, "plant.outputs"), (&failing_inputs, input_list), duration_s)? {
+            (FaultSide::Sensor, fault) => faults.push(fault),
+            (FaultSide::Actuator, fault) => actuator_faults.push(fault),
+        }
     }
     if truth.is_some() && process_sigma_per_step.amax() > 0.0 {
         return Err(chk.err(
@@ -382,8 +400,18 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
             "not with an FMU truth ([truth]): its states are the FMU's own; remove it",
         ));
     }
-    let monte_carlo = monte_carlo(chk, deck.monte_carlo, &plant, truth.as_ref(), duration_s)?;
-    chk.one_fault_source("[[faults]]", "[[monte_carlo.fault]]", !monte_carlo.faults.is_empty() && !faults.is_empty())?;
+    let monte_carlo =
+        monte_carlo(chk, deck.monte_carlo, &plant, truth.as_ref(), duration_s, (&failing_inputs, input_list))?;
+    let fixed = !faults.is_empty() || !actuator_faults.is_empty();
+    chk.one_fault_source("[[faults]]", "[[monte_carlo.fault]]", !monte_carlo.faults.is_empty() && fixed)?;
+    // A linear truth measures y = C x + D r: the faulty input would have to feed through too.
+    let actuated = !actuator_faults.is_empty() || monte_carlo.faults.iter().any(|f| !f.inputs.is_empty());
+    if actuated && truth.is_none() && plant.D.amax() > 0.0 {
+        return Err(chk.err(
+            "plant.d",
+            "actuator faults on a linear truth need d = 0 (the measurement would feed the faulty input through)",
+        ));
+    }
 
     Ok(LtiStudy {
         header,
@@ -396,6 +424,8 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
         process_sigma_per_step,
         detectors,
         faults,
+        actuator_faults,
+        failing_inputs,
         monte_carlo,
         truth,
         linearisation,
@@ -459,6 +489,7 @@ fn fmu_truth(
         outputs: &t.outputs,
         output_fields: &fields("outputs", t.outputs.len()),
         parameters: &parameters,
+        fault_inputs: &t.fault_inputs,
         input_trim: &trim_inputs,
         stop_s: header.duration_s,
         dt_s: header.dt_s,
@@ -618,6 +649,7 @@ fn controller_fmu(
         outputs: &outputs,
         output_fields: &output_fields,
         parameters: &parameters,
+        fault_inputs: &[],
         input_trim: &trims,
         stop_s: header.duration_s,
         dt_s: header.dt_s,
@@ -653,6 +685,7 @@ fn monte_carlo(
     plant: &LtiPlant,
     truth: Option<&FmuPlant>,
     duration_s: f64,
+    failing_inputs: (&[String], &str),
 ) -> Result<LtiMonteCarlo, DeckError> {
     let rules = MonteCarloRules {
         parameter_errors: Some(true),
@@ -743,6 +776,6 @@ fn monte_carlo(
             .map(|(k, n)| chk.index_of(&format!("monte_carlo.outputs[{k}]"), n, &plant.output_names, "plant.outputs"))
             .collect::<Result<Vec<_>, _>>()?,
     };
-    let faults = chk.fault_kind_specs(&own.fault)?;
+    let faults = chk.fault_kind_specs(&own.fault, failing_inputs)?;
     Ok(LtiMonteCarlo { common, outputs, faults, parameter_errors })
 }

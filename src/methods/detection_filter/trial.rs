@@ -6,7 +6,10 @@
 //! 2. `u = r(t) - G y` (the excitation `r` through the output-feedback loop; validation forbids
 //!    `D != 0` together with `G != 0`, which would be an algebraic loop, so `y = C x + D u` holds);
 //! 3. every detector consumes the same `(u, y)`; output j of a detector alarms when `|gamma_j| > thr_j`;
-//! 4. `x <- Ad x + Bd u + w` (`w ~ N(0, diag(process_sigma_per_step^2))`).
+//! 4. `x <- Ad x + Bd u_a + w` (`w ~ N(0, diag(process_sigma_per_step^2))`), `u_a` the inputs after
+//!    the trial's actuator faults (`u` itself without any): the detectors see the command `u`, the
+//!    plant gets what the faulty actuators do with it. An FMU truth gets `u_a` plus its trim, and its
+//!    own fault inputs (`[truth] fault_inputs`) their healthy values or what the faults make of them.
 //!
 //! Detection is the first alarm at or after the fault onset; any alarm before it (or in a fault-free
 //! trial) is a false alarm. Isolation averages the residual over
@@ -176,7 +179,13 @@ pub fn run_trial(
     let sensor_sigma = &s.sensor_sigma * spec.noise_scale;
 
     let mut faults = ActiveFaults::new(spec.fault.faults.clone());
-    let onset_s = faults.first_onset_s();
+    let onset_s = (spec.fault.onset_s.is_finite()).then_some(spec.fault.onset_s);
+    // The failing inputs' values as applied: the plant's inputs, then the FMU's own fault inputs.
+    let mut actuators = (!spec.fault.actuators.is_empty()).then(|| {
+        let mut applied = vec![0.0; nu];
+        applied.extend(s.truth.iter().flat_map(|t| t.fault_inputs.iter().map(|f| f.1)));
+        (ActiveFaults::new(spec.fault.actuators.clone()), applied)
+    });
     let x0 = s.initial_state.as_slice();
     let mut plant_state = PlantState::new(x0, nu);
     let mut y = vec![0.0; ny];
@@ -254,6 +263,15 @@ pub fn run_trial(
             }
         }
 
+        if let Some((faults, applied)) = actuators.as_mut() {
+            let (_, u) = plant_state.reference_and_inputs_mut();
+            applied[..nu].copy_from_slice(u);
+            faults.apply(t, applied);
+            u.copy_from_slice(&applied[..nu]);
+            if let Some(f) = flight.as_mut() {
+                f.set_fault_inputs(&applied[nu..]).map_err(FmuFailure::truth)?;
+            }
+        }
         match flight.as_mut() {
             None => advance(s, plant, &mut plant_state, &mut process_rng, has_process_noise),
             Some(f) => f.step(t, s.header.dt_s, plant_state.inputs()).map_err(FmuFailure::truth)?,

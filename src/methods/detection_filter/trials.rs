@@ -93,7 +93,9 @@ impl<'a> Engine<'a> {
             filter_patterns,
             lane_plant,
             lane_filters,
-            on_lanes: study.fmus().is_empty() && study.detectors.iter().all(|d| d.params.runs_on_lanes()),
+            on_lanes: study.fmus().is_empty()
+                && !study.has_actuator_faults()
+                && study.detectors.iter().all(|d| d.params.runs_on_lanes()),
         }
     }
 

@@ -60,7 +60,10 @@ pub(super) struct Unit {
     /// The first alarm after the onset came after the detection window (then not detected).
     pub(super) late_alarm: bool,
     pub(super) isolated: Option<u32>,
-    pub(super) correct: bool,
+    /// Whether what was isolated is the truth; `None` when nothing was, or when the truth is not
+    /// something the detector can name (an actuator fault for a detector that names sensors): such a
+    /// unit is not an isolation decision.
+    pub(super) correct: Option<bool>,
 }
 
 /// Counts and sketches of a set of units.
@@ -104,9 +107,9 @@ impl Counts {
                 self.delay.push(d);
             }
         }
-        if u.isolated.is_some() {
+        if let Some(correct) = u.correct {
             self.decided += 1;
-            self.correct += u.correct as u64;
+            self.correct += correct as u64;
         }
         if let Some(values) = extras {
             for (k, (e, &v)) in spec.extras.iter().zip(values).enumerate() {
@@ -298,7 +301,7 @@ impl<'s> Aggregates<'s> {
                         delay_s: delay.get(i),
                         late_alarm: late.get(i).is_some(),
                         isolated: iso,
-                        correct: correct.get(i) == Some(true),
+                        correct: correct.get(i),
                     }
                 } else {
                     let (thresholds, _) = calibrated.expect("a calibrated set has thresholds");
@@ -313,7 +316,7 @@ impl<'s> Aggregates<'s> {
                         delay_s: alarm.map(|a| a - onset.get(i).unwrap_or(f64::NAN)),
                         late_alarm: faulty && profiles.late_alarm(i, &thresholds[d].whole).is_some(),
                         isolated: None,
-                        correct: false,
+                        correct: None,
                     }
                 };
                 let extras_here = (set == DECK).then_some(extra_row.as_slice());
@@ -361,7 +364,7 @@ impl<'s> Aggregates<'s> {
                         flown,
                         faulty,
                         detected: faulty && unit.detected,
-                        isolated: unit.correct && unit.isolated.is_some(),
+                        isolated: unit.correct == Some(true),
                         false_alarm: unit.false_alarm,
                         paired,
                     },

@@ -99,7 +99,7 @@ mod tests {
 
     use crate::estimation::DiscreteModel;
     use crate::estimation::ukf::{SigmaModel, SigmaPoints, Ukf, UkfHealth, UnscentedParams};
-    use crate::fault::{FaultMode, SensorFault};
+    use crate::fault::{ChannelFault, FaultMode};
     use crate::methods::air_data::flight::{AIRSPEED, ALPHA, AirDataSample, AirDataScenario, BETA, ScenarioParams};
     use crate::methods::air_data::flight::{AirData, Inertial, InertialInterval, velocity_from_air_data};
     use rand::SeedableRng;
@@ -164,8 +164,8 @@ mod tests {
         assert_eq!(shared_points, 199 * 6 + 3);
     }
 
-    fn bias(channel: usize, onset_s: f64, size: f64) -> SensorFault {
-        SensorFault { channel, onset_s, mode: FaultMode::Bias { bias: size } }
+    fn bias(channel: usize, onset_s: f64, size: f64) -> ChannelFault {
+        ChannelFault { channel, onset_s, mode: FaultMode::Bias { bias: size } }
     }
 
     const ONSET_S: f64 = 20.0;

@@ -8,7 +8,7 @@ use nalgebra::{SMatrix, Vector3};
 pub use crate::kinematics::body_from_ned;
 use crate::kinematics::{Attitude, GRAVITY_MPS2};
 
-/// Air-data channel indices (the `channel` of a [`SensorFault`](crate::fault::SensorFault)).
+/// Air-data channel indices (the `channel` of a [`ChannelFault`](crate::fault::ChannelFault)).
 pub const AIRSPEED: usize = 0;
 pub const ALPHA: usize = 1;
 pub const BETA: usize = 2;

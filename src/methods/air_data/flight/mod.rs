@@ -70,8 +70,8 @@ mod tests {
     use nalgebra::Vector3;
 
     use crate::checks::ValueError;
+    use crate::fault::ChannelFault;
     use crate::fault::FaultMode;
-    use crate::fault::SensorFault;
     use crate::kinematics::GRAVITY_MPS2;
     use crate::methods::air_data::airframe::{AerosondeFlight, AirframeSample};
     use nalgebra::SVector;
@@ -181,7 +181,7 @@ mod tests {
     #[test]
     fn faults_change_exactly_the_intended_sensors() {
         let bias = 2f64.to_radians();
-        let fault = |channel, onset_s, mode| SensorFault { channel, onset_s, mode };
+        let fault = |channel, onset_s, mode| ChannelFault { channel, onset_s, mode };
         let cases = [
             [
                 fault(ALPHA, 10.0, FaultMode::Bias { bias }),
@@ -369,7 +369,7 @@ mod tests {
     /// the others their own noise after the gust; a fault hits the first `faulty_lanes` lanes only.
     #[test]
     fn lanes_share_the_truth_and_the_fault_hits_the_first_ones() {
-        let fault = SensorFault { channel: ALPHA, onset_s: 1.0, mode: FaultMode::Bias { bias: 0.05 } };
+        let fault = ChannelFault { channel: ALPHA, onset_s: 1.0, mode: FaultMode::Bias { bias: 0.05 } };
         let one = run(ScenarioParams { faults: vec![fault], ..ScenarioParams::seed() }, 5);
         for faulty_lanes in [1, 3] {
             let three =
@@ -446,7 +446,7 @@ mod tests {
             with(&|p| p.noise_scale = -1.0),
             ScenarioError::Value(ValueError::Negative { field: "noise_scale", .. })
         ));
-        let bad_fault = SensorFault { channel: 3, onset_s: 1.0, mode: FaultMode::TotalFailure };
+        let bad_fault = ChannelFault { channel: 3, onset_s: 1.0, mode: FaultMode::TotalFailure };
         assert!(matches!(
             with(&|p| p.faults = vec![bad_fault]),
             ScenarioError::Value(ValueError::FaultChannel { index: 0, channel: 3, .. })

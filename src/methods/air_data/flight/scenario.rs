@@ -10,7 +10,7 @@ use thiserror::Error;
 use super::kinematics::*;
 use super::profile::*;
 use crate::checks::{ValueError, finite, non_negative, positive, sensor_faults};
-use crate::fault::{ActiveFaults, SensorFault};
+use crate::fault::{ActiveFaults, ChannelFault};
 pub use crate::kinematics::body_from_ned;
 use crate::methods::air_data::airframe::{AerosondeFlight, AirframeSample};
 
@@ -134,7 +134,7 @@ pub struct ScenarioParams {
     pub noise_scale: f64,
     pub wind: WindParams,
     /// Air-data faults; `channel` is [`AIRSPEED`], [`ALPHA`] or [`BETA`].
-    pub faults: Vec<SensorFault>,
+    pub faults: Vec<ChannelFault>,
     pub airframe: Airframe,
     pub sensor_errors: SensorErrors,
     /// Redundant air-data sensors per quantity (1 to [`MAX_LANES`]); lane 0 is the one a single-string
