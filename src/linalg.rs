@@ -29,6 +29,51 @@ pub fn rank(m: &DMatrix<f64>) -> Option<usize> {
     Some(sigma.iter().filter(|&&s| s > tol).count())
 }
 
+/// The principal matrix logarithm by inverse scaling and squaring: square roots until `|m - I|_F <=
+/// 0.1`, then the series `log(I + E) = E - E^2/2 + E^3/3 - ...`, times `2^roots`. `None` when a square
+/// root does not converge (an eigenvalue on the closed negative real axis has no real logarithm).
+pub fn logm(m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let identity = DMatrix::<f64>::identity(m.nrows(), m.ncols());
+    let (mut x, mut roots) = (m.clone(), 0);
+    while (&x - &identity).norm() > 0.1 {
+        if roots == 60 {
+            return None;
+        }
+        x = sqrtm(&x)?;
+        roots += 1;
+    }
+    let e = &x - &identity;
+    let (mut power, mut log) = (e.clone(), e.clone());
+    for k in 2..=60 {
+        power = &power * &e;
+        let term = &power * (if k % 2 == 0 { -1.0 } else { 1.0 } / k as f64);
+        log += &term;
+        if term.norm() <= f64::EPSILON * log.norm() {
+            break;
+        }
+    }
+    Some(log * 2f64.powi(roots))
+}
+
+/// The principal square root by the Denman-Beavers iteration (`Y -> sqrt(A)`, `Z -> sqrt(A)^-1`).
+fn sqrtm(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    let (mut y, mut z) = (a.clone(), DMatrix::<f64>::identity(a.nrows(), a.ncols()));
+    for _ in 0..100 {
+        let (y_inv, z_inv) = (y.clone().try_inverse()?, z.clone().try_inverse()?);
+        let y_next = (&y + &z_inv) * 0.5;
+        z = (&z + &y_inv) * 0.5;
+        let change = (&y_next - &y).norm();
+        y = y_next;
+        if !change.is_finite() {
+            return None;
+        }
+        if change <= 1e-14 * y.norm() {
+            return Some(y);
+        }
+    }
+    None
+}
+
 /// Moore-Penrose pseudo-inverse through faer's thin SVD.
 pub fn pseudo_inverse(m: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     let svd = to_faer(m).thin_svd().ok()?;
@@ -89,4 +134,24 @@ pub fn eigenvalues(m: &DMatrix<f64>) -> Option<Vec<(f64, f64)>> {
     let mut ev: Vec<(f64, f64)> = to_faer(m).eigenvalues().ok()?.iter().map(|z| (z.re, z.im)).collect();
     ev.sort_by(|x, y| y.0.total_cmp(&x.0).then(y.1.total_cmp(&x.1)));
     Some(ev)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_logarithm_of_an_exponential_is_the_matrix_back() {
+        // An oscillatory pair (-0.35 +/- 1.4i per unit), a slow real mode and an integrator, scaled so
+        // that exp(M) is far from I (square roots needed) but inside the principal branch.
+        let m = DMatrix::from_row_slice(
+            4,
+            4,
+            &[-0.35, 1.4, 0.0, 0.0, -1.4, -0.35, 0.0, 0.0, 0.3, 0.0, -0.05, 0.0, 0.0, 1.0, 2.0, 0.0],
+        ) * 1.5;
+        let log = logm(&m.clone().exp()).expect("a real logarithm");
+        assert!((&log - &m).amax() < 1e-12, "{log} against {m}");
+        // -1 has no real logarithm.
+        assert!(logm(&DMatrix::from_row_slice(1, 1, &[-1.0])).is_none());
+    }
 }

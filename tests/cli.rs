@@ -2741,14 +2741,14 @@ fn a_controller_fmu_closes_the_loop_as_the_decks_gain_matrix_does() {
     );
 }
 
-/// EWMA of `|y_i / scale_i|` per channel as fmus/ewma_detector computes it (same operations, same
-/// order): the statistic (the largest) and the channel (1-based, first on ties, 0 while all are 0).
-fn native_ewma(y: [&[f64]; 3], lambda: f64, scale: [f64; 3]) -> (Vec<f64>, Vec<usize>) {
+/// EWMA of `|(y_i - mean_i) / scale_i|` per channel as fmus/ewma_detector computes it (same operations,
+/// same order): the statistic (the largest) and the channel (1-based, first on ties, 0 while all are 0).
+fn native_ewma(y: [&[f64]; 3], mean: [f64; 3], lambda: f64, scale: [f64; 3]) -> (Vec<f64>, Vec<usize>) {
     let mut e = [0.0f64; 3];
     let (mut statistic, mut channel) = (Vec::new(), Vec::new());
     for k in 0..y[0].len() {
         for i in 0..3 {
-            e[i] = (1.0 - lambda) * e[i] + lambda * ((y[i][k] - 0.0) / scale[i]).abs();
+            e[i] = (1.0 - lambda) * e[i] + lambda * ((y[i][k] - mean[i]) / scale[i]).abs();
         }
         let (mut s, mut c) = (e[0], 1);
         if e[1] > s {
@@ -2838,7 +2838,7 @@ fn a_detector_fmu_alarms_as_the_same_test_written_natively() {
             (0..trace.height()).map(|i| c.get(i).unwrap()).collect()
         };
         let (alpha, q, theta, t) = (series("y_alpha_rad"), series("y_q_rad_s"), series("y_theta_rad"), series("t_s"));
-        let (statistic, channel) = native_ewma([&alpha, &q, &theta], 0.05, [0.002, 0.005, 0.002]);
+        let (statistic, channel) = native_ewma([&alpha, &q, &theta], [0.0; 3], 0.05, [0.002, 0.005, 0.002]);
         // The FMU's statistic, sample by sample, is the native one to the bit.
         assert_eq!(series("stat_q_rad_s"), statistic, "trial {trial}");
         // The alarms the run recorded are where the native statistic first exceeds 1.6.
@@ -3264,4 +3264,91 @@ fn a_models_own_fault_input_is_a_fault_kind_and_actuator_populations_are_sampled
         assert_eq!(o.status.code(), Some(2), "{field}: {err}");
         assert!(err.contains(&format!("bad.toml: {field}")) && err.contains(says), "{field}: {err}");
     }
+}
+
+#[test]
+fn a_co_simulation_only_fmu_gets_its_linear_model_identified_and_flies() {
+    let dir = tempfile::tempdir().unwrap();
+    let deck = std::fs::read_to_string("studies/fmu_aircraft.toml")
+        .unwrap()
+        .replace("fmu = \"fmus/aircraft.fmu\"", &format!("fmu = {:?}", bundled_fmus().join("aircraft_cs.fmu")))
+        .replace("interface = \"model_exchange\"", "interface = \"co_simulation\"")
+        .replace("\nlinearise = true\n", "\nidentify = true\n");
+    assert!(deck.contains("identify = true") && deck.contains("aircraft_cs.fmu"));
+    let path = dir.path().join("identified.toml");
+    std::fs::write(&path, &deck).unwrap();
+    let path = path.to_str().unwrap();
+    let validated = ok(&fdimc(&["validate", path]));
+    assert!(validated.contains("[plant] is identified from the FMU's responses at the trim"), "{validated}");
+    let design = ok(&fdimc(&["design", path]));
+    assert!(
+        design.contains("from aircraft_cs.fmu's pulse responses about the trim by ERA: 5 states")
+            && design.contains("fit on 5 s of square waves: v_m_s "),
+        "{design}"
+    );
+    // Every output fits to better than 99 %.
+    let fits: Vec<f64> = design
+        .split("fit on 5 s of square waves: ")
+        .nth(1)
+        .unwrap()
+        .lines()
+        .next()
+        .unwrap()
+        .split(", ")
+        .map(|f| f.split(' ').nth(1).unwrap().parse().unwrap())
+        .collect();
+    assert!(fits.len() == 6 && fits.iter().all(|&f| f > 99.0), "{fits:?}");
+    let out = dir.path().join("run");
+    ok(&fdimc(&["run", path, "--trials", "30", "--out", out.to_str().unwrap(), "--quiet"]));
+    let df = read_frame(&out.join("trials.parquet"));
+    assert_eq!((df.height(), df.column("failure").unwrap().null_count()), (3 * 30, 3 * 30));
+    // Both at once is refused by name.
+    let both = deck.replace("\nidentify = true\n", "\nidentify = true\nlinearise = true\n");
+    std::fs::write(dir.path().join("both.toml"), both).unwrap();
+    let o = fdimc(&["validate", dir.path().join("both.toml").to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(text(&o.stderr).contains("truth.identify: give linearise (model exchange) or identify, not both"));
+}
+
+#[test]
+fn a_detector_fmu_on_an_fmu_truth_sees_the_measured_outputs_with_their_trims_added_back() {
+    let dir = tempfile::tempdir().unwrap();
+    // The FMU aircraft's trim: alpha = theta = 0.0443566119725 rad, q = 0. The detector FMU sees absolute
+    // outputs, so its means are the trims: it then tests the deviations, as fdimc's detectors do.
+    let trim = 0.0443566119725;
+    let detector = format!(
+        "[[detector]]\nname = \"ewma\"\nkind = \"fmu\"\nfmu = {:?}\n\
+         measured = {{ in_1 = \"alpha_rad\", in_2 = \"q_rad_s\", in_3 = \"theta_rad\" }}\n\
+         statistic = \"statistic\"\n\
+         parameters = {{ lambda = 0.05, mean_1 = {trim}, mean_3 = {trim}, scale_1 = 0.002, scale_2 = 0.005, scale_3 = 0.002 }}\n\
+         thresholds = [1.6]\n\n[monte_carlo]\n",
+        bundled_fmus().join("ewma_detector.fmu")
+    );
+    let deck = std::fs::read_to_string("studies/fmu_aircraft.toml")
+        .unwrap()
+        .replace("fmu = \"fmus/aircraft.fmu\"", &format!("fmu = {:?}", bundled_fmus().join("aircraft.fmu")))
+        .replacen("[monte_carlo]\n", &detector, 1);
+    let path = dir.path().join("ewma.toml");
+    std::fs::write(&path, &deck).unwrap();
+    let file = dir.path().join("trace.parquet");
+    let said = ok(&fdimc(&[
+        "simulate",
+        path.to_str().unwrap(),
+        "--trial",
+        "5",
+        "--detector",
+        "ewma",
+        "--out",
+        file.to_str().unwrap(),
+    ]));
+    let trace = read_frame(&file);
+    let (alpha, q, theta) =
+        (f64_column(&trace, "y_alpha_rad"), f64_column(&trace, "y_q_rad_s"), f64_column(&trace, "y_theta_rad"));
+    // What the FMU was given: each measured deviation plus its output trim, added as fdimc adds it.
+    let absolute = |y: &[f64], t: f64| y.iter().map(|v| v + t).collect::<Vec<f64>>();
+    let (alpha, q, theta) = (absolute(&alpha, trim), absolute(&q, 0.0), absolute(&theta, trim));
+    let (statistic, _) = native_ewma([&alpha, &q, &theta], [trim, 0.0, trim], 0.05, [0.002, 0.005, 0.002]);
+    assert_eq!(f64_column(&trace, "stat_q_rad_s"), statistic, "{said}");
+    // The trims matter: without them the statistic would start near |alpha_trim| / 0.002 / 20 = 1.1.
+    assert!(statistic[0] < 0.2, "{}", statistic[0]);
 }

@@ -9,6 +9,7 @@
 //! events handled. Instances are not `Send`: each worker thread instantiates its own.
 
 pub mod description;
+pub mod identify;
 pub mod instance;
 pub mod integrator;
 pub mod messages;

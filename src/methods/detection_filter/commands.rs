@@ -46,6 +46,8 @@ fn print_truth(study: &LtiStudy) {
     println!(
         "            [plant] is {}",
         match &study.linearisation {
+            Some(l) if l.x_trim.is_empty() =>
+                "identified from the FMU's responses at the trim (fdimc design prints it)",
             Some(_) => "the FMU's linearisation at the trim (fdimc design prints it)",
             None => "the deck's matrices, in deviations from the trim",
         }
@@ -143,11 +145,14 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
             println!("  {name} =");
             print!("{}", indent(&format!("{m:.6}")));
         }
-        let worst = l.derivative_at_trim.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-        println!(
-            "  the trim's state derivatives (zero at an equilibrium): [{}], largest {worst:.3e}",
-            l.derivative_at_trim.iter().map(|v| format!("{v:.3e}")).collect::<Vec<_>>().join(", ")
-        );
+        // An identified model has no FMU states, so no derivatives at the trim to show.
+        if !l.derivative_at_trim.is_empty() {
+            let worst = l.derivative_at_trim.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            println!(
+                "  the trim's state derivatives (zero at an equilibrium): [{}], largest {worst:.3e}",
+                l.derivative_at_trim.iter().map(|v| format!("{v:.3e}")).collect::<Vec<_>>().join(", ")
+            );
+        }
     }
     println!(
         "rank ctrb(A, B) = {} of {}, rank obsv(A, C) = {} of {}",

@@ -60,6 +60,10 @@ pub struct TruthSection {
     /// `[plant]`'s a, b, c, d from the FMU's linearisation at the trim (model exchange) instead of the deck.
     #[serde(default)]
     pub linearise: bool,
+    /// `[plant]`'s a, b, c, d identified from the FMU's pulse responses about the trim (any interface;
+    /// what a co-simulation-only FMU has), as many states as `[plant] states` names.
+    #[serde(default)]
+    pub identify: bool,
     /// FMU inputs the model implements faults with (e.g. a loss of effectiveness), which actuator
     /// faults may target (`input = "..."`); healthy: their start values.
     #[serde(default)]

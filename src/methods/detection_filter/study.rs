@@ -214,6 +214,19 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
         None => (None, None),
     };
     let linearisation = match (&deck.truth, &truth) {
+        (Some(t), Some(_)) if t.linearise && t.identify => {
+            return Err(chk.err("truth.identify", "give linearise (model exchange) or identify, not both"));
+        }
+        (Some(t), Some(fmu)) if t.identify => {
+            for (field, given) in [("plant.a", &p.a), ("plant.b", &p.b), ("plant.c", &p.c), ("plant.d", &p.d)] {
+                if given.is_some() {
+                    return Err(chk.err(field, "[truth] identify = true gives the matrices: remove it"));
+                }
+            }
+            let found = crate::fmu::identify::identify(fmu, n, header.dt_s, &p.outputs)
+                .map_err(|e| chk.err("truth.identify", e.to_string()))?;
+            Some(found.linearisation)
+        }
         (Some(t), Some(fmu)) if t.linearise => {
             for (field, given) in [("plant.a", &p.a), ("plant.b", &p.b), ("plant.c", &p.c), ("plant.d", &p.d)] {
                 if given.is_some() {
@@ -236,7 +249,7 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
     };
     let given = |field: &str, m: &Option<Vec<Vec<f64>>>, rows, cols, shape: &str| match m {
         Some(m) => chk.matrix(field, m, rows, cols, &format!("{shape}, {dims}")),
-        None => Err(chk.err(field, "required (or, with an FMU truth, [truth] linearise = true)")),
+        None => Err(chk.err(field, "required (or, with an FMU truth, [truth] linearise = true or identify = true)")),
     };
     let (a, b, c, d) = match &linearisation {
         Some(l) => (l.a.clone(), l.b.clone(), l.c.clone(), l.d.clone()),
