@@ -66,6 +66,9 @@ pub enum LaneStatistic {
     Absolute,
     /// `g_j = max(0, g_j + |r_j| - drift_j)` from 0 (a CUSUM).
     Accumulated { drift: Vec<f64> },
+    /// The normalised innovation squared `r' S^-1 r` summed over the last `window` samples, one joint
+    /// statistic under every output (the Kalman chi-square test; `s_inv` is each design's own).
+    WindowedNis { window: usize, s_inv: nalgebra::DMatrix<f64> },
 }
 
 /// The test a detector applies, shared by every trial.

@@ -67,6 +67,11 @@ pub trait GainDesign: Send + Sync + fmt::Debug {
     fn describe(&self) -> String;
     /// The deck's `kind` of a detector with this gain.
     fn kind(&self) -> &'static str;
+    /// Whether the lane path runs its filters: their test (the designed filter's `decision`) has a
+    /// [`LaneStatistic`](super::decision::LaneStatistic).
+    fn runs_on_lanes(&self) -> bool {
+        false
+    }
 }
 
 /// Which output a detector names after its alarm, from the mean residual in the isolation window.
@@ -127,9 +132,13 @@ impl DetectionFilterParams {
         }
     }
 
-    /// Whether the lane path can run it: the seed's gain and a test the lanes compute.
+    /// Whether the lane path can run it: a test the lanes compute, on the seed's gain or a gain whose
+    /// design says so.
     pub fn runs_on_lanes(&self) -> bool {
-        matches!(self.gain, Gain::Eigenstructure { .. }) && self.decision.as_ref().is_some_and(Decision::runs_on_lanes)
+        match &self.gain {
+            Gain::Eigenstructure { .. } => self.decision.as_ref().is_some_and(Decision::runs_on_lanes),
+            Gain::Own(g) => g.runs_on_lanes(),
+        }
     }
 }
 

@@ -14,7 +14,7 @@ use std::sync::Arc;
 
 use nalgebra::{DMatrix, DVector};
 
-use super::decision::{Decision, ResidualTest, TestState};
+use super::decision::{Decision, LaneStatistic, ResidualTest, TestState};
 use super::filter::{DetectionFilter, DetectionFilterParams, DetectorDeck, Gain, GainDesign, Isolation};
 use crate::design::kalman::steady_state_kalman;
 use crate::design::{Assignment, DesignError, eigen_report};
@@ -64,6 +64,10 @@ impl GainDesign for KalmanChi2 {
     fn kind(&self) -> &'static str {
         "kalman_chi2"
     }
+
+    fn runs_on_lanes(&self) -> bool {
+        true
+    }
 }
 
 /// The window test on a designed filter's innovations: one joint statistic, recorded under every
@@ -80,6 +84,10 @@ impl ResidualTest for WindowedNis {
             "the normalised innovation squared summed over {} samples (threshold: its chi-square quantile at {} per window)",
             self.window, self.false_alarm_probability
         )
+    }
+
+    fn on_lanes(&self) -> Option<LaneStatistic> {
+        Some(LaneStatistic::WindowedNis { window: self.window, s_inv: self.s_inv.clone() })
     }
 
     fn start(&self, _outputs: usize, _dt_s: f64) -> Box<dyn TestState> {
@@ -100,16 +108,19 @@ struct NisState {
 
 impl TestState for NisState {
     fn step(&mut self, residual: &[f64], statistic: &mut [f64]) {
-        // r' S^-1 r without allocating: this runs every sample of every trial.
+        // r' S^-1 r without allocating: this runs every sample of every trial. Sums run in index order
+        // from -0.0, as the lane path's do (lanes.rs), so both give the same bits.
         let m = residual.len();
-        let nis: f64 =
-            (0..m).map(|i| residual[i] * (0..m).map(|j| self.s_inv[(i, j)] * residual[j]).sum::<f64>()).sum();
+        let nis = (0..m).fold(-0.0, |acc, i| {
+            acc + residual[i] * (0..m).fold(-0.0, |inner, j| inner + self.s_inv[(i, j)] * residual[j])
+        });
         self.recent.push_back(nis);
         if self.recent.len() > self.window {
             self.recent.pop_front();
         }
-        // Summed anew each sample (a short window), so no rounding accumulates over a long trial.
-        statistic.fill(self.recent.iter().sum());
+        // Summed anew each sample, oldest first (a short window), so no rounding accumulates over a
+        // long trial.
+        statistic.fill(self.recent.iter().fold(-0.0, |acc, v| acc + v));
     }
 
     fn fork(&self) -> Option<Box<dyn TestState>> {

@@ -166,6 +166,18 @@ fn abs_and_non_finite(residual: &[Lane], abs: &mut [Lane]) -> [u64; LANES] {
     non_finite
 }
 
+/// Per lane, 1 if any of `values` is not finite (NaN or infinite).
+#[inline(always)]
+fn non_finite_lanes(values: &[Lane]) -> [u64; LANES] {
+    let mut flag = [0u64; LANES];
+    for v in values {
+        for l in 0..LANES {
+            flag[l] |= !(v[l].abs() <= f64::MAX) as u64;
+        }
+    }
+    flag
+}
+
 /// `g = max(0, g + |r| - drift)` per output and lane, in the one-trial path's order of operations;
 /// `abs` becomes `g`, the statistic the bookkeeping sees.
 #[inline(always)]
@@ -177,6 +189,88 @@ fn cusum_step(abs: &mut [Lane], drift: &[f64], g: &mut [Lane]) {
             sum[l] = if v.is_finite() { v.max(0.0) } else { v };
         }
         (*g, *abs) = (sum, sum);
+    }
+}
+
+/// The Kalman chi-square test per lane: `r' S^-1 r` (each lane's own `S^-1`, `s_inv[i * ny + j]`) into
+/// the window `ring` (oldest at `head` once full), and the window's sum, oldest first, into every
+/// output's `abs`: the one-trial path's sums, in its order, from -0.0 (kalman_chi2.rs).
+#[inline(always)]
+fn nis_step(residual: &[Lane], abs: &mut [Lane], window: &mut NisWindow) {
+    let ny = residual.len();
+    let mut nis = [-0.0f64; LANES];
+    for i in 0..ny {
+        let mut inner = [-0.0f64; LANES];
+        for j in 0..ny {
+            let (s, r) = (window.s_inv[i * ny + j], residual[j]);
+            for l in 0..LANES {
+                inner[l] += s[l] * r[l];
+            }
+        }
+        let r = residual[i];
+        for l in 0..LANES {
+            nis[l] += r[l] * inner[l];
+        }
+    }
+    let size = window.ring.len();
+    if window.filled < size {
+        window.ring[window.filled] = nis;
+        window.filled += 1;
+    } else {
+        window.ring[window.head] = nis;
+        window.head = (window.head + 1) % size;
+    }
+    let mut sum = [-0.0f64; LANES];
+    for k in 0..window.filled {
+        let v = window.ring[(window.head + k) % size];
+        for l in 0..LANES {
+            sum[l] += v[l];
+        }
+    }
+    abs.iter_mut().for_each(|a| *a = sum);
+}
+
+/// The Kalman chi-square test's memory for a group of lanes.
+struct NisWindow {
+    /// `S^-1` entry by entry (row-major), each lane's design's own (zeros for a lane without one).
+    s_inv: Vec<Lane>,
+    /// The last `window` values of `r' S^-1 r`.
+    ring: Vec<Lane>,
+    filled: usize,
+    head: usize,
+}
+
+/// The statistic the bookkeeping sees, per output: `|r_j|` or what a test makes of the residual.
+enum LaneTest {
+    Absolute,
+    /// `kind = "cusum"`: per output the drift and the sums.
+    Cusum(Vec<f64>, Vec<Lane>),
+    /// `kind = "kalman_chi2"`.
+    Nis(NisWindow),
+}
+
+impl LaneTest {
+    fn new(d: &LaneDetector, ny: usize) -> Self {
+        if let Some(LaneStatistic::Accumulated { drift }) = d.params.decision.as_ref().and_then(Decision::on_lanes) {
+            return LaneTest::Cusum(drift, vec![[0.0; LANES]; ny]);
+        }
+        // A test designed with each filter (the Kalman test's S is the design's): read per lane.
+        let per_lane: [Option<LaneStatistic>; LANES] =
+            std::array::from_fn(|l| d.designs[l].and_then(|f| f.decision.on_lanes()));
+        let window = per_lane.iter().find_map(|s| match s {
+            Some(LaneStatistic::WindowedNis { window, .. }) => Some(*window),
+            _ => None,
+        });
+        let Some(window) = window else { return LaneTest::Absolute };
+        let s_inv = (0..ny * ny)
+            .map(|k| {
+                std::array::from_fn(|l| match &per_lane[l] {
+                    Some(LaneStatistic::WindowedNis { s_inv, .. }) => s_inv[(k / ny, k % ny)],
+                    _ => 0.0,
+                })
+            })
+            .collect();
+        LaneTest::Nis(NisWindow { s_inv, ring: vec![[0.0; LANES]; window], filled: 0, head: 0 })
     }
 }
 
@@ -219,8 +313,8 @@ struct LaneTracker<'f> {
     /// Per output: a post-onset |residual| above this adds a profile point (+inf before the onset).
     next_kept: Vec<Lane>,
     abs: Vec<Lane>,
-    /// `kind = "cusum"`: per output the drift and the sums, which replace `abs` as the statistic.
-    cusum: Option<(Vec<f64>, Vec<Lane>)>,
+    /// What replaces `abs` as the statistic, for a test other than `|r|`.
+    test: LaneTest,
     onset_s: Lane,
     after_onset: [bool; LANES],
     live: [bool; LANES],
@@ -249,10 +343,7 @@ impl<'f> LaneTracker<'f> {
             max_t: vec![[f64::NAN; LANES]; ny],
             next_kept: vec![[f64::INFINITY; LANES]; ny],
             abs: vec![[0.0; LANES]; ny],
-            cusum: match d.params.decision.as_ref().and_then(Decision::on_lanes) {
-                Some(LaneStatistic::Accumulated { drift }) => Some((drift, vec![[0.0; LANES]; ny])),
-                _ => None,
-            },
+            test: LaneTest::new(d, ny),
             onset_s,
             after_onset: [false; LANES],
             live,
@@ -288,8 +379,19 @@ impl<'f> LaneTracker<'f> {
                 }
             }
         }
-        if let Some((drift, g)) = self.cusum.as_mut() {
-            cusum_step(&mut self.abs, drift, g);
+        match &mut self.test {
+            LaneTest::Absolute => {}
+            LaneTest::Cusum(drift, g) => cusum_step(&mut self.abs, drift, g),
+            LaneTest::Nis(window) => nis_step(residual, &mut self.abs, window),
+        }
+        if !matches!(self.test, LaneTest::Absolute) {
+            // A statistic that overflows from a finite residual has diverged, as in the one-trial path.
+            let non_finite = non_finite_lanes(&self.abs);
+            for l in 0..LANES {
+                if non_finite[l] != 0 && self.live[l] {
+                    self.diverge(l, t);
+                }
+            }
         }
         let event = running_max_and_events(t, &self.abs, &mut self.max, &mut self.max_t, &self.armed, &self.next_kept);
         if event.iter().any(|&e| e != 0) {

@@ -110,6 +110,12 @@ impl Tracker {
         }
         self.test.inputs(u);
         self.test.step(residual, &mut self.statistic);
+        // A statistic that overflows from a finite residual (the Kalman test's r' S^-1 r) has diverged
+        // as the filter has.
+        if self.statistic.iter().any(|a| !a.is_finite()) {
+            self.out.diverged_at_s = Some(t);
+            return;
+        }
         let mut alarm_channel = None;
         for j in 0..residual.len() {
             let a = self.statistic[j];

@@ -450,6 +450,10 @@ mod tests {
         let deck = ROBUST.replace("[noise]", "[noise]\nprocess_sigma_per_step = [0.001, 0.0001, 0.0001, 0.0001, 0.01]");
         assert!(deck.contains("process_sigma_per_step"));
         let s = LtiStudy::from_toml(&format!("{deck}\n{extra}"), Path::new("deck.toml")).unwrap();
+        // All four detectors, the CUSUM and the Kalman chi-square test included, run on the lanes.
+        let kinds: Vec<&str> =
+            s.detectors.iter().filter(|d| d.params.runs_on_lanes()).map(|d| d.params.kind()).collect();
+        assert_eq!(kinds, ["detection_filter", "detection_filter", "cusum", "kalman_chi2"]);
         let diverged =
             (0..48).filter(|&t| Engine::new(&s).run(t).detectors[0].as_ref().unwrap().diverged_at_s.is_some());
         assert!((5..40).contains(&diverged.count()), "some trials diverge, not all");
