@@ -268,13 +268,8 @@ impl Flight<'_> {
     /// Sets the FMU's own fault inputs (absolute values, in [`FmuPlant::fault_inputs`] order).
     pub fn set_fault_inputs(&mut self, values: &[f64]) -> Result<(), FmuError> {
         let instance = live(&mut self.instance)?;
-        let mut r = Ok(());
-        for (&(vr, _), v) in self.plant.fault_inputs.iter().zip(values) {
-            r = instance.set_real(&[vr], &[*v]);
-            if r.is_err() {
-                break;
-            }
-        }
+        let r =
+            (self.plant.fault_inputs.iter().zip(values)).try_for_each(|(&(vr, _), v)| instance.set_real(&[vr], &[*v]));
         self.fail_on(r)
     }
 

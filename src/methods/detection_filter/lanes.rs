@@ -220,9 +220,10 @@ fn nis_step(residual: &[Lane], abs: &mut [Lane], window: &mut NisWindow) {
         window.ring[window.head] = nis;
         window.head = (window.head + 1) % size;
     }
+    // Oldest first: from `head` to the end, then the start up to `head` (0 until the ring is full).
     let mut sum = [-0.0f64; LANES];
-    for k in 0..window.filled {
-        let v = window.ring[(window.head + k) % size];
+    let (newer, older) = window.ring[..window.filled].split_at(window.head);
+    for v in older.iter().chain(newer) {
         for l in 0..LANES {
             sum[l] += v[l];
         }

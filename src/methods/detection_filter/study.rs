@@ -213,26 +213,24 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
         Some((plant, trim)) => (Some(plant), trim),
         None => (None, None),
     };
-    let linearisation = match (&deck.truth, &truth) {
-        (Some(t), Some(_)) if t.linearise && t.identify => {
+    if let Some(t) = deck.truth.as_ref().filter(|t| t.linearise || t.identify) {
+        if t.linearise && t.identify {
             return Err(chk.err("truth.identify", "give linearise (model exchange) or identify, not both"));
         }
-        (Some(t), Some(fmu)) if t.identify => {
-            for (field, given) in [("plant.a", &p.a), ("plant.b", &p.b), ("plant.c", &p.c), ("plant.d", &p.d)] {
-                if given.is_some() {
-                    return Err(chk.err(field, "[truth] identify = true gives the matrices: remove it"));
-                }
+        let how = if t.identify { "identify" } else { "linearise" };
+        for (field, given) in [("plant.a", &p.a), ("plant.b", &p.b), ("plant.c", &p.c), ("plant.d", &p.d)] {
+            if given.is_some() {
+                return Err(chk.err(field, format!("[truth] {how} = true gives the matrices: remove it")));
             }
+        }
+    }
+    let linearisation = match (&deck.truth, &truth) {
+        (Some(t), Some(fmu)) if t.identify => {
             let found = crate::fmu::identify::identify(fmu, n, header.dt_s, &p.outputs)
                 .map_err(|e| chk.err("truth.identify", e.to_string()))?;
             Some(found.linearisation)
         }
         (Some(t), Some(fmu)) if t.linearise => {
-            for (field, given) in [("plant.a", &p.a), ("plant.b", &p.b), ("plant.c", &p.c), ("plant.d", &p.d)] {
-                if given.is_some() {
-                    return Err(chk.err(field, "[truth] linearise = true gives the matrices: remove it"));
-                }
-            }
             let lin = fmu.linearise().map_err(|e| chk.err("truth.linearise", e.to_string()))?;
             if lin.x_trim.len() != n {
                 return Err(chk.err(
