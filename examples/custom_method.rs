@@ -21,7 +21,7 @@ use std::path::Path;
 
 use fdimc::engine::method::{Inputs, Method, Opt, Study};
 use fdimc::engine::report::TracePanel;
-use fdimc::engine::results::schema::{CoreColumns, Outcome, StatisticColumns, col, unit};
+use fdimc::engine::results::schema::{CoreColumns, FirstPassage, Outcome, StatisticColumns, col, unit};
 use fdimc::engine::results::summary_spec::{Isolates, SummarySpec};
 use fdimc::engine::run::output::write_table;
 use fdimc::engine::run::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
@@ -212,6 +212,8 @@ impl<'a> Trials<'a> {
         let mut g = vec![(0.0f64, 0.0f64); s.detectors.len()];
         let mut statistic = vec![0.0; s.detectors.len()];
         let mut outcomes = vec![CusumOutcome::default(); s.detectors.len()];
+        // The first-passage profile on the run's grid (`monte_carlo.profile_resolution`).
+        let mut passages = vec![FirstPassage::new(s.monte_carlo.profile); s.detectors.len()];
         for k in 0..s.header.steps {
             let t = k as f64 * s.header.dt_s;
             let after_onset = !scenario.fault_free && t >= scenario.onset_s;
@@ -228,11 +230,7 @@ impl<'a> Trials<'a> {
                 statistic[j] = a;
                 let o = &mut outcomes[j];
                 if after_onset {
-                    // Every rise of the running maximum: the alarm time at any threshold.
-                    if o.profile_value.last().is_none_or(|m| a > *m) {
-                        o.profile_t_s.push(t);
-                        o.profile_value.push(a);
-                    }
+                    passages[j].observe(t, a, &mut o.profile_t_s, &mut o.profile_value);
                     if a > d.threshold && o.alarm_s.is_none() {
                         o.alarm_s = Some(t);
                     }
@@ -246,6 +244,9 @@ impl<'a> Trials<'a> {
             each(t, x, y, estimate, &statistic);
             let w: f64 = process.sample(StandardNormal);
             x += step_sigma * w;
+        }
+        for (o, p) in outcomes.iter_mut().zip(&passages) {
+            p.close(&mut o.profile_t_s, &mut o.profile_value);
         }
         TrialResult { scenario, outcomes }
     }
@@ -320,6 +321,10 @@ impl Study for RandomWalkStudy {
 
     fn seed_and_trials(&mut self) -> (&mut u64, &mut u64) {
         (&mut self.header.seed, &mut self.monte_carlo.trials)
+    }
+
+    fn monte_carlo(&mut self) -> &mut MonteCarlo {
+        &mut self.monte_carlo
     }
 
     fn validate(&self) -> Result<(), RunError> {

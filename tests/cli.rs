@@ -623,6 +623,23 @@ fn bad_arguments_exit_2() {
     assert!(!dir.path().join("r").exists());
     let out = fdimc(&["train", DECK]);
     assert_eq!(out.status.code(), Some(2));
+
+    // A profile grid step outside what is allowed, from the command line or the deck.
+    let r = dir.path().join("r");
+    let out = fdimc(&["run", DECK, "--profile-resolution", "-0.1", "--out", r.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("--profile-resolution -0.1: allowed 0 (every rise"), "{}", text(&out.stderr));
+    assert!(!r.exists());
+    let deck = edited_deck(
+        dir.path(),
+        "ci_seed000.toml",
+        &[("trials = 3000", "trials = 3000\nprofile_resolution = 0.0001")],
+        "p.toml",
+    );
+    let out = fdimc(&["validate", deck.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = text(&out.stderr);
+    assert!(stderr.contains("p.toml") && stderr.contains("monte_carlo.profile_resolution: allowed 0"), "{stderr}");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -3351,4 +3368,55 @@ fn a_detector_fmu_on_an_fmu_truth_sees_the_measured_outputs_with_their_trims_add
     assert_eq!(f64_column(&trace, "stat_q_rad_s"), statistic, "{said}");
     // The trims matter: without them the statistic would start near |alpha_trim| / 0.002 / 20 = 1.1.
     assert!(statistic[0] < 0.2, "{}", statistic[0]);
+}
+
+/// The default profile grid (5 %) against the full profiles (`--profile-resolution 0`, every rise) on
+/// the CI deck: the same rows, the same calibrated thresholds to the byte, every count and rate equal;
+/// only the calibrated sets' delays differ, never earlier (a replayed alarm is at or after the
+/// statistic's first sample above the threshold); and the records several times smaller.
+#[test]
+fn the_profile_grid_keeps_every_count_and_threshold_of_the_full_profiles() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (grid, full) = (tmp.path().join("grid"), tmp.path().join("full"));
+    ok(&fdimc(&["run", CI_DECK, "--quiet", "--out", grid.to_str().unwrap()]));
+    ok(&fdimc(&["run", CI_DECK, "--quiet", "--profile-resolution", "0", "--out", full.to_str().unwrap()]));
+    let manifest = |d: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join("manifest.json")).unwrap()).unwrap()
+    };
+    assert_eq!(manifest(&grid)["profile_resolution"].as_f64(), Some(0.05));
+    assert_eq!(manifest(&full)["profile_resolution"].as_f64(), Some(0.0));
+    assert_eq!(
+        std::fs::read(grid.join("thresholds.csv")).unwrap(),
+        std::fs::read(full.join("thresholds.csv")).unwrap()
+    );
+    let (g, f) = (csv_frame(&grid.join("summary.csv")), csv_frame(&full.join("summary.csv")));
+    assert_eq!(g.height(), f.height());
+    let calibrated: Vec<bool> =
+        g.column("thresholds").unwrap().str().unwrap().iter().map(|s| s == Some("calibrated")).collect();
+    let (mut later, mut delays) = (0, 0);
+    for name in g.get_column_names() {
+        let (a, b) = (g.column(name).unwrap(), f.column(name).unwrap());
+        if name.starts_with("delay_") {
+            let (a, b) = (a.f64().unwrap(), b.f64().unwrap());
+            for i in 0..g.height() {
+                if calibrated[i] {
+                    if let (Some(x), Some(y)) = (a.get(i), b.get(i)) {
+                        assert!(x >= y, "{name} row {i}: {x} s on the grid, {y} s exact");
+                        later += usize::from(x > y);
+                        delays += 1;
+                    }
+                } else {
+                    assert_eq!(a.get(i), b.get(i), "{name} row {i}: the deck's thresholds read the trials' own alarms");
+                }
+            }
+        } else {
+            assert!(a.equals_missing(b), "{name}");
+        }
+    }
+    assert!(delays >= 48 && later > 0, "{later} of {delays} calibrated delays later on the grid");
+    let rows = |d: &Path| read_frame(&d.join("trials.parquet")).height();
+    assert_eq!(rows(&grid), rows(&full));
+    let bytes = |d: &Path| std::fs::metadata(d.join("trials.parquet")).unwrap().len();
+    assert!(bytes(&grid) * 3 < bytes(&full), "{} B on the grid, {} B full", bytes(&grid), bytes(&full));
+    assert_replay_repeats_the_trials(&grid);
 }

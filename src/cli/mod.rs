@@ -184,6 +184,8 @@ It prints the factors before it runs. Shards, --resume and `fdimc merge` work as
         seed: u64,
         #[arg(long)]
         trials: u64,
+        #[arg(long)]
+        profile_resolution: f64,
     },
     /// Join the results folders of all shards of one run into one, then summarize.
     Merge {
@@ -318,6 +320,12 @@ pub struct RunFolder {
     /// with how the process died, and the run goes on. The records are otherwise the same.
     #[arg(long)]
     pub fmu_processes: bool,
+    /// The recorded first-passage profiles' value grid, a relative step (default: the deck's
+    /// monte_carlo.profile_resolution, else 0.05): alarm times replayed at other thresholds are those of
+    /// the grid level above the threshold. 0 keeps every rise at its exact value (full profiles); 1, a
+    /// point per doubling, is the lean setting for 10^7 trials (docs/outputs.md gives the sizes).
+    #[arg(long, value_name = "STEP", allow_negative_numbers = true)]
+    pub profile_resolution: Option<f64>,
 }
 
 /// An error the CLI reports, with its exit code.
@@ -453,8 +461,9 @@ pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
             commands.exec_summarize(&dir, target_pfa, target_pfa_per_hour, confidence, thresholds.as_deref())
         }
         Command::Merge { dirs, out, force } => commands.exec_merge(&dirs, &out, force),
-        Command::FmuWorker { deck, seed, trials } => {
-            crate::methods::detection_filter::workers::serve(&deck, seed, trials).map_err(CliError::from)
+        Command::FmuWorker { deck, seed, trials, profile_resolution } => {
+            crate::methods::detection_filter::workers::serve(&deck, seed, trials, profile_resolution)
+                .map_err(CliError::from)
         }
         Command::Report { dir, trials } => commands.exec_report(&dir, &trials),
         Command::Log { file, topic, instance } => run::exec_log(&file, topic.as_deref(), instance),

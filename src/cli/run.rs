@@ -184,6 +184,13 @@ impl Kinds {
             }
             *study.seed_and_trials().1 = n;
         }
+        if let Some(r) = f.profile_resolution {
+            use crate::engine::results::schema::ProfileGrid;
+            if !ProfileGrid::valid(r) {
+                return Err(CliError::Invalid(format!("--profile-resolution {r}: allowed {}", ProfileGrid::ALLOWED)));
+            }
+            study.monte_carlo().profile = ProfileGrid::new(r);
+        }
         if f.fmu_processes {
             method::require(self.0, method, Opt::FmuProcesses)?;
         }
@@ -461,6 +468,7 @@ impl Kinds {
                     quiet: true,
                     stop_after: None,
                     fmu_processes: false,
+                    profile_resolution: None,
                 },
                 classifiers: None,
                 precision: None,

@@ -154,6 +154,8 @@ pub trait Study: Sync {
     fn header(&self) -> &StudyHeader;
     /// What `run --seed S` and `--trials N` change: the seed and the trial count.
     fn seed_and_trials(&mut self) -> (&mut u64, &mut u64);
+    /// The shared `[monte_carlo]` fields (`run --profile-resolution` changes the profile grid).
+    fn monte_carlo(&mut self) -> &mut crate::engine::scenario::deck::MonteCarlo;
     /// `fdimc validate`: prints the resolved study.
     fn validate(&self) -> Result<(), RunError>;
     /// `fdimc simulate`: writes one trial's per-sample trace to `out` and prints what happened in it.
@@ -265,32 +267,36 @@ fn kinds(registry: &[&Method]) -> String {
     registry.iter().map(|m| format!("[{}] ({}: {})", m.marker, m.kind, m.title)).collect::<Vec<_>>().join(", ")
 }
 
-/// The [`Study`] accessors of a study type with a `header` field and its trial count at the given path
-/// (`monte_carlo.common.trials`).
+/// The [`Study`] accessors of a study type with a `header` field and its shared `[monte_carlo]` fields
+/// at the given path (`monte_carlo.common`).
 #[macro_export]
 macro_rules! study_accessors {
-    ($($trials:ident).+) => {
+    ($($mc:ident).+) => {
         fn header(&self) -> &$crate::engine::scenario::deck::StudyHeader {
             &self.header
         }
         fn seed_and_trials(&mut self) -> (&mut u64, &mut u64) {
-            (&mut self.header.seed, &mut self.$($trials).+)
+            (&mut self.header.seed, &mut self.$($mc).+.trials)
+        }
+        fn monte_carlo(&mut self) -> &mut $crate::engine::scenario::deck::MonteCarlo {
+            &mut self.$($mc).+
         }
     };
 }
 
 /// `impl Study` for a kind whose folder has `commands::{validate, simulate}` and whose trials are a
 /// [`crate::engine::run::runner::TrialSource`] made from the study by `|study| source` (a `Result`: an error is the
-/// deck's, exit 2); with `sensitivity: |study| parts`, the kind's sensitivity design
-/// ([`Opt::Sensitivity`]) over the parts its scenario names (its trials at `monte_carlo.common`). Kinds
+/// deck's, exit 2), its shared `[monte_carlo]` fields at the path given (`monte_carlo.common`); with
+/// `sensitivity: |study| parts`, the kind's sensitivity design ([`Opt::Sensitivity`]) over the parts its
+/// scenario names. Kinds
 /// with more to do (a gain design, trained classifiers) write the impl out.
 #[macro_export]
 macro_rules! plain_study {
-    ($study:ty, $($trials:ident).+, |$s:ident| $source:expr) => {
-        $crate::plain_study!(@impl $study, [$($trials).+], |$s| $source, {});
+    ($study:ty, $($mc:ident).+, |$s:ident| $source:expr) => {
+        $crate::plain_study!(@impl $study, [$($mc).+], |$s| $source, {});
     };
-    ($study:ty, $($trials:ident).+, |$s:ident| $source:expr, sensitivity: |$p:ident| $parts:expr) => {
-        $crate::plain_study!(@impl $study, [$($trials).+], |$s| $source, {
+    ($study:ty, $($mc:ident).+, |$s:ident| $source:expr, sensitivity: |$p:ident| $parts:expr) => {
+        $crate::plain_study!(@impl $study, [$($mc).+], |$s| $source, {
             fn sensitivity_design(
                 &mut self,
                 base_samples: u64,
@@ -298,13 +304,13 @@ macro_rules! plain_study {
             ) -> Result<$crate::engine::scenario::design::Design, $crate::engine::run::runner::RunError> {
                 let $p = &*self;
                 let parts = $parts;
-                Ok(self.monte_carlo.common.use_design(base_samples, bootstrap, parts))
+                Ok(self.$($mc).+.use_design(base_samples, bootstrap, parts))
             }
         });
     };
-    (@impl $study:ty, [$($trials:ident).+], |$s:ident| $source:expr, { $($extra:tt)* }) => {
+    (@impl $study:ty, [$($mc:ident).+], |$s:ident| $source:expr, { $($extra:tt)* }) => {
         impl $crate::engine::method::Study for $study {
-            $crate::study_accessors!($($trials).+);
+            $crate::study_accessors!($($mc).+);
             fn validate(&self) -> Result<(), $crate::engine::run::runner::RunError> {
                 commands::validate(self)
             }

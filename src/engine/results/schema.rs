@@ -257,47 +257,50 @@ pub fn is_late(delay_s: f64, detection_window_s: f64) -> bool {
     delay_s > detection_window_s
 }
 
-/// Relative rise of the running maximum that adds a point to a first-passage profile.
-pub const PROFILE_RESOLUTION: f64 = 0.02;
+pub use crate::engine::scenario::profile_grid::{DEFAULT_PROFILE_RESOLUTION, ProfileGrid};
 
 /// A statistic's first-passage profile after the onset while a unit is flown: a point `(t, value)`
-/// each time its running maximum rises by more than [`PROFILE_RESOLUTION`] over the last point kept,
-/// and the final maximum to close it ([`FirstPassage::close`]), so "alarm or not" is exact at every
-/// threshold and the alarm time is that of the first sample within the resolution of it. The points go
-/// to the caller's vectors (a unit's outcome holds them).
+/// each time its running maximum rises past a level of the [`ProfileGrid`], and the final maximum to
+/// close it ([`FirstPassage::close`]), so "alarm or not" is exact at every threshold and the alarm time
+/// is that of the first sample at which the statistic was past the grid level above the threshold (at
+/// most one step above it). The points go to the caller's vectors (a unit's outcome holds them).
 #[derive(Debug, Clone, Copy)]
 pub struct FirstPassage {
+    grid: ProfileGrid,
     running_max: f64,
     running_max_t: f64,
-    last_kept: f64,
-}
-
-impl Default for FirstPassage {
-    fn default() -> Self {
-        FirstPassage { running_max: 0.0, running_max_t: f64::NAN, last_kept: f64::NAN }
-    }
+    next_kept: f64,
 }
 
 impl FirstPassage {
+    pub fn new(grid: ProfileGrid) -> Self {
+        FirstPassage { grid, running_max: 0.0, running_max_t: f64::NAN, next_kept: f64::NEG_INFINITY }
+    }
+
     /// The statistic's value `a` at `t` (s), after the onset.
     pub fn observe(&mut self, t: f64, a: f64, profile_t_s: &mut Vec<f64>, profile_value: &mut Vec<f64>) {
         if a > self.running_max || self.running_max_t.is_nan() {
             self.running_max = a;
             self.running_max_t = t;
-            if self.last_kept.is_nan() || a > self.last_kept * (1.0 + PROFILE_RESOLUTION) {
+            if let Some(v) = self.grid.keep(&mut self.next_kept, a) {
                 profile_t_s.push(t);
-                profile_value.push(a);
-                self.last_kept = a;
+                profile_value.push(v);
             }
         }
     }
 
     /// Closes the profile with the final maximum, where the last point kept is not it.
     pub fn close(&self, profile_t_s: &mut Vec<f64>, profile_value: &mut Vec<f64>) {
-        if !self.running_max_t.is_nan() && profile_value.last() != Some(&self.running_max) {
-            profile_t_s.push(self.running_max_t);
-            profile_value.push(self.running_max);
-        }
+        close_profile(self.running_max_t, self.running_max, profile_t_s, profile_value);
+    }
+}
+
+/// Ends a profile with its final maximum `max` reached at `max_t` (NaN: no value after the onset),
+/// unless its last point is that maximum already.
+pub fn close_profile(max_t: f64, max: f64, profile_t_s: &mut Vec<f64>, profile_value: &mut Vec<f64>) {
+    if !max_t.is_nan() && profile_value.last() != Some(&max) {
+        profile_t_s.push(max_t);
+        profile_value.push(max);
     }
 }
 
@@ -311,13 +314,18 @@ pub struct RecordedStatistic {
 }
 
 /// A [`RecordedStatistic`] while its unit is flown: values before the onset, then after it.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub struct StatisticRecorder {
     recorded: RecordedStatistic,
     first_passage: FirstPassage,
 }
 
 impl StatisticRecorder {
+    /// A recorder whose profile keeps the points of `grid`.
+    pub fn new(grid: ProfileGrid) -> Self {
+        StatisticRecorder { recorded: RecordedStatistic::default(), first_passage: FirstPassage::new(grid) }
+    }
+
     /// A value before the onset (NaN: none).
     pub fn before_onset(&mut self, value: f64) {
         if value > self.recorded.pre_max {
@@ -435,6 +443,71 @@ pub mod unit {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn profile(step: f64, series: &[(f64, f64)]) -> (Vec<f64>, Vec<f64>) {
+        let mut recorder = StatisticRecorder::new(ProfileGrid::new(step));
+        series.iter().for_each(|&(t, a)| recorder.after_onset(t, a));
+        let r = recorder.finish();
+        (r.profile_t_s, r.profile_value)
+    }
+
+    const SERIES: [(f64, f64); 10] = [
+        (0.0, 0.3),
+        (1.0, 0.2),
+        (2.0, 0.45),
+        (3.0, 0.6),
+        (4.0, 1.7),
+        (5.0, 1.9),
+        (6.0, 2.0),
+        (7.0, 9.0),
+        (8.0, 3.0),
+        (9.0, 9.5),
+    ];
+
+    /// Step 1 (levels at the powers of 2, exact in binary): the first value exact, then the level at or
+    /// below each maximum that passes the next level (0.6 -> 0.5, 1.7 -> 1, 9 -> 8; 2.0 does not pass 2),
+    /// then the final maximum.
+    #[test]
+    fn a_profile_keeps_the_grid_levels_the_maximum_passes() {
+        assert_eq!(profile(1.0, &SERIES), (vec![0.0, 3.0, 4.0, 7.0, 9.0], vec![0.3, 0.5, 1.0, 8.0, 9.5]));
+        // Step 0: every rise of the running maximum, at its value.
+        assert_eq!(
+            profile(0.0, &SERIES),
+            (vec![0.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 9.0], vec![0.3, 0.45, 0.6, 1.7, 1.9, 2.0, 9.0, 9.5])
+        );
+        // A first value of 0: the next point is the first positive maximum's level, then the maximum.
+        assert_eq!(profile(1.0, &[(0.0, 0.0), (1.0, 0.0), (2.0, 0.3)]), (vec![0.0, 2.0, 2.0], vec![0.0, 0.25, 0.3]));
+        assert_eq!(profile(1.0, &[]), (vec![], vec![]));
+    }
+
+    /// Step 0.05 on a wandering, rising statistic: the levels are powers of 1.05; at every threshold the
+    /// replayed alarm (the first point above it) is exactly whether the statistic passed it, never
+    /// earlier than the statistic's first sample above it, and later only while the running maximum
+    /// was still below the grid level above the threshold (at most 5 % above it).
+    #[test]
+    fn a_replayed_alarm_is_within_one_grid_step_of_the_threshold() {
+        let series: Vec<(f64, f64)> =
+            (0..2000).map(|k| (k as f64 * 0.01, 0.5 + 0.4 * (k as f64 * 0.37).sin() + 0.002 * k as f64)).collect();
+        let (t, v) = profile(0.05, &series);
+        assert!(v.windows(2).all(|w| w[1] > w[0]) && t.windows(2).all(|w| w[1] >= w[0]));
+        let max = series.iter().map(|p| p.1).fold(f64::MIN, f64::max);
+        assert_eq!(*v.last().unwrap(), max);
+        for (i, &level) in v.iter().enumerate().skip(1).take(v.len() - 2) {
+            let l = level.ln() / 1.05f64.ln();
+            assert!((l - l.round()).abs() < 1e-9, "point {i}: {level} is a power of 1.05");
+        }
+        for thr in [0.2, 0.5, 0.9, 1.0, 1.3, 2.0, 4.0, 4.5, max - 1e-9, max] {
+            let exact = series.iter().find(|p| p.1 > thr).map(|p| p.0);
+            let replayed = t.iter().zip(&v).find(|(_, v)| **v > thr).map(|(t, _)| *t);
+            assert_eq!(exact.is_some(), replayed.is_some(), "threshold {thr}");
+            if let (Some(e), Some(r)) = (exact, replayed) {
+                let before = series.iter().filter(|p| p.0 < r).map(|p| p.1).fold(f64::MIN, f64::max);
+                assert!(r >= e && (r == e || before <= thr * 1.05 * (1.0 + 1e-12)), "threshold {thr}: {e} {r}");
+            }
+        }
+        // Fewer points than rises: 2,000 samples, a maximum rising from 0.5 to about 4.9.
+        assert!(v.len() < 60, "{} points", v.len());
+    }
 
     /// With a 2 s window: a delay of 1 s is a detection, 3 s a late alarm (a miss, nothing isolated),
     /// none neither; 2 s exactly is still within.

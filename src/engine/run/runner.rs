@@ -261,6 +261,10 @@ pub struct Manifest {
     /// detection (`None`: to the end of the trial).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub detection_window_s: Option<f64>,
+    /// The relative step of the first-passage profiles' value grid (`monte_carlo.profile_resolution`;
+    /// 0: every rise; `None`: a run written before the grid, whose points rose by 2 % each).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub profile_resolution: Option<f64>,
     /// Unit of each fault kind's size bins (for plot axes).
     #[serde(default)]
     pub fault_size_units: std::collections::BTreeMap<String, String>,
@@ -333,6 +337,7 @@ impl Manifest {
             && self.chunk_trials == other.chunk_trials
             && self.sensitivity == other.sensitivity
             && self.models == other.models
+            && self.profile_resolution == other.profile_resolution
     }
 }
 
@@ -499,6 +504,7 @@ impl Manifest {
             target_pfa: monte_carlo.target_pfa,
             confidence: monte_carlo.confidence,
             detection_window_s: monte_carlo.detection_window_s.is_finite().then_some(monte_carlo.detection_window_s),
+            profile_resolution: Some(monte_carlo.profile.step()),
             detectors: detectors.into_iter().map(String::from).collect(),
             trial_duration_s: Some(header.duration_s),
             ..Manifest::unstarted()
@@ -526,6 +532,7 @@ impl Manifest {
             confidence: None,
             trial_duration_s: None,
             detection_window_s: None,
+            profile_resolution: None,
             fault_size_units: Default::default(),
             fault_size_bins: Default::default(),
             command_line: Vec::new(),
@@ -577,7 +584,7 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
         let old = Manifest::read(dir)?;
         if !old.same_study(&manifest) || old.shard != manifest.shard {
             return Err(RunError::Invalid(format!(
-                "{}: holds a run of another deck, seed, trial count or shard (deck {}, seed {}, {} trials, shard {}/{}); \
+                "{}: holds a run of another deck, seed, trial count, shard or profile resolution (deck {}, seed {}, {} trials, shard {}/{}); \
                  --resume continues only the same run: use another --out",
                 dir.display(),
                 old.deck,

@@ -269,6 +269,20 @@ impl Validator<'_> {
         }
     }
 
+    /// A first-passage profile's grid step (`None`: the default); `fdimc run --profile-resolution` too.
+    pub fn profile_grid(
+        &self,
+        field: &str,
+        step: Option<f64>,
+    ) -> Result<crate::engine::scenario::profile_grid::ProfileGrid, DeckError> {
+        use crate::engine::scenario::profile_grid::ProfileGrid;
+        match step {
+            None => Ok(ProfileGrid::default()),
+            Some(r) if ProfileGrid::valid(r) => Ok(ProfileGrid::new(r)),
+            Some(r) => Err(self.err(field, format!("allowed {}, got {r}", ProfileGrid::ALLOWED))),
+        }
+    }
+
     pub fn non_negative(&self, field: &str, v: f64) -> Result<f64, DeckError> {
         if v.is_finite() && v >= 0.0 {
             Ok(v)
@@ -577,6 +591,7 @@ pub struct MonteCarloSection {
     pub onset_s: Option<FactorSpec>,
     pub noise_scale: Option<FactorSpec>,
     pub detection_window_s: Option<f64>,
+    pub profile_resolution: Option<f64>,
     #[serde(default)]
     pub parameter_error: Vec<toml::Table>,
     #[serde(flatten)]
@@ -601,6 +616,9 @@ pub struct MonteCarlo {
     /// An alarm is a detection only this long after the onset (s); a later one is a miss and a late
     /// alarm ([`crate::engine::results::schema::col::LATE_ALARM_S`]). Infinite: to the end of the trial.
     pub detection_window_s: f64,
+    /// The value grid of the recorded first-passage profiles (`profile_resolution`, its relative step):
+    /// the resolution at which alarm times can be replayed at other thresholds.
+    pub profile: crate::engine::scenario::profile_grid::ProfileGrid,
     /// Set by `fdimc sensitivity`, never by a deck: the trials are the rows of this design.
     pub design: Option<std::sync::Arc<Design>>,
 }
@@ -689,6 +707,7 @@ impl Validator<'_> {
                 onset_s: Factor::Fixed(duration_s / 3.0),
                 noise_scale: Factor::Fixed(1.0),
                 detection_window_s: rules.detection_window_s,
+                profile: Default::default(),
                 design: None,
             };
             return Ok((defaults, None, Vec::new()));
@@ -739,6 +758,7 @@ impl Validator<'_> {
             Some(w) => self.positive("monte_carlo.detection_window_s", w)?,
             None => rules.detection_window_s,
         };
+        let profile = self.profile_grid("monte_carlo.profile_resolution", mc.profile_resolution)?;
 
         let own = T::deserialize(toml::Value::Table(mc.rest))
             .map_err(|e| self.err("monte_carlo", e.to_string().trim_end().to_string()))?;
@@ -792,6 +812,7 @@ impl Validator<'_> {
                 onset_s,
                 noise_scale,
                 detection_window_s,
+                profile,
                 design: None,
             },
             Some(own),

@@ -5,4 +5,5 @@ pub mod deck;
 pub mod design;
 pub mod draws;
 pub mod noise;
+pub mod profile_grid;
 pub mod streams;

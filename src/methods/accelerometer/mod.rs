@@ -46,7 +46,7 @@ pub static METHOD: Method = Method {
 };
 
 impl Study for AccelerometerStudy {
-    crate::study_accessors!(monte_carlo.trials);
+    crate::study_accessors!(monte_carlo);
     fn validate(&self) -> Result<(), RunError> {
         commands::validate(self)
     }

@@ -116,7 +116,7 @@ impl Alarms {
         };
         // The same windows as the alarms: before the onset from settle_s (all of a normal trial), after it.
         let pre_end = if class == FaultClass::Normal { statistics.len() } else { onset.min(statistics.len()) };
-        let mut recorder = StatisticRecorder::default();
+        let mut recorder = StatisticRecorder::new(study.monte_carlo.profile);
         statistics.get(settle.min(pre_end)..pre_end).unwrap_or(&[]).iter().for_each(|&t| recorder.before_onset(t));
         if class != FaultClass::Normal {
             for (k, &t) in statistics.iter().enumerate().skip(onset) {

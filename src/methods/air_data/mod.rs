@@ -78,7 +78,7 @@ pub static METHOD: Method = Method {
     starter: ("studies/ci_seed002.toml", include_str!("../../../studies/ci_seed002.toml")),
 };
 
-crate::plain_study!(AirDataStudy, monte_carlo.common.trials, |s| Ok::<_, RunError>(AirDataTrials::new(s)),
+crate::plain_study!(AirDataStudy, monte_carlo.common, |s| Ok::<_, RunError>(AirDataTrials::new(s)),
     sensitivity: |s| scenario::sensitivity_parts(s));
 
 /// The runner's view of an air-data study.
@@ -106,7 +106,14 @@ impl<'a> AirDataTrials<'a> {
     ) -> AirDataTrialResult {
         let spec = self.sampler.spec(trial);
         let mut rng = noise_rng(self.study.header.seed, self.sampler.noise_trial(trial), Substream::SensorNoise);
-        let outcome = run_detectors(self.sampler.scenario(&spec), &spec, &self.study.detectors, &mut rng, on_sample);
+        let outcome = run_detectors(
+            self.sampler.scenario(&spec),
+            &spec,
+            &self.study.detectors,
+            self.study.monte_carlo.common.profile,
+            &mut rng,
+            on_sample,
+        );
         AirDataTrialResult { spec, outcome }
     }
 }

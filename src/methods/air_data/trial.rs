@@ -26,7 +26,7 @@
 //!   faulty sensors in sigmas: the patent's claim of accurate air data under fault, against what the
 //!   faulty sensor itself says.
 
-use crate::engine::results::schema::{RecordedStatistic, StatisticRecorder};
+use crate::engine::results::schema::{ProfileGrid, RecordedStatistic, StatisticRecorder};
 use crate::estimation::Innovation;
 use crate::estimation::bank::Decision;
 use crate::fault::FaultMode;
@@ -235,6 +235,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
     scenario: ScenarioParams,
     spec: &AirDataTrialSpec,
     detectors: &[AirDataDetector],
+    profile: ProfileGrid,
     rng: &mut R,
     mut on_sample: impl FnMut(&AirDataSample, &[DetectorStep]),
 ) -> Result<Vec<AirDataOutcome>, String> {
@@ -270,7 +271,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
             samples: 0,
             bias_sq_sigma: 0.0,
             bias_samples: 0,
-            statistic: StatisticRecorder::default(),
+            statistic: StatisticRecorder::new(profile),
         })
         .collect();
     let faulty = &spec.outputs;
@@ -426,7 +427,7 @@ mod tests {
         };
         let mut rng = noise_rng(7, 0, Substream::SensorNoise);
         let mut samples = 0;
-        let o = run_detectors(scenario, &spec, &[detector], &mut rng, |_, steps| {
+        let o = run_detectors(scenario, &spec, &[detector], ProfileGrid::default(), &mut rng, |_, steps| {
             samples += 1;
             assert_eq!(steps.len(), 1);
         })
@@ -467,7 +468,7 @@ mod tests {
         for faulty_lanes in [1, 3] {
             let (scenario, spec) = alpha_bias(ScenarioParams { lanes: 3, faulty_lanes, ..ScenarioParams::seed() });
             let mut rng = noise_rng(7, 0, Substream::SensorNoise);
-            let o = run_detectors(scenario, &spec, &detectors, &mut rng, |_, _| ()).unwrap();
+            let o = run_detectors(scenario, &spec, &detectors, ProfileGrid::default(), &mut rng, |_, _| ()).unwrap();
             let (dual, voting) = (&o[0], &o[1]);
             assert_eq!((dual.false_alarm_s, voting.false_alarm_s), (None, None));
             assert_eq!(dual.isolated.as_deref(), Some(&[ALPHA][..]), "{faulty_lanes}");

@@ -16,6 +16,7 @@
 
 use nalgebra::DVector;
 
+use crate::engine::results::schema::{ProfileGrid, close_profile};
 use crate::engine::scenario::streams::{Substream, noise_rng};
 use crate::fault::ActiveFaults;
 use crate::methods::detection_filter::decision::{Decision, LaneStatistic};
@@ -24,7 +25,7 @@ use crate::methods::detection_filter::kernel::{FilterState, LANES, Lane, LaneFil
 use crate::methods::detection_filter::normals::LaneNormals;
 use crate::methods::detection_filter::scenario::TrialSpec;
 use crate::methods::detection_filter::study::LtiStudy;
-use crate::methods::detection_filter::trial::{DetectorOutcome, PROFILE_RESOLUTION};
+use crate::methods::detection_filter::trial::DetectorOutcome;
 
 /// One detector configuration on a group of lanes: its products and per-lane designs (`None`: no
 /// design for that lane, or an idle lane; such lanes get no outcome).
@@ -97,7 +98,10 @@ fn run_lanes_in(
     let mut y = vec![[0.0; LANES]; ny];
     let mut states: Vec<LaneState> = detectors
         .iter()
-        .map(|d| LaneState { filter: FilterState::new(&x0, nu, ny), tracker: LaneTracker::new(d, onset_s, ny) })
+        .map(|d| LaneState {
+            filter: FilterState::new(&x0, nu, ny),
+            tracker: LaneTracker::new(d, onset_s, ny, s.monte_carlo.common.profile),
+        })
         .collect();
 
     for k in 0..s.header.steps {
@@ -311,8 +315,10 @@ struct LaneTracker<'f> {
     max: Vec<Lane>,
     /// Per output: when the running maximum was reached (after the onset).
     max_t: Vec<Lane>,
-    /// Per output: a post-onset |residual| above this adds a profile point (+inf before the onset).
+    /// Per output: a post-onset statistic above this adds a profile point (+inf before the onset, -inf
+    /// at it: the first point), and the grid that places the points ([`ProfileGrid::keep`]).
     next_kept: Vec<Lane>,
+    grid: ProfileGrid,
     abs: Vec<Lane>,
     /// What replaces `abs` as the statistic, for a test other than `|r|`.
     test: LaneTest,
@@ -330,7 +336,7 @@ struct LaneTracker<'f> {
 }
 
 impl<'f> LaneTracker<'f> {
-    fn new(d: &LaneDetector<'f>, onset_s: Lane, ny: usize) -> Self {
+    fn new(d: &LaneDetector<'f>, onset_s: Lane, ny: usize, grid: ProfileGrid) -> Self {
         let live: [bool; LANES] = std::array::from_fn(|l| d.designs[l].is_some());
         let thresholds: Vec<f64> = d.params.thresholds.iter().copied().collect();
         LaneTracker {
@@ -343,6 +349,7 @@ impl<'f> LaneTracker<'f> {
             max: vec![[0.0; LANES]; ny],
             max_t: vec![[f64::NAN; LANES]; ny],
             next_kept: vec![[f64::INFINITY; LANES]; ny],
+            grid,
             abs: vec![[0.0; LANES]; ny],
             test: LaneTest::new(d, ny),
             onset_s,
@@ -450,10 +457,9 @@ impl<'f> LaneTracker<'f> {
         let mut alarm = None;
         for j in 0..self.abs.len() {
             let a = self.abs[j][l];
-            if a > self.next_kept[j][l] {
+            if let Some(v) = self.grid.keep(&mut self.next_kept[j][l], a) {
                 self.out[l].profile_t_s[j].push(t);
-                self.out[l].profile_value[j].push(a);
-                self.next_kept[j][l] = a * (1.0 + PROFILE_RESOLUTION);
+                self.out[l].profile_value[j].push(v);
             }
             if alarm.is_none() && a > self.armed[j][l] {
                 alarm = Some(j);
@@ -487,10 +493,7 @@ impl<'f> LaneTracker<'f> {
             if self.after_onset[l] {
                 for j in 0..ny {
                     // The final maximum closes the profile, as in the one-trial path.
-                    if !max_t[j].is_nan() && out.profile_value[j].last() != Some(&max[j]) {
-                        out.profile_t_s[j].push(max_t[j]);
-                        out.profile_value[j].push(max[j]);
-                    }
+                    close_profile(max_t[j], max[j], &mut out.profile_t_s[j], &mut out.profile_value[j]);
                 }
             } else {
                 out.pre_onset_max_abs_residual = max;

@@ -66,7 +66,7 @@ pub static METHOD: Method = Method {
 };
 
 impl Study for LtiStudy {
-    crate::study_accessors!(monte_carlo.common.trials);
+    crate::study_accessors!(monte_carlo.common);
     fn validate(&self) -> Result<(), RunError> {
         commands::validate(self)
     }
@@ -129,6 +129,7 @@ pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunEr
             &opts.deck,
             study.header.seed,
             study.monte_carlo.common.trials,
+            study.monte_carlo.common.profile.step(),
         )?),
     };
     // An FMU that may be instantiated only once per process gets one worker thread: one instance

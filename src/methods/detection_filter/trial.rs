@@ -17,11 +17,11 @@
 //! `DetectionFilter::isolate_by_max` and `isolate_by_direction`).
 //!
 //! So that any threshold can be evaluated afterwards without re-simulating, each detector also keeps,
-//! per output, the largest |residual| before the onset and the first-passage profile after it: the
-//! points `(t, v)` where the running maximum of |residual| rises by more than [`PROFILE_RESOLUTION`]
-//! (relative) over the last kept point, the first post-onset sample, and the final maximum. For a
-//! threshold `thr`, the alarm time is the first kept point with `v > thr`: exact whether an alarm
-//! happens, and at most as late as the running maximum takes to rise by 2 % past `thr`.
+//! per output, the largest statistic before the onset and the first-passage profile after it
+//! ([`FirstPassage`]: the first post-onset sample, a point each time the running maximum passes a level
+//! of the deck's profile grid, and the final maximum). For a threshold `thr`, the alarm time is the
+//! first kept point with `v > thr`: exact whether an alarm happens, and at most as late as the running
+//! maximum takes to pass the grid level above `thr`.
 
 use nalgebra::DVector;
 use rand::RngExt;
@@ -40,8 +40,7 @@ use super::decision::TestState;
 use super::kernel::{FilterState, FilterStep, PlantState, PlantStep};
 use crate::engine::run::output::Trace;
 
-use crate::engine::results::schema::FirstPassage;
-pub use crate::engine::results::schema::PROFILE_RESOLUTION;
+use crate::engine::results::schema::{FirstPassage, ProfileGrid};
 
 /// What one detector made of one trial, in compact form.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -79,7 +78,7 @@ struct Tracker {
 }
 
 impl Tracker {
-    fn new(filter: &DetectionFilter, ny: usize, dt_s: f64) -> Self {
+    fn new(filter: &DetectionFilter, ny: usize, dt_s: f64, grid: ProfileGrid) -> Self {
         Tracker {
             out: DetectorOutcome {
                 pre_onset_max_abs_residual: vec![0.0; ny],
@@ -88,7 +87,7 @@ impl Tracker {
                 ..Default::default()
             },
             thresholds: filter.thresholds.clone(),
-            first_passage: vec![FirstPassage::default(); ny],
+            first_passage: vec![FirstPassage::new(grid); ny],
             iso_sum: DVector::zeros(ny),
             iso_count: 0,
             iso_window: None,
@@ -196,8 +195,10 @@ pub fn run_trial(
     let mut plant_state = PlantState::new(x0, nu);
     let mut y = vec![0.0; ny];
     let mut states: Vec<FilterState<f64>> = filters.iter().map(|_| FilterState::new(x0, nu, ny)).collect();
-    let mut trackers: Vec<Tracker> =
-        filters.iter().map(|(design, _)| Tracker::new(design, ny, s.header.dt_s)).collect();
+    let mut trackers: Vec<Tracker> = filters
+        .iter()
+        .map(|(design, _)| Tracker::new(design, ny, s.header.dt_s, s.monte_carlo.common.profile))
+        .collect();
     let mut rec = trace.map(|t| TraceWriter::new(t, s, n));
     // An FMU truth flies instead of the LTI plant, which then only closes the loop (`u = r - G y`).
     let mut flight = match &s.truth {
@@ -608,10 +609,12 @@ mod tests {
             let from_profile = pt.iter().zip(pv).find(|(_, v)| **v > thr).map(|(t, _)| *t);
             assert_eq!(exact.is_some(), from_profile.is_some(), "threshold {thr}");
             if let (Some(e), Some(p)) = (exact, from_profile) {
-                // Never earlier than the truth; later only while the maximum rises the last 2 %.
-                let a_at_p = post.iter().find(|q| q.0 == p).unwrap().1;
+                // Never earlier than the truth; later only while the running maximum is still below the
+                // grid level above the threshold.
+                let before_p = post.iter().filter(|q| q.0 < p).map(|q| q.1).fold(0.0, f64::max);
+                let step = study.monte_carlo.common.profile.step();
                 assert!(
-                    p >= e && (p == e || a_at_p <= thr * (1.0 + PROFILE_RESOLUTION) * (1.0 + PROFILE_RESOLUTION)),
+                    p >= e && (p == e || before_p <= thr * (1.0 + step) * (1.0 + 1e-12)),
                     "threshold {thr}: exact {e}, profile {p}"
                 );
             }

@@ -30,15 +30,23 @@ pub struct WorkerSpec {
     pub deck: PathBuf,
     pub seed: u64,
     pub trials: u64,
+    /// The profile grid's step (`run --profile-resolution` may change the deck's).
+    pub profile_resolution: f64,
     /// SHA-256 of the deck file as the run read it; a child that reads another refuses to fly.
     pub deck_sha256: String,
 }
 
 impl WorkerSpec {
     /// The spec of a run of `deck` (its SHA-256 read now).
-    pub fn new(executable: PathBuf, deck: &Path, seed: u64, trials: u64) -> Result<Self, RunError> {
+    pub fn new(
+        executable: PathBuf,
+        deck: &Path,
+        seed: u64,
+        trials: u64,
+        profile_resolution: f64,
+    ) -> Result<Self, RunError> {
         let deck_sha256 = deck_sha256(deck)?;
-        Ok(WorkerSpec { executable, deck: deck.to_path_buf(), seed, trials, deck_sha256 })
+        Ok(WorkerSpec { executable, deck: deck.to_path_buf(), seed, trials, profile_resolution, deck_sha256 })
     }
 }
 
@@ -152,6 +160,7 @@ impl WorkerSpec {
             .arg("fmu-worker")
             .arg(&self.deck)
             .args(["--seed", &self.seed.to_string(), "--trials", &self.trials.to_string()])
+            .args(["--profile-resolution", &self.profile_resolution.to_string()])
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit());
@@ -198,13 +207,15 @@ fn died(worker: &mut Worker, t: u64) -> String {
     format!("the worker process died while flying trial {t} ({status}): an FMU crashed the process")
 }
 
-/// `fdimc fmu-worker DECK --seed S --trials N`: answers `first end` requests on stdin until it closes.
-pub fn serve(deck: &Path, seed: u64, trials: u64) -> Result<(), RunError> {
+/// `fdimc fmu-worker DECK --seed S --trials N --profile-resolution R`: answers `first end` requests on
+/// stdin until it closes.
+pub fn serve(deck: &Path, seed: u64, trials: u64, profile_resolution: f64) -> Result<(), RunError> {
     // First: whatever the FMUs print while the study is built goes to stderr, not into the answers.
     let mut stdout = protocol_channel()?;
     let mut study = LtiStudy::load(deck).map_err(|e| RunError::Invalid(e.to_string()))?;
     let (s, n) = study.seed_and_trials();
     (*s, *n) = (seed, trials);
+    study.monte_carlo.common.profile = crate::engine::results::schema::ProfileGrid::new(profile_resolution);
     let engine = Engine::new(&study);
     writeln!(stdout, "{}", fingerprint(engine.detectors(), seed, trials, &deck_sha256(deck)?))
         .and_then(|()| stdout.flush())

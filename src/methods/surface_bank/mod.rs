@@ -97,7 +97,7 @@ pub static METHOD: Method = Method {
     starter: ("studies/ci_seed004.toml", include_str!("../../../studies/ci_seed004.toml")),
 };
 
-crate::plain_study!(SurfaceStudy, monte_carlo.common.trials, |s| Ok::<_, RunError>(SurfaceTrials::new(s)));
+crate::plain_study!(SurfaceStudy, monte_carlo.common, |s| Ok::<_, RunError>(SurfaceTrials::new(s)));
 
 /// The runner's view of a surface study: every bank of the deck on each trial's one flight.
 pub struct SurfaceTrials<'a> {

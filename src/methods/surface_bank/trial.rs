@@ -274,14 +274,14 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
                     outcome,
                     square_error: 0.0,
                     error_samples: 0,
-                    statistic: StatisticRecorder::default(),
+                    statistic: StatisticRecorder::new(study.monte_carlo.common.profile),
                 })
                 .collect()
         })
         .collect();
     let mut false_alarms = vec![(0u32, None::<f64>, 0u32); banks.len()];
     // The statistic while no fault is active and none has ended, and the threshold the deck sets.
-    let mut before_onsets = vec![StatisticRecorder::default(); banks.len()];
+    let mut before_onsets = vec![StatisticRecorder::new(study.monte_carlo.common.profile); banks.len()];
     let thresholds_s: Vec<f64> = banks.iter().map(|p| p.levels.alarm_threshold_s(study.header.dt_s)).collect();
     let mut rows = Vec::with_capacity(banks.len());
 

@@ -77,7 +77,7 @@ pub static METHOD: Method = Method {
 };
 
 // Designs and loss tables are the deck's: one that cannot be designed is invalid input.
-crate::plain_study!(LaunchStudy, monte_carlo.common.trials, |s| LaunchTrials::new(s)
+crate::plain_study!(LaunchStudy, monte_carlo.common, |s| LaunchTrials::new(s)
     .map_err(|e| RunError::Invalid(format!("{}: {e}", s.header.path.display()))),
     sensitivity: |s| scenario::sensitivity_parts(s));
 
@@ -111,7 +111,9 @@ impl<'a> LaunchTrials<'a> {
         let config = self.sampler.config(&spec);
         let mut rng = noise_rng(self.study.header.seed, self.sampler.noise_trial(trial), Substream::SensorNoise);
         let (duration_s, window_s) = (self.study.header.duration_s, self.study.monte_carlo.common.detection_window_s);
-        let outcome = run_detectors(&config, &spec, duration_s, window_s, &self.detectors, &mut rng, on_sample);
+        let profile = self.study.monte_carlo.common.profile;
+        let outcome =
+            run_detectors(&config, &spec, duration_s, window_s, &self.detectors, profile, &mut rng, on_sample);
         LaunchTrialResult { spec, outcome }
     }
 }

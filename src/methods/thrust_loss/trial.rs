@@ -12,6 +12,7 @@
 //!   `|fhat|` over the loss table's horizon after the alarm, converted by the [`LossTable`] at the
 //!   estimated onset.
 
+use crate::engine::results::schema::{FirstPassage, ProfileGrid};
 use std::sync::Arc;
 
 use crate::methods::thrust_loss::ekf_mhe::{
@@ -105,6 +106,7 @@ struct Score {
     peak: f64,
     /// Samples of the detection window with `|fhat|` at or above the threshold.
     above_samples: u32,
+    first_passage: FirstPassage,
 }
 
 /// Flies `config` with `spec`'s fault for `duration_s` and runs every detector on the same samples;
@@ -116,6 +118,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
     duration_s: f64,
     detection_window_s: f64,
     detectors: &[DesignedDetector],
+    profile: ProfileGrid,
     rng: &mut R,
     mut on_sample: impl FnMut(&Measurement, &[MheStep]),
 ) -> Result<Vec<LaunchOutcome>, String> {
@@ -141,6 +144,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
             peak_until_s: f64::NAN,
             peak: 0.0,
             above_samples: 0,
+            first_passage: FirstPassage::new(profile),
         })
         .collect();
     // A detector whose filter is an earlier one's takes that one's residual (a sweep of N or F).
@@ -166,10 +170,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
                 }
                 Some(t0) if m.t_s >= t0 => {
                     score.above_samples += u32::from(step.alarm);
-                    if o.profile_fhat.last().is_none_or(|&v| size > v) {
-                        o.profile_t_s.push(m.t_s);
-                        o.profile_fhat.push(size);
-                    }
+                    score.first_passage.observe(m.t_s, size, &mut o.profile_t_s, &mut o.profile_fhat);
                     if step.alarm && o.alarm_s.is_none() {
                         o.alarm_s = Some(m.t_s);
                         score.peak_until_s = m.t_s + d.table.horizon_s;
@@ -199,6 +200,7 @@ pub fn run_detectors<R: rand::Rng + ?Sized>(
         .zip(scores)
         .map(|(((i, detector), d), score)| {
             let mut o = score.outcome;
+            score.first_passage.close(&mut o.profile_t_s, &mut o.profile_fhat);
             if o.alarm_s.is_some() {
                 o.above_threshold_s = Some(f64::from(score.above_samples) * config.dt_s);
                 o.fhat_peak = Some(score.peak);
@@ -258,7 +260,7 @@ mod tests {
         let spec = calm_loss(1, 50.0, 20.0);
         let fly = |detectors: &[DesignedDetector]| {
             let mut rng = noise_rng(5, 0, Substream::SensorNoise);
-            run_detectors(&config, &spec, 23.0, 2.0, detectors, &mut rng, |_, _| ()).unwrap()
+            run_detectors(&config, &spec, 23.0, 2.0, detectors, ProfileGrid::new(0.0), &mut rng, |_, _| ()).unwrap()
         };
         let together = fly(&all);
         for (i, d) in all.iter().enumerate() {
@@ -302,7 +304,8 @@ mod tests {
         let detector = DesignedDetector { name: "seed".into(), design, table };
         let spec = calm_loss(2, 40.0, 25.0);
         let mut rng = noise_rng(3, 0, Substream::SensorNoise);
-        let o = run_detectors(&config, &spec, 30.0, 2.0, &[detector], &mut rng, |_, _| ()).unwrap();
+        let o =
+            run_detectors(&config, &spec, 30.0, 2.0, &[detector], ProfileGrid::new(0.0), &mut rng, |_, _| ()).unwrap();
         let o = &o[0];
         assert_eq!(o.false_alarm_s, None);
         assert!(o.pre_max_fhat < params.threshold_fhat, "{o:?}");
