@@ -1,5 +1,7 @@
 //! From a trial index to its result: scenario, perturbed models, detector designs, simulation.
-//! Designs and the sampled true plant are computed once when no parameter error touches them.
+//! Designs and the sampled true plant are computed once when no parameter error touches them; designs
+//! of a perturbed design model are kept per distinct set of its errors (a deck that lists error values
+//! has few), up to [`DESIGN_CACHE`] of them.
 
 use std::borrow::Cow;
 
@@ -53,7 +55,14 @@ pub struct Engine<'a> {
     /// Every detector's test is built in and no FMU flies: groups go on the lane path (decided once,
     /// not per group).
     on_lanes: bool,
+    /// Designs of perturbed design models, by the bits of the trial's design-model errors: a design is
+    /// a function of its model alone, so a kept one is the one the trial would compute.
+    designs_seen: std::sync::RwLock<std::collections::HashMap<Vec<u64>, Vec<Result<DetectionFilter, DesignError>>>>,
 }
+
+/// How many distinct design models' designs an [`Engine`] keeps (continuous error ranges make every
+/// trial's model new: those are designed per trial past this many).
+pub const DESIGN_CACHE: usize = 4096;
 
 /// A trial's design of one detector configuration: the nominal one when the design model is not
 /// perturbed, else its own.
@@ -96,6 +105,7 @@ impl<'a> Engine<'a> {
             on_lanes: study.fmus().is_empty()
                 && !study.has_actuator_faults()
                 && study.detectors.iter().all(|d| d.params.runs_on_lanes()),
+            designs_seen: Default::default(),
         }
     }
 
@@ -146,11 +156,25 @@ impl<'a> Engine<'a> {
                 .map(|f| f.as_ref().map(Cow::Borrowed).map_err(Clone::clone))
                 .collect();
         }
+        let key: Vec<u64> = (self.study.monte_carlo.parameter_errors.iter().zip(&spec.parameter_errors))
+            .filter(|(pe, _)| pe.model == ModelTarget::Design)
+            .map(|(_, e)| e.to_bits())
+            .collect();
+        let owned = |all: &[Result<DetectionFilter, DesignError>]| -> Vec<Design<'_>> {
+            all[which.clone()].iter().map(|f| f.clone().map(Cow::Owned)).collect()
+        };
+        if let Some(all) = self.designs_seen.read().expect("no panic while holding it").get(&key) {
+            return owned(all);
+        }
         let design = self.perturbed(&self.study.design_plant, spec, ModelTarget::Design);
-        self.study.detectors[which]
-            .iter()
-            .map(|d| d.params.design(&design, self.study.header.dt_s).map(Cow::Owned))
-            .collect()
+        let all: Vec<Result<DetectionFilter, DesignError>> =
+            self.study.detectors.iter().map(|d| d.params.design(&design, self.study.header.dt_s)).collect();
+        let designs = owned(&all);
+        let mut seen = self.designs_seen.write().expect("no panic while holding it");
+        if seen.len() < DESIGN_CACHE {
+            seen.insert(key, all);
+        }
+        designs
     }
 
     fn truth(&self, spec: &TrialSpec) -> Cow<'_, DiscreteLti> {
@@ -184,7 +208,7 @@ impl<'a> Engine<'a> {
         detector: usize,
     ) -> Result<(PlantStep, DetectionFilter, FilterStep), DesignError> {
         let plant = PlantStep::new(&self.plant_patterns, &[Some(&*self.truth(spec))], &self.study.output_feedback);
-        // Only this detector's design: the others' gains would be recomputed for nothing.
+        // Only this detector's design (a perturbed model's designs are kept for the next trial of it).
         let design = self.designs_of(spec, detector..detector + 1).remove(0)?.into_owned();
         let step = FilterStep::new(&self.filter_patterns[detector], &[Some(&design)]);
         Ok((plant, design, step))
@@ -364,6 +388,27 @@ mod tests {
         let (lo, hi) = crate::engine::stats::intervals::wilson(over, windows, crate::engine::stats::intervals::Z95);
         assert_eq!(windows, 5_600);
         assert!(lo <= 0.01 && 0.01 <= hi, "{over} of {windows} windows over the quantile: [{lo}, {hi}]");
+    }
+
+    /// The robustness deck lists 5 x 5 design-model errors: one design set per model its trials meet
+    /// serves them all, and a trial flown after hundreds of others (its designs kept) is the trial a
+    /// fresh engine flies.
+    #[test]
+    fn designs_kept_per_design_model_give_the_fresh_trials() {
+        let s = study("");
+        let warm = Engine::new(&s);
+        let results: Vec<TrialResult> =
+            (0..400).step_by(LANES).flat_map(|t| warm.run_group(t, (t + LANES as u64).min(400))).collect();
+        let mut models: Vec<Vec<u64>> =
+            results.iter().map(|r| r.spec.parameter_errors.iter().map(|e| e.to_bits()).collect()).collect();
+        models.sort();
+        models.dedup();
+        assert!(models.len() > 1 && models.len() <= 25);
+        assert_eq!(warm.designs_seen.read().unwrap().len(), models.len(), "one kept design set per model");
+        for t in [0, 137, 399] {
+            // Debug text: a fault-free spec's NaN size is not equal to itself.
+            assert_eq!(format!("{:?}", Engine::new(&s).run(t)), format!("{:?}", results[t as usize]), "trial {t}");
+        }
     }
 
     #[test]
