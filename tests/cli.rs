@@ -1058,14 +1058,17 @@ fn records_are_identical_for_any_threads_shards_and_resume() {
     // A missing, a doubled or a foreign shard is refused, and nothing is written.
     let other = s(dir("other3"));
     ok(&fdimc(&["run", CI_DECK, "--trials", "3", "--seed", "99", "--shard", "3/4", "--out", &other]));
+    let grid = s(dir("grid3"));
+    ok(&fdimc(&["run", CI_DECK, "--trials", "3", "--profile-resolution", "0", "--shard", "3/4", "--out", &grid]));
     let bad = s(dir("bad"));
     for (shards, want) in [
         (vec![&tiny[0], &tiny[1], &tiny[2]], "need shards 0..4 exactly once each, got [0, 1, 2]"),
         (vec![&tiny[0], &tiny[1], &tiny[1], &tiny[2], &tiny[3]], "got [0, 1, 1, 2, 3]"),
         (
             vec![&tiny[0], &tiny[1], &tiny[2], &other],
-            "other3: from another run (deck, seed, trial count or shard count",
+            "other3: from another run (deck, seed, trial count, shard count or profile resolution",
         ),
+        (vec![&tiny[0], &tiny[1], &tiny[2], &grid], "grid3: from another run"),
     ] {
         let mut args = vec!["merge"];
         args.extend(shards.iter().map(|s| s.as_str()));

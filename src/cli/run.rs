@@ -404,9 +404,10 @@ impl Kinds {
                 || m.trials != first.trials
                 || m.shard.count != count
                 || m.sensitivity != first.sensitivity
+                || m.profile_resolution != first.profile_resolution
             {
                 return Err(CliError::Invalid(format!(
-                    "{}: from another run (deck, seed, trial count or shard count differ from {})",
+                    "{}: from another run (deck, seed, trial count, shard count or profile resolution differ from {})",
                     d.display(),
                     manifests[0].0.display()
                 )));

@@ -6,7 +6,7 @@
 use std::borrow::Cow;
 
 use crate::design::DesignError;
-use crate::engine::scenario::deck::ModelTarget;
+use crate::engine::scenario::deck::{Factor, ModelTarget};
 use crate::lti::{DiscreteLti, LtiPlant};
 use crate::methods::detection_filter::filter::DetectionFilter;
 use crate::methods::detection_filter::scenario::{ScenarioSampler, TrialSpec};
@@ -56,12 +56,14 @@ pub struct Engine<'a> {
     /// not per group).
     on_lanes: bool,
     /// Designs of perturbed design models, by the bits of the trial's design-model errors: a design is
-    /// a function of its model alone, so a kept one is the one the trial would compute.
+    /// a function of its model alone, so a kept one is the one the trial would compute. Kept only when
+    /// every design-model error is fixed or listed (a range makes every trial's model new).
+    keep_designs: bool,
     designs_seen: std::sync::RwLock<std::collections::HashMap<Vec<u64>, Vec<Result<DetectionFilter, DesignError>>>>,
 }
 
-/// How many distinct design models' designs an [`Engine`] keeps (continuous error ranges make every
-/// trial's model new: those are designed per trial past this many).
+/// How many distinct design models' designs an [`Engine`] keeps (listed errors: at most the product of
+/// their counts).
 pub const DESIGN_CACHE: usize = 4096;
 
 /// A trial's design of one detector configuration: the nominal one when the design model is not
@@ -105,6 +107,10 @@ impl<'a> Engine<'a> {
             on_lanes: study.fmus().is_empty()
                 && !study.has_actuator_faults()
                 && study.detectors.iter().all(|d| d.params.runs_on_lanes()),
+            keep_designs: perturb_design
+                && (study.monte_carlo.parameter_errors.iter())
+                    .filter(|pe| pe.model == ModelTarget::Design)
+                    .all(|pe| !matches!(pe.value, Factor::Range { .. })),
             designs_seen: Default::default(),
         }
     }
@@ -170,9 +176,11 @@ impl<'a> Engine<'a> {
         let all: Vec<Result<DetectionFilter, DesignError>> =
             self.study.detectors.iter().map(|d| d.params.design(&design, self.study.header.dt_s)).collect();
         let designs = owned(&all);
-        let mut seen = self.designs_seen.write().expect("no panic while holding it");
-        if seen.len() < DESIGN_CACHE {
-            seen.insert(key, all);
+        if self.keep_designs {
+            let mut seen = self.designs_seen.write().expect("no panic while holding it");
+            if seen.len() < DESIGN_CACHE {
+                seen.insert(key, all);
+            }
         }
         designs
     }
@@ -409,6 +417,16 @@ mod tests {
             // Debug text: a fault-free spec's NaN size is not equal to itself.
             assert_eq!(format!("{:?}", Engine::new(&s).run(t)), format!("{:?}", results[t as usize]), "trial {t}");
         }
+        // Errors drawn from a range: every trial's model is new, nothing is kept.
+        let ranged = LtiStudy::from_toml(
+            &ROBUST
+                .replace("relative = { values = [-0.2, -0.1, 0.0, 0.1, 0.2] }", "relative = { range = [-0.2, 0.2] }"),
+            Path::new("ranged.toml"),
+        )
+        .unwrap();
+        let e = Engine::new(&ranged);
+        e.run_group(0, LANES as u64);
+        assert!(e.designs_seen.read().unwrap().is_empty());
     }
 
     #[test]
