@@ -97,6 +97,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         sensitivity: None,
         command_line: std::env::args().collect(),
         fmu_processes: false,
+        low_disk: false,
     };
     let run = fdimc::methods::detection_filter::run_study(&study, &opts)?;
     println!("{} trials x {:?} -> {}", run.manifest.trials, run.manifest.detectors, out_dir.display());

@@ -782,8 +782,17 @@ fn assert_identical_runs_of(
     std::fs::write(path("resumed").join("parts").join(stray), b"PAR1 junk").unwrap();
     let resumed = ok(&run(&["--resume"], "resumed"));
     assert!(resumed.contains(&format!("({} run, {chunk} resumed)", trials - chunk)), "{resumed}");
+    // --low-disk, killed while assembling trials.parquet: the first part already appended and removed,
+    // a half-written file left under a temporary name. The resume flies that part's trials again.
+    ok(&run(&["--stop-after", "1", "--low-disk"], "low"));
+    std::fs::remove_file(path("low").join("parts").join(format!("part-{:020}.parquet", 0))).unwrap();
+    std::fs::write(path("low").join(".trials.parquet.tmp-1"), b"PAR1 half").unwrap();
+    let low = ok(&run(&["--resume", "--low-disk", "--threads", "1"], "low"));
+    assert!(low.contains(&format!("({trials} run, 0 resumed)")), "{low}");
+    let left: Vec<_> = std::fs::read_dir(path("low")).unwrap().flatten().map(|e| e.file_name()).collect();
+    assert!(!left.iter().any(|n| n.to_string_lossy().contains(".tmp-")), "{left:?}");
     let reference = read_frame(&path("one").join("trials.parquet"));
-    for other in ["two", "merged", "resumed"] {
+    for other in ["two", "merged", "resumed", "low"] {
         let df = read_frame(&path(other).join("trials.parquet"));
         assert!(reference.equals_missing(&df), "{other} differs from the 1-thread run");
     }

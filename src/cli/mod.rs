@@ -320,6 +320,12 @@ pub struct RunFolder {
     /// with how the process died, and the run goes on. The records are otherwise the same.
     #[arg(long)]
     pub fmu_processes: bool,
+    /// Hold the records on disk once: the part files are appended to trials.parquet only after the
+    /// last one, each removed once appended (by default rows are appended as they come and the parts
+    /// kept until the end, twice the records' size). Costs reading every part back (about 10 % longer);
+    /// for runs whose records near the free disk (10^7 trials: docs/performance.md).
+    #[arg(long)]
+    pub low_disk: bool,
     /// The recorded first-passage profiles' value grid, a relative step (default: the deck's
     /// monte_carlo.profile_resolution, else 0.05): alarm times replayed at other thresholds are those of
     /// the grid level above the threshold. 0 keeps every rise at its exact value (full profiles); 1, a

@@ -243,6 +243,7 @@ impl Kinds {
             sensitivity: design,
             command_line: std::env::args().collect(),
             fmu_processes: f.fmu_processes,
+            low_disk: f.low_disk,
         };
         let report = study.run(&opts, Inputs { classifiers: a.classifiers, quiet: f.quiet })?;
         let m = &report.manifest;
@@ -426,7 +427,7 @@ impl Kinds {
         std::fs::create_dir_all(out).map_err(|e| CliError::Internal(format!("{}: {e}", out.display())))?;
         let inputs: Vec<PathBuf> =
             manifests.iter().filter(|(_, m)| m.rows > 0).map(|(d, _)| d.join("trials.parquet")).collect();
-        runner::concatenate(&inputs, &out.join("trials.parquet"))?;
+        runner::concatenate(&inputs, &out.join("trials.parquet"), false)?;
         let rows = manifests.iter().map(|(_, m)| m.rows).sum();
         let merged = Manifest {
             shard: Shard::WHOLE,
@@ -469,6 +470,7 @@ impl Kinds {
                     quiet: true,
                     stop_after: None,
                     fmu_processes: false,
+                    low_disk: false,
                     profile_resolution: None,
                 },
                 classifiers: None,

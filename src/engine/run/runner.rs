@@ -4,8 +4,10 @@
 //! rayon, its results are collected in trial order and written as one complete Parquet part file
 //! (`parts/part-<first trial>.parquet`, temporary name then rename), so memory stays at a few chunks
 //! whatever the trial count, and a killed run loses at most the chunks in flight. A writer thread
-//! encodes each chunk while the next one simulates, and appends its rows in trial order to
-//! `trials.parquet` (renamed into place when the last chunk is in, the parts then removed).
+//! encodes each chunk while the next one simulates and appends its rows in trial order to
+//! `trials.parquet` (renamed into place when the last chunk is in, the parts then removed); with
+//! `--low-disk` the parts are appended only at the end, each removed once appended, so the disk holds
+//! the records once.
 //! `--resume` reads back the parts already on disk instead of simulating them.
 //! Each trial's numbers depend only on (deck, seed, trial index), so any thread count, shard split or
 //! resume gives identical rows.
@@ -441,6 +443,9 @@ pub struct RunOptions {
     /// The design of a sensitivity study, recorded in the manifest (the study draws its trials from it).
     pub sensitivity: Option<crate::engine::scenario::design::Design>,
     pub command_line: Vec<String>,
+    /// Append the parts to trials.parquet only after the last chunk, removing each once appended: the
+    /// records on disk once rather than twice, for a longer run (`run --low-disk`).
+    pub low_disk: bool,
     /// Fly the trials in worker processes, one per thread (`run --fmu-processes`), so that an FMU
     /// that crashes its process fails only the trial it was flying.
     pub fmu_processes: bool,
@@ -579,6 +584,7 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
     }
     let dir = &opts.out_dir;
     let _writer = FolderLock::take(dir, &opts.command_line)?;
+    crate::engine::run::output::remove_stale_temporaries(&dir.join("trials.parquet"));
     let existing = dir.join("manifest.json").exists();
     if existing && opts.resume {
         let old = Manifest::read(dir)?;
@@ -637,7 +643,7 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
     let precise = std::sync::atomic::AtomicBool::new(false);
     let outcome = std::thread::scope(|scope| -> Result<Option<Written>, RunError> {
         let (stop, precise) = (opts.stop.as_ref(), &precise);
-        let writer = scope.spawn(move || write_chunks(source, dir, rx, stop, precise));
+        let writer = scope.spawn(move || write_chunks(source, dir, rx, stop, precise, opts.low_disk));
         let mut chunk_start = first;
         let mut stopped_early = false;
         while chunk_start < end && !precise.load(std::sync::atomic::Ordering::SeqCst) {
@@ -716,19 +722,24 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
 
 /// What the writer thread receives, in trial order.
 enum Chunk<R> {
-    /// Simulated now: write its part file, then append it; `end`: the trial after its last.
+    /// Simulated now: write its part file; `end`: the trial after its last.
     Fresh { path: PathBuf, results: Vec<R>, end: u64 },
-    /// On disk from an interrupted run: append it.
+    /// On disk from an interrupted run.
     Resumed { path: PathBuf, end: u64 },
-    /// Every chunk was sent: finish trials.parquet.
+    /// Every chunk was sent: assemble trials.parquet.
     Complete,
 }
 
-/// The writer thread: part files for resuming, and their rows appended in order to trials.parquet
-/// (under a temporary name until [`Chunk::Complete`], then renamed, and the parts removed). Returns
-/// the rows of trials.parquet, or `None` if the run stopped before its last chunk. With a `stop` rule,
-/// each chunk's rows are measured after they are appended, and the file is finished at the first chunk
-/// that makes the run precise enough (`precise` tells the simulating side; the parts stay, so a
+/// The writer thread: a part file per chunk (for `--resume`) while the pool simulates the next, and
+/// the rows in trial order in trials.parquet (under a temporary name until complete, then renamed, and
+/// the parts removed). By default each chunk's rows are appended as they come, so the run ends when its
+/// last chunk is written, and the disk holds the records twice until then. With `low_disk`, the parts
+/// are appended only after the last chunk, each removed once its rows are in: the disk holds the
+/// records once plus one part, for a longer run (every part read back); a run killed while assembling
+/// has lost the parts already appended, and `--resume` simulates them again (the same rows).
+/// Returns the rows of trials.parquet, or `None` if the run stopped before its last chunk. With a
+/// `stop` rule, each chunk's rows are measured in trial order, and the file is finished at the first
+/// chunk that makes the run precise enough (`precise` tells the simulating side; the parts stay, so a
 /// tighter precision can resume).
 fn write_chunks<S: TrialSource>(
     source: &S,
@@ -736,47 +747,64 @@ fn write_chunks<S: TrialSource>(
     chunks: std::sync::mpsc::Receiver<Chunk<S::Result>>,
     stop: Option<&StopHandle>,
     precise: &std::sync::atomic::AtomicBool,
+    low_disk: bool,
 ) -> Result<Option<Written>, RunError> {
     let out = dir.join("trials.parquet");
     let tmp = temporary_sibling(&out);
     let result = (|| {
         let mut writer: Option<polars::io::parquet::write::BatchedWriter<File>> = None;
         let mut rows = 0;
-        let finish = |writer: Option<polars::io::parquet::write::BatchedWriter<File>>| -> Result<(), RunError> {
+        let mut parts = Vec::new();
+        // The rows so far in trials.parquet, renamed into place; `remove_parts`: the run is complete.
+        let finish = |writer: Option<polars::io::parquet::write::BatchedWriter<File>>,
+                      parts: &[PathBuf],
+                      rows: u64,
+                      remove_parts: bool|
+         -> Result<u64, RunError> {
+            if low_disk {
+                return concatenate(parts, &out, remove_parts);
+            }
             let w = writer.ok_or_else(|| RunError::Internal("no chunk before the end".into()))?;
             w.finish().map_err(pol(&out))?;
-            std::fs::rename(&tmp, &out).map_err(io(&out))
+            std::fs::rename(&tmp, &out).map_err(io(&out))?;
+            Ok(rows)
         };
         for chunk in chunks {
             let (df, path, chunk_end) = match chunk {
                 Chunk::Fresh { path, results, end } => {
                     let mut df = source.frame(&results).map_err(pol(&path))?;
                     write_parquet(&mut df, &path)?;
+                    (Some(df), path, end)
+                }
+                Chunk::Resumed { path, end } => {
+                    let df = if low_disk && stop.is_none() { None } else { Some(read_parquet(&path)?) };
                     (df, path, end)
                 }
-                Chunk::Resumed { path, end } => (read_parquet(&path)?, path, end),
                 Chunk::Complete => {
-                    finish(writer)?;
+                    let rows = finish(writer, &parts, rows, true)?;
                     std::fs::remove_dir_all(dir.join("parts")).map_err(io(dir))?;
                     return Ok(Some(Written { rows, stopped_at: None }));
                 }
             };
-            let w = match &mut writer {
-                Some(w) => w,
-                None => writer.insert(
-                    ParquetWriter::new(File::create(&tmp).map_err(io(&out))?)
-                        .batched(df.schema())
-                        .map_err(pol(&out))?,
-                ),
-            };
-            w.write_batch(&df).map_err(pol(&out))?;
-            rows += df.height() as u64;
-            if let Some(stop) = stop {
+            parts.push(path.clone());
+            if let (false, Some(df)) = (low_disk, &df) {
+                let w = match &mut writer {
+                    Some(w) => w,
+                    None => writer.insert(
+                        ParquetWriter::new(File::create(&tmp).map_err(io(&out))?)
+                            .batched(df.schema())
+                            .map_err(pol(&out))?,
+                    ),
+                };
+                w.write_batch(df).map_err(pol(&out))?;
+                rows += df.height() as u64;
+            }
+            if let (Some(stop), Some(df)) = (stop, &df) {
                 let mut rule = stop.lock()?;
-                rule.add(&df, &path)?;
+                rule.add(df, &path)?;
                 if rule.enough() {
                     precise.store(true, std::sync::atomic::Ordering::SeqCst);
-                    finish(writer)?;
+                    let rows = finish(writer, &parts, rows, false)?;
                     return Ok(Some(Written { rows, stopped_at: Some(chunk_end) }));
                 }
             }
@@ -811,12 +839,15 @@ pub fn read_parquet(path: &Path) -> Result<DataFrame, RunError> {
     })
 }
 
-/// Concatenates Parquet files (same schema) in order into `out`, one input in memory at a time.
-pub fn concatenate(inputs: &[PathBuf], out: &Path) -> Result<(), RunError> {
+/// Concatenates Parquet files (same schema) in order into `out`, one input in memory at a time; with
+/// `remove_inputs`, each input is removed once its rows are written, so the disk never holds both.
+/// Returns the rows written.
+pub fn concatenate(inputs: &[PathBuf], out: &Path, remove_inputs: bool) -> Result<u64, RunError> {
     let tmp = temporary_sibling(out);
     let result = (|| {
         let file = File::create(&tmp).map_err(io(out))?;
         let mut writer = None;
+        let mut rows = 0;
         for path in inputs {
             let df = read_parquet(path)?;
             let w = match &mut writer {
@@ -827,6 +858,10 @@ pub fn concatenate(inputs: &[PathBuf], out: &Path) -> Result<(), RunError> {
             };
             w.write_batch(&df)
                 .map_err(|e| RunError::Invalid(format!("{}: does not match the other parts ({e})", path.display())))?;
+            rows += df.height() as u64;
+            if remove_inputs {
+                std::fs::remove_file(path).map_err(io(path))?;
+            }
         }
         match writer {
             Some(w) => {
@@ -834,7 +869,8 @@ pub fn concatenate(inputs: &[PathBuf], out: &Path) -> Result<(), RunError> {
             }
             None => return Err(RunError::Internal("nothing to concatenate".into())),
         }
-        std::fs::rename(&tmp, out).map_err(io(out))
+        std::fs::rename(&tmp, out).map_err(io(out))?;
+        Ok(rows)
     })();
     if result.is_err() {
         let _ = std::fs::remove_file(&tmp);
