@@ -8,7 +8,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 ROOT=$PWD
-TARGET="${CARGO_TARGET_DIR:-$HOME/.cache/fdimc-target}"
+# Where cargo builds (CARGO_TARGET_DIR, else ./target): the binaries are looked for where they were built.
+TARGET=$(cargo metadata --format-version 1 --no-deps | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
 FDIMC="${FDIMC:-$TARGET/release/fdimc}"
 SAME="$TARGET/release/examples/same_records"
 DECK=studies/ci_seed000.toml
@@ -16,8 +17,8 @@ TRIALS=32768      # 4 shards of 8192 trials: two part files each, so a task can 
 TIMEOUT_S=300
 
 fail() { echo "FAIL: $*" >&2; exit 1; }
-[ -x "$FDIMC" ] || cargo build --release --locked --bin fdimc
-[ -x "$SAME" ] || cargo build --release --locked --example same_records
+# Built (or found up to date) every time, so a stale binary is never what is tested.
+cargo build --release --locked --bin fdimc --example same_records
 
 if ! command -v slurmctld >/dev/null || ! command -v slurmd >/dev/null || ! command -v sbatch >/dev/null \
     || ! command -v munged >/dev/null; then
