@@ -34,6 +34,15 @@ impl Estimator {
             Estimator::Splitting => "splitting",
         }
     }
+
+    /// The largest value one unit can take ([`Combined::new`]): a replica's estimate is a product of
+    /// fractions; an importance trial's weight is at most one over the mixture's plain share.
+    pub fn unit_max(self) -> f64 {
+        match self {
+            Estimator::Importance => 1.0 / crate::engine::rare_event::estimators::PLAIN_SHARE,
+            Estimator::Splitting => 1.0,
+        }
+    }
 }
 
 /// `fdimc rare-event`'s options, checked by the command line.
@@ -198,7 +207,7 @@ pub fn rows(m: &RareEventManifest, parts: &[Part]) -> Vec<RareEventRow> {
             out.push(RareEventRow {
                 detector: d.clone(),
                 estimator: m.estimator,
-                estimate: Combined::new(level, &t),
+                estimate: Combined::new(level, &t, m.estimator.unit_max()),
                 particles: if m.estimator == Estimator::Splitting { m.particles } else { 0 },
                 steps_simulated: steps,
                 steps_per_trial: m.steps_per_trial,
@@ -230,6 +239,7 @@ fn write_parts(dir: &Path, levels: usize, parts: &[Part]) -> Result<(), RunError
         Column::new("sum".into(), each(&|p, l| p.totals[l].sum)),
         Column::new("sum_squares".into(), each(&|p, l| p.totals[l].sum_squares)),
         Column::new("hits".into(), eachu(&|p, l| p.totals[l].hits)),
+        Column::new("largest".into(), each(&|p, l| p.totals[l].largest)),
         Column::new("steps".into(), eachu(&|p, _| p.steps)),
     ])
     .map_err(pol(&path))?;
@@ -245,6 +255,7 @@ fn read_parts(dir: &Path, levels: usize) -> Result<Vec<Part>, RunError> {
     let (units, sum) = (u64_col(&df, "units", &path)?, f64_col(&df, "sum", &path)?);
     let (squares, hits, steps) =
         (f64_col(&df, "sum_squares", &path)?, u64_col(&df, "hits", &path)?, u64_col(&df, "steps", &path)?);
+    let largest = f64_col(&df, "largest", &path)?;
     let bad = || RunError::Invalid(format!("{}: damaged (a null or a short unit)", path.display()));
     let mut parts = Vec::new();
     let mut i = 0;
@@ -256,6 +267,7 @@ fn read_parts(dir: &Path, levels: usize) -> Result<Vec<Part>, RunError> {
                 sum: sum.get(r).ok_or_else(bad)?,
                 sum_squares: squares.get(r).ok_or_else(bad)?,
                 hits: hits.get(r).ok_or_else(bad)?,
+                largest: largest.get(r).ok_or_else(bad)?,
             });
         }
         parts.push(Part {
@@ -329,7 +341,8 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<(), RunError> {
 }
 
 /// Writes `rare_event.csv` to `dir`: per detector and threshold scale the estimate per trial and per
-/// flight hour with 95 % intervals, the cost in samples and plain Monte Carlo's for the same interval.
+/// flight hour with 95 % intervals, its diagnostics, whether it is an answer, the cost in samples and
+/// plain Monte Carlo's for the same interval (blank where it is not an answer).
 fn write_rows(dir: &Path, rows: &[RareEventRow]) -> Result<(), RunError> {
     let path = dir.join("rare_event.csv");
     let hour = |r: &RareEventRow, p: f64| crate::engine::results::thresholds::per_flight_hour(p, r.trial_s);
@@ -341,6 +354,7 @@ fn write_rows(dir: &Path, rows: &[RareEventRow]) -> Result<(), RunError> {
         ),
         Column::new("estimator".into(), rows.iter().map(|r| r.estimator.name()).collect::<Vec<_>>()),
         Column::new("threshold_scale".into(), f(&|r| r.estimate.level)),
+        Column::new("answer".into(), rows.iter().map(|r| r.estimate.answer).collect::<Vec<_>>()),
         Column::new("pfa_per_trial".into(), f(&|r| r.estimate.estimate)),
         Column::new("pfa_per_trial_lo".into(), f(&|r| r.estimate.low)),
         Column::new("pfa_per_trial_hi".into(), f(&|r| r.estimate.high)),
@@ -350,6 +364,8 @@ fn write_rows(dir: &Path, rows: &[RareEventRow]) -> Result<(), RunError> {
         Column::new("pfa_per_flight_hour_hi".into(), f(&|r| hour(r, r.estimate.high))),
         Column::new("units".into(), rows.iter().map(|r| r.estimate.units).collect::<Vec<_>>()),
         Column::new("nonzero_units".into(), rows.iter().map(|r| r.estimate.hits).collect::<Vec<_>>()),
+        Column::new("effective_units".into(), f(&|r| r.estimate.effective_units)),
+        Column::new("largest_unit_share".into(), f(&|r| r.estimate.largest_share)),
         Column::new("particles".into(), rows.iter().map(|r| r.particles as u64).collect::<Vec<_>>()),
         Column::new("steps_simulated".into(), rows.iter().map(|r| r.steps_simulated).collect::<Vec<_>>()),
         Column::new(
@@ -362,7 +378,8 @@ fn write_rows(dir: &Path, rows: &[RareEventRow]) -> Result<(), RunError> {
     Ok(crate::engine::run::output::write_table(&mut df, &path)?)
 }
 
-/// The rows as a table on stdout.
+/// The rows as a table on stdout: an answer's estimate and interval; otherwise the interval (one-sided
+/// with no hit) and why it is not an answer.
 fn print_rows(rows: &[RareEventRow]) {
     println!(
         "{:<16} {:>6} {:>11} {:>25} {:>7} {:>11} {:>12} {:>10}",
@@ -371,40 +388,59 @@ fn print_rows(rows: &[RareEventRow]) {
     for r in rows {
         let e = &r.estimate;
         let plain = e.plain_steps_same_precision(r.steps_per_trial) / r.steps_simulated as f64;
+        let cell = |v: f64, text: String| if v.is_finite() { text } else { "-".into() };
         println!(
-            "{:<16} {:>6} {:>11.3e} [{:>10.3e}, {:>10.3e}] {:>6.1}% {:>11.3e} {:>12} {:>9.0}x",
+            "{:<16} {:>6} {:>11} [{:>10.3e}, {:>10.3e}] {:>7} {:>11} {:>12} {:>10}",
             r.detector,
             e.level,
-            e.estimate,
+            if e.answer { format!("{:.3e}", e.estimate) } else { "no answer".into() },
             e.low,
             e.high,
-            100.0 * e.relative_half_width,
-            crate::engine::results::thresholds::per_flight_hour(e.estimate, r.trial_s),
+            cell(e.relative_half_width, format!("{:.1}%", 100.0 * e.relative_half_width)),
+            if e.answer {
+                format!("{:.3e}", crate::engine::results::thresholds::per_flight_hour(e.estimate, r.trial_s))
+            } else {
+                "-".into()
+            },
             r.steps_simulated,
-            plain
+            cell(plain, format!("{plain:.0}x")),
         );
     }
-    for r in rows.iter().filter(|r| !(r.estimate.relative_half_width <= 0.25)) {
+    for r in rows.iter().filter(|r| !r.estimate.answer) {
+        let e = &r.estimate;
         let other = match r.estimator {
             Estimator::Importance => "splitting, if the statistic has memory (a CUSUM, a window, a coloured residual)",
             Estimator::Splitting => "importance sampling, if one sample's noise makes an alarm (a white residual)",
         };
-        println!(
-            "not yet an answer: {} at {}: the interval is +-{:.0} % ({} of {} {} non-zero); more trials, or {other}",
-            r.detector,
-            r.estimate.level,
-            100.0 * r.estimate.relative_half_width,
-            r.estimate.hits,
-            r.estimate.units,
-            if r.estimator == Estimator::Splitting { "replicas" } else { "trials" },
-        );
+        let unit = if r.estimator == Estimator::Splitting { "replicas" } else { "trials" };
+        let why = if e.hits == 0 {
+            format!("no {unit} hit: Pfa per trial at most {:.2e} (one-sided 95 %)", e.high)
+        } else if e.largest_share > crate::engine::rare_event::estimators::ANSWER_LARGEST_SHARE {
+            format!(
+                "one of the {} non-zero {unit} carries {:.0} % of the estimate (effective {unit} {:.1}): the interval cannot be trusted",
+                e.hits,
+                100.0 * e.largest_share,
+                e.effective_units
+            )
+        } else {
+            format!(
+                "the interval is +-{:.0} % ({} of {} {unit} non-zero)",
+                100.0 * e.relative_half_width,
+                e.hits,
+                e.units
+            )
+        };
+        println!("not an answer: {} at {}: {why}; more trials, or {other}", r.detector, e.level);
     }
     println!(
-        "(95 % intervals: Student's t over {}; per flight hour: independent trial-long segments; \"vs plain\": \
-         samples plain Monte Carlo needs for the same interval, over those simulated)",
+        "(95 % intervals: Student's t over {}; an answer: +-{:.0} % at most, no unit over {:.0} % of the \
+         estimate; per flight hour: independent trial-long segments; \"vs plain\": samples plain Monte Carlo \
+         needs for the same interval, over those simulated)",
         match rows.first().map(|r| r.estimator) {
             Some(Estimator::Splitting) => "the splitting's independent replicas",
             _ => "the trials' weighted alarms",
-        }
+        },
+        100.0 * crate::engine::rare_event::estimators::ANSWER_RELATIVE_HALF_WIDTH,
+        100.0 * crate::engine::rare_event::estimators::ANSWER_LARGEST_SHARE,
     );
 }

@@ -323,7 +323,7 @@ mod tests {
             let model = FaultFreeTrials::new(&study, d, false).unwrap();
             let (totals, _) = Importance { model: &model, seed: study.header.seed, levels: &[1.0], progress: &|_| {} }
                 .adaptive(20_000, &default_tails());
-            let e = Combined::new(1.0, &totals.levels[0]);
+            let e = Combined::new(1.0, &totals.levels[0], 1.0 / crate::engine::rare_event::estimators::PLAIN_SHARE);
             assert!(e.low <= exact.upper() && exact.lower <= e.high, "detector {d}: {e:?} vs {exact:?}");
             assert!(e.relative_half_width < 0.15, "{e:?}");
         }
@@ -351,12 +351,14 @@ mod tests {
         let results = crate::engine::rare_event::estimators::splitting(&model, &opts, &|| {});
         let cost = results.iter().map(|r| r.steps_simulated).sum::<u64>() as f64;
         for l in 0..2 {
-            let is = Combined::new(levels[l], &totals.levels[l]);
-            let ams = Combined::new(levels[l], &crate::engine::rare_event::estimators::replica_totals(&results, l));
+            let is =
+                Combined::new(levels[l], &totals.levels[l], 1.0 / crate::engine::rare_event::estimators::PLAIN_SHARE);
+            let ams =
+                Combined::new(levels[l], &crate::engine::rare_event::estimators::replica_totals(&results, l), 1.0);
             assert!(is.low <= ams.high && ams.low <= is.high, "{is:?} vs {ams:?}");
         }
-        let is = Combined::new(4.0, &totals.levels[1]);
-        let ams = Combined::new(4.0, &crate::engine::rare_event::estimators::replica_totals(&results, 1));
+        let is = Combined::new(4.0, &totals.levels[1], 1.0 / crate::engine::rare_event::estimators::PLAIN_SHARE);
+        let ams = Combined::new(4.0, &crate::engine::rare_event::estimators::replica_totals(&results, 1), 1.0);
         assert!(
             ams.relative_half_width.powi(2) * cost < is.relative_half_width.powi(2) * 2e7,
             "{is:?} vs {ams:?} at {cost}"
@@ -374,7 +376,7 @@ mod tests {
         // 20,000 trials' worth of samples: importance sampling within 25 %, its interval holding it.
         let (totals, _) = Importance { model: &model, seed: study.header.seed, levels: &[1.0], progress: &|_| {} }
             .adaptive(20_000, &default_tails());
-        let e = Combined::new(1.0, &totals.levels[0]);
+        let e = Combined::new(1.0, &totals.levels[0], 1.0 / crate::engine::rare_event::estimators::PLAIN_SHARE);
         assert!(e.low <= exact && exact <= e.high, "{e:?} vs {exact:e}");
         assert!((e.estimate / exact - 1.0).abs() <= 0.25 && e.relative_half_width <= 0.25, "{e:?} vs {exact:e}");
         // The tail fit of the same 20,000 trials' plain scores: its interval holds the answer, but it
