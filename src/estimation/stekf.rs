@@ -666,6 +666,70 @@ pub(super) mod tests {
         }
     }
 
+    /// Issue 49, item 4: two steps of the strong-tracking filter against methods.md's formulas written
+    /// out here in scalars (nothing of the filter's code): `V_k = (rho V_(k-1) + g g') / (1 + rho)`,
+    /// `N_k = V_k - H Q H' - beta R`, `M_k = H Phi P Phi' H'`, `c_k = tr(N_k) / sum_j a_j M_jj`,
+    /// `lambda_j = max(1, a_j c_k)`, then `Lambda Phi P Phi' + Q` (original) or `Lambda Phi P Phi' Lambda +
+    /// Q` (improved). Unequal prior weights a = (1, 3), beta = 1.5, and innovations large enough that
+    /// every factor is above 1: a constant factor, a factor on one side only, a missing forgetting or
+    /// weight fails.
+    #[test]
+    fn one_fading_step_is_the_formula_written_out() {
+        let (dt, q, r, rho, beta, a) = (0.1, 1e-6, 0.09, 0.95, 1.5, [1.0, 3.0]);
+        let params = FadingParams { rho, beta, a: Vector2::new(a[0], a[1]) };
+        for improved in [false, true] {
+            let fading = if improved { Fading::Symmetric(params) } else { Fading::Original(params) };
+            let mut f = Stekf::new(
+                Vector2::new(0.0, 2.0),
+                Matrix2::identity() * 0.01,
+                Matrix2::identity() * q,
+                SMatrix::from_element(r),
+                fading,
+            );
+            // By hand: x = (x0, x1), P = [[p00, p01], [p01, p11]] (kept symmetric by the improved form;
+            // the original's asymmetry is carried in p10).
+            let (mut x0, mut x1) = (0.0, 2.0);
+            let (mut p00, mut p01, mut p10, mut p11) = (0.01, 0.0, 0.0, 0.01);
+            let mut v_prev: Option<f64> = None;
+            for y in [0.403, 0.79] {
+                let g = y - x0;
+                let s = p00 + r;
+                let (l0, l1) = (p00 / s, p10 / s);
+                (x0, x1) = (x0 + l0 * g, x1 + l1 * g);
+                // (I - L H) P
+                let (u00, u01, u10, u11) = (p00 - l0 * p00, p01 - l0 * p01, p10 - l1 * p00, p11 - l1 * p01);
+                // Phi U Phi', Phi = [[1, dt], [0, 1]]
+                let (m00, m01, m10, m11) =
+                    (u00 + dt * (u10 + u01) + dt * dt * u11, u01 + dt * u11, u10 + dt * u11, u11);
+                let v = match v_prev {
+                    None => g * g,
+                    Some(v) => (rho * v + g * g) / (1.0 + rho),
+                };
+                v_prev = Some(v);
+                let c = (v - q - beta * r) / (a[0] * m00);
+                let lambda = [(a[0] * c).max(1.0), (a[1] * c).max(1.0)];
+                assert!(lambda.iter().all(|l| *l > 1.5), "{lambda:?}: the test wants every factor active");
+                let right = |j: usize| if improved { lambda[j] } else { 1.0 };
+                (p00, p01, p10, p11) = (
+                    lambda[0] * m00 * right(0) + q,
+                    lambda[0] * m01 * right(1),
+                    lambda[1] * m10 * right(0),
+                    lambda[1] * m11 * right(1) + q,
+                );
+                let updated = (x0, x1);
+                x0 += dt * x1;
+                f.step(&CvExact(Cv { dt_s: dt }), &Vector1::new(y), &0.0);
+                let close = |got: f64, want: f64| (got - want).abs() <= 1e-12 * want.abs().max(1e-300);
+                let (fx, fp, fl) = (f.estimate(), f.predicted_covariance(), f.fading_factors());
+                assert!(close(fl[0], lambda[0]) && close(fl[1], lambda[1]), "{fl:?} vs {lambda:?}");
+                assert!(close(fx[0], updated.0) && close(fx[1], updated.1), "{fx:?} vs {updated:?}");
+                for (got, want) in [(fp[(0, 0)], p00), (fp[(0, 1)], p01), (fp[(1, 0)], p10), (fp[(1, 1)], p11)] {
+                    assert!(close(got, want), "improved {improved}: {fp:?} vs [[{p00}, {p01}], [{p10}, {p11}]]");
+                }
+            }
+        }
+    }
+
     /// A filter on the toy tracker with measurement variance `r`; Joseph form or not.
     fn tracker(P0: Matrix2<f64>, Q: Matrix2<f64>, r: f64, joseph: bool) -> Stekf<2, 1> {
         let f = Stekf::new(Vector2::zeros(), P0, Q, SMatrix::from_element(r), Fading::None);

@@ -443,6 +443,37 @@ mod tests {
         assert!(i.hi - i.lo < 0.06 && i.hi - i.lo > 0.02, "width {}", i.hi - i.lo);
     }
 
+    /// Issue 49, item 4: the maximum-likelihood fit and the shape's profile interval against SciPy 1.17.1,
+    /// which shares no code with fdimc. The sample: 300 generalised Pareto excesses at the golden-ratio
+    /// points `u_i = frac((i + 1) 0.618...)` (the same numbers in both), of (xi, sigma) = (0.2, 1.5) and
+    /// (-0.2, 1.5). Reference (`scripts/reference/gpd_scipy.py`): `genpareto.fit(y, floc=0)` refined by
+    /// Nelder-Mead to 1e-12 gives (xi, sigma, max log-likelihood) = (0.1760108, 1.5284000, -480.069657)
+    /// and (-0.2250580, 1.5322424, -360.502293) (`genpareto.fit` alone stops at 0.1759982 and -0.2250522);
+    /// the 95 % profile interval of xi, sigma maximised at each xi (`minimize_scalar`) and the deviance's
+    /// 3.841459 crossings found by `brentq`: [0.0547133, 0.3291340] and [-0.3130479, -0.1113016].
+    #[test]
+    fn the_fit_and_its_shape_interval_match_scipy() {
+        let phi = (5f64.sqrt() - 1.0) / 2.0;
+        for (xi0, expected, interval) in [
+            (0.2, (0.1760108, 1.5284000, -480.069657), (0.0547133, 0.3291340)),
+            (-0.2, (-0.2250580, 1.5322424, -360.502293), (-0.3130479, -0.1113016)),
+        ] {
+            let mut top: Vec<f64> = (0..300)
+                .map(|i| {
+                    let u = ((i + 1) as f64 * phi) % 1.0;
+                    1.5 / xi0 * ((1.0 - u).powf(-xi0) - 1.0)
+                })
+                .collect();
+            top.push(0.0);
+            let fit = TailFit::fit(&top, 3000, 300).unwrap();
+            assert!((fit.xi - expected.0).abs() < 2e-5 && (fit.sigma / expected.1 - 1.0).abs() < 2e-5, "{fit:?}");
+            let gpd = gpd_loglik(&fit.excess, fit.sigma, fit.xi);
+            assert!((gpd - expected.2).abs() < 1e-5, "log-likelihood {gpd} vs SciPy's {}", expected.2);
+            let i = fit.xi_interval();
+            assert!((i.lo - interval.0).abs() < 1e-4 && (i.hi - interval.1).abs() < 1e-4, "{i:?} vs {interval:?}");
+        }
+    }
+
     /// The estimate and the profile's maximum agree: the profile at the fitted point is the maximised
     /// likelihood, and the quantile and survival invert each other.
     #[test]
