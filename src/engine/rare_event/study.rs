@@ -403,7 +403,7 @@ fn print_rows(rows: &[RareEventRow]) {
                 "-".into()
             },
             r.steps_simulated,
-            cell(plain, format!("{plain:.0}x")),
+            cell(plain, if plain < 1e6 { format!("{plain:.0}x") } else { format!("{plain:.1e}x") }),
         );
     }
     for r in rows.iter().filter(|r| !r.estimate.answer) {

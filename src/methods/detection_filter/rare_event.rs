@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use nalgebra::DVector;
 
-use super::decision::{Decision, TestState};
+use super::decision::{Decision, LaneStatistic, TestState};
 use super::filter::DetectionFilter;
 use super::kernel::{FilterState, FilterStep, PlantState, PlantStep};
 use super::study::LtiStudy;
@@ -210,6 +210,29 @@ impl RareEventModel for FaultFreeTrials<'_> {
         p.sensor = rng(BranchStream::Sensor);
         p.process = rng(BranchStream::Process);
     }
+
+    /// The loop, the filter and the noise are linear and Gaussian; the seed's `|residual_j|` test makes
+    /// the signed score `residual_j / threshold_j`. Process noise would be draws the tilt does not move.
+    fn gaussian_scores(&self) -> bool {
+        !self.has_process_noise
+            && self.engine.nominal_filters()[self.detector]
+                .as_ref()
+                .is_ok_and(|f| f.decision.on_lanes() == Some(LaneStatistic::Absolute))
+    }
+
+    fn trials_alike(&self) -> bool {
+        self.shared.is_some()
+    }
+
+    fn last_scores(&self, p: &Path, signed: &mut [f64]) -> bool {
+        let Some(m) = p.model.as_deref().filter(|_| !p.diverged) else {
+            return false;
+        };
+        for ((s, r), thr) in signed.iter_mut().zip(p.filter.residual()).zip(m.thresholds.iter()) {
+            *s = r / thr;
+        }
+        true
+    }
 }
 
 /// `fdimc rare-event` on a detection-filter deck: this shard's units of each chosen detector, written
@@ -306,6 +329,44 @@ mod tests {
                 let expected = pre.iter().zip(thr.iter()).map(|(v, h)| v / h).fold(0.0, f64::max);
                 assert_eq!(plain_score(&model, t), expected, "detector {d}, trial {t}");
             }
+        }
+    }
+
+    /// The tilts' kernel probes the simulated loop (plant, output feedback, filter); the residual's law
+    /// written from the design's matrices, `P(k+1) = (Ad - Kd C) P(k) (Ad - Kd C)' + Kd R Kd'` from
+    /// `P(0) = 0` and `Var gamma(k) = C P(k) C' + R`, must meet it at every sample, and the noise-free
+    /// residual of a filter started on the truth is 0.
+    #[test]
+    fn the_tilt_kernel_is_the_residual_covariance_recursion() {
+        use crate::engine::rare_event::estimators::Kernel;
+        let study = rare();
+        let engine = Engine::new(&study);
+        for d in 0..2 {
+            let model = FaultFreeTrials::new(&study, d, false).unwrap();
+            assert!(model.gaussian_scores() && model.trials_alike());
+            let kernel = Kernel::of(&model, 0).unwrap();
+            let f = engine.nominal_filters()[d].as_ref().unwrap();
+            let (ad, kd, c) = (&f.model.Ad, &f.discrete.K, &f.model.C);
+            let r = nalgebra::DMatrix::from_diagonal(&study.sensor_sigma.map(|s| s * s));
+            let phi = ad - kd * c;
+            let mut p = nalgebra::DMatrix::<f64>::zeros(ad.nrows(), ad.nrows());
+            for k in 0..study.header.steps {
+                let var = c * &p * c.transpose() + &r;
+                for j in 0..c.nrows() {
+                    let expected = var[(j, j)] / f.thresholds[j].powi(2);
+                    let got = kernel.variance(k, j);
+                    assert!(
+                        (got / expected - 1.0).abs() < 1e-9,
+                        "detector {d}, sample {k}, output {j}: {got} vs {expected}"
+                    );
+                    assert!(kernel.mean(k, j).abs() < 1e-12, "{}", kernel.mean(k, j));
+                }
+                p = &phi * &p * phi.transpose() + kd * &r * kd.transpose();
+            }
+            // Not white: the filtered part adds to the sensor noise's variance by the last sample.
+            let last = study.header.steps - 1;
+            let white = study.sensor_sigma[4].powi(2) / f.thresholds[4].powi(2);
+            assert!(kernel.variance(last, 4) > 1.01 * white, "{} vs {white}", kernel.variance(last, 4));
         }
     }
 
