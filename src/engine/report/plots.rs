@@ -555,8 +555,11 @@ pub fn tail(file: &Path, p: &TailPlot) -> Result<(), String> {
         .label_style((FONT, 14))
         .draw()
         .map_err(e)?;
-    let observed: Vec<(f64, f64)> =
-        sorted.iter().enumerate().map(|(i, &x)| (x, (i + 1) as f64 / n)).filter(|(x, _)| *x >= x_min).collect();
+    let observed: Vec<(f64, f64)> = drawn_ranks(sorted.len())
+        .into_iter()
+        .map(|i| (sorted[i], (i + 1) as f64 / n))
+        .filter(|(x, _)| *x >= x_min)
+        .collect();
     chart
         .draw_series(observed.iter().map(|&pt| Circle::new(pt, 2, color(0).filled())))
         .map_err(e)?
@@ -588,6 +591,22 @@ pub fn tail(file: &Path, p: &TailPlot) -> Result<(), String> {
     }
     legend(&mut chart, SeriesLabelPosition::UpperRight, 14)?;
     root.present().map_err(e)
+}
+
+/// The ranks (0 the largest) of `len` sorted values a log-log survival plot draws: every one of the
+/// first 1,000, then ranks 0.5 % apart, which a log axis cannot tell from all of them (at 10^7 trials
+/// every rank made plots of 100 MB).
+fn drawn_ranks(len: usize) -> Vec<usize> {
+    let mut ranks = Vec::new();
+    let mut r = 0;
+    while r < len {
+        ranks.push(r);
+        r = if r < 1000 { r + 1 } else { (r as f64 * 1.005).ceil() as usize };
+    }
+    if ranks.last().is_some_and(|&l| l + 1 != len) {
+        ranks.push(len - 1);
+    }
+    ranks
 }
 
 /// One outcome's Sobol indices for one detector (`sensitivity.csv`): per factor, the first-order index
@@ -658,4 +677,23 @@ pub fn sensitivity_bars(file: &Path, p: &SensitivityBars) -> Result<(), String> 
         .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 16, y + 5)], st_colour.filled()));
     legend(&mut chart, SeriesLabelPosition::LowerRight, 13)?;
     figure.present().map_err(e)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::drawn_ranks;
+
+    #[test]
+    fn the_tail_plot_draws_every_top_rank_and_log_spaced_ones_below() {
+        assert_eq!(drawn_ranks(0), Vec::<usize>::new());
+        assert_eq!(drawn_ranks(5), vec![0, 1, 2, 3, 4]);
+        // 8 million fault-free units (a 10^7-trial run): the first 1,000 ranks, then about
+        // ln(8000) / ln(1.005) = 1,800 more, the last rank (the smallest value) among them.
+        let ranks = drawn_ranks(8_000_000);
+        assert_eq!(&ranks[..1001], &(0..1001).collect::<Vec<_>>()[..]);
+        assert_eq!(*ranks.last().unwrap(), 7_999_999);
+        assert!((2_700..2_900).contains(&ranks.len()), "{}", ranks.len());
+        // Neighbours beyond the first 1,000 are at most 0.5 % (plus one rank) apart.
+        assert!(ranks.windows(2).all(|w| w[1] > w[0] && (w[1] as f64) <= w[0] as f64 * 1.005 + 1.0));
+    }
 }
