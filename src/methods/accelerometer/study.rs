@@ -242,8 +242,11 @@ impl FromDeck for AccelerometerStudy {
         let filter_noise = d.and_then(|d| d.filter_noise.as_deref()).unwrap_or("nominal");
         design.filter_knows_noise = v.choice("detection.filter_noise", filter_noise, &knows)?;
         if let Some(n) = d.and_then(|d| d.window_samples) {
-            if n == 0 {
-                return Err(v.err("detection.window_samples", "allowed at least 1"));
+            if n == 0 || n > header.steps {
+                return Err(v.err(
+                    "detection.window_samples",
+                    format!("{n}: allowed 1 to the trial's {} samples", header.steps),
+                ));
             }
             detection.window = n;
         }

@@ -1,0 +1,277 @@
+//! Bad input at scale (issue 49, item 5): every bundled deck and flight log, mutated many thousand
+//! times by a fixed-seed generator, must give a result or an error a user can act on, never a panic.
+//! The CI runs [`DECK_CASES`] cases per deck and [`LOG_CASES`] per log; as a fuzz harness on the stable
+//! toolchain, set `FDIMC_FUZZ_CASES` (cases per deck and per log) and `FDIMC_FUZZ_SEED` (another
+//! stream of mutations): `FDIMC_FUZZ_CASES=100000 cargo test --release --lib bad_input -- --nocapture`.
+
+#![cfg(test)]
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::{Path, PathBuf};
+
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use rayon::prelude::*;
+
+use crate::engine::logs::flight_log::{LogError, TopicRequest, read_ulog};
+use crate::engine::method::method_of;
+use crate::engine::run::runner::RunError;
+use crate::engine::scenario::deck::DeckError;
+use crate::methods::REGISTRY;
+
+/// Mutated decks per bundled deck in the CI (35 decks: 52,500 cases, about 6 s on 2 cores).
+const DECK_CASES: u64 = 1500;
+/// Mutated logs per bundled log in the CI.
+const LOG_CASES: u64 = 1000;
+
+fn cases(default: u64) -> u64 {
+    std::env::var("FDIMC_FUZZ_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(default)
+}
+
+fn seed() -> u64 {
+    std::env::var("FDIMC_FUZZ_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(0)
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Values a deck field might be given by mistake: other types, extremes, non-finite numbers, long and
+/// non-ASCII strings.
+fn odd_value(rng: &mut ChaCha8Rng) -> String {
+    const VALUES: &[&str] = &[
+        "nan",
+        "inf",
+        "-inf",
+        "+nan",
+        "0",
+        "-1",
+        "-0.0",
+        "1e308",
+        "-1e308",
+        "1e-320",
+        "18446744073709551616",
+        "-9223372036854775809",
+        "9223372036854775807",
+        "true",
+        "\"\"",
+        "\"x\"",
+        "\"ünïcødé ✈ 飞行\"",
+        "[]",
+        "[[]]",
+        "[1, 2]",
+        "[nan, inf]",
+        "[\"a\", 1]",
+        "{ a = 1 }",
+        "{}",
+        "1979-05-27T07:32:00Z",
+    ];
+    match rng.random_range(0..10) {
+        0 => format!("\"{}\"", "a".repeat(rng.random_range(1000..20_000))),
+        1 => format!("[{}]", vec!["1.0"; rng.random_range(100..5000)].join(", ")),
+        2 => format!("{}", rng.random::<f64>() * 10f64.powi(rng.random_range(-300..300))),
+        _ => VALUES[rng.random_range(0..VALUES.len())].to_string(),
+    }
+}
+
+/// One to three edits of a deck's text: a value replaced, a line deleted, duplicated or swapped, a
+/// key renamed, the text cut short, or odd characters inserted.
+fn mutate_deck(text: &str, rng: &mut ChaCha8Rng) -> String {
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    for _ in 0..rng.random_range(1..=3) {
+        if lines.is_empty() {
+            break;
+        }
+        let i = rng.random_range(0..lines.len());
+        match rng.random_range(0..8) {
+            0 | 1 | 2 => {
+                if let Some(eq) = lines[i].find('=') {
+                    lines[i] = format!("{}= {}", &lines[i][..eq], odd_value(rng));
+                }
+            }
+            3 => {
+                lines.remove(i);
+            }
+            4 => {
+                let copy = lines[i].clone();
+                lines.insert(i, copy);
+            }
+            5 => {
+                let j = rng.random_range(0..lines.len());
+                lines.swap(i, j);
+            }
+            6 => {
+                if let Some(eq) = lines[i].find('=') {
+                    lines[i] = format!("ünknown_{} {}", rng.random_range(0..100), &lines[i][eq..]);
+                }
+            }
+            _ => {
+                let odd = ["\u{0}", "\u{feff}", "é", "[", "]", "\"", "'''", "\n[study]\n", "#", "\\"];
+                let at = (0..=lines[i].len()).filter(|&b| lines[i].is_char_boundary(b)).collect::<Vec<_>>();
+                let b = at[rng.random_range(0..at.len())];
+                lines[i].insert_str(b, odd[rng.random_range(0..odd.len())]);
+            }
+        }
+    }
+    let mut out = lines.join("\n");
+    if rng.random_range(0..10) == 0 {
+        let cut = rng.random_range(0..=out.len());
+        let cut = (0..=cut).rev().find(|&b| out.is_char_boundary(b)).unwrap_or(0);
+        out.truncate(cut);
+    }
+    out
+}
+
+/// What a failed case reports: its deck, case number and the panic or the error that was not a user's.
+fn check_deck(path: &Path, text: &str) -> Result<(), String> {
+    let outcome = catch_unwind(AssertUnwindSafe(|| -> Result<(), String> {
+        let method = match method_of(REGISTRY, text, path) {
+            Ok(m) => m,
+            Err(e) => return deck_error(path, e),
+        };
+        let study = match (method.load)(text, path) {
+            Ok(s) => s,
+            Err(e) => return deck_error(path, e),
+        };
+        match study.validate() {
+            Ok(()) | Err(RunError::Invalid(_)) => Ok(()),
+            Err(e) => Err(format!("validate: not an input error (exit 3): {e}")),
+        }
+    }));
+    match outcome {
+        Ok(r) => r,
+        Err(panic) => Err(format!("panicked: {}", panic_text(&panic))),
+    }
+}
+
+/// A deck error must name the deck (exit 2 follows from its type).
+fn deck_error(path: &Path, e: DeckError) -> Result<(), String> {
+    let text = e.to_string();
+    if text.starts_with(&path.display().to_string()) { Ok(()) } else { Err(format!("error without the file: {text}")) }
+}
+
+fn panic_text(panic: &Box<dyn std::any::Any + Send>) -> String {
+    panic
+        .downcast_ref::<String>()
+        .cloned()
+        .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+        .unwrap_or_default()
+}
+
+#[test]
+fn mutated_decks_give_errors_that_name_the_file_never_a_panic() {
+    let n = cases(DECK_CASES);
+    let mut decks: Vec<PathBuf> = std::fs::read_dir(root().join("studies"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    decks.sort();
+    assert!(decks.len() >= 30, "{decks:?}");
+    let failures: Vec<String> = decks
+        .par_iter()
+        .enumerate()
+        .flat_map_iter(|(d, path)| {
+            let text = std::fs::read_to_string(path).unwrap();
+            (0..n).filter_map(move |case| {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed() ^ ((d as u64) << 40) ^ case);
+                let mutated = mutate_deck(&text, &mut rng);
+                check_deck(path, &mutated).err().map(|e| {
+                    // The lines the mutation changed, to reproduce the case.
+                    let changed: Vec<&str> = mutated.lines().filter(|l| !text.lines().any(|o| o == *l)).collect();
+                    let shown: Vec<String> = changed.iter().map(|l| l.chars().take(200).collect()).collect();
+                    format!("{} case {case}: {e}; changed lines: {shown:?}", path.display())
+                })
+            })
+        })
+        .collect();
+    println!("{} decks x {n} mutations: {} failures", decks.len(), failures.len());
+    assert!(
+        failures.is_empty(),
+        "{} failures, the first:\n{}",
+        failures.len(),
+        failures[..failures.len().min(10)].join("\n")
+    );
+}
+
+/// Truncation, flipped bytes, a duplicated or zeroed run of bytes (a record twice, a record lost).
+fn mutate_log(bytes: &[u8], rng: &mut ChaCha8Rng) -> Vec<u8> {
+    let mut out = bytes.to_vec();
+    for _ in 0..rng.random_range(1..=3) {
+        let len = out.len().max(1);
+        match rng.random_range(0..5) {
+            0 => out.truncate(rng.random_range(0..len)),
+            1 => {
+                for _ in 0..rng.random_range(1..20) {
+                    let i = rng.random_range(0..len.min(out.len()).max(1));
+                    if i < out.len() {
+                        out[i] ^= 1 << rng.random_range(0..8);
+                    }
+                }
+            }
+            2 | 3 => {
+                let a = rng.random_range(0..len);
+                let b = (a + rng.random_range(1..200)).min(out.len());
+                let copy = out[a.min(out.len())..b].to_vec();
+                let at = rng.random_range(0..=out.len());
+                out.splice(at..at, copy);
+            }
+            _ => {
+                let a = rng.random_range(0..len).min(out.len());
+                let b = (a + rng.random_range(1..64)).min(out.len());
+                out[a..b].fill(if rng.random() { 0 } else { 0xff });
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn mutated_flight_logs_give_errors_that_name_the_file_never_a_panic() {
+    let n = cases(LOG_CASES);
+    let logs = ["sample_appended_multiple.ulg", "sample_log_small.ulg"];
+    let fields = ["gyro_rad[0]", "gyro_rad[1]", "gyro_rad[2]", "accelerometer_m_s2[0]"];
+    let request = TopicRequest {
+        topic: "sensor_combined".into(),
+        instance: 0,
+        fields: fields.iter().map(|f| f.to_string()).collect(),
+        max_gap_s: 0.05,
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let mut failures = Vec::new();
+    for (l, name) in logs.iter().enumerate() {
+        let bytes = std::fs::read(root().join("studies/logs").join(name)).unwrap();
+        // The unmutated log reads (the small one has no gap of 50 ms at most: an input error).
+        let plain = read_ulog(&root().join("studies/logs").join(name), &request);
+        assert!(plain.is_ok() || l == 1, "{name}: {plain:?}");
+        let found: Vec<String> = (0..n)
+            .into_par_iter()
+            .filter_map(|case| {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed() ^ ((l as u64) << 40) ^ case);
+                let path = tmp.path().join(format!("{case}_{name}"));
+                std::fs::write(&path, mutate_log(&bytes, &mut rng)).unwrap();
+                let outcome = catch_unwind(AssertUnwindSafe(|| read_ulog(&path, &request)));
+                let _ = std::fs::remove_file(&path);
+                match outcome {
+                    Ok(Ok(_)) => None,
+                    Ok(Err(e)) => log_error_names(&path, &e).err().map(|e| format!("{name} case {case}: {e}")),
+                    Err(panic) => Some(format!("{name} case {case}: panicked: {}", panic_text(&panic))),
+                }
+            })
+            .collect();
+        failures.extend(found);
+    }
+    println!("{} logs x {n} mutations: {} failures", logs.len(), failures.len());
+    assert!(
+        failures.is_empty(),
+        "{} failures, the first:\n{}",
+        failures.len(),
+        failures[..failures.len().min(10)].join("\n")
+    );
+}
+
+fn log_error_names(path: &Path, e: &LogError) -> Result<(), String> {
+    let text = e.to_string();
+    if text.starts_with(&path.display().to_string()) { Ok(()) } else { Err(format!("error without the file: {text}")) }
+}
