@@ -84,7 +84,7 @@ fn mutate_deck(text: &str, rng: &mut ChaCha8Rng) -> String {
         }
         let i = rng.random_range(0..lines.len());
         match rng.random_range(0..8) {
-            0 | 1 | 2 => {
+            0..=2 => {
                 if let Some(eq) = lines[i].find('=') {
                     lines[i] = format!("{}= {}", &lines[i][..eq], odd_value(rng));
                 }
