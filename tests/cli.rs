@@ -2562,6 +2562,13 @@ fn the_roc_passes_through_the_calibrated_point() {
 /// with probability 1 - (Phi(c - 1) - Phi(-c - 1))^100. Every point of roc.csv (about 2,000 trials of
 /// each) holds both within its 99.9 % Wilson interval; thresholds 3 % off would put most points outside
 /// (32 of 37, measured), as would counting the wrong trials (faulty as fault-free, pre-onset windows).
+/// The same law end to end: at the deck's threshold (3.5) the summary's Pfa interval (over every flight
+/// once: the 2,000 fault-free ones, 200 samples each, and the faulty ones' 100 samples before the
+/// onset) holds 0.5 (1 - (1 - 2 Q(3.5))^200) + 0.5 (1 - (1 - 2 Q(3.5))^100) = 0.0671718 (SciPy's
+/// `norm.sf`; 0.0888733 and 0.0454704 the two halves), and the calibration
+/// at Pfa 0.05 recovers the threshold that law gives, 3.5 x 1.0444993 (SciPy's brentq on the same
+/// law), within 5 of its standard errors (0.68 % each from 2,000 fault-free trials: the order
+/// statistic's spread over the law's slope, d ln Pfa / d ln c = -14.4).
 #[test]
 fn the_roc_of_a_white_residual_meets_its_closed_form() {
     use fdimc::engine::stats::intervals::{normal_sf, wilson};
@@ -2571,6 +2578,13 @@ fn the_roc_of_a_white_residual_meets_its_closed_form() {
     let roc = csv_frame(&dir.join("roc.csv"));
     let thresholds = csv_frame(&dir.join("thresholds.csv"));
     let whole = thresholds.column("detector_threshold").unwrap().f64().unwrap().get(0).unwrap();
+    assert!((whole / (3.5 * 1.0444993082327543) - 1.0).abs() < 5.0 * 0.0068, "calibrated threshold {whole}");
+    let detectors = csv_frame(&dir.join("detectors.csv"));
+    let set = detectors.column("thresholds").unwrap().str().unwrap();
+    let at_deck = (0..detectors.height()).find(|&i| set.get(i) == Some("deck")).unwrap();
+    let bound = |c: &str| detectors.column(c).unwrap().f64().unwrap().get(at_deck).unwrap();
+    let (lo, hi) = (bound("pfa_lo"), bound("pfa_hi"));
+    assert!(lo <= 0.06717184514005914 && 0.06717184514005914 <= hi, "Pfa at the deck's threshold: [{lo}, {hi}]");
     let n = |c: &str| roc.column(c).unwrap().cast(&polars::prelude::DataType::Float64).unwrap().f64().unwrap().clone();
     let (scale, trials, false_alarms, faulty, detected) =
         (n("scale"), n("trials"), n("false_alarms"), n("faulty"), n("detected"));

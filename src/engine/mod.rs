@@ -16,7 +16,6 @@
 //! 7. [`method`]: the plug-in contract a kind of study implements, which ties one piece of every layer
 //!    (its deck, its trials, its summary spec, its report) into one [`method::Method`].
 
-mod bad_input;
 pub mod logs;
 pub mod method;
 pub mod rare_event;

@@ -2,6 +2,7 @@
 
 pub mod accelerometer;
 pub mod air_data;
+mod bad_input;
 pub mod detection_filter;
 pub mod surface_bank;
 pub mod thrust_loss;
