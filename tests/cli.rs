@@ -2514,6 +2514,72 @@ fn a_calibration_lets_through_exactly_the_alarms_it_allows() {
     assert!(dir.join("calibrations/pfa_0.05_confidence_0.95/thresholds.csv").is_file());
 }
 
+/// Every file under `dir` with its bytes, for "nothing already written changed".
+fn folder_bytes(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    let mut out = std::collections::BTreeMap::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap().flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if p.file_name().is_some_and(|n| n != ".fdimc-lock") {
+                // (The lock file names its last holder: bookkeeping, rewritten by every command.)
+                out.insert(p.clone(), std::fs::read(&p).unwrap());
+            }
+        }
+    }
+    out
+}
+
+/// A bad deck pointed at a folder that holds a run changes nothing there (issue 49, item 5): each
+/// line of the CI deck with a value, given values of the wrong type, out of range, non-finite, long or
+/// non-ASCII, or deleted, runs as `run --out` (refused: the folder holds a run, or the deck is bad),
+/// `run --resume` (refused: another deck, or bad) and, where the deck is bad, `run --force`; every
+/// one exits 2 with the deck's path in the message where the deck is at fault, and the folder's
+/// bytes stay as they were.
+#[test]
+fn a_bad_deck_leaves_an_existing_run_untouched() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("run");
+    let d = dir.to_str().unwrap();
+    ok(&fdimc(&["run", "studies/ci_seed000.toml", "--trials", "64", "--quiet", "--out", d]));
+    let before = folder_bytes(&dir);
+    let original = std::fs::read_to_string("studies/ci_seed000.toml").unwrap();
+    let lines: Vec<&str> = original.lines().collect();
+    let bad_values = ["nan", "-1", "1e308", "\"ünïcødé ✈\"", "[]", "true"];
+    let mut decks = 0;
+    for (i, line) in lines.iter().enumerate().filter(|(_, l)| l.contains('=') && !l.trim_start().starts_with('#')) {
+        let key = &line[..line.find('=').unwrap()];
+        let mut variants: Vec<String> = bad_values.iter().map(|v| format!("{key}= {v}")).collect();
+        variants.push(String::new());
+        for (v, variant) in variants.iter().enumerate() {
+            let mut edited = lines.clone();
+            edited[i] = variant;
+            let deck = tmp.path().join(format!("bad_{i}_{v}.toml"));
+            std::fs::write(&deck, edited.join("\n")).unwrap();
+            let deck = deck.to_str().unwrap();
+            let valid = fdimc(&["validate", deck]).status.success();
+            let mut modes =
+                vec![vec!["run", deck, "--quiet", "--out", d], vec!["run", deck, "--quiet", "--resume", "--out", d]];
+            if !valid {
+                modes.push(vec!["run", deck, "--quiet", "--force", "--out", d]);
+            }
+            for args in modes {
+                let out = fdimc(&args);
+                let err = text(&out.stderr);
+                assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+                assert!(valid || err.contains(deck), "{args:?}: the message does not name the deck: {err}");
+            }
+            decks += 1;
+        }
+    }
+    assert!(decks > 200, "{decks}");
+    let after = folder_bytes(&dir);
+    let changed: Vec<_> = before.keys().chain(after.keys()).filter(|k| before.get(*k) != after.get(*k)).collect();
+    assert!(changed.is_empty(), "a bad deck changed {changed:?}");
+}
+
 /// ROC (`roc.csv`): per detector, points whose Pfa rises as Pd does; the calibrated point repeats
 /// thresholds.csv's false alarms and the calibrated Pd of detectors.csv exactly, and the report draws
 /// every detector's curve from it.
