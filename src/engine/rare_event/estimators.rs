@@ -700,8 +700,8 @@ fn tilted_trial<M: RareEventModel>(
             continue;
         };
         for (j, s) in signed.iter().enumerate() {
-            let noise = s - kernel.mean[k * m + j];
-            let var = kernel.variance[k * m + j];
+            let noise = s - kernel.mean(k, j);
+            let var = kernel.variance(k, j);
             for part in [2 * j, 2 * j + 1] {
                 for (t, level) in mix.points.iter().enumerate() {
                     shares[part * nt + t] += match kernel.theta(j, k, sign(part) * level) {

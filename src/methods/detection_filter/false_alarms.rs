@@ -104,6 +104,34 @@ pub fn for_detector(
     ))
 }
 
+/// The fault-free residual's law sample by sample, the filter started on the truth: per sample `P(k)
+/// C'` (every covariance of the residual needs only it) and each output's standard deviation, from
+/// `P(k+1) = (Ad - Kd C) P(k) (Ad - Kd C)' + Kd R Kd' + W`, `P(0) = 0`, `Var gamma(k) = C P(k) C' + R`.
+pub fn residual_law(
+    Ad: &DMatrix<f64>,
+    Kd: &DMatrix<f64>,
+    C: &DMatrix<f64>,
+    sensor_sigma: &DVector<f64>,
+    process_sigma_per_step: &DVector<f64>,
+    samples: usize,
+) -> (Vec<DMatrix<f64>>, Vec<Vec<f64>>) {
+    let n = Ad.nrows();
+    let Phi = Ad - Kd * C;
+    let R = DMatrix::from_diagonal(&sensor_sigma.map(|s| s * s));
+    let W = DMatrix::from_diagonal(&process_sigma_per_step.map(|s| s * s));
+    let drive = Kd * &R * Kd.transpose() + W;
+    let (mut H, mut sd): (Vec<DMatrix<f64>>, Vec<Vec<f64>>) =
+        (Vec::with_capacity(samples), Vec::with_capacity(samples));
+    let mut p_k = DMatrix::zeros(n, n);
+    for _ in 0..samples {
+        let h: DMatrix<f64> = &p_k * C.transpose();
+        sd.push((C * &h + &R).diagonal().map(f64::sqrt).as_slice().to_vec());
+        H.push(h);
+        p_k = &Phi * &p_k * Phi.transpose() + &drive;
+    }
+    (H, sd)
+}
+
 /// The residual's law over `samples` samples and the bounds at `thresholds` (one per output).
 /// `sensor_sigma` and `process_sigma_per_step` are the noise standard deviations.
 pub fn analytic_false_alarms(
@@ -118,18 +146,7 @@ pub fn analytic_false_alarms(
     let (n, ny) = (Ad.nrows(), C.nrows());
     let Phi = Ad - Kd * C;
     let R = DMatrix::from_diagonal(&sensor_sigma.map(|s| s * s));
-    let W = DMatrix::from_diagonal(&process_sigma_per_step.map(|s| s * s));
-    let drive = Kd * &R * Kd.transpose() + W;
-    // Per sample, P(k) C' (H: every covariance needs only it) and the residual's standard deviations.
-    let (mut H, mut sd): (Vec<DMatrix<f64>>, Vec<Vec<f64>>) =
-        (Vec::with_capacity(samples), Vec::with_capacity(samples));
-    let mut p_k = DMatrix::zeros(n, n);
-    for _ in 0..samples {
-        let h: DMatrix<f64> = &p_k * C.transpose();
-        sd.push((C * &h + &R).diagonal().map(f64::sqrt).as_slice().to_vec());
-        H.push(h);
-        p_k = &Phi * &p_k * Phi.transpose() + &drive;
-    }
+    let (H, sd) = residual_law(Ad, Kd, C, sensor_sigma, process_sigma_per_step, samples);
     let single = |k: usize, j: usize| 2.0 * normal_sf(thresholds[j] / sd[k][j]);
     let (mut sum, mut log_none, mut largest_sample) = (0.0, 0.0, 0.0f64);
     for k in 0..samples {

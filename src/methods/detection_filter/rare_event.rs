@@ -333,9 +333,9 @@ mod tests {
     }
 
     /// The tilts' kernel probes the simulated loop (plant, output feedback, filter); the residual's law
-    /// written from the design's matrices, `P(k+1) = (Ad - Kd C) P(k) (Ad - Kd C)' + Kd R Kd'` from
-    /// `P(0) = 0` and `Var gamma(k) = C P(k) C' + R`, must meet it at every sample, and the noise-free
-    /// residual of a filter started on the truth is 0.
+    /// from the design's matrices (`false_alarms::residual_law`, the covariance recursion the analytic
+    /// bounds use) must meet it at every sample, and the noise-free residual of a filter started on the
+    /// truth is 0.
     #[test]
     fn the_tilt_kernel_is_the_residual_covariance_recursion() {
         use crate::engine::rare_event::estimators::Kernel;
@@ -346,14 +346,18 @@ mod tests {
             assert!(model.gaussian_scores() && model.trials_alike());
             let kernel = Kernel::of(&model, 0).unwrap();
             let f = engine.nominal_filters()[d].as_ref().unwrap();
-            let (ad, kd, c) = (&f.model.Ad, &f.discrete.K, &f.model.C);
-            let r = nalgebra::DMatrix::from_diagonal(&study.sensor_sigma.map(|s| s * s));
-            let phi = ad - kd * c;
-            let mut p = nalgebra::DMatrix::<f64>::zeros(ad.nrows(), ad.nrows());
-            for k in 0..study.header.steps {
-                let var = c * &p * c.transpose() + &r;
-                for j in 0..c.nrows() {
-                    let expected = var[(j, j)] / f.thresholds[j].powi(2);
+            let no_process = nalgebra::DVector::zeros(f.model.Ad.nrows());
+            let (_, sd) = super::super::false_alarms::residual_law(
+                &f.model.Ad,
+                &f.discrete.K,
+                &f.model.C,
+                &study.sensor_sigma,
+                &no_process,
+                study.header.steps,
+            );
+            for (k, sd) in sd.iter().enumerate() {
+                for (j, sd) in sd.iter().enumerate() {
+                    let expected = (sd / f.thresholds[j]).powi(2);
                     let got = kernel.variance(k, j);
                     assert!(
                         (got / expected - 1.0).abs() < 1e-9,
@@ -361,7 +365,6 @@ mod tests {
                     );
                     assert!(kernel.mean(k, j).abs() < 1e-12, "{}", kernel.mean(k, j));
                 }
-                p = &phi * &p * phi.transpose() + kd * &r * kd.transpose();
             }
             // Not white: the filtered part adds to the sensor noise's variance by the last sample.
             let last = study.header.steps - 1;

@@ -558,21 +558,20 @@ mod tests {
         let rho = r.windows(2).map(|w| (w[0] - mean) * (w[1] - mean)).sum::<f64>() / (sd * sd * (r.len() - 1) as f64);
         let n_eff = r.len() as f64 * (1.0 - rho) / (1.0 + rho);
         assert!(mean.abs() < 4.0 * sd / n_eff.sqrt(), "mean {mean}, sd {sd}, rho {rho}");
-        // Its spread is the residual's law written from the design's matrices (independent of the
-        // simulated loop): P(k+1) = (Ad - Kd C) P(k) (Ad - Kd C)' + Kd R Kd' from P(0) = 0, Var gamma(k) =
-        // C P(k) C' + R, averaged over the trial's samples; within 4 standard errors of a sample
+        // Its spread is the residual's law from the design's matrices (`false_alarms::residual_law`,
+        // independent of the simulated loop), averaged over the trial's samples; within 4 standard errors of a sample
         // standard deviation of n_eff samples, sd / sqrt(2 n_eff) (about +-8 % here).
         let engine = Engine::new(&study);
         let f = engine.nominal_filters()[0].as_ref().unwrap();
-        let (ad, kd, c) = (&f.model.Ad, &f.discrete.K, &f.model.C);
-        let noise = nalgebra::DMatrix::from_diagonal(&study.sensor_sigma.map(|s| s * s));
-        let phi = ad - kd * c;
-        let mut p = nalgebra::DMatrix::<f64>::zeros(ad.nrows(), ad.nrows());
-        let mut var_sum = 0.0;
-        for _ in 0..r.len() {
-            var_sum += (c * &p * c.transpose() + &noise)[(2, 2)];
-            p = &phi * &p * phi.transpose() + kd * &noise * kd.transpose();
-        }
+        let (_, law) = super::super::false_alarms::residual_law(
+            &f.model.Ad,
+            &f.discrete.K,
+            &f.model.C,
+            &study.sensor_sigma,
+            &study.process_sigma_per_step,
+            r.len(),
+        );
+        let var_sum: f64 = law.iter().map(|sd| sd[2] * sd[2]).sum();
         let expected = (var_sum / r.len() as f64).sqrt();
         // The filter's feedback adds a little to the sensor noise (0.5 % here).
         assert!((1.0..1.01).contains(&(expected / sigma_q)), "{expected} vs sensor sigma {sigma_q}");
