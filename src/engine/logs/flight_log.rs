@@ -365,10 +365,13 @@ fn stream(
         _ => SimpleCallbackResult::KeepReading,
     };
     // The reader slices a corrupt parameter record without a bounds check (px4-ulog 0.6.1): a panic
-    // there is a malformed file, not a bug of ours.
-    let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-        read_file_with_simple_callback(path_text, &mut on_message)
-    }));
+    // there is a malformed file, not a bug of ours, and is reported as one, without the panic's own
+    // message and backtrace on standard error.
+    let read = quietly(|| {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            read_file_with_simple_callback(path_text, &mut on_message)
+        }))
+    });
     match read {
         Ok(Ok(Completeness::Complete)) => Ok(None),
         Ok(Ok(Completeness::Truncated)) => Ok(Some("the file ends partway through a record (kept up to it)".into())),
@@ -376,6 +379,29 @@ fn stream(
         Ok(Err(e)) => Err(unreadable(format!("not a readable ULog file: {e}"))),
         Err(_) => Err(unreadable("not a readable ULog file: a malformed record".into())),
     }
+}
+
+thread_local! {
+    /// Set while this thread runs the ULog reader, whose panics are caught and reported as input errors.
+    static IN_ULOG_READER: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs `f` with the panic hook silent for this thread: the hook installed once here passes every
+/// other panic (other threads, or this one outside `f`) to the hook that was there before.
+fn quietly<T>(f: impl FnOnce() -> T) -> T {
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !IN_ULOG_READER.with(std::cell::Cell::get) {
+                previous(info);
+            }
+        }));
+    });
+    IN_ULOG_READER.with(|q| q.set(true));
+    let out = f();
+    IN_ULOG_READER.with(|q| q.set(false));
+    out
 }
 
 /// Every topic instance of the log at `path`, sorted by topic and instance, and how the file ended.

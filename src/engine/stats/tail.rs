@@ -474,6 +474,37 @@ mod tests {
         }
     }
 
+    /// Issue 49, item 4: a tail probability's profile interval against an independent profile
+    /// likelihood in SciPy (`scripts/reference/gpd_scipy.py`, second part): the same 300 excesses as
+    /// above, read as the largest of n = 3000 (zeta = 0.1); the joint binomial and generalised Pareto
+    /// log-likelihood maximised over (zeta, xi) by Nelder-Mead at each p, its 3.841459 crossings by
+    /// `brentq`. P(X > u + 20) for xi = 0.2: 1.12637905e-4 in [1.11038202e-5, 5.01451445e-4];
+    /// P(X > u + 5) for xi = -0.2 (a bounded tail): 2.76452413e-4 in [3.02050745e-5, 1.08754204e-3].
+    #[test]
+    fn the_tail_probability_interval_matches_scipy() {
+        let phi = (5f64.sqrt() - 1.0) / 2.0;
+        for (xi0, d, expected) in [
+            (0.2, 20.0, (1.12637905e-4, 1.11038202e-5, 5.01451445e-4)),
+            (-0.2, 5.0, (2.76452413e-4, 3.02050745e-5, 1.08754204e-3)),
+        ] {
+            let mut top: Vec<f64> = (0..300)
+                .map(|i| {
+                    let u = ((i + 1) as f64 * phi) % 1.0;
+                    1.5 / xi0 * ((1.0 - u).powf(-xi0) - 1.0)
+                })
+                .collect();
+            top.push(0.0);
+            let fit = TailFit::fit(&top, 3000, 300).unwrap();
+            assert_eq!(fit.u, 0.0);
+            let p = fit.survival_interval(d);
+            let close = |a: f64, b: f64| (a / b - 1.0).abs() < 1e-4;
+            assert!(
+                close(p.estimate, expected.0) && close(p.lo, expected.1) && close(p.hi, expected.2),
+                "xi {xi0}: {p:?} vs SciPy's {expected:?}"
+            );
+        }
+    }
+
     /// The estimate and the profile's maximum agree: the profile at the fitted point is the maximised
     /// likelihood, and the quantile and survival invert each other.
     #[test]
@@ -512,9 +543,13 @@ mod tests {
     /// The maximum of 1000 independent |N(0, 1)| (a white residual's largest magnitude over a trial): the
     /// tail is known exactly, P(M > x) = 1 - (2 Phi(x) - 1)^1000. Over 40 sets of 5000 such maxima, the fit
     /// on each set's 500 largest puts P(M > 5.45) = 5.0e-5 (a decade below what 5000 values show) inside
-    /// its interval in at least 34 of the 40 (binomial spread at 95 %: 35-40), and the middle estimate
-    /// is within a factor of 2 of it. (A Gaussian tail reaches the generalised Pareto law slowly, so one
-    /// set's shape is often negative and its estimate low; the intervals carry that.)
+    /// its interval in at least 34 of the 40 (binomial spread at 95 %: 35-40), by intervals no wider than
+    /// the data allow (today the median interval's hi / lo is 254: below 1,000 asked, so that coverage
+    /// cannot be bought by width), and the middle estimate is within a factor of 2 of it. That factor is
+    /// the resolution of 40 sets, not slack: one set's ln(estimate / truth) spreads with sd 1.14 (a
+    /// decade's extrapolation from 500 values), so the median's standard error is about 0.22 in ln and
+    /// a factor of 2 is 3 of them (today: 0.66). (A Gaussian tail reaches the generalised Pareto law
+    /// slowly, so one set's shape is often negative and its estimate low; the intervals carry that.)
     #[test]
     fn the_fit_extrapolates_the_maximum_of_a_white_gaussian_residual() {
         let exact = |x: f64| -(1000.0 * (-2.0 * crate::engine::stats::intervals::normal_sf(x)).ln_1p()).exp_m1();
@@ -522,6 +557,7 @@ mod tests {
         assert!((truth / 5.0e-5 - 1.0).abs() < 0.02, "exact {truth}");
         let mut covered = 0;
         let mut ratios = Vec::new();
+        let mut widths = Vec::new();
         for seed in 0..40 {
             let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(300 + seed);
             let maxima: Vec<f64> = (0..5000)
@@ -531,10 +567,13 @@ mod tests {
             let p = fit.survival_interval(5.45);
             covered += (p.lo <= truth && truth <= p.hi) as u32;
             ratios.push(p.estimate / truth);
+            widths.push(p.hi / p.lo);
         }
         ratios.sort_by(f64::total_cmp);
         let middle = 0.5 * (ratios[19] + ratios[20]);
         assert!(covered >= 34, "covered in {covered} of 40");
+        widths.sort_by(f64::total_cmp);
+        assert!(widths[19] < 1000.0, "the median interval spans {} (hi / lo): {widths:?}", widths[19]);
         assert!((0.5..2.0).contains(&middle), "middle estimate / truth {middle}: {ratios:?}");
     }
 
