@@ -15,6 +15,27 @@ pub struct ProfileGrid {
     step: f64,
     ratio: f64,
     ln_ratio: f64,
+    /// `ratio^l` for `l` in `-TABLE_REACH..=TABLE_REACH`, computed once per step: a profile point
+    /// looks up several levels, and `powi` there was a tenth of the lane path's time.
+    levels: &'static [f64],
+}
+
+/// The levels `-TABLE_REACH..=TABLE_REACH` come from the table, the rest from `powi` (the same numbers:
+/// the table holds `powi`'s). For the default step that is `e^+-199`.
+const TABLE_REACH: i32 = 4096;
+
+/// The level table of `ratio`, made once per process and kept (a few steps per process at most).
+fn level_table(ratio: f64) -> &'static [f64] {
+    use std::sync::{Mutex, OnceLock};
+    static TABLES: OnceLock<Mutex<Vec<(u64, &'static [f64])>>> = OnceLock::new();
+    let mut tables = TABLES.get_or_init(Default::default).lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, table)) = tables.iter().find(|(bits, _)| *bits == ratio.to_bits()) {
+        return table;
+    }
+    let table: &'static [f64] =
+        Box::leak((-TABLE_REACH..=TABLE_REACH).map(|l| ratio.powi(l)).collect::<Vec<f64>>().into_boxed_slice());
+    tables.push((ratio.to_bits(), table));
+    table
 }
 
 impl Default for ProfileGrid {
@@ -29,7 +50,7 @@ impl ProfileGrid {
 
     /// The grid of relative step `step` (validated by the deck: [`ProfileGrid::valid`]).
     pub fn new(step: f64) -> Self {
-        ProfileGrid { step, ratio: 1.0 + step, ln_ratio: step.ln_1p() }
+        ProfileGrid { step, ratio: 1.0 + step, ln_ratio: step.ln_1p(), levels: level_table(1.0 + step) }
     }
 
     pub fn valid(step: f64) -> bool {
@@ -42,7 +63,11 @@ impl ProfileGrid {
 
     /// Level `l`, a power of the ratio (exact where it can be: the powers of 2 of step 1).
     fn level(&self, l: f64) -> f64 {
-        self.ratio.powi(l as i32)
+        let l = l as i32;
+        match l.checked_add(TABLE_REACH).and_then(|i| usize::try_from(i).ok()) {
+            Some(i) if i < self.levels.len() => self.levels[i],
+            _ => self.ratio.powi(l),
+        }
     }
 
     /// The index of the largest level at or below `a > 0` (`None` where no finite, positive level is).
@@ -83,5 +108,26 @@ impl ProfileGrid {
             None => a,
         };
         Some(value)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The table gives `powi`'s numbers to the bit, at its ends and past them (where `powi` takes over),
+    /// so a profile is the same whichever gives a level; an index off by one would move every point
+    /// by one step.
+    #[test]
+    fn the_level_table_is_powi() {
+        for step in [0.05, 1.0, 0.001] {
+            let grid = ProfileGrid::new(step);
+            for l in [-5000, -4097, -4096, -4095, -1, 0, 1, 7, 4095, 4096, 4097, 5000] {
+                assert_eq!(grid.level(l as f64).to_bits(), (1.0 + step).powi(l).to_bits(), "step {step}, level {l}");
+            }
+            assert_eq!(grid.level(1e12), (1.0 + step).powi(i32::MAX), "saturated index, no overflow");
+        }
+        assert_eq!(ProfileGrid::new(1.0).level(3.0), 8.0);
+        assert!(std::ptr::eq(ProfileGrid::new(0.05).levels, ProfileGrid::default().levels), "one table per step");
     }
 }
