@@ -6,14 +6,14 @@ files instead of typed (issue 50). Each generated table sits between two markers
     | ... the table ... |
     <!-- end generated: NAME -->
 
-and NAME is a table in TABLES below: its deck, the `fdimc` command that runs it, and the function that
-renders the table from the run's files. The line above the table in the page names the deck, its seed
+and NAME is a table in TABLES below: its decks (each run with `fdimc run DECK`), and the function that
+renders the table from the runs' files. The line above the table in the page names the deck, its seed
 and the command (checked too: it is rendered with the table).
 
     python3 scripts/findings.py              # run the fast decks, rewrite their tables in the pages
     python3 scripts/findings.py --check      # the same, but fail (exit 1) on any difference, write nothing
     python3 scripts/findings.py --all        # every table, the slow decks included (on demand)
-    python3 scripts/findings.py --runs DIR   # reuse runs kept in DIR/<name> (fdimc run --out DIR/<name>)
+    python3 scripts/findings.py --runs DIR   # keep or reuse the runs in DIR/<deck stem> (fdimc run --out ...)
     python3 scripts/findings.py --list       # the tables, their decks and how long each takes
 
 Needs polars (`pip install polars`) and an fdimc binary: $FDIMC, else the release build under
@@ -22,6 +22,7 @@ cargo's target directory (CARGO_TARGET_DIR, or ./target). CI runs `--check` on t
 import argparse
 import difflib
 import json
+import math
 import os
 import pathlib
 import subprocess
@@ -50,12 +51,13 @@ def num(v, digits=2):
     return "-" if v is None else f"{v:.{digits}f}"
 
 
-def seed004_reference_tuning(run):
+def seed004_reference_tuning(runs):
     """docs/findings-seed004.md, "Under the seed's own tuning": per variant, over the 20 flights of the
     seed's scenario. Delays are medians over the flights where the faulty surface was declared;
     "isolated" counts the windows whose first declaration named the faulty surface; recovery is the
     median over the windows that recovered; the isolation accuracy is over the windows with a
     declaration; the RMS is the median over every window; non-finite counts flights."""
+    run = runs["studies/seed004_reference_tuning.toml"]
     d = pl.read_parquet(run / "trials.parquet")
     rows = [
         ("EMMAE, `_rw`", "emmae_rw"),
@@ -108,25 +110,154 @@ def seed004_reference_tuning(run):
     return out
 
 
-# name -> (page, deck, fast: runs in CI, wall time measured on machine C, renderer)
+def seed003_training(runs):
+    """docs/findings-seed003.md, "What the study finds": per deck and classifier, the accuracy over the
+    2,000 fresh trials with its Wilson interval (detectors.csv, the deck's thresholds) and each class's
+    recall (confusion.csv: the share of a true class named as itself)."""
+    out = [
+        "| trained on | classifier | accuracy [95 % CI] | recall normal | bias | gain | stuck |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for deck, label in [
+        ("studies/seed003_accelerometer.toml", "nominal noise (`seed003_accelerometer.toml`)"),
+        ("studies/seed003_noise_trained.toml", "both noise levels (`seed003_noise_trained.toml`)"),
+    ]:
+        detectors = pl.read_csv(runs[deck] / "detectors.csv").filter(pl.col("thresholds") == "deck")
+        confusion = pl.read_csv(runs[deck] / "confusion.csv")
+        for i, c in enumerate(["tree", "flat"]):
+            d = detectors.filter(pl.col("detector") == c).row(0, named=True)
+
+            def recall(k):
+                r = confusion.filter((pl.col("detector") == c) & (pl.col("truth") == k) & (pl.col("isolated") == k))
+                return r["share_of_truth"][0] if r.height else 0.0
+
+            row = (
+                f"| {label if i == 0 else ''} | {c} | {d['isolation_accuracy']:.3f} [{d['isolation_accuracy_lo']:.3f}, "
+                f"{d['isolation_accuracy_hi']:.3f}] | "
+                + " | ".join(f"{recall(k):.3f}" for k in ["normal", "bias", "gain", "stuck"])
+                + " |"
+            )
+            out.append(row.replace("|  |", "| |"))
+    return out
+
+
+def mcnemar(b, c):
+    """Exact two-sided McNemar test of b trials right only with one classifier against c only with the
+    other: twice the binomial(b + c, 1/2) tail at min(b, c), at most 1."""
+    n = b + c
+    if n == 0:
+        return 1.0
+    return min(1.0, 2 * sum(math.comb(n, i) for i in range(min(b, c) + 1)) / 2**n)
+
+
+def p_text(p):
+    return "1" if p >= 0.9995 else (f"{p:.3f}" if p >= 0.001 else f"{p:.0e}")
+
+
+def correct_by_trial(run):
+    """Per trial (and its noise bin), whether each classifier named the true class: one column each."""
+    d = pl.read_parquet(run / "trials.parquet").with_columns(pl.col("isolated_correctly").fill_null(False))
+    return d.pivot(on="detector", index=["trial", "noise_bin"], values="isolated_correctly").sort("trial")
+
+
+SEED003_CLASSIFIERS = [
+    ("tree", "tree, onset window (the oracle)"),
+    ("flat", "flat, onset window"),
+    ("tree_online", "tree, alarm window (online)"),
+    ("flat_online", "flat, alarm window (online)"),
+    ("tree_reversed", "tree, most separable pair first"),
+    ("tree_balanced", "tree, balanced weights"),
+]
+
+
+def seed003_online(runs):
+    """docs/findings-seed003.md, "Online windows, the tree's order, class weights": each classifier's
+    accuracy at nominal and twice the noise (1,000 trials each), paired with the tree on the onset window
+    at nominal noise: the trials only one of the two names right, and the exact McNemar p."""
+    w = correct_by_trial(runs["studies/seed003_online.toml"])
+    nominal, twice = w.filter(pl.col("noise_bin") == 1.0), w.filter(pl.col("noise_bin") == 2.0)
+    out = [
+        "| classifier | accuracy, nominal noise | trials right only with it / only with the tree | p | accuracy, twice the noise |",
+        "|---|---|---|---|---|",
+    ]
+    for c, label in SEED003_CLASSIFIERS:
+        if c == "tree":
+            pair, p = "-", "-"
+        else:
+            b = int((nominal[c] & ~nominal["tree"]).sum())
+            t = int((~nominal[c] & nominal["tree"]).sum())
+            pair, p = f"{b} / {t}", p_text(mcnemar(b, t))
+        out.append(f"| {label} | {nominal[c].mean():.3f} | {pair} | {p} | {twice[c].mean():.3f} |")
+    return out
+
+
+def seed003_noise_tuned(runs):
+    """docs/findings-seed003.md, the noise-tuned filter: each classifier's accuracy with the nominal
+    filter (`seed003_online.toml`) and the tuned one (`seed003_noise_tuned.toml`) on the same trials, at
+    nominal and twice the noise, and at twice the noise the trials only one of the two names right, with
+    the exact McNemar p."""
+    nominal_filter = correct_by_trial(runs["studies/seed003_online.toml"])
+    tuned = correct_by_trial(runs["studies/seed003_noise_tuned.toml"])
+    if nominal_filter["trial"].to_list() != tuned["trial"].to_list():
+        raise SystemExit("seed003_online and seed003_noise_tuned do not fly the same trials")
+    at = lambda w, bin_: w.filter(pl.col("noise_bin") == bin_)
+    out = [
+        "| classifier | nominal noise: nominal filter, tuned | twice the noise: nominal filter, tuned | trials right only when tuned / only nominal (twice the noise) |",
+        "|---|---|---|---|",
+    ]
+    for c, label in SEED003_CLASSIFIERS:
+        a1, b1, a2, b2 = at(nominal_filter, 1.0)[c], at(tuned, 1.0)[c], at(nominal_filter, 2.0)[c], at(tuned, 2.0)[c]
+        only_tuned, only_nominal = int((b2 & ~a2).sum()), int((~b2 & a2).sum())
+        out.append(
+            f"| {label.replace(' (the oracle)', '')} | {a1.mean():.3f}, {b1.mean():.3f} | {a2.mean():.3f}, "
+            f"{b2.mean():.3f} | {only_tuned} / {only_nominal} (p = {p_text(mcnemar(only_tuned, only_nominal))}) |"
+        )
+    return out
+
+
+# name -> (page, decks, fast: runs in CI, wall time measured on machine C, renderer)
 TABLES = {
     "seed004_reference_tuning": (
         "docs/findings-seed004.md",
-        "studies/seed004_reference_tuning.toml",
+        ["studies/seed004_reference_tuning.toml"],
         True,
         "10 s",
         seed004_reference_tuning,
     ),
+    "seed003_training": (
+        "docs/findings-seed003.md",
+        ["studies/seed003_accelerometer.toml", "studies/seed003_noise_trained.toml"],
+        True,
+        "8 s",
+        seed003_training,
+    ),
+    "seed003_online": (
+        "docs/findings-seed003.md",
+        ["studies/seed003_online.toml"],
+        True,
+        "7 s",
+        seed003_online,
+    ),
+    "seed003_noise_tuned": (
+        "docs/findings-seed003.md",
+        ["studies/seed003_online.toml", "studies/seed003_noise_tuned.toml"],
+        True,
+        "15 s",
+        seed003_noise_tuned,
+    ),
 }
 
 
-def provenance(deck):
-    seed = tomllib.loads((ROOT / deck).read_text())["study"]["seed"]
-    return f"Deck `{deck}`, seed {seed}, `fdimc run {deck}`; generated by `python3 scripts/findings.py`."
+def provenance(decks):
+    said = []
+    for deck in decks:
+        seed = tomllib.loads((ROOT / deck).read_text())["study"]["seed"]
+        said.append(f"`{deck}` (seed {seed}, `fdimc run {deck}`)")
+    return f"Deck{'s' if len(decks) > 1 else ''} {', '.join(said)}; generated by `python3 scripts/findings.py`."
 
 
-def run_deck(name, deck, runs):
-    out = runs / name
+def run_deck(deck, runs):
+    out = runs / pathlib.Path(deck).stem
     if (out / "trials.parquet").exists():
         return out
     cmd = [fdimc_binary(), "run", str(ROOT / deck), "--quiet", "--force", "--out", str(out)]
@@ -154,8 +285,8 @@ def main():
     ap.add_argument("names", nargs="*", help="only these tables")
     args = ap.parse_args()
     if args.list:
-        for name, (page, deck, fast, wall, _) in TABLES.items():
-            print(f"{name}: {page}, {deck}, {'fast (CI)' if fast else 'on demand'}, {wall}")
+        for name, (page, decks, fast, wall, _) in TABLES.items():
+            print(f"{name}: {page}, {', '.join(decks)}, {'fast (CI)' if fast else 'on demand'}, {wall}")
         return 0
     unknown = [n for n in args.names if n not in TABLES]
     if unknown:
@@ -169,8 +300,8 @@ def main():
     runs.mkdir(parents=True, exist_ok=True)
     pages = {}
     for name in chosen:
-        page, deck, _, _, render = TABLES[name]
-        lines = [provenance(deck), ""] + render(run_deck(name, deck, runs))
+        page, decks, _, _, render = TABLES[name]
+        lines = [provenance(decks), ""] + render({deck: run_deck(deck, runs) for deck in decks})
         text = pages.get(page) or (ROOT / page).read_text()
         pages[page] = replace_block(text, name, lines, page)
     differ = 0
