@@ -247,6 +247,71 @@ def seed003_noise_tuned(runs):
     return out
 
 
+def surface_detectors(run, rows, columns):
+    """Rows of a surface-bank run's detectors.csv (the deck's thresholds), one per (label, detector),
+    in `columns`: names of SURFACE_COLUMNS."""
+    d = pl.read_csv(run / "detectors.csv").filter(pl.col("thresholds") == "deck")
+    out = ["| variant | " + " | ".join(columns) + " |", "|---" * (len(columns) + 1) + "|"]
+    for label, detector in rows:
+        r = d.filter(pl.col("detector") == detector)
+        if r.height != 1:
+            raise SystemExit(f"{run}/detectors.csv: no row of detector {detector}")
+        r = r.row(0, named=True)
+        out.append(f"| {label} | " + " | ".join(SURFACE_COLUMNS[c](r) for c in columns) + " |")
+    return out
+
+
+def with_interval(r, name, digits=3):
+    return f"{half_up(r[name], digits)} [{half_up(r[name + '_lo'], digits)}, {half_up(r[name + '_hi'], digits)}]"
+
+
+SURFACE_COLUMNS = {
+    "Pd [95 % CI]": lambda r: with_interval(r, "pd"),
+    "correct isolation": lambda r: with_interval(r, "isolation_accuracy"),
+    "delay p50 / p90": lambda r: f"{half_up(r['delay_p50_s'])} / {half_up(r['delay_p90_s'])} s",
+    "clearing p50": lambda r: f"{half_up(r['clearing_p50_s'])} s",
+    "recovery p50, rate": lambda r: f"{half_up(r['recovery_p50_s'])} s, {half_up(r['recovery_rate'])}",
+    "post-fault declarations": lambda r: half_up(r["post_fault_rate"], 3),
+    "surface RMS p50": lambda r: f"{half_up(r['estimate_rms_p50_deg'])} deg",
+    "false alarms": lambda r: with_interval(r, "pfa"),
+    "flights non-finite": lambda r: str(r["flights_diverged"]),
+}
+
+
+def seed004_monte_carlo(runs):
+    """docs/findings-seed004.md, the Monte Carlo study: detectors.csv at the deck's thresholds."""
+    return surface_detectors(
+        runs["studies/seed004_monte_carlo.toml"],
+        [
+            ("EMMAE", "emmae"),
+            ("EKF + fast probability", "ekf_fast"),
+            ("STMMAE", "stmmae"),
+            ("improved STMMAE", "improved_stmmae"),
+        ],
+        ["Pd [95 % CI]", "correct isolation", "delay p50 / p90", "clearing p50", "recovery p50, rate",
+         "post-fault declarations", "false alarms"],
+    )
+
+
+def seed004_monte_carlo_tunings(runs):
+    """docs/findings-seed004.md, the Monte Carlo trials under both tunings: detectors.csv at the deck's
+    thresholds."""
+    return surface_detectors(
+        runs["studies/seed004_monte_carlo_tunings.toml"],
+        [
+            ("EMMAE, `_seed`", "emmae_seed"),
+            ("EKF + fast probability, `_seed`", "ekf_fast_seed"),
+            ("STMMAE, `_seed`", "stmmae_seed"),
+            ("improved STMMAE, `_seed`", "improved_stmmae_seed"),
+            ("STMMAE, `_seed_a3`", "stmmae_seed_a3"),
+            ("improved STMMAE, `_seed_a3`", "improved_stmmae_seed_a3"),
+            ("improved STMMAE, `_rw_reset_at_zero`", "improved_stmmae_rw_reset_at_zero"),
+        ],
+        ["Pd [95 % CI]", "correct isolation", "delay p50 / p90", "clearing p50", "recovery p50, rate",
+         "surface RMS p50", "false alarms", "flights non-finite"],
+    )
+
+
 # name -> (page, decks, fast: runs in CI, wall time measured on machine C, renderer)
 TABLES = {
     "seed004_reference_tuning": (
@@ -262,6 +327,20 @@ TABLES = {
         True,
         "8 s",
         seed004_surfaces,
+    ),
+    "seed004_monte_carlo": (
+        "docs/findings-seed004.md",
+        ["studies/seed004_monte_carlo.toml"],
+        True,
+        "54 s",
+        seed004_monte_carlo,
+    ),
+    "seed004_monte_carlo_tunings": (
+        "docs/findings-seed004.md",
+        ["studies/seed004_monte_carlo_tunings.toml"],
+        False,
+        "14 min",
+        seed004_monte_carlo_tunings,
     ),
     "seed003_training": (
         "docs/findings-seed003.md",
