@@ -336,6 +336,48 @@ def seed003_replay(runs):
     return out
 
 
+def seed004_tunings_paired(runs):
+    """docs/findings-seed004.md, the tunings' paired comparisons (comparison.csv, the deck's thresholds):
+    per pair on the same trials, the windows only one detects or isolates correctly (exact McNemar p),
+    the median paired differences of delay, clearing, recovery and surface-estimate RMS (b - a, with
+    the 95 % sign-test interval where the summary gives one), and the flights only one alarms on."""
+    c = pl.read_csv(runs["studies/seed004_monte_carlo_tunings.toml"] / "comparison.csv").filter(
+        pl.col("thresholds") == "deck"
+    )
+    pairs = [
+        ("emmae_seed", "improved_stmmae_seed"),
+        ("ekf_fast_seed", "improved_stmmae_seed"),
+        ("stmmae_seed", "improved_stmmae_seed"),
+        ("stmmae_seed_a3", "improved_stmmae_seed_a3"),
+        ("improved_stmmae_seed", "improved_stmmae_seed_a3"),
+        ("improved_stmmae_rw", "improved_stmmae_rw_reset_at_zero"),
+    ]
+    out = [
+        "| a, b (same trials) | detected by a only / b only (p) | isolated by a only / b only (p) | delay b - a | clearing b - a | recovery b - a [95 % CI] | surface RMS b - a [95 % CI] | flights alarming with a only / b only (p) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for a, b in pairs:
+        r = c.filter((pl.col("detector_a") == a) & (pl.col("detector_b") == b))
+        if r.height != 1:
+            raise SystemExit(f"comparison.csv: no row for {a} against {b}")
+        r = r.row(0, named=True)
+        def interval(name, unit, digits=2, r=r):
+            return (
+                f"{half_up(r[name], digits)}{unit} [{half_up(r[name + '_lo'], digits)}, "
+                f"{half_up(r[name + '_hi'], digits)}]"
+            )
+
+        out.append(
+            f"| `{a}`, `{b}` | {r['detected_by_a_only']} / {r['detected_by_b_only']} ({p_text(r['mcnemar_p_detection'])}) "
+            f"| {r['isolated_by_a_only']} / {r['isolated_by_b_only']} ({p_text(r['mcnemar_p_isolation'])}) "
+            f"| {half_up(r['median_delay_b_minus_a_s'])} s | {half_up(r['median_clearing_delay_s_b_minus_a'])} s "
+            f"| {interval('median_recovery_delay_s_b_minus_a', ' s')} "
+            f"| {interval('median_surface_estimate_rms_deg_b_minus_a', ' deg', 3)} "
+            f"| {r['false_alarm_a_only']} / {r['false_alarm_b_only']} ({p_text(r['mcnemar_p_false_alarm'])}) |"
+        )
+    return out
+
+
 # name -> (page, decks, fast: runs in CI, wall time measured on machine C, renderer)
 TABLES = {
     "seed004_reference_tuning": (
@@ -363,8 +405,15 @@ TABLES = {
         "docs/findings-seed004.md",
         ["studies/seed004_monte_carlo_tunings.toml"],
         False,
-        "14 min",
+        "3 min",
         seed004_monte_carlo_tunings,
+    ),
+    "seed004_tunings_paired": (
+        "docs/findings-seed004.md",
+        ["studies/seed004_monte_carlo_tunings.toml"],
+        False,
+        "3 min (the same run)",
+        seed004_tunings_paired,
     ),
     "seed003_training": (
         "docs/findings-seed003.md",
