@@ -443,6 +443,21 @@ mod tests {
         assert!(i.hi - i.lo < 0.06 && i.hi - i.lo > 0.02, "width {}", i.hi - i.lo);
     }
 
+    /// 300 generalised Pareto excesses of shape `xi0` and scale 1.5 at the golden-ratio points
+    /// `u_i = frac((i + 1) 0.618...)` (`scripts/reference/gpd_scipy.py` draws the same numbers), and a
+    /// 0 to be the threshold: the fixed sample of the SciPy comparisons.
+    fn golden_excesses_over_zero(xi0: f64) -> Vec<f64> {
+        let phi = (5f64.sqrt() - 1.0) / 2.0;
+        let mut top: Vec<f64> = (0..300)
+            .map(|i| {
+                let u = ((i + 1) as f64 * phi) % 1.0;
+                1.5 / xi0 * ((1.0 - u).powf(-xi0) - 1.0)
+            })
+            .collect();
+        top.push(0.0);
+        top
+    }
+
     /// Issue 49, item 4: the maximum-likelihood fit and the shape's profile interval against SciPy 1.17.1,
     /// which shares no code with fdimc. The sample: 300 generalised Pareto excesses at the golden-ratio
     /// points `u_i = frac((i + 1) 0.618...)` (the same numbers in both), of (xi, sigma) = (0.2, 1.5) and
@@ -453,19 +468,11 @@ mod tests {
     /// 3.841459 crossings found by `brentq`: [0.0547133, 0.3291340] and [-0.3130479, -0.1113016].
     #[test]
     fn the_fit_and_its_shape_interval_match_scipy() {
-        let phi = (5f64.sqrt() - 1.0) / 2.0;
         for (xi0, expected, interval) in [
             (0.2, (0.1760108, 1.5284000, -480.069657), (0.0547133, 0.3291340)),
             (-0.2, (-0.2250580, 1.5322424, -360.502293), (-0.3130479, -0.1113016)),
         ] {
-            let mut top: Vec<f64> = (0..300)
-                .map(|i| {
-                    let u = ((i + 1) as f64 * phi) % 1.0;
-                    1.5 / xi0 * ((1.0 - u).powf(-xi0) - 1.0)
-                })
-                .collect();
-            top.push(0.0);
-            let fit = TailFit::fit(&top, 3000, 300).unwrap();
+            let fit = TailFit::fit(&golden_excesses_over_zero(xi0), 3000, 300).unwrap();
             assert!((fit.xi - expected.0).abs() < 2e-5 && (fit.sigma / expected.1 - 1.0).abs() < 2e-5, "{fit:?}");
             let gpd = gpd_loglik(&fit.excess, fit.sigma, fit.xi);
             assert!((gpd - expected.2).abs() < 1e-5, "log-likelihood {gpd} vs SciPy's {}", expected.2);
@@ -482,19 +489,11 @@ mod tests {
     /// P(X > u + 5) for xi = -0.2 (a bounded tail): 2.76452413e-4 in [3.02050745e-5, 1.08754204e-3].
     #[test]
     fn the_tail_probability_interval_matches_scipy() {
-        let phi = (5f64.sqrt() - 1.0) / 2.0;
         for (xi0, d, expected) in [
             (0.2, 20.0, (1.12637905e-4, 1.11038202e-5, 5.01451445e-4)),
             (-0.2, 5.0, (2.76452413e-4, 3.02050745e-5, 1.08754204e-3)),
         ] {
-            let mut top: Vec<f64> = (0..300)
-                .map(|i| {
-                    let u = ((i + 1) as f64 * phi) % 1.0;
-                    1.5 / xi0 * ((1.0 - u).powf(-xi0) - 1.0)
-                })
-                .collect();
-            top.push(0.0);
-            let fit = TailFit::fit(&top, 3000, 300).unwrap();
+            let fit = TailFit::fit(&golden_excesses_over_zero(xi0), 3000, 300).unwrap();
             assert_eq!(fit.u, 0.0);
             let p = fit.survival_interval(d);
             let close = |a: f64, b: f64| (a / b - 1.0).abs() < 1e-4;
