@@ -378,6 +378,78 @@ def seed004_tunings_paired(runs):
     return out
 
 
+def fmu_aircraft(runs):
+    """docs/findings-fmu.md: scripts/fmu_findings.py's table of the FMU study and its LTI twin."""
+    sys.path.insert(0, str(ROOT / "scripts"))
+    import fmu_findings
+
+    return fmu_findings.rows([runs["studies/fmu_aircraft.toml"], runs["studies/fmu_aircraft_lti.toml"]])
+
+
+def wilson(k, n, z=1.959963984540054):
+    """The 95 % Wilson interval of k in n (the interval fdimc's summaries use)."""
+    p = k / n
+    d = 1 + z * z / n
+    c = (p + z * z / (2 * n)) / d
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
+    return p, max(0.0, c - h), min(1.0, c + h)
+
+
+def percent_interval(k, n):
+    """A rate as the seed-002 page writes it: 0 [0, 0.5 %], 2.1 % [1.3, 3.4], 43 % [40, 47]."""
+    p, lo, hi = wilson(k, n)
+    if k == 0:
+        return f"0 [0, {half_up(100 * hi, 1)} %]"
+    digits = 0 if p >= 0.1 else 1
+    return f"{half_up(100 * p, digits)} % [{half_up(100 * lo, digits)}, {half_up(100 * hi, digits)}]"
+
+
+def seed002_air_data(runs):
+    """docs/findings-seed002.md: per setting (noise scale, turbulence) and detector, over the flights
+    that flew (no `failure`): Pd over the faulty ones and correct isolation over those with an isolated
+    set (Wilson intervals), the median delay of the detected, the medians over the faulty flights of the
+    bias-estimate error and the air-data error (and of lane 0's raw sensors), and the flights with a
+    false alarm."""
+    out = [
+        "| study, setting | detector | Pd [95 % CI] | correct isolation [95 % CI] | delay p50 | bias error p50 | air data error p50 (raw) | flights with a false alarm [95 % CI] |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    settings = [
+        # (deck, setting, noise scale, turbulence m/s, detectors, the setting's counts in its label)
+        ("studies/seed002_air_data.toml", "best case, noise x1, calm", 1.0, 0.0, ["patent", "patent_wald", "window10"], True),
+        ("studies/seed002_air_data.toml", "best case, noise x1, turbulence", 1.0, 0.5, ["patent"], False),
+        ("studies/seed002_air_data.toml", "best case, noise x2, calm", 2.0, 0.0, ["patent"], False),
+        ("studies/seed002_hifi_truth.toml", "hi-fi truth, calm", 1.0, 0.0, ["patent", "patent_wald", "voting"], True),
+        ("studies/seed002_hifi_truth.toml", "hi-fi truth, turbulence", 1.0, 0.5, ["patent", "voting"], False),
+    ]
+    labels = {"patent": "patent", "patent_wald": "patent + Wald", "window10": "10-sample window", "voting": "voting"}
+    for deck, setting, noise, gust, detectors, with_counts in settings:
+        d = pl.read_parquet(runs[deck] / "trials.parquet")
+        for i, det in enumerate(detectors):
+            flown = d.filter(
+                (pl.col("detector") == det)
+                & (pl.col("noise_scale") == noise)
+                & (pl.col("gust_std_mps") == gust)
+                & pl.col("failure").is_null()
+            )
+            faulty = flown.filter(~pl.col("fault_free"))
+            detected = faulty.filter(pl.col("detected").fill_null(False))
+            decided = faulty.filter(pl.col("isolated").is_not_null())
+            correct = int(decided["isolated_correctly"].fill_null(False).sum())
+            pd_ = wilson(detected.height, faulty.height)
+            iso = wilson(correct, decided.height)
+            label = f"{setting} ({faulty.height:,} faulty, {flown.height:,} flights)" if with_counts else setting
+            bias = faulty["bias_error_rms_sigma"].median() if det != "voting" else None
+            raw = f" ({half_up(faulty['raw_rms_sigma'].median(), 1)} σ)" if i == 0 else ""
+            out.append(
+                f"| {label if i == 0 else ''} | {labels[det]} | {pd_[0]:.3f} [{pd_[1]:.3f}, {pd_[2]:.3f}] | "
+                f"{iso[0]:.3f} [{iso[1]:.3f}, {iso[2]:.3f}] | {half_up(detected['delay_s'].median(), 3)} s | "
+                f"{'-' if bias is None else half_up(bias) + ' σ'} | {half_up(faulty['estimate_rms_sigma'].median())} σ{raw} | "
+                f"{percent_interval(int(flown['false_alarm'].sum()), flown.height)} |".replace("|  |", "| |")
+            )
+    return out
+
+
 # name -> (page, decks, fast: runs in CI, wall time measured on machine C, renderer)
 TABLES = {
     "seed004_reference_tuning": (
@@ -414,6 +486,20 @@ TABLES = {
         False,
         "3 min (the same run)",
         seed004_tunings_paired,
+    ),
+    "seed002_air_data": (
+        "docs/findings-seed002.md",
+        ["studies/seed002_air_data.toml", "studies/seed002_hifi_truth.toml"],
+        False,
+        "3.5 min",
+        seed002_air_data,
+    ),
+    "fmu_aircraft": (
+        "docs/findings-fmu.md",
+        ["studies/fmu_aircraft.toml", "studies/fmu_aircraft_lti.toml"],
+        True,
+        "20 s",
+        fmu_aircraft,
     ),
     "seed003_training": (
         "docs/findings-seed003.md",
@@ -458,6 +544,12 @@ def run_deck(deck, runs):
     out = runs / pathlib.Path(deck).stem
     if (out / "trials.parquet").exists():
         return out
+    if "fmu" in pathlib.Path(deck).stem and not any((ROOT / "studies" / "fmus").glob("*.fmu")):
+        # The test FMUs are built from source, not committed (`cargo run --release --example build_fmus`).
+        built = subprocess.run(["cargo", "run", "--release", "--locked", "--example", "build_fmus"], cwd=ROOT,
+                               capture_output=True, text=True)
+        if built.returncode != 0:
+            raise SystemExit(f"cargo run --example build_fmus failed:\n{built.stderr}")
     cmd = [fdimc_binary(), "run", str(ROOT / deck), "--quiet", "--force", "--out", str(out)]
     done = subprocess.run(cmd, capture_output=True, text=True)
     if done.returncode != 0:

@@ -5,6 +5,8 @@ accuracy, each with its 95 % Wilson interval (the interval fdimc's summaries use
 
     fdimc run studies/fmu_aircraft.toml && fdimc run studies/fmu_aircraft_lti.toml
     python3 scripts/fmu_findings.py results/fmu_aircraft results/fmu_aircraft_lti
+
+(`python3 scripts/findings.py fmu_aircraft` runs both decks and writes the table into the page.)
 """
 import math
 import sys
@@ -32,10 +34,12 @@ def table(run):
     return pd.join(fa, on=keys).sort(keys)
 
 
-def main():
-    runs = sys.argv[1:] or ["results/fmu_aircraft", "results/fmu_aircraft_lti"]
-    print("| truth | thresholds | detector | \\|error\\| | Pd [95 % CI] | Pfa [95 % CI] | isolated [95 % CI] |")
-    print("|---|---|---|---|---|---|---|")
+def rows(runs):
+    """The table's lines, one block of rows per run folder (its name is the "truth" column)."""
+    out = [
+        "| truth | thresholds | detector | \\|error\\| | Pd [95 % CI] | Pfa [95 % CI] | isolated [95 % CI] |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for run in runs:
         for r in table(run).iter_rows(named=True):
             cells = []
@@ -48,8 +52,14 @@ def main():
                 cells.append(f"{p:.3f} [{lo:.3f}, {hi:.3f}]")
             else:
                 cells.append("-")
-            print(f"| {run.rstrip('/').split('/')[-1]} | {r['thresholds']} | {r['detector']} | "
-                  f"{r['param_error_bin']:g} | {' | '.join(cells)} |")
+            out.append(f"| {str(run).rstrip('/').split('/')[-1]} | {r['thresholds']} | {r['detector']} | "
+                       f"{r['param_error_bin']:g} | {' | '.join(cells)} |")
+    return out
+
+
+def main():
+    runs = sys.argv[1:] or ["results/fmu_aircraft", "results/fmu_aircraft_lti"]
+    print("\n".join(rows(runs)))
 
 
 if __name__ == "__main__":
