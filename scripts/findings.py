@@ -26,6 +26,7 @@ import json
 import math
 import os
 import pathlib
+import re
 import subprocess
 import sys
 import tempfile
@@ -450,6 +451,39 @@ def seed002_air_data(runs):
     return out
 
 
+def seed004_equal_pfa(runs):
+    """docs/findings-seed004.md, the banks at an equal false-alarm rate: each variant's hold calibrated
+    at Pfa 0.01 per flight on `seed004_fault_free.toml`'s fault-free flights, applied to the Monte Carlo
+    run (`fdimc summarize MC --thresholds FF/thresholds.csv`, its `validation` rows): Pd with its
+    interval and the delay quantiles."""
+    ff, mc = runs["studies/seed004_fault_free.toml"], runs["studies/seed004_monte_carlo.toml"]
+    cmd = [fdimc_binary(), "summarize", str(mc), "--thresholds", str(ff / "thresholds.csv")]
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed ({done.returncode}):\n{done.stderr}")
+    holds = pl.read_csv(ff / "thresholds.csv").filter(pl.col("statistic") == "held_s")
+    d = pl.read_csv(mc / "validation" / "detectors.csv").filter(pl.col("thresholds") == "validation")
+    # The faults flown to the end (the paired table's count: detectors.csv's includes failed flights).
+    faults = pl.read_csv(mc / "validation" / "comparison.csv").filter(pl.col("thresholds") == "validation")["faulty_units"][0]
+    out = [
+        f"| variant | hold at 1 % | Pd [95 % CI] ({faults:,} faults) | delay p50 / p90 |",
+        "|---|---|---|---|",
+    ]
+    for label, detector in [
+        ("EMMAE", "emmae"),
+        ("EKF + fast probability", "ekf_fast"),
+        ("STMMAE", "stmmae"),
+        ("improved STMMAE", "improved_stmmae"),
+    ]:
+        hold = holds.filter(pl.col("detector") == detector)["detector_threshold"][0]
+        r = d.filter(pl.col("detector") == detector).row(0, named=True)
+        out.append(
+            f"| {label} | {half_up(hold, 1)} s | {with_interval(r, 'pd')} | "
+            f"{half_up(r['delay_p50_s'], 1)} / {half_up(r['delay_p90_s'], 1)} s |"
+        )
+    return out
+
+
 # name -> (page, decks, fast: runs in CI, wall time measured on machine C, renderer)
 TABLES = {
     "seed004_reference_tuning": (
@@ -486,6 +520,13 @@ TABLES = {
         False,
         "3 min (the same run)",
         seed004_tunings_paired,
+    ),
+    "seed004_equal_pfa": (
+        "docs/findings-seed004.md",
+        ["studies/seed004_fault_free.toml", "studies/seed004_monte_carlo.toml"],
+        False,
+        "3 min",
+        seed004_equal_pfa,
     ),
     "seed002_air_data": (
         "docs/findings-seed002.md",
@@ -558,12 +599,16 @@ def run_deck(deck, runs):
 
 
 def replace_block(text, name, lines, page):
-    begin, end = f"<!-- generated: {name} (scripts/findings.py) -->", f"<!-- end generated: {name} -->"
-    if text.count(begin) != 1 or text.count(end) != 1:
-        raise SystemExit(f"{page}: needs exactly one '{begin}' and one '{end}'")
-    head, rest = text.split(begin, 1)
-    _, tail = rest.split(end, 1)
-    return head + begin + "\n" + "\n".join(lines) + "\n" + end + tail
+    """`text` with the lines between NAME's markers replaced by `lines`, indented as the markers are (a
+    table inside a list item is indented with it)."""
+    begin = re.compile(rf"^([ \t]*)<!-- generated: {re.escape(name)} \(scripts/findings.py\) -->\n", re.M)
+    end = re.compile(rf"^[ \t]*<!-- end generated: {re.escape(name)} -->\n", re.M)
+    b, e = list(begin.finditer(text)), list(end.finditer(text))
+    if len(b) != 1 or len(e) != 1 or e[0].start() < b[0].end():
+        raise SystemExit(f"{page}: needs exactly one '<!-- generated: {name} (scripts/findings.py) -->' line and, after it, one '<!-- end generated: {name} -->'")
+    indent = b[0].group(1)
+    body = "".join(f"{indent}{line}\n" if line else "\n" for line in lines)
+    return text[: b[0].end()] + body + text[e[0].start():]
 
 
 def main():
