@@ -578,7 +578,7 @@ fn bad_decks_exit_2_naming_file_and_field() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let catalogue: Catalogue =
         toml::from_str(&std::fs::read_to_string(root.join("tests/data/bad_decks.toml")).unwrap()).unwrap();
-    assert_eq!(catalogue.case.len(), 133);
+    assert_eq!(catalogue.case.len(), 134);
     let dir = tempfile::tempdir().unwrap();
     for (i, c) in catalogue.case.iter().enumerate() {
         let what = format!("case {i} ({}, {})", c.deck, c.what.as_deref().unwrap_or(&c.to));

@@ -191,6 +191,73 @@ fn mutated_decks_give_errors_that_name_the_file_never_a_panic() {
     no_failures(&format!("{} decks x {n} mutations", decks.len()), &failures);
 }
 
+/// The error of a deck as `fdimc validate` gives it (None: it loads and validates).
+fn deck_error(path: &Path, text: &str) -> Option<String> {
+    let method = match method_of(REGISTRY, text, path) {
+        Ok(m) => m,
+        Err(e) => return Some(e.to_string()),
+    };
+    match (method.load)(text, path) {
+        Ok(study) => study.validate().err().map(|e| e.to_string()),
+        Err(e) => Some(e.to_string()),
+    }
+}
+
+/// A value of the wrong kind on one line names its field (issue 49, item 5: "the file and field"):
+/// every one-line `key = value` of every bundled deck (that loads as bundled), given a string, an
+/// empty array, NaN and -1e308 in turn; where the deck is then refused for anything but broken TOML
+/// syntax, the message names the file and the key.
+#[test]
+fn a_wrong_value_is_refused_naming_its_field() {
+    let mut decks: Vec<PathBuf> = std::fs::read_dir(root().join("studies"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    decks.sort();
+    let counts: Vec<(usize, Vec<String>)> = decks
+        .par_iter()
+        .map(|path| {
+            let text = std::fs::read_to_string(path).unwrap();
+            if deck_error(path, &text).is_some() {
+                // (An FMU deck before `build_fmus`: nothing to compare with.)
+                return (0, Vec::new());
+            }
+            let lines: Vec<&str> = text.lines().collect();
+            let (mut refused, mut failures) = (0, Vec::new());
+            for (i, line) in lines.iter().enumerate() {
+                let Some((key, value)) = line.split_once('=') else { continue };
+                let (key, value) = (key.trim(), value.split('#').next().unwrap_or("").trim());
+                // One-line values only: a multi-line array's first line alone is broken syntax.
+                let balanced = value.matches('[').count() == value.matches(']').count();
+                if !key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') || key.is_empty() || !balanced {
+                    continue;
+                }
+                for wrong in ["\"x\"", "[]", "nan", "-1e308"] {
+                    let mut edited = lines.clone();
+                    let replacement = format!("{key} = {wrong}");
+                    edited[i] = &replacement;
+                    let Some(e) = deck_error(path, &edited.join("\n")) else { continue };
+                    if e.contains("TOML parse error") {
+                        continue;
+                    }
+                    refused += 1;
+                    if !e.starts_with(&path.display().to_string()) || !e.contains(key) {
+                        failures.push(format!("{} line {}: {key} = {wrong}: {e}", path.display(), i + 1));
+                    }
+                }
+            }
+            (refused, failures)
+        })
+        .collect();
+    let refused: usize = counts.iter().map(|c| c.0).sum();
+    let failures: Vec<String> = counts.into_iter().flat_map(|c| c.1).collect();
+    no_failures(&format!("{refused} refused one-line edits"), &failures);
+    // 1,887 on 2026-12-04 (35 decks), 1,720 before `build_fmus` (the FMU decks skipped).
+    assert!(refused >= 1700, "{refused} refused edits: the decks lost their fields?");
+}
+
 /// Truncation, flipped bytes, a duplicated or zeroed run of bytes (a record twice, a record lost).
 fn mutate_log(bytes: &[u8], rng: &mut ChaCha8Rng) -> Vec<u8> {
     let mut out = bytes.to_vec();

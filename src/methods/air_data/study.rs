@@ -208,6 +208,12 @@ impl FromDeck for AirDataStudy {
 
         let f = &deck.flight;
         let scale = v.finite("flight.manoeuvre_scale", f.manoeuvre_scale.unwrap_or(1.0))?;
+        // Far below this the profile check (airspeed, angles) already refuses; above it the amplitudes
+        // could overflow to infinity before that check reads them.
+        if scale.abs() > 100.0 {
+            let got = if scale.abs() < 1e6 { format!("{scale}") } else { format!("{scale:e}") };
+            return Err(v.err("flight.manoeuvre_scale", format!("allowed -100 to 100, got {got}")));
+        }
         let (profile, airframe) = match f.profile.as_str() {
             "seed" => (FlightProfile::seed().scaled(scale), Airframe::Kinematic),
             "steady" => {
