@@ -35,6 +35,18 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// The decks in studies/, sorted.
+fn bundled_decks() -> Vec<PathBuf> {
+    let mut decks: Vec<PathBuf> = std::fs::read_dir(root().join("studies"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    decks.sort();
+    decks
+}
+
 /// Values a deck field might be given by mistake: other types, extremes, non-finite numbers, long and
 /// non-ASCII strings.
 fn odd_value(rng: &mut ChaCha8Rng) -> String {
@@ -163,13 +175,7 @@ fn panic_text(panic: &Box<dyn std::any::Any + Send>) -> String {
 #[test]
 fn mutated_decks_give_errors_that_name_the_file_never_a_panic() {
     let n = cases(DECK_CASES);
-    let mut decks: Vec<PathBuf> = std::fs::read_dir(root().join("studies"))
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    decks.sort();
+    let decks = bundled_decks();
     assert!(decks.len() >= 30, "{decks:?}");
     let failures: Vec<String> = decks
         .par_iter()
@@ -209,13 +215,7 @@ fn deck_error(path: &Path, text: &str) -> Option<String> {
 /// syntax, the message names the file and the key.
 #[test]
 fn a_wrong_value_is_refused_naming_its_field() {
-    let mut decks: Vec<PathBuf> = std::fs::read_dir(root().join("studies"))
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
-        .collect();
-    decks.sort();
+    let decks = bundled_decks();
     let counts: Vec<(usize, Vec<String>)> = decks
         .par_iter()
         .map(|path| {
