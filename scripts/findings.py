@@ -34,6 +34,8 @@ import tomllib
 
 import polars as pl
 
+from fmu_findings import rows as fmu_rows, wilson  # (scripts/ is on the path of a script run from it)
+
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 
 
@@ -381,19 +383,7 @@ def seed004_tunings_paired(runs):
 
 def fmu_aircraft(runs):
     """docs/findings-fmu.md: scripts/fmu_findings.py's table of the FMU study and its LTI twin."""
-    sys.path.insert(0, str(ROOT / "scripts"))
-    import fmu_findings
-
-    return fmu_findings.rows([runs["studies/fmu_aircraft.toml"], runs["studies/fmu_aircraft_lti.toml"]])
-
-
-def wilson(k, n, z=1.959963984540054):
-    """The 95 % Wilson interval of k in n (the interval fdimc's summaries use)."""
-    p = k / n
-    d = 1 + z * z / n
-    c = (p + z * z / (2 * n)) / d
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
-    return p, max(0.0, c - h), min(1.0, c + h)
+    return fmu_rows([runs["studies/fmu_aircraft.toml"], runs["studies/fmu_aircraft_lti.toml"]])
 
 
 def percent_interval(k, n):
