@@ -8,7 +8,9 @@ files instead of typed (issue 50). Each generated table sits between two markers
 
 and NAME is a table in TABLES below: its decks (each run with `fdimc run DECK`), and the function that
 renders the table from the runs' files. The line above the table in the page names the deck, its seed
-and the command (checked too: it is rendered with the table).
+and the command (checked too: it is rendered with the table). A deck named "studies/X.toml SECTION.FIELD=V"
+is run as a copy of X with that field set (for sweeps over one setting; the copy is written beside the run,
+so the deck must not name files relative to itself).
 
     python3 scripts/findings.py              # run the fast decks, rewrite their tables in the pages
     python3 scripts/findings.py --check      # the same, but fail (exit 1) on any difference, write nothing
@@ -223,6 +225,31 @@ def seed003_online(runs):
             t = int((~nominal[c] & nominal["tree"]).sum())
             pair, p = f"{b} / {t}", p_text(mcnemar(b, t))
         out.append(f"| {label} | {nominal[c].mean():.3f} | {pair} | {p} | {twice[c].mean():.3f} |")
+    return out
+
+
+WINDOWS_S = [0.1, 0.25, 0.5, 1.0]
+
+
+def seed003_window(runs):
+    """docs/findings-seed003.md, "at the first moment": each classifier's accuracy with its Wilson
+    interval at nominal noise (1,000 trials) against the classification window (`training.window_s`:
+    the residuals' span after the onset or the alarm the features are computed on, trained and
+    evaluated alike)."""
+    out = [
+        "| classifier | " + " | ".join(f"{w} s" for w in WINDOWS_S) + " |",
+        "|---" * (len(WINDOWS_S) + 1) + "|",
+    ]
+    nominal = [
+        correct_by_trial(runs[f"studies/seed003_online.toml training.window_s={w}"]).filter(pl.col("noise_bin") == 1.0)
+        for w in WINDOWS_S
+    ]
+    for c, label in SEED003_CLASSIFIERS[:4]:
+        cells = []
+        for n in nominal:
+            p, lo, hi = wilson(int(n[c].sum()), n.height)
+            cells.append(f"{p:.3f} [{lo:.3f}, {hi:.3f}]")
+        out.append(f"| {label} | " + " | ".join(cells) + " |")
     return out
 
 
@@ -441,6 +468,38 @@ def seed002_air_data(runs):
     return out
 
 
+def seed002_lanes(runs):
+    """docs/findings-seed002.md, two and three faulty lanes: per count of faulty lanes and detector, over
+    the faulty flights that flew (calm air and turbulence together), Pd and correct isolation (Wilson
+    intervals), the median delay of the detected, and the median air-data error of the detector's
+    estimate (and of lane 0's raw sensors) over the fault's second half."""
+    d = pl.read_parquet(runs["studies/seed002_lanes.toml"] / "trials.parquet").filter(
+        pl.col("failure").is_null() & ~pl.col("fault_free")
+    )
+    labels = {"patent": "patent", "patent_wald": "patent + Wald", "voting": "voting"}
+    out = [
+        "| faulty lanes | detector | Pd [95 % CI] | correct isolation [95 % CI] | delay p50 | air data error p50 (raw lane 0) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for lanes in sorted(d["faulty_lanes"].unique().to_list()):
+        for i, (det, label) in enumerate(labels.items()):
+            faulty = d.filter((pl.col("detector") == det) & (pl.col("faulty_lanes") == lanes))
+            detected = faulty.filter(pl.col("detected").fill_null(False))
+            decided = faulty.filter(pl.col("isolated").is_not_null())
+            pd_ = wilson(detected.height, faulty.height)
+            iso = wilson(int(decided["isolated_correctly"].fill_null(False).sum()), decided.height)
+            raw = f" ({half_up(faulty['raw_rms_sigma'].median(), 1)} σ)" if i == 0 else ""
+            isolation = f"{iso[0]:.3f} [{iso[1]:.3f}, {iso[2]:.3f}]" if decided.height else "- (none named)"
+            delay = detected["delay_s"].median()
+            out.append(
+                f"| {f'{lanes} ({faulty.height:,} flights)' if i == 0 else ''} | {label} | "
+                f"{pd_[0]:.3f} [{pd_[1]:.3f}, {pd_[2]:.3f}] | {isolation} | "
+                f"{'-' if delay is None else half_up(delay, 3) + ' s'} | {half_up(faulty['estimate_rms_sigma'].median())} σ{raw} |"
+                .replace("|  |", "| |")
+            )
+    return out
+
+
 def seed004_equal_pfa(runs):
     """docs/findings-seed004.md, the banks at an equal false-alarm rate: each variant's hold calibrated
     at Pfa 0.01 per flight on `seed004_fault_free.toml`'s fault-free flights, applied to the Monte Carlo
@@ -473,6 +532,163 @@ def seed004_equal_pfa(runs):
         )
     return out
 
+
+def seed004_norm_forms(runs):
+    """docs/findings-seed004.md, the fast probabilities in two readings (section 2.6): detectors.csv at
+    the deck's thresholds, then per fault kind the windows detected and those correctly isolated among
+    the isolated (trials.parquet; flights flown to the end)."""
+    run = runs["studies/seed004_norm_forms.toml"]
+    rows = [
+        ("EMMAE (Gaussian density)", "emmae"),
+        ("EKF + fast, isotropic (`euclidean_norm`)", "ekf_fast"),
+        ("EKF + fast, 1-D (`euclidean_norm_1d`)", "ekf_fast_1d"),
+        ("improved STMMAE, isotropic", "improved_stmmae"),
+        ("improved STMMAE, 1-D", "improved_stmmae_1d"),
+    ]
+    out = surface_detectors(
+        run, rows, ["Pd [95 % CI]", "correct isolation", "delay p50 / p90", "recovery p50, rate", "false alarms"]
+    )
+    d = pl.read_parquet(run / "trials.parquet").filter(pl.col("failure").is_null() & ~pl.col("fault_free"))
+    kinds = sorted(d["kind"].unique().to_list())
+    out[0] += "".join(f" {k}: Pd, correct isolation |" for k in kinds)
+    out[1] += "---|" * len(kinds)
+    for i, (_, detector) in enumerate(rows):
+        for k in kinds:
+            x = d.filter((pl.col("detector") == detector) & (pl.col("kind") == k))
+            decided = x.filter(pl.col("isolated").is_not_null())
+            correct = int(decided["isolated_correctly"].fill_null(False).sum())
+            out[i + 2] += f" {int(x['detected'].sum())}/{x.height}, {correct}/{decided.height} |"
+    return out
+
+
+def kaplan_meier(times, events):
+    """The Kaplan-Meier survival curve of `times` (an event where `events` is true, censored there
+    otherwise): [(t, S(t), Greenwood's sum of d / (n (n - d)))] at each event time."""
+    order = sorted(zip(times, events))
+    at_risk, surviving, greenwood, curve, i = len(order), 1.0, 0.0, [], 0
+    while i < len(order):
+        t = order[i][0]
+        same = [e for u, e in order[i:] if u == t]
+        d = sum(same)
+        if d:
+            surviving *= 1 - d / at_risk
+            greenwood += d / (at_risk * (at_risk - d)) if at_risk > d else math.inf
+            curve.append((t, surviving, greenwood))
+        at_risk -= len(same)
+        i += len(same)
+    return curve
+
+
+def survival_at(curve, t):
+    """S(t) and its 95 % interval (Greenwood on the log(-log) scale; Kalbfleisch and Prentice)."""
+    s, g = 1.0, 0.0
+    for u, su, gu in curve:
+        if u > t:
+            break
+        s, g = su, gu
+    if s in (0.0, 1.0) or not math.isfinite(g):
+        return s, s, s
+    w = 1.959963984540054 * math.sqrt(g) / abs(math.log(s))
+    return s, s ** math.exp(w), s ** math.exp(-w)
+
+
+MONTE_CARLO_VARIANTS = [
+    ("EMMAE", "emmae"),
+    ("EKF + fast probability", "ekf_fast"),
+    ("STMMAE", "stmmae"),
+    ("improved STMMAE", "improved_stmmae"),
+]
+SEED_TUNING_VARIANTS = [
+    ("EMMAE, `_seed`", "emmae_seed"),
+    ("EKF + fast probability, `_seed`", "ekf_fast_seed"),
+    ("STMMAE, `_seed`", "stmmae_seed"),
+    ("improved STMMAE, `_seed`", "improved_stmmae_seed"),
+]
+
+
+def recovery_censored(run, deck, variants):
+    """Recovery counted with the windows that never recover: over the detected fault windows of flights
+    flown to the end, the recovery delay (from the window's end to the no-fault model's probability back
+    at 0.9), censored at the flight's end where it never came back; the Kaplan-Meier median and the
+    share recovered within 2 and 5 s, beside the median over recovered windows only (detectors.csv's
+    `recovery_p50_s`)."""
+    duration = tomllib.loads((ROOT / deck).read_text())["study"]["duration_s"]
+    d = pl.read_parquet(run / "trials.parquet").filter(
+        pl.col("failure").is_null() & pl.col("recovered").is_not_null()
+    )
+    out = [
+        "| variant | detected windows | recovered / censored | median, recovered only | Kaplan-Meier median | recovered within 2 s [95 % CI] | within 5 s [95 % CI] |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for label, detector in variants:
+        x = d.filter(pl.col("detector") == detector)
+        events = x["recovered"].to_list()
+        times = [r if e else duration - end for r, e, end in zip(x["recovery_delay_s"], events, x["end_s"])]
+        curve = kaplan_meier(times, events)
+        median = next((t for t, s, _ in curve if s <= 0.5), None)
+        recovered = sum(events)
+
+        def within(t):
+            s, lo, hi = survival_at(curve, t)
+            return f"{half_up(1 - s)} [{half_up(1 - hi)}, {half_up(1 - lo)}]"
+
+        only = x.filter(pl.col("recovered"))["recovery_delay_s"].median()
+        out.append(
+            f"| {label} | {x.height:,} | {recovered:,} / {x.height - recovered:,} | {half_up(only)} s | "
+            f"{'not reached' if median is None else half_up(median) + ' s'} | {within(2.0)} | {within(5.0)} |"
+        )
+    return out
+
+
+def seed004_recovery_censored(runs):
+    """docs/findings-seed004.md: [recovery_censored] on the Monte Carlo deck."""
+    deck = "studies/seed004_monte_carlo.toml"
+    return recovery_censored(runs[deck], deck, MONTE_CARLO_VARIANTS)
+
+
+def seed004_recovery_censored_seed_tuning(runs):
+    """docs/findings-seed004.md: [recovery_censored] on the Monte Carlo trials under the seed's tuning."""
+    deck = "studies/seed004_monte_carlo_tunings.toml"
+    return recovery_censored(runs[deck], deck, SEED_TUNING_VARIANTS)
+
+
+def accuracy(run, variants):
+    """The surface estimate's accuracy at the fault's onset and after: per variant, the median over fault
+    windows of the RMS error over the window's first second, over the whole window and over its second
+    half (detectors.csv), and the last variant's median paired difference from each other one with its
+    95 % sign-test interval (comparison.csv)."""
+    d = pl.read_csv(run / "detectors.csv").filter(pl.col("thresholds") == "deck")
+    c = pl.read_csv(run / "comparison.csv").filter(pl.col("thresholds") == "deck")
+    spans = [("first second", "first_s_"), ("whole window", "window_"), ("second half", "")]
+    last_label, last = variants[-1]
+    out = [
+        "| variant | " + " | ".join(f"RMS, {n} (p50)" for n, _ in spans) + " | "
+        + " | ".join(f"{last_label} minus it, {n} [95 % CI]" for n, _ in spans) + " |",
+        "|---" * 7 + "|",
+    ]
+    for label, detector in variants:
+        r = d.filter(pl.col("detector") == detector).row(0, named=True)
+        cells = [f"{half_up(r[f'estimate_rms_{k}p50_deg'])} deg" for _, k in spans]
+        pair = c.filter((pl.col("detector_a") == detector) & (pl.col("detector_b") == last))
+        for _, k in spans:
+            if pair.height != 1:
+                cells.append("-")
+                continue
+            q = pair.row(0, named=True)
+            name = f"median_surface_estimate_rms_{k}deg_b_minus_a"
+            cells.append(f"{half_up(q[name], 3)} [{half_up(q[name + '_lo'], 3)}, {half_up(q[name + '_hi'], 3)}] deg")
+        out.append(f"| {label} | " + " | ".join(cells) + " |")
+    return out
+
+
+def seed004_accuracy(runs):
+    """docs/findings-seed004.md: [accuracy] on the Monte Carlo deck."""
+    return accuracy(runs["studies/seed004_monte_carlo.toml"], MONTE_CARLO_VARIANTS)
+
+
+def seed004_accuracy_seed_tuning(runs):
+    """docs/findings-seed004.md: [accuracy] on the Monte Carlo trials under the seed's tuning."""
+    return accuracy(runs["studies/seed004_monte_carlo_tunings.toml"], SEED_TUNING_VARIANTS)
 
 # name -> (page, decks, fast: runs in CI, wall time measured on machine C, renderer)
 TABLES = {
@@ -518,6 +734,48 @@ TABLES = {
         "3 min",
         seed004_equal_pfa,
     ),
+    "seed002_lanes": (
+        "docs/findings-seed002.md",
+        ["studies/seed002_lanes.toml"],
+        True,
+        "20 s",
+        seed002_lanes,
+    ),
+    "seed004_norm_forms": (
+        "docs/findings-seed004.md",
+        ["studies/seed004_norm_forms.toml"],
+        True,
+        "30 s",
+        seed004_norm_forms,
+    ),
+    "seed004_recovery_censored": (
+        "docs/findings-seed004.md",
+        ["studies/seed004_monte_carlo.toml"],
+        True,
+        "54 s (the Monte Carlo run)",
+        seed004_recovery_censored,
+    ),
+    "seed004_accuracy": (
+        "docs/findings-seed004.md",
+        ["studies/seed004_monte_carlo.toml"],
+        True,
+        "54 s (the Monte Carlo run)",
+        seed004_accuracy,
+    ),
+    "seed004_recovery_censored_seed_tuning": (
+        "docs/findings-seed004.md",
+        ["studies/seed004_monte_carlo_tunings.toml"],
+        False,
+        "3 min (the tunings run)",
+        seed004_recovery_censored_seed_tuning,
+    ),
+    "seed004_accuracy_seed_tuning": (
+        "docs/findings-seed004.md",
+        ["studies/seed004_monte_carlo_tunings.toml"],
+        False,
+        "3 min (the tunings run)",
+        seed004_accuracy_seed_tuning,
+    ),
     "seed002_air_data": (
         "docs/findings-seed002.md",
         ["studies/seed002_air_data.toml", "studies/seed002_hifi_truth.toml"],
@@ -553,6 +811,13 @@ TABLES = {
         "7 s",
         seed003_online,
     ),
+    "seed003_window": (
+        "docs/findings-seed003.md",
+        [f"studies/seed003_online.toml training.window_s={w}" for w in WINDOWS_S],
+        True,
+        "25 s",
+        seed003_window,
+    ),
     "seed003_noise_tuned": (
         "docs/findings-seed003.md",
         ["studies/seed003_online.toml", "studies/seed003_noise_tuned.toml"],
@@ -563,25 +828,64 @@ TABLES = {
 }
 
 
+def deck_and_edit(deck):
+    """A deck as TABLES names it: its path, and an optional `SECTION.FIELD=VALUE` the run sets on a copy."""
+    path, _, edit = deck.partition(" ")
+    return path, edit
+
+
 def provenance(decks):
-    said = []
+    said, edits = [], {}
     for deck in decks:
-        seed = tomllib.loads((ROOT / deck).read_text())["study"]["seed"]
-        said.append(f"`{deck}` (seed {seed}, `fdimc run {deck}`)")
-    return f"Deck{'s' if len(decks) > 1 else ''} {', '.join(said)}; generated by `python3 scripts/findings.py`."
+        path, edit = deck_and_edit(deck)
+        if edit:
+            field, value = edit.split("=")
+            edits.setdefault((path, field), []).append(value)
+            if len(edits[(path, field)]) > 1:
+                continue
+        said.append((path, edit.split("=")[0] if edit else None))
+    text = []
+    for path, field in said:
+        seed = tomllib.loads((ROOT / path).read_text())["study"]["seed"]
+        if field:
+            values = ", ".join(edits[(path, field)])
+            text.append(f"`{path}` (seed {seed}) with `{field}` = {values}, each `fdimc run` on a copy with that line")
+        else:
+            text.append(f"`{path}` (seed {seed}, `fdimc run {path}`)")
+    return f"Deck{'s' if len(said) > 1 else ''} {', '.join(text)}; generated by `python3 scripts/findings.py`."
+
+
+def edited_deck(path, edit, runs):
+    """A copy of deck `path` in `runs` with `SECTION.FIELD = VALUE` set (replaced in its section, or
+    added as the section's first line)."""
+    field, value = edit.split("=")
+    section, name = field.rsplit(".", 1)
+    lines = (ROOT / path).read_text().splitlines()
+    start = lines.index(f"[{section}]")
+    end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("[")), len(lines))
+    at = next((i for i in range(start + 1, end) if re.match(rf"{re.escape(name)}\s*=", lines[i])), None)
+    if at is None:
+        lines.insert(start + 1, f"{name} = {value}")
+    else:
+        lines[at] = f"{name} = {value}"
+    copy = runs / f"{pathlib.Path(path).stem}__{name}_{value}.toml"
+    copy.write_text("\n".join(lines) + "\n")
+    return copy
 
 
 def run_deck(deck, runs):
-    out = runs / pathlib.Path(deck).stem
+    path, edit = deck_and_edit(deck)
+    deck_file = edited_deck(path, edit, runs) if edit else ROOT / path
+    out = runs / deck_file.stem
     if (out / "trials.parquet").exists():
         return out
-    if "fmu" in pathlib.Path(deck).stem and not any((ROOT / "studies" / "fmus").glob("*.fmu")):
+    if "fmu" in pathlib.Path(path).stem and not any((ROOT / "studies" / "fmus").glob("*.fmu")):
         # The test FMUs are built from source, not committed (`cargo run --release --example build_fmus`).
         built = subprocess.run(["cargo", "run", "--release", "--locked", "--example", "build_fmus"], cwd=ROOT,
                                capture_output=True, text=True)
         if built.returncode != 0:
             raise SystemExit(f"cargo run --example build_fmus failed:\n{built.stderr}")
-    cmd = [fdimc_binary(), "run", str(ROOT / deck), "--quiet", "--force", "--out", str(out)]
+    cmd = [fdimc_binary(), "run", str(deck_file), "--quiet", "--force", "--out", str(out)]
     done = subprocess.run(cmd, capture_output=True, text=True)
     if done.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed ({done.returncode}):\n{done.stderr}")

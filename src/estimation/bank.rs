@@ -8,9 +8,11 @@
 //! - [`LikelihoodForm::EuclideanNorm`], the seed's fast form, which the seed names but does not write
 //!   out: the normal density with `S` replaced by the isotropic `s I`, `s = tr S / m` (the mean
 //!   variance per component), `exp(-|gamma|^2 / (2 s)) / (2 pi s)^(m/2)`. It depends on the innovation
-//!   only through its Euclidean norm and needs no inverse and no determinant: O(m) per filter. (A 1-D
-//!   density of the norm with variance `tr S` was tried first: it weighs a mismatch m times less and
-//!   never declared a stuck surface within 10 s on the bank's isolation test.)
+//!   only through its Euclidean norm and needs no inverse and no determinant: O(m) per filter;
+//! - [`LikelihoodForm::EuclideanNormOneDimensional`], the seed's section 2.6 read literally: a 1-D
+//!   normal density of the innovation's Euclidean norm, variance `tr S` (the norm's mean square),
+//!   `exp(-|gamma|^2 / (2 tr S)) / sqrt(2 pi tr S)`. Against the isotropic form its exponent is m times
+//!   smaller: a mismatch is weighed m times less (docs/findings-seed004.md measures what that costs).
 //!
 //! Computed in logarithms (the Gaussian exponent of a wrong model easily underflows), normalised, then
 //! floored by a [`FloorRule`]: by default every probability below the floor (0.001 in the seed) is set
@@ -29,6 +31,7 @@ use crate::estimation::stekf::Innovation;
 pub enum LikelihoodForm {
     Gaussian,
     EuclideanNorm,
+    EuclideanNormOneDimensional,
 }
 
 impl LikelihoodForm {
@@ -59,6 +62,13 @@ impl LikelihoodForm {
                     return f64::NEG_INFINITY;
                 }
                 -0.5 * M as f64 * (gamma.norm_squared() / (M as f64 * s) + s.ln() + ln_2pi)
+            }
+            LikelihoodForm::EuclideanNormOneDimensional => {
+                let trace = innovation.S.trace();
+                if !(trace > 0.0) {
+                    return f64::NEG_INFINITY;
+                }
+                -0.5 * (gamma.norm_squared() / trace + trace.ln() + ln_2pi)
             }
         }
     }
@@ -353,6 +363,10 @@ mod tests {
         let s: f64 = 1.5;
         let want = (-(0.49 + 0.16) / (2.0 * s)).exp() / (2.0 * std::f64::consts::PI * s);
         assert!((euclid - want.ln()).abs() < 1e-12);
+        // The 1-D density of |gamma| with variance tr S = 3: exp(-0.65 / 6) / sqrt(6 pi).
+        let one_d = LikelihoodForm::EuclideanNormOneDimensional.log_likelihood(&innovation(gamma, S));
+        let want: f64 = (-0.65f64 / 6.0).exp() / (6.0 * std::f64::consts::PI).sqrt();
+        assert!((one_d - want.ln()).abs() < 1e-12, "{one_d} vs {}", want.ln());
         let singular = innovation(gamma, Matrix2::new(1.0, 1.0, 1.0, 1.0));
         assert_eq!(LikelihoodForm::Gaussian.log_likelihood(&singular), f64::NEG_INFINITY);
     }

@@ -10,7 +10,8 @@
 //! [training]         trials_per_class, seed (the training trials' own seed: fresh trials are another),
 //!                    noise_scale (a number or { values }: the training trials cycle through them),
 //!                    kernel = "gaussian" (gamma) | "linear", c, noise_features = "absolute" |
-//!                    "relative" (to the window before)
+//!                    "relative" (to the window before), window_s (the classification window: the
+//!                    features' span after the onset or the alarm, s; default 1)
 //! [detection]        window_samples, threshold (on T = n |mean residual|^2 / sigma_z^2), settle_s,
 //!                    filter_noise = "nominal" | "actual" (the filter's Q, R and sigma_z follow the noise)
 //! [[classifier]]     optional, each a detector: name, scheme = "tree" (the patent's order) |
@@ -87,6 +88,7 @@ struct TrainingSection {
     gamma: Option<f64>,
     c: Option<f64>,
     noise_scale: Option<FactorSpec>,
+    window_s: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -168,6 +170,21 @@ impl FromDeck for AccelerometerStudy {
             design.ranges.gain_deviation =
                 range("gain_deviation", f.gain_deviation, design.ranges.gain_deviation, 0.0)?;
             design.ranges.onset_s = range("onset_s", f.onset_s, design.ranges.onset_s, 0.0)?;
+        }
+        if let Some(window_s) = deck.training.as_ref().and_then(|t| t.window_s) {
+            // A whole number of samples, at least the three the slope feature needs.
+            let samples = (window_s / dt_s).round();
+            let whole = (samples * dt_s - window_s).abs() <= 1e-9 * window_s.abs().max(dt_s);
+            if !(window_s.is_finite() && whole && samples >= 3.0 && samples <= header.steps as f64) {
+                return Err(v.err(
+                    "training.window_s",
+                    format!(
+                        "{window_s}: allowed a whole number of samples of dt_s = {dt_s} s, at least 3 ({} s) and at most the trial",
+                        3.0 * dt_s
+                    ),
+                ));
+            }
+            design.features.window_len = samples as usize;
         }
         // The classification window must fit after the latest onset.
         let window_s = design.features.window_len as f64 * dt_s;
@@ -419,5 +436,26 @@ mod tests {
         assert_eq!(detection.residual_std, 2.0 * tuned.detection.residual_std);
         assert_eq!(online.design.ekf_for(2.0), online.design.ekf);
         assert_eq!(online.design.detection_for(&online.detection, 2.0), online.detection);
+    }
+
+    /// `training.window_s` sets the features' window in samples; a span that is not a whole number of
+    /// samples, or under three, is refused naming the field.
+    #[test]
+    fn the_classification_window_is_a_whole_number_of_samples() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed003_online.toml");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let with = |window: &str| {
+            AccelerometerStudy::from_toml(
+                &text.replace("[training]\n", &format!("[training]\nwindow_s = {window}\n")),
+                &path,
+            )
+        };
+        assert_eq!(with("0.25").unwrap().design.features.window_len, 25);
+        assert_eq!(with("0.1").unwrap().design.features.window_len, 10);
+        assert_eq!(AccelerometerStudy::from_toml(&text, &path).unwrap().design.features.window_len, 100);
+        for bad in ["0.015", "0.02", "-1.0", "nan", "30.0"] {
+            let e = with(bad).unwrap_err().to_string();
+            assert!(e.contains("training.window_s") && e.contains("seed003_online.toml"), "{bad}: {e}");
+        }
     }
 }

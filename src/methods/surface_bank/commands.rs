@@ -63,6 +63,7 @@ pub fn validate(study: &SurfaceStudy) -> Result<(), RunError> {
         let likelihood = match p.likelihood {
             LikelihoodForm::Gaussian => "gaussian",
             LikelihoodForm::EuclideanNorm => "euclidean_norm",
+            LikelihoodForm::EuclideanNormOneDimensional => "euclidean_norm_1d",
         };
         println!(
             "bank        {name}: covariance {covariance}, likelihood {likelihood}, R_W {:?}/s, R_V {:?}, rho {}, beta {}",

@@ -63,11 +63,25 @@ pub static METHOD: Method = Method {
                 p: 0.5,
                 abs: false,
             },
+            Extra::Quantile {
+                name: "estimate_rms_window_p50_deg",
+                column: records::col::SURFACE_ESTIMATE_RMS_WINDOW_DEG,
+                p: 0.5,
+                abs: false,
+            },
+            Extra::Quantile {
+                name: "estimate_rms_first_s_p50_deg",
+                column: records::col::SURFACE_ESTIMATE_RMS_FIRST_S_DEG,
+                p: 0.5,
+                abs: false,
+            },
         ],
         paired_medians: &[
             records::col::CLEARING_DELAY_S,
             records::col::RECOVERY_DELAY_S,
             records::col::SURFACE_ESTIMATE_RMS_DEG,
+            records::col::SURFACE_ESTIMATE_RMS_WINDOW_DEG,
+            records::col::SURFACE_ESTIMATE_RMS_FIRST_S_DEG,
         ],
         printed: &[
             ("clear p50 s", "clearing_p50_s"),

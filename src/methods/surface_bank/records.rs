@@ -14,6 +14,7 @@
 //! | `cleared`, `clearing_delay_s` | the faulty surface, once declared, was cleared after the window ended; from the end to the clearance |
 //! | `recovered`, `recovery_delay_s` | the seed's clearing event: the fault detected, the no-fault model's probability came back to 0.9 after the window ended; from the end to that step |
 //! | `surface_estimate_rms_deg` | RMS error of the faulty surface's position estimate over the window's second half |
+//! | `surface_estimate_rms_window_deg`, `surface_estimate_rms_first_s_deg` | the same over the whole window, and over its first second |
 //! | `false_alarms` | how many such declarations |
 //! | `post_fault_declarations` | declarations while no fault was active after one had ended (relapses during the recovery) |
 //! | `singular_innovation_steps`, `asymmetric_steps`, `not_positive_definite_steps`, `non_finite_steps` | covariance health, filter-steps summed over the bank's six filters |
@@ -25,7 +26,7 @@ use std::borrow::Cow;
 use polars::prelude::*;
 
 use super::study::SurfaceStudy;
-use super::trial::{BankOutcome, SurfaceTrialResult};
+use super::trial::{BankOutcome, SurfaceTrialResult, WindowOutcome};
 use crate::engine::results::schema::col::NO_FAULT;
 use crate::engine::results::schema::{CoreColumns, FilterHealthColumns, Outcome, StatisticColumns};
 use crate::vehicles::aerosonde::SURFACE_NAMES;
@@ -38,6 +39,8 @@ pub mod col {
     pub const RECOVERED: &str = "recovered";
     pub const RECOVERY_DELAY_S: &str = "recovery_delay_s";
     pub const SURFACE_ESTIMATE_RMS_DEG: &str = "surface_estimate_rms_deg";
+    pub const SURFACE_ESTIMATE_RMS_WINDOW_DEG: &str = "surface_estimate_rms_window_deg";
+    pub const SURFACE_ESTIMATE_RMS_FIRST_S_DEG: &str = "surface_estimate_rms_first_s_deg";
     pub const POST_FAULT_DECLARATIONS: &str = "post_fault_declarations";
 }
 
@@ -90,8 +93,12 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
                 t.clearing_delay_s.push(scored.and_then(|s| s.clearing_delay_s));
                 t.recovered.push(scored.and_then(|s| s.detection_delay_s.map(|_| s.recovery_delay_s.is_some())));
                 t.recovery_delay_s.push(scored.and_then(|s| s.recovery_delay_s));
-                t.estimate_rms_deg
-                    .push(scored.map(|s| s.surface_estimate_rms_rad.to_degrees()).filter(|v: &f64| v.is_finite()));
+                let degrees = |rms_rad: fn(&WindowOutcome) -> f64| {
+                    scored.map(|s| rms_rad(s).to_degrees()).filter(|v: &f64| v.is_finite())
+                };
+                t.estimate_rms_deg.push(degrees(|s| s.surface_estimate_rms_rad));
+                t.estimate_rms_window_deg.push(degrees(|s| s.surface_estimate_rms_window_rad));
+                t.estimate_rms_first_s_deg.push(degrees(|s| s.surface_estimate_rms_first_s_rad));
                 t.false_alarms.push(outcome.map(|o| o.false_alarms));
                 t.post_fault.push(outcome.map(|o| o.post_fault_declarations));
                 t.health.push(outcome.map(|o| o.health));
@@ -109,6 +116,8 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
         Column::new(col::RECOVERED.into(), t.recovered),
         Column::new(col::RECOVERY_DELAY_S.into(), t.recovery_delay_s),
         Column::new(col::SURFACE_ESTIMATE_RMS_DEG.into(), t.estimate_rms_deg),
+        Column::new(col::SURFACE_ESTIMATE_RMS_WINDOW_DEG.into(), t.estimate_rms_window_deg),
+        Column::new(col::SURFACE_ESTIMATE_RMS_FIRST_S_DEG.into(), t.estimate_rms_first_s_deg),
         Column::new("false_alarms".into(), t.false_alarms),
         Column::new(col::POST_FAULT_DECLARATIONS.into(), t.post_fault),
     ]);
@@ -129,6 +138,8 @@ struct Columns {
     recovered: Vec<Option<bool>>,
     recovery_delay_s: Vec<Option<f64>>,
     estimate_rms_deg: Vec<Option<f64>>,
+    estimate_rms_window_deg: Vec<Option<f64>>,
+    estimate_rms_first_s_deg: Vec<Option<f64>>,
     false_alarms: Vec<Option<u32>>,
     post_fault: Vec<Option<u32>>,
     health: FilterHealthColumns,
@@ -184,6 +195,8 @@ mod tests {
             // The no-fault model comes back 1 s after the declaration clears (none without a clearance).
             recovery_delay_s: clear.map(|c| c + 1.0),
             surface_estimate_rms_rad: 0.01,
+            surface_estimate_rms_window_rad: 0.02,
+            surface_estimate_rms_first_s_rad: 0.05,
         };
         let bank = |w: Option<WindowOutcome>, false_alarms: u32| BankOutcome {
             windows: w.into_iter().collect(),
@@ -231,6 +244,14 @@ mod tests {
     fn summary_counts_rates_and_paired_differences_of_hand_made_trials() {
         let (_, df) = hand_made();
         assert_eq!(df.height(), 10, "one row per trial and bank");
+        let degrees = |n: &str| df.column(n).unwrap().f64().unwrap().get(0).unwrap();
+        for (name, rad) in [
+            ("surface_estimate_rms_deg", 0.01f64),
+            ("surface_estimate_rms_window_deg", 0.02),
+            ("surface_estimate_rms_first_s_deg", 0.05),
+        ] {
+            assert!((degrees(name) - rad.to_degrees()).abs() < 1e-12, "{name}");
+        }
         let summarized = Summarized::of(df, &super::super::METHOD, 5, &["a", "b"]);
         let table = |name: &str| summarized.deck_table(name);
 

@@ -12,7 +12,7 @@
 //!                    kind = "stuck" (position_deg) | "oscillation" (low_deg, high_deg, period_s)
 //!                    | "loss_of_effectiveness" (effectiveness in [0, 1)), onset_s, optional end_s
 //! [[bank]]           name, covariance = "ekf" | "strong_tracking" | "symmetric_strong_tracking",
-//!                    likelihood = "gaussian" | "euclidean_norm", optional overrides of the seed's numbers
+//!                    likelihood = "gaussian" | "euclidean_norm" | "euclidean_norm_1d", optional overrides of the seed's numbers
 //! [monte_carlo]      trials, fault_free_fraction, sampler, surfaces (default all), onset_s,
 //!                    fault_duration_s (default: to the end), noise_scale (factors, as the LTI decks')
 //! [[monte_carlo.fault]]            kind = "stuck" (position_deg) | "oscillation" (amplitude_deg,
@@ -414,7 +414,11 @@ impl FromDeck for SurfaceStudy {
             let likelihood = v.choice(
                 &field("likelihood"),
                 &b.likelihood,
-                &[("gaussian", LikelihoodForm::Gaussian, ""), ("euclidean_norm", LikelihoodForm::EuclideanNorm, "")],
+                &[
+                    ("gaussian", LikelihoodForm::Gaussian, ""),
+                    ("euclidean_norm", LikelihoodForm::EuclideanNorm, ""),
+                    ("euclidean_norm_1d", LikelihoodForm::EuclideanNormOneDimensional, ""),
+                ],
             )?;
             let mut p = BankParams::seed(covariance, likelihood);
             if let Some(given) = b.process_variance_per_s {

@@ -31,7 +31,9 @@
 //!   the no-fault model's probability is back "near 1", read as at or above the declaration level 0.9
 //!   (a choice; only when the fault was detected, so the no-fault probability had fallen);
 //! - surface-estimate error: RMS of filter s's position estimate against the true position over the
-//!   second half of the window (after the filters have had time to converge).
+//!   second half of the window (after the filters have had time to converge), over the whole window,
+//!   and over its first second (the instant of the abrupt fault, where the seed claims the improved
+//!   filter is most accurate).
 //!
 //! An alarm while no fault is active is a false alarm before any fault has ended (before the first
 //! onset, or in a fault-free flight: the first is the rule's first declaration, and the rule's
@@ -183,7 +185,33 @@ pub struct WindowOutcome {
     pub clearing_delay_s: Option<f64>,
     /// From the end of the window to the no-fault probability's return to the declaration level.
     pub recovery_delay_s: Option<f64>,
+    /// RMS of the surface estimate's error over the window's second half; NaN without a sample there.
     pub surface_estimate_rms_rad: f64,
+    /// The same over the whole window.
+    pub surface_estimate_rms_window_rad: f64,
+    /// The same over the window's first second ([`FIRST_SECOND_S`]).
+    pub surface_estimate_rms_first_s_rad: f64,
+}
+
+/// The span after the onset over which the surface estimate's first error is measured (s).
+pub const FIRST_SECOND_S: f64 = 1.0;
+
+/// A root mean square, accumulated.
+#[derive(Debug, Clone, Copy, Default)]
+struct Rms {
+    square_sum: f64,
+    samples: u32,
+}
+
+impl Rms {
+    fn add(&mut self, error: f64) {
+        self.square_sum += error * error;
+        self.samples += 1;
+    }
+    /// NaN without a sample (the flight stopped first).
+    fn value(&self) -> f64 {
+        if self.samples > 0 { (self.square_sum / self.samples as f64).sqrt() } else { f64::NAN }
+    }
 }
 
 impl WindowOutcome {
@@ -220,8 +248,9 @@ pub struct BankTraceRow {
 /// Scoring state of one bank's window.
 struct WindowScore {
     outcome: WindowOutcome,
-    square_error: f64,
-    error_samples: u32,
+    second_half: Rms,
+    whole: Rms,
+    first_second: Rms,
     statistic: StatisticRecorder,
 }
 
@@ -248,6 +277,8 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
             clearing_delay_s: None,
             recovery_delay_s: None,
             surface_estimate_rms_rad: f64::NAN,
+            surface_estimate_rms_window_rad: f64::NAN,
+            surface_estimate_rms_first_s_rad: f64::NAN,
         })
         .collect();
     windows.sort_by(|a, b| a.onset_s.total_cmp(&b.onset_s));
@@ -272,8 +303,9 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
             (windows.iter())
                 .map(|&outcome| WindowScore {
                     outcome,
-                    square_error: 0.0,
-                    error_samples: 0,
+                    second_half: Rms::default(),
+                    whole: Rms::default(),
+                    first_second: Rms::default(),
                     statistic: StatisticRecorder::new(study.monte_carlo.common.profile),
                 })
                 .collect()
@@ -365,10 +397,15 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
                 {
                     o.recovery_delay_s = Some(t - o.end_s);
                 }
-                if t >= 0.5 * (o.onset_s + o.end_s) && t < o.end_s {
+                if t >= o.onset_s && t < o.end_s {
                     let e = step.surface_estimates_rad[o.surface] - sample.positions_rad[o.surface];
-                    w.square_error += e * e;
-                    w.error_samples += 1;
+                    w.whole.add(e);
+                    if t >= 0.5 * (o.onset_s + o.end_s) {
+                        w.second_half.add(e);
+                    }
+                    if t < o.onset_s + FIRST_SECOND_S {
+                        w.first_second.add(e);
+                    }
                 }
             }
             rows.push(BankTraceRow { step, declared });
@@ -388,13 +425,9 @@ pub fn run_banks<R: rand::Rng + ?Sized>(
                 .map(|w| {
                     statistics.push(RecordedStatistic { pre_max, ..w.statistic.finish() });
                     WindowOutcome {
-                        // No sample in the window's second half (the flight stopped first): no estimate
-                        // error.
-                        surface_estimate_rms_rad: if w.error_samples > 0 {
-                            (w.square_error / w.error_samples as f64).sqrt()
-                        } else {
-                            f64::NAN
-                        },
+                        surface_estimate_rms_rad: w.second_half.value(),
+                        surface_estimate_rms_window_rad: w.whole.value(),
+                        surface_estimate_rms_first_s_rad: w.first_second.value(),
                         ..w.outcome
                     }
                 })
