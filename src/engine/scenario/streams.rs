@@ -21,7 +21,8 @@ pub enum Substream {
     Scenario = 0,
     SensorNoise = 1,
     ProcessNoise = 2,
-    /// A trial's fault and sensor biases where a method draws them from a generator (method 003).
+    /// A trial's fault and sensor biases where a method draws them from a generator (method 003; the
+    /// gyro biases of method 001).
     Fault = 3,
 }
 

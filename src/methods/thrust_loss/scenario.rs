@@ -6,8 +6,11 @@
 
 use crate::engine::scenario::design::{Factors, Part, Slot};
 use crate::engine::scenario::draws::{DIM_NOISE, DIM_ONSET, DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
+use crate::engine::scenario::streams::{Substream, trial_rng};
 use crate::methods::thrust_loss::study::LaunchStudy;
 use crate::methods::thrust_loss::vehicle::{Gust, LaunchVehicleConfig, ThrustFault};
+use rand::RngExt;
+use rand_distr::StandardNormal;
 
 const DIM_GUST: usize = FIRST_OWN_DIM;
 const DIMS: usize = DIM_GUST + 1;
@@ -74,9 +77,19 @@ impl<'a> LaunchScenarioSampler<'a> {
     /// What the trial's truth flies: the study's vehicle with the trial's noise and gusts.
     pub fn config(&self, spec: &LaunchTrialSpec) -> LaunchVehicleConfig {
         let s = self.study;
+        let noise = s.config.noise.scaled(spec.noise_scale);
+        // The gyro biases from the trial's own stream for draws of its sensors' errors (none drawn
+        // without a bias stability, so decks without one keep their records).
+        let rate_bias_rad_s = if noise.rate_bias_stability_rad_s > 0.0 {
+            let mut rng = trial_rng(s.header.seed, self.noise_trial(spec.trial), Substream::Fault);
+            std::array::from_fn(|_| noise.rate_bias_stability_rad_s * rng.sample::<f64, _>(StandardNormal))
+        } else {
+            [0.0; 3]
+        };
         LaunchVehicleConfig {
-            noise: s.config.noise.scaled(spec.noise_scale),
+            noise,
             gusts: s.gusts.iter().map(|g| Gust { amplitude_mps: g.amplitude_mps * spec.gust_scale, ..*g }).collect(),
+            rate_bias_rad_s,
             ..s.config.clone()
         }
     }
@@ -132,5 +145,42 @@ mod tests {
         // 20 % fault-free: 400 expected, binomial sd 17.9.
         assert!((330..470).contains(&fault_free), "{fault_free}");
         assert!(strata.iter().all(|&c| c <= 1), "one onset per stratum of the hypercube");
+    }
+
+    /// A navigation-grade gyro from the deck's data-sheet units: white noise per 100-Hz sample from the
+    /// angle random walk (0.002 deg/sqrt(h) -> 0.002 / 60 * 10 deg/s), and per flight a constant bias on
+    /// each axis of the bias stability's spread (0.01 deg/h -> 4.848e-8 rad/s), the same for the same
+    /// trial and in the measurement; the bundled deck draws none.
+    #[test]
+    fn the_gyro_grade_sets_the_rate_noise_and_a_bias_per_flight() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed001_thrust.toml");
+        let text = std::fs::read_to_string(&path).unwrap().replace(
+            "model = \"medium_launcher\"",
+            "model = \"medium_launcher\"\ngyro_arw_deg_per_sqrt_h = 0.002\ngyro_bias_stability_deg_per_h = 0.01",
+        );
+        let study = LaunchStudy::from_toml(&text, &path).unwrap();
+        let white = 0.002f64.to_radians() / 60.0 * 10.0;
+        assert!((study.config.noise.rate_rad_s - white).abs() < 1e-18, "{}", study.config.noise.rate_rad_s);
+        let stability = 0.01f64.to_radians() / 3600.0;
+        assert!((stability - 4.848e-8).abs() < 1e-11);
+        let sampler = LaunchScenarioSampler::new(&study);
+        let biases: Vec<[f64; 3]> = (0..400).map(|i| sampler.config(&sampler.spec(i)).rate_bias_rad_s).collect();
+        assert_eq!(biases[7], sampler.config(&sampler.spec(7)).rate_bias_rad_s, "the same trial, the same biases");
+        // 1,200 normal draws times the stability: their RMS within 10 % (a chi-square's 4 sd is 8 %).
+        let rms = (biases.iter().flatten().map(|b| b * b).sum::<f64>() / 1200.0).sqrt();
+        assert!((rms / stability - 1.0).abs() < 0.1, "{rms}");
+        // The measured rates carry the bias: a noise-free step of the biased vehicle against the unbiased.
+        let mut config = sampler.config(&sampler.spec(3));
+        config.noise = crate::methods::thrust_loss::vehicle::SensorNoise::none();
+        let biased = crate::methods::thrust_loss::vehicle::Vehicle::new(&config, None).unwrap().step_exact().unwrap();
+        config.rate_bias_rad_s = [0.0; 3];
+        let plain = crate::methods::thrust_loss::vehicle::Vehicle::new(&config, None).unwrap().step_exact().unwrap();
+        for axis in 0..3 {
+            let got = biased.y[3 + axis] - plain.y[3 + axis];
+            assert!((got - biases[3][axis]).abs() < 1e-15, "axis {axis}: {got}");
+        }
+        let bundled = LaunchStudy::bundled("seed001_thrust.toml");
+        let sampler = LaunchScenarioSampler::new(&bundled);
+        assert_eq!(sampler.config(&sampler.spec(3)).rate_bias_rad_s, [0.0; 3]);
     }
 }

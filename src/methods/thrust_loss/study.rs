@@ -4,7 +4,9 @@
 //!
 //! ```toml
 //! [study]            name, seed, duration_s, dt_s (0.01 s: the seed's D)
-//! [vehicle]          model = "medium_launcher" (src/methods/thrust_loss/vehicle.rs)
+//! [vehicle]          model = "medium_launcher" (src/methods/thrust_loss/vehicle.rs), optional the gyros'
+//!                    grade: gyro_arw_deg_per_sqrt_h (angle random walk; default 0.1, tactical) and
+//!                    gyro_bias_stability_deg_per_h (a constant bias per flight and axis; default 0)
 //! [[gust]]           axis = "down_range" | "cross_range", amplitude_mps, start_s, duration_s: 1 - cosine
 //!                    gusts in the truth (the filter knows no wind): residual jumps with no engine at fault
 //! [[detector]]       name, kind = "ekf_mhe", optional: window_n (N), interval_samples (D), fault_intensity
@@ -52,6 +54,8 @@ struct LaunchDeck {
 #[serde(deny_unknown_fields)]
 struct VehicleSection {
     model: String,
+    gyro_arw_deg_per_sqrt_h: Option<f64>,
+    gyro_bias_stability_deg_per_h: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -174,7 +178,17 @@ impl FromDeck for LaunchStudy {
             let models = [("medium_launcher", "src/methods/thrust_loss/vehicle.rs")];
             return Err(v.not_allowed("vehicle.model", &deck.vehicle.model, &models));
         }
-        let config = LaunchVehicleConfig { dt_s, ..LaunchVehicleConfig::default() };
+        let mut config = LaunchVehicleConfig { dt_s, ..LaunchVehicleConfig::default() };
+        // The gyro's grade: white noise per sample from the angle random walk, a constant bias per flight
+        // from the bias stability (both in the units data sheets give).
+        if let Some(arw) = deck.vehicle.gyro_arw_deg_per_sqrt_h {
+            let arw = v.positive("vehicle.gyro_arw_deg_per_sqrt_h", arw)?;
+            config.noise.rate_rad_s = arw.to_radians() / 60.0 / dt_s.sqrt();
+        }
+        if let Some(stability) = deck.vehicle.gyro_bias_stability_deg_per_h {
+            let stability = v.non_negative("vehicle.gyro_bias_stability_deg_per_h", stability)?;
+            config.noise.rate_bias_stability_rad_s = stability.to_radians() / 3600.0;
+        }
         // First-stage burnout ends a flight: a study past it would fail every trial.
         let burnout_s = config.params.liftoff_mass_kg - config.params.burnout_mass_kg();
         let burnout_s = burnout_s / (ENGINES as f64 * config.params.engine_flow_kg_s());

@@ -611,6 +611,8 @@ impl Controller {
 /// 5e-5 rad (navigation attitude output jitter). Velocity 0.01 m/s and position 0.1 m (navigation output
 /// quantisation). Overloads: 8.5e-4 g, an accelerometer with velocity random walk 0.05 m/s/sqrt(h) at
 /// 100 Hz. The filter's measurement covariance is built from the same numbers unless told otherwise.
+/// `rate_bias_stability_rad_s`: the standard deviation of each gyro's constant bias, drawn per flight
+/// (0 by default: no bias; the filter never models it).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SensorNoise {
     pub velocity_mps: f64,
@@ -618,6 +620,7 @@ pub struct SensorNoise {
     pub position_m: f64,
     pub attitude_rad: f64,
     pub overload_g: f64,
+    pub rate_bias_stability_rad_s: f64,
 }
 
 impl Default for SensorNoise {
@@ -628,6 +631,7 @@ impl Default for SensorNoise {
             position_m: 0.1,
             attitude_rad: 5e-5,
             overload_g: 0.05 / 60.0 * 100f64.sqrt() / 9.80665,
+            rate_bias_stability_rad_s: 0.0,
         }
     }
 }
@@ -635,7 +639,14 @@ impl Default for SensorNoise {
 impl SensorNoise {
     /// No noise at all (calibration runs).
     pub fn none() -> Self {
-        SensorNoise { velocity_mps: 0.0, rate_rad_s: 0.0, position_m: 0.0, attitude_rad: 0.0, overload_g: 0.0 }
+        SensorNoise {
+            velocity_mps: 0.0,
+            rate_rad_s: 0.0,
+            position_m: 0.0,
+            attitude_rad: 0.0,
+            overload_g: 0.0,
+            rate_bias_stability_rad_s: 0.0,
+        }
     }
 
     /// Every standard deviation times `factor`.
@@ -646,6 +657,7 @@ impl SensorNoise {
             position_m: self.position_m * factor,
             attitude_rad: self.attitude_rad * factor,
             overload_g: self.overload_g * factor,
+            rate_bias_stability_rad_s: self.rate_bias_stability_rad_s * factor,
         }
     }
 
@@ -680,6 +692,9 @@ pub struct LaunchVehicleConfig {
     pub max_attitude_error_rad: f64,
     /// Gusts the truth flies through (none by default; the detector's design never sees them).
     pub gusts: Vec<Gust>,
+    /// This flight's constant gyro biases on the body rates (rad/s), drawn with
+    /// [`SensorNoise::rate_bias_stability_rad_s`]; zero by default.
+    pub rate_bias_rad_s: [f64; 3],
 }
 
 impl LaunchVehicleConfig {
@@ -699,6 +714,7 @@ impl Default for LaunchVehicleConfig {
             dt_s: 0.01,
             max_attitude_error_rad: 30f64.to_radians(),
             gusts: Vec::new(),
+            rate_bias_rad_s: [0.0; 3],
         }
     }
 }
@@ -873,7 +889,12 @@ impl Vehicle {
         }
         let sigma = cfg.noise.measured_sigma();
         let truth = self.x;
-        let y = Measured::from_fn(|i, _| truth[i + 1] + sigma[i] * unit[i]);
+        let mut y = Measured::from_fn(|i, _| truth[i + 1] + sigma[i] * unit[i]);
+        if cfg.rate_bias_rad_s != [0.0; 3] {
+            for (axis, bias) in cfg.rate_bias_rad_s.iter().enumerate() {
+                y[idx::WX - 1 + axis] += bias; // measured index = state index - 1 (no thrust)
+            }
+        }
         let (truth_n_y_g, truth_n_z_g) = self.overloads(&self.last_loads);
         let n_y_g = truth_n_y_g + cfg.noise.overload_g * unit[MEASURED];
         let n_z_g = truth_n_z_g + cfg.noise.overload_g * unit[MEASURED + 1];
