@@ -29,6 +29,14 @@ pub enum Substream {
 /// Highest trial index with its own streams (the stream id must fit in 64 bits).
 pub const MAX_TRIAL: u64 = (u64::MAX >> 2) - 1;
 
+/// A copy of `rng` at its position: the same draws from here on (ChaCha8Rng is not `Clone`).
+pub fn fork(rng: &ChaCha8Rng) -> ChaCha8Rng {
+    let mut copy = ChaCha8Rng::from_seed(rng.get_seed());
+    copy.set_stream(rng.get_stream());
+    copy.set_word_pos(rng.get_word_pos());
+    copy
+}
+
 /// The RNG of `substream` of trial `trial` in a study seeded with `seed`.
 ///
 /// Panics if `trial > MAX_TRIAL` (callers validate trial indices).

@@ -20,7 +20,7 @@ use crate::engine::scenario::deck::FromDeck;
 use crate::engine::scenario::draws::{GridDigits, draw};
 use crate::engine::scenario::streams::{Substream, noise_rng, trial_rng};
 use crate::fault::FaultMode;
-use crate::methods::accelerometer::ekf_svm::{ClassifierWindow, FaultClass, ResidualSample, simulate_trial};
+use crate::methods::accelerometer::ekf_svm::{ClassifierWindow, FaultClass, ResidualSample};
 use crate::methods::accelerometer::study::AccelerometerStudy;
 use trial::*;
 
@@ -197,16 +197,18 @@ impl<'a> AccelerometerTrials<'a> {
         let dt_s = s.header.dt_s;
         let mut rng = noise_rng(s.header.seed, trial, Substream::SensorNoise);
         let outcome = (|| {
-            let ekf = s.design.ekf_for(spec.noise_scale);
-            let trace = match plan {
-                TrialPlan::Simulated(scenario) => simulate_trial(scenario, &ekf, &mut rng),
+            let (trace, tuned_scale) = match plan {
+                TrialPlan::Simulated(scenario) => {
+                    s.design.simulate_tuned(scenario, &s.detection, &mut rng, |r| r.clone())
+                }
                 TrialPlan::Replayed { log, start, faults } => {
-                    replay::replay_trace(log, start, s.header.steps, &faults, &ekf)
+                    let ekf = s.design.ekf_for(spec.noise_scale);
+                    replay::replay_trace(log, start, s.header.steps, &faults, &ekf).map(|t| (t, spec.noise_scale))
                 }
             }
             .map_err(|e| e.to_string())?;
             let example = s.design.example(&trace, spec.onset_s, spec.class).map_err(|e| e.to_string())?;
-            let alarms = Alarms::of(s, &trace, spec.class, spec.onset_s, spec.noise_scale);
+            let alarms = Alarms::of(s, &trace, spec.class, spec.onset_s, tuned_scale);
             on_trace(&trace.samples, &alarms.statistics);
             let online = match alarms.online_window(spec.class) {
                 Some(k) => Some(s.design.example_at(&trace, k, spec.class).map_err(|e| e.to_string())?),

@@ -13,7 +13,8 @@
 //!                    "relative" (to the window before), window_s (the classification window: the
 //!                    features' span after the onset or the alarm, s; default 1)
 //! [detection]        window_samples, threshold (on T = n |mean residual|^2 / sigma_z^2), settle_s,
-//!                    filter_noise = "nominal" | "actual" (the filter's Q, R and sigma_z follow the noise)
+//!                    filter_noise = "nominal" | "actual" (the filter's Q, R and sigma_z follow the noise) |
+//!                    "estimated" (the same at the noise scale estimated from the residuals before settle_s)
 //! [[classifier]]     optional, each a detector: name, scheme = "tree" (the patent's order) |
 //!                    "tree_most_separable_first" | "flat", window = "onset" (the true onset: an oracle,
 //!                    default) | "alarm" (the residual detector's: online), balanced (class weights)
@@ -35,6 +36,9 @@ use crate::methods::accelerometer::ekf_svm::{
     TrialDesign,
 };
 use std::sync::Arc;
+
+/// `filter_noise = "estimated"` reads the residuals from this time (s; the filter has aligned) to `settle_s`.
+pub const NOISE_ESTIMATE_FROM_S: f64 = 1.0;
 
 /// The options this kind takes beyond the common ones (its `Method::options`): said here, where its deck
 /// rules read them (`monte_carlo.target_pfa` with [`Opt::Thresholds`]).
@@ -255,9 +259,14 @@ impl FromDeck for AccelerometerStudy {
 
         let mut detection = DetectionParams::seed();
         let d = deck.detection.as_ref();
-        let knows = [("nominal", false, "default"), ("actual", true, "Q, R and sigma_z follow the noise scale")];
+        let knows = [
+            ("nominal", (false, false), "default"),
+            ("actual", (true, false), "Q, R and sigma_z follow the trial's noise scale (an oracle)"),
+            ("estimated", (true, true), "the same, at the scale estimated from the residuals before settle_s"),
+        ];
         let filter_noise = d.and_then(|d| d.filter_noise.as_deref()).unwrap_or("nominal");
-        design.filter_knows_noise = v.choice("detection.filter_noise", filter_noise, &knows)?;
+        let (knows_noise, estimates_noise) = v.choice("detection.filter_noise", filter_noise, &knows)?;
+        design.filter_knows_noise = knows_noise;
         if let Some(n) = d.and_then(|d| d.window_samples) {
             if n == 0 || n > header.steps {
                 return Err(v.err(
@@ -276,6 +285,25 @@ impl FromDeck for AccelerometerStudy {
                 "detection.settle_s",
                 format!("{settle_s}: allowed 0 <= settle_s < the earliest onset, {} s", design.ranges.onset_s[0]),
             ));
+        }
+        if estimates_noise {
+            // The estimate reads the residuals from 1 s (the filter aligned) to settle_s, before any fault.
+            if settle_s < NOISE_ESTIMATE_FROM_S + 1.0 {
+                return Err(v.err(
+                    "detection.settle_s",
+                    format!(
+                        "{settle_s}: filter_noise = \"estimated\" reads the residuals from {NOISE_ESTIMATE_FROM_S} s to settle_s: allowed >= {} s",
+                        NOISE_ESTIMATE_FROM_S + 1.0
+                    ),
+                ));
+            }
+            if deck.log.is_some() {
+                return Err(v.err(
+                    "detection.filter_noise",
+                    "\"estimated\" is for simulated flights; a replay flies the log's own noise",
+                ));
+            }
+            design.noise_estimate_s = Some([NOISE_ESTIMATE_FROM_S, settle_s]);
         }
 
         let rules = MonteCarloRules {
@@ -436,6 +464,41 @@ mod tests {
         assert_eq!(detection.residual_std, 2.0 * tuned.detection.residual_std);
         assert_eq!(online.design.ekf_for(2.0), online.design.ekf);
         assert_eq!(online.design.detection_for(&online.detection, 2.0), online.detection);
+    }
+
+    /// `filter_noise = "estimated"`: the scale is read off the residuals from 1 s to settle_s, and it
+    /// follows the true one (normal trials of the noise-tuned deck at 1x and 2x: the median estimate of
+    /// 40 trials twice as large at twice the noise, biased low by the same factor); a settle time under
+    /// 2 s is refused by name.
+    #[test]
+    fn the_estimated_noise_scale_follows_the_true_one() {
+        use crate::engine::scenario::streams::{Substream, fork, trial_rng};
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/seed003_noise_tuned.toml");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let estimated = text.replace("filter_noise = \"actual\"", "filter_noise = \"estimated\"");
+        assert_ne!(estimated, text, "the deck names filter_noise = \"actual\"");
+        let study = AccelerometerStudy::from_toml(&estimated, &path).unwrap();
+        assert_eq!(study.design.noise_estimate_s, Some([NOISE_ESTIMATE_FROM_S, 3.0]));
+        let median = |noise_scale: f64| {
+            let mut design = study.design.clone();
+            design.scenario.noise_scale = noise_scale;
+            let mut scales: Vec<f64> = (0..40)
+                .map(|j| {
+                    let mut rng = trial_rng(7, j, Substream::Scenario);
+                    let (scenario, _) = design.draw_trial(FaultClass::Normal, &mut rng);
+                    design.simulate_tuned(scenario, &study.detection, &mut rng, fork).unwrap().1
+                })
+                .collect();
+            scales.sort_by(f64::total_cmp);
+            scales[20]
+        };
+        let (one, two) = (median(1.0), median(2.0));
+        // 0.83 and 1.63 on 2026-12-04: the residual's RMS before the fault is 0.83 of the nominal sigma
+        // the detector assumes (the estimate is biased low, by the same factor at both levels).
+        assert!((0.75..0.9).contains(&one) && (two / one - 2.0).abs() < 0.1, "{one} {two}");
+        let short = estimated.replace("settle_s = 3.0", "settle_s = 1.5");
+        let e = AccelerometerStudy::from_toml(&short, &path).unwrap_err().to_string();
+        assert!(e.contains("detection.settle_s") && e.contains("estimated"), "{e}");
     }
 
     /// `training.window_s` sets the features' window in samples; a span that is not a whole number of

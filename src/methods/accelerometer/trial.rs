@@ -25,11 +25,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::engine::results::schema::{RecordedStatistic, StatisticRecorder};
 use crate::engine::run::runner::{RunError, write_atomically};
-use crate::engine::scenario::streams::{Substream, trial_rng};
+use crate::engine::scenario::streams::{Substream, fork, trial_rng};
 use crate::methods::accelerometer::attitude::AttitudeHealth;
 use crate::methods::accelerometer::ekf_svm::{
     Classifier, ClassifierWindow, Example, FaultClass, FeatureParams, ResidualTrace, SvmParams, TrainingData,
-    detection_statistics, first_alarm, simulate_trial, window_start,
+    detection_statistics, first_alarm, window_start,
 };
 use crate::methods::accelerometer::replay;
 use crate::methods::accelerometer::study::AccelerometerStudy;
@@ -157,9 +157,9 @@ impl TrainedClassifiers {
             let design = &designs[((j / classes) % designs.len() as u64) as usize];
             let mut rng = trial_rng(t.seed, j, Substream::Scenario);
             let (scenario, onset_s) = design.draw_trial(class, &mut rng);
-            let ekf = design.ekf_for(design.scenario.noise_scale);
-            let trace = simulate_trial(scenario, &ekf, &mut rng).map_err(|e| e.to_string())?;
-            Ok((trace, onset_s, design.scenario.noise_scale))
+            let (trace, tuned_scale) =
+                design.simulate_tuned(scenario, &study.detection, &mut rng, fork).map_err(|e| e.to_string())?;
+            Ok((trace, onset_s, tuned_scale))
         };
         let replayed = |j: u64, class: FaultClass| -> Result<(ResidualTrace, f64, f64), String> {
             let log = study.log.as_ref().ok_or("no log to train on")?;

@@ -175,6 +175,10 @@ pub struct TrialDesign {
     /// The filter's `Q` and `R` (and the detector's `sigma_z`) follow the trial's noise scale, as the
     /// patent sets them from the actual sensor noise; false: nominal whatever the noise.
     pub filter_knows_noise: bool,
+    /// With `filter_knows_noise`: the scale is not the trial's true one but estimated from a first pass
+    /// of the nominal filter, as the RMS of its residual components over `[from, to)` s (before any
+    /// fault) against the nominal residual sigma (see [`Self::simulate_tuned`]); `None`: the true one.
+    pub noise_estimate_s: Option<[f64; 2]>,
 }
 
 impl TrialDesign {
@@ -188,6 +192,7 @@ impl TrialDesign {
             features: FeatureParams::seed(),
             window_delay_s: 0.0,
             filter_knows_noise: false,
+            noise_estimate_s: None,
         }
     }
 
@@ -255,6 +260,35 @@ impl TrialDesign {
             return *detection;
         }
         DetectionParams { residual_std: detection.residual_std * noise_scale, ..*detection }
+    }
+
+    /// Simulates `scenario` with the filter tuned as the design says, and returns the residuals and the
+    /// noise scale the filter and the detector were tuned to: 1 (nominal), the scenario's own, or its
+    /// estimate ([`Self::noise_estimate_s`]): the trial is flown once with the nominal filter on a copy
+    /// of `rng` (`fork` makes it), the estimate read off its residuals before any fault, then flown
+    /// again, on the same noise, with the filter tuned to it (what a flight computer could do on its
+    /// first seconds).
+    pub fn simulate_tuned<R: Rng>(
+        &self,
+        scenario: ImuScenarioParams,
+        detection: &DetectionParams,
+        rng: &mut R,
+        fork: impl FnOnce(&R) -> R,
+    ) -> Result<(ResidualTrace, f64), TrialError> {
+        let scale = match (self.filter_knows_noise, self.noise_estimate_s) {
+            (false, _) => 1.0,
+            (true, None) => scenario.noise_scale,
+            (true, Some([from_s, to_s])) => {
+                let first = simulate_trial(scenario.clone(), &self.ekf, &mut fork(rng))?;
+                let k = |t_s: f64| ((t_s / first.dt_s).round() as usize).min(first.samples.len());
+                let window = &first.samples[k(from_s)..k(to_s)];
+                let square_sum: f64 = window.iter().flat_map(|s| s.residual).map(|e| e * e).sum();
+                let rms = (square_sum / (3 * window.len().max(1)) as f64).sqrt();
+                rms / detection.residual_std
+            }
+        };
+        let ekf = if self.filter_knows_noise { self.ekf_for(scale) } else { self.ekf };
+        Ok((simulate_trial(scenario, &ekf, rng)?, scale))
     }
 
     /// [`Self::draw_trial`], [`simulate_trial`] and [`Self::example`] with one RNG, in that order.
