@@ -228,6 +228,38 @@ def seed003_online(runs):
     return out
 
 
+TRANSLATIONS_MPS2 = ["0.5", "1.0", "2.0", "4.0"]
+
+
+def seed003_translation(runs):
+    """docs/findings-seed003.md, manoeuvres with translational acceleration: per amplitude (0: the
+    online deck as bundled), at the nominal noise (1,000 trials), the normal trials with a false alarm,
+    the faults detected, and the accuracy of the tree on the onset window and on the alarm window, with
+    Wilson intervals."""
+    decks = ["studies/seed003_online.toml"] + [f"studies/seed003_online.toml imu.translation_mps2={a}" for a in TRANSLATIONS_MPS2]
+    out = [
+        "| translational acceleration | normal trials with a false alarm | faults detected | tree, onset window | tree, alarm window |",
+        "|---|---|---|---|---|",
+    ]
+    for deck, amplitude in zip(decks, ["0"] + TRANSLATIONS_MPS2):
+        d = pl.read_parquet(runs[deck] / "trials.parquet").filter(
+            (pl.col("noise_bin") == 1.0) & pl.col("failure").is_null() & (pl.col("detector") == "tree_online")
+        )
+        normal, faulty = d.filter(pl.col("kind") == "normal"), d.filter(pl.col("kind") != "normal")
+        w = correct_by_trial(runs[deck]).filter(pl.col("noise_bin") == 1.0)
+
+        def rate(k, n):
+            p, lo, hi = wilson(k, n)
+            return f"{k}/{n}, {p:.3f} [{lo:.3f}, {hi:.3f}]"
+
+        out.append(
+            f"| {amplitude} m/s^2 | {rate(int(normal['false_alarm'].sum()), normal.height)} | "
+            f"{rate(int(faulty['detected'].sum()), faulty.height)} | {rate(int(w['tree'].sum()), w.height)} | "
+            f"{rate(int(w['tree_online'].sum()), w.height)} |"
+        )
+    return out
+
+
 WINDOWS_S = [0.1, 0.25, 0.5, 1.0]
 
 
@@ -484,6 +516,61 @@ def seed002_air_data(runs):
     return out
 
 
+def seed002_equal_pfa(runs):
+    """docs/findings-seed002.md, the dual UKF against voting at equal false-alarm rates: each detector's
+    hold calibrated at the deck's Pfa (thresholds.csv), and at it Pd per fault (summary.csv's calibrated
+    rows, one lane or all three; the detections in brackets) and the median delay (detectors.csv)."""
+    run = runs["studies/seed002_hifi_truth.toml"]
+    holds = pl.read_csv(run / "thresholds.csv").filter(pl.col("statistic") == "held_s")
+    s = pl.read_csv(run / "summary.csv").filter(pl.col("thresholds") == "calibrated")
+    d = pl.read_csv(run / "detectors.csv").filter(pl.col("thresholds") == "calibrated")
+    pair = [("patent", "dual UKF (patent), hold"), ("voting", "voting, persistence")]
+    hold = {det: holds.filter(pl.col("detector") == det)["detector_threshold"][0] for det, _ in pair}
+    out = [
+        "| faults | " + " | ".join(f"{label} {half_up(hold[det], 2).rstrip('0').rstrip('.')} s" for det, label in pair) + " |",
+        "|---|---|---|",
+    ]
+    for lanes, label in [(1.0, "one lane"), (3.0, "all three lanes, common mode")]:
+        cells, faults = [], None
+        for det, _ in pair:
+            x = s.filter((pl.col("detector") == det) & (pl.col("faulty_lanes") == lanes))
+            n, k = int(x["trials"].sum() - x["failed"].sum()), int(x["detected"].sum())
+            faults = n
+            cells.append(f"{k / n:.3f} ({k:,})")
+        out.append(f"| {label} ({faults:,}) | " + " | ".join(cells) + " |")
+    delays = []
+    for det, _ in pair:
+        v = d.filter(pl.col("detector") == det)["delay_p50_s"][0]
+        delays.append(f"{half_up(v, 2 if v < 1 else 1)} s")
+    out.append("| delay p50 | " + " | ".join(delays) + " |")
+    return out
+
+
+def seed002_holds_flown(runs):
+    """docs/findings-seed002.md, the declaration hold flown: per hold, over the hi-fi deck's flights
+    flown, the flights with a false alarm, Pd over the faulty ones (Wilson interval), the median delay
+    and the correct isolation over the isolated."""
+    d = pl.read_parquet(runs["studies/seed002_hifi_truth.toml"] / "trials.parquet").filter(pl.col("failure").is_null())
+    flights = d.filter(pl.col("detector") == "patent").height
+    faults = d.filter((pl.col("detector") == "patent") & ~pl.col("fault_free")).height
+    out = [
+        f"| hold | flights with a false alarm (of {flights:,}) | Pd ({faults:,} faults) [95 % CI] | delay p50 | correct isolation |",
+        "|---|---|---|---|---|",
+    ]
+    for label, det in [("0.1 s (the deck's)", "patent"), ("0.5 s", "patent_hold_500ms"), ("1 s", "patent_hold_1s"), ("3 s", "patent_hold_3s")]:
+        x = d.filter(pl.col("detector") == det)
+        f = x.filter(~pl.col("fault_free"))
+        hit = f.filter(pl.col("detected"))
+        decided = f.filter(pl.col("isolated").is_not_null())
+        p, lo, hi = wilson(hit.height, f.height)
+        delay = hit["delay_s"].median()
+        out.append(
+            f"| {label} | {half_up(100 * x['false_alarm'].mean(), 1)} % | {p:.3f} [{lo:.3f}, {hi:.3f}] | "
+            f"{half_up(delay, 2 if delay < 1 else 1)} s | {decided['isolated_correctly'].mean():.3f} |"
+        )
+    return out
+
+
 def seed002_lanes(runs):
     """docs/findings-seed002.md, two and three faulty lanes: per count of faulty lanes and detector, over
     the faulty flights that flew (calm air and turbulence together), Pd and correct isolation (Wilson
@@ -511,6 +598,91 @@ def seed002_lanes(runs):
                 f"| {f'{lanes} ({faulty.height:,} flights)' if i == 0 else ''} | {label} | "
                 f"{pd_[0]:.3f} [{pd_[1]:.3f}, {pd_[2]:.3f}] | {isolation} | "
                 f"{'-' if delay is None else half_up(delay, 3) + ' s'} | {half_up(faulty['estimate_rms_sigma'].median())} σ{raw} |"
+                .replace("|  |", "| |")
+            )
+    return out
+
+
+FACTOR_NAMES = {
+    "output": "output", "fault_kind": "fault kind", "size": "size", "onset_s": "onset",
+    "noise_scale": "noise scale", "noise_realisation": "noise realisation",
+    "pitch_moment": "pitch moment", "elevator": "elevator",
+}
+
+
+def seed000_sensitivity(runs):
+    """docs/findings-seed000.md, which factors drive the misses and the false alarms: `fdimc sensitivity`
+    on the robustness deck (4,096 base samples) at the thresholds its run calibrated; per outcome and
+    detector, the three largest total indices, the two model errors' total indices, and the sum of the
+    first-order indices, with 95 % bootstrap intervals (sensitivity.csv)."""
+    deck = "studies/seed000_robustness.toml"
+    run = runs[deck]
+    out_dir = run.parent / f"{run.name}_sensitivity"
+    if not (out_dir / "sensitivity.csv").exists():
+        cmd = [fdimc_binary(), "sensitivity", str(ROOT / deck), "--base-samples", "4096", "--thresholds",
+               str(run / "thresholds.csv"), "--out", str(out_dir), "--force", "--quiet"]
+        done = subprocess.run(cmd, capture_output=True, text=True)
+        if done.returncode != 0:
+            raise SystemExit(f"{' '.join(cmd)} failed ({done.returncode}):\n{done.stderr}")
+    s = pl.read_csv(out_dir / "sensitivity.csv")
+
+    def index(r, kind):
+        lo, hi = max(r[f"{kind}_lo"], 0.0), r[f"{kind}_hi"]
+        return f"{r[kind]:.2f} [{lo:.2f}, {hi:.2f}]"
+
+    out = [
+        "Sensitivity: `fdimc sensitivity studies/seed000_robustness.toml --base-samples 4096 --thresholds "
+        "results/seed000_robustness/thresholds.csv`.",
+        "",
+        "| outcome, detector (its mean) | largest total indices ST [95 % CI] | model errors' ST: pitch moment, elevator | sum of S1 |",
+        "|---|---|---|---|",
+    ]
+    labels = {"seed": "seed filter", "fast": "fast filter", "cusum": "CUSUM", "kalman": "Kalman chi-square"}
+    for outcome, detectors in [("pd", ["seed", "cusum", "kalman"]), ("pfa", ["seed", "fast", "cusum", "kalman"])]:
+        for det in detectors:
+            x = s.filter((pl.col("outcome") == outcome) & (pl.col("detector") == det))
+            if x.height == 0:
+                raise SystemExit(f"{out_dir}/sensitivity.csv: no {outcome} rows of detector {det}")
+            rows = sorted(x.iter_rows(named=True), key=lambda r: -r["st"])
+            top = ", ".join(f"{FACTOR_NAMES[r['factor']]} {index(r, 'st')}" for r in rows[:3])
+            model = ", ".join(index(next(r for r in rows if r["factor"] == f), "st") for f in ["pitch_moment", "elevator"])
+            mean = rows[0]["outcome_mean"]
+            mean_text = f"{mean:.3f}" if outcome == "pd" else f"{mean:.4f}"
+            out.append(
+                f"| {outcome.replace('pd', 'Pd').replace('pfa', 'Pfa')}, {labels[det]} ({mean_text}) | {top} | {model} | "
+                f"{rows[0]['sum_s1']:.2f} |"
+            )
+    return out
+
+
+def seed001_recovering_residual(runs):
+    """docs/findings-seed001.md, the recovering residual on noisy flights: per filter and window N, over
+    the faulty flights flown, the losses detected (Wilson interval) at the deck's thresholds (calibrated
+    at Pfa 0.01 on the first run's fault-free flights and written into the deck), and over the detected
+    the median time above the threshold in the detection window, the median loss error (and of its
+    absolute value) and the engines named right."""
+    d = pl.read_parquet(runs["studies/seed001_recovering_residual.toml"] / "trials.parquet").filter(
+        ~pl.col("fault_free") & pl.col("failure").is_null()
+    )
+    faulty = d.filter(pl.col("detector") == "plain_n1").height
+    out = [
+        f"| filter | N | detected of {faulty} (Pd [95 % CI]) | time above threshold in the 2 s window, median | loss error, median (abs) | engine named |",
+        "|---|---|---|---|---|---|",
+    ]
+    for label, prefix in [("plain", "plain"), ("slow (0.01)", "slow"), ("fast (0.1)", "fast")]:
+        for n in [1, 5, 10]:
+            x = d.filter(pl.col("detector") == f"{prefix}_n{n}")
+            hit = x.filter(pl.col("detected"))
+            p, lo, hi = wilson(hit.height, x.height)
+            if hit.height:
+                above = f"{half_up(hit['fhat_above_threshold_s'].median())} s"
+                error = hit["loss_error_percent"]
+                loss = f"{half_up(error.median(), 1)} ({half_up(error.abs().median(), 1)}) points"
+                named = str(int(hit["isolated_correctly"].sum()))
+            else:
+                above = loss = named = "-"
+            out.append(
+                f"| {label if n == 1 else ''} | {n} | {hit.height} ({p:.3f} [{lo:.3f}, {hi:.3f}]) | {above} | {loss} | {named} |"
                 .replace("|  |", "| |")
             )
     return out
@@ -787,12 +959,40 @@ TABLES = {
         "3 min",
         seed004_equal_pfa,
     ),
+    "seed000_sensitivity": (
+        "docs/findings-seed000.md",
+        ["studies/seed000_robustness.toml"],
+        False,
+        "1 min",
+        seed000_sensitivity,
+    ),
+    "seed001_recovering_residual": (
+        "docs/findings-seed001.md",
+        ["studies/seed001_recovering_residual.toml"],
+        False,
+        "1 min",
+        seed001_recovering_residual,
+    ),
     "seed001_gyro_grade": (
         "docs/findings-seed001.md",
         [gyro_grade_deck(arw, bias) for _, arw, bias in GYRO_GRADES],
         False,
         "3 min",
         seed001_gyro_grade,
+    ),
+    "seed002_equal_pfa": (
+        "docs/findings-seed002.md",
+        ["studies/seed002_hifi_truth.toml"],
+        False,
+        "1 min",
+        seed002_equal_pfa,
+    ),
+    "seed002_holds_flown": (
+        "docs/findings-seed002.md",
+        ["studies/seed002_hifi_truth.toml"],
+        False,
+        "1 min (the same run)",
+        seed002_holds_flown,
     ),
     "seed002_lanes": (
         "docs/findings-seed002.md",
@@ -870,6 +1070,13 @@ TABLES = {
         True,
         "7 s",
         seed003_online,
+    ),
+    "seed003_translation": (
+        "docs/findings-seed003.md",
+        ["studies/seed003_online.toml"] + [f"studies/seed003_online.toml imu.translation_mps2={a}" for a in TRANSLATIONS_MPS2],
+        True,
+        "25 s",
+        seed003_translation,
     ),
     "seed003_window": (
         "docs/findings-seed003.md",

@@ -89,12 +89,18 @@ impl EulerSinusoid {
     }
 }
 
-/// Prescribed attitude (module docs): roll, pitch and yaw histories.
+/// Prescribed attitude (module docs): roll, pitch and yaw histories, and an optional translational
+/// acceleration.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AttitudeManoeuvre {
     pub roll: EulerSinusoid,
     pub pitch: EulerSinusoid,
     pub yaw: EulerSinusoid,
+    /// Amplitude of the vehicle's acceleration in NED axes (m/s^2; 0: none, the seed's motion): north
+    /// `A sin(2 pi t / 7 s)`, east `A sin(2 pi t / 11 s)`, down `A / 2 sin(2 pi t / 13 s)` (periods
+    /// incommensurate with the attitude's, a choice). The accelerometers feel it; the attitude EKF takes
+    /// the specific force for gravity alone, so it reaches the residual.
+    pub translation_mps2: f64,
 }
 
 impl AttitudeManoeuvre {
@@ -112,7 +118,18 @@ impl AttitudeManoeuvre {
             period_s,
             phase_rad: 0.0,
         };
-        AttitudeManoeuvre { roll: sine(30.0, 8.0), pitch: sine(20.0, 5.0), yaw: sine(45.0, 12.0) }
+        AttitudeManoeuvre {
+            roll: sine(30.0, 8.0),
+            pitch: sine(20.0, 5.0),
+            yaw: sine(45.0, 12.0),
+            translation_mps2: 0.0,
+        }
+    }
+
+    /// The translational acceleration in NED axes at `t_s` (m/s^2; see [`Self::translation_mps2`]).
+    pub fn acceleration_ned_mps2(&self, t_s: f64) -> Vector3<f64> {
+        let wave = |period_s: f64| (std::f64::consts::TAU * t_s / period_s).sin();
+        self.translation_mps2 * Vector3::new(wave(7.0), wave(11.0), 0.5 * wave(13.0))
     }
 
     /// A constant attitude.
@@ -121,6 +138,7 @@ impl AttitudeManoeuvre {
             roll: EulerSinusoid::constant(roll_rad),
             pitch: EulerSinusoid::constant(pitch_rad),
             yaw: EulerSinusoid::constant(yaw_rad),
+            translation_mps2: 0.0,
         }
     }
 
@@ -176,7 +194,7 @@ pub struct ImuTruth {
     pub euler_rad: [f64; 3],
     /// Body rates `(p, q, r)` (rad/s).
     pub rate_rad_s: Vector3<f64>,
-    /// Specific force in body axes (m/s^2): `-g C_bn e_3`.
+    /// Specific force in body axes (m/s^2): `C_bn (a - g e_3)`, `a` the translational acceleration.
     pub specific_force_mps2: Vector3<f64>,
 }
 
@@ -191,11 +209,16 @@ pub fn imu_truth(manoeuvre: &AttitudeManoeuvre, t_s: f64) -> ImuTruth {
         -theta_rate * sphi + psi_rate * cth * cphi,
     );
     let C_bn = body_from_ned(phi, theta, psi);
+    let mut specific_force_mps2 = -GRAVITY_MPS2 * C_bn.column(2);
+    if manoeuvre.translation_mps2 != 0.0 {
+        // Added only when there is one, so the seed's motion keeps its exact numbers.
+        specific_force_mps2 += C_bn * manoeuvre.acceleration_ned_mps2(t_s);
+    }
     ImuTruth {
         attitude: UnitQuaternion::from_euler_angles(phi, theta, psi),
         euler_rad: [phi, theta, psi],
         rate_rad_s,
-        specific_force_mps2: -GRAVITY_MPS2 * C_bn.column(2),
+        specific_force_mps2,
     }
 }
 
@@ -443,6 +466,32 @@ mod tests {
         let mut s = ImuScenario::new(params).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         std::iter::from_fn(|| s.next_sample(&mut rng)).collect()
+    }
+
+    /// A translational acceleration reaches the specific force as `C_bn (a - g e_3)`: level, it adds
+    /// `a` itself (north 2 m/s^2 at a quarter of its 7 s period, east 2 sin(2 pi 1.75 / 11), down
+    /// sin(2 pi 1.75 / 13)); in any attitude the specific force's length is that of `a - g e_3`; and
+    /// without one the seed's numbers are unchanged to the bit.
+    #[test]
+    fn a_translational_acceleration_reaches_the_specific_force() {
+        let level = AttitudeManoeuvre { translation_mps2: 2.0, ..AttitudeManoeuvre::still(0.0, 0.0, 0.0) };
+        let f = imu_truth(&level, 1.75).specific_force_mps2;
+        let tau = std::f64::consts::TAU;
+        let want = [2.0, 2.0 * (tau * 1.75 / 11.0).sin(), (tau * 1.75 / 13.0).sin() - GRAVITY_MPS2];
+        for i in 0..3 {
+            assert!((f[i] - want[i]).abs() < 1e-12, "{i}: {} vs {}", f[i], want[i]);
+        }
+        let turning = AttitudeManoeuvre { translation_mps2: 3.0, ..AttitudeManoeuvre::seed() };
+        for t in [0.4, 2.2, 6.1, 13.7] {
+            let a = turning.acceleration_ned_mps2(t) - Vector3::new(0.0, 0.0, GRAVITY_MPS2);
+            let f = imu_truth(&turning, t).specific_force_mps2;
+            assert!((f.norm() - a.norm()).abs() < 1e-12, "t = {t}");
+        }
+        let seed = AttitudeManoeuvre::seed();
+        let plain = -GRAVITY_MPS2 * body_from_ned(0.3, -0.2, 0.9).column(2);
+        let still = AttitudeManoeuvre::still(0.3, -0.2, 0.9);
+        assert_eq!(imu_truth(&still, 5.0).specific_force_mps2, plain);
+        assert_eq!(seed.translation_mps2, 0.0);
     }
 
     /// The body rates are the rates of the attitude: `q(t + h) ~ q(t) exp(w h / 2)` by central

@@ -4,7 +4,8 @@
 //!
 //! ```toml
 //! [study]            name, seed, duration_s (20), dt_s (0.01)
-//! [imu]              optional manoeuvre_scale (on the seed manoeuvre's amplitudes; src/methods/accelerometer/imu.rs)
+//! [imu]              optional manoeuvre_scale (on the seed manoeuvre's amplitudes; src/methods/accelerometer/imu.rs),
+//!                    translation_mps2 (amplitude of a translational acceleration the accelerometers feel)
 //! [faults]           optional ranges: bias_mps2 = [lo, hi] (|bias|), gain_deviation = [lo, hi] (|factor - 1|),
 //!                    onset_s = [lo, hi]; a fault's axis and sign are drawn
 //! [training]         trials_per_class, seed (the training trials' own seed: fresh trials are another),
@@ -72,6 +73,7 @@ struct ClassifierSection {
 #[serde(deny_unknown_fields)]
 struct ImuSection {
     manoeuvre_scale: Option<f64>,
+    translation_mps2: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -161,6 +163,16 @@ impl FromDeck for AccelerometerStudy {
             }
             let scale = v.finite("imu.manoeuvre_scale", scale)?;
             design.scenario.manoeuvre = design.scenario.manoeuvre.scaled(scale);
+        }
+        if let Some(a) = deck.imu.translation_mps2 {
+            if deck.log.is_some() {
+                return Err(v.err("imu.translation_mps2", "a replay flies the log's own motion ([log]); leave it out"));
+            }
+            let a = v.non_negative("imu.translation_mps2", a)?;
+            if a > 50.0 {
+                return Err(v.err("imu.translation_mps2", format!("{a}: allowed 0 to 50 m/s^2")));
+            }
+            design.scenario.manoeuvre.translation_mps2 = a;
         }
         if let Some(f) = &deck.faults {
             let range = |field: &str, r: Option<[f64; 2]>, default: [f64; 2], min: f64| match r {
@@ -261,7 +273,7 @@ impl FromDeck for AccelerometerStudy {
         let d = deck.detection.as_ref();
         let knows = [
             ("nominal", (false, false), "default"),
-            ("actual", (true, false), "Q, R and sigma_z follow the trial's noise scale (an oracle)"),
+            ("actual", (true, false), "Q, R and sigma_z follow the trial's noise scale: an oracle"),
             ("estimated", (true, true), "the same, at the scale estimated from the residuals before settle_s"),
         ];
         let filter_noise = d.and_then(|d| d.filter_noise.as_deref()).unwrap_or("nominal");
