@@ -725,36 +725,83 @@ def seed001_gyro_grade(runs):
     return out
 
 
-def seed004_equal_pfa(runs):
-    """docs/findings-seed004.md, the banks at an equal false-alarm rate: each variant's hold calibrated
-    at Pfa 0.01 per flight on `seed004_fault_free.toml`'s fault-free flights, applied to the Monte Carlo
-    run (`fdimc summarize MC --thresholds FF/thresholds.csv`, its `validation` rows): Pd with its
-    interval and the delay quantiles."""
-    ff, mc = runs["studies/seed004_fault_free.toml"], runs["studies/seed004_monte_carlo.toml"]
-    cmd = [fdimc_binary(), "summarize", str(mc), "--thresholds", str(ff / "thresholds.csv")]
+def validated(run, thresholds_run):
+    """`fdimc summarize RUN --thresholds OTHER/thresholds.csv`: RUN's outcomes at OTHER's calibrated
+    thresholds, in RUN/validation/."""
+    cmd = [fdimc_binary(), "summarize", str(run), "--thresholds", str(thresholds_run / "thresholds.csv")]
     done = subprocess.run(cmd, capture_output=True, text=True)
     if done.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed ({done.returncode}):\n{done.stderr}")
+    return run / "validation"
+
+
+def banks_at_equal_pfa(ff, mc, variants):
+    """The banks at an equal false-alarm rate: each variant's hold calibrated at Pfa 0.01 per flight on
+    `seed004_fault_free.toml`'s fault-free flights (`ff`), applied to the run `mc` (its `validation`
+    rows): Pd with its interval and the delay quantiles."""
+    v = validated(mc, ff)
     holds = pl.read_csv(ff / "thresholds.csv").filter(pl.col("statistic") == "held_s")
-    d = pl.read_csv(mc / "validation" / "detectors.csv").filter(pl.col("thresholds") == "validation")
+    d = pl.read_csv(v / "detectors.csv").filter(pl.col("thresholds") == "validation")
     # The faults flown to the end (the paired table's count: detectors.csv's includes failed flights).
-    faults = pl.read_csv(mc / "validation" / "comparison.csv").filter(pl.col("thresholds") == "validation")["faulty_units"][0]
+    faults = pl.read_csv(v / "comparison.csv").filter(pl.col("thresholds") == "validation")["faulty_units"][0]
     out = [
         f"| variant | hold at 1 % | Pd [95 % CI] ({faults:,} faults) | delay p50 / p90 |",
         "|---|---|---|---|",
     ]
-    for label, detector in [
-        ("EMMAE", "emmae"),
-        ("EKF + fast probability", "ekf_fast"),
-        ("STMMAE", "stmmae"),
-        ("improved STMMAE", "improved_stmmae"),
-    ]:
+    for label, detector in variants:
         hold = holds.filter(pl.col("detector") == detector)["detector_threshold"][0]
         r = d.filter(pl.col("detector") == detector).row(0, named=True)
         out.append(
             f"| {label} | {half_up(hold, 1)} s | {with_interval(r, 'pd')} | "
             f"{half_up(r['delay_p50_s'], 1)} / {half_up(r['delay_p90_s'], 1)} s |"
         )
+    return out
+
+
+def seed004_equal_pfa(runs):
+    """docs/findings-seed004.md: [banks_at_equal_pfa] on the Monte Carlo deck."""
+    return banks_at_equal_pfa(
+        runs["studies/seed004_fault_free.toml"], runs["studies/seed004_monte_carlo.toml"], MONTE_CARLO_VARIANTS
+    )
+
+
+def seed004_norm_forms_equal_pfa(runs):
+    """docs/findings-seed004.md: [banks_at_equal_pfa] on the norm-forms deck."""
+    return banks_at_equal_pfa(
+        runs["studies/seed004_fault_free.toml"],
+        runs["studies/seed004_norm_forms.toml"],
+        [
+            ("EMMAE (Gaussian density)", "emmae"),
+            ("EKF + fast, isotropic", "ekf_fast"),
+            ("EKF + fast, 1-D", "ekf_fast_1d"),
+            ("improved STMMAE, isotropic", "improved_stmmae"),
+            ("improved STMMAE, 1-D", "improved_stmmae_1d"),
+        ],
+    )
+
+
+def seed002_lanes_equal_pfa(runs):
+    """docs/findings-seed002.md, the lanes at an equal false-alarm rate: the holds calibrated at Pfa 0.01
+    on the hi-fi deck's fault-free flights (its thresholds.csv) applied to the lanes run (`summarize
+    --thresholds`, summary.csv's validation rows): Pd per count of faulty lanes."""
+    hifi, lanes = runs["studies/seed002_hifi_truth.toml"], runs["studies/seed002_lanes.toml"]
+    v = validated(lanes, hifi)
+    holds = pl.read_csv(hifi / "thresholds.csv").filter(pl.col("statistic") == "held_s")
+    s = pl.read_csv(v / "summary.csv").filter(pl.col("thresholds") == "validation")
+    pair = [("patent", "dual UKF (patent)"), ("voting", "voting")]
+    hold = {det: holds.filter(pl.col("detector") == det)["detector_threshold"][0] for det, _ in pair}
+    out = [
+        "| faulty lanes | " + " | ".join(f"{label}, held {hold[det]:g} s: Pd [95 % CI]" for det, label in pair) + " |",
+        "|---|---|---|",
+    ]
+    for lanes_hit in sorted(x for x in s["faulty_lanes"].unique().to_list() if x > 0):
+        cells = []
+        for det, _ in pair:
+            x = s.filter((pl.col("detector") == det) & (pl.col("faulty_lanes") == lanes_hit))
+            n, k = int(x["trials"].sum() - x["failed"].sum()), int(x["detected"].sum())
+            p, lo, hi = wilson(k, n)
+            cells.append(f"{k}/{n}, {p:.3f} [{lo:.3f}, {hi:.3f}]")
+        out.append(f"| {int(lanes_hit)} | " + " | ".join(cells) + " |")
     return out
 
 
@@ -1035,6 +1082,20 @@ TABLES = {
         False,
         "3 min (the tunings run)",
         seed004_accuracy_seed_tuning,
+    ),
+    "seed004_norm_forms_equal_pfa": (
+        "docs/findings-seed004.md",
+        ["studies/seed004_fault_free.toml", "studies/seed004_norm_forms.toml"],
+        False,
+        "3 min",
+        seed004_norm_forms_equal_pfa,
+    ),
+    "seed002_lanes_equal_pfa": (
+        "docs/findings-seed002.md",
+        ["studies/seed002_hifi_truth.toml", "studies/seed002_lanes.toml"],
+        False,
+        "1.5 min",
+        seed002_lanes_equal_pfa,
     ),
     "seed002_air_data": (
         "docs/findings-seed002.md",
