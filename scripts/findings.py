@@ -516,16 +516,27 @@ def seed002_air_data(runs):
     return out
 
 
+def held_s_thresholds(run):
+    """Each detector's calibrated hold (s) in RUN's thresholds.csv."""
+    holds = pl.read_csv(run / "thresholds.csv").filter(pl.col("statistic") == "held_s")
+    return dict(zip(holds["detector"].to_list(), holds["detector_threshold"].to_list()))
+
+
+def detected_of_lanes(summary, detector, lanes):
+    """(detected, flown) of `detector`'s faults on `lanes` faulty lanes in a summary.csv's rows."""
+    x = summary.filter((pl.col("detector") == detector) & (pl.col("faulty_lanes") == lanes))
+    return int(x["detected"].sum()), int(x["trials"].sum() - x["failed"].sum())
+
+
 def seed002_equal_pfa(runs):
     """docs/findings-seed002.md, the dual UKF against voting at equal false-alarm rates: each detector's
     hold calibrated at the deck's Pfa (thresholds.csv), and at it Pd per fault (summary.csv's calibrated
     rows, one lane or all three; the detections in brackets) and the median delay (detectors.csv)."""
     run = runs["studies/seed002_hifi_truth.toml"]
-    holds = pl.read_csv(run / "thresholds.csv").filter(pl.col("statistic") == "held_s")
+    hold = held_s_thresholds(run)
     s = pl.read_csv(run / "summary.csv").filter(pl.col("thresholds") == "calibrated")
     d = pl.read_csv(run / "detectors.csv").filter(pl.col("thresholds") == "calibrated")
     pair = [("patent", "dual UKF (patent), hold"), ("voting", "voting, persistence")]
-    hold = {det: holds.filter(pl.col("detector") == det)["detector_threshold"][0] for det, _ in pair}
     out = [
         "| faults | " + " | ".join(f"{label} {half_up(hold[det], 2).rstrip('0').rstrip('.')} s" for det, label in pair) + " |",
         "|---|---|---|",
@@ -533,10 +544,8 @@ def seed002_equal_pfa(runs):
     for lanes, label in [(1.0, "one lane"), (3.0, "all three lanes, common mode")]:
         cells, faults = [], None
         for det, _ in pair:
-            x = s.filter((pl.col("detector") == det) & (pl.col("faulty_lanes") == lanes))
-            n, k = int(x["trials"].sum() - x["failed"].sum()), int(x["detected"].sum())
-            faults = n
-            cells.append(f"{k / n:.3f} ({k:,})")
+            k, faults = detected_of_lanes(s, det, lanes)
+            cells.append(f"{k / faults:.3f} ({k:,})")
         out.append(f"| {label} ({faults:,}) | " + " | ".join(cells) + " |")
     delays = []
     for det, _ in pair:
@@ -740,7 +749,7 @@ def banks_at_equal_pfa(ff, mc, variants):
     `seed004_fault_free.toml`'s fault-free flights (`ff`), applied to the run `mc` (its `validation`
     rows): Pd with its interval and the delay quantiles."""
     v = validated(mc, ff)
-    holds = pl.read_csv(ff / "thresholds.csv").filter(pl.col("statistic") == "held_s")
+    holds = held_s_thresholds(ff)
     d = pl.read_csv(v / "detectors.csv").filter(pl.col("thresholds") == "validation")
     # The faults flown to the end (the paired table's count: detectors.csv's includes failed flights).
     faults = pl.read_csv(v / "comparison.csv").filter(pl.col("thresholds") == "validation")["faulty_units"][0]
@@ -749,10 +758,9 @@ def banks_at_equal_pfa(ff, mc, variants):
         "|---|---|---|---|",
     ]
     for label, detector in variants:
-        hold = holds.filter(pl.col("detector") == detector)["detector_threshold"][0]
         r = d.filter(pl.col("detector") == detector).row(0, named=True)
         out.append(
-            f"| {label} | {half_up(hold, 1)} s | {with_interval(r, 'pd')} | "
+            f"| {label} | {half_up(holds[detector], 1)} s | {with_interval(r, 'pd')} | "
             f"{half_up(r['delay_p50_s'], 1)} / {half_up(r['delay_p90_s'], 1)} s |"
         )
     return out
@@ -786,10 +794,9 @@ def seed002_lanes_equal_pfa(runs):
     --thresholds`, summary.csv's validation rows): Pd per count of faulty lanes."""
     hifi, lanes = runs["studies/seed002_hifi_truth.toml"], runs["studies/seed002_lanes.toml"]
     v = validated(lanes, hifi)
-    holds = pl.read_csv(hifi / "thresholds.csv").filter(pl.col("statistic") == "held_s")
+    hold = held_s_thresholds(hifi)
     s = pl.read_csv(v / "summary.csv").filter(pl.col("thresholds") == "validation")
     pair = [("patent", "dual UKF (patent)"), ("voting", "voting")]
-    hold = {det: holds.filter(pl.col("detector") == det)["detector_threshold"][0] for det, _ in pair}
     out = [
         "| faulty lanes | " + " | ".join(f"{label}, held {hold[det]:g} s: Pd [95 % CI]" for det, label in pair) + " |",
         "|---|---|---|",
@@ -797,8 +804,7 @@ def seed002_lanes_equal_pfa(runs):
     for lanes_hit in sorted(x for x in s["faulty_lanes"].unique().to_list() if x > 0):
         cells = []
         for det, _ in pair:
-            x = s.filter((pl.col("detector") == det) & (pl.col("faulty_lanes") == lanes_hit))
-            n, k = int(x["trials"].sum() - x["failed"].sum()), int(x["detected"].sum())
+            k, n = detected_of_lanes(s, det, lanes_hit)
             p, lo, hi = wilson(k, n)
             cells.append(f"{k}/{n}, {p:.3f} [{lo:.3f}, {hi:.3f}]")
         out.append(f"| {int(lanes_hit)} | " + " | ".join(cells) + " |")
