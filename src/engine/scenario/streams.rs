@@ -100,6 +100,22 @@ mod tests {
     use super::*;
     use rand::RngExt;
 
+    /// A fork draws what the original draws next, at any position (mid-block too), and leaves the
+    /// original where it was.
+    #[test]
+    fn a_fork_draws_what_the_original_draws_next() {
+        for consumed in [0usize, 1, 7, 16, 33] {
+            let mut rng = trial_rng(5, 9, Substream::Scenario);
+            for _ in 0..consumed {
+                rng.random::<u32>();
+            }
+            let mut copy = fork(&rng);
+            let ahead: Vec<u64> = (0..40).map(|_| copy.random::<u64>()).collect();
+            let original: Vec<u64> = (0..40).map(|_| rng.random::<u64>()).collect();
+            assert_eq!(ahead, original, "after {consumed} words");
+        }
+    }
+
     #[test]
     fn streams_differ_by_trial_and_substream_and_repeat_exactly() {
         let draw = |t, s| trial_rng(7, t, s).random::<u64>();
