@@ -161,8 +161,9 @@ mod tests {
         let study = LaunchStudy::from_toml(&text, &path).unwrap();
         let white = 0.002f64.to_radians() / 60.0 * 10.0;
         assert!((study.config.noise.rate_rad_s - white).abs() < 1e-18, "{}", study.config.noise.rate_rad_s);
-        let stability = 0.01f64.to_radians() / 3600.0;
-        assert!((stability - 4.848e-8).abs() < 1e-11);
+        // 0.01 deg/h = 0.01 / 3600 * pi / 180 rad/s, as the deck field is read.
+        let stability = study.config.noise.rate_bias_stability_rad_s;
+        assert!((stability - 4.8481e-8).abs() < 1e-12, "{stability}");
         let sampler = LaunchScenarioSampler::new(&study);
         let biases: Vec<[f64; 3]> = (0..400).map(|i| sampler.config(&sampler.spec(i)).rate_bias_rad_s).collect();
         assert_eq!(biases[7], sampler.config(&sampler.spec(7)).rate_bias_rad_s, "the same trial, the same biases");
