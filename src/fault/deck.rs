@@ -142,7 +142,10 @@ impl FaultKindSpec {
     pub fn size_unit(&self) -> &'static str {
         match (&self.size, self.kind) {
             (SizeSpec::None, _) => unit::NONE,
+            // A drift's size is its rate.
+            (SizeSpec::SensorSigma(_), FaultKind::Drift) => unit::SENSOR_SIGMA_PER_S,
             (SizeSpec::SensorSigma(_), _) => unit::SENSOR_SIGMA,
+            (SizeSpec::Output(_), FaultKind::Drift) => unit::OUTPUT_UNITS_PER_S,
             (SizeSpec::Output(_), FaultKind::Gain) => unit::GAIN_FACTOR,
             (SizeSpec::Output(_), _) if !self.inputs.is_empty() => unit::INPUT_UNITS,
             (SizeSpec::Output(_), _) => unit::OUTPUT_UNITS,
@@ -180,6 +183,15 @@ pub struct TrialFaults {
 }
 
 impl TrialFaults {
+    /// As `simulate` and the trace plots say it: `bias 0.5503 (multiples of the sensor sigma) from
+    /// 4.21 s`; a kind without a size (stuck, total failure) without one, not `size NaN`.
+    pub fn label(&self) -> String {
+        let text = crate::engine::results::text::significant;
+        let size =
+            if self.size.is_nan() { String::new() } else { format!(" {} ({})", text(self.size), self.size_unit) };
+        format!("{}{size} from {} s", self.kind, text(self.onset_s))
+    }
+
     pub fn none() -> Self {
         TrialFaults {
             faults: Vec::new(),
@@ -268,6 +280,7 @@ pub fn fixed_size_unit(mode: &FaultMode, actuator: bool) -> &'static str {
     match mode {
         FaultMode::Gain { .. } => unit::GAIN_FACTOR,
         m if m.size().is_nan() => unit::NONE,
+        FaultMode::Drift { .. } => unit::OUTPUT_UNITS_PER_S,
         _ if actuator => unit::INPUT_UNITS,
         _ => unit::OUTPUT_UNITS,
     }
@@ -507,6 +520,19 @@ mod tests {
         );
         assert_eq!((fixed.kind, fixed.size, fixed.size_bin, fixed.size_unit), ("gain", 1.2, 1.2, unit::GAIN_FACTOR));
         assert_eq!((fixed.faults.len(), fixed.onset_s), (2, 4.0));
+
+        // A drift's size is a rate: sigma (or output units) per second, in validate, tables and plots.
+        let drift = |size| FaultKindSpec { kind: FaultKind::Drift, size, inputs: vec![] };
+        assert_eq!(drift(SizeSpec::SensorSigma(Factor::Fixed(0.5))).size_unit(), unit::SENSOR_SIGMA_PER_S);
+        assert_eq!(drift(SizeSpec::Output(Factor::Fixed(0.5))).size_unit(), unit::OUTPUT_UNITS_PER_S);
+        assert_eq!(fixed_size_unit(&FaultMode::Drift { rate_per_s: 0.1 }, false), unit::OUTPUT_UNITS_PER_S);
+
+        assert_eq!(drawn.label(), "bias 3 (multiples of the sensor sigma) from 12 s");
+        let stuck = TrialFaults::fixed(
+            &[ChannelFault { channel: 1, onset_s: 4.2137, mode: FaultMode::Stuck { value: None } }],
+            &[],
+        );
+        assert_eq!(stuck.label(), "stuck from 4.214 s");
 
         let none = TrialFaults::fixed(&[], &[]);
         assert!(none.faults.is_empty() && none.onset_s.is_nan() && none.size.is_nan());

@@ -1,4 +1,5 @@
-//! Tables and figures of a report written for reading: counts as integers, rates with 3 decimals, each interval as
+//! Tables and figures of a report written for reading: counts as integers, rates to their significant
+//! digits ([`crate::engine::results::text::rate`]), each interval as
 //! `[lo, hi]` next to its rate, other numbers to 4 significant digits, and a column that holds one value
 //! on every row said once above the table instead.
 
@@ -26,20 +27,6 @@ fn is_rate(name: &str) -> bool {
         || base.starts_with("mcnemar_p")
 }
 
-/// A number to 4 significant digits, without trailing zeros.
-fn significant(x: f64) -> String {
-    if x == 0.0 {
-        return "0".into();
-    }
-    let a = x.abs();
-    if !(1e-3..1e6).contains(&a) {
-        return format!("{x:.3e}");
-    }
-    let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
-    let s = format!("{x:.decimals$}");
-    if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
-}
-
 /// One column's cells as text ("-" for a missing value).
 fn cells(df: &DataFrame, name: &str) -> Vec<String> {
     let Ok(c) = df.column(name) else { return vec!["-".into(); df.height()] };
@@ -61,9 +48,9 @@ fn cells(df: &DataFrame, name: &str) -> Vec<String> {
         .map(|v| match v {
             None => "-".into(),
             Some(x) if rate && name.starts_with("mcnemar_p") && *x < 1e-3 => "&lt; 0.001".into(),
-            Some(x) if rate => format!("{x:.3}"),
+            Some(x) if rate => crate::engine::results::text::rate(*x),
             Some(x) if integral => format!("{x:.0}"),
-            Some(x) => significant(*x),
+            Some(x) => crate::engine::results::text::significant(*x),
         })
         .collect()
 }
@@ -129,7 +116,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn counts_are_integers_rates_have_3_decimals_intervals_are_brackets_and_repeats_are_said_once() {
+    fn counts_are_integers_rates_have_significant_digits_intervals_are_brackets_and_repeats_are_said_once() {
         let df = df!(
             "detector" => ["seed", "fast"],
             "calibration_trials" => [869.0, 12.0],
@@ -148,13 +135,13 @@ mod tests {
         assert!(html.contains("<th>pd [95 % CI]</th>") && !html.contains("<th>pd_lo"), "{html}");
         assert!(
             html.contains(
-                "<td>seed</td><td>869</td><td>0.511 [0.438, 0.585]</td><td>9.907e-6</td><td>0.009 [0.005, 0.018]</td>"
+                "<td>seed</td><td>869</td><td>0.511 [0.438, 0.585]</td><td>9.907e-6</td><td>9.2e-3 [4.7e-3, 1.8e-2]</td>"
             ),
             "{html}"
         );
         assert!(
             html.contains(
-                "<td>fast</td><td>12</td><td>0.900 [0.800, 0.950]</td><td>0.4378</td><td>0.010 [0.005, 0.020]</td>"
+                "<td>fast</td><td>12</td><td>0.900 [0.800, 0.950]</td><td>0.4378</td><td>1.0e-2 [5.0e-3, 2.0e-2]</td>"
             ),
             "{html}"
         );

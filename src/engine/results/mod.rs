@@ -8,4 +8,5 @@ pub mod summary;
 pub mod summary_spec;
 pub mod tables;
 pub mod tails;
+pub mod text;
 pub mod thresholds;

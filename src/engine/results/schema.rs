@@ -430,8 +430,11 @@ impl FilterHealthColumns {
 /// Units of fault sizes (the `size_unit` column), as records and summaries name them.
 pub mod unit {
     pub const SENSOR_SIGMA: &str = "multiples of the sensor sigma";
+    /// A drift's size: its rate.
+    pub const SENSOR_SIGMA_PER_S: &str = "multiples of the sensor sigma per second";
     pub const GAIN_FACTOR: &str = "gain factor";
     pub const OUTPUT_UNITS: &str = "output units";
+    pub const OUTPUT_UNITS_PER_S: &str = "output units per second";
     /// An actuator fault's size: the input's units (a deviation from the trim for a mapped FMU input).
     pub const INPUT_UNITS: &str = "input units";
     /// A gain whose size bins are deviations `|factor - 1|` of either sign, not factors.

@@ -132,9 +132,7 @@ impl Table<'_> {
     /// `rate [lo, hi]` per row from the columns `name`, `name_lo`, `name_hi`; "-" where there is no rate.
     pub fn rates(&self, name: &str) -> Vec<String> {
         let (rate, lo, hi) = (self.f64s(name), self.f64s(&format!("{name}_lo")), self.f64s(&format!("{name}_hi")));
-        (0..rate.len())
-            .map(|i| if rate[i].is_nan() { "-".into() } else { format!("{:.3} [{:.3}, {:.3}]", rate[i], lo[i], hi[i]) })
-            .collect()
+        (0..rate.len()).map(|i| crate::engine::results::text::rate_interval(rate[i], lo[i], hi[i])).collect()
     }
 
     /// `p50/p90 s` per row from two percentile columns.

@@ -158,11 +158,9 @@ pub fn simulate(study: &AirDataStudy, trial: u64, detector: Option<&str>, out: &
         println!("  fault-free trial");
     } else {
         println!(
-            "  fault               {} {} size {} from {:.3} s",
+            "  fault               {} {}",
             crate::methods::air_data::records::sensor_set(&spec.outputs),
-            spec.fault.kind,
-            spec.fault.size,
-            spec.fault.onset_s
+            spec.fault.label()
         );
     }
     println!("  noise scale {}, gust {:.2} m/s", spec.noise_scale, spec.gust_std_mps);

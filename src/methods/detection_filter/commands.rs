@@ -387,8 +387,7 @@ pub fn simulate(study: &LtiStudy, trial: u64, detector: Option<&str>, out: &Path
     let outputs = &study.plant.output_names;
     match spec.target_name(study) {
         Some(target) => {
-            let size = if spec.fault.size.is_nan() { String::new() } else { format!(" size {}", spec.fault.size) };
-            println!("  fault               {target} {}{size} from {} s", spec.fault.kind, spec.fault.onset_s)
+            println!("  fault               {target} {}", spec.fault.label())
         }
         None => println!("  fault-free trial"),
     }

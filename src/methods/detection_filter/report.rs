@@ -139,9 +139,7 @@ fn draw(
     let root = SVGBackend::new(file, (1100, 80 + 260 * rows)).into_drawing_area();
     root.fill(&WHITE).map_err(e)?;
     let fault = match spec.target_name(study) {
-        Some(target) => {
-            format!("{target} {} size {:.4} from {:.2} s", spec.fault.kind, spec.fault.size, spec.fault.onset_s)
-        }
+        Some(target) => format!("{target} {}", spec.fault.label()),
         None => "fault-free".into(),
     };
     let root = root

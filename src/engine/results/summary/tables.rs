@@ -8,6 +8,7 @@ use polars::prelude::*;
 use crate::engine::results::schema::col;
 use crate::engine::results::schema::unit;
 use crate::engine::results::summary_spec::{Extra, Isolates, SummarySpec};
+use crate::engine::results::text;
 use crate::engine::results::thresholds::DECK;
 use crate::engine::stats::intervals::{Z95, wilson};
 
@@ -233,40 +234,65 @@ pub(super) fn min_detectable(
     let pd = curves.column("pd")?.f64()?.clone();
     let lo = curves.column("pd_lo")?.f64()?.clone();
     type Key = (String, String, String, String);
-    // Per key: (magnitude, size) of the smallest qualifying bin, point estimate and lower bound.
-    let mut rows: Vec<(Key, Option<(f64, f64)>, Option<(f64, f64)>)> = Vec::new();
+    // Per key: (magnitude, size) of the smallest qualifying bin, point estimate and lower bound; and
+    // the largest size flown with its Pd, to say why a key has none.
+    struct Row {
+        key: Key,
+        pd90: Option<(f64, f64)>,
+        lower_bound: Option<(f64, f64)>,
+        largest: Option<(f64, f64, f64)>,
+    }
+    let mut rows: Vec<Row> = Vec::new();
     for i in 0..curves.height() {
         let (Some(k), Some(o), Some(sz)) = (kind.get(i), target.get(i), size.get(i)) else { continue };
-        if pd.get(i).is_none() {
+        let Some(p) = pd.get(i) else {
             continue; // fault-free, or nothing flown
-        }
+        };
         let key: Key =
             (set.get(i).unwrap_or_default().into(), det.get(i).unwrap_or_default().into(), k.into(), o.into());
-        let idx = match rows.iter().position(|r| r.0 == key) {
+        let idx = match rows.iter().position(|r| r.key == key) {
             Some(p) => p,
             None => {
-                rows.push((key, None, None));
+                rows.push(Row { key, pd90: None, lower_bound: None, largest: None });
                 rows.len() - 1
             }
         };
         let factor_bins = k == "gain" && units.get(k).is_none_or(|u| u != unit::GAIN_DEVIATION_BINS);
         let magnitude = if factor_bins { (sz - 1.0).abs() } else { sz.abs() };
         let better = |cur: Option<(f64, f64)>| cur.is_none_or(|(m, _)| magnitude < m);
-        if pd.get(i).is_some_and(|p| p >= 0.9) && better(rows[idx].1) {
-            rows[idx].1 = Some((magnitude, sz));
+        let row = &mut rows[idx];
+        if p >= 0.9 && better(row.pd90) {
+            row.pd90 = Some((magnitude, sz));
         }
-        if lo.get(i).is_some_and(|p| p >= 0.9) && better(rows[idx].2) {
-            rows[idx].2 = Some((magnitude, sz));
+        if lo.get(i).is_some_and(|p| p >= 0.9) && better(row.lower_bound) {
+            row.lower_bound = Some((magnitude, sz));
+        }
+        if row.largest.is_none_or(|(m, _, _)| magnitude > m) {
+            row.largest = Some((magnitude, sz, p));
         }
     }
-    let key = |f: fn(&Key) -> &String| rows.iter().map(|r| f(&r.0).clone()).collect::<Vec<_>>();
+    // A blank says why: no bin reached Pd 0.9 (or its lower bound), up to the largest size flown.
+    let note = |r: &Row| -> Option<String> {
+        let (_, size, p) = r.largest?;
+        let at = format!("the largest size flown, {}, has Pd {}", text::significant(size), text::rate(p));
+        match (r.pd90, r.lower_bound) {
+            (None, _) => Some(format!("no size bin reaches Pd 0.9: {at}")),
+            (Some(_), None) => Some(format!("no size bin's Pd lower 95 % bound reaches 0.9: {at}")),
+            _ => None,
+        }
+    };
+    let key = |f: fn(&Key) -> &String| rows.iter().map(|r| f(&r.key).clone()).collect::<Vec<_>>();
     DataFrame::new_infer_height(vec![
         Column::new("thresholds".into(), key(|k| &k.0)),
         Column::new(col::DETECTOR.into(), key(|k| &k.1)),
         Column::new(col::KIND.into(), key(|k| &k.2)),
         Column::new(col::TARGET.into(), key(|k| &k.3)),
-        Column::new("min_size_pd90".into(), rows.iter().map(|r| r.1.map(|x| x.1)).collect::<Vec<_>>()),
-        Column::new("min_size_pd90_lower_bound".into(), rows.iter().map(|r| r.2.map(|x| x.1)).collect::<Vec<_>>()),
+        Column::new("min_size_pd90".into(), rows.iter().map(|r| r.pd90.map(|x| x.1)).collect::<Vec<_>>()),
+        Column::new(
+            "min_size_pd90_lower_bound".into(),
+            rows.iter().map(|r| r.lower_bound.map(|x| x.1)).collect::<Vec<_>>(),
+        ),
+        Column::new("min_size_note".into(), rows.iter().map(note).collect::<Vec<_>>()),
     ])
 }
 

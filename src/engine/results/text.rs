@@ -1,0 +1,64 @@
+//! Numbers as the console and the report print them, one way for both: rates to their significant
+//! digits (a rate of 4.4e-4 does not read 0.000), intervals beside them.
+
+/// A rate or probability: 3 decimals from 0.1 up (4 when 3 would round it to 1), two significant
+/// digits below (`4.4e-4`), `0` for none, `-` for no value.
+pub fn rate(x: f64) -> String {
+    if x.is_nan() {
+        return "-".into();
+    }
+    if x == 0.0 {
+        return "0".into();
+    }
+    if x < 0.1 {
+        return format!("{x:.1e}");
+    }
+    let three = format!("{x:.3}");
+    if three == "1.000" && x < 1.0 { format!("{x:.4}") } else { three }
+}
+
+/// A rate with its interval: `4.4e-4 [1.7e-4, 1.1e-3]`.
+pub fn rate_interval(x: f64, lo: f64, hi: f64) -> String {
+    if x.is_nan() {
+        return "-".into();
+    }
+    format!("{} [{}, {}]", rate(x), rate(lo), rate(hi))
+}
+
+/// A number to 4 significant digits, without trailing zeros; scientific when very small or large.
+pub fn significant(x: f64) -> String {
+    if x.is_nan() {
+        return "-".into();
+    }
+    if x == 0.0 {
+        return "0".into();
+    }
+    let a = x.abs();
+    if !(1e-3..1e6).contains(&a) {
+        return format!("{x:.3e}");
+    }
+    let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+    let s = format!("{x:.decimals$}");
+    if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn small_rates_keep_their_significant_digits() {
+        // The case: a target of 0.001 read "0.000 [0.000, 0.001]".
+        assert_eq!(rate_interval(4.4e-4, 1.7e-4, 1.1e-3), "4.4e-4 [1.7e-4, 1.1e-3]");
+        assert_eq!(rate(0.0099), "9.9e-3");
+        assert_eq!(rate(0.801134), "0.801");
+        assert_eq!(rate(0.99971), "0.9997");
+        assert_eq!(rate(1.0), "1.000");
+        assert_eq!(rate(0.0), "0");
+        assert_eq!(rate(f64::NAN), "-");
+        assert_eq!(significant(0.030343), "0.03034");
+        assert_eq!(significant(54999.59), "55000");
+        assert_eq!(significant(2.5e7), "2.500e7");
+        assert_eq!(significant(2.5), "2.5");
+    }
+}
