@@ -28,6 +28,10 @@ closed-loop eigenvalues, and `fdimc simulate DECK --trial 0 --out trace.csv` for
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
+    /// Print the details behind the answer too: the rare-false-alarm tail fits' figures per detector
+    /// (otherwise in tail.csv, with any doubt about them among the warnings).
+    #[arg(long, global = true)]
+    pub verbose: bool,
 }
 
 #[derive(Debug, Subcommand)]
@@ -421,6 +425,7 @@ pub fn command(kinds: &[&'static Method]) -> clap::Command {
 /// Runs one parsed command over `kinds` and returns its exit code ([`exit`]).
 pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
     let commands = run::Kinds(kinds);
+    crate::engine::results::summary::set_verbose(cli.verbose);
     let result = match cli.command {
         Command::New { kind, file, force } => commands.exec_new(&kind, &file, force),
         Command::Validate { deck } => commands.exec_validate(&deck),

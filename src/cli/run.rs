@@ -481,6 +481,26 @@ impl Kinds {
             let dir = self.exec_run(args)?;
             (crate::engine::results::tables::read_summary(&dir.join("summary.csv"))?, Some(scratch))
         };
+        let dir = scratch.clone().unwrap_or_else(|| target.to_path_buf());
+        // A baseline copied from another calibration (`summarize --target-pfa P --confidence C`): this
+        // run is calibrated at the baseline's too, so that the rates compare at one false-alarm rate.
+        let current = match crate::engine::results::check::calibration(&base) {
+            Some(wanted) if crate::engine::results::check::calibration(&current) != Some(wanted) => {
+                let calibration = match wanted {
+                    (pfa, Some(confidence)) => Calibration::Confident { pfa, confidence },
+                    (pfa, None) => Calibration::Target(pfa),
+                };
+                let (method, _) = self.method_of_run(&dir)?;
+                let s = summary::summarize(&dir, &method.summary, Some(&calibration))?;
+                println!(
+                    "the baseline's thresholds are calibrated at {}: this run calibrated there too ({})",
+                    crate::engine::results::check::describe(Some(wanted)),
+                    if scratch.is_some() { "in a scratch folder".to_string() } else { s.out_dir.display().to_string() }
+                );
+                crate::engine::results::tables::read_summary(&s.out_dir.join("summary.csv"))?
+            }
+            _ => current,
+        };
         let verdict = crate::engine::results::check::compare(&current, &base, alpha);
         if let Some(s) = scratch {
             let _ = std::fs::remove_dir_all(s);

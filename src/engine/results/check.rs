@@ -81,7 +81,12 @@ fn calibration_of(df: &DataFrame) -> Result<Option<(f64, Option<f64>)>, ()> {
     Ok(value(&target).map(|t| (t, confidence.as_ref().and_then(value))))
 }
 
-fn describe(c: Option<(f64, Option<f64>)>) -> String {
+/// What a summary's calibrated rows were calibrated for, (target Pfa, confidence), when it says.
+pub fn calibration(df: &DataFrame) -> Option<(f64, Option<f64>)> {
+    calibration_of(df).ok().flatten()
+}
+
+pub fn describe(c: Option<(f64, Option<f64>)>) -> String {
     match c {
         Some((p, Some(conf))) => format!("Pfa {p} with {conf} confidence"),
         Some((p, None)) => format!("Pfa {p}"),

@@ -202,6 +202,37 @@ pub(super) struct Aggregates<'s> {
     pub(super) units_seen: Vec<usize>,
     /// The run's `monte_carlo.detection_window_s` (none: to the end of the trial).
     pub(super) detection_window_s: Option<f64>,
+    /// Each varied parameter error's bins, and per (set, detector, fault or none, parameter, its bin)
+    /// the units: `parameter_errors.csv`, which derivative drives the misses.
+    pub(super) parameters: Vec<ParameterBins>,
+    pub(super) by_parameter: HashMap<Vec<u64>, Counts>,
+}
+
+/// How one parameter error's recorded values (`perr_<name>`) are binned for `parameter_errors.csv`:
+/// each value its own bin where the deck lists a few values, else equal bins over the values' span.
+#[derive(Debug, Clone)]
+pub(super) struct ParameterBins {
+    pub(super) name: String,
+    pub(super) column: String,
+    /// `None`: each value is its own bin.
+    pub(super) span: Option<(f64, f64)>,
+}
+
+/// Equal bins of a parameter error drawn from a range (more distinct values than this: a range).
+pub(super) const PARAMETER_BINS: usize = 5;
+pub(super) const LISTED_VALUES_MAX: usize = 12;
+
+impl ParameterBins {
+    fn label(&self, v: f64) -> f64 {
+        match self.span {
+            None => v,
+            Some((lo, hi)) => {
+                let u = if hi > lo { (v - lo) / (hi - lo) } else { 0.0 };
+                let bin = ((u * PARAMETER_BINS as f64) as usize).min(PARAMETER_BINS - 1);
+                crate::engine::scenario::draws::bin_centre(lo, hi, bin, PARAMETER_BINS)
+            }
+        }
+    }
 }
 
 impl<'s> Aggregates<'s> {
@@ -226,6 +257,8 @@ impl<'s> Aggregates<'s> {
             trial: None,
             units_seen: vec![0; nd],
             detection_window_s,
+            parameters: Vec::new(),
+            by_parameter: HashMap::new(),
         }
     }
 
@@ -265,6 +298,10 @@ impl<'s> Aggregates<'s> {
             None => None,
         };
 
+        let parameter_values =
+            (self.parameters.iter().map(|p| f64_col(df, &p.column, file))).collect::<Result<Vec<_>, RunError>>()?;
+        let parameter_ids: Vec<u32> = self.parameters.iter().map(|p| self.names.id(Some(&p.name))).collect();
+        let (fault_id, none_id) = (self.names.id(Some("all faults")), self.names.id(Some(col::NO_FAULT)));
         let mut key = Vec::with_capacity(7 + spec.extra_keys.len());
         let mut extra_row = Vec::with_capacity(spec.extras.len());
         for i in 0..df.height() {
@@ -338,6 +375,17 @@ impl<'s> Aggregates<'s> {
                         g.add(&unit, extras_here, spec);
                         self.groups.insert(key.clone(), g);
                     }
+                }
+                for (j, (p, values)) in self.parameters.iter().zip(&parameter_values).enumerate() {
+                    let Some(v) = values.get(i) else { continue };
+                    let k = vec![
+                        s as u64,
+                        d as u64,
+                        (if faulty { fault_id } else { none_id }) as u64,
+                        parameter_ids[j] as u64,
+                        number_key(Some(p.label(v))),
+                    ];
+                    self.by_parameter.entry(k).or_insert_with(|| Counts::new(spec.extras.len())).add(&unit, None, spec);
                 }
                 let (units, faulty_units, trials) = &mut self.per_detector[s * self.detectors.len() + d];
                 units.add(&unit, extras_here, spec);

@@ -21,6 +21,8 @@
 //! | `confusion.csv` | detector x truth x isolated | at the deck's thresholds: units, and their share of the truth's units (truth: the faulty target, or the kind for classifiers) |
 //! | `comparison.csv` | thresholds x pair of detectors | [`crate::engine::stats::paired`] |
 //! | `thresholds.csv` | detector x statistic (+ `all`) | kinds with a statistic: [`crate::engine::results::thresholds`] |
+//! | `answer.csv` | detector | the answer at a glance, at the thresholds in use: [`answer`] |
+//! | `parameter_errors.csv` | thresholds x detector x (fault or none) x parameter error x its bin | decks with parameter errors: each one's own bins (its listed values, or 5 equal bins over its range), the counts and rates as `summary.csv`'s, so that the derivative that drives the misses shows |
 //!
 //! The parts, in the order data flows: `aggregate.rs` (what the slices add to: interned names, a unit's
 //! result, a group's counts and sketches, the run's aggregates), `tables.rs` (the tables from the
@@ -29,13 +31,14 @@
 //! run slice by slice and writes the tables.
 
 mod aggregate;
+pub mod answer;
 mod precision;
 mod print;
 mod tables;
 mod written;
 
 pub use precision::{PRECISION_RATES, PrecisionMonitor, PrecisionStatus};
-pub use print::print;
+pub use print::{print, set_verbose};
 pub use written::{CALIBRATED, CALIBRATIONS_DIR, SETTINGS_FILE, Settings, Summary, VALIDATION, VALIDATION_DIR};
 
 use std::collections::HashMap;
@@ -131,6 +134,8 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     }
 
     let mut agg = Aggregates::new(spec, sets.clone(), &manifest.detectors, manifest.detection_window_s);
+    agg.parameters = parameter_bins(&path, &manifest, &columns)?;
+    select.extend(agg.parameters.iter().map(|p| p.column.clone()));
     let calibrated = thresholds.as_ref().map(|(t, _)| (t.as_slice(), statistics.as_slice()));
     for df in slices(&path, manifest.rows as usize, SLICE_ROWS, &select) {
         agg.add_slice(&df?, &path, calibrated)?;
@@ -158,6 +163,22 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
         .collect();
     let mut summary = group_table(&groups, &keys, &names, &sets, spec, true).map_err(pol(&path))?;
 
+    let mut by_parameter = if agg.parameters.is_empty() {
+        None
+    } else {
+        let groups: Vec<(Vec<u64>, Counts)> = std::mem::take(&mut agg.by_parameter)
+            .into_iter()
+            .map(|(mut k, c)| {
+                k[1] = detector_ids[k[1] as usize] as u64;
+                (k, c)
+            })
+            .collect();
+        let keys = KeyColumns {
+            names: ["thresholds", col::DETECTOR, col::KIND, "parameter", "error_bin"].map(String::from).to_vec(),
+            text: vec![true, true, true, true, false],
+        };
+        Some(group_table(&groups, &keys, &names, &sets, spec, false).map_err(pol(&path))?)
+    };
     let mut curves_map: HashMap<Vec<u64>, Counts> = HashMap::new();
     for (k, c) in &groups {
         curves_map.entry(k[..5].to_vec()).or_insert_with(|| Counts::new(spec.extras.len())).merge(c);
@@ -180,7 +201,8 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     let mut detectors = detector_table(&agg, &sets, spec).map_err(pol(&path))?;
     let target_pfa = thresholds.as_ref().and_then(|(t, _)| t.first().and_then(|t| t.target_pfa));
     let confidence = thresholds.as_ref().and_then(|(t, _)| t.first().and_then(|t| t.confidence));
-    for df in [&mut summary, &mut curves, &mut min_detectable, &mut detectors] {
+    for df in [&mut summary, &mut curves, &mut min_detectable, &mut detectors].into_iter().chain(by_parameter.as_mut())
+    {
         with_calibration(df, target_pfa, confidence).map_err(pol(&path))?;
     }
     let mut confusion = confusion_table(&agg, &names).map_err(pol(&path))?;
@@ -192,11 +214,42 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
         write_thresholds(&dir_out, t, &statistics, source)?;
         files.push("thresholds.csv");
         tails = crate::engine::results::tails::tails(&path, &manifest, &statistics, t, set)?;
+        // A doubt about a figure the fit gives is a warning; the fit's details are tail.csv's (and
+        // `--verbose`'s). At thresholds inside the data the fit gives no figure to doubt.
+        for tail in tails.iter().filter(|t| !t.concerns.is_empty() && (t.at_set.is_some() || !t.targets.is_empty())) {
+            warnings.push(format!(
+                "rare false alarms of {} at the {} thresholds: do not trust the tail fit's figures ({}); tail.csv",
+                tail.detector,
+                tail.set,
+                tail.concerns.join("; ")
+            ));
+        }
         crate::engine::results::tails::write_tail_tables(&dir_out, &tails, &statistics)?;
         files.extend(["tail.csv", "tail_diagnostics.csv"]);
         let points = crate::engine::results::roc::roc(&path, &manifest, &statistics, t)?;
         crate::engine::results::roc::write_roc(&dir_out, &points, target_pfa, confidence, validating)?;
         files.push("roc.csv");
+    }
+    let mut answer = {
+        let set_name = answer::set_in_use(&detectors);
+        let named = |v: &[f64]| -> String {
+            let text = crate::engine::results::text::significant;
+            statistics.iter().zip(v).map(|(n, v)| format!("{n} {}", text(*v))).collect::<Vec<_>>().join(", ")
+        };
+        let (values, source): (Vec<(String, String)>, String) = match &thresholds {
+            Some((t, source)) if set_name != DECK => {
+                (t.iter().map(|t| (t.detector.clone(), named(&t.whole))).collect(), source.clone())
+            }
+            Some((t, _)) => (t.iter().map(|t| (t.detector.clone(), named(&t.deck))).collect(), "the deck's".into()),
+            None => (Vec::new(), "the deck's decision rule".into()),
+        };
+        answer::answer(&set_name, &values, &source, &summary, &detectors, &min_detectable).map_err(pol(&path))?
+    };
+    write_table(&mut answer, &out(answer::ANSWER_FILE))?;
+    files.push(answer::ANSWER_FILE);
+    if let Some(df) = &mut by_parameter {
+        write_table(df, &out(PARAMETER_ERRORS_FILE))?;
+        files.push(PARAMETER_ERRORS_FILE);
     }
     write_table(&mut summary, &out("summary.csv"))?;
     write_parquet(&mut summary, &out("summary.parquet"))?;
@@ -246,7 +299,62 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     let settings_path = out(SETTINGS_FILE);
     crate::engine::run::runner::write_atomically(&settings_path, json.as_bytes())?;
     files.push(SETTINGS_FILE);
-    Ok(Summary { statistics, thresholds, tails, summary, detectors, confusion, warnings, files, out_dir: dir_out, set })
+    Ok(Summary {
+        statistics,
+        thresholds,
+        tails,
+        summary,
+        detectors,
+        confusion,
+        answer,
+        warnings,
+        files,
+        out_dir: dir_out,
+        set,
+    })
+}
+
+/// `parameter_errors.csv`: the units by each parameter error's own bins.
+pub const PARAMETER_ERRORS_FILE: &str = "parameter_errors.csv";
+
+/// The bins of each parameter error the run records (`perr_<name>` columns): its listed values when
+/// it has a few, else [`aggregate::PARAMETER_BINS`] equal bins over the values recorded (a first pass
+/// over those columns alone).
+fn parameter_bins(
+    path: &Path,
+    manifest: &crate::engine::run::runner::Manifest,
+    columns: &[String],
+) -> Result<Vec<aggregate::ParameterBins>, RunError> {
+    let perr: Vec<String> = columns.iter().filter(|c| c.starts_with(col::PERR_PREFIX)).cloned().collect();
+    if perr.is_empty() {
+        return Ok(Vec::new());
+    }
+    let mut seen: Vec<(Vec<u64>, f64, f64)> = vec![(Vec::new(), f64::INFINITY, f64::NEG_INFINITY); perr.len()];
+    for df in slices(path, manifest.rows as usize, SLICE_ROWS, &perr) {
+        let df = df?;
+        for (c, s) in perr.iter().zip(seen.iter_mut()) {
+            for v in crate::engine::results::tables::f64_col(&df, c, path)?.iter().flatten() {
+                (s.1, s.2) = (s.1.min(v), s.2.max(v));
+                if s.0.len() <= aggregate::LISTED_VALUES_MAX && !s.0.contains(&v.to_bits()) {
+                    s.0.push(v.to_bits());
+                }
+            }
+        }
+    }
+    Ok(perr
+        .iter()
+        .zip(seen)
+        .map(|(c, (distinct, lo, hi))| aggregate::ParameterBins {
+            name: c[col::PERR_PREFIX.len()..].to_string(),
+            column: c.clone(),
+            // The drawn values' span rounded to 2 digits of its width: the deck's range, as drawn
+            // values come within a hair of its ends (-0.19994 .. 0.19997 for -0.2 .. 0.2).
+            span: (distinct.len() > aggregate::LISTED_VALUES_MAX).then(|| {
+                let q = 10f64.powi((hi - lo).log10().floor() as i32 - 1);
+                ((lo / q).round() * q, (hi / q).round() * q)
+            }),
+        })
+        .collect())
 }
 
 /// Summaries of hand-made records for the kinds' tests: written, summarised and read back.
@@ -371,6 +479,15 @@ mod tests {
         let units = [("gain".to_string(), unit::GAIN_DEVIATION_BINS.to_string())].into();
         assert_eq!(smallest(&deviations, &units), Some(0.0917));
         assert_eq!(smallest(&deviations, &none), Some(0.2583), "read as factors, the largest is nearest 1");
+
+        // A blank says why.
+        let missed = min_detectable(&curves([3.0, 7.0, 11.0], [0.2, 0.6, 0.85]), &none).unwrap();
+        let note = missed.column("min_size_note").unwrap().str().unwrap().get(0).map(String::from);
+        assert_eq!(note.as_deref(), Some("no size bin reaches Pd 0.9: the largest size flown, 11, has Pd 0.850"));
+        assert_eq!(
+            min_detectable(&factors, &none).unwrap().column("min_size_note").unwrap().str().unwrap().get(0),
+            None
+        );
     }
 
     /// Each centre gets the edges of its kind's bin: a range of 2-20 in 3 bins, a second population of

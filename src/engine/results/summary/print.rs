@@ -3,14 +3,24 @@
 use crate::engine::results::schema::col;
 use crate::engine::results::summary_spec::{Isolates, SummarySpec};
 use crate::engine::results::tables::Table;
+use crate::engine::results::text::rate;
 use crate::engine::results::thresholds::per_flight_hour;
 use crate::engine::stats::intervals::{Z95, wilson};
 
+/// `--verbose`: print the details behind the answer too (the tail fits' figures).
+static VERBOSE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Sets `--verbose` for the process (the command line's flag).
+pub fn set_verbose(on: bool) {
+    VERBOSE.store(on, std::sync::atomic::Ordering::Relaxed);
+}
+
 use super::written::{Summary, VALIDATION};
 
-/// What `run`, `summarize` and `merge` print: the thresholds (kinds with a statistic), per threshold set
-/// and detector Pd, isolation, delay and Pfa with the kind's printed aggregates, a classifier's
-/// confusion matrices, warnings and the files written.
+/// What `run`, `summarize` and `merge` print: the thresholds (kinds with a statistic; the tail fits'
+/// figures with `--verbose`), per threshold set and detector Pd, isolation, delay and Pfa with the
+/// kind's printed aggregates, a classifier's confusion matrices, warnings, the files written and, last,
+/// the answer ([`super::answer`]).
 pub fn print(spec: &SummarySpec, s: &Summary) {
     if let Some((thresholds, source)) = &s.thresholds {
         println!("  thresholds: {source}");
@@ -24,26 +34,33 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
                 Some(VALIDATION) => ("applied", "this run's trials"),
                 _ => ("calibrated", "the calibration trials"),
             };
-            let rate = t.whole_false_alarms as f64 / t.calibration_units.max(1) as f64;
+            let p = t.whole_false_alarms as f64 / t.calibration_units.max(1) as f64;
             let per_hour = t.unit_duration_s.map_or(String::new(), |d| {
                 let h = |p: f64| per_flight_hour(p, d);
                 format!(
-                    ", per flight hour {:.4} [{:.4}, {:.4}] (the hour's {d} s segments taken as independent)",
-                    h(rate),
-                    h(lo),
-                    h(hi)
+                    ", per flight hour {} [{}, {}] (the hour's {d} s segments taken as independent)",
+                    rate(h(p)),
+                    rate(h(lo)),
+                    rate(h(hi))
                 )
             });
             println!(
-                "    {}: {label} [{}] (deck [{}]); Pfa achieved {}/{} = {rate:.4} [{lo:.4}, {hi:.4}] on {trials}{per_hour}",
+                "    {}: {label} [{}] (deck [{}]); Pfa achieved {}/{} = {} [{}, {}] on {trials}{per_hour}",
                 t.detector,
                 list(&t.whole),
                 list(&t.deck),
                 t.whole_false_alarms,
                 t.calibration_units,
+                rate(p),
+                rate(lo),
+                rate(hi),
             );
         }
-        crate::engine::results::tails::print_tails(&s.tails);
+        if VERBOSE.load(std::sync::atomic::Ordering::Relaxed) {
+            crate::engine::results::tails::print_tails(&s.tails);
+        } else if !s.tails.is_empty() {
+            println!("  rare false alarms: the tail fits are in tail.csv (and printed with --verbose)");
+        }
     }
     let t = Table(&s.detectors);
     let (sets, names, units, flights) =
@@ -51,7 +68,9 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
     let (pd, iso, pfa) = (t.rates("pd"), t.rates("isolation_accuracy"), t.rates("pfa"));
     let delay = t.delays("delay_p50_s", "delay_p90_s");
     let own: Vec<Vec<f64>> = spec.printed.iter().map(|(_, c)| t.f64s(c)).collect();
-    println!("  per detector, paired over the same trials (summary.csv for groups, comparison.csv for the tests):");
+    println!(
+        "  per detector, paired over the same trials (summary.csv for groups, comparison.csv for the tests; flights: every flight, Pfa its false alarms before the onset):"
+    );
     let mut header = format!(
         "    {:<10} {:<16} {:>7} {:<21} {:<21} {:>14} {:>7} {:<21}",
         "thresholds",
@@ -106,10 +125,11 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
             }
         }
     }
+    println!("  wrote {} in {}", s.files.join(", "), s.out_dir.display());
+    super::answer::print(&s.answer);
     for w in &s.warnings {
         println!("  warning: {w}");
     }
-    println!("  wrote {} in {}", s.files.join(", "), s.out_dir.display());
 }
 
 /// A threshold with four significant digits, in scientific notation when it is very small or large.

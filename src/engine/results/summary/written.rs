@@ -26,6 +26,8 @@ pub struct Summary {
     pub summary: DataFrame,
     pub detectors: DataFrame,
     pub confusion: DataFrame,
+    /// `answer.csv`: the answer at a glance ([`super::answer`]).
+    pub answer: DataFrame,
     pub warnings: Vec<String>,
     pub files: Vec<&'static str>,
     /// The folder the tables went to: the run's, or its `validation/`.
