@@ -188,7 +188,7 @@ pub fn write_report(dir: &Path, trials: &[u64], method: &KindReport, refly: &mut
             plots::confusion(&file, d, &manifest.outputs, counts).map_err(internal(&file))?;
             report.files.push(file);
         }
-        if let Some(points) = false_alarms.get(d).filter(|p| !p.is_empty()) {
+        if let Some(points) = false_alarms.get(d).filter(|p| plots::false_alarms_vary(p)) {
             let file = out.join(format!("false_alarms_{d}.svg"));
             plots::false_alarms(&file, d, set, points).map_err(internal(&file))?;
             report.files.push(file);
@@ -680,6 +680,33 @@ fn table_of(dir: &Path, name: &str, skip: &[&str]) -> Result<Option<String>, Run
     Ok((df.height() > 0).then(|| html::table(&df, skip)))
 }
 
+/// [`table_of`] with the columns `leading` first (those it has), so the rates a reader looks for are
+/// not off-screen behind a scrollbar.
+fn table_of_leading(dir: &Path, name: &str, leading: &[&str]) -> Result<Option<String>, RunError> {
+    let path = dir.join(name);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let df = read_summary(&path)?;
+    if df.height() == 0 {
+        return Ok(None);
+    }
+    let names: Vec<String> = df.get_column_names().iter().map(|n| n.to_string()).collect();
+    let mut order: Vec<&str> = leading.iter().copied().filter(|l| names.iter().any(|n| n == l)).collect();
+    order.extend(names.iter().map(String::as_str).filter(|n| !leading.contains(n)));
+    let df = df.select(order).map_err(polars_error(&path))?;
+    Ok(Some(html::table(&df, &[])))
+}
+
+/// A long table folded away under its name and row count; the page's figures stay in view.
+fn folded(name: &str, table: String) -> String {
+    if table.is_empty() {
+        return table;
+    }
+    let rows = table.matches("<tr>").count().saturating_sub(1);
+    format!("<details><summary><code>{name}</code>: {rows} rows</summary>\n{table}</details>\n")
+}
+
 fn page(
     dir: &Path,
     m: &Manifest,
@@ -708,9 +735,12 @@ fn page(
         "Detectors",
         &format!(
             "Over all fault sizes, per detector and threshold set; rates with 95 % Wilson intervals. \
-             The report's plots use the <b>{set}</b> thresholds. Table: <code>detectors.csv</code>."
+             <code>flights</code>: every flight, <code>pfa</code> its false alarms before the onset (the answer \
+             above counts fault-free flights). The report's plots use the <b>{set}</b> thresholds. Table: \
+             <code>detectors.csv</code>."
         ),
-        table_of(dir, "detectors.csv", &[])?.unwrap_or_default(),
+        table_of_leading(dir, "detectors.csv", &["thresholds", "detector", "flights", "pfa", "faulty_units", "pd"])?
+            .unwrap_or_default(),
     );
     section(
         "Thresholds",
@@ -733,8 +763,11 @@ fn page(
          beyond the data; <code>trust</code> says what the data say against it. The shape should stay put \
          over the thresholds of <code>tail_diagnostics.csv</code>. Table: <code>tail.csv</code>.",
         figures("tail_")
-            + &table_of(dir, "tail.csv", &["pfa_per_hour_lo", "pfa_per_hour_hi", "estimate"])?.unwrap_or_default()
-            + &table_of(dir, "tail_diagnostics.csv", &[])?.unwrap_or_default(),
+            + &folded(
+                "tail.csv",
+                table_of(dir, "tail.csv", &["pfa_per_hour_lo", "pfa_per_hour_hi", "estimate"])?.unwrap_or_default(),
+            )
+            + &folded("tail_diagnostics.csv", table_of(dir, "tail_diagnostics.csv", &[])?.unwrap_or_default()),
     );
     section(
         "Rare false alarms by simulation",
@@ -787,6 +820,22 @@ fn page(
         figures("false_alarms_") + &fa_table,
     );
     section(
+        "Parameter errors, one at a time",
+        "Each varied parameter's error in bins of its own (its listed values, or 5 equal bins over its range; \
+         <code>error_bin</code> the bin's centre), every threshold set, faulty units and fault-free flights \
+         (<code>kind</code> <code>none</code>) apart: the derivative whose error moves Pd or Pfa is the one to model \
+         better. Table: <code>parameter_errors.csv</code>.",
+        folded(
+            crate::engine::results::summary::PARAMETER_ERRORS_FILE,
+            table_of_leading(
+                dir,
+                crate::engine::results::summary::PARAMETER_ERRORS_FILE,
+                &["thresholds", "detector", "kind", "parameter", "error_bin", "units", "pd", "pfa"],
+            )?
+            .unwrap_or_default(),
+        ),
+    );
+    section(
         "Paired comparison",
         "Every pair of detectors on the same trials: exact McNemar tests on the discordant trials, median delay \
          difference over trials both detected. Table: <code>comparison.csv</code>.",
@@ -805,11 +854,65 @@ fn page(
         &format!("Re-flown from the run's deck with <code>fdimc simulate</code>.{}", r.trace_note),
         figures("trace_"),
     );
-    Ok(shell(m, &r.warnings, &body))
+    Ok(shell(m, &answer_block(dir)?, &r.warnings, &body))
 }
 
-/// The page around a report's sections: the provenance of the run and its warnings.
-fn shell(m: &Manifest, warnings: &[String], body: &str) -> String {
+/// The answer block at the top of the page, from `answer.csv`: per detector at the thresholds in use,
+/// the false-alarm probability on fault-free flights, Pd overall and per fault kind, the delays, the
+/// smallest detectable faults and where the thresholds came from. Empty for a folder summarized by an
+/// older fdimc (it says how to get one).
+pub(crate) fn answer_block(dir: &Path) -> Result<String, RunError> {
+    use crate::engine::results::tables::Table;
+    use html::escape;
+    let path = dir.join(crate::engine::results::summary::answer::ANSWER_FILE);
+    if !path.exists() {
+        return Ok(format!(
+            "<div id=\"answer\"><h2>Answer</h2><p>No <code>answer.csv</code>: run <code>fdimc summarize {}</code> for it.</p></div>\n",
+            escape(&dir.display().to_string())
+        ));
+    }
+    let df = read_summary(&path)?;
+    let t = Table(&df);
+    let (sets, names, sources, values) =
+        (t.strs("thresholds"), t.strs("detector"), t.strs("threshold_source"), t.strs("threshold_values"));
+    let (flights, alarms, faulty) =
+        (t.u64s("fault_free_flights"), t.u64s("fault_free_false_alarms"), t.u64s("faulty_units"));
+    let (pfa, pd) = (t.rates("pfa_fault_free"), t.rates("pd"));
+    let delay = t.delays("delay_p50_s", "delay_p90_s");
+    let (per_kind, detectable) = (t.strs("pd_by_fault"), t.strs("min_size_pd90"));
+    let cell = |s: &str| if s.is_empty() { "-".to_string() } else { escape(s) };
+    let list = |s: &str| if s.is_empty() { "-".to_string() } else { escape(s).replace("; ", "<br>") };
+    let mut rows = String::new();
+    for i in 0..df.height() {
+        let quiet = if flights[i] > 0 {
+            format!("{}<br><small>{} of {}</small>", pfa[i], alarms[i], flights[i])
+        } else {
+            "-".into()
+        };
+        let caught = if faulty[i] > 0 { format!("{}<br><small>of {}</small>", pd[i], faulty[i]) } else { "-".into() };
+        rows.push_str(&format!(
+            "<tr><th>{}</th><td>{quiet}</td><td>{caught}</td><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td class=\"l\"><small>{}</small></td></tr>\n",
+            escape(&names[i]),
+            delay[i],
+            list(&per_kind[i]),
+            list(&detectable[i]),
+            cell(&values[i]),
+        ));
+    }
+    let set = sets.first().cloned().unwrap_or_default();
+    let source = sources.first().cloned().unwrap_or_default();
+    Ok(format!(
+        "<div id=\"answer\"><h2>Answer</h2>\n<p>At the <b>{}</b> thresholds ({}); rates with 95 % Wilson intervals. \
+         Table: <code>answer.csv</code>.</p>\n<table class=\"answer\">\n<tr><th>detector</th><th>Pfa on fault-free flights</th>\
+         <th>Pd, all faults</th><th>delay p50/p90</th><th>Pd by fault</th><th>smallest fault with Pd &ge; 0.9</th><th>thresholds</th></tr>\n{rows}</table></div>\n",
+        escape(&set),
+        escape(&source)
+    ))
+}
+
+/// The page around a report's sections: the answer (none for a sensitivity run), the warnings, then
+/// the provenance of the run.
+fn shell(m: &Manifest, answer: &str, warnings: &[String], body: &str) -> String {
     use html::escape;
     let warnings = if warnings.is_empty() {
         "<p>None.</p>".to_string()
@@ -819,11 +922,13 @@ fn shell(m: &Manifest, warnings: &[String], body: &str) -> String {
     format!(
         r#"<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>fdimc report: {study}</title>
-<style>body{{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}}
+<style>body{{font-family:sans-serif;max-width:1300px;margin:1em auto;padding:0 1em}}h1{{margin:0.3em 0}}
 table{{border-collapse:collapse;font-size:85%;margin:0.5em 0}}td,th{{border:1px solid #ccc;padding:2px 6px;text-align:right}}
-.same{{font-size:85%;color:#444}}.left td{{text-align:left}}figure{{display:inline-block;margin:0.5em}}img{{max-width:100%}}code{{background:#f4f4f4}}</style></head>
+.same{{font-size:85%;color:#444}}.left td{{text-align:left}}.answer td{{white-space:nowrap}}.answer td.l{{text-align:left;max-width:24em;white-space:normal}}.answer small{{color:#555}}figure{{display:inline-block;margin:0.5em}}img{{max-width:100%}}code{{background:#f4f4f4}}</style></head>
 <body>
 <h1>fdimc report: {study}</h1>
+{answer}<h2>Warnings</h2>
+{warnings}
 <h2>Provenance</h2>
 <table class="left">
 <tr><th>kind</th><td>{kind}</td></tr>
@@ -836,8 +941,6 @@ table{{border-collapse:collapse;font-size:85%;margin:0.5em 0}}td,th{{border:1px 
 <tr><th>fdimc</th><td>{version}</td></tr>
 <tr><th>command</th><td><code>{cmd}</code></td></tr>
 </table>
-<h2>Warnings</h2>
-{warnings}
 {body}</body></html>
 "#,
         study = escape(&m.study),

@@ -423,14 +423,37 @@ pub fn confusion(
     figure.present().map_err(e)
 }
 
+/// Whether [`false_alarms`] has something to draw against: more than one noise bin or parameter-error
+/// bin (with one of each, a single point, the table says it).
+pub fn false_alarms_vary(points: &[(f64, f64, f64, f64, f64, u64)]) -> bool {
+    distinct(points.iter().map(|p| p.0)) > 1 || distinct(points.iter().map(|p| p.1)) > 1
+}
+
+fn distinct(values: impl Iterator<Item = f64>) -> usize {
+    let mut v: Vec<f64> = values.collect();
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    v.len()
+}
+
 /// False-alarm probability per trial against the noise scale, one series per parameter-error bin, with
-/// 95 % Wilson intervals as bars. `points`: (noise bin, parameter-error bin, rate, lo, hi, trials).
+/// 95 % Wilson intervals as bars; against the parameter-error bin, one series per noise scale, when
+/// the noise has one scale only (a single column of points otherwise). `points`: (noise bin,
+/// parameter-error bin, rate, lo, hi, trials).
 pub fn false_alarms(
     file: &Path,
     detector: &str,
     set_name: &str,
     points: &[(f64, f64, f64, f64, f64, u64)],
 ) -> Result<(), String> {
+    let by_error = distinct(points.iter().map(|p| p.0)) < 2;
+    let points: Vec<_> =
+        if by_error { points.iter().map(|p| (p.1, p.0, p.2, p.3, p.4, p.5)).collect() } else { points.to_vec() };
+    let (x_desc, series) = if by_error {
+        ("parameter error (bin: the largest |error| of the trial's parameters)", "noise scale")
+    } else {
+        ("noise scale (bin)", "parameter error bin")
+    };
     let (x0, x1) = points.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| (a.min(p.0), b.max(p.0)));
     let pad = ((x1 - x0) * 0.08).max(0.05);
     let top = points.iter().map(|p| p.4).fold(0.0, f64::max).max(0.01) * 1.1;
@@ -444,7 +467,7 @@ pub fn false_alarms(
     .map_err(e)?;
     chart
         .configure_mesh()
-        .x_desc("noise scale (bin)")
+        .x_desc(x_desc)
         .y_desc("false-alarm probability per fault-free trial")
         .label_style((FONT, 14))
         .draw()
@@ -461,7 +484,7 @@ pub fn false_alarms(
         chart
             .draw_series(LineSeries::new(pts.iter().map(|p| (p.0, p.1)), c.stroke_width(2)))
             .map_err(e)?
-            .label(format!("parameter error bin {b}"))
+            .label(format!("{series} {b}"))
             .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], c.stroke_width(2)));
         chart
             .draw_series(pts.iter().map(|p| PathElement::new([(p.0, p.2), (p.0, p.3)], c.stroke_width(2))))

@@ -55,7 +55,7 @@ pub(super) fn write(dir: &Path, manifest: &Manifest) -> Result<Report, RunError>
         table = table_of(dir, "sensitivity.csv", &[])?.unwrap_or_default(),
     );
     let html = out.join("report.html");
-    write_atomically(&html, shell(manifest, &report.warnings, &body).as_bytes())?;
+    write_atomically(&html, shell(manifest, "", &report.warnings, &body).as_bytes())?;
     report.files.push(html);
     Ok(report)
 }
