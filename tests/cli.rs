@@ -3655,3 +3655,58 @@ fn the_profile_grid_keeps_every_count_and_threshold_of_the_full_profiles() {
     assert!(bytes(&grid) * 3 < bytes(&full), "{} B on the grid, {} B full", bytes(&grid), bytes(&full));
     assert_replay_repeats_the_trials(&grid);
 }
+
+/// The newcomer's path of issue 51: a deck from `fdimc new` (with parameter errors), calibrated at
+/// 0.001 with 0.95 confidence, that calibration's summary copied as the baseline, and a check of a
+/// fresh run of the same deck: no false regression (the check calibrates at the baseline's target, not
+/// the deck's 0.01, which gave three "REGRESSION"s). On the way: the answer block ends the console
+/// output with the fault-free Pfa to its significant digits, the tail fits' figures only behind
+/// --verbose, and parameter_errors.csv groups by each parameter's own bins.
+#[test]
+fn the_newcomers_path_calibrates_copies_a_baseline_and_checks_without_false_regressions() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (deck, out) = (tmp.path().join("own.toml"), tmp.path().join("own"));
+    let (deck_s, out_s) = (deck.to_str().unwrap(), out.to_str().unwrap());
+    let ok = |o: &Output| {
+        assert!(o.status.success(), "{}{}", text(&o.stdout), text(&o.stderr));
+        text(&o.stdout)
+    };
+    ok(&fdimc(&["new", "detection_filter", deck_s]));
+    let run = ok(&fdimc(&["run", deck_s, "--out", out_s]));
+    let answer = run.split("  answer, at the calibrated thresholds").nth(1).expect("the answer block ends the output");
+    assert!(answer.contains("Pfa 9.2e-3 [4.7e-3, 1.8e-2] on 869 fault-free flights"), "{run}");
+    assert!(answer.contains("Pd by fault: bias "), "{run}");
+    assert!(!run.contains("do not trust: shape"), "tail details only with --verbose: {run}");
+    let verbose = ok(&fdimc(&["summarize", out_s, "--verbose"]));
+    assert!(verbose.contains("rare false alarms (generalised Pareto fit"), "{verbose}");
+
+    // Each parameter error by its own bins: 5 of pitch_moment's -0.2..0.2, 3 of elevator's -0.1..0.1,
+    // per threshold set (2), detector (2) and fault-free or faulty (2).
+    let by_parameter = csv_frame(&out.join("parameter_errors.csv"));
+    assert_eq!(by_parameter.height(), (5 + 3) * 2 * 2 * 2);
+    let bins = |name: &str| -> Vec<f64> {
+        let p = by_parameter.column("parameter").unwrap().str().unwrap().clone();
+        let b = by_parameter.column("error_bin").unwrap().f64().unwrap().clone();
+        let mut v: Vec<f64> = (0..p.len()).filter(|&i| p.get(i) == Some(name)).filter_map(|i| b.get(i)).collect();
+        v.sort_by(f64::total_cmp);
+        v.dedup();
+        v
+    };
+    assert_eq!(bins("pitch_moment"), [-0.16, -0.08, 0.0, 0.08, 0.16]);
+    assert_eq!(bins("elevator"), [-0.066666666667, 0.0, 0.066666666667]);
+    // The largest-|error| bin of summary.csv without last-bit noise: 0 is 0, +-1/15 one group.
+    let summary = csv_frame(&out.join("summary.csv"));
+    let mut largest: Vec<f64> = summary.column("param_error_bin").unwrap().f64().unwrap().into_no_null_iter().collect();
+    largest.sort_by(f64::total_cmp);
+    largest.dedup();
+    assert_eq!(largest, [0.0, 0.066666666667, 0.08, 0.16]);
+
+    ok(&fdimc(&["summarize", out_s, "--target-pfa", "0.001", "--confidence", "0.95"]));
+    let baseline = tmp.path().join("baseline.csv");
+    std::fs::copy(out.join("calibrations/pfa_1e-3_confidence_0.95/summary.csv"), &baseline).unwrap();
+    let check = fdimc(&["check", deck_s, "--baseline", baseline.to_str().unwrap()]);
+    let said = text(&check.stdout);
+    assert_eq!(check.status.code(), Some(0), "{said}{}", text(&check.stderr));
+    assert!(said.contains("the baseline's thresholds are calibrated at Pfa 0.001 with 0.95 confidence"), "{said}");
+    assert!(!said.contains("REGRESSION") && said.contains(": 0 regression(s)"), "{said}");
+}

@@ -41,6 +41,7 @@ mod tests {
             ("replay_px4", "accelerometer"), // method 003 on a real log (README "Real flight logs")
             ("seed004", "surface_bank"),
             ("fmu_", "detection_filter"), // method 000 on an FMU truth (docs/fmu.md)
+            ("starter_detection_filter", "detection_filter"), // `fdimc new detection_filter`
         ];
         let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
         // The FMU decks fly the test FMUs, built from fmus/ as `cargo run --example build_fmus` does.
@@ -61,7 +62,7 @@ mod tests {
             (method.load)(&text, &path).unwrap();
             decks += 1;
         }
-        assert_eq!(decks, 38);
+        assert_eq!(decks, 39);
     }
 
     /// The shared `[monte_carlo]` fields are read by one piece of code: every kind says the same of the

@@ -62,7 +62,7 @@ pub static METHOD: Method = Method {
     report: Some(report::report_part),
     trace_panels: &[],
     own_plots: &[],
-    starter: ("studies/ci_seed000.toml", include_str!("../../../studies/ci_seed000.toml")),
+    starter: ("studies/starter_detection_filter.toml", include_str!("../../../studies/starter_detection_filter.toml")),
 };
 
 impl Study for LtiStudy {
