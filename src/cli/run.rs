@@ -101,55 +101,6 @@ fn summarize(method: &Method, dir: &Path, calibration: Option<&Calibration>, pri
     Ok(())
 }
 
-/// `fdimc log`: what a flight log holds (every topic instance: samples, span, mean rate, largest gap),
-/// and with `topic` the spread of each of that instance's number fields.
-pub fn exec_log(file: &Path, topic: Option<&str>, instance: u8) -> Result<(), CliError> {
-    use crate::engine::logs::flight_log::{field_spreads, survey};
-    let (topics, ending) = survey(file).map_err(|e| CliError::Invalid(e.to_string()))?;
-    println!(
-        "{}: {} topic instances, {}",
-        file.display(),
-        topics.len(),
-        ending.as_deref().unwrap_or("read to its end")
-    );
-    println!(
-        "{:<32} {:>8} {:>8} {:>10} {:>10} {:>9} {:>14} {:>14}",
-        "topic", "instance", "samples", "first_s", "last_s", "rate_hz", "largest_gap_s", "not_increasing"
-    );
-    for t in topics.iter().filter(|t| topic.is_none_or(|name| t.topic == name)) {
-        println!(
-            "{:<32} {:>8} {:>8} {:>10.3} {:>10.3} {:>9.2} {:>14.4} {:>14}",
-            t.topic,
-            t.instance,
-            t.samples,
-            t.first_s,
-            t.last_s,
-            t.mean_rate_hz(),
-            t.largest_gap_s,
-            t.not_increasing
-        );
-    }
-    if let Some(name) = topic {
-        let spreads = field_spreads(file, name, instance).map_err(|e| CliError::Invalid(e.to_string()))?;
-        println!(
-            "\n{name} instance {instance}: number fields (difference sd = sd of sample-to-sample differences / sqrt 2, the white noise when the signal moves slowly; r(l) = autocorrelation at l samples, 0 for white noise)"
-        );
-        let lags = crate::engine::logs::flight_log::AUTOCORRELATION_LAGS.map(|l| format!("r({l})"));
-        println!(
-            "{:<32} {:>14} {:>14} {:>14} {:>7} {:>7} {:>7} {:>7}",
-            "field", "mean", "sd", "difference_sd", lags[0], lags[1], lags[2], lags[3]
-        );
-        for f in spreads {
-            let r = f.autocorrelation;
-            println!(
-                "{:<32} {:>14.6e} {:>14.6e} {:>14.6e} {:>7.3} {:>7.3} {:>7.3} {:>7.3}",
-                f.field, f.mean, f.sd, f.difference_sd, r[0], r[1], r[2], r[3]
-            );
-        }
-    }
-    Ok(())
-}
-
 /// The commands over the kinds of study this command line knows: fdimc's own and, through
 /// [`crate::cli::main_with`], a caller's.
 pub struct Kinds(pub &'static [&'static Method]);
