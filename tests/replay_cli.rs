@@ -1,5 +1,6 @@
 //! Replaying flight logs through the real `fdimc` binary (issue 51, the replay half): `fdimc log`'s
-//! messages, time base and plot.
+//! messages, time base and plot, what a replay run records and warns of, and the report's replay
+//! section.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -47,6 +48,11 @@ fn edited_deck(dir: &Path, source: &str, edits: &[(&str, &str)], name: &str) -> 
     let path = dir.join(name);
     std::fs::write(&path, deck.replace("file = \"logs/", &format!("file = \"{}", logs.display()))).unwrap();
     path
+}
+
+fn sha256_hex(path: &Path) -> String {
+    use sha2::{Digest, Sha256};
+    Sha256::digest(std::fs::read(path).unwrap()).iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// Issue 51, items 10 and 11: `fdimc log` counts time from the replayed topic's first sample and says
@@ -158,4 +164,93 @@ fn log_plot_draws_the_signals_and_the_decks_parts() {
     );
     let out = fdimc(&["log", MOVING, "--signals", signals]);
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stderr));
+}
+
+/// Issue 51, items 7 to 9, on the bundled decks. A run with the threshold calibrated on the log prints
+/// and records, for each part, the largest fault-free statistic and where it occurred (the evaluated
+/// part's 394.8 at 9.59 s, the training part's 411.2 at 4.77 s, where they are on this log); with
+/// `calibration_transient_factor` below their ratio (1.04) it warns, naming both, on the console, in
+/// fault_free_replay.json and in the report; at the default (10) it does not. The log's path and
+/// SHA-256 are in manifest.json and fault_free_replay.json, and the report has the section "Replay of a
+/// flight log". A factor of 1 or less is refused by name. The gyro-calibrated deck, which debiases the
+/// vibrating log, is warned of as not at rest.
+#[test]
+fn a_replay_run_records_its_calibration_and_warns_of_a_transient() {
+    let tmp = tempfile::tempdir().unwrap();
+    let small = [("trials = 400", "trials = 8"), ("trials_per_class = 300", "trials_per_class = 20")];
+    let warned = [
+        small[0],
+        small[1],
+        ("log_threshold_margin = 1.5", "log_threshold_margin = 1.5\ncalibration_transient_factor = 1.01"),
+    ];
+    let deck = edited_deck(tmp.path(), "replay_px4_calibrated.toml", &warned, "warned.toml");
+    let dir = tmp.path().join("warned");
+    let out = fdimc(&["run", deck.to_str().unwrap(), "--out", dir.to_str().unwrap()]);
+    let stderr = text(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("evaluated part [4.80, 9.60) s, 3.3 s watched: largest T 394.8 at 9.59 s against the threshold 616.7 (1.5 x the training part's largest)"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("training part [0.00, 4.80) s, 3.3 s watched: largest T 411.2 at 4.77 s"), "{stderr}");
+    let warning = "the threshold was calibrated on a training part whose largest T (411.2 at 4.77 s) is 1.04 times the evaluated part's (394.8 at 9.59 s), more than detection.calibration_transient_factor = 1.01";
+    assert!(
+        stderr.contains(&format!("warning: {warning}")) && stderr.contains("move log.train_s past 4.77 s"),
+        "{stderr}"
+    );
+
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("fault_free_replay.json")).unwrap()).unwrap();
+    assert!((record["largest_at_s"].as_f64().unwrap() - 9.59).abs() < 1e-9, "{record}");
+    assert!((record["train"]["largest_at_s"].as_f64().unwrap() - 4.77).abs() < 1e-9, "{record}");
+    assert!((record["train"]["largest_statistic"].as_f64().unwrap() - 411.2).abs() < 0.05, "{record}");
+    assert_eq!(record["calibration_margin"], 1.5);
+    let log = Path::new(env!("CARGO_MANIFEST_DIR")).join(MOVING);
+    let sha = sha256_hex(&log);
+    assert_eq!(record["log"]["sha256"], sha.as_str());
+    assert_eq!(record["log"]["file"], log.display().to_string().as_str());
+    assert_eq!(record["log"]["evaluate_s"], serde_json::json!([4.8, 9.6]));
+    assert!(record["warnings"][0].as_str().unwrap().starts_with(warning), "{record}");
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["models"][0]["sha256"], sha.as_str(), "{manifest}");
+    assert_eq!(manifest["models"][0]["file"], log.display().to_string().as_str());
+
+    let report = ok(&fdimc(&["report", dir.to_str().unwrap()]));
+    assert!(report.contains(&format!("warning: {warning}")), "{report}");
+    let page = std::fs::read_to_string(dir.join("report/report.html")).unwrap();
+    for want in [
+        "Replay of a flight log",
+        &format!("<code>{sha}</code>"),
+        "<th>training part (train_s)</th><td>[0.00, 4.80) s</td>",
+        "616.7 = 1.5 x the training part's largest T (411.2)",
+        "<th>largest fault-free T, training part</th><td>411.2 at 4.77 s",
+        "0 alarm(s): 0 per flight hour (95 % interval [0, 3268]",
+    ] {
+        assert!(page.contains(want), "report.html lacks {want}");
+    }
+
+    // At the default factor the same log is not warned of.
+    let quiet = edited_deck(tmp.path(), "replay_px4_calibrated.toml", &small, "quiet.toml");
+    let out = ok(&fdimc(&["validate", quiet.to_str().unwrap()]));
+    assert!(out.contains("largest T 411.2 at 4.77 s") && !out.contains("warning"), "{out}");
+    for bad in ["1.0", "0.5", "nan"] {
+        let edit = [(
+            "log_threshold_margin = 1.5",
+            &*format!("log_threshold_margin = 1.5\ncalibration_transient_factor = {bad}"),
+        )];
+        let deck = edited_deck(tmp.path(), "replay_px4_calibrated.toml", &edit, "bad.toml");
+        let err = refused(&fdimc(&["validate", deck.to_str().unwrap()]));
+        assert!(
+            err.contains("bad.toml: detection.calibration_transient_factor: ") && err.contains("allowed a number > 1"),
+            "{err}"
+        );
+    }
+    let out = ok(&fdimc(&["validate", "studies/replay_px4_gyro_calibrated.toml"]));
+    for axis in ["x", "y", "z"] {
+        assert!(
+            out.contains(&format!("warning: log.debias: gyro_{axis}_rad_s is not at rest over train_s [0.00, 4.80) s")),
+            "{out}"
+        );
+    }
 }
