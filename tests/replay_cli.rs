@@ -1,6 +1,6 @@
 //! Replaying flight logs through the real `fdimc` binary (issue 51, the replay half): `fdimc log`'s
-//! messages, time base and plot, what a replay run records and warns of, and the report's replay
-//! section.
+//! messages, time base and plot, what a replay run records and warns of, the report's replay section,
+//! and the replay starter deck.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -253,4 +253,43 @@ fn a_replay_run_records_its_calibration_and_warns_of_a_transient() {
             "{out}"
         );
     }
+}
+
+/// `fdimc new accelerometer FILE --replay LOG` writes a commented replay deck whose log path, gap limit
+/// and parts fit the log (the first half trains, the second is evaluated), which validates and runs as
+/// written; another kind, or a file that is not a log, is refused.
+#[test]
+fn the_replay_starter_validates_and_runs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let deck = tmp.path().join("decks/my_replay.toml");
+    let d = deck.to_str().unwrap();
+    let out = ok(&fdimc(&["new", "accelerometer", d, "--replay", MOVING]));
+    assert!(out.contains("study \"my_replay\""), "{out}");
+    let written = std::fs::read_to_string(&deck).unwrap();
+    for want in ["train_s = [0.0, 4.8]", "evaluate_s = [4.8, 9.61]", "max_gap_s = 0.020", "name = \"my_replay\""] {
+        assert!(written.contains(want), "{want}\n{written}");
+    }
+    let file = written.lines().find(|l| l.starts_with("file = ")).unwrap();
+    assert!(file.contains("studies/logs/sample_appended_multiple.ulg") && !file.contains("\"/"), "relative: {file}");
+    let validated = ok(&fdimc(&["validate", d]));
+    assert!(validated.contains("trials start in the evaluated part [4.80, 9.61) s"), "{validated}");
+    let dir = tmp.path().join("run");
+    ok(&fdimc(&["run", d, "--trials", "8", "--quiet", "--out", dir.to_str().unwrap()]));
+    assert!(dir.join("fault_free_replay.json").exists() && dir.join("summary.csv").exists());
+
+    let err =
+        refused(&fdimc(&["new", "detection_filter", tmp.path().join("x.toml").to_str().unwrap(), "--replay", MOVING]));
+    assert!(
+        err.contains("--replay: kind detection_filter does not replay flight logs; kind accelerometer does"),
+        "{err}"
+    );
+    let err = refused(&fdimc(&[
+        "new",
+        "accelerometer",
+        tmp.path().join("y.toml").to_str().unwrap(),
+        "--replay",
+        "studies/replay_px4.toml",
+    ]));
+    assert!(err.contains("--replay studies/replay_px4.toml: not a PX4 ULog"), "{err}");
+    assert!(!tmp.path().join("y.toml").exists());
 }

@@ -33,8 +33,10 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Write a starter deck of a kind of study (commented; it validates and runs as written).
-    #[command(after_help = "Example: fdimc new air_data my_air_data.toml && fdimc run my_air_data.toml")]
+    /// Write a starter deck of a kind of study (commented; it validates and runs as written). With
+    /// --replay LOG (kind accelerometer), a deck that replays that PX4 log instead of simulating.
+    #[command(after_help = "Example: fdimc new air_data my_air_data.toml && fdimc run my_air_data.toml\n\
+Replay: fdimc new accelerometer my_replay.toml --replay studies/logs/sample_appended_multiple.ulg && fdimc run my_replay.toml")]
     New {
         /// The kind of study (one of the registry's, listed by --help).
         #[arg(index = 1)]
@@ -45,6 +47,10 @@ pub enum Command {
         /// Replace an existing file.
         #[arg(long)]
         force: bool,
+        /// A PX4 ULog file (.ulg) to replay (kind accelerometer): the deck's [log] names it, its first
+        /// half trains, its second half is evaluated.
+        #[arg(long, value_name = "LOG")]
+        replay: Option<PathBuf>,
     },
     /// Parse and validate a deck, design its detector, and print the resolved study.
     Validate {
@@ -436,7 +442,7 @@ pub fn command(kinds: &[&'static Method]) -> clap::Command {
 pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
     let commands = run::Kinds(kinds);
     let result = match cli.command {
-        Command::New { kind, file, force } => commands.exec_new(&kind, &file, force),
+        Command::New { kind, file, force, replay } => commands.exec_new(&kind, &file, force, replay.as_deref()),
         Command::Validate { deck } => commands.exec_validate(&deck),
         Command::Design { deck, json } => commands.exec_design(&deck, json),
         Command::Simulate { deck, trial, detector, out, classifiers } => {

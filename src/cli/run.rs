@@ -477,9 +477,17 @@ impl Kinds {
         Ok(study.train(out)?)
     }
 
-    /// `fdimc new KIND FILE`: the kind's starter deck, its study named after the file.
-    pub fn exec_new(&self, kind: &str, file: &Path, force: bool) -> Result<(), CliError> {
+    /// `fdimc new KIND FILE`: the kind's starter deck, its study named after the file; with `replay`, the
+    /// accelerometer kind's deck that replays that log.
+    pub fn exec_new(&self, kind: &str, file: &Path, force: bool, replay: Option<&Path>) -> Result<(), CliError> {
         let method = method::find(self.0, kind)?;
+        use crate::methods::accelerometer;
+        if replay.is_some() && kind != accelerometer::KIND {
+            return Err(CliError::Invalid(format!(
+                "--replay: kind {kind} does not replay flight logs; kind {} does",
+                accelerometer::KIND
+            )));
+        }
         if file.exists() && !force {
             return Err(CliError::Invalid(format!(
                 "{}: exists; name another file, or --force to replace it",
@@ -494,7 +502,12 @@ impl Kinds {
         if let Some(parent) = file.parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(parent).map_err(|e| CliError::Invalid(format!("{}: {e}", parent.display())))?;
         }
-        crate::engine::run::runner::write_atomically(file, method.starter_deck(&study).as_bytes())?;
+        let text = match replay {
+            None => method.starter_deck(&study),
+            // Checked before anything is written: a log the deck could not replay is refused here.
+            Some(log) => accelerometer::starter::replay_deck(&study, log, file).map_err(CliError::Invalid)?,
+        };
+        crate::engine::run::runner::write_atomically(file, text.as_bytes())?;
         println!(
             "wrote {}: a {kind} deck ({}), study {study:?}\nnext: fdimc validate {0}, then fdimc run {0}",
             file.display(),

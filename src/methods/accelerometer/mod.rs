@@ -7,6 +7,7 @@ pub mod imu;
 pub mod records;
 pub mod replay;
 pub mod report;
+pub mod starter;
 pub mod study;
 pub mod trial;
 
