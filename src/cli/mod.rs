@@ -47,7 +47,7 @@ Replay: fdimc new accelerometer my_replay.toml --replay studies/logs/sample_appe
         /// Replace an existing file.
         #[arg(long)]
         force: bool,
-        /// A PX4 ULog file (.ulg) to replay (kind accelerometer): the deck's [log] names it, its first
+        /// A PX4 ULog file (.ulg) to replay (kind accelerometer): the deck's `[log]` names it, its first
         /// half trains, its second half is evaluated.
         #[arg(long, value_name = "LOG")]
         replay: Option<PathBuf>,
@@ -233,10 +233,10 @@ Times are seconds from the first sample, as a deck's [log] evaluate_s and train_
         /// Draw --signals over time (s from the topic's first sample) into this SVG file.
         #[arg(long, value_name = "OUT.svg")]
         plot: Option<PathBuf>,
-        /// The topic's fields to draw, e.g. gyro_rad[0],gyro_rad[2].
+        /// The topic's fields to draw, e.g. `gyro_rad[0],gyro_rad[2]`.
         #[arg(long, value_name = "FIELD,...", value_delimiter = ',', requires = "plot")]
         signals: Vec<String>,
-        /// A replay deck of this log: its [log] topic, and its train_s and evaluate_s shaded on the plot.
+        /// A replay deck of this log: its `[log]` topic, and its train_s and evaluate_s shaded on the plot.
         #[arg(long, value_name = "DECK", requires = "plot")]
         deck: Option<PathBuf>,
     },
