@@ -88,7 +88,8 @@ pub struct FaultFreeReplay {
     /// Seconds watched: the stretch after `settle_s`.
     pub watched_s: f64,
     pub threshold: f64,
-    /// Largest `T` watched.
+    /// Largest `T` watched (NaN when no sample had a decision).
+    #[serde(deserialize_with = "number_or_nan")]
     pub largest_statistic: f64,
     /// Where it occurred: log seconds from its first sample (NaN when nothing was watched).
     #[serde(default = "nan", deserialize_with = "number_or_nan")]

@@ -159,6 +159,13 @@ mod tests {
         std::fs::write(tmp.path().join("fault_free_replay.json"), serde_json::to_string(&record).unwrap()).unwrap();
         let got = part_of(tmp.path()).unwrap();
         assert_eq!(got.warnings, record.warnings);
+        // NaN (nothing with a decision) is written as null and read back.
+        let mut undecided = record.clone();
+        undecided.train.as_mut().unwrap().largest_statistic = f64::NAN;
+        std::fs::write(tmp.path().join("fault_free_replay.json"), serde_json::to_string(&undecided).unwrap()).unwrap();
+        let html = &part_of(tmp.path()).unwrap().sections[0].1;
+        assert!(html.contains("<th>largest fault-free T, training part</th><td>- at 2.31 s"), "{html}");
+        std::fs::write(tmp.path().join("fault_free_replay.json"), serde_json::to_string(&record).unwrap()).unwrap();
         let [(title, html)] = got.sections.as_slice() else { panic!("{:?}", got.sections) };
         assert_eq!(title, TITLE);
         for want in [
