@@ -13,6 +13,7 @@ use crate::engine::run::output::OutputError;
 use crate::engine::scenario::deck::DeckError;
 
 mod fmu;
+mod log;
 mod run;
 
 #[derive(Debug, Parser)]
@@ -36,8 +37,10 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Write a starter deck of a kind of study (commented; it validates and runs as written).
-    #[command(after_help = "Example: fdimc new air_data my_air_data.toml && fdimc run my_air_data.toml")]
+    /// Write a starter deck of a kind of study (commented; it validates and runs as written). With
+    /// --replay LOG (kind accelerometer), a deck that replays that PX4 log instead of simulating.
+    #[command(after_help = "Example: fdimc new air_data my_air_data.toml && fdimc run my_air_data.toml\n\
+Replay: fdimc new accelerometer my_replay.toml --replay studies/logs/sample_appended_multiple.ulg && fdimc run my_replay.toml")]
     New {
         /// The kind of study (one of the registry's, listed by --help).
         #[arg(index = 1)]
@@ -48,6 +51,10 @@ pub enum Command {
         /// Replace an existing file.
         #[arg(long)]
         force: bool,
+        /// A PX4 ULog file (.ulg) to replay (kind accelerometer): the deck's `[log]` names it, its first
+        /// half trains, its second half is evaluated.
+        #[arg(long, value_name = "LOG")]
+        replay: Option<PathBuf>,
     },
     /// Parse and validate a deck, design its detector, and print the resolved study.
     Validate {
@@ -211,18 +218,31 @@ It prints the factors before it runs. Shards, --resume and `fdimc merge` work as
         #[arg(long, value_delimiter = ',')]
         trials: Vec<u64>,
     },
-    /// What a flight log (PX4 ULog) holds: every topic instance with its samples, span, mean rate and
-    /// largest gap; with --topic, the mean and spread of each of its number fields.
-    #[command(after_help = "Example: fdimc log studies/logs/sample_log_small.ulg --topic sensor_combined")]
+    /// What a flight log (PX4 ULog) holds: every topic instance with its samples, span (seconds from
+    /// the log's first sample; its boot time is printed once), mean rate, largest gap and timestamps that
+    /// repeat or go back (bad_times); with --topic, the mean and spread of each of its number fields;
+    /// with --plot, chosen fields over time as an SVG, a replay deck's train_s and evaluate_s shaded.
+    #[command(after_help = "Examples: fdimc log studies/logs/sample_log_small.ulg --topic sensor_combined\n  \
+fdimc log studies/logs/sample_appended_multiple.ulg --plot imu.svg --signals gyro_rad[2],accelerometer_m_s2[2] --deck studies/replay_px4.toml\n\
+Times are seconds from the first sample, as a deck's [log] evaluate_s and train_s are (those count from the replayed topic's first sample).")]
     Log {
         /// The log file (.ulg).
         file: PathBuf,
-        /// A topic whose fields to summarise, e.g. sensor_combined.
+        /// A topic whose fields to summarise or plot (default for --plot: the deck's, else sensor_combined).
         #[arg(long)]
         topic: Option<String>,
         /// The topic's instance (multi_id; 0 for the first or only one).
         #[arg(long, default_value_t = 0)]
         instance: u8,
+        /// Draw --signals over time (s from the topic's first sample) into this SVG file.
+        #[arg(long, value_name = "OUT.svg")]
+        plot: Option<PathBuf>,
+        /// The topic's fields to draw, e.g. `gyro_rad[0],gyro_rad[2]`.
+        #[arg(long, value_name = "FIELD,...", value_delimiter = ',', requires = "plot")]
+        signals: Vec<String>,
+        /// A replay deck of this log: its `[log]` topic, and its train_s and evaluate_s shaded on the plot.
+        #[arg(long, value_name = "DECK", requires = "plot")]
+        deck: Option<PathBuf>,
     },
     /// What an FMU (FMI 2.0 or 3.0) offers a deck: its interfaces and whether they run here, its
     /// capabilities (get/set state, directional derivatives, instances per process), inputs, outputs
@@ -427,7 +447,7 @@ pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
     let commands = run::Kinds(kinds);
     crate::engine::results::summary::set_verbose(cli.verbose);
     let result = match cli.command {
-        Command::New { kind, file, force } => commands.exec_new(&kind, &file, force),
+        Command::New { kind, file, force, replay } => commands.exec_new(&kind, &file, force, replay.as_deref()),
         Command::Validate { deck } => commands.exec_validate(&deck),
         Command::Design { deck, json } => commands.exec_design(&deck, json),
         Command::Simulate { deck, trial, detector, out, classifiers } => {
@@ -477,7 +497,14 @@ pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
                 .map_err(CliError::from)
         }
         Command::Report { dir, trials } => commands.exec_report(&dir, &trials),
-        Command::Log { file, topic, instance } => run::exec_log(&file, topic.as_deref(), instance),
+        Command::Log { file, topic, instance, plot, signals, deck } => log::exec_log(&log::LogArgs {
+            file: &file,
+            topic: topic.as_deref(),
+            instance,
+            plot: plot.as_deref(),
+            signals: &signals,
+            deck: deck.as_deref(),
+        }),
         Command::Fmu { file } => fmu::exec_fmu(&file),
         Command::Check { target, baseline, alpha, threads } => {
             match commands.exec_check(&target, &baseline, alpha, threads) {

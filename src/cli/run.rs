@@ -101,55 +101,6 @@ fn summarize(method: &Method, dir: &Path, calibration: Option<&Calibration>, pri
     Ok(())
 }
 
-/// `fdimc log`: what a flight log holds (every topic instance: samples, span, mean rate, largest gap),
-/// and with `topic` the spread of each of that instance's number fields.
-pub fn exec_log(file: &Path, topic: Option<&str>, instance: u8) -> Result<(), CliError> {
-    use crate::engine::logs::flight_log::{field_spreads, survey};
-    let (topics, ending) = survey(file).map_err(|e| CliError::Invalid(e.to_string()))?;
-    println!(
-        "{}: {} topic instances, {}",
-        file.display(),
-        topics.len(),
-        ending.as_deref().unwrap_or("read to its end")
-    );
-    println!(
-        "{:<32} {:>8} {:>8} {:>10} {:>10} {:>9} {:>14} {:>14}",
-        "topic", "instance", "samples", "first_s", "last_s", "rate_hz", "largest_gap_s", "not_increasing"
-    );
-    for t in topics.iter().filter(|t| topic.is_none_or(|name| t.topic == name)) {
-        println!(
-            "{:<32} {:>8} {:>8} {:>10.3} {:>10.3} {:>9.2} {:>14.4} {:>14}",
-            t.topic,
-            t.instance,
-            t.samples,
-            t.first_s,
-            t.last_s,
-            t.mean_rate_hz(),
-            t.largest_gap_s,
-            t.not_increasing
-        );
-    }
-    if let Some(name) = topic {
-        let spreads = field_spreads(file, name, instance).map_err(|e| CliError::Invalid(e.to_string()))?;
-        println!(
-            "\n{name} instance {instance}: number fields (difference sd = sd of sample-to-sample differences / sqrt 2, the white noise when the signal moves slowly; r(l) = autocorrelation at l samples, 0 for white noise)"
-        );
-        let lags = crate::engine::logs::flight_log::AUTOCORRELATION_LAGS.map(|l| format!("r({l})"));
-        println!(
-            "{:<32} {:>14} {:>14} {:>14} {:>7} {:>7} {:>7} {:>7}",
-            "field", "mean", "sd", "difference_sd", lags[0], lags[1], lags[2], lags[3]
-        );
-        for f in spreads {
-            let r = f.autocorrelation;
-            println!(
-                "{:<32} {:>14.6e} {:>14.6e} {:>14.6e} {:>7.3} {:>7.3} {:>7.3} {:>7.3}",
-                f.field, f.mean, f.sd, f.difference_sd, r[0], r[1], r[2], r[3]
-            );
-        }
-    }
-    Ok(())
-}
-
 /// The commands over the kinds of study this command line knows: fdimc's own and, through
 /// [`crate::cli::main_with`], a caller's.
 pub struct Kinds(pub &'static [&'static Method]);
@@ -546,9 +497,17 @@ impl Kinds {
         Ok(study.train(out)?)
     }
 
-    /// `fdimc new KIND FILE`: the kind's starter deck, its study named after the file.
-    pub fn exec_new(&self, kind: &str, file: &Path, force: bool) -> Result<(), CliError> {
+    /// `fdimc new KIND FILE`: the kind's starter deck, its study named after the file; with `replay`, the
+    /// accelerometer kind's deck that replays that log.
+    pub fn exec_new(&self, kind: &str, file: &Path, force: bool, replay: Option<&Path>) -> Result<(), CliError> {
         let method = method::find(self.0, kind)?;
+        use crate::methods::accelerometer;
+        if replay.is_some() && kind != accelerometer::KIND {
+            return Err(CliError::Invalid(format!(
+                "--replay: kind {kind} does not replay flight logs; kind {} does",
+                accelerometer::KIND
+            )));
+        }
         if file.exists() && !force {
             return Err(CliError::Invalid(format!(
                 "{}: exists; name another file, or --force to replace it",
@@ -563,7 +522,12 @@ impl Kinds {
         if let Some(parent) = file.parent().filter(|p| !p.as_os_str().is_empty()) {
             std::fs::create_dir_all(parent).map_err(|e| CliError::Invalid(format!("{}: {e}", parent.display())))?;
         }
-        crate::engine::run::runner::write_atomically(file, method.starter_deck(&study).as_bytes())?;
+        let text = match replay {
+            None => method.starter_deck(&study),
+            // Checked before anything is written: a log the deck could not replay is refused here.
+            Some(log) => accelerometer::starter::replay_deck(&study, log, file).map_err(CliError::Invalid)?,
+        };
+        crate::engine::run::runner::write_atomically(file, text.as_bytes())?;
         println!(
             "wrote {}: a {kind} deck ({}), study {study:?}\nnext: fdimc validate {0}, then fdimc run {0}",
             file.display(),

@@ -51,13 +51,25 @@ pub enum LogError {
     MissingField { file: PathBuf, topic: String, field: String, available: String },
     #[error("{file}: table has no column {column:?} (its columns: {available})")]
     MissingColumn { file: PathBuf, column: String, available: String },
-    #[error("{file}: {origin}: time {t_s} s (sample {index}) does not follow {previous_s} s; times must increase")]
+    /// Times here and below are seconds from the series' first sample, the time base decks use.
+    #[error(
+        "{file}: {origin}: time {t_s} s (sample {index}) does not follow {previous_s} s (s from its first sample); times must increase"
+    )]
     NotIncreasing { file: PathBuf, origin: String, index: usize, t_s: f64, previous_s: f64 },
-    #[error("{file}: {origin}: field {field:?} is {value} at {t_s} s (sample {index}); allowed: finite values")]
+    #[error(
+        "{file}: {origin}: field {field:?} is {value} at {t_s} s from its first sample (sample {index}); allowed: finite values"
+    )]
     NotFinite { file: PathBuf, origin: String, field: String, index: usize, t_s: f64, value: f64 },
-    #[error("{file}: {origin}: a gap of {gap_s:.3} s after {t_s:.3} s; the deck allows {max_gap_s} s")]
-    Gap { file: PathBuf, origin: String, t_s: f64, gap_s: f64, max_gap_s: f64 },
+    #[error(
+        "{file}: {origin}: a gap of {gap_s:.3} s after {t_s:.3} s from its first sample; the deck allows {max_gap_s} s \
+         (max_gap_s). The log's largest gap is {largest_gap_s:.3} s: max_gap_s = {suggested_s} bridges every gap \
+         (by interpolation across it), if a sensor silent that long is acceptable for the study"
+    )]
+    Gap { file: PathBuf, origin: String, t_s: f64, gap_s: f64, max_gap_s: f64, largest_gap_s: f64, suggested_s: f64 },
 }
+
+/// The first bytes of every ULog file: "ULog", then 0x01 0x12 0x35 (the format's magic number).
+const ULOG_MAGIC: [u8; 7] = *b"ULog\x01\x12\x35";
 
 /// A field's decoder: the number types PX4 writes sensor values in.
 enum NumberField {
@@ -141,19 +153,29 @@ fn field_parsers(
 /// in messages (`topic "sensor_combined"`, `table`).
 fn check(file: &Path, origin: &str, fields: &[String], max_gap_s: f64, series: &TopicSeries) -> Result<(), LogError> {
     let (file, origin) = (file.to_path_buf(), origin.to_string());
+    // Messages give times from the first sample, as decks do (`evaluate_s`, `train_s`).
+    let t0 = series.t_s.first().copied().unwrap_or(0.0);
+    let mut first_gap: Option<(f64, f64)> = None;
+    let mut largest_gap_s: f64 = 0.0;
     for (index, pair) in series.t_s.windows(2).enumerate() {
         if !(pair[1] > pair[0]) {
-            let (t_s, previous_s) = (pair[1], pair[0]);
+            let (t_s, previous_s) = (pair[1] - t0, pair[0] - t0);
             return Err(LogError::NotIncreasing { file, origin, index: index + 1, t_s, previous_s });
         }
         let gap_s = pair[1] - pair[0];
-        if gap_s > max_gap_s {
-            return Err(LogError::Gap { file, origin, t_s: pair[0], gap_s, max_gap_s });
+        largest_gap_s = largest_gap_s.max(gap_s);
+        if gap_s > max_gap_s && first_gap.is_none() {
+            first_gap = Some((pair[0] - t0, gap_s));
         }
+    }
+    if let Some((t_s, gap_s)) = first_gap {
+        // The next millisecond up: a limit that the largest gap itself passes.
+        let suggested_s = (largest_gap_s * 1e3).floor() / 1e3 + 1e-3;
+        return Err(LogError::Gap { file, origin, t_s, gap_s, max_gap_s, largest_gap_s, suggested_s });
     }
     for (field, column) in fields.iter().zip(&series.values) {
         if let Some(index) = column.iter().position(|v| !v.is_finite()) {
-            let (field, t_s, value) = (field.clone(), series.t_s[index], column[index]);
+            let (field, t_s, value) = (field.clone(), series.t_s[index] - t0, column[index]);
             return Err(LogError::NotFinite { file, origin, field, index, t_s, value });
         }
     }
@@ -360,6 +382,24 @@ fn stream(
     if !path.is_file() {
         return Err(unreadable("no such file".into()));
     }
+    // The reader's own refusal of a foreign file is an `io::Error` around its parse error, printed as
+    // Rust's debug text: the header is checked here first, in words.
+    let mut head = Vec::with_capacity(ULOG_MAGIC.len());
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(std::fs::File::open(path).map_err(|e| unreadable(e.to_string()))?, 16),
+        &mut head,
+    )
+    .map_err(|e| unreadable(e.to_string()))?;
+    if head.len() < 16 || head[..ULOG_MAGIC.len()] != ULOG_MAGIC {
+        let why = if head.len() < 16 {
+            format!("{} bytes, shorter than a ULog file's 16-byte header", head.len())
+        } else {
+            "it does not begin with the ULog header (\"ULog\" then bytes 01 12 35); fdimc reads PX4 ULog files (.ulg), \
+             or a CSV or Parquet table"
+                .to_string()
+        };
+        return Err(unreadable(format!("not a PX4 ULog: {why}")));
+    }
     let mut on_message = |message: &Message| match message {
         Message::Data(data) => on_data(data),
         _ => SimpleCallbackResult::KeepReading,
@@ -376,7 +416,13 @@ fn stream(
         Ok(Ok(Completeness::Complete)) => Ok(None),
         Ok(Ok(Completeness::Truncated)) => Ok(Some("the file ends partway through a record (kept up to it)".into())),
         Ok(Ok(Completeness::MalformedRecord(why))) => Ok(Some(format!("a malformed record ({why}); kept up to it"))),
-        Ok(Err(e)) => Err(unreadable(format!("not a readable ULog file: {e}"))),
+        Ok(Err(e)) => {
+            // The parse error's own description, not the `io::Error`'s debug text around it.
+            let parse =
+                e.get_ref().and_then(|inner| inner.downcast_ref::<px4_ulog::stream_parser::model::UlogParseError>());
+            let why = parse.map_or_else(|| e.to_string(), |p| p.description.clone());
+            Err(unreadable(format!("not a readable ULog file: {why}")))
+        }
         Err(_) => Err(unreadable("not a readable ULog file: a malformed record".into())),
     }
 }
@@ -681,6 +727,13 @@ mod tests {
         let small = log("sample_log_small.ulg");
         let err = read_ulog(&small, &imu_request(0.1)).unwrap_err().to_string();
         assert!(err.contains("sample_log_small.ulg: topic \"sensor_combined\": a gap of 0.161 s after"), "{err}");
+        // From the first sample (the log's boot clock starts 20.3 s earlier), with the way out.
+        let after: f64 = err.split(" s after ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
+        assert!(
+            (0.0..6.5).contains(&after) && err.contains(&format!("after {after:.3} s from its first sample")),
+            "{err}"
+        );
+        assert!(err.contains("The log's largest gap is 0.161 s: max_gap_s = 0.162 bridges every gap"), "{err}");
         let mut wrong_topic = imu_request(0.5);
         wrong_topic.topic = "sensor_combined_x".into();
         let err = read_ulog(&small, &wrong_topic).unwrap_err().to_string();
@@ -708,7 +761,17 @@ mod tests {
         let not_a_log = tmp.path().join("deck.ulg");
         std::fs::write(&not_a_log, "[study]\nname = \"x\"\n").unwrap();
         let err = read_ulog(&not_a_log, &imu_request(0.5)).unwrap_err().to_string();
-        assert!(err.starts_with(&format!("{}: ", not_a_log.display())), "{err}");
+        assert!(err.starts_with(&format!("{}: not a PX4 ULog: ", not_a_log.display())), "{err}");
+        // A file of 16 bytes or more with another start: the header named, not the reader's debug text.
+        std::fs::write(&not_a_log, [7u8; 64]).unwrap();
+        let err = read_ulog(&not_a_log, &imu_request(0.5)).unwrap_err().to_string();
+        assert_eq!(
+            err,
+            format!(
+                "{}: not a PX4 ULog: it does not begin with the ULog header (\"ULog\" then bytes 01 12 35); fdimc reads PX4 ULog files (.ulg), or a CSV or Parquet table",
+                not_a_log.display()
+            )
+        );
         let err = read_ulog(&tmp.path().join("none.ulg"), &imu_request(0.5)).unwrap_err().to_string();
         assert!(err.ends_with("none.ulg: no such file"), "{err}");
     }

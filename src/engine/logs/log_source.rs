@@ -27,7 +27,7 @@ use std::sync::Arc;
 
 use serde::Deserialize;
 
-use crate::engine::logs::flight_log::{TableRequest, TopicRequest, TopicSeries, read_table, read_ulog};
+use crate::engine::logs::flight_log::{LogError, TableRequest, TopicRequest, TopicSeries, read_table, read_ulog};
 use crate::engine::scenario::deck::{DeckError, Validator};
 
 /// The deck's `[log]` section (module docs).
@@ -121,6 +121,13 @@ pub struct ReplayLog {
     pub train: Option<Part>,
     /// The signals `debias` named and the mean over `train` subtracted from each.
     pub removed_means: Vec<(String, f64)>,
+    /// The log file's SHA-256 (hex), for the run's provenance.
+    pub sha256: String,
+    /// The first sample's time on the log's own clock (s; a ULog's boot time): deck and messages count
+    /// seconds from it.
+    pub first_sample_s: f64,
+    /// What the run should warn of: a `debias` window that is not at rest ([`motion_in_window`]).
+    pub warnings: Vec<String>,
 }
 
 impl ReplayLog {
@@ -153,7 +160,25 @@ impl ReplayLog {
         }
         let mapped = |s: &Signal| section.signals.get(s.name).cloned();
         let extension = file.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-        let log_error = |e: crate::engine::logs::flight_log::LogError| v.err("log.file", e.to_string());
+        // Each refusal against the deck field that would mend it: a missing topic is `log.topic`'s, a
+        // missing field the signal's mapping, a long gap `log.max_gap_s`; the rest is the file's.
+        let log_error = |e: LogError| {
+            let field = match &e {
+                LogError::MissingTopic { .. } if section.instance.is_some_and(|i| i != 0) => "log.instance".to_string(),
+                LogError::MissingTopic { .. } => "log.topic".to_string(),
+                LogError::MissingField { field, .. } | LogError::MissingColumn { column: field, .. } => {
+                    match needs.signals.iter().find(|s| mapped(s).unwrap_or_else(|| s.ulog_field.to_string()) == *field)
+                    {
+                        Some(s) => format!("log.signals.{}", s.name),
+                        None if section.time_column.as_deref() == Some(field.as_str()) => "log.time_column".into(),
+                        None => "log.file".into(),
+                    }
+                }
+                LogError::Gap { .. } => "log.max_gap_s".to_string(),
+                _ => "log.file".to_string(),
+            };
+            v.err(field, e.to_string())
+        };
         let (series, origin) = match extension.as_str() {
             "ulg" => {
                 for (field, given) in
@@ -259,6 +284,7 @@ impl ReplayLog {
             ));
         }
         let mut removed_means = Vec::new();
+        let mut warnings = Vec::new();
         for (i, name) in section.debias.iter().enumerate() {
             let field = format!("log.debias[{i}]");
             let Some(index) = needs.signals.iter().position(|s| s.name == name) else {
@@ -271,12 +297,25 @@ impl ReplayLog {
                 return Err(v.err(field, "the mean is taken over the training part: give train_s"));
             };
             let signal = &mut signals[index];
+            let [from, to] = [t.first as f64 * dt_s, t.end as f64 * dt_s];
+            // The log's own samples of the window: grid step k holds those within half a step of k dt.
+            let t0 = series.t_s.first().copied().unwrap_or(0.0);
+            let within = |t: &f64| (from - 0.5 * dt_s..to - 0.5 * dt_s).contains(&(t - t0));
+            let raw: Vec<f64> =
+                series.t_s.iter().zip(&series.values[index]).filter(|(t, _)| within(t)).map(|(_, x)| *x).collect();
+            if let Some(m) = motion_in_window(&signal[t.first..t.end], dt_s, &raw) {
+                warnings.push(format!(
+                    "log.debias: {name} is not at rest over train_s [{from:.2}, {to:.2}) s: {}; the {:.4e} removed is then partly motion, not the sensor's bias: choose a train_s where the vehicle stands still, motors off if it can (`fdimc log FILE --plot OUT.svg --signals ... --deck DECK` shows the signals)",
+                    m.why, m.mean
+                ));
+            }
             let mean = signal[t.first..t.end].iter().sum::<f64>() / t.len() as f64;
             signal.iter_mut().for_each(|x| *x -= mean);
             removed_means.push((name.clone(), mean));
         }
         let gaps = series.t_s.windows(2).map(|w| w[1] - w[0]);
         let n = series.t_s.len();
+        let sha256 = file_sha256(&file).map_err(|e| v.err("log.file", format!("{}: {e}", file.display())))?;
         Ok(Arc::new(ReplayLog {
             file,
             origin,
@@ -289,8 +328,98 @@ impl ReplayLog {
             evaluate,
             train,
             removed_means,
+            sha256,
+            first_sample_s: series.t_s.first().copied().unwrap_or(0.0),
+            warnings,
         }))
     }
+}
+
+/// SHA-256 of a file's bytes, hex.
+pub fn file_sha256(path: &Path) -> std::io::Result<String> {
+    use sha2::{Digest, Sha256};
+    let bytes = std::fs::read(path)?;
+    Ok(Sha256::digest(&bytes).iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// Why a window is not at rest ([`motion_in_window`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Motion {
+    /// The resampled signal's mean over the window (what `debias` removes).
+    pub mean: f64,
+    /// What shows the motion, with its numbers.
+    pub why: String,
+}
+
+/// Seconds per batch of [`motion_in_window`]'s first test: longer than the correlation of a
+/// multirotor's vibration and of PX4's sensor filters (the moving bundled log's r(10) at 250 Hz is
+/// still 0.2), short enough for ten batches in a few seconds.
+pub const REST_BATCH_S: f64 = 0.25;
+
+/// Halves' means this many standard errors apart mean motion: with [`REST_MIN_BATCHES`] batches or more
+/// (6 degrees of freedom or more), the halves of a window at rest are that far apart in under 1 % of
+/// windows (Student's t).
+pub const REST_Z: f64 = 4.0;
+
+/// Fewer batches tell nothing ([`REST_Z`]): 2 s at [`REST_BATCH_S`].
+pub const REST_MIN_BATCHES: usize = 8;
+
+/// The most a signal at rest spreads, in units of its sample-to-sample noise ([`motion_in_window`]'s
+/// second test): 1 for white noise, 1.3 for the bench log's filtered gyro (r(1) up to 0.4 gives
+/// 1 / sqrt(1 - r(1))); the moving bundled log's gyro is at 2.8.
+pub const REST_SPREAD_RATIO: f64 = 2.0;
+
+/// Whether a `debias` window is at rest: `None` when it is, else what shows motion. A sensor at rest
+/// reads its bias plus nearly white noise, so two tests, each with its reason:
+/// - the level stays put: the means of the window's halves (of the resampled `signal`, at `dt_s`)
+///   agree within [`REST_Z`] standard errors, estimated by batch means ([`REST_BATCH_S`] batches: the
+///   noise is not white, so the samples' own spread would understate it); a vehicle that turns, tilts
+///   or drifts moves the level, and its mean then mixes motion into the bias (windows of fewer than
+///   [`REST_MIN_BATCHES`] batches skip this test);
+/// - nothing but noise: on the log's own samples in the window (`raw`), the spread is at most
+///   [`REST_SPREAD_RATIO`] times the sample-to-sample noise (the differences' sd over sqrt 2, which
+///   equals the spread for white noise); content slower than the sample rate that is not noise is
+///   motion or vibration (motors running), whose mean need not be the bias (coning, rectification).
+pub fn motion_in_window(signal: &[f64], dt_s: f64, raw: &[f64]) -> Option<Motion> {
+    let mean = signal.iter().sum::<f64>() / signal.len().max(1) as f64;
+    let per_batch = ((REST_BATCH_S / dt_s).round() as usize).max(1);
+    let batches = signal.len() / per_batch / 2 * 2;
+    if batches >= REST_MIN_BATCHES {
+        let means: Vec<f64> = (0..batches)
+            .map(|b| signal[b * per_batch..(b + 1) * per_batch].iter().sum::<f64>() / per_batch as f64)
+            .collect();
+        let half = batches / 2;
+        let avg = |m: &[f64]| m.iter().sum::<f64>() / m.len() as f64;
+        let (first, second) = (avg(&means[..half]), avg(&means[half..]));
+        // Pooled variance of the batch means within each half (the step between halves is not noise).
+        let ss = means[..half].iter().map(|m| (m - first).powi(2)).sum::<f64>()
+            + means[half..].iter().map(|m| (m - second).powi(2)).sum::<f64>();
+        let se = (ss / (batches - 2) as f64 * 2.0 / half as f64).sqrt();
+        let z = (first - second).abs() / se;
+        if z > REST_Z {
+            let why = format!(
+                "its mean moves from {first:.4e} over the first half to {second:.4e} over the second ({z:.1} standard errors; a bias stays put)"
+            );
+            return Some(Motion { mean, why });
+        }
+    }
+    if raw.len() >= 3 {
+        let sd = |v: &[f64]| {
+            let m = v.iter().sum::<f64>() / v.len() as f64;
+            (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
+        };
+        let spread = sd(raw);
+        let differences: Vec<f64> = raw.windows(2).map(|w| w[1] - w[0]).collect();
+        let noise = sd(&differences) / std::f64::consts::SQRT_2;
+        let ratio = spread / noise;
+        if ratio > REST_SPREAD_RATIO {
+            let why = format!(
+                "its spread ({spread:.2e}) is {ratio:.1} times its sample-to-sample noise ({noise:.2e}; at most {REST_SPREAD_RATIO} for a sensor at rest): the vehicle moves or vibrates"
+            );
+            return Some(Motion { mean, why });
+        }
+    }
+    None
 }
 
 /// `series` on the grid `t_0 + k dt_s` up to its last sample (times increase:
@@ -456,5 +585,102 @@ mod tests {
             "file = \"imu.csv\"\ntime_column = \"t_us\"\ntime_unit_s = 1e-6\nsignals = { gyro_x_rad_s = \"wx\", accel_z_mps2 = \"a_z\" }",
         );
         assert!(e.contains("table has no column \"a_z\" (its columns: t_us, wx, az)"), "{e}");
+        assert!(e.contains("deck.toml: log.signals.accel_z_mps2: "), "the mapping to mend: {e}");
+        // What the log lacks is refused against the field that mends it (issue 51, item 11).
+        let e = err(&format!("file = {path:?}\ntopic = \"nosuch\""));
+        assert!(
+            e.contains("deck.toml: log.topic: ") && e.contains("no topic \"nosuch\" instance 0 (the log has: "),
+            "{e}"
+        );
+        let e = err(&format!("file = {path:?}\nmax_gap_s = 0.01"));
+        assert!(
+            e.contains("deck.toml: log.max_gap_s: ")
+                && e.contains("The log's largest gap is 0.016 s: max_gap_s = 0.017 bridges every gap"),
+            "{e}"
+        );
+    }
+
+    /// `debias` over a window that is not at rest is warned of (issue 51, item 9). The bundled moving
+    /// log (PX4FMU v4 Pro, vibrating and turning) over the replay decks' train_s [0, 4.8] s: every gyro
+    /// axis's halves differ by many standard errors, and the warning names the signal, both halves'
+    /// means and the way out. A synthetic still log (250 Hz, a constant bias under white noise, through
+    /// the table path) is not warned of, and its bias is removed to within the noise; the same log with a
+    /// slow turn of 0.02 rad/s per s added is.
+    #[test]
+    fn a_debias_window_that_is_not_at_rest_is_warned_of() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        use std::io::Write;
+        const GYRO: Needs = Needs {
+            topic: "sensor_combined",
+            signals: &[
+                Signal { name: "gyro_x_rad_s", ulog_field: "gyro_rad[0]" },
+                Signal { name: "gyro_y_rad_s", ulog_field: "gyro_rad[1]" },
+                Signal { name: "gyro_z_rad_s", ulog_field: "gyro_rad[2]" },
+            ],
+        };
+        let tmp = tempfile::tempdir().unwrap();
+        let deck = tmp.path().join("deck.toml");
+        let v = Validator { file: &deck };
+        let section = |text: &str| -> LogSection { toml::from_str(text).unwrap() };
+        let ulog = Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/logs/sample_appended_multiple.ulg");
+        let moving = format!(
+            "file = {:?}\nevaluate_s = [4.8, 9.6]\ntrain_s = [0.0, 4.8]\ndebias = [\"gyro_x_rad_s\", \"gyro_y_rad_s\", \"gyro_z_rad_s\"]",
+            ulog.display().to_string()
+        );
+        let log = ReplayLog::load(&v, &section(&moving), &GYRO, 0.01, 200).unwrap();
+        assert_eq!(log.warnings.len(), 3, "{:#?}", log.warnings);
+        for (w, name) in log.warnings.iter().zip(["gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s"]) {
+            assert!(
+                w.starts_with(&format!("log.debias: {name} is not at rest over train_s [0.00, 4.80) s: its spread ("))
+            );
+            assert!(
+                w.contains("times its sample-to-sample noise") && w.contains("the vehicle moves or vibrates"),
+                "{w}"
+            );
+            assert!(w.contains("choose a train_s where the vehicle stands still"), "{w}");
+        }
+
+        let (bias, sd) = (0.004, 0.003);
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(51);
+        let write = |name: &str, turn_per_s: f64, rng: &mut rand::rngs::ChaCha8Rng| {
+            let path = tmp.path().join(name);
+            let mut csv = std::fs::File::create(&path).unwrap();
+            writeln!(csv, "t_s,gx,gy,gz").unwrap();
+            for k in 0..1500 {
+                let t = k as f64 / 250.0;
+                let mut noise = || sd * <StandardNormal as Distribution<f64>>::sample(&StandardNormal, rng);
+                writeln!(csv, "{t},{},{},{}", bias + turn_per_s * t + noise(), bias + noise(), bias + noise()).unwrap();
+            }
+            path
+        };
+        let still = write("still.csv", 0.0, &mut rng);
+        let turning = write("turning.csv", 0.02, &mut rng);
+        let table = |path: &Path| {
+            format!(
+                "file = {:?}\ntime_column = \"t_s\"\nevaluate_s = [3.0, 5.99]\ntrain_s = [0.0, 3.0]\ndebias = [\"gyro_x_rad_s\"]\nsignals = {{ gyro_x_rad_s = \"gx\", gyro_y_rad_s = \"gy\", gyro_z_rad_s = \"gz\" }}",
+                path.display().to_string()
+            )
+        };
+        let log = ReplayLog::load(&v, &section(&table(&still)), &GYRO, 0.01, 200).unwrap();
+        assert_eq!(log.warnings, Vec::<String>::new());
+        // 300 steps of means of 2.5 samples: the mean's sd is 0.003 / sqrt(750) = 1.1e-4.
+        assert!((log.removed_means[0].1 - bias).abs() < 4.0 * sd / 750f64.sqrt(), "{:?}", log.removed_means);
+        let log = ReplayLog::load(&v, &section(&table(&turning)), &GYRO, 0.01, 200).unwrap();
+        assert_eq!(log.warnings.len(), 1, "{:?}", log.warnings);
+        assert!(log.warnings[0].starts_with("log.debias: gyro_x_rad_s is not at rest over train_s [0.00, 3.00) s"));
+        // The level test alone (no raw samples): a window too short to tell is passed; a step of 1e-3
+        // between the halves over noise of 1e-4 is caught.
+        let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(7);
+        let step: Vec<f64> = (0..400)
+            .map(|k| {
+                let noise: f64 = StandardNormal.sample(&mut rng);
+                (if k < 200 { 0.0 } else { 1e-3 }) + 1e-4 * noise
+            })
+            .collect();
+        assert_eq!(motion_in_window(&step[200..], 0.01, &[]), None, "2 s, all after the step");
+        assert_eq!(motion_in_window(&step[..150], 0.01, &[]), None, "1.5 s: 6 batches, too few");
+        let m = motion_in_window(&step, 0.01, &[]).unwrap();
+        assert!(m.why.starts_with("its mean moves from ") && m.why.contains("standard errors"), "{m:?}");
     }
 }

@@ -37,6 +37,9 @@ pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
             for (name, mean) in &log.removed_means {
                 println!("            {name} less its training-part mean, {mean:.6e}");
             }
+            for line in study.replay.iter().flat_map(replay_lines) {
+                println!("            {line}");
+            }
             println!("            simulated training trials (trained_on = \"simulation\"): {simulated}");
         }
     }
@@ -88,14 +91,46 @@ pub fn validate(study: &AccelerometerStudy) -> Result<(), RunError> {
     Ok(())
 }
 
+/// What the fault-free log gives at the study's threshold, part by part, with where each part's largest
+/// statistic occurred, then the replay's warnings (`validate` and `run` print them).
+pub fn replay_lines(r: &super::replay::ReplayRecord) -> Vec<String> {
+    let e = &r.evaluate;
+    let from = match r.calibration_margin {
+        Some(m) => format!("{m} x the training part's largest"),
+        None => "the deck's".to_string(),
+    };
+    let mut lines = vec![format!(
+        "fault-free log, evaluated part [{:.2}, {:.2}) s, {:.1} s watched: largest T {:.1} at {:.2} s against the threshold {:.1} ({from}), {} alarm(s) ({:.0} per flight hour, 95 % upper bound {:.0})",
+        e.part_s[0],
+        e.part_s[1],
+        e.watched_s,
+        e.largest_statistic,
+        e.largest_at_s,
+        e.threshold,
+        e.alarms,
+        e.alarms_per_flight_hour,
+        e.alarms_per_flight_hour_upper95
+    )];
+    if let Some(t) = &r.train {
+        lines.push(format!(
+            "fault-free log, training part [{:.2}, {:.2}) s, {:.1} s watched: largest T {:.1} at {:.2} s",
+            t.part_s[0], t.part_s[1], t.watched_s, t.largest_statistic, t.largest_at_s
+        ));
+    }
+    lines.extend(r.warnings.iter().map(|w| format!("warning: {w}")));
+    lines
+}
+
 /// What was read of a replayed log and how it was repaired (the run reports it too).
 pub fn log_line(log: &crate::engine::logs::log_source::ReplayLog) -> String {
     format!(
-        "{} {}: {} samples at {:.2} Hz (largest gap {:.3} s, bridged), resampled to {} samples every {} s (means over each step, interpolated across gaps){}",
+        "{} {} (SHA-256 {}): {} samples at {:.2} Hz from {:.3} s on the log's clock, counted as 0 (largest gap {:.3} s, bridged), resampled to {} samples every {} s (means over each step, interpolated across gaps){}",
         log.file.display(),
         log.origin,
+        log.sha256,
         log.log_samples,
         log.log_rate_hz,
+        log.first_sample_s,
         log.largest_gap_s,
         log.samples(),
         log.dt_s,

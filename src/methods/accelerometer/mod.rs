@@ -6,6 +6,8 @@ pub mod ekf_svm;
 pub mod imu;
 pub mod records;
 pub mod replay;
+pub mod report;
+pub mod starter;
 pub mod study;
 pub mod trial;
 
@@ -14,7 +16,7 @@ use std::path::Path;
 use crate::engine::method::{Inputs, Method, Study};
 use crate::engine::report::TracePanel;
 use crate::engine::results::summary_spec::{Isolates, SummarySpec};
-use crate::engine::run::runner::{Manifest, RunError, RunOptions, RunReport, TrialSource, run};
+use crate::engine::run::runner::{Manifest, ModelFile, RunError, RunOptions, RunReport, TrialSource, run};
 use crate::engine::scenario::deck::Factor;
 use crate::engine::scenario::deck::FromDeck;
 use crate::engine::scenario::draws::{GridDigits, draw};
@@ -35,7 +37,7 @@ pub static METHOD: Method = Method {
     options: study::OPTIONS,
     load: |text, path| Ok(Box::new(AccelerometerStudy::from_toml(text, path)?)),
     summary: SummarySpec { extra_keys: &[], isolates: Isolates::Kind, extras: &[], paired_medians: &[], printed: &[] },
-    report: None,
+    report: Some(report::report_part),
     trace_panels: &[
         TracePanel { title: "attitude-EKF residual (unit gravity direction, 1)", columns: &["residual_*"] },
         TracePanel { title: "detection statistic", columns: &["detection_statistic"] },
@@ -86,27 +88,13 @@ impl Study for AccelerometerStudy {
         if write_beside {
             classifiers.save(&beside)?;
         }
-        if let Some(log) = &self.log {
-            let replay = replay::fault_free_replay(
-                log,
-                log.evaluate,
-                &self.design.ekf_for(1.0),
-                &self.design.detection_for(&self.detection, 1.0),
-                self.settle_s,
-            )
-            .map_err(|e| RunError::Invalid(format!("{}: the fault-free replay: {e}", log.file.display())))?;
+        if let Some(replay) = &self.replay {
             if !inputs.quiet {
-                eprintln!(
-                    "fault-free log, {:.1} s watched: largest T {:.1} against {:.1}, {} alarm(s) ({:.0} per flight hour, 95 % upper bound {:.0})",
-                    replay.watched_s,
-                    replay.largest_statistic,
-                    replay.threshold,
-                    replay.alarms,
-                    replay.alarms_per_flight_hour,
-                    replay.alarms_per_flight_hour_upper95
-                );
+                for line in commands::replay_lines(replay) {
+                    eprintln!("{line}");
+                }
             }
-            let text = serde_json::to_string_pretty(&replay).map_err(|e| RunError::Internal(e.to_string()))?;
+            let text = serde_json::to_string_pretty(replay).map_err(|e| RunError::Internal(e.to_string()))?;
             crate::engine::run::runner::write_atomically(
                 &opts.out_dir.join("fault_free_replay.json"),
                 text.as_bytes(),
@@ -262,6 +250,10 @@ impl TrialSource for AccelerometerTrials<'_> {
             fault_size_bins: [("bias", ranges.bias_mps2), ("gain", ranges.gain_deviation)]
                 .map(|(kind, [lo, hi])| (kind.to_string(), Factor::Range { lo, hi, bins: 3 }.bin_edges()))
                 .into(),
+            // The replayed log, as an FMU truth is recorded: a resume with another log is refused.
+            models: (s.log.iter())
+                .map(|l| ModelFile { file: l.file.display().to_string(), sha256: l.sha256.clone() })
+                .collect(),
             ..Manifest::of(KIND, &s.header, &s.monte_carlo, s.classifiers.iter().map(|c| c.name.as_str()))
         }
     }

@@ -10,7 +10,7 @@
 
 use nalgebra::Vector3;
 use rand::{Rng, RngExt};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::engine::logs::log_source::{Needs, Part, ReplayLog, Signal};
 use crate::fault::{ActiveFaults, ChannelFault};
@@ -81,15 +81,19 @@ pub fn replay_trace(
 
 /// The residual detector over a fault-free stretch of the log, filtered from its start: what a user
 /// flying this aircraft with this threshold would see.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FaultFreeReplay {
     /// The stretch, log seconds from its first sample.
     pub part_s: [f64; 2],
     /// Seconds watched: the stretch after `settle_s`.
     pub watched_s: f64,
     pub threshold: f64,
-    /// Largest `T` watched.
+    /// Largest `T` watched (NaN when no sample had a decision).
+    #[serde(deserialize_with = "number_or_nan")]
     pub largest_statistic: f64,
+    /// Where it occurred: log seconds from its first sample (NaN when nothing was watched).
+    #[serde(default = "nan", deserialize_with = "number_or_nan")]
+    pub largest_at_s: f64,
     /// Separate alarms (each run of samples at or over the threshold counts once).
     pub alarms: u64,
     /// `alarms` per hour watched, and its exact one-sided 95 % Poisson upper bound.
@@ -114,29 +118,105 @@ pub fn fault_free_replay(
     let alarms = (0..watched.len()).filter(|&k| over(watched[k]) && (k == 0 || !over(watched[k - 1]))).count() as u64;
     let hours = watched.len() as f64 * log.dt_s / 3600.0;
     let upper = crate::engine::stats::intervals::poisson_upper95(alarms);
+    // NaN (no decision) is passed over; an infinite T counts, as it alarms. The first of equal largest.
+    let largest =
+        (0..watched.len()).filter(|&k| !watched[k].is_nan()).fold(None, |best: Option<usize>, k| match best {
+            Some(b) if watched[b] >= watched[k] => Some(b),
+            _ => Some(k),
+        });
     Ok(FaultFreeReplay {
         part_s: log.seconds(part),
         watched_s: hours * 3600.0,
         threshold: detection.threshold,
-        // NaN (no decision) is passed over by max; an infinite T counts, as it alarms.
-        largest_statistic: watched.iter().copied().fold(f64::NAN, f64::max),
+        largest_statistic: largest.map_or(f64::NAN, |k| watched[k]),
+        largest_at_s: largest.map_or(f64::NAN, |k| (part.first + settle + k) as f64 * log.dt_s),
         alarms,
         alarms_per_flight_hour: alarms as f64 / hours,
         alarms_per_flight_hour_upper95: upper / hours,
     })
 }
 
-/// A threshold calibrated on the fault-free training part: `margin` times the largest `T` after
-/// `settle_s` there (the margin is the deck's choice; the part is never the evaluated one).
-pub fn calibrated_threshold(
-    log: &ReplayLog,
-    part: Part,
-    ekf: &AttitudeEkfParams,
-    detection: &DetectionParams,
-    settle_s: f64,
-    margin: f64,
-) -> Result<f64, TrialError> {
-    Ok(margin * fault_free_replay(log, part, ekf, detection, settle_s)?.largest_statistic)
+/// serde writes a NaN as `null`; it reads back as NaN.
+fn number_or_nan<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+}
+
+fn nan() -> f64 {
+    f64::NAN
+}
+
+/// What the run learns of the fault-free log (`fault_free_replay.json`; the report's section "Replay
+/// of a flight log" reads it): the evaluated part's replay at the run's threshold (its fields at the
+/// top level, as before), the training part's, where the threshold came from, the log's provenance,
+/// and the warnings.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ReplayRecord {
+    #[serde(flatten)]
+    pub evaluate: FaultFreeReplay,
+    /// The training part (`train_s`) at the same threshold, where there is one.
+    #[serde(default)]
+    pub train: Option<FaultFreeReplay>,
+    /// `detection.log_threshold_margin` when the threshold was calibrated on the training part.
+    #[serde(default)]
+    pub calibration_margin: Option<f64>,
+    #[serde(default)]
+    pub log: Option<LogProvenance>,
+    #[serde(default)]
+    pub warnings: Vec<String>,
+}
+
+/// The replayed log: which file (path and SHA-256), topic, how it was resampled, and its parts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LogProvenance {
+    pub file: String,
+    pub sha256: String,
+    /// `topic "sensor_combined" instance 0`, or `table`.
+    pub origin: String,
+    /// The first sample on the log's own clock (boot time for a ULog); parts count from it.
+    pub first_sample_s: f64,
+    pub log_samples: usize,
+    pub log_rate_hz: f64,
+    pub largest_gap_s: f64,
+    /// The step the log was resampled to (s).
+    pub dt_s: f64,
+    pub evaluate_s: [f64; 2],
+    pub train_s: Option<[f64; 2]>,
+    /// `debias`: each signal and the training part's mean removed from it.
+    pub removed_means: Vec<(String, f64)>,
+}
+
+impl LogProvenance {
+    pub fn of(log: &ReplayLog) -> Self {
+        LogProvenance {
+            file: log.file.display().to_string(),
+            sha256: log.sha256.clone(),
+            origin: log.origin.clone(),
+            first_sample_s: log.first_sample_s,
+            log_samples: log.log_samples,
+            log_rate_hz: log.log_rate_hz,
+            largest_gap_s: log.largest_gap_s,
+            dt_s: log.dt_s,
+            evaluate_s: log.seconds(log.evaluate),
+            train_s: log.train.map(|p| log.seconds(p)),
+            removed_means: log.removed_means.clone(),
+        }
+    }
+}
+
+/// The calibration-transient check (issue 51, item 7): a threshold calibrated on the training part
+/// is `margin` times that part's largest `T`; when that largest is `factor` times the evaluated part's
+/// or more, it came from something the evaluated part does not have (a start-up transient, a
+/// manoeuvre), and the threshold is set by it. The warning names both places and values.
+pub fn calibration_transient(train: &FaultFreeReplay, evaluate: &FaultFreeReplay, factor: f64) -> Option<String> {
+    let ratio = train.largest_statistic / evaluate.largest_statistic;
+    (ratio > factor).then(|| {
+        // Three significant digits: 1.04, 11.5, 110.
+        let decimals = if ratio >= 100.0 { 0 } else if ratio >= 10.0 { 1 } else { 2 };
+        format!(
+            "the threshold was calibrated on a training part whose largest T ({:.1} at {:.2} s) is {ratio:.decimals$} times the evaluated part's ({:.1} at {:.2} s), more than detection.calibration_transient_factor = {factor}: it likely comes from a transient (start-up, a manoeuvre) the evaluated part does not have, and sets the threshold; move log.train_s past {:.2} s (`fdimc log FILE --plot OUT.svg --signals ... --deck DECK` shows the parts)",
+            train.largest_statistic, train.largest_at_s, evaluate.largest_statistic, evaluate.largest_at_s, train.largest_at_s
+        )
+    })
 }
 
 #[cfg(test)]
@@ -230,5 +310,30 @@ mod tests {
         }
         // Before the onset nothing differs.
         assert!((0..k0).all(|m| faulty.samples[m] == clean.samples[m]));
+    }
+
+    /// The calibration-transient check with the issue's numbers (51, item 7): a training part whose
+    /// largest T (7,646 at 4.1 s, a start-up transient) is 110 times the evaluated part's (69.5 at 40.2 s)
+    /// is warned of, naming both and where to move train_s; a ratio at or under the factor is not.
+    #[test]
+    fn a_training_part_with_a_transient_is_warned_of() {
+        let part = |largest_statistic: f64, largest_at_s: f64| FaultFreeReplay {
+            part_s: [0.0, 1.0],
+            watched_s: 1.0,
+            threshold: 11_468.0,
+            largest_statistic,
+            largest_at_s,
+            alarms: 0,
+            alarms_per_flight_hour: 0.0,
+            alarms_per_flight_hour_upper95: 0.0,
+        };
+        let w = calibration_transient(&part(7646.0, 4.1), &part(69.5, 40.2), 10.0).unwrap();
+        assert!(
+            w.starts_with("the threshold was calibrated on a training part whose largest T (7646.0 at 4.10 s) is 110 times the evaluated part's (69.5 at 40.20 s), more than detection.calibration_transient_factor = 10"),
+            "{w}"
+        );
+        assert!(w.contains("move log.train_s past 4.10 s"), "{w}");
+        assert_eq!(calibration_transient(&part(695.0, 4.1), &part(69.5, 40.2), 10.0), None, "10 times: not more");
+        assert_eq!(calibration_transient(&part(f64::NAN, f64::NAN), &part(69.5, 40.2), 10.0), None);
     }
 }

@@ -104,6 +104,7 @@ struct DetectionSection {
     filter_noise: Option<String>,
     threshold: Option<f64>,
     log_threshold_margin: Option<f64>,
+    calibration_transient_factor: Option<f64>,
     settle_s: Option<f64>,
 }
 
@@ -146,7 +147,14 @@ pub struct AccelerometerStudy {
     /// The margin when the threshold was calibrated on the log's training part
     /// (`detection.log_threshold_margin`); `detection.threshold` then holds the calibrated value.
     pub log_threshold_margin: Option<f64>,
+    /// A replay's fault-free parts at the study's threshold, the log's provenance and what to warn of
+    /// (`run` writes it to `fault_free_replay.json`).
+    pub replay: Option<super::replay::ReplayRecord>,
 }
+
+/// `detection.calibration_transient_factor`'s default: a training part whose largest `T` is ten times
+/// the evaluated part's has seen something the evaluated part has not (a choice; issue 51 met 110).
+pub const DEFAULT_CALIBRATION_TRANSIENT_FACTOR: f64 = 10.0;
 
 impl FromDeck for AccelerometerStudy {
     fn from_toml(text: &str, path: &Path) -> Result<AccelerometerStudy, DeckError> {
@@ -415,15 +423,10 @@ impl FromDeck for AccelerometerStudy {
                     "calibrates on the log's training part: give [log] with train_s",
                 ));
             };
-            let calibrated = super::replay::calibrated_threshold(
-                part.0,
-                part.1,
-                &design.ekf_for(1.0),
-                &design.detection_for(&detection, 1.0),
-                settle_s,
-                m,
-            )
-            .map_err(|e| v.err("detection.log_threshold_margin", e.to_string()))?;
+            let (ekf, at_deck) = (design.ekf_for(1.0), design.detection_for(&detection, 1.0));
+            let calibrated = m * super::replay::fault_free_replay(part.0, part.1, &ekf, &at_deck, settle_s)
+                .map_err(|e| v.err("detection.log_threshold_margin", e.to_string()))?
+                .largest_statistic;
             if !(calibrated.is_finite() && calibrated > 0.0) {
                 return Err(v.err(
                     "detection.log_threshold_margin",
@@ -432,6 +435,43 @@ impl FromDeck for AccelerometerStudy {
             }
             detection.threshold = calibrated;
         }
+        let factor = match d.and_then(|d| d.calibration_transient_factor) {
+            None => DEFAULT_CALIBRATION_TRANSIENT_FACTOR,
+            Some(f) if f.is_finite() && f > 1.0 => f,
+            Some(f) => {
+                return Err(v.err(
+                    "detection.calibration_transient_factor",
+                    format!(
+                        "{f}: allowed a number > 1 (how many times the evaluated part's largest T the training part's may reach before the calibration is warned of; default {DEFAULT_CALIBRATION_TRANSIENT_FACTOR})"
+                    ),
+                ));
+            }
+        };
+        // Both parts replayed fault-free at the study's threshold, once: `validate` and `run` print
+        // them, `run` records them (fault_free_replay.json).
+        let replay = match &log {
+            None => None,
+            Some(l) => {
+                let (ekf, at) = (design.ekf_for(1.0), design.detection_for(&detection, 1.0));
+                let part = |field: &str, p| {
+                    super::replay::fault_free_replay(l, p, &ekf, &at, settle_s)
+                        .map_err(|e| v.err(field, format!("the fault-free replay of this part: {e}")))
+                };
+                let evaluate = part("log.evaluate_s", l.evaluate)?;
+                let train = l.train.map(|p| part("log.train_s", p)).transpose()?;
+                let mut warnings = l.warnings.clone();
+                if let (Some(_), Some(t)) = (margin, &train) {
+                    warnings.extend(super::replay::calibration_transient(t, &evaluate, factor));
+                }
+                Some(super::replay::ReplayRecord {
+                    evaluate,
+                    train,
+                    calibration_margin: margin,
+                    log: Some(super::replay::LogProvenance::of(l)),
+                    warnings,
+                })
+            }
+        };
 
         Ok(AccelerometerStudy {
             header,
@@ -444,6 +484,7 @@ impl FromDeck for AccelerometerStudy {
             classifiers,
             log,
             log_threshold_margin: margin,
+            replay,
         })
     }
 }
