@@ -51,13 +51,13 @@ pub fn exec_log(a: &LogArgs) -> Result<(), CliError> {
         }));
     }
     if let Some(out) = a.plot {
-        let topic = topic.as_deref().unwrap_or(crate::methods::accelerometer::replay::NEEDS.topic);
+        let topic = topic.as_deref().unwrap_or(crate::engine::logs::flight_log::PX4_IMU_TOPIC);
         return plot(a, out, topic, instance, section.as_ref());
     }
     // Zero: the first sample of the topic a replay would read (--topic, the deck's, else the method's),
     // so the table's times are the deck's; a log without it counts from its first non-zero timestamp
     // (a zero timestamp is a topic that never set its clock).
-    let reference = topic.as_deref().unwrap_or(crate::methods::accelerometer::replay::NEEDS.topic);
+    let reference = topic.as_deref().unwrap_or(crate::engine::logs::flight_log::PX4_IMU_TOPIC);
     let (t0, zero) = match topics.iter().find(|t| t.topic == reference && t.instance == instance) {
         Some(t) => (
             t.first_s,

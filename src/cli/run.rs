@@ -433,10 +433,14 @@ impl Kinds {
             (crate::engine::results::tables::read_summary(&dir.join("summary.csv"))?, Some(scratch))
         };
         let dir = scratch.clone().unwrap_or_else(|| target.to_path_buf());
-        // A baseline copied from another calibration (`summarize --target-pfa P --confidence C`): this
-        // run is calibrated at the baseline's too, so that the rates compare at one false-alarm rate.
+        // A baseline copied from another calibration (`summarize --target-pfa P --confidence C`): a run
+        // is calibrated at the baseline's too, so that the rates compare at one false-alarm rate. (A
+        // calibration's own folder is not a run: compare refuses the mismatch and says why.)
         let current = match crate::engine::results::check::calibration(&base) {
-            Some(wanted) if crate::engine::results::check::calibration(&current) != Some(wanted) => {
+            Some(wanted)
+                if crate::engine::results::check::calibration(&current) != Some(wanted)
+                    && dir.join("manifest.json").exists() =>
+            {
                 let calibration = match wanted {
                     (pfa, Some(confidence)) => Calibration::Confident { pfa, confidence },
                     (pfa, None) => Calibration::Target(pfa),
@@ -501,13 +505,21 @@ impl Kinds {
     /// accelerometer kind's deck that replays that log.
     pub fn exec_new(&self, kind: &str, file: &Path, force: bool, replay: Option<&Path>) -> Result<(), CliError> {
         let method = method::find(self.0, kind)?;
-        use crate::methods::accelerometer;
-        if replay.is_some() && kind != accelerometer::KIND {
-            return Err(CliError::Invalid(format!(
-                "--replay: kind {kind} does not replay flight logs; kind {} does",
-                accelerometer::KIND
-            )));
-        }
+        let replay = match (replay, method.replay_starter) {
+            (Some(_), None) => {
+                let replaying: Vec<&str> =
+                    self.0.iter().filter(|m| m.replay_starter.is_some()).map(|m| m.kind).collect();
+                return Err(CliError::Invalid(format!(
+                    "--replay: kind {kind} does not replay flight logs; {}",
+                    match replaying.as_slice() {
+                        [one] => format!("kind {one} does"),
+                        many => format!("kinds {} do", many.join(", ")),
+                    }
+                )));
+            }
+            (Some(log), Some(write)) => Some((log, write)),
+            (None, _) => None,
+        };
         if file.exists() && !force {
             return Err(CliError::Invalid(format!(
                 "{}: exists; name another file, or --force to replace it",
@@ -525,11 +537,11 @@ impl Kinds {
         let text = match replay {
             None => method.starter_deck(&study),
             // Checked before anything is written: a log the deck could not replay is refused here.
-            Some(log) => accelerometer::starter::replay_deck(&study, log, file).map_err(CliError::Invalid)?,
+            Some((log, write)) => write(&study, log, file).map_err(CliError::Invalid)?,
         };
         crate::engine::run::runner::write_atomically(file, text.as_bytes())?;
         println!(
-            "wrote {}: a {kind} deck ({}), study {study:?}\nnext: fdimc validate {0}, then fdimc run {0}",
+            "wrote {}: a deck of kind {kind} ({}), study {study:?}\nnext: fdimc validate {0}, then fdimc run {0}",
             file.display(),
             method.title
         );

@@ -37,6 +37,9 @@ pub struct Method {
     /// `fdimc new <kind> FILE`: a commented deck of this kind that validates and runs as written (the
     /// kind's CI deck, `include_str!`), and the bundled file it is.
     pub starter: (&'static str, &'static str),
+    /// `fdimc new <kind> FILE --replay LOG`: for kinds that replay flight logs, the starter deck of study
+    /// `study` (first argument) replaying LOG, to be written to FILE; or why LOG cannot be replayed so.
+    pub replay_starter: Option<fn(&str, &Path, &Path) -> Result<String, String>>,
 }
 
 impl Method {

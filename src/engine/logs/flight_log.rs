@@ -17,6 +17,10 @@ use std::path::{Path, PathBuf};
 use px4_ulog::stream_parser::model::{Completeness, FlattenedFieldType};
 use px4_ulog::stream_parser::{FieldParser, Message, SimpleCallbackResult, read_file_with_simple_callback};
 
+/// PX4's fused IMU topic (gyro and accelerometer in body FRD axes): what `fdimc log --plot` draws
+/// without `--topic` or a deck, and what the accelerometer kind replays.
+pub const PX4_IMU_TOPIC: &str = "sensor_combined";
+
 /// Which topic instance and fields to read.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TopicRequest {

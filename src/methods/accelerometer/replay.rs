@@ -23,7 +23,7 @@ use crate::methods::accelerometer::imu::AccelFaultRanges;
 /// What the method reads from a log: PX4's `sensor_combined` (body FRD axes, as the filter's x forward,
 /// y right, z down), gyro then accelerometer.
 pub const NEEDS: Needs = Needs {
-    topic: "sensor_combined",
+    topic: crate::engine::logs::flight_log::PX4_IMU_TOPIC,
     signals: &[
         Signal { name: "gyro_x_rad_s", ulog_field: "gyro_rad[0]" },
         Signal { name: "gyro_y_rad_s", ulog_field: "gyro_rad[1]" },

@@ -63,6 +63,7 @@ pub static METHOD: Method = Method {
     trace_panels: &[],
     own_plots: &[],
     starter: ("studies/starter_detection_filter.toml", include_str!("../../../studies/starter_detection_filter.toml")),
+    replay_starter: None,
 };
 
 impl Study for LtiStudy {
@@ -179,6 +180,9 @@ impl TrialSource for LtiTrials<'_> {
             deck_thresholds: study.detectors.iter().map(|d| d.params.thresholds.iter().copied().collect()).collect(),
             fault_size_units: fault_size_units(study),
             fault_size_bins: crate::fault::deck::FaultKindSpec::size_bins(&study.monte_carlo.faults),
+            parameter_error_bins: crate::engine::scenario::deck::ParameterError::bins(
+                &study.monte_carlo.parameter_errors,
+            ),
             models: (study.fmus().into_iter())
                 .map(|t| ModelFile { file: t.fmu.file_name(), sha256: t.fmu.sha256.clone() })
                 .collect(),

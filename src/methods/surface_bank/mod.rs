@@ -109,6 +109,7 @@ pub static METHOD: Method = Method {
         },
     ],
     starter: ("studies/ci_seed004.toml", include_str!("../../../studies/ci_seed004.toml")),
+    replay_starter: None,
 };
 
 crate::plain_study!(SurfaceStudy, monte_carlo.common, |s| Ok::<_, RunError>(SurfaceTrials::new(s)));
@@ -154,6 +155,7 @@ impl TrialSource for SurfaceTrials<'_> {
         }
         Manifest {
             fault_size_bins: bins,
+            parameter_error_bins: crate::engine::scenario::deck::ParameterError::bins(&s.monte_carlo.parameter_errors),
             // A flight costs 0.1-2 s, so 64 of them make a part file of seconds to a minute on 2 cores.
             chunk_trials: 64,
             outputs: SURFACE_NAMES.iter().map(|n| n.to_string()).collect(),
