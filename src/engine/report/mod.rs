@@ -821,7 +821,7 @@ fn page(
     );
     section(
         "Parameter errors, one at a time",
-        "Each varied parameter's error in bins of its own (its listed values, or 5 equal bins over its range; \
+        "Each varied parameter's error in bins of its own (its listed values, or the deck's bins of its range; \
          <code>error_bin</code> the bin's centre), every threshold set, faulty units and fault-free flights \
          (<code>kind</code> <code>none</code>) apart: the derivative whose error moves Pd or Pfa is the one to model \
          better. Table: <code>parameter_errors.csv</code>.",

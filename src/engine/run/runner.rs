@@ -274,6 +274,10 @@ pub struct Manifest {
     /// listed or fixed size is its own bin); the summary tables give each bin centre its edges.
     #[serde(default)]
     pub fault_size_bins: crate::engine::scenario::deck::SizeBins,
+    /// Each parameter error drawn from a range: its bins as `[low, high)` edges, by its name (the
+    /// deck's `bins`; `parameter_errors.csv` groups by them).
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub parameter_error_bins: crate::engine::scenario::deck::SizeBins,
     pub command_line: Vec<String>,
     pub complete: bool,
     pub rows: u64,
@@ -540,6 +544,7 @@ impl Manifest {
             profile_resolution: None,
             fault_size_units: Default::default(),
             fault_size_bins: Default::default(),
+            parameter_error_bins: Default::default(),
             command_line: Vec::new(),
             complete: false,
             rows: 0,

@@ -646,6 +646,17 @@ pub struct ParameterError<P> {
     pub what: P,
 }
 
+impl<P> ParameterError<P> {
+    /// The manifest's `parameter_error_bins` of `errors`: each drawn from a range, its deck's bins.
+    pub fn bins(errors: &[ParameterError<P>]) -> SizeBins {
+        let mut bins = SizeBins::new();
+        for e in errors {
+            e.value.add_bins_to(&e.name, &mut bins);
+        }
+        bins
+    }
+}
+
 /// Which of the shared `[monte_carlo]` fields a kind takes (the others are refused by name).
 #[derive(Debug, Clone, Copy)]
 pub struct MonteCarloRules<'a> {

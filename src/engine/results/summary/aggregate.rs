@@ -214,11 +214,12 @@ pub(super) struct Aggregates<'s> {
 pub(super) struct ParameterBins {
     pub(super) name: String,
     pub(super) column: String,
-    /// `None`: each value is its own bin.
-    pub(super) span: Option<(f64, f64)>,
+    /// `None`: each value is its own bin; else (low, high, bins): equal bins over the range.
+    pub(super) span: Option<(f64, f64, usize)>,
 }
 
-/// Equal bins of a parameter error drawn from a range (more distinct values than this: a range).
+/// Equal bins of a parameter error drawn from a range whose manifest does not give the deck's (more
+/// distinct values than [`LISTED_VALUES_MAX`]: a range).
 pub(super) const PARAMETER_BINS: usize = 5;
 pub(super) const LISTED_VALUES_MAX: usize = 12;
 
@@ -226,10 +227,10 @@ impl ParameterBins {
     fn label(&self, v: f64) -> f64 {
         match self.span {
             None => v,
-            Some((lo, hi)) => {
+            Some((lo, hi, bins)) => {
                 let u = if hi > lo { (v - lo) / (hi - lo) } else { 0.0 };
-                let bin = ((u * PARAMETER_BINS as f64) as usize).min(PARAMETER_BINS - 1);
-                crate::engine::scenario::draws::bin_centre(lo, hi, bin, PARAMETER_BINS)
+                let bin = ((u * bins as f64) as usize).min(bins - 1);
+                crate::engine::scenario::draws::bin_centre(lo, hi, bin, bins)
             }
         }
     }

@@ -52,7 +52,9 @@ pub fn answer(
             continue;
         }
         let flown = trials[i] - failed[i];
-        if kinds[i] == col::NO_FAULT {
+        // A group without faulty units (pd blank) is fault-free, whatever the kind calls it (`none`,
+        // a classifier's `normal`).
+        if kinds[i] == col::NO_FAULT || (faulty_row[i].is_nan() && flown > 0) {
             let e = quiet.entry(s_names[i].as_str()).or_default();
             *e = (e.0 + alarms[i], e.1 + flown);
         } else if !faulty_row[i].is_nan() {

@@ -22,7 +22,7 @@
 //! | `comparison.csv` | thresholds x pair of detectors | [`crate::engine::stats::paired`] |
 //! | `thresholds.csv` | detector x statistic (+ `all`) | kinds with a statistic: [`crate::engine::results::thresholds`] |
 //! | `answer.csv` | detector | the answer at a glance, at the thresholds in use: [`answer`] |
-//! | `parameter_errors.csv` | thresholds x detector x (fault or none) x parameter error x its bin | decks with parameter errors: each one's own bins (its listed values, or 5 equal bins over its range), the counts and rates as `summary.csv`'s, so that the derivative that drives the misses shows |
+//! | `parameter_errors.csv` | thresholds x detector x (fault or none) x parameter error x its bin | decks with parameter errors: each one's own bins (its listed values, or the deck's bins of its range), the counts and rates as `summary.csv`'s, so that the derivative that drives the misses shows |
 //!
 //! The parts, in the order data flows: `aggregate.rs` (what the slices add to: interned names, a unit's
 //! result, a group's counts and sketches, the run's aggregates), `tables.rs` (the tables from the
@@ -317,9 +317,10 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
 /// `parameter_errors.csv`: the units by each parameter error's own bins.
 pub const PARAMETER_ERRORS_FILE: &str = "parameter_errors.csv";
 
-/// The bins of each parameter error the run records (`perr_<name>` columns): its listed values when
-/// it has a few, else [`aggregate::PARAMETER_BINS`] equal bins over the values recorded (a first pass
-/// over those columns alone).
+/// The bins of each parameter error the run records (`perr_<name>` columns): the deck's bins of a
+/// range (the manifest's `parameter_error_bins`), else its listed values when it has a few, else
+/// [`aggregate::PARAMETER_BINS`] equal bins over the values recorded (a first pass over those columns
+/// alone; a run of an fdimc that did not record the deck's bins).
 fn parameter_bins(
     path: &Path,
     manifest: &crate::engine::run::runner::Manifest,
@@ -344,15 +345,19 @@ fn parameter_bins(
     Ok(perr
         .iter()
         .zip(seen)
-        .map(|(c, (distinct, lo, hi))| aggregate::ParameterBins {
-            name: c[col::PERR_PREFIX.len()..].to_string(),
-            column: c.clone(),
-            // The drawn values' span rounded to 2 digits of its width: the deck's range, as drawn
-            // values come within a hair of its ends (-0.19994 .. 0.19997 for -0.2 .. 0.2).
-            span: (distinct.len() > aggregate::LISTED_VALUES_MAX).then(|| {
-                let q = 10f64.powi((hi - lo).log10().floor() as i32 - 1);
-                ((lo / q).round() * q, (hi / q).round() * q)
-            }),
+        .map(|(c, (distinct, lo, hi))| {
+            let name = c[col::PERR_PREFIX.len()..].to_string();
+            let deck = manifest.parameter_error_bins.get(&name).filter(|e| !e.is_empty());
+            let span = match deck {
+                Some(edges) => Some((edges[0][0], edges[edges.len() - 1][1], edges.len())),
+                // The drawn values' span rounded to 2 digits of its width: the deck's range, as drawn
+                // values come within a hair of its ends (-0.19994 .. 0.19997 for -0.2 .. 0.2).
+                None => (distinct.len() > aggregate::LISTED_VALUES_MAX).then(|| {
+                    let q = 10f64.powi((hi - lo).log10().floor() as i32 - 1);
+                    ((lo / q).round() * q, (hi / q).round() * q, aggregate::PARAMETER_BINS)
+                }),
+            };
+            aggregate::ParameterBins { name, column: c.clone(), span }
         })
         .collect())
 }
