@@ -3756,3 +3756,134 @@ fn the_newcomers_path_calibrates_copies_a_baseline_and_checks_without_false_regr
     assert!(said.contains("the baseline's thresholds are calibrated at Pfa 0.001 with 0.95 confidence"), "{said}");
     assert!(!said.contains("REGRESSION") && said.contains(": 0 regression(s)"), "{said}");
 }
+
+/// Missed detection before the hazard (issue 52, item 3): with `[monte_carlo.time_to_hazard_s]` the
+/// summary gives, per group, the faulty flights not detected within their fault's time to hazard, and
+/// the answer prints it per fault kind. Recounted here from the records at the deck's thresholds: a
+/// bias within 0.5 s, a stuck alpha sensor within 0.05 s and a stuck pitch-rate sensor within 1 s.
+/// Times the deck cannot use are refused by field.
+#[test]
+fn time_to_hazard_gives_the_probability_of_missing_the_hazard() {
+    use polars::prelude::*;
+    let tmp = tempfile::tempdir().unwrap();
+    let table = "\n[monte_carlo.time_to_hazard_s]\nbias = 0.5\nstuck = { alpha_rad = 0.05, q_rad_s = 1.0 }\n";
+    let edit = |name: &str, extra: &str| {
+        let source = std::fs::read_to_string(CI_DECK).unwrap();
+        let path = tmp.path().join(name);
+        std::fs::write(&path, format!("{source}{extra}")).unwrap();
+        path
+    };
+    let deck = edit("hazard.toml", table);
+    let out = tmp.path().join("run");
+    let stdout = ok(&fdimc(&["run", deck.to_str().unwrap(), "--trials", "1500", "--out", out.to_str().unwrap()]));
+
+    let records = read_frame(&out.join("trials.parquet"));
+    let col = |n: &str| records.column(n).unwrap().clone();
+    let (det, kind, target) = (col("detector"), col("kind"), col("target"));
+    let (det, kind, target) = (det.str().unwrap(), kind.str().unwrap(), target.str().unwrap());
+    let (fault_free, detected, delay, failure) = (col("fault_free"), col("detected"), col("delay_s"), col("failure"));
+    let (fault_free, detected, delay) = (fault_free.bool().unwrap(), detected.bool().unwrap(), delay.f64().unwrap());
+    let failure = failure.str().unwrap();
+    // Per (kind, target) of the seed detector: (units, missed before the hazard).
+    let mut want: std::collections::BTreeMap<(String, String), (u64, u64)> = Default::default();
+    for i in 0..records.height() {
+        if det.get(i) != Some("seed") || fault_free.get(i) == Some(true) || failure.get(i).is_some() {
+            continue;
+        }
+        let (k, t) = (kind.get(i).unwrap(), target.get(i).unwrap());
+        let limit = match (k, t) {
+            ("bias", _) => 0.5,
+            ("stuck", "alpha_rad") => 0.05,
+            ("stuck", "q_rad_s") => 1.0,
+            other => panic!("a fault this deck does not fly: {other:?}"),
+        };
+        let in_time = detected.get(i) == Some(true) && delay.get(i).is_some_and(|d| d <= limit);
+        let e = want.entry((k.to_string(), t.to_string())).or_default();
+        *e = (e.0 + 1, e.1 + (!in_time) as u64);
+    }
+    let summary = csv_frame(&out.join("summary.csv"));
+    let s = |n: &str| summary.column(n).unwrap().clone();
+    let (sets, sdet, skind, starget) = (s("thresholds"), s("detector"), s("kind"), s("target"));
+    let (units, missed, time) = (
+        s("hazard_units").cast(&DataType::UInt64).unwrap(),
+        s("missed_before_hazard").cast(&DataType::UInt64).unwrap(),
+        s("time_to_hazard_s").cast(&DataType::Float64).unwrap(),
+    );
+    let mut got: std::collections::BTreeMap<(String, String), (u64, u64)> = Default::default();
+    for i in 0..summary.height() {
+        if sets.str().unwrap().get(i) != Some("deck") || sdet.str().unwrap().get(i) != Some("seed") {
+            continue;
+        }
+        let Some(n) = units.u64().unwrap().get(i) else { continue };
+        let key =
+            (skind.str().unwrap().get(i).unwrap().to_string(), starget.str().unwrap().get(i).unwrap().to_string());
+        let t = time.f64().unwrap().get(i).unwrap();
+        assert_eq!(
+            t,
+            if key.0 == "bias" {
+                0.5
+            } else if key.1 == "alpha_rad" {
+                0.05
+            } else {
+                1.0
+            },
+            "{key:?}"
+        );
+        let e = got.entry(key).or_default();
+        *e = (e.0 + n, e.1 + missed.u64().unwrap().get(i).unwrap());
+    }
+    assert_eq!(got, want);
+    assert_eq!(got.len(), 4, "bias and stuck on two outputs");
+    // Some miss the hazard and some do not, so the counts can tell the times apart.
+    assert!(got.values().any(|&(n, m)| m > 0 && m < n), "{got:?}");
+
+    // detectors.csv over every fault, and the answer per kind.
+    let detectors = csv_frame(&out.join("detectors.csv"));
+    let row = (0..detectors.height())
+        .find(|&i| {
+            detectors.column("thresholds").unwrap().str().unwrap().get(i) == Some("deck")
+                && detectors.column("detector").unwrap().str().unwrap().get(i) == Some("seed")
+        })
+        .unwrap();
+    let (n, m) = want.values().fold((0, 0), |a, &(n, m)| (a.0 + n, a.1 + m));
+    let p = detectors.column("p_miss_before_hazard").unwrap().f64().unwrap().get(row).unwrap();
+    assert_eq!(p, m as f64 / n as f64);
+    let answer = stdout.split("  answer, at the").nth(1).unwrap();
+    assert!(answer.contains("P(not detected before the hazard): bias within 0.5 s "), "{stdout}");
+    assert!(answer.contains("; stuck within its target's time "), "{stdout}");
+
+    for (name, extra, field, allowed) in [
+        ("negative", "\n[monte_carlo.time_to_hazard_s]\nbias = -1.0\n", "bias", "must be a finite number > 0, got -1"),
+        (
+            "kind",
+            "\n[monte_carlo.time_to_hazard_s]\ndrift = 1.0\n",
+            "drift",
+            "no drift faults in this deck; its fault kinds: bias, stuck",
+        ),
+        (
+            "target",
+            "\n[monte_carlo.time_to_hazard_s]\nstuck = { h_m = 1.0 }\n",
+            "stuck.h_m",
+            "stuck faults of this deck hit alpha_rad, q_rad_s, not h_m",
+        ),
+        (
+            "text",
+            "\n[monte_carlo.time_to_hazard_s]\nbias = \"soon\"\n",
+            "bias",
+            "a time in seconds, or a table of targets to times (s), got string",
+        ),
+    ] {
+        let bad = edit(&format!("{name}.toml"), extra);
+        let out = fdimc(&["validate", bad.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(2), "{name}");
+        let want = format!("{}: monte_carlo.time_to_hazard_s.{field}: {allowed}", bad.display());
+        assert!(text(&out.stderr).contains(&want), "{name}: {}", text(&out.stderr));
+    }
+    // A kind that does not take it says so.
+    let source = std::fs::read_to_string("studies/ci_seed002.toml").unwrap();
+    let air = tmp.path().join("air.toml");
+    std::fs::write(&air, format!("{source}\n[monte_carlo.time_to_hazard_s]\nbias = 1.0\n")).unwrap();
+    let out = fdimc(&["validate", air.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(text(&out.stderr).contains("monte_carlo.time_to_hazard_s: not used by"), "{}", text(&out.stderr));
+}

@@ -880,6 +880,7 @@ pub(crate) fn answer_block(dir: &Path) -> Result<String, RunError> {
     let (pfa, pd) = (t.rates("pfa_fault_free"), t.rates("pd"));
     let delay = t.delays("delay_p50_s", "delay_p90_s");
     let (per_kind, detectable) = (t.strs("pd_by_fault"), t.strs("min_size_pd90"));
+    let hazard = t.strs("p_miss_before_hazard");
     let cell = |s: &str| if s.is_empty() { "-".to_string() } else { escape(s) };
     let list = |s: &str| if s.is_empty() { "-".to_string() } else { escape(s).replace("; ", "<br>") };
     let mut rows = String::new();
@@ -894,7 +895,11 @@ pub(crate) fn answer_block(dir: &Path) -> Result<String, RunError> {
             "<tr><th>{}</th><td>{quiet}</td><td>{caught}</td><td>{}</td><td class=\"l\">{}</td><td class=\"l\">{}</td><td class=\"l\"><small>{}</small></td></tr>\n",
             escape(&names[i]),
             delay[i],
-            list(&per_kind[i]),
+            if hazard[i].is_empty() {
+                list(&per_kind[i])
+            } else {
+                format!("{}<br><small>not detected before the hazard:</small><br>{}", list(&per_kind[i]), list(&hazard[i]))
+            },
             list(&detectable[i]),
             cell(&values[i]),
         ));

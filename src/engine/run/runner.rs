@@ -278,6 +278,9 @@ pub struct Manifest {
     /// deck's `bins`; `parameter_errors.csv` groups by them).
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub parameter_error_bins: crate::engine::scenario::deck::SizeBins,
+    /// The deck's `time_to_hazard_s` (per fault kind, per target or `""` for all): `hazard.csv`.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub time_to_hazard_s: crate::engine::scenario::deck::HazardTimes,
     pub command_line: Vec<String>,
     pub complete: bool,
     pub rows: u64,
@@ -516,6 +519,7 @@ impl Manifest {
             profile_resolution: Some(monte_carlo.profile.step()),
             detectors: detectors.into_iter().map(String::from).collect(),
             trial_duration_s: Some(header.duration_s),
+            time_to_hazard_s: monte_carlo.time_to_hazard_s.clone(),
             ..Manifest::unstarted()
         }
     }
@@ -545,6 +549,7 @@ impl Manifest {
             fault_size_units: Default::default(),
             fault_size_bins: Default::default(),
             parameter_error_bins: Default::default(),
+            time_to_hazard_s: Default::default(),
             command_line: Vec::new(),
             complete: false,
             rows: 0,

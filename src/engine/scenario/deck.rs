@@ -594,8 +594,21 @@ pub struct MonteCarloSection {
     pub profile_resolution: Option<f64>,
     #[serde(default)]
     pub parameter_error: Vec<toml::Table>,
+    /// Per fault kind, a number (s) or a table of targets to numbers ([`HazardTimes`]).
+    pub time_to_hazard_s: Option<toml::Table>,
     #[serde(flatten)]
     pub rest: toml::Table,
+}
+
+/// `[monte_carlo.time_to_hazard_s]`: per record kind (`bias`, `actuator_stuck`), per target (`""`: every
+/// target of the kind) the time from the onset after which an undetected fault is hazardous (s). The
+/// summary's `hazard.csv` gives P(not detected within it).
+pub type HazardTimes = std::collections::BTreeMap<String, std::collections::BTreeMap<String, f64>>;
+
+/// The time to hazard of a fault of `kind` on `target` in `times`, if the deck gives one.
+pub fn time_to_hazard(times: &HazardTimes, kind: &str, target: &str) -> Option<f64> {
+    let of_kind = times.get(kind)?;
+    of_kind.get(target).or_else(|| of_kind.get("")).copied()
 }
 
 /// The shared fields of `[monte_carlo]`, validated.
@@ -619,6 +632,8 @@ pub struct MonteCarlo {
     /// The value grid of the recorded first-passage profiles (`profile_resolution`, its relative step):
     /// the resolution at which alarm times can be replayed at other thresholds.
     pub profile: crate::engine::scenario::profile_grid::ProfileGrid,
+    /// `time_to_hazard_s`, checked against the deck's faults by the kind ([`Validator::hazard_times`]).
+    pub time_to_hazard_s: HazardTimes,
     /// Set by `fdimc sensitivity`, never by a deck: the trials are the rows of this design.
     pub design: Option<std::sync::Arc<Design>>,
 }
@@ -676,6 +691,9 @@ pub struct MonteCarloRules<'a> {
     pub parameter_errors: Option<bool>,
     /// The kind's default `detection_window_s` (infinite: to the end of the trial).
     pub detection_window_s: f64,
+    /// `time_to_hazard_s`: the kind checks its keys against the faults it flies
+    /// ([`Validator::hazard_times`]).
+    pub time_to_hazard: bool,
 }
 
 impl<'a> MonteCarloRules<'a> {
@@ -692,11 +710,35 @@ impl<'a> MonteCarloRules<'a> {
             noise_ranges: true,
             parameter_errors: None,
             detection_window_s: f64::INFINITY,
+            time_to_hazard: false,
         }
     }
 }
 
 impl Validator<'_> {
+    /// Checks `time_to_hazard_s` against the faults the deck flies: `flown` lists each record kind with
+    /// the targets it may hit; a key of another kind, or a target its kind does not hit, is refused.
+    pub fn hazard_times(&self, times: &HazardTimes, flown: &[(String, Vec<String>)]) -> Result<(), DeckError> {
+        for (kind, targets) in times {
+            let field = format!("monte_carlo.time_to_hazard_s.{kind}");
+            let Some((_, hit)) = flown.iter().find(|(k, _)| k == kind) else {
+                let kinds: Vec<&str> = flown.iter().map(|(k, _)| k.as_str()).collect();
+                return Err(
+                    self.err(field, format!("no {kind} faults in this deck; its fault kinds: {}", kinds.join(", ")))
+                );
+            };
+            for target in targets.keys().filter(|t| !t.is_empty()) {
+                if !hit.contains(target) {
+                    return Err(self.err(
+                        format!("{field}.{target}"),
+                        format!("{kind} faults of this deck hit {}, not {target}", hit.join(", ")),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Validates the shared fields of `[monte_carlo]` (defaults without the section: 1000 trials, no
     /// fault-free ones, random sampling, target Pfa 0.01, onset at a third of the trial, nominal noise),
     /// then hands the kind its own fields (`None` without the section) and each parameter error's own
@@ -719,6 +761,7 @@ impl Validator<'_> {
                 noise_scale: Factor::Fixed(1.0),
                 detection_window_s: rules.detection_window_s,
                 profile: Default::default(),
+                time_to_hazard_s: HazardTimes::new(),
                 design: None,
             };
             return Ok((defaults, None, Vec::new()));
@@ -735,6 +778,33 @@ impl Validator<'_> {
         refuse("confidence", mc.confidence.is_some(), rules.target_pfa)?;
         refuse("onset_s", mc.onset_s.is_some(), rules.onset_s)?;
         refuse("parameter_error", !mc.parameter_error.is_empty(), rules.parameter_errors.is_some())?;
+        refuse("time_to_hazard_s", mc.time_to_hazard_s.is_some(), rules.time_to_hazard)?;
+        let mut time_to_hazard_s = HazardTimes::new();
+        for (kind, value) in mc.time_to_hazard_s.iter().flatten() {
+            let field = format!("monte_carlo.time_to_hazard_s.{kind}");
+            let times = time_to_hazard_s.entry(kind.clone()).or_default();
+            match value {
+                toml::Value::Table(targets) if !targets.is_empty() => {
+                    for (target, t) in targets {
+                        let field = format!("{field}.{target}");
+                        let t = t
+                            .as_float()
+                            .or(t.as_integer().map(|i| i as f64))
+                            .ok_or_else(|| self.err(&field, format!("a time in seconds, got {}", t.type_str())))?;
+                        times.insert(target.clone(), self.positive(&field, t)?);
+                    }
+                }
+                v => {
+                    let t = v.as_float().or(v.as_integer().map(|i| i as f64)).ok_or_else(|| {
+                        self.err(
+                            &field,
+                            format!("a time in seconds, or a table of targets to times (s), got {}", v.type_str()),
+                        )
+                    })?;
+                    times.insert(String::new(), self.positive(&field, t)?);
+                }
+            }
+        }
 
         let trials = self.trials("monte_carlo.trials", mc.trials)?;
         let fault_free_fraction =
@@ -824,6 +894,7 @@ impl Validator<'_> {
                 noise_scale,
                 detection_window_s,
                 profile,
+                time_to_hazard_s,
                 design: None,
             },
             Some(own),

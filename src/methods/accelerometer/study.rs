@@ -336,6 +336,7 @@ impl FromDeck for AccelerometerStudy {
             noise_ranges: false,
             parameter_errors: None,
             detection_window_s: f64::INFINITY,
+            time_to_hazard: false,
         };
         let (common, own, _) = v.monte_carlo(deck.monte_carlo, &rules, |_, _| Ok(()))?;
         let own: MonteCarloOwn = own.unwrap_or_default();

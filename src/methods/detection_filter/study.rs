@@ -700,6 +700,7 @@ fn monte_carlo(
 ) -> Result<LtiMonteCarlo, DeckError> {
     let rules = MonteCarloRules {
         parameter_errors: Some(true),
+        time_to_hazard: true,
         ..MonteCarloRules::sampled("detection-filter decks", duration_s, OPTIONS.contains(&Opt::Thresholds))
     };
     let (common, own, parameter_errors) = chk.monte_carlo(mc, &rules, |prefix, table| {
@@ -788,5 +789,20 @@ fn monte_carlo(
             .collect::<Result<Vec<_>, _>>()?,
     };
     let faults = chk.fault_kind_specs(&own.fault, failing_inputs)?;
+    // What each population may hit, as its records name it: a sensor fault one of the outputs flown,
+    // an actuator fault one of its failing inputs.
+    let mut flown: Vec<(String, Vec<String>)> = Vec::new();
+    for f in &faults {
+        let hit: Vec<String> = if f.inputs.is_empty() {
+            outputs.iter().map(|&o| plant.output_names[o].clone()).collect()
+        } else {
+            f.inputs.iter().map(|&i| failing_inputs.0[i].clone()).collect()
+        };
+        match flown.iter_mut().find(|(k, _)| k == f.record_kind()) {
+            Some((_, targets)) => targets.extend(hit.into_iter().filter(|t| !targets.contains(t)).collect::<Vec<_>>()),
+            None => flown.push((f.record_kind().to_string(), hit)),
+        }
+    }
+    chk.hazard_times(&common.time_to_hazard_s, &flown)?;
     Ok(LtiMonteCarlo { common, outputs, faults, parameter_errors })
 }

@@ -60,6 +60,8 @@ pub(super) struct Unit {
     /// The first alarm after the onset came after the detection window (then not detected).
     pub(super) late_alarm: bool,
     pub(super) isolated: Option<u32>,
+    /// The deck's time to hazard of this unit's fault (`time_to_hazard_s`), if it gives one.
+    pub(super) hazard_s: Option<f64>,
     /// Whether what was isolated is the truth; `None` when nothing was, or when the truth is not
     /// something the detector can name (an actuator fault for a detector that names sensors): such a
     /// unit is not an isolation decision.
@@ -79,6 +81,11 @@ pub(super) struct Counts {
     pub(super) correct: u64,
     pub(super) faulty: bool,
     pub(super) delay: Quantiles,
+    /// Faulty units that flew with a time to hazard, and those of them detected within it.
+    pub(super) hazard_units: u64,
+    pub(super) detected_in_time: u64,
+    /// The units' time to hazard when they share one (NaN when they differ).
+    pub(super) hazard_s: Option<f64>,
     /// Per [`Extra`]: the count of the counting ones.
     pub(super) extra_counts: Vec<u64>,
     /// Per [`Extra`]: the values of the quantile ones.
@@ -107,6 +114,11 @@ impl Counts {
                 self.delay.push(d);
             }
         }
+        if let (true, Some(t)) = (u.faulty, u.hazard_s) {
+            self.hazard_units += 1;
+            self.detected_in_time += (u.detected && u.delay_s.is_some_and(|d| d <= t)) as u64;
+            self.hazard_s = Some(self.shared_hazard(t));
+        }
         if let Some(correct) = u.correct {
             self.decided += 1;
             self.correct += correct as u64;
@@ -133,6 +145,11 @@ impl Counts {
         self.correct += o.correct;
         self.faulty |= o.faulty;
         self.delay.merge(&o.delay);
+        self.hazard_units += o.hazard_units;
+        self.detected_in_time += o.detected_in_time;
+        if let Some(t) = o.hazard_s {
+            self.hazard_s = Some(self.shared_hazard(t));
+        }
         for (a, b) in self.extra_counts.iter_mut().zip(&o.extra_counts) {
             *a += b;
         }
@@ -143,6 +160,14 @@ impl Counts {
 
     pub(super) fn flown(&self) -> u64 {
         self.units - self.failed
+    }
+
+    /// The time to hazard of these units with one of `t` added: `t` if they share it, else NaN.
+    fn shared_hazard(&self, t: f64) -> f64 {
+        match self.hazard_s {
+            Some(s) if s.to_bits() != t.to_bits() => f64::NAN,
+            _ => t,
+        }
     }
 }
 
@@ -206,6 +231,8 @@ pub(super) struct Aggregates<'s> {
     /// the units: `parameter_errors.csv`, which derivative drives the misses.
     pub(super) parameters: Vec<ParameterBins>,
     pub(super) by_parameter: HashMap<Vec<u64>, Counts>,
+    /// The deck's times to hazard (the manifest's `time_to_hazard_s`).
+    pub(super) hazard_times: crate::engine::scenario::deck::HazardTimes,
 }
 
 /// How one parameter error's recorded values (`perr_<name>`) are binned for `parameter_errors.csv`:
@@ -260,6 +287,7 @@ impl<'s> Aggregates<'s> {
             detection_window_s,
             parameters: Vec::new(),
             by_parameter: HashMap::new(),
+            hazard_times: Default::default(),
         }
     }
 
@@ -325,6 +353,14 @@ impl<'s> Aggregates<'s> {
             let flown = failure.get(i).is_none();
             let kind_id = self.names.id(kind.get(i));
             let target_id = self.names.id(target.get(i));
+            let hazard_s = match (faulty, self.hazard_times.is_empty()) {
+                (true, false) => crate::engine::scenario::deck::time_to_hazard(
+                    &self.hazard_times,
+                    kind.get(i).unwrap_or_default(),
+                    target.get(i).unwrap_or_default(),
+                ),
+                _ => None,
+            };
             extras.row(i, &mut extra_row);
             for s in 0..self.sets.len() {
                 let set = self.sets[s];
@@ -339,6 +375,7 @@ impl<'s> Aggregates<'s> {
                         delay_s: delay.get(i),
                         late_alarm: late.get(i).is_some(),
                         isolated: iso,
+                        hazard_s,
                         correct: correct.get(i),
                     }
                 } else {
@@ -354,6 +391,7 @@ impl<'s> Aggregates<'s> {
                         delay_s: alarm.map(|a| a - onset.get(i).unwrap_or(f64::NAN)),
                         late_alarm: faulty && profiles.late_alarm(i, &thresholds[d].whole).is_some(),
                         isolated: None,
+                        hazard_s,
                         correct: None,
                     }
                 };

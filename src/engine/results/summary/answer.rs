@@ -47,6 +47,14 @@ pub fn answer(
     let faulty_row = s.f64s("pd");
     let mut quiet: BTreeMap<&str, (u64, u64)> = BTreeMap::new();
     let mut by_kind: BTreeMap<&str, BTreeMap<&str, (u64, u64)>> = BTreeMap::new();
+    // Per detector and kind with a time to hazard: (missed before it, units, the time when one).
+    let hazard = summary.get_column_names().iter().any(|c| c.as_str() == "hazard_units");
+    let (hazard_units, missed_in_time, hazard_s) = if hazard {
+        (s.f64s("hazard_units"), s.f64s("missed_before_hazard"), s.f64s("time_to_hazard_s"))
+    } else {
+        (Vec::new(), Vec::new(), Vec::new())
+    };
+    let mut by_hazard: BTreeMap<&str, BTreeMap<&str, (u64, u64, Option<f64>)>> = BTreeMap::new();
     for i in 0..summary.height() {
         if s_sets[i] != set {
             continue;
@@ -60,6 +68,17 @@ pub fn answer(
         } else if !faulty_row[i].is_nan() {
             let e = by_kind.entry(s_names[i].as_str()).or_default().entry(kinds[i].as_str()).or_default();
             *e = (e.0 + hits[i], e.1 + flown);
+            if hazard && !hazard_units[i].is_nan() {
+                let h = by_hazard.entry(s_names[i].as_str()).or_default().entry(kinds[i].as_str()).or_insert((
+                    0,
+                    0,
+                    Some(hazard_s[i]),
+                ));
+                h.0 += missed_in_time[i] as u64;
+                h.1 += hazard_units[i] as u64;
+                // One time for the kind when all its rows share it (a target's own otherwise).
+                h.2 = h.2.filter(|t| t.to_bits() == hazard_s[i].to_bits());
+            }
         }
     }
 
@@ -112,6 +131,19 @@ pub fn answer(
         rows.per_kind.push(Some(per_kind.join("; ")).filter(|s| !s.is_empty()));
         rows.delays.push([p50[i], p90[i]]);
         rows.detectable.push(Some(detectable.join("; ")).filter(|s| !s.is_empty()));
+        let missed: Vec<String> = by_hazard
+            .get(name)
+            .into_iter()
+            .flatten()
+            .map(|(kind, &(k, n, t))| {
+                let (lo, hi) = wilson(k, n, Z95);
+                let within = t
+                    .filter(|t| !t.is_nan())
+                    .map_or("its target's time".to_string(), |t| format!("{} s", significant(t)));
+                format!("{kind} within {within} {}", rate_interval(k as f64 / n.max(1) as f64, lo, hi))
+            })
+            .collect();
+        rows.missed_before_hazard.push(Some(missed.join("; ")).filter(|s| !s.is_empty()));
     }
     rows.frame()
 }
@@ -140,6 +172,7 @@ struct Rows {
     per_kind: Vec<Option<String>>,
     delays: Vec<[f64; 2]>,
     detectable: Vec<Option<String>>,
+    missed_before_hazard: Vec<Option<String>>,
 }
 
 impl Rows {
@@ -165,6 +198,7 @@ impl Rows {
             Column::new("delay_p50_s".into(), self.delays.iter().map(|x| nan(x[0])).collect::<Vec<_>>()),
             Column::new("delay_p90_s".into(), self.delays.iter().map(|x| nan(x[1])).collect::<Vec<_>>()),
             Column::new("min_size_pd90".into(), self.detectable),
+            Column::new("p_miss_before_hazard".into(), self.missed_before_hazard),
         ])
     }
 }
@@ -181,6 +215,7 @@ pub fn print(answer: &DataFrame) {
     let (pfa, pd) = (t.rates("pfa_fault_free"), t.rates("pd"));
     let delay = t.delays("delay_p50_s", "delay_p90_s");
     let (per_kind, detectable) = (t.strs("pd_by_fault"), t.strs("min_size_pd90"));
+    let hazard = t.strs("p_miss_before_hazard");
     let set = t.strs("thresholds");
     println!("  answer, at the {} thresholds (answer.csv; 95 % Wilson intervals):", set[0]);
     let width = names.iter().map(String::len).max().unwrap_or(0);
@@ -198,6 +233,9 @@ pub fn print(answer: &DataFrame) {
         }
         if !detectable[i].is_empty() {
             println!("    {pad}  smallest with Pd >= 0.9: {}", detectable[i]);
+        }
+        if !hazard[i].is_empty() {
+            println!("    {pad}  P(not detected before the hazard): {}", hazard[i]);
         }
         println!(
             "    {pad}  thresholds: {}{}",

@@ -135,6 +135,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
 
     let mut agg = Aggregates::new(spec, sets.clone(), &manifest.detectors, manifest.detection_window_s);
     agg.parameters = parameter_bins(&path, &manifest, &columns)?;
+    agg.hazard_times = manifest.time_to_hazard_s.clone();
     select.extend(agg.parameters.iter().map(|p| p.column.clone()));
     let calibrated = thresholds.as_ref().map(|(t, _)| (t.as_slice(), statistics.as_slice()));
     for df in slices(&path, manifest.rows as usize, SLICE_ROWS, &select) {

@@ -94,9 +94,37 @@ pub(super) fn count_columns(counts: &[&Counts], spec: &SummarySpec, at_deck: Opt
     for (name, p) in [("delay_p50_s", 0.5), ("delay_p90_s", 0.9), ("delay_p99_s", 0.99)] {
         columns.push(Column::new(name.into(), counts.iter().map(|c| c.delay.quantile(p)).collect::<Vec<_>>()));
     }
+    columns.extend(hazard_columns(counts));
     if let Some(at_deck) = at_deck {
         columns.extend(extra_columns(counts, spec, at_deck));
     }
+    columns
+}
+
+/// A deck with times to hazard: P(a fault is not detected within its time to hazard), over the faulty
+/// units that have one (`time_to_hazard_s` blank where the row's units differ in it); none without.
+fn hazard_columns(counts: &[&Counts]) -> Vec<Column> {
+    if !counts.iter().any(|c| c.hazard_units > 0) {
+        return Vec::new();
+    }
+    let some = |c: &Counts| c.hazard_units > 0;
+    let missed: Vec<_> =
+        counts.iter().map(|c| (c.hazard_units - c.detected_in_time, c.hazard_units, some(c))).collect();
+    let mut columns = vec![
+        Column::new(
+            "time_to_hazard_s".into(),
+            counts.iter().map(|c| c.hazard_s.filter(|t| some(c) && !t.is_nan())).collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "hazard_units".into(),
+            counts.iter().map(|c| some(c).then_some(c.hazard_units)).collect::<Vec<_>>(),
+        ),
+        Column::new(
+            "missed_before_hazard".into(),
+            counts.iter().map(|c| some(c).then(|| c.hazard_units - c.detected_in_time)).collect::<Vec<_>>(),
+        ),
+    ];
+    columns.extend(rate_columns("p_miss_before_hazard", &missed));
     columns
 }
 
@@ -189,6 +217,7 @@ pub(super) fn detector_table(agg: &Aggregates, sets: &[&'static str], spec: &Sum
     for (name, p) in [("delay_p50_s", 0.5), ("delay_p90_s", 0.9), ("delay_p99_s", 0.99)] {
         columns.push(Column::new(name.into(), f.iter().map(|c| c.delay.quantile(p)).collect::<Vec<_>>()));
     }
+    columns.extend(hazard_columns(&f));
     columns.extend(extra_columns(&f, spec, &at_deck));
     columns.extend([
         Column::new("flights".into(), trials.iter().map(|c| c.units).collect::<Vec<u64>>()),
