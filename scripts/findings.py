@@ -969,7 +969,41 @@ def seed004_accuracy_seed_tuning(runs):
     return accuracy(runs["studies/seed004_monte_carlo_tunings.toml"], SEED_TUNING_VARIANTS)
 
 # name -> (page, decks, fast: runs in CI, wall time measured on machine C, renderer)
+NOISE_LAWS = ["gaussian", "student_t(9.1)", "student_t(5)"]
+NOISE_TAIL_DECKS = [f'studies/seed000_rare_false_alarms.toml noise.sensor_law="{law}"' for law in NOISE_LAWS]
+
+
+def seed000_noise_tails(runs):
+    """docs/findings-seed000.md, "Noise with real tails": per sensor-noise law (every output), the tail
+    fit's thresholds of `seed_x124` for 1e-5 and 1e-9 false alarms per flight hour (the hour's 10 s
+    segments taken as independent) on alpha and q, each with its 95 % interval, and its multiple of the
+    Gaussian threshold."""
+    def thresholds(law):
+        d = pl.read_csv(runs[f'studies/seed000_rare_false_alarms.toml noise.sensor_law="{law}"'] / "tail.csv")
+        d = d.filter((pl.col("detector") == "seed_x124") & (pl.col("query") == "threshold_for_pfa"))
+        return {(r["statistic"], r["target_pfa_per_hour"]): r for r in d.to_dicts()}
+    base = thresholds("gaussian")
+    lines = ["| sensor noise | alpha, 1e-5 / h | alpha, 1e-9 / h | q, 1e-5 / h | q, 1e-9 / h |", "|---|---|---|---|---|"]
+    for law in NOISE_LAWS:
+        t = thresholds(law)
+        cells = []
+        for statistic in ["alpha_rad", "q_rad_s"]:
+            for target in [1e-5, 1e-9]:
+                r = t[(statistic, target)]
+                times = r["threshold"] / base[(statistic, target)]["threshold"]
+                cells.append(f"{r['threshold']:.3g} [{r['threshold_lo']:.3g}, {r['threshold_hi']:.3g}] (x {times:.1f})")
+        lines.append(f"| `{law}` | " + " | ".join(cells) + " |")
+    return lines
+
+
 TABLES = {
+    "seed000_noise_tails": (
+        "docs/findings-seed000.md",
+        NOISE_TAIL_DECKS,
+        True,
+        "15 s",
+        seed000_noise_tails,
+    ),
     "seed004_reference_tuning": (
         "docs/findings-seed004.md",
         ["studies/seed004_reference_tuning.toml"],

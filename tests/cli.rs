@@ -2239,7 +2239,18 @@ fn log_lists_topics_and_refuses_what_it_cannot_read() {
     let gyro = out.lines().find(|l| l.starts_with("gyro_rad[0] ")).unwrap();
     assert_eq!(
         gyro.split_whitespace().collect::<Vec<_>>(),
-        ["gyro_rad[0]", "4.457860e-3", "2.907517e-3", "2.771991e-3", "0.092", "0.134", "0.037", "-0.037"]
+        [
+            "gyro_rad[0]",
+            "4.457860e-3",
+            "2.907517e-3",
+            "2.771991e-3",
+            "0.092",
+            "0.134",
+            "0.037",
+            "-0.037",
+            "1.18",
+            "student_t(9.1)"
+        ]
     );
 
     let tmp = tempfile::tempdir().unwrap();
@@ -3886,4 +3897,60 @@ fn time_to_hazard_gives_the_probability_of_missing_the_hazard() {
     let out = fdimc(&["validate", air.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
     assert!(text(&out.stderr).contains("monte_carlo.time_to_hazard_s: not used by"), "{}", text(&out.stderr));
+}
+
+/// Heavy-tailed sensor noise (issue 52, item 2): `noise.sensor_law` takes "gaussian" or
+/// "student_t(N)", for every output or one per output; anything else is refused by field, and the
+/// rare-event command, whose importance sampling tilts Gaussian draws, refuses a heavy-tailed deck.
+#[test]
+fn sensor_noise_laws_are_checked_and_rare_event_refuses_heavy_tails() {
+    let tmp = tempfile::tempdir().unwrap();
+    let source = std::fs::read_to_string(CI_DECK).unwrap();
+    let with = |name: &str, law: &str| {
+        let path = tmp.path().join(name);
+        std::fs::write(&path, source.replacen("[noise]\n", &format!("[noise]\nsensor_law = {law}\n"), 1)).unwrap();
+        path
+    };
+    let good = with("good.toml", "\"student_t(4)\"");
+    let said = ok(&fdimc(&["validate", good.to_str().unwrap()]));
+    assert!(
+        said.contains(
+            "sensor law [student_t(4), student_t(4), student_t(4), student_t(4), student_t(4), student_t(4)]"
+        ),
+        "{said}"
+    );
+    for (name, law, field, allowed) in [
+        (
+            "dof",
+            "\"student_t(2)\"",
+            "noise.sensor_law",
+            "\"student_t(2)\": 2 degrees of freedom; allowed \"gaussian\" or \"student_t(N)\", N > 2",
+        ),
+        (
+            "word",
+            "[\"gaussian\", \"laplace\", \"gaussian\", \"gaussian\", \"gaussian\", \"gaussian\"]",
+            "noise.sensor_law[1]",
+            "\"laplace\": allowed",
+        ),
+        (
+            "count",
+            "[\"gaussian\", \"gaussian\"]",
+            "noise.sensor_law",
+            "one law for every output, or a list of 6 (one per output), got 2",
+        ),
+        ("type", "4", "noise.sensor_law", "expected text such as \"student_t(4)\", got integer"),
+    ] {
+        let bad = with(&format!("{name}.toml"), law);
+        let out = fdimc(&["validate", bad.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(2), "{name}");
+        let want = format!("{}: {field}: {allowed}", bad.display());
+        assert!(text(&out.stderr).contains(&want), "{name}: {}", text(&out.stderr));
+    }
+    let out = fdimc(&["rare-event", good.to_str().unwrap(), "--out", tmp.path().join("rare").to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        text(&out.stderr).contains("noise.sensor_law: importance sampling and splitting here tilt Gaussian"),
+        "{}",
+        text(&out.stderr)
+    );
 }

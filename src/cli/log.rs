@@ -102,20 +102,30 @@ pub fn exec_log(a: &LogArgs) -> Result<(), CliError> {
     );
     if let Some(name) = topic {
         let spreads = field_spreads(a.file, &name, instance).map_err(invalid)?;
+        let samples = topics.iter().find(|t| t.topic == name && t.instance == instance).map_or(0, |t| t.samples);
         println!("\n{name} instance {instance}");
         println!(
-            "number fields (difference sd = sd of sample-to-sample differences / sqrt 2, the white noise when the signal moves slowly; r(l) = autocorrelation at l samples, 0 for white noise)"
+            "number fields (difference sd = sd of sample-to-sample differences / sqrt 2, the white noise when the signal moves slowly; r(l) = autocorrelation at l samples, 0 for white noise; kurtosis = the noise's excess kurtosis from the differences, 0 for Gaussian; noise_law = a deck's noise.sensor_law of that kurtosis, Student-t by moments, gaussian within 3 standard errors)"
         );
         let lags = AUTOCORRELATION_LAGS.map(|l| format!("r({l})"));
         println!(
-            "{:<32} {:>14} {:>14} {:>14} {:>7} {:>7} {:>7} {:>7}",
-            "field", "mean", "sd", "difference_sd", lags[0], lags[1], lags[2], lags[3]
+            "{:<32} {:>14} {:>14} {:>14} {:>7} {:>7} {:>7} {:>7} {:>9}  noise_law",
+            "field", "mean", "sd", "difference_sd", lags[0], lags[1], lags[2], lags[3], "kurtosis"
         );
         for f in spreads {
             let r = f.autocorrelation;
             println!(
-                "{:<32} {:>14.6e} {:>14.6e} {:>14.6e} {:>7.3} {:>7.3} {:>7.3} {:>7.3}",
-                f.field, f.mean, f.sd, f.difference_sd, r[0], r[1], r[2], r[3]
+                "{:<32} {:>14.6e} {:>14.6e} {:>14.6e} {:>7.3} {:>7.3} {:>7.3} {:>7.3} {:>9.2}  {}",
+                f.field,
+                f.mean,
+                f.sd,
+                f.difference_sd,
+                r[0],
+                r[1],
+                r[2],
+                r[3],
+                f.excess_kurtosis,
+                f.fitted_law(samples as usize).describe()
             );
         }
     }

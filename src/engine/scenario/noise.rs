@@ -177,3 +177,133 @@ mod tests {
         assert_eq!(a, b);
     }
 }
+
+/// A sensor channel's noise law, scaled so that its standard deviation is the deck's sigma.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SensorLaw {
+    Gaussian,
+    /// Student-t with `dof` > 2 degrees of freedom, scaled to unit variance: `z sqrt((dof - 2) / c)`,
+    /// `z` the channel's standard normal draw and `c` an independent chi-square with `dof` degrees.
+    StudentT {
+        dof: f64,
+    },
+}
+
+impl SensorLaw {
+    /// `"gaussian"` or `"student_t(N)"`, N > 2 (the deck's words); or what is allowed.
+    pub fn parse(text: &str) -> Result<SensorLaw, String> {
+        let allowed = "allowed \"gaussian\" or \"student_t(N)\", N > 2 degrees of freedom (e.g. \"student_t(4)\")";
+        if text == "gaussian" {
+            return Ok(SensorLaw::Gaussian);
+        }
+        let dof = text
+            .strip_prefix("student_t(")
+            .and_then(|r| r.strip_suffix(')'))
+            .and_then(|n| n.trim().parse::<f64>().ok());
+        match dof {
+            // The variance of a Student-t is dof / (dof - 2): finite above 2, so sigma is its spread.
+            Some(dof) if dof.is_finite() && dof > 2.0 => Ok(SensorLaw::StudentT { dof }),
+            Some(dof) => Err(format!("{text:?}: {dof} degrees of freedom; {allowed}")),
+            None => Err(format!("{text:?}: {allowed}")),
+        }
+    }
+
+    /// As the deck writes it.
+    pub fn describe(&self) -> String {
+        match self {
+            SensorLaw::Gaussian => "gaussian".into(),
+            SensorLaw::StudentT { dof } => format!("student_t({dof})"),
+        }
+    }
+}
+
+/// The scale draws that make a trial's standard normal sensor draws Student-t on the channels whose
+/// law says so ([`SensorLaw`]), from their own stream ([`crate::engine::scenario::streams::tails_rng`]):
+/// per sample, channels in order, one chi-square draw per heavy-tailed channel. The lane path and the
+/// trial-at-a-time path draw the same numbers in the same order.
+#[derive(Debug, Clone)]
+pub struct TailScales {
+    /// Per channel: the chi-square law and `dof - 2`, or none (Gaussian).
+    channels: Vec<Option<(rand_distr::ChiSquared<f64>, f64)>>,
+    rng: NoiseRng,
+}
+
+impl TailScales {
+    /// `None` when every channel is Gaussian (then nothing is drawn).
+    pub fn new(laws: &[SensorLaw], seed: u64, trial: u64) -> Option<TailScales> {
+        if laws.iter().all(|l| *l == SensorLaw::Gaussian) {
+            return None;
+        }
+        let channels = laws
+            .iter()
+            .map(|l| match *l {
+                SensorLaw::Gaussian => None,
+                SensorLaw::StudentT { dof } => {
+                    Some((rand_distr::ChiSquared::new(dof).expect("dof > 2, checked by the deck"), dof - 2.0))
+                }
+            })
+            .collect();
+        Some(TailScales { channels, rng: crate::engine::scenario::streams::tails_rng(seed, trial) })
+    }
+
+    /// The factor channel `j`'s standard normal draw of this sample takes (1 for a Gaussian channel,
+    /// which draws nothing).
+    #[inline]
+    pub fn scale(&mut self, j: usize) -> f64 {
+        use rand::RngExt;
+        match &self.channels[j] {
+            None => 1.0,
+            Some((chi, excess)) => (excess / self.rng.sample(chi)).sqrt(),
+        }
+    }
+
+    /// Scales one sample's standard normal draws, a draw per channel.
+    #[inline]
+    pub fn apply(&mut self, draws: &mut [f64]) {
+        for (j, z) in draws.iter_mut().enumerate() {
+            *z *= self.scale(j);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tail_tests {
+    use super::*;
+
+    /// Student-t(6) scaled to unit variance: variance 1 and the 0.999 quantile t(0.999; 6) sqrt(4/6)
+    /// = 5.207626 x 0.816497 = 4.2520 (a Gaussian's: 3.090), from 400,000 draws; Gaussian channels
+    /// draw nothing and scale by 1.
+    #[test]
+    fn student_t_scales_give_unit_variance_and_the_t_quantile() {
+        use rand::RngExt;
+        let laws = [SensorLaw::Gaussian, SensorLaw::StudentT { dof: 6.0 }];
+        let mut scales = TailScales::new(&laws, 7, 3).unwrap();
+        let mut normals =
+            crate::engine::scenario::streams::noise_rng(7, 3, crate::engine::scenario::streams::Substream::SensorNoise);
+        let n = 400_000;
+        let mut x: Vec<f64> = (0..n)
+            .map(|_| {
+                assert_eq!(scales.scale(0), 1.0);
+                normals.sample::<f64, _>(rand_distr::StandardNormal) * scales.scale(1)
+            })
+            .collect();
+        let variance = x.iter().map(|v| v * v).sum::<f64>() / n as f64;
+        assert!((variance - 1.0).abs() < 0.02, "variance {variance}");
+        x.iter_mut().for_each(|v| *v = v.abs());
+        x.sort_by(f64::total_cmp);
+        // |x| at 0.998 is the two-sided 0.999 quantile.
+        let q = x[(0.998 * n as f64) as usize];
+        assert!((q / 4.2520 - 1.0).abs() < 0.03, "0.999 quantile {q}");
+        assert_eq!(TailScales::new(&[SensorLaw::Gaussian; 3], 7, 3).map(|_| ()), None);
+    }
+
+    #[test]
+    fn laws_parse_as_the_deck_writes_them() {
+        assert_eq!(SensorLaw::parse("gaussian"), Ok(SensorLaw::Gaussian));
+        assert_eq!(SensorLaw::parse("student_t(4)"), Ok(SensorLaw::StudentT { dof: 4.0 }));
+        assert_eq!(SensorLaw::parse("student_t( 2.5 )"), Ok(SensorLaw::StudentT { dof: 2.5 }));
+        let err = SensorLaw::parse("student_t(2)").unwrap_err();
+        assert!(err.starts_with("\"student_t(2)\": 2 degrees of freedom; allowed"), "{err}");
+        assert!(SensorLaw::parse("cauchy").unwrap_err().contains("allowed \"gaussian\" or \"student_t(N)\""));
+    }
+}

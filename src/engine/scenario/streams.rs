@@ -56,6 +56,16 @@ pub fn noise_rng(seed: u64, trial: u64, substream: Substream) -> NoiseRng {
     NoiseRng::from_rng(&mut trial_rng(seed, trial, substream))
 }
 
+/// The heavy-tailed sensor channels' scale draws of trial `trial` ([`crate::engine::scenario::noise::TailScales`]):
+/// xoshiro256++ seeded from the sensor-noise substream's ChaCha8 at word 2^64, far past the 4 words
+/// that seed that substream's own generator, so a deck's Gaussian draws are the same with or without
+/// heavy-tailed channels, and no other substream is touched.
+pub fn tails_rng(seed: u64, trial: u64) -> NoiseRng {
+    let mut rng = trial_rng(seed, trial, Substream::SensorNoise);
+    rng.set_word_pos(1u128 << 64);
+    NoiseRng::from_rng(&mut rng)
+}
+
 /// The streams of one branch of a splitting replica ([`crate::engine::rare_event::estimators`]): the survivor choices (branch
 /// 0) and the new noise of a branch.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

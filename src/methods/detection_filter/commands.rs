@@ -287,6 +287,10 @@ pub fn validate(study: &LtiStudy) -> Result<(), RunError> {
         println!("excitation  {}: {shape}, amplitude {}, from {} s", p.input_names[e.input], e.amplitude, e.start_s);
     }
     println!("noise       sensor sigma [{}]", nums(study.sensor_sigma.as_slice()));
+    if study.sensor_law.iter().any(|l| *l != crate::engine::scenario::noise::SensorLaw::Gaussian) {
+        let laws: Vec<String> = study.sensor_law.iter().map(|l| l.describe()).collect();
+        println!("            sensor law [{}] (each scaled to its sigma)", laws.join(", "));
+    }
     if study.process_sigma_per_step.amax() > 0.0 {
         println!("            process sigma per step [{}]", nums(study.process_sigma_per_step.as_slice()));
     }

@@ -128,6 +128,8 @@ pub struct ExcitationSection {
 #[serde(deny_unknown_fields)]
 pub struct NoiseSection {
     pub sensor_sigma: Vec<f64>,
+    /// `"gaussian"` (default) or `"student_t(N)"`, for every output or one per output.
+    pub sensor_law: Option<toml::Value>,
     pub process_sigma_per_step: Option<Vec<f64>>,
 }
 

@@ -86,6 +86,9 @@ pub fn for_detector(
     if !study.monte_carlo.parameter_errors.is_empty() {
         return Err("the deck draws parameter errors (the residual is then not the model's)".into());
     }
+    if study.sensor_law.iter().any(|l| *l != crate::engine::scenario::noise::SensorLaw::Gaussian) {
+        return Err("the sensor noise is heavy-tailed (noise.sensor_law; the bounds are for Gaussian noise)".into());
+    }
     let scale = match study.monte_carlo.common.noise_scale {
         Factor::Fixed(s) => s,
         _ => return Err("the noise scale varies over the trials (computed for one noise level)".into()),

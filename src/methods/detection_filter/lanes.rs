@@ -84,6 +84,10 @@ fn run_lanes_in(
     let normals =
         |substream| LaneNormals::new(std::array::from_fn(|l| noise_rng(s.header.seed, spec(l).noise_trial, substream)));
     let mut sensor_normals = normals(Substream::SensorNoise);
+    // Student-t channels: each lane's scale draws, as the trial-at-a-time path draws them.
+    let mut tails: Option<Vec<crate::engine::scenario::noise::TailScales>> = (0..LANES)
+        .map(|l| crate::engine::scenario::noise::TailScales::new(&s.sensor_law, s.header.seed, spec(l).noise_trial))
+        .collect();
     let mut process_normals = has_process_noise.then(|| normals(Substream::ProcessNoise));
     let mut draws = vec![[0.0; LANES]; ny.max(n)];
     let sensor_sigma: Vec<Lane> =
@@ -115,6 +119,13 @@ fn run_lanes_in(
         }
         plant.measure(&plant_state, &mut y);
         sensor_normals.fill(&mut draws[..ny]);
+        if let Some(tails) = tails.as_mut() {
+            for (l, lane) in tails.iter_mut().enumerate() {
+                for (j, row) in draws[..ny].iter_mut().enumerate() {
+                    row[l] *= lane.scale(j);
+                }
+            }
+        }
         add_scaled(&mut y, &sensor_sigma, &draws);
         for (l, f) in faults.iter_mut().enumerate() {
             if t >= onset_s[l] {

@@ -87,6 +87,12 @@ impl Study for LtiStudy {
                 self.header.path.display()
             )));
         }
+        if self.sensor_law.iter().any(|l| *l != crate::engine::scenario::noise::SensorLaw::Gaussian) {
+            return Err(RunError::Invalid(format!(
+                "{}: noise.sensor_law: importance sampling and splitting here tilt Gaussian sensor noise; this deck's is heavy-tailed: use run with the tail fit",
+                self.header.path.display()
+            )));
+        }
         rare_event::run(self, opts)
     }
     fn sensitivity_design(&mut self, base_samples: u64, bootstrap: u64) -> Result<Design, RunError> {

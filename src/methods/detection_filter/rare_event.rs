@@ -187,6 +187,7 @@ impl RareEventModel for FaultFreeTrials<'_> {
             t,
             m.sensor_sigma.as_slice(),
             &mut p.sensor,
+            None,
             &mut p.y,
             Some((condition, draws)),
         );

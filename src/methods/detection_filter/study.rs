@@ -87,6 +87,8 @@ pub struct LtiStudy {
     pub output_feedback: DMatrix<f64>,
     pub excitations: Vec<Excitation>,
     pub sensor_sigma: DVector<f64>,
+    /// Each output's sensor-noise law (`noise.sensor_law`); its standard deviation is `sensor_sigma`.
+    pub sensor_law: Vec<crate::engine::scenario::noise::SensorLaw>,
     pub process_sigma_per_step: DVector<f64>,
     /// Detector configurations; every one runs on the same trials (same faults, same noise).
     pub detectors: Vec<DetectorConfig>,
@@ -351,6 +353,7 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
 
     let sensor_sigma =
         chk.vector("noise.sensor_sigma", &deck.noise.sensor_sigma, ny, "one per output, output units")?;
+    let sensor_law = sensor_laws(chk, deck.noise.sensor_law.as_ref(), ny)?;
     let process_sigma_per_step = match &deck.noise.process_sigma_per_step {
         Some(v) => chk.vector("noise.process_sigma_per_step", v, n, "one per state, state units")?,
         None => DVector::zeros(n),
@@ -432,6 +435,7 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
         output_feedback,
         excitations,
         sensor_sigma,
+        sensor_law,
         process_sigma_per_step,
         detectors,
         faults,
@@ -688,6 +692,30 @@ struct MatrixEntriesSection {
     matrix: Option<String>,
     entries: Option<Vec<(String, String)>>,
     fmu_parameters: Option<Vec<String>>,
+}
+
+/// `noise.sensor_law`: one law for every output, or a list of one per output.
+fn sensor_laws(
+    chk: &Validator,
+    given: Option<&toml::Value>,
+    outputs: usize,
+) -> Result<Vec<crate::engine::scenario::noise::SensorLaw>, DeckError> {
+    use crate::engine::scenario::noise::SensorLaw;
+    let parse = |field: &str, v: &toml::Value| match v {
+        toml::Value::String(s) => SensorLaw::parse(s).map_err(|e| chk.err(field, e)),
+        other => Err(chk.err(field, format!("expected text such as \"student_t(4)\", got {}", other.type_str()))),
+    };
+    match given {
+        None => Ok(vec![SensorLaw::Gaussian; outputs]),
+        Some(toml::Value::Array(list)) if list.len() == outputs => {
+            (list.iter().enumerate()).map(|(j, v)| parse(&format!("noise.sensor_law[{j}]"), v)).collect()
+        }
+        Some(toml::Value::Array(list)) => Err(chk.err(
+            "noise.sensor_law",
+            format!("one law for every output, or a list of {outputs} (one per output), got {}", list.len()),
+        )),
+        Some(v) => Ok(vec![parse("noise.sensor_law", v)?; outputs]),
+    }
 }
 
 fn monte_carlo(

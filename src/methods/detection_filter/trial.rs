@@ -28,7 +28,7 @@ use rand::RngExt;
 use rand_distr::StandardNormal;
 
 use crate::engine::rare_event::estimators::Condition;
-use crate::engine::scenario::noise::NoiseRng;
+use crate::engine::scenario::noise::{NoiseRng, TailScales};
 use crate::engine::scenario::streams::{Substream, noise_rng};
 use crate::fault::ActiveFaults;
 use crate::fmu::FmuError;
@@ -180,6 +180,7 @@ pub fn run_trial(
     let (n, nu, ny) = (s.plant.n_states(), s.plant.n_inputs(), s.plant.n_outputs());
     let mut sensor_rng = noise_rng(s.header.seed, spec.noise_trial, Substream::SensorNoise);
     let mut process_rng = noise_rng(s.header.seed, spec.noise_trial, Substream::ProcessNoise);
+    let mut tails = TailScales::new(&s.sensor_law, s.header.seed, spec.noise_trial);
     let has_process_noise = s.has_process_noise();
     let sensor_sigma = &s.sensor_sigma * spec.noise_scale;
 
@@ -218,11 +219,21 @@ pub fn run_trial(
     for k in 0..s.header.steps {
         let t = k as f64 * s.header.dt_s;
         match flight.as_mut() {
-            None => measure(s, plant, &mut plant_state, t, sensor_sigma.as_slice(), &mut sensor_rng, &mut y, None),
+            None => measure(
+                s,
+                plant,
+                &mut plant_state,
+                t,
+                sensor_sigma.as_slice(),
+                &mut sensor_rng,
+                tails.as_mut(),
+                &mut y,
+                None,
+            ),
             Some(f) => {
                 reference(s, &mut plant_state, t);
                 f.outputs(&mut y).map_err(FmuFailure::truth)?;
-                add_sensor_noise(&mut y, sensor_sigma.as_slice(), &mut sensor_rng, None);
+                add_sensor_noise(&mut y, sensor_sigma.as_slice(), &mut sensor_rng, tails.as_mut(), None);
             }
         }
         faults.apply(t, &mut y);
@@ -339,12 +350,13 @@ pub(super) fn measure(
     t: f64,
     sensor_sigma: &[f64],
     rng: &mut NoiseRng,
+    tails: Option<&mut TailScales>,
     y: &mut [f64],
     rare: Option<(Option<&Condition>, &mut [f64])>,
 ) {
     reference(s, state, t);
     plant.measure(state, y);
-    add_sensor_noise(y, sensor_sigma, rng, rare);
+    add_sensor_noise(y, sensor_sigma, rng, tails, rare);
 }
 
 /// The excitation at `t` into the loop's reference `r`.
@@ -357,21 +369,31 @@ fn reference(s: &LtiStudy, state: &mut PlantState<f64>, t: f64) {
     }
 }
 
-/// Each output's sensor noise `sigma_j z_j`, `z_j` standard normal, added to `y`.
+/// Each output's sensor noise `sigma_j z_j`, `z_j` standard normal (times its channel's scale draw
+/// where `tails` makes it Student-t), added to `y`.
 #[inline]
 fn add_sensor_noise(
     y: &mut [f64],
     sensor_sigma: &[f64],
     rng: &mut NoiseRng,
+    tails: Option<&mut TailScales>,
     rare: Option<(Option<&Condition>, &mut [f64])>,
 ) {
-    match rare {
-        None => {
+    match (rare, tails) {
+        (None, None) => {
             for (yj, sigma) in y.iter_mut().zip(sensor_sigma) {
                 *yj += sigma * rng.sample::<f64, _>(StandardNormal);
             }
         }
-        Some((condition, draws)) => {
+        (None, Some(tails)) => {
+            for (j, (yj, sigma)) in y.iter_mut().zip(sensor_sigma).enumerate() {
+                let z = rng.sample::<f64, _>(StandardNormal);
+                *yj += sigma * (z * tails.scale(j));
+            }
+        }
+        // Importance sampling tilts Gaussian draws: the rare-event command refuses other laws.
+        (Some(_), Some(_)) => unreachable!("rare-event runs refuse non-Gaussian sensor noise"),
+        (Some((condition, draws)), None) => {
             draws.iter_mut().for_each(|z| *z = rng.sample::<f64, _>(StandardNormal));
             if let Some(c) = condition {
                 c.apply(draws);

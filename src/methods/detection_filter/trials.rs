@@ -522,4 +522,28 @@ mod tests {
         assert!((5..40).contains(&diverged.count()), "some trials diverge, not all");
         assert_paths_agree(&deck, extra, 48);
     }
+
+    /// Student-t sensor noise on two channels: the lanes draw each lane's scales as the one-trial path
+    /// does (records identical), the scales move the residuals, and only the Student-t channels are
+    /// scaled (the Gaussian channels draw nothing from the scales' stream).
+    #[test]
+    fn heavy_tailed_sensor_noise_is_the_same_on_both_paths() {
+        let ci = include_str!("../../../studies/ci_seed000.toml");
+        let laws = "sensor_law = [\"gaussian\", \"student_t(3)\", \"student_t(5.5)\", \"gaussian\", \"gaussian\", \"gaussian\"]";
+        let deck = ci.replace("[noise]\n", &format!("[noise]\n{laws}\n"));
+        assert!(deck.contains("student_t(3)"));
+        assert_paths_agree(&deck, "", 24);
+        let tailed = LtiStudy::from_toml(&deck, Path::new("t.toml")).unwrap();
+        let gaussian = LtiStudy::from_toml(ci, Path::new("g.toml")).unwrap();
+        let pre =
+            |s: &LtiStudy| Engine::new(s).run(0).detectors[0].as_ref().unwrap().pre_onset_max_abs_residual.clone();
+        assert_ne!(pre(&tailed), pre(&gaussian), "the Student-t channels move the residuals");
+        let mut scales =
+            crate::engine::scenario::noise::TailScales::new(&tailed.sensor_law, tailed.header.seed, 0).unwrap();
+        for _ in 0..100 {
+            for j in 0..6 {
+                assert_eq!(scales.scale(j) == 1.0, !(1..=2).contains(&j), "channel {j}: scaled only where Student-t");
+            }
+        }
+    }
 }
