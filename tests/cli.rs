@@ -3863,6 +3863,46 @@ fn time_to_hazard_gives_the_probability_of_missing_the_hazard() {
     assert!(answer.contains("P(not detected before the hazard): bias within 0.5 s "), "{stdout}");
     assert!(answer.contains("; stuck within its target's time "), "{stdout}");
 
+    // safety.csv (issue 52, item 4): the plain Monte Carlo rate per flight hour is the fault-free
+    // flights' rate over an hour of 360 independent 10 s flights; the miss before the hazard is
+    // detectors.csv's at the same thresholds; each says its method and assumptions.
+    let safety = csv_frame(&out.join("safety.csv"));
+    let text_of = |c: &str, i: usize| safety.column(c).unwrap().str().unwrap().get(i).unwrap().to_string();
+    let value = |i: usize| safety.column("value").unwrap().f64().unwrap().get(i).unwrap();
+    let answers = csv_frame(&out.join("answer.csv"));
+    let a = (0..answers.height())
+        .find(|&i| answers.column("detector").unwrap().str().unwrap().get(i) == Some("seed"))
+        .unwrap();
+    let cell = |c: &str| answers.column(c).unwrap().cast(&DataType::Float64).unwrap().f64().unwrap().get(a).unwrap();
+    let p = cell("fault_free_false_alarms") / cell("fault_free_flights");
+    let plain = (0..safety.height())
+        .find(|&i| {
+            text_of("detector", i) == "seed"
+                && text_of("method", i).starts_with("plain Monte Carlo")
+                && text_of("figure", i) == "false alarms per flight hour"
+        })
+        .unwrap();
+    assert!((value(plain) - (1.0 - (1.0 - p).powf(360.0))).abs() < 1e-12, "{}", value(plain));
+    assert!(
+        text_of("assumptions", plain)
+            .starts_with("the hour's 360 flights of 10 s taken as independent; sensor noise Gaussian")
+    );
+    let missed = (0..safety.height())
+        .find(|&i| text_of("detector", i) == "seed" && text_of("figure", i) == "missed detection before the hazard")
+        .unwrap();
+    let calibrated = (0..detectors.height())
+        .find(|&i| {
+            detectors.column("thresholds").unwrap().str().unwrap().get(i) == Some("calibrated")
+                && detectors.column("detector").unwrap().str().unwrap().get(i) == Some("seed")
+        })
+        .unwrap();
+    assert_eq!(Some(value(missed)), detectors.column("p_miss_before_hazard").unwrap().f64().unwrap().get(calibrated));
+    assert!(
+        text_of("statement", missed)
+            .starts_with("seed at the calibrated thresholds: missed detection before the hazard ")
+    );
+    assert!(stdout.contains("  safety figures (safety.csv; to quote with their assumptions):"), "{stdout}");
+
     for (name, extra, field, allowed) in [
         ("negative", "\n[monte_carlo.time_to_hazard_s]\nbias = -1.0\n", "bias", "must be a finite number > 0, got -1"),
         (

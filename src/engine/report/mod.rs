@@ -732,6 +732,13 @@ fn page(
         }
     };
     section(
+        "Safety figures",
+        "The figures a safety case quotes, at the thresholds in use, each with its 95 % interval, the method \
+         that gave it and the assumptions it rests on; <code>statement</code> is the sentence to quote. Table: \
+         <code>safety.csv</code>.",
+        table_of(dir, crate::engine::results::summary::safety::SAFETY_FILE, &["statement"])?.unwrap_or_default(),
+    );
+    section(
         "Detectors",
         &format!(
             "Over all fault sizes, per detector and threshold set; rates with 95 % Wilson intervals. \

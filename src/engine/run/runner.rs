@@ -278,7 +278,12 @@ pub struct Manifest {
     /// deck's `bins`; `parameter_errors.csv` groups by them).
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub parameter_error_bins: crate::engine::scenario::deck::SizeBins,
-    /// The deck's `time_to_hazard_s` (per fault kind, per target or `""` for all): `hazard.csv`.
+    /// The sensor noise's law in words, where the kind says (`safety.csv`'s assumptions): a detection
+    /// filter's `noise.sensor_law`, a replay's recorded noise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor_noise: Option<String>,
+    /// The deck's `time_to_hazard_s` (per fault kind, per target or `""` for all): the summary's
+    /// `p_miss_before_hazard`.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub time_to_hazard_s: crate::engine::scenario::deck::HazardTimes,
     pub command_line: Vec<String>,
@@ -550,6 +555,7 @@ impl Manifest {
             fault_size_bins: Default::default(),
             parameter_error_bins: Default::default(),
             time_to_hazard_s: Default::default(),
+            sensor_noise: None,
             command_line: Vec::new(),
             complete: false,
             rows: 0,

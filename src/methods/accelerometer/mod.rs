@@ -251,6 +251,7 @@ impl TrialSource for AccelerometerTrials<'_> {
             fault_size_bins: [("bias", ranges.bias_mps2), ("gain", ranges.gain_deviation)]
                 .map(|(kind, [lo, hi])| (kind.to_string(), Factor::Range { lo, hi, bins: 3 }.bin_edges()))
                 .into(),
+            sensor_noise: s.log.as_ref().map(|l| format!("the recorded noise of {} (replayed)", l.file.display())),
             // The replayed log, as an FMU truth is recorded: a resume with another log is refused.
             models: (s.log.iter())
                 .map(|l| ModelFile { file: l.file.display().to_string(), sha256: l.sha256.clone() })

@@ -189,6 +189,7 @@ impl TrialSource for LtiTrials<'_> {
             parameter_error_bins: crate::engine::scenario::deck::ParameterError::bins(
                 &study.monte_carlo.parameter_errors,
             ),
+            sensor_noise: Some(noise_in_words(study)),
             models: (study.fmus().into_iter())
                 .map(|t| ModelFile { file: t.fmu.file_name(), sha256: t.fmu.sha256.clone() })
                 .collect(),
@@ -229,4 +230,16 @@ fn fault_size_units(study: &LtiStudy) -> std::collections::BTreeMap<String, Stri
         units.entry(f.mode.actuator_name().to_string()).or_insert_with(|| fixed_size_unit(&f.mode, true).to_string());
     }
     units
+}
+
+/// The sensor noise's law in words for the manifest (`safety.csv`'s assumptions).
+fn noise_in_words(study: &LtiStudy) -> String {
+    use crate::engine::scenario::noise::SensorLaw;
+    if study.sensor_law.iter().all(|l| *l == SensorLaw::Gaussian) {
+        return "Gaussian, white, of the deck's sensor_sigma".into();
+    }
+    let each: Vec<String> = (study.plant.output_names.iter().zip(&study.sensor_law))
+        .map(|(name, law)| format!("{name} {}", law.describe()))
+        .collect();
+    format!("white, of the deck's sensor_sigma, by output: {}", each.join(", "))
 }

@@ -34,6 +34,7 @@ mod aggregate;
 pub mod answer;
 mod precision;
 mod print;
+pub mod safety;
 mod tables;
 mod written;
 
@@ -248,6 +249,11 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     };
     write_table(&mut answer, &out(answer::ANSWER_FILE))?;
     files.push(answer::ANSWER_FILE);
+    let noise = manifest.sensor_noise.clone().unwrap_or_else(|| "Gaussian (the kind's model)".to_string());
+    let setting = safety::Setting { flight_s: manifest.trial_duration_s, noise: &noise };
+    let mut safety = safety::safety(&answer, &detectors, &tails, &setting).map_err(pol(&path))?;
+    write_table(&mut safety, &out(safety::SAFETY_FILE))?;
+    files.push(safety::SAFETY_FILE);
     if let Some(df) = &mut by_parameter {
         write_table(df, &out(PARAMETER_ERRORS_FILE))?;
         files.push(PARAMETER_ERRORS_FILE);
@@ -308,6 +314,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
         detectors,
         confusion,
         answer,
+        safety,
         warnings,
         files,
         out_dir: dir_out,

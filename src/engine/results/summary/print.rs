@@ -127,6 +127,7 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
     }
     println!("  wrote {} in {}", s.files.join(", "), s.out_dir.display());
     super::answer::print(&s.answer);
+    super::safety::print(&s.safety);
     for w in &s.warnings {
         println!("  warning: {w}");
     }

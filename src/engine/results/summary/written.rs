@@ -28,6 +28,8 @@ pub struct Summary {
     pub confusion: DataFrame,
     /// `answer.csv`: the answer at a glance ([`super::answer`]).
     pub answer: DataFrame,
+    /// `safety.csv` ([`super::safety`]).
+    pub safety: DataFrame,
     pub warnings: Vec<String>,
     pub files: Vec<&'static str>,
     /// The folder the tables went to: the run's, or its `validation/`.
