@@ -220,7 +220,8 @@ It prints the factors before it runs. Shards, --resume and `fdimc merge` work as
     },
     /// What a flight log (PX4 ULog) holds: every topic instance with its samples, span (seconds from
     /// the log's first sample; its boot time is printed once), mean rate, largest gap and timestamps that
-    /// repeat or go back (bad_times); with --topic, the mean and spread of each of its number fields;
+    /// repeat or go back (bad_times); with --topic, the mean and spread of each of its number fields and
+    /// its noise's law (the excess kurtosis and the Student-t of it, for a deck's noise.sensor_law);
     /// with --plot, chosen fields over time as an SVG, a replay deck's train_s and evaluate_s shaded.
     #[command(after_help = "Examples: fdimc log studies/logs/sample_log_small.ulg --topic sensor_combined\n  \
 fdimc log studies/logs/sample_appended_multiple.ulg --plot imu.svg --signals gyro_rad[2],accelerometer_m_s2[2] --deck studies/replay_px4.toml\n\
