@@ -616,7 +616,7 @@ mod tests {
     /// spread at 400,000 samples; Gaussian noise fits Gaussian.
     #[test]
     fn the_noise_kurtosis_streams_and_fits_the_student_t_it_came_from() {
-        use crate::engine::scenario::noise::{SensorLaw, TailScales};
+        use crate::engine::scenario::noise::SensorLaw;
         use crate::engine::scenario::streams::{Substream, noise_rng};
         use rand::RngExt;
         let x = [1.0, 2.0, 3.5, -4.0, 100.0, 0.25, 7.0];
@@ -630,7 +630,7 @@ mod tests {
 
         let spread = |law: SensorLaw| {
             let mut normals = noise_rng(5, 1, Substream::SensorNoise);
-            let mut scales = TailScales::new(&[law], 5, 1);
+            let mut scales = crate::engine::scenario::streams::tail_scales(&[law], 5, 1);
             let mut d = Moments::default();
             let mut last = f64::NAN;
             for _ in 0..400_000 {

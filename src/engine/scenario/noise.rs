@@ -218,7 +218,8 @@ impl SensorLaw {
 }
 
 /// The scale draws that make a trial's standard normal sensor draws Student-t on the channels whose
-/// law says so ([`SensorLaw`]), from their own stream ([`crate::engine::scenario::streams::tails_rng`]):
+/// law says so ([`SensorLaw`]), from a generator of their own (a trial's is
+/// `crate::engine::scenario::streams::tail_scales`):
 /// per sample, channels in order, one chi-square draw per heavy-tailed channel. The lane path and the
 /// trial-at-a-time path draw the same numbers in the same order.
 #[derive(Debug, Clone)]
@@ -229,11 +230,9 @@ pub struct TailScales {
 }
 
 impl TailScales {
-    /// `None` when every channel is Gaussian (then nothing is drawn).
-    pub fn new(laws: &[SensorLaw], seed: u64, trial: u64) -> Option<TailScales> {
-        if laws.iter().all(|l| *l == SensorLaw::Gaussian) {
-            return None;
-        }
+    /// The scales of `laws`' channels drawn from `rng` (a deck with a Student-t channel: a trial's
+    /// are `crate::engine::scenario::streams::tail_scales`).
+    pub fn new(laws: &[SensorLaw], rng: NoiseRng) -> TailScales {
         let channels = laws
             .iter()
             .map(|l| match *l {
@@ -243,7 +242,7 @@ impl TailScales {
                 }
             })
             .collect();
-        Some(TailScales { channels, rng: crate::engine::scenario::streams::tails_rng(seed, trial) })
+        TailScales { channels, rng }
     }
 
     /// The factor channel `j`'s standard normal draw of this sample takes (1 for a Gaussian channel,
@@ -271,15 +270,14 @@ mod tail_tests {
     use super::*;
 
     /// Student-t(6) scaled to unit variance: variance 1 and the 0.999 quantile t(0.999; 6) sqrt(4/6)
-    /// = 5.207626 x 0.816497 = 4.2520 (a Gaussian's: 3.090), from 400,000 draws; Gaussian channels
-    /// draw nothing and scale by 1.
+    /// = 5.207626 x 0.816497 = 4.2520 (a Gaussian's: 3.090), from 400,000 draws; a Gaussian channel
+    /// scales by 1.
     #[test]
     fn student_t_scales_give_unit_variance_and_the_t_quantile() {
         use rand::RngExt;
         let laws = [SensorLaw::Gaussian, SensorLaw::StudentT { dof: 6.0 }];
-        let mut scales = TailScales::new(&laws, 7, 3).unwrap();
-        let mut normals =
-            crate::engine::scenario::streams::noise_rng(7, 3, crate::engine::scenario::streams::Substream::SensorNoise);
+        let mut scales = TailScales::new(&laws, NoiseRng::seed_from_u64(7));
+        let mut normals = NoiseRng::seed_from_u64(3);
         let n = 400_000;
         let mut x: Vec<f64> = (0..n)
             .map(|_| {
@@ -294,7 +292,6 @@ mod tail_tests {
         // |x| at 0.998 is the two-sided 0.999 quantile.
         let q = x[(0.998 * n as f64) as usize];
         assert!((q / 4.2520 - 1.0).abs() < 0.03, "0.999 quantile {q}");
-        assert_eq!(TailScales::new(&[SensorLaw::Gaussian; 3], 7, 3).map(|_| ()), None);
     }
 
     #[test]

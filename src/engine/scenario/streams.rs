@@ -9,7 +9,7 @@
 //! The per-step noise substreams are drawn from xoshiro256++ seeded by the substream's ChaCha8 (see
 //! [`noise_rng`]); the scenario draws, a few per trial, come from ChaCha8 itself.
 
-use crate::engine::scenario::noise::NoiseRng;
+use crate::engine::scenario::noise::{NoiseRng, SensorLaw, TailScales};
 
 use rand::SeedableRng;
 use rand::rngs::ChaCha8Rng;
@@ -56,14 +56,17 @@ pub fn noise_rng(seed: u64, trial: u64, substream: Substream) -> NoiseRng {
     NoiseRng::from_rng(&mut trial_rng(seed, trial, substream))
 }
 
-/// The heavy-tailed sensor channels' scale draws of trial `trial` ([`crate::engine::scenario::noise::TailScales`]):
+/// The heavy-tailed sensor channels' scale draws of trial `trial` (`None` when every law is Gaussian):
 /// xoshiro256++ seeded from the sensor-noise substream's ChaCha8 at word 2^64, far past the 4 words
 /// that seed that substream's own generator, so a deck's Gaussian draws are the same with or without
 /// heavy-tailed channels, and no other substream is touched.
-pub fn tails_rng(seed: u64, trial: u64) -> NoiseRng {
+pub fn tail_scales(laws: &[SensorLaw], seed: u64, trial: u64) -> Option<TailScales> {
+    if laws.iter().all(|l| *l == SensorLaw::Gaussian) {
+        return None;
+    }
     let mut rng = trial_rng(seed, trial, Substream::SensorNoise);
     rng.set_word_pos(1u128 << 64);
-    NoiseRng::from_rng(&mut rng)
+    Some(TailScales::new(laws, NoiseRng::from_rng(&mut rng)))
 }
 
 /// The streams of one branch of a splitting replica ([`crate::engine::rare_event::estimators`]): the survivor choices (branch

@@ -86,7 +86,7 @@ fn run_lanes_in(
     let mut sensor_normals = normals(Substream::SensorNoise);
     // Student-t channels: each lane's scale draws, as the trial-at-a-time path draws them.
     let mut tails: Option<Vec<crate::engine::scenario::noise::TailScales>> = (0..LANES)
-        .map(|l| crate::engine::scenario::noise::TailScales::new(&s.sensor_law, s.header.seed, spec(l).noise_trial))
+        .map(|l| crate::engine::scenario::streams::tail_scales(&s.sensor_law, s.header.seed, spec(l).noise_trial))
         .collect();
     let mut process_normals = has_process_noise.then(|| normals(Substream::ProcessNoise));
     let mut draws = vec![[0.0; LANES]; ny.max(n)];

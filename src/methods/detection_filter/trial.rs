@@ -29,7 +29,7 @@ use rand_distr::StandardNormal;
 
 use crate::engine::rare_event::estimators::Condition;
 use crate::engine::scenario::noise::{NoiseRng, TailScales};
-use crate::engine::scenario::streams::{Substream, noise_rng};
+use crate::engine::scenario::streams::{Substream, noise_rng, tail_scales};
 use crate::fault::ActiveFaults;
 use crate::fmu::FmuError;
 use crate::methods::detection_filter::filter::DetectionFilter;
@@ -180,7 +180,7 @@ pub fn run_trial(
     let (n, nu, ny) = (s.plant.n_states(), s.plant.n_inputs(), s.plant.n_outputs());
     let mut sensor_rng = noise_rng(s.header.seed, spec.noise_trial, Substream::SensorNoise);
     let mut process_rng = noise_rng(s.header.seed, spec.noise_trial, Substream::ProcessNoise);
-    let mut tails = TailScales::new(&s.sensor_law, s.header.seed, spec.noise_trial);
+    let mut tails = tail_scales(&s.sensor_law, s.header.seed, spec.noise_trial);
     let has_process_noise = s.has_process_noise();
     let sensor_sigma = &s.sensor_sigma * spec.noise_scale;
 

@@ -539,7 +539,7 @@ mod tests {
             |s: &LtiStudy| Engine::new(s).run(0).detectors[0].as_ref().unwrap().pre_onset_max_abs_residual.clone();
         assert_ne!(pre(&tailed), pre(&gaussian), "the Student-t channels move the residuals");
         let mut scales =
-            crate::engine::scenario::noise::TailScales::new(&tailed.sensor_law, tailed.header.seed, 0).unwrap();
+            crate::engine::scenario::streams::tail_scales(&tailed.sensor_law, tailed.header.seed, 0).unwrap();
         for _ in 0..100 {
             for j in 0..6 {
                 assert_eq!(scales.scale(j) == 1.0, !(1..=2).contains(&j), "channel {j}: scaled only where Student-t");
