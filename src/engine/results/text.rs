@@ -25,6 +25,15 @@ pub fn rate_interval(x: f64, lo: f64, hi: f64) -> String {
     format!("{} [{}, {}]", rate(x), rate(lo), rate(hi))
 }
 
+/// `k` of `n` as a rate with its 95 % Wilson interval; `-` when `n` is 0.
+pub fn proportion(k: u64, n: u64) -> String {
+    if n == 0 {
+        return "-".into();
+    }
+    let (lo, hi) = crate::engine::stats::intervals::wilson(k, n, crate::engine::stats::intervals::Z95);
+    rate_interval(k as f64 / n as f64, lo, hi)
+}
+
 /// A number to 4 significant digits, without trailing zeros; scientific when very small or large.
 pub fn significant(x: f64) -> String {
     if x.is_nan() {
@@ -40,6 +49,11 @@ pub fn significant(x: f64) -> String {
     let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
     let s = format!("{x:.decimals$}");
     if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
+}
+
+/// Values by name, `v_m_s 0.474, alpha_rad 0.01004`: a threshold set per statistic.
+pub fn named(names: &[String], values: &[f64]) -> String {
+    names.iter().zip(values).map(|(n, v)| format!("{n} {}", significant(*v))).collect::<Vec<_>>().join(", ")
 }
 
 #[cfg(test)]

@@ -9,7 +9,7 @@ use polars::prelude::*;
 
 use crate::engine::results::schema::col;
 use crate::engine::results::tables::Table;
-use crate::engine::results::text::{rate_interval, significant};
+use crate::engine::results::text::{proportion, significant};
 use crate::engine::results::thresholds::DECK;
 use crate::engine::stats::intervals::{Z95, wilson};
 
@@ -47,13 +47,10 @@ pub fn answer(
     let faulty_row = s.f64s("pd");
     let mut quiet: BTreeMap<&str, (u64, u64)> = BTreeMap::new();
     let mut by_kind: BTreeMap<&str, BTreeMap<&str, (u64, u64)>> = BTreeMap::new();
-    // Per detector and kind with a time to hazard: (missed before it, units, the time when one).
-    let hazard = summary.get_column_names().iter().any(|c| c.as_str() == "hazard_units");
-    let (hazard_units, missed_in_time, hazard_s) = if hazard {
-        (s.f64s("hazard_units"), s.f64s("missed_before_hazard"), s.f64s("time_to_hazard_s"))
-    } else {
-        (Vec::new(), Vec::new(), Vec::new())
-    };
+    // Per detector and kind with a time to hazard: (missed before it, units, the time when one); the
+    // columns are NaN throughout without one.
+    let (hazard_units, missed_in_time, hazard_s) =
+        (s.f64s("hazard_units"), s.f64s("missed_before_hazard"), s.f64s("time_to_hazard_s"));
     let mut by_hazard: BTreeMap<&str, BTreeMap<&str, (u64, u64, Option<f64>)>> = BTreeMap::new();
     for i in 0..summary.height() {
         if s_sets[i] != set {
@@ -62,13 +59,13 @@ pub fn answer(
         let flown = trials[i] - failed[i];
         // A group without faulty units (pd blank) is fault-free, whatever the kind calls it (`none`,
         // a classifier's `normal`).
-        if kinds[i] == col::NO_FAULT || (faulty_row[i].is_nan() && flown > 0) {
+        if faulty_row[i].is_nan() {
             let e = quiet.entry(s_names[i].as_str()).or_default();
             *e = (e.0 + alarms[i], e.1 + flown);
-        } else if !faulty_row[i].is_nan() {
+        } else {
             let e = by_kind.entry(s_names[i].as_str()).or_default().entry(kinds[i].as_str()).or_default();
             *e = (e.0 + hits[i], e.1 + flown);
-            if hazard && !hazard_units[i].is_nan() {
+            if !hazard_units[i].is_nan() {
                 let h = by_hazard.entry(s_names[i].as_str()).or_default().entry(kinds[i].as_str()).or_insert((
                     0,
                     0,
@@ -107,10 +104,7 @@ pub fn answer(
             .get(name)
             .into_iter()
             .flatten()
-            .map(|(kind, &(k, n))| {
-                let (lo, hi) = wilson(k, n, Z95);
-                format!("{kind} {}", rate_interval(k as f64 / n.max(1) as f64, lo, hi))
-            })
+            .map(|(kind, &(k, n))| format!("{kind} {}", proportion(k, n)))
             .collect();
         let detectable: Vec<String> = sizes
             .get(name)
@@ -136,11 +130,10 @@ pub fn answer(
             .into_iter()
             .flatten()
             .map(|(kind, &(k, n, t))| {
-                let (lo, hi) = wilson(k, n, Z95);
                 let within = t
                     .filter(|t| !t.is_nan())
                     .map_or("its target's time".to_string(), |t| format!("{} s", significant(t)));
-                format!("{kind} within {within} {}", rate_interval(k as f64 / n.max(1) as f64, lo, hi))
+                format!("{kind} within {within} {}", proportion(k, n))
             })
             .collect();
         rows.missed_before_hazard.push(Some(missed.join("; ")).filter(|s| !s.is_empty()));

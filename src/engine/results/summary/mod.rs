@@ -234,10 +234,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     }
     let mut answer = {
         let set_name = answer::set_in_use(&detectors);
-        let named = |v: &[f64]| -> String {
-            let text = crate::engine::results::text::significant;
-            statistics.iter().zip(v).map(|(n, v)| format!("{n} {}", text(*v))).collect::<Vec<_>>().join(", ")
-        };
+        let named = |v: &[f64]| crate::engine::results::text::named(&statistics, v);
         let (values, source): (Vec<(String, String)>, String) = match &thresholds {
             Some((t, source)) if set_name != DECK => {
                 (t.iter().map(|t| (t.detector.clone(), named(&t.whole))).collect(), source.clone())

@@ -11,7 +11,7 @@ use crate::engine::run::runner::RunError;
 use crate::engine::stats::intervals::{Z95, wilson};
 
 use super::aggregate::{Aggregates, number_of};
-use super::print::significant;
+use crate::engine::results::text::significant;
 
 /// The rates a precision stop can watch (`fdimc run --precision`), as `summary.csv` names them.
 pub const PRECISION_RATES: [&str; 3] = ["pd", "pfa", "isolation_accuracy"];

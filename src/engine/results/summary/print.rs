@@ -3,7 +3,7 @@
 use crate::engine::results::schema::col;
 use crate::engine::results::summary_spec::{Isolates, SummarySpec};
 use crate::engine::results::tables::Table;
-use crate::engine::results::text::rate;
+use crate::engine::results::text::{named, rate};
 use crate::engine::results::thresholds::per_flight_hour;
 use crate::engine::stats::intervals::{Z95, wilson};
 
@@ -26,10 +26,7 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
         println!("  thresholds: {source}");
         for t in thresholds {
             let (lo, hi) = wilson(t.whole_false_alarms, t.calibration_units, Z95);
-            let list = |v: &[f64]| {
-                let named = s.statistics.iter().zip(v).map(|(n, v)| format!("{n} {}", significant(*v)));
-                named.collect::<Vec<_>>().join(", ")
-            };
+            let list = |v: &[f64]| named(&s.statistics, v);
             let (label, trials) = match s.set {
                 Some(VALIDATION) => ("applied", "this run's trials"),
                 _ => ("calibrated", "the calibration trials"),
@@ -131,9 +128,4 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
     for w in &s.warnings {
         println!("  warning: {w}");
     }
-}
-
-/// A threshold with four significant digits, in scientific notation when it is very small or large.
-pub(super) fn significant(v: f64) -> String {
-    if v != 0.0 && (v.abs() < 1e-3 || v.abs() >= 1e5) { format!("{v:.3e}") } else { format!("{v:.4}") }
 }

@@ -73,13 +73,10 @@ pub fn safety(
         d.f64s("p_miss_before_hazard_hi"),
         d.u64s("hazard_units"),
     );
-    let (per, unit) = match setting.flight_s {
-        Some(s) => (
-            Box::new(move |p: f64| per_flight_hour(p, s)) as Box<dyn Fn(f64) -> f64>,
-            format!("the hour's {} flights of {s} s taken as independent", significant(3600.0 / s)),
-        ),
-        None => (Box::new(|p: f64| p) as Box<dyn Fn(f64) -> f64>, "per flight (its length unknown)".to_string()),
-    };
+    let per = |p: f64| setting.flight_s.map_or(p, |s| per_flight_hour(p, s));
+    let unit = setting.flight_s.map_or("per flight (its length unknown)".to_string(), |s| {
+        format!("the hour's {} flights of {s} s taken as independent", significant(3600.0 / s))
+    });
     let figure = if setting.flight_s.is_some() { "false alarms per flight hour" } else { "false alarms per flight" };
     let mut rows = Rows::default();
     for i in 0..answer.height() {
