@@ -295,6 +295,14 @@ pub struct RareEventArgs {
     /// Splitting: independent replicas, whose spread gives the interval [default: 16].
     #[arg(long)]
     pub replicas: Option<u64>,
+    /// Also fly fault-free flights of F seconds (a whole number of the deck's trials, e.g. 3600),
+    /// estimate their false-alarm probability the same way, and compare it with the conversion from
+    /// the deck's trials (per_hour.csv: both, and the extremal index linking them).
+    #[arg(long, value_name = "F")]
+    pub flight_s: Option<f64>,
+    /// With --flight-s and importance sampling: the flights [default: 1000].
+    #[arg(long, value_name = "N", requires = "flight_s")]
+    pub flight_trials: Option<u64>,
     #[command(flatten)]
     pub place: Placement,
     /// No progress or pilot lines.

@@ -560,7 +560,7 @@ impl Kinds {
 
     /// `fdimc rare-event`: checks the options (each estimator's own, the others refused), then runs.
     pub fn exec_rare_event(&self, a: RareEventArgs) -> Result<(), CliError> {
-        use crate::engine::rare_event::study::{Estimator, RareEventOptions};
+        use crate::engine::rare_event::study::{Estimator, FlightOptions, RareEventOptions};
         use crate::engine::scenario::streams::{MAX_BRANCH, MAX_REPLICA};
         let bad = |m: String| Err(CliError::Invalid(m));
         let estimator = if a.estimator == "splitting" { Estimator::Splitting } else { Estimator::Importance };
@@ -591,9 +591,27 @@ impl Kinds {
         if !(2..=MAX_REPLICA).contains(&replicas) {
             return bad(format!("--replicas {replicas}: allowed 2 (an interval needs two) to {MAX_REPLICA}"));
         }
+        if a.flight_trials.is_some() && estimator == Estimator::Splitting {
+            return bad(
+                "--flight-trials does not apply to --estimator splitting (its flights are its particles)".into()
+            );
+        }
+        let flight_trials = a.flight_trials.unwrap_or(1_000);
+        if !(10..=MAX_BRANCH).contains(&flight_trials) {
+            return bad(format!("--flight-trials {flight_trials}: allowed 10 (a fifth is the pilot) to {MAX_BRANCH}"));
+        }
         let (method, mut study) = self.load(&a.deck, None)?;
         method::require(self.0, method, Opt::RareEvent)?;
+        let flight = match a.flight_s {
+            None => None,
+            Some(f) => Some(FlightOptions { seconds: check_flight_s(f, study.header())?, trials: flight_trials }),
+        };
         let (out, shard, _) = place(&a.place, study.as_mut(), Some("rare_event"))?;
+        if flight.is_some() && shard != Shard::WHOLE {
+            return bad(
+                "--flight-s runs on one machine: drop --shard (the flights' own estimate is not sharded)".into()
+            );
+        }
         let opts = RareEventOptions {
             deck: a.deck,
             shard,
@@ -605,10 +623,14 @@ impl Kinds {
             replicas,
             out,
             quiet: a.quiet,
+            flight,
         };
         runner::thread_pool(a.place.threads)?.install(|| study.rare_event(&opts))?;
         if !a.quiet && shard == Shard::WHOLE {
             println!("wrote {}", opts.out.join("rare_event.csv").display());
+            if flight.is_some() {
+                println!("wrote {}", opts.out.join(crate::engine::rare_event::flights::PER_HOUR_FILE).display());
+            }
         }
         Ok(())
     }
@@ -632,4 +654,30 @@ impl Kinds {
         let (_, study) = self.load(deck, classifiers)?;
         Ok(study.simulate(trial, detector, out, Inputs { classifiers, quiet: false })?)
     }
+}
+
+/// The most samples a `--flight-s` flight may have: importance sampling's tilts keep every sample's
+/// response to every output's draw (outputs^2 numbers per sample; 6 outputs: 288 MB at the limit).
+pub const MAX_FLIGHT_SAMPLES: f64 = 1e6;
+
+/// `--flight-s F`: a whole number (at least 2) of the deck's trials, at most [`MAX_FLIGHT_SAMPLES`].
+fn check_flight_s(f: f64, header: &crate::engine::scenario::deck::StudyHeader) -> Result<f64, CliError> {
+    let trial_s = header.steps as f64 * header.dt_s;
+    let segments = f / trial_s;
+    let whole = (segments - segments.round()).abs() < 1e-9 * segments.max(1.0);
+    if !(f.is_finite() && whole && segments.round() >= 2.0) {
+        return Err(CliError::Invalid(format!(
+            "--flight-s {f}: a flight is a whole number (2 or more) of the deck's {trial_s} s trials ({}: study.duration_s), e.g. {}",
+            header.path.display(),
+            (3600.0 / trial_s).ceil().max(2.0) * trial_s
+        )));
+    }
+    if f / header.dt_s > MAX_FLIGHT_SAMPLES {
+        return Err(CliError::Invalid(format!(
+            "--flight-s {f}: {} samples at dt {} s; allowed at most {MAX_FLIGHT_SAMPLES:.0} per flight",
+            (f / header.dt_s).round(),
+            header.dt_s
+        )));
+    }
+    Ok(segments.round() * trial_s)
 }

@@ -2,4 +2,5 @@
 //! splitting) and the command around them.
 
 pub mod estimators;
+pub mod flights;
 pub mod study;

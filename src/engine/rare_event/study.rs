@@ -63,7 +63,21 @@ pub struct RareEventOptions {
     pub quiet: bool,
     /// The deck, for the folder's record.
     pub deck: PathBuf,
+    /// `--flight-s`: also fly fault-free flights this long and compare them with the segment
+    /// conversion ([`crate::engine::rare_event::flights`]).
+    pub flight: Option<FlightOptions>,
 }
+
+/// `--flight-s F` and `--flight-trials N`: flights of `seconds` (a whole number of the deck's trials),
+/// `trials` of them for importance sampling (splitting keeps its particles and replicas).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FlightOptions {
+    pub seconds: f64,
+    pub trials: u64,
+}
+
+/// The folder of the flights' own run, under the segments' folder.
+pub const FLIGHTS_DIR: &str = "flights";
 
 /// `rare_event.json`: what a folder's units came from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -283,8 +297,8 @@ fn read_parts(dir: &Path, levels: usize) -> Result<Vec<Part>, RunError> {
 }
 
 /// Writes a run's (or a shard's) folder: its units and record; a whole run (or a merge) also the
-/// table, printed.
-pub fn write(dir: &Path, m: &RareEventManifest, parts: &[Part], quiet: bool) -> Result<(), RunError> {
+/// table, printed, and returned (a shard's: empty).
+pub fn write(dir: &Path, m: &RareEventManifest, parts: &[Part], quiet: bool) -> Result<Vec<RareEventRow>, RunError> {
     m.write(dir)?;
     write_parts(dir, m.levels.len(), parts)?;
     if m.shard_count > 1 {
@@ -298,12 +312,12 @@ pub fn write(dir: &Path, m: &RareEventManifest, parts: &[Part], quiet: bool) -> 
                 m.shard_count
             );
         }
-        return Ok(());
+        return Ok(Vec::new());
     }
     let table = rows(m, parts);
     write_rows(dir, &table)?;
     print_rows(&table);
-    Ok(())
+    Ok(table)
 }
 
 /// `fdimc merge` of rare-event shard folders: every shard of one run exactly once, into `out`.

@@ -787,7 +787,29 @@ fn page(
             "rare_event/rare_event.csv",
             &["pfa_per_flight_hour_lo", "pfa_per_flight_hour_hi", "trial_s", "particles"],
         )?
-        .unwrap_or_default(),
+        .unwrap_or_default()
+            + &table_of(
+                dir,
+                "rare_event/per_hour.csv",
+                &[
+                    "pfa_per_flight_hour_flights_lo",
+                    "pfa_per_flight_hour_flights_hi",
+                    "pfa_per_flight_hour_conversion_lo",
+                    "pfa_per_flight_hour_conversion_hi",
+                    "conditional_per_segment_lo",
+                    "conditional_per_segment_hi",
+                ],
+            )?
+            .map(|t| {
+                "<p>With <code>--flight-s F</code>: the same estimator over fault-free flights of F seconds, \
+                 against the flight's segments taken as independent restarts (the conversion every per-hour figure \
+                 otherwise rests on), and the extremal index that links them (1: the conversion holds; above: it \
+                 under-counts, a restarted segment being quieter than one in flight; below: alarms cluster across \
+                 segments). Table: <code>rare_event/per_hour.csv</code>.</p>"
+                    .to_string()
+                    + &t
+            })
+            .unwrap_or_default(),
     );
     section(
         "Which factors matter (Sobol indices)",

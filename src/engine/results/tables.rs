@@ -124,6 +124,15 @@ impl Table<'_> {
         (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or(0)).collect()
     }
 
+    /// A missing column or a null reads as false; text reads as its words ("true").
+    pub fn bools(&self, name: &str) -> Vec<bool> {
+        let column = self.0.column(name).ok();
+        match column.and_then(|c| c.bool().ok()) {
+            Some(v) => (0..self.0.height()).map(|i| v.get(i).unwrap_or(false)).collect(),
+            None => self.strs(name).iter().map(|s| s.eq_ignore_ascii_case("true")).collect(),
+        }
+    }
+
     pub fn strs(&self, name: &str) -> Vec<String> {
         let values = self.0.column(name).ok().and_then(|c| c.str().ok());
         (0..self.0.height()).map(|i| values.and_then(|v| v.get(i)).unwrap_or("").to_string()).collect()

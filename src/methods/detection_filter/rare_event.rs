@@ -17,7 +17,10 @@ use super::trial::{advance, measure};
 use super::trials::Engine;
 use crate::engine::method::select_detector;
 use crate::engine::rare_event::estimators::{Condition, RareEventModel};
-use crate::engine::rare_event::study::{Estimator, RareEventManifest, RareEventOptions, estimate_parts, write};
+use crate::engine::rare_event::flights;
+use crate::engine::rare_event::study::{
+    Estimator, FLIGHTS_DIR, RareEventManifest, RareEventOptions, RareEventRow, estimate_parts, write,
+};
 use crate::engine::run::runner::{RunError, deck_sha256};
 use crate::engine::scenario::noise::NoiseRng;
 use crate::engine::scenario::streams::{BranchStream, Substream, noise_rng};
@@ -237,13 +240,62 @@ impl RareEventModel for FaultFreeTrials<'_> {
 }
 
 /// `fdimc rare-event` on a detection-filter deck: this shard's units of each chosen detector, written
-/// (and, for a whole run, the table printed).
+/// (and, for a whole run, the table printed); with `--flight-s`, the same estimator again over flights
+/// of that length (in `flights/`) and `per_hour.csv` comparing the two.
 pub fn run(study: &LtiStudy, opts: &RareEventOptions) -> Result<(), RunError> {
     let names: Vec<&str> = study.detectors.iter().map(|d| d.name.as_str()).collect();
     let chosen: Vec<usize> = select_detector(&study.header, &names, opts.detector.as_deref())?
         .map_or_else(|| (0..names.len()).collect(), |d| vec![d]);
+    let segments = run_trials(study, &chosen, opts, &opts.out)?;
+    let Some(flight) = opts.flight else { return Ok(()) };
+    let flown = flights_of(study, flight.seconds);
+    let flight_opts = RareEventOptions { trials: flight.trials, ..opts.clone() };
+    let dir = opts.out.join(FLIGHTS_DIR);
+    if !opts.quiet {
+        println!(
+            "flights of {} s ({} samples each), written to {}:",
+            flight.seconds,
+            flown.header.steps,
+            dir.display()
+        );
+    }
+    let flights = run_trials(&flown, &chosen, &flight_opts, &dir)?;
+    let conditional = |name: &str, level: f64| -> Result<flights::Conditional, String> {
+        let d = study.detectors.iter().position(|d| d.name == name).expect("a chosen detector");
+        let of = |s: &LtiStudy| -> Result<[f64; 3], String> {
+            let engine = Engine::new(s);
+            let filter = engine.nominal_filters()[d].as_ref().map_err(|e| e.to_string())?;
+            let thresholds: Vec<f64> = filter.thresholds.iter().map(|t| t * level).collect();
+            let a = super::false_alarms::for_detector(s, filter, &thresholds)?;
+            Ok([a.conditional, a.conditional_lo, a.conditional_hi])
+        };
+        Ok(flights::Conditional { segment: of(study)?, flight: of(&flown)? })
+    };
+    let table = flights::compare(&segments, &flights, &conditional)?;
+    flights::write(&opts.out, &table)?;
+    if !opts.quiet {
+        flights::print(&table);
+    }
+    Ok(())
+}
+
+/// The study flown for `seconds` instead of its trials' duration: everything else the deck's.
+fn flights_of(study: &LtiStudy, seconds: f64) -> LtiStudy {
+    let mut flown = study.clone();
+    flown.header.duration_s = seconds;
+    flown.header.steps = (seconds / study.header.dt_s).round() as usize;
+    flown
+}
+
+/// Runs this shard's units of the `chosen` detectors into `out`; a whole run's table.
+fn run_trials(
+    study: &LtiStudy,
+    chosen: &[usize],
+    opts: &RareEventOptions,
+    out: &std::path::Path,
+) -> Result<Vec<RareEventRow>, RunError> {
     let mut parts = Vec::new();
-    for &d in &chosen {
+    for &d in chosen {
         let model = FaultFreeTrials::new(study, d, opts.estimator == Estimator::Splitting)?;
         parts.extend(estimate_parts(&model, model.name(), study.header.seed, opts));
     }
@@ -258,11 +310,11 @@ pub fn run(study: &LtiStudy, opts: &RareEventOptions) -> Result<(), RunError> {
         replicas: opts.replicas,
         shard_index: opts.shard.index,
         shard_count: opts.shard.count,
-        detectors: chosen.iter().map(|&d| names[d].to_string()).collect(),
+        detectors: chosen.iter().map(|&d| study.detectors[d].name.clone()).collect(),
         steps_per_trial: study.header.steps,
         trial_s: study.header.steps as f64 * study.header.dt_s,
     };
-    write(&opts.out, &manifest, &parts, opts.quiet)
+    write(out, &manifest, &parts, opts.quiet)
 }
 
 /// The memory of a trial whose design failed: never stepped (the path stays diverged).
@@ -462,5 +514,72 @@ mod tests {
         };
         let results = crate::engine::rare_event::estimators::splitting(&model, &opts, &|| {});
         assert!(results.iter().filter(|r| r.estimates[0] == Some(0.0)).count() >= 6);
+    }
+
+    /// Issue 52, item 1: per flight hour measured over flights. Flights of 100 s (10 segments), each
+    /// detector's simulated flights and segments (importance sampling) and the conditional estimate on
+    /// the exact law, written to `per_hour.csv` and read back.
+    /// - The bundled deck's `seed_x124` (residual nearly white): the conversion holds; the exact law's
+    ///   extremal index is 1.013 (a restarted segment's first second is a little quieter), and the
+    ///   simulation's interval holds both it and 1.
+    /// - A slow filter (`studies/seed000_rare_slow.toml`: eigenvalues -0.1 to -0.18 per s, our choice)
+    ///   at the same sensor noise: its state error takes about 10 s to build up after each restart, so a
+    ///   flight alarms about 3.9 times as often per segment as the conversion says (exact law: 3.94).
+    #[test]
+    fn flights_measure_what_the_segment_conversion_misses() {
+        use crate::engine::rare_event::study::{FlightOptions, RareEventOptions};
+        use crate::engine::run::runner::Shard;
+        let dir = tempfile::tempdir().unwrap();
+        const SLOW: &str = include_str!("../../../studies/seed000_rare_slow.toml");
+        let slow_deck = std::path::PathBuf::from("studies/seed000_rare_slow.toml");
+        let cases = [
+            (rare(), "seed_x124", std::path::PathBuf::from("studies/seed000_rare_false_alarms.toml"), (1.005, 1.03)),
+            (LtiStudy::from_toml(SLOW, &slow_deck).unwrap(), "slow", slow_deck.clone(), (3.7, 4.2)),
+        ];
+        for (study, detector, deck, (exact_lo, exact_hi)) in cases {
+            let out = dir.path().join(detector);
+            let opts = RareEventOptions {
+                estimator: Estimator::Importance,
+                detector: Some(detector.into()),
+                levels: vec![1.0],
+                trials: 10_000,
+                particles: 0,
+                replicas: 0,
+                shard: Shard::WHOLE,
+                out: out.clone(),
+                quiet: true,
+                deck,
+                flight: Some(FlightOptions { seconds: 100.0, trials: 1_000 }),
+            };
+            run(&study, &opts).unwrap();
+            let df = crate::engine::results::tables::read_summary(&out.join(flights::PER_HOUR_FILE)).unwrap();
+            assert_eq!(df.height(), 1);
+            let t = crate::engine::results::tables::Table(&df);
+            let v = |c: &str| t.f64s(c)[0];
+            assert_eq!((v("segment_s"), v("flight_s")), (10.0, 100.0));
+            assert!(t.bools("answer")[0], "{df}");
+            // The flights' own run is a rare-event folder of its own.
+            let flights_table = std::fs::read_to_string(out.join(FLIGHTS_DIR).join("rare_event.csv")).unwrap();
+            assert!(flights_table.contains(",100.0") || flights_table.contains(",100\n"), "{flights_table}");
+            // The exact law's extremal index, from its conditional estimates per segment and per flight.
+            let exact = v("extremal_index_conditional");
+            assert!((exact_lo..exact_hi).contains(&exact), "{detector}: {exact}");
+            assert!(v("extremal_index_conditional_lo") <= exact && exact <= v("extremal_index_conditional_hi"), "{df}");
+            // The simulations' extremal index holds the exact law's.
+            let (lo, hi) = (v("extremal_index_lo"), v("extremal_index_hi"));
+            assert!(lo <= exact && exact <= hi, "{detector}: [{lo}, {hi}] against {exact}");
+            // The conversion: 1 - (1 - p_segment)^10, and per hour 1 - (1 - p_segment)^360.
+            let p = v("pfa_per_segment");
+            assert!((v("pfa_per_flight_conversion") / -((-p).ln_1p() * 10.0).exp_m1() - 1.0).abs() < 1e-12);
+            assert!((v("pfa_per_flight_hour_conversion") / -((-p).ln_1p() * 360.0).exp_m1() - 1.0).abs() < 1e-12);
+            if detector == "slow" {
+                // The measured figure differs: the flights' interval lies above the conversion's.
+                assert!(lo > 2.5, "{df}");
+                assert!(v("pfa_per_flight_lo") > v("pfa_per_flight_conversion_hi"), "{df}");
+                assert!(v("pfa_per_flight_hour_flights_lo") > v("pfa_per_flight_hour_conversion_hi"), "{df}");
+            } else {
+                assert!(lo <= 1.0 && 1.0 <= hi, "{df}");
+            }
+        }
     }
 }

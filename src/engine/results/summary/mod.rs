@@ -247,7 +247,8 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     write_table(&mut answer, &out(answer::ANSWER_FILE))?;
     files.push(answer::ANSWER_FILE);
     let noise = manifest.sensor_noise.clone().unwrap_or_else(|| "Gaussian (the kind's model)".to_string());
-    let setting = safety::Setting { flight_s: manifest.trial_duration_s, noise: &noise };
+    let rare_event = safety::read_rare_event(dir, &manifest.deck_sha256)?;
+    let setting = safety::Setting { flight_s: manifest.trial_duration_s, noise: &noise, rare_event };
     let mut safety = safety::safety(&answer, &detectors, &tails, &setting).map_err(pol(&path))?;
     write_table(&mut safety, &out(safety::SAFETY_FILE))?;
     files.push(safety::SAFETY_FILE);

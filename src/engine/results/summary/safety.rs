@@ -4,13 +4,16 @@
 //! where it gives one) and, with the deck's `time_to_hazard_s`, the probability that a fault is not
 //! detected before it becomes hazardous.
 
+use std::path::Path;
+
 use polars::prelude::*;
 
 use crate::engine::results::schema::col;
-use crate::engine::results::tables::Table;
+use crate::engine::results::tables::{Table, read_summary};
 use crate::engine::results::tails::DetectorTail;
 use crate::engine::results::text::{rate_interval, significant};
 use crate::engine::results::thresholds::per_flight_hour;
+use crate::engine::run::runner::RunError;
 
 pub const SAFETY_FILE: &str = "safety.csv";
 
@@ -20,6 +23,35 @@ pub struct Setting<'a> {
     pub flight_s: Option<f64>,
     /// The sensor noise as the run drew it, in words.
     pub noise: &'a str,
+    /// `fdimc rare-event`'s tables in the run's folder, for the same deck.
+    pub rare_event: Option<RareEventTables>,
+}
+
+/// `rare_event/rare_event.csv` and, with `--flight-s`, `rare_event/per_hour.csv`.
+pub struct RareEventTables {
+    pub rows: DataFrame,
+    pub per_hour: Option<DataFrame>,
+}
+
+/// The rare-event folder `dir/rare_event/` when it holds a whole run of the deck whose SHA-256 is
+/// `deck_sha256` (a shard's folder has no table; another deck's figures would not be this run's).
+pub fn read_rare_event(dir: &Path, deck_sha256: &str) -> Result<Option<RareEventTables>, RunError> {
+    let folder = dir.join("rare_event");
+    let (record, table) = (folder.join("rare_event.json"), folder.join("rare_event.csv"));
+    if !(record.exists() && table.exists()) {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&record).map_err(|e| RunError::Invalid(format!("{}: {e}", record.display())))?;
+    let json: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| RunError::Invalid(format!("{}: {e}", record.display())))?;
+    if json["deck_sha256"].as_str() != Some(deck_sha256) {
+        return Ok(None);
+    }
+    let per_hour = folder.join(crate::engine::rare_event::flights::PER_HOUR_FILE);
+    Ok(Some(RareEventTables {
+        rows: read_summary(&table)?,
+        per_hour: if per_hour.exists() { Some(read_summary(&per_hour)?) } else { None },
+    }))
 }
 
 #[derive(Default)]
@@ -54,7 +86,8 @@ impl Rows {
 }
 
 /// The rows of `safety.csv` from `answer.csv`'s rows (the thresholds in use), `detectors.csv` (the
-/// miss before the hazard) and the tail fits.
+/// miss before the hazard), the tail fits and, where `fdimc rare-event` wrote into the run's folder,
+/// its answers at the deck's thresholds.
 pub fn safety(
     answer: &DataFrame,
     detectors: &DataFrame,
@@ -124,6 +157,17 @@ pub fn safety(
             );
         }
     }
+    // The rare-event figures are at the deck's thresholds (its levels scale them), whichever set the
+    // answer uses: one group per detector, after the figures in use.
+    if let Some(re) = &setting.rare_event {
+        let mut seen: Vec<&str> = Vec::new();
+        for name in &names {
+            if !seen.contains(&name.as_str()) {
+                seen.push(name);
+                rare_event_rows(&mut rows, name, re, setting.noise);
+            }
+        }
+    }
     let r = rows;
     DataFrame::new_infer_height(vec![
         Column::new(col::DETECTOR.into(), r.detector),
@@ -136,6 +180,75 @@ pub fn safety(
         Column::new("assumptions".into(), r.assumptions),
         Column::new("statement".into(), r.statement),
     ])
+}
+
+/// `fdimc rare-event`'s answers at the deck's thresholds (scale 1) for detector `name`: per flight hour
+/// from its trials (the segment conversion), and, with `--flight-s`, measured over its flights and by
+/// the conditional estimate on the exact law.
+fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &str) {
+    let figure = "false alarms per flight hour";
+    let t = Table(&re.rows);
+    let (names, scales, answers) = (t.strs(col::DETECTOR), t.f64s("threshold_scale"), t.bools("answer"));
+    let (estimators, units, trial_s) = (t.strs("estimator"), t.u64s("units"), t.f64s("trial_s"));
+    let hour = [t.f64s("pfa_per_flight_hour"), t.f64s("pfa_per_flight_hour_lo"), t.f64s("pfa_per_flight_hour_hi")];
+    let method = |estimator: &str, units: u64, what: &str| match estimator {
+        "splitting" => format!("adaptive multilevel splitting: {units} replicas over {what}"),
+        _ => format!("importance sampling on the sensor noise: {units} weighted {what}"),
+    };
+    for i in (0..re.rows.height()).filter(|&i| names[i] == name && scales[i] == 1.0 && answers[i]) {
+        rows.push(
+            name,
+            crate::engine::results::thresholds::DECK,
+            figure,
+            [hour[0][i], hour[1][i], hour[2][i]],
+            method(&estimators[i], units[i], &format!("fault-free trials of {} s", significant(trial_s[i]))),
+            format!(
+                "the hour's {} segments of {} s taken as independent restarts; sensor noise {noise}",
+                significant(3600.0 / trial_s[i]),
+                significant(trial_s[i])
+            ),
+        );
+        let Some(per_hour) = &re.per_hour else { continue };
+        let f = Table(per_hour);
+        let (f_names, f_scales, flight_s) = (f.strs(col::DETECTOR), f.f64s("threshold_scale"), f.f64s("flight_s"));
+        let Some(j) = (0..per_hour.height()).find(|&j| f_names[j] == name && f_scales[j] == 1.0) else { continue };
+        let triple = |c: &str| [f.f64s(c)[j], f.f64s(&format!("{c}_lo"))[j], f.f64s(&format!("{c}_hi"))[j]];
+        let over = format!("fault-free flights of {} s", significant(flight_s[j]));
+        let independence = if flight_s[j] == 3600.0 {
+            "an hour flown whole, without restarts".to_string()
+        } else {
+            format!("flights of {} s, the hour's taken as independent", significant(flight_s[j]))
+        };
+        let theta = triple("extremal_index");
+        if f.bools("answer")[j] {
+            rows.push(
+                name,
+                crate::engine::results::thresholds::DECK,
+                figure,
+                triple("pfa_per_flight_hour_flights"),
+                method(&estimators[i], f.u64s("flight_units")[j], &over) + " (their own run: rare_event/flights/)",
+                format!(
+                    "{independence}; extremal index against the segment conversion {} [{}, {}]; sensor noise {noise}",
+                    significant(theta[0]),
+                    significant(theta[1]),
+                    significant(theta[2])
+                ),
+            );
+        }
+        let conditional = triple("conditional_per_flight");
+        if conditional[0] > 0.0 {
+            rows.push(
+                name,
+                crate::engine::results::thresholds::DECK,
+                figure,
+                conditional.map(|p| per_flight_hour(p, flight_s[j])),
+                format!("conditional Monte Carlo on the residual's exact Gaussian law over {over}"),
+                format!(
+                    "{independence}; the model exact (no parameter error), white Gaussian sensor noise, the |residual| test"
+                ),
+            );
+        }
+    }
 }
 
 /// The statements on the console.
