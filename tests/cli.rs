@@ -203,6 +203,67 @@ fn rare_event_meets_the_analytic_answer_and_refuses_what_does_not_apply() {
     );
 }
 
+/// Issue 52, item 1: `rare-event --flight-s` refuses flights that are not whole numbers of trials (and
+/// the options that do not go with it) before any work, and its comparison reaches the run's safety
+/// summary and report.
+#[test]
+fn rare_event_flights_are_checked_and_reach_the_safety_summary_and_report() {
+    let deck = "studies/seed000_rare_false_alarms.toml";
+    for (args, says) in [
+        (&["--flight-s", "15"][..], "--flight-s 15: a flight is a whole number (2 or more) of the deck's 10 s trials"),
+        (&["--flight-s", "10"][..], "a whole number (2 or more)"),
+        (&["--flight-s", "NaN"][..], "--flight-s NaN"),
+        (&["--flight-s", "100000"][..], "10000000 samples at dt 0.01 s; allowed at most 1000000"),
+        (&["--flight-s", "100", "--shard", "0/2"][..], "drop --shard"),
+        (
+            &["--flight-s", "100", "--estimator", "splitting", "--flight-trials", "50"][..],
+            "--flight-trials does not apply to --estimator splitting",
+        ),
+        (&["--flight-s", "100", "--flight-trials", "5"][..], "--flight-trials 5: allowed 10"),
+        (&["--flight-trials", "50"][..], "--flight-s"),
+    ] {
+        let out = fdimc(&[&["rare-event", deck][..], args].concat());
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", text(&out.stderr));
+        assert!(text(&out.stderr).contains(says), "{args:?}: {}", text(&out.stderr));
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let run = dir.path().join("run");
+    run_deck(deck, Some(1000), &run);
+    let beside = run.join("rare_event");
+    let printed = ok(&fdimc(&[
+        "rare-event",
+        deck,
+        "--detector",
+        "seed_x116",
+        "--trials",
+        "4000",
+        "--flight-s",
+        "20",
+        "--flight-trials",
+        "2000",
+        "--out",
+        beside.to_str().unwrap(),
+    ]));
+    assert!(printed.contains("per flight of 20 s, measured over flights against 2 segments of 10 s"), "{printed}");
+    assert!(printed.contains("conditional estimate on the exact law"), "{printed}");
+    assert!(beside.join("per_hour.csv").exists() && beside.join("flights/rare_event.csv").exists());
+    let summary = ok(&fdimc(&["summarize", run.to_str().unwrap()]));
+    let safety = csv_frame(&run.join("safety.csv"));
+    let column = safety.column("method").unwrap().str().unwrap().clone();
+    let methods: Vec<String> = (0..column.len()).map(|i| column.get(i).unwrap().to_string()).collect();
+    // Per detector at the deck's thresholds: the segments' figure, the flights' and the exact law's.
+    assert!(methods.iter().any(|m| m.contains("weighted fault-free trials of 10 s")), "{methods:?}");
+    assert!(methods.iter().any(|m| m.contains("weighted fault-free flights of 20 s")), "{methods:?}");
+    assert!(
+        methods.iter().any(|m| m.contains("conditional Monte Carlo") && m.contains("flights of 20 s")),
+        "{methods:?}"
+    );
+    assert!(summary.contains("extremal index against the segment conversion"), "{summary}");
+    ok(&fdimc(&["report", run.to_str().unwrap()]));
+    let page = std::fs::read_to_string(run.join("report/report.html")).unwrap();
+    assert!(page.contains("rare_event/per_hour.csv") && page.contains("extremal_index_conditional"));
+}
+
 /// Issue 19: a 24-state plant measured at 8 states (`tests/data/plant24_outputs8.toml`, written by
 /// `scripts/plant_deck.py --states 24 --outputs 8 --seed 1 --trials 256`) with `fault_directions` (r = 8 < n)
 /// is observable, designs (the 8 assigned eigenvalues among the 24, residual and conditioning reported,
@@ -2249,6 +2310,8 @@ fn log_lists_topics_and_refuses_what_it_cannot_read() {
             "0.037",
             "-0.037",
             "1.18",
+            // The empirical law's fitted tail shape (bounded; a deck's law raises it to 0).
+            "-0.11",
             "student_t(9.1)"
         ]
     );
@@ -3951,6 +4014,10 @@ fn sensor_noise_laws_are_checked_and_rare_event_refuses_heavy_tails() {
         std::fs::write(&path, source.replacen("[noise]\n", &format!("[noise]\nsensor_law = {law}\n"), 1)).unwrap();
         path
     };
+    let log_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("studies/logs/sample_log_small.ulg");
+    let recorded = with("recorded.toml", &format!("{{ log = \"{}\", field = \"gyro_rad[0]\" }}", log_path.display()));
+    let said = ok(&fdimc(&["validate", recorded.to_str().unwrap()]));
+    assert!(said.contains("empirical(") && said.contains("sensor_combined gyro_rad[0])"), "{said}");
     let good = with("good.toml", "\"student_t(4)\"");
     let said = ok(&fdimc(&["validate", good.to_str().unwrap()]));
     assert!(
@@ -3964,7 +4031,7 @@ fn sensor_noise_laws_are_checked_and_rare_event_refuses_heavy_tails() {
             "dof",
             "\"student_t(2)\"",
             "noise.sensor_law",
-            "\"student_t(2)\": 2 degrees of freedom; allowed \"gaussian\" or \"student_t(N)\", N > 2",
+            "\"student_t(2)\": 2 degrees of freedom; allowed \"gaussian\", \"student_t(N)\" with N > 2",
         ),
         (
             "word",
@@ -3978,7 +4045,26 @@ fn sensor_noise_laws_are_checked_and_rare_event_refuses_heavy_tails() {
             "noise.sensor_law",
             "one law for every output, or a list of 6 (one per output), got 2",
         ),
-        ("type", "4", "noise.sensor_law", "expected text such as \"student_t(4)\", got integer"),
+        ("type", "4", "noise.sensor_law", "got integer; allowed \"gaussian\""),
+        (
+            "key",
+            "{ log = \"x.ulg\", field = \"gyro_rad[0]\", colour = 1 }",
+            "noise.sensor_law.colour",
+            "unknown key; allowed log, field, topic, instance",
+        ),
+        ("field", "{ log = \"x.ulg\" }", "noise.sensor_law.field", "missing: the topic's field"),
+        (
+            "file",
+            "{ log = \"nope.ulg\", field = \"gyro_rad[0]\" }",
+            "noise.sensor_law.log",
+            &format!("{}: no such file", tmp.path().join("nope.ulg").display()),
+        ),
+        (
+            "channel",
+            &format!("{{ log = \"{}\", field = \"gyro_rad[7]\" }}", log_path.display()),
+            "noise.sensor_law.log",
+            &format!("{}: topic \"sensor_combined\" has no number field \"gyro_rad[7]\"", log_path.display()),
+        ),
     ] {
         let bad = with(&format!("{name}.toml"), law);
         let out = fdimc(&["validate", bad.to_str().unwrap()]);

@@ -102,20 +102,32 @@ pub fn exec_log(a: &LogArgs) -> Result<(), CliError> {
     );
     if let Some(name) = topic {
         let spreads = field_spreads(a.file, &name, instance).map_err(invalid)?;
+        // Each field's residual tail as an empirical noise law would fit it (the whole topic read again).
+        let request = crate::engine::logs::flight_log::TopicRequest {
+            topic: name.clone(),
+            instance,
+            fields: spreads.iter().map(|f| f.field.clone()).collect(),
+            max_gap_s: f64::INFINITY,
+        };
+        let series = crate::engine::logs::flight_log::read_ulog(a.file, &request).map_err(invalid)?;
+        let tail_shape = |i: usize| {
+            crate::engine::scenario::noise::EmpiricalLaw::from_samples("", &series.values[i])
+                .map_or("-".to_string(), |law| format!("{:.2}", law.tail_shape().1))
+        };
         let samples = topics.iter().find(|t| t.topic == name && t.instance == instance).map_or(0, |t| t.samples);
         println!("\n{name} instance {instance}");
         println!(
-            "number fields (difference sd = sd of sample-to-sample differences / sqrt 2, the white noise when the signal moves slowly; r(l) = autocorrelation at l samples, 0 for white noise; kurtosis = the noise's excess kurtosis from the differences, 0 for Gaussian; noise_law = a deck's noise.sensor_law of that kurtosis, Student-t by moments, gaussian within 3 standard errors)"
+            "number fields (difference sd = sd of sample-to-sample differences / sqrt 2, the white noise when the signal moves slowly; r(l) = autocorrelation at l samples, 0 for white noise; kurtosis = the noise's excess kurtosis from the differences, 0 for Gaussian; tail_shape = the generalised Pareto shape of the largest tenth of the residuals about each sample's four neighbours, as a deck's empirical law {{ log, field }} fits it: 0 exponential, above 0 a power law (Student-t N: 1/N), below 0 bounded (the law then takes 0), '-' under 500 samples; noise_law = a deck's noise.sensor_law of that kurtosis, Student-t by moments, gaussian within 3 standard errors)"
         );
         let lags = AUTOCORRELATION_LAGS.map(|l| format!("r({l})"));
         println!(
-            "{:<32} {:>14} {:>14} {:>14} {:>7} {:>7} {:>7} {:>7} {:>9}  noise_law",
-            "field", "mean", "sd", "difference_sd", lags[0], lags[1], lags[2], lags[3], "kurtosis"
+            "{:<32} {:>14} {:>14} {:>14} {:>7} {:>7} {:>7} {:>7} {:>9} {:>10}  noise_law",
+            "field", "mean", "sd", "difference_sd", lags[0], lags[1], lags[2], lags[3], "kurtosis", "tail_shape"
         );
-        for f in spreads {
+        for (i, f) in spreads.into_iter().enumerate() {
             let r = f.autocorrelation;
             println!(
-                "{:<32} {:>14.6e} {:>14.6e} {:>14.6e} {:>7.3} {:>7.3} {:>7.3} {:>7.3} {:>9.2}  {}",
+                "{:<32} {:>14.6e} {:>14.6e} {:>14.6e} {:>7.3} {:>7.3} {:>7.3} {:>7.3} {:>9.2} {:>10}  {}",
                 f.field,
                 f.mean,
                 f.sd,
@@ -125,6 +137,7 @@ pub fn exec_log(a: &LogArgs) -> Result<(), CliError> {
                 r[2],
                 r[3],
                 f.excess_kurtosis,
+                tail_shape(i),
                 f.fitted_law(samples as usize).describe()
             );
         }

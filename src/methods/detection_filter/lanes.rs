@@ -122,7 +122,7 @@ fn run_lanes_in(
         if let Some(tails) = tails.as_mut() {
             for (l, lane) in tails.iter_mut().enumerate() {
                 for (j, row) in draws[..ny].iter_mut().enumerate() {
-                    row[l] *= lane.scale(j);
+                    row[l] = lane.shape(j, row[l]);
                 }
             }
         }

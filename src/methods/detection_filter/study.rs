@@ -694,6 +694,44 @@ struct MatrixEntriesSection {
     fmu_parameters: Option<Vec<String>>,
 }
 
+/// `noise.sensor_law`'s `{ log = "FILE.ulg", field = "...", topic = "sensor_combined", instance = 0 }`:
+/// the empirical law of a recorded channel's residual noise, the log relative to the deck's folder.
+fn recorded_law(
+    chk: &Validator,
+    field: &str,
+    t: &toml::map::Map<String, toml::Value>,
+) -> Result<crate::engine::scenario::noise::SensorLaw, DeckError> {
+    use crate::engine::logs::flight_log::{PX4_IMU_TOPIC, TopicRequest, read_ulog};
+    use crate::engine::scenario::noise::{EmpiricalLaw, SensorLaw};
+    if let Some(key) = t.keys().find(|k| !["log", "field", "topic", "instance"].contains(&k.as_str())) {
+        return Err(chk.err(format!("{field}.{key}"), "unknown key; allowed log, field, topic, instance"));
+    }
+    let text = |key: &str| match t.get(key) {
+        Some(toml::Value::String(s)) => Ok(Some(s.clone())),
+        None => Ok(None),
+        Some(other) => Err(chk.err(format!("{field}.{key}"), format!("expected text, got {}", other.type_str()))),
+    };
+    let log =
+        text("log")?.ok_or_else(|| chk.err(format!("{field}.log"), "missing: the ULog file (relative to the deck)"))?;
+    let signal = text("field")?
+        .ok_or_else(|| chk.err(format!("{field}.field"), "missing: the topic's field, e.g. \"gyro_rad[1]\""))?;
+    let topic = text("topic")?.unwrap_or_else(|| PX4_IMU_TOPIC.to_string());
+    let instance = match t.get("instance") {
+        None => 0,
+        Some(toml::Value::Integer(i)) if (0..=255).contains(i) => *i as u8,
+        Some(other) => return Err(chk.err(format!("{field}.instance"), format!("allowed 0 to 255, got {other}"))),
+    };
+    let path = chk.file.parent().unwrap_or(Path::new(".")).join(&log);
+    // Every gap bridged: the law reads the residuals about each sample's neighbours, not the timing.
+    let request =
+        TopicRequest { topic: topic.clone(), instance, fields: vec![signal.clone()], max_gap_s: f64::INFINITY };
+    let series = read_ulog(&path, &request).map_err(|e| chk.err(format!("{field}.log"), e.to_string()))?;
+    let source = format!("{log}: {topic} {signal}");
+    EmpiricalLaw::from_samples(&source, &series.values[0])
+        .map(|law| SensorLaw::Empirical(std::sync::Arc::new(law)))
+        .map_err(|e| chk.err(field, e))
+}
+
 /// `noise.sensor_law`: one law for every output, or a list of one per output.
 fn sensor_laws(
     chk: &Validator,
@@ -703,7 +741,10 @@ fn sensor_laws(
     use crate::engine::scenario::noise::SensorLaw;
     let parse = |field: &str, v: &toml::Value| match v {
         toml::Value::String(s) => SensorLaw::parse(s).map_err(|e| chk.err(field, e)),
-        other => Err(chk.err(field, format!("expected text such as \"student_t(4)\", got {}", other.type_str()))),
+        toml::Value::Table(t) => recorded_law(chk, field, t),
+        other => {
+            Err(chk.err(field, format!("got {}; {}", other.type_str(), crate::engine::scenario::noise::ALLOWED_LAWS)))
+        }
     };
     match given {
         None => Ok(vec![SensorLaw::Gaussian; outputs]),

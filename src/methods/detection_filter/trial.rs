@@ -388,7 +388,7 @@ fn add_sensor_noise(
         (None, Some(tails)) => {
             for (j, (yj, sigma)) in y.iter_mut().zip(sensor_sigma).enumerate() {
                 let z = rng.sample::<f64, _>(StandardNormal);
-                *yj += sigma * (z * tails.scale(j));
+                *yj += sigma * tails.shape(j, z);
             }
         }
         // Importance sampling tilts Gaussian draws: the rare-event command refuses other laws.

@@ -529,7 +529,9 @@ mod tests {
     #[test]
     fn heavy_tailed_sensor_noise_is_the_same_on_both_paths() {
         let ci = include_str!("../../../studies/ci_seed000.toml");
-        let laws = "sensor_law = [\"gaussian\", \"student_t(3)\", \"student_t(5.5)\", \"gaussian\", \"gaussian\", \"gaussian\"]";
+        // Output 3 draws the small log's roll-rate gyro residuals (the empirical law's quantile map).
+        let laws = "sensor_law = [\"gaussian\", \"student_t(3)\", \"student_t(5.5)\", \
+                    { log = \"studies/logs/sample_log_small.ulg\", field = \"gyro_rad[0]\" }, \"gaussian\", \"gaussian\"]";
         let deck = ci.replace("[noise]\n", &format!("[noise]\n{laws}\n"));
         assert!(deck.contains("student_t(3)"));
         assert_paths_agree(&deck, "", 24);
@@ -543,6 +545,15 @@ mod tests {
         for _ in 0..100 {
             for j in 0..6 {
                 assert_eq!(scales.scale(j) == 1.0, !(1..=2).contains(&j), "channel {j}: scaled only where Student-t");
+                // Gaussian channels pass their draw; the empirical one maps it (odd, so 0 stays 0).
+                let z = 0.7;
+                let shaped = scales.shape(j, z);
+                if j == 0 || j >= 4 {
+                    assert_eq!(shaped, z);
+                }
+                if j == 3 {
+                    assert!(shaped != z && shaped > 0.0 && scales.shape(j, -z) == -shaped, "{shaped}");
+                }
             }
         }
     }
