@@ -264,6 +264,69 @@ fn rare_event_flights_are_checked_and_reach_the_safety_summary_and_report() {
     assert!(page.contains("rare_event/per_hour.csv") && page.contains("extremal_index_conditional"));
 }
 
+/// Issue 52, item 3: `rare-event --miss-before-hazard` refuses what does not go with it, and its
+/// table reaches the run's safety summary at the deck's thresholds.
+#[test]
+fn rare_event_miss_before_hazard_is_checked_and_reaches_the_safety_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let deck = edited_deck(
+        dir.path(),
+        "ci_seed000.toml",
+        &[("size_sigma = { values = [1.0, 3.0, 6.0] }", "size_sigma = { values = [3.0] }")],
+        "miss.toml",
+    );
+    let mut source = std::fs::read_to_string(&deck).unwrap();
+    source.push_str("\n[monte_carlo.time_to_hazard_s]\nbias = 0.3\n");
+    std::fs::write(&deck, source).unwrap();
+    let deck = deck.to_str().unwrap();
+    for (args, says) in [
+        (&[deck, "--miss-before-hazard"][..], "--miss-before-hazard splits in time: add --estimator splitting"),
+        (
+            &[deck, "--miss-before-hazard", "--estimator", "splitting", "--flight-s", "20"][..],
+            "--flight-s does not apply to --miss-before-hazard",
+        ),
+        (&[deck, "--miss-before-hazard", "--estimator", "splitting", "--shard", "0/2"][..], "drop --shard"),
+        (
+            &["studies/seed000_rare_false_alarms.toml", "--miss-before-hazard", "--estimator", "splitting"][..],
+            "needs [monte_carlo.time_to_hazard_s]",
+        ),
+    ] {
+        let out = fdimc(&[&["rare-event"][..], args].concat());
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", text(&out.stderr));
+        assert!(text(&out.stderr).contains(says), "{args:?}: {}", text(&out.stderr));
+    }
+    let run = dir.path().join("run");
+    run_deck(deck, Some(600), &run);
+    let beside = run.join("rare_event");
+    let printed = ok(&fdimc(&[
+        "rare-event",
+        deck,
+        "--miss-before-hazard",
+        "--estimator",
+        "splitting",
+        "--particles",
+        "50",
+        "--replicas",
+        "16",
+        "--detector",
+        "seed",
+        "--quiet",
+        "--out",
+        beside.to_str().unwrap(),
+    ]));
+    assert!(printed.is_empty(), "{printed}");
+    let table = csv_frame(&beside.join("miss_before_hazard.csv"));
+    assert_eq!(table.height(), 1);
+    let p = table.column("p_miss_before_hazard").unwrap().f64().unwrap().get(0).unwrap();
+    // A 3-sigma bias missed within 0.3 s about 65 % of the time (the unit test checks it against plain trials).
+    assert!((0.5..0.8).contains(&p), "{p}");
+    ok(&fdimc(&["summarize", run.to_str().unwrap()]));
+    let safety = std::fs::read_to_string(run.join("safety.csv")).unwrap();
+    // An answer (16 replicas: none can carry over 10 % of the estimate) at the deck's thresholds.
+    assert!(safety.contains("seed,deck,missed detection before the hazard"), "{safety}");
+    assert!(safety.contains("splitting in time: 16 replicas of 50 particles"), "{safety}");
+}
+
 /// Issue 19: a 24-state plant measured at 8 states (`tests/data/plant24_outputs8.toml`, written by
 /// `scripts/plant_deck.py --states 24 --outputs 8 --seed 1 --trials 256`) with `fault_directions` (r = 8 < n)
 /// is observable, designs (the 8 assigned eigenvalues among the 24, residual and conditioning reported,

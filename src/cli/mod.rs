@@ -300,6 +300,11 @@ pub struct RareEventArgs {
     /// the deck's trials (per_hour.csv: both, and the extremal index linking them).
     #[arg(long, value_name = "F")]
     pub flight_s: Option<f64>,
+    /// Instead of false alarms: the probability that a faulty trial's fault is not detected within its
+    /// time to hazard (the deck's [monte_carlo.time_to_hazard_s]), by splitting in time (with
+    /// --estimator splitting; --particles, --replicas); writes miss_before_hazard.csv.
+    #[arg(long)]
+    pub miss_before_hazard: bool,
     /// With --flight-s and importance sampling: the flights [default: 1000].
     #[arg(long, value_name = "N", requires = "flight_s")]
     pub flight_trials: Option<u64>,

@@ -591,6 +591,17 @@ impl Kinds {
         if !(2..=MAX_REPLICA).contains(&replicas) {
             return bad(format!("--replicas {replicas}: allowed 2 (an interval needs two) to {MAX_REPLICA}"));
         }
+        if a.miss_before_hazard {
+            if estimator != Estimator::Splitting {
+                return bad(
+                    "--miss-before-hazard splits in time: add --estimator splitting (with --particles, --replicas)"
+                        .into(),
+                );
+            }
+            if a.flight_s.is_some() {
+                return bad("--flight-s does not apply to --miss-before-hazard (its trials are the deck's)".into());
+            }
+        }
         if a.flight_trials.is_some() && estimator == Estimator::Splitting {
             return bad(
                 "--flight-trials does not apply to --estimator splitting (its flights are its particles)".into()
@@ -607,6 +618,9 @@ impl Kinds {
             Some(f) => Some(FlightOptions { seconds: check_flight_s(f, study.header())?, trials: flight_trials }),
         };
         let (out, shard, _) = place(&a.place, study.as_mut(), Some("rare_event"))?;
+        if a.miss_before_hazard && shard != Shard::WHOLE {
+            return bad("--miss-before-hazard runs on one machine: drop --shard".into());
+        }
         if flight.is_some() && shard != Shard::WHOLE {
             return bad(
                 "--flight-s runs on one machine: drop --shard (the flights' own estimate is not sharded)".into()
@@ -624,9 +638,12 @@ impl Kinds {
             out,
             quiet: a.quiet,
             flight,
+            miss_before_hazard: a.miss_before_hazard,
         };
         runner::thread_pool(a.place.threads)?.install(|| study.rare_event(&opts))?;
-        if !a.quiet && shard == Shard::WHOLE {
+        if !a.quiet && opts.miss_before_hazard {
+            println!("wrote {}", opts.out.join(crate::engine::rare_event::study::MISS_FILE).display());
+        } else if !a.quiet && shard == Shard::WHOLE {
             println!("wrote {}", opts.out.join("rare_event.csv").display());
             if flight.is_some() {
                 println!("wrote {}", opts.out.join(crate::engine::rare_event::flights::PER_HOUR_FILE).display());

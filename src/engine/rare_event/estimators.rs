@@ -389,6 +389,88 @@ pub fn splitting<M: RareEventModel>(
         .collect()
 }
 
+/// How a path of a [`SurvivalModel`] stands after a sample of its window.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Survival {
+    /// No alarm yet; its window goes on.
+    Alive,
+    /// It alarmed within its window.
+    Failed,
+    /// Its window ended without an alarm.
+    Done,
+}
+
+/// Paths that must each get through a window of samples without an alarm: the probability that a fault
+/// goes undetected until it is hazardous ([`survival_replica`]).
+pub trait SurvivalModel: Sync {
+    type Path: Clone;
+    /// Unit `unit`'s path, or `None` where the unit has no window (a fault-free trial, a fault without a
+    /// time to hazard).
+    fn start(&self, unit: u64) -> Option<Self::Path>;
+    /// Runs `p` to the next sample of its window (the samples before its window first) at threshold
+    /// scale `level`: how it stands, and the samples simulated.
+    fn advance(&self, p: &mut Self::Path, level: f64) -> (Survival, u64);
+    /// New noise streams for a copy (as [`RareEventModel::renew_noise`]).
+    fn renew_noise(&self, p: &mut Self::Path, rng: &mut dyn FnMut(BranchStream) -> NoiseRng);
+}
+
+/// Units a replica may look through for its particles: `SURVIVAL_UNIT_SPAN` per particle.
+pub const SURVIVAL_UNIT_SPAN: u64 = 64;
+
+/// One replica of splitting in time (a sequential Monte Carlo estimate of a survival probability, Del
+/// Moral 2004, ch. 12): `particles` paths, each of its own unit, step through their windows sample by
+/// sample together; after a sample where some alarmed, the estimate takes the surviving fraction and
+/// the alarmed are replaced by copies of survivors (chosen at random, continued with new noise), so the
+/// population stays whole however rare getting through is. The product of the fractions is unbiased
+/// for the probability that one unit's path gets through its window without an alarm. `Err`: the
+/// replica's span of units holds too few with a window.
+pub fn survival_replica<M: SurvivalModel>(
+    model: &M,
+    seed: u64,
+    particles: usize,
+    replica: u64,
+    level: f64,
+) -> Result<(f64, u64), String> {
+    let span = particles as u64 * SURVIVAL_UNIT_SPAN;
+    let mut paths: Vec<(M::Path, Survival)> = (replica * span..(replica + 1) * span)
+        .filter_map(|u| model.start(u))
+        .take(particles)
+        .map(|p| (p, Survival::Alive))
+        .collect();
+    if paths.len() < particles {
+        return Err(format!(
+            "{} of {span} trials have a fault with a time to hazard; {particles} particles need that many",
+            paths.len()
+        ));
+    }
+    let mut choose = branch_rng(seed, replica, 0, BranchStream::Choice);
+    let (mut branches, mut steps, mut estimate) = (0u64, 0u64, 1.0f64);
+    while paths.iter().any(|(_, s)| *s == Survival::Alive) {
+        for (p, state) in paths.iter_mut().filter(|(_, s)| *s == Survival::Alive) {
+            let (now, cost) = model.advance(p, level);
+            *state = now;
+            steps += cost;
+        }
+        let survivors: Vec<usize> = (0..particles).filter(|&i| paths[i].1 != Survival::Failed).collect();
+        if survivors.len() == particles {
+            continue;
+        }
+        if survivors.is_empty() {
+            return Ok((0.0, steps));
+        }
+        estimate *= survivors.len() as f64 / particles as f64;
+        for i in 0..particles {
+            if paths[i].1 == Survival::Failed {
+                let (mut copy, state) = paths[survivors[choose.random_range(0..survivors.len())]].clone();
+                branches += 1;
+                model.renew_noise(&mut copy, &mut |stream| branch_noise(seed, replica, branches, stream));
+                paths[i] = (copy, state);
+            }
+        }
+    }
+    Ok((estimate, steps))
+}
+
 /// Sums over independent unbiased units (trials of importance sampling, replicas of splitting) at one
 /// level, mergeable across chunks and shards in a fixed order.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]

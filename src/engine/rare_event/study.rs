@@ -66,6 +66,9 @@ pub struct RareEventOptions {
     /// `--flight-s`: also fly fault-free flights this long and compare them with the segment
     /// conversion ([`crate::engine::rare_event::flights`]).
     pub flight: Option<FlightOptions>,
+    /// `--miss-before-hazard`: the faulty trials' probability of no detection within their time to
+    /// hazard, by splitting in time, instead of false alarms.
+    pub miss_before_hazard: bool,
 }
 
 /// `--flight-s F` and `--flight-trials N`: flights of `seconds` (a whole number of the deck's trials),
@@ -457,4 +460,94 @@ fn print_rows(rows: &[RareEventRow]) {
         100.0 * crate::engine::rare_event::estimators::ANSWER_RELATIVE_HALF_WIDTH,
         100.0 * crate::engine::rare_event::estimators::ANSWER_LARGEST_SHARE,
     );
+}
+
+/// `miss_before_hazard.csv` under a rare-event folder, and its record (the deck, its SHA-256, the seed
+/// and the options).
+pub const MISS_FILE: &str = "miss_before_hazard.csv";
+pub const MISS_RECORD: &str = "miss_before_hazard.json";
+
+/// Writes `miss_before_hazard.json`: what the table came from.
+pub fn write_miss_record(dir: &Path, opts: &RareEventOptions, seed: u64) -> Result<(), RunError> {
+    let record = serde_json::json!({
+        "deck": opts.deck,
+        "deck_sha256": crate::engine::run::runner::deck_sha256(&opts.deck)?,
+        "seed": seed,
+        "estimator": "splitting in time",
+        "levels": opts.levels,
+        "particles": opts.particles,
+        "replicas": opts.replicas,
+    });
+    std::fs::create_dir_all(dir).map_err(|e| RunError::Internal(format!("{}: {e}", dir.display())))?;
+    write_atomically(&dir.join(MISS_RECORD), record.to_string().as_bytes())
+}
+
+/// One row of `miss_before_hazard.csv`: one detector at one threshold scale.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MissRow {
+    pub detector: String,
+    /// Over the replicas: each one splitting in time's product of surviving fractions.
+    pub estimate: Combined,
+    pub particles: usize,
+    pub steps_simulated: u64,
+    pub steps_per_trial: usize,
+}
+
+/// Writes `miss_before_hazard.csv` to `dir`.
+pub fn write_miss(dir: &Path, rows: &[MissRow]) -> Result<(), RunError> {
+    let path = dir.join(MISS_FILE);
+    std::fs::create_dir_all(dir).map_err(|e| RunError::Internal(format!("{}: {e}", dir.display())))?;
+    let f = |g: &dyn Fn(&MissRow) -> f64| rows.iter().map(g).collect::<Vec<f64>>();
+    let mut df = DataFrame::new_infer_height(vec![
+        Column::new(
+            crate::engine::results::schema::col::DETECTOR.into(),
+            rows.iter().map(|r| r.detector.as_str()).collect::<Vec<_>>(),
+        ),
+        Column::new("estimator".into(), vec!["splitting in time"; rows.len()]),
+        Column::new("threshold_scale".into(), f(&|r| r.estimate.level)),
+        Column::new("answer".into(), rows.iter().map(|r| r.estimate.answer).collect::<Vec<_>>()),
+        Column::new("p_miss_before_hazard".into(), f(&|r| r.estimate.estimate)),
+        Column::new("p_miss_before_hazard_lo".into(), f(&|r| r.estimate.low)),
+        Column::new("p_miss_before_hazard_hi".into(), f(&|r| r.estimate.high)),
+        Column::new("relative_half_width".into(), f(&|r| r.estimate.relative_half_width)),
+        Column::new("replicas".into(), rows.iter().map(|r| r.estimate.units).collect::<Vec<_>>()),
+        Column::new("nonzero_replicas".into(), rows.iter().map(|r| r.estimate.hits).collect::<Vec<_>>()),
+        Column::new("largest_unit_share".into(), f(&|r| r.estimate.largest_share)),
+        Column::new("particles".into(), rows.iter().map(|r| r.particles as u64).collect::<Vec<_>>()),
+        Column::new("steps_simulated".into(), rows.iter().map(|r| r.steps_simulated).collect::<Vec<_>>()),
+        Column::new(
+            "plain_steps_same_precision".into(),
+            f(&|r| r.estimate.plain_steps_same_precision(r.steps_per_trial)),
+        ),
+    ])
+    .map_err(pol(&path))?;
+    Ok(crate::engine::run::output::write_table(&mut df, &path)?)
+}
+
+/// The rows on stdout.
+pub fn print_miss(rows: &[MissRow]) {
+    use crate::engine::results::text::rate_interval;
+    for r in rows {
+        let e = &r.estimate;
+        let plain = e.plain_steps_same_precision(r.steps_per_trial) / r.steps_simulated as f64;
+        let verdict = if e.answer {
+            format!("+-{:.0} %, {plain:.1}x fewer samples than plain trials", 100.0 * e.relative_half_width)
+        } else if e.hits == 0 {
+            format!("not an answer: no replica got a particle through (at most {:.2e}, one-sided 95 %)", e.high)
+        } else {
+            format!(
+                "not an answer: +-{:.0} %, the largest replica {:.0} % of the estimate; more replicas or particles",
+                100.0 * e.relative_half_width,
+                100.0 * e.largest_share
+            )
+        };
+        println!(
+            "{} x{}: P(no detection within the time to hazard) {} over {} replicas of {} particles ({verdict})",
+            r.detector,
+            e.level,
+            rate_interval(e.estimate, e.low, e.high),
+            e.units,
+            r.particles
+        );
+    }
 }

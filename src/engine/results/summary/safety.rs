@@ -27,30 +27,41 @@ pub struct Setting<'a> {
     pub rare_event: Option<RareEventTables>,
 }
 
-/// `rare_event/rare_event.csv` and, with `--flight-s`, `rare_event/per_hour.csv`.
+/// `rare_event/rare_event.csv` and, with `--flight-s`, `rare_event/per_hour.csv`; with
+/// `--miss-before-hazard`, `rare_event/miss_before_hazard.csv`.
 pub struct RareEventTables {
-    pub rows: DataFrame,
+    pub rows: Option<DataFrame>,
     pub per_hour: Option<DataFrame>,
+    pub miss: Option<DataFrame>,
 }
 
-/// The rare-event folder `dir/rare_event/` when it holds a whole run of the deck whose SHA-256 is
-/// `deck_sha256` (a shard's folder has no table; another deck's figures would not be this run's).
+/// The rare-event folder `dir/rare_event/`'s tables of the deck whose SHA-256 is `deck_sha256` (a
+/// shard's folder has no table; another deck's figures would not be this run's): the false-alarm run's
+/// (`rare_event.json` its record) and the miss-before-hazard run's (`miss_before_hazard.json`).
 pub fn read_rare_event(dir: &Path, deck_sha256: &str) -> Result<Option<RareEventTables>, RunError> {
+    use crate::engine::rare_event::study::{MISS_FILE, MISS_RECORD};
     let folder = dir.join("rare_event");
-    let (record, table) = (folder.join("rare_event.json"), folder.join("rare_event.csv"));
-    if !(record.exists() && table.exists()) {
+    let of_this_deck = |record: &Path| -> Result<bool, RunError> {
+        if !record.exists() {
+            return Ok(false);
+        }
+        let bad = |e: String| RunError::Invalid(format!("{}: {e}", record.display()));
+        let text = std::fs::read_to_string(record).map_err(|e| bad(e.to_string()))?;
+        let json: serde_json::Value = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
+        Ok(json["deck_sha256"].as_str() == Some(deck_sha256))
+    };
+    let (alarms, misses) = (of_this_deck(&folder.join("rare_event.json"))?, of_this_deck(&folder.join(MISS_RECORD))?);
+    if !alarms && !misses {
         return Ok(None);
     }
-    let text = std::fs::read_to_string(&record).map_err(|e| RunError::Invalid(format!("{}: {e}", record.display())))?;
-    let json: serde_json::Value =
-        serde_json::from_str(&text).map_err(|e| RunError::Invalid(format!("{}: {e}", record.display())))?;
-    if json["deck_sha256"].as_str() != Some(deck_sha256) {
-        return Ok(None);
-    }
-    let per_hour = folder.join(crate::engine::rare_event::flights::PER_HOUR_FILE);
+    let read = |name: &str, wanted: bool| {
+        let p = folder.join(name);
+        if wanted && p.exists() { read_summary(&p).map(Some) } else { Ok(None) }
+    };
     Ok(Some(RareEventTables {
-        rows: read_summary(&table)?,
-        per_hour: if per_hour.exists() { Some(read_summary(&per_hour)?) } else { None },
+        rows: read("rare_event.csv", alarms)?,
+        per_hour: read(crate::engine::rare_event::flights::PER_HOUR_FILE, alarms)?,
+        miss: read(MISS_FILE, misses)?,
     }))
 }
 
@@ -186,8 +197,30 @@ pub fn safety(
 /// from its trials (the segment conversion), and, with `--flight-s`, measured over its flights and by
 /// the conditional estimate on the exact law.
 fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &str) {
+    if let Some(miss) = &re.miss {
+        let t = Table(miss);
+        let (names, scales, answers) = (t.strs(col::DETECTOR), t.f64s("threshold_scale"), t.bools("answer"));
+        let (replicas, particles) = (t.u64s("replicas"), t.u64s("particles"));
+        let p = [t.f64s("p_miss_before_hazard"), t.f64s("p_miss_before_hazard_lo"), t.f64s("p_miss_before_hazard_hi")];
+        for i in (0..miss.height()).filter(|&i| names[i] == name && scales[i] == 1.0 && answers[i]) {
+            rows.push(
+                name,
+                crate::engine::results::thresholds::DECK,
+                "missed detection before the hazard",
+                [p[0][i], p[1][i], p[2][i]],
+                format!(
+                    "splitting in time: {} replicas of {} particles over the deck's faulty trials (rare_event/)",
+                    replicas[i], particles[i]
+                ),
+                format!(
+                    "the deck's fault kinds, sizes and onsets as drawn, each kind's time to hazard (time_to_hazard_s), sensor noise {noise}"
+                ),
+            );
+        }
+    }
+    let Some(table) = &re.rows else { return };
     let figure = "false alarms per flight hour";
-    let t = Table(&re.rows);
+    let t = Table(table);
     let (names, scales, answers) = (t.strs(col::DETECTOR), t.f64s("threshold_scale"), t.bools("answer"));
     let (estimators, units, trial_s) = (t.strs("estimator"), t.u64s("units"), t.f64s("trial_s"));
     let hour = [t.f64s("pfa_per_flight_hour"), t.f64s("pfa_per_flight_hour_lo"), t.f64s("pfa_per_flight_hour_hi")];
@@ -195,7 +228,7 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
         "splitting" => format!("adaptive multilevel splitting: {units} replicas over {what}"),
         _ => format!("importance sampling on the sensor noise: {units} weighted {what}"),
     };
-    for i in (0..re.rows.height()).filter(|&i| names[i] == name && scales[i] == 1.0 && answers[i]) {
+    for i in (0..table.height()).filter(|&i| names[i] == name && scales[i] == 1.0 && answers[i]) {
         rows.push(
             name,
             crate::engine::results::thresholds::DECK,
