@@ -340,7 +340,7 @@ fn run_trials(
 
 /// Detector `detector`'s faulty trials of `study` that have a time to hazard (`monte_carlo.time_to_hazard_s`),
 /// each with its fault: whether it is detected within the time to hazard after its onset, for
-/// `fdimc rare-event --miss-before-hazard` ([`survival_replica`]).
+/// `fdimc rare-event --miss-before-hazard` ([`survival_replica`](crate::engine::rare_event::estimators::survival_replica)).
 pub struct HazardTrials<'a> {
     trials: FaultFreeTrials<'a>,
 }
