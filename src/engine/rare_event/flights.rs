@@ -25,7 +25,7 @@ use crate::engine::rare_event::study::RareEventRow;
 use crate::engine::run::runner::{RunError, pol};
 use crate::engine::stats::intervals::Z95;
 
-pub const PER_HOUR_FILE: &str = "per_hour.csv";
+pub use crate::engine::results::schema::rare_event_files::PER_HOUR as PER_HOUR_FILE;
 
 /// One detector at one threshold scale: the segments' and the flights' estimates and what links them.
 #[derive(Debug, Clone, PartialEq)]

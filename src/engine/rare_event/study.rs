@@ -464,8 +464,7 @@ fn print_rows(rows: &[RareEventRow]) {
 
 /// `miss_before_hazard.csv` under a rare-event folder, and its record (the deck, its SHA-256, the seed
 /// and the options).
-pub const MISS_FILE: &str = "miss_before_hazard.csv";
-pub const MISS_RECORD: &str = "miss_before_hazard.json";
+pub use crate::engine::results::schema::rare_event_files::{MISS as MISS_FILE, MISS_RECORD};
 
 /// Writes `miss_before_hazard.json`: what the table came from.
 pub fn write_miss_record(dir: &Path, opts: &RareEventOptions, seed: u64) -> Result<(), RunError> {

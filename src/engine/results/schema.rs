@@ -37,6 +37,19 @@ use polars::prelude::*;
 
 use crate::estimation::stekf::FilterHealth;
 
+/// The tables `fdimc rare-event` writes into a run's `rare_event/` folder, which the run's safety summary
+/// reads back.
+pub mod rare_event_files {
+    /// The false-alarm estimates and their record.
+    pub const TABLE: &str = "rare_event.csv";
+    pub const RECORD: &str = "rare_event.json";
+    /// `--flight-s`: flights against the segment conversion.
+    pub const PER_HOUR: &str = "per_hour.csv";
+    /// `--miss-before-hazard`: the table and its record.
+    pub const MISS: &str = "miss_before_hazard.csv";
+    pub const MISS_RECORD: &str = "miss_before_hazard.json";
+}
+
 /// Column names of the core schema and of recorded statistics.
 pub mod col {
     pub const TRIAL: &str = "trial";

@@ -39,7 +39,7 @@ pub struct RareEventTables {
 /// shard's folder has no table; another deck's figures would not be this run's): the false-alarm run's
 /// (`rare_event.json` its record) and the miss-before-hazard run's (`miss_before_hazard.json`).
 pub fn read_rare_event(dir: &Path, deck_sha256: &str) -> Result<Option<RareEventTables>, RunError> {
-    use crate::engine::rare_event::study::{MISS_FILE, MISS_RECORD};
+    use crate::engine::results::schema::rare_event_files::{MISS, MISS_RECORD, PER_HOUR, RECORD, TABLE};
     let folder = dir.join("rare_event");
     let of_this_deck = |record: &Path| -> Result<bool, RunError> {
         if !record.exists() {
@@ -50,7 +50,7 @@ pub fn read_rare_event(dir: &Path, deck_sha256: &str) -> Result<Option<RareEvent
         let json: serde_json::Value = serde_json::from_str(&text).map_err(|e| bad(e.to_string()))?;
         Ok(json["deck_sha256"].as_str() == Some(deck_sha256))
     };
-    let (alarms, misses) = (of_this_deck(&folder.join("rare_event.json"))?, of_this_deck(&folder.join(MISS_RECORD))?);
+    let (alarms, misses) = (of_this_deck(&folder.join(RECORD))?, of_this_deck(&folder.join(MISS_RECORD))?);
     if !alarms && !misses {
         return Ok(None);
     }
@@ -59,9 +59,9 @@ pub fn read_rare_event(dir: &Path, deck_sha256: &str) -> Result<Option<RareEvent
         if wanted && p.exists() { read_summary(&p).map(Some) } else { Ok(None) }
     };
     Ok(Some(RareEventTables {
-        rows: read("rare_event.csv", alarms)?,
-        per_hour: read(crate::engine::rare_event::flights::PER_HOUR_FILE, alarms)?,
-        miss: read(MISS_FILE, misses)?,
+        rows: read(TABLE, alarms)?,
+        per_hour: read(PER_HOUR, alarms)?,
+        miss: read(MISS, misses)?,
     }))
 }
 
