@@ -19,7 +19,7 @@ const LAYERS: &[&[&str]] = &[
     &["engine/scenario"],
     &["engine/run"],
     &["engine/results"],
-    &["engine/rare_event", "engine/sensitivity", "engine/logs"],
+    &["engine/rare_event", "engine/sensitivity", "engine/worst_case", "engine/logs"],
     &["engine/report"],
     &["engine/method", "engine"],
     // Blocks built on the engine's deck sections, and models more than one method flies.

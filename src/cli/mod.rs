@@ -160,6 +160,15 @@ Every trial is fault-free (the deck's faults are removed; its noise scale and pa
 threshold scale: the detector alarms when a statistic exceeds its deck threshold times the level. The same deck, \
 seed and options give the same numbers for any --threads.")]
     RareEvent(RareEventArgs),
+    /// The worst point of the deck's uncertainty box: the parameter errors, noise scale, fault size and
+    /// onset (each within the deck's range or list) where a detector misses most, alarms falsely most,
+    /// detects latest or isolates worst, by CMA-ES against random points of the same budget, both
+    /// confirmed on fresh trials. Writes DIR/worst_case.csv.
+    #[command(
+        after_help = "Example: fdimc worst-case studies/starter_detection_filter.toml --objective pd --budget 4000
+Each candidate point is judged on the same batch of trials (the same noise, fault kinds and outputs), so candidates differ only in the point; the best of each search is judged again on --confirm fresh trials, beside the deck as drawn. The same deck, seed and options give the same point for any --threads. --write-deck FILE writes the deck at the found point, for fdimc simulate, run and report --trials."
+    )]
+    WorstCase(WorstCaseArgs),
     /// Which uncertainty drives the misses and false alarms: Sobol indices (first and total order, with
     /// 95 % bootstrap intervals) of Pd, isolation, delay and Pfa per detector to every factor the deck's
     /// trials draw, the noise realisation among them. Writes DIR/sensitivity.csv and .parquet.
@@ -315,6 +324,37 @@ pub struct RareEventArgs {
     pub quiet: bool,
 }
 
+#[derive(Debug, clap::Args)]
+pub struct WorstCaseArgs {
+    /// Study deck (TOML).
+    pub deck: PathBuf,
+    /// What to make worst: pd (missed faults), pfa (false alarms), delay_p90 (the 90th percentile of the
+    /// detection delay) or isolation (wrong isolations).
+    #[arg(long, value_parser = ["pd", "pfa", "delay_p90", "isolation"])]
+    pub objective: String,
+    /// The detector judged (default: the deck's first).
+    #[arg(long)]
+    pub detector: Option<String>,
+    /// Trials each search spends (CMA-ES's candidates, and the random search's, times --batch).
+    #[arg(long, default_value_t = 4000)]
+    pub budget: u64,
+    /// Trials per candidate (the same trials for every candidate).
+    #[arg(long, default_value_t = 200)]
+    pub batch: u64,
+    /// Fresh trials on which the found points and the deck as drawn are judged again.
+    #[arg(long, default_value_t = 2000)]
+    pub confirm: u64,
+    /// Also write the deck at the found point to FILE.
+    #[arg(long, value_name = "FILE")]
+    pub write_deck: Option<PathBuf>,
+    /// Seed, threads and results folder (under it worst_case/); a search is not sharded.
+    #[command(flatten)]
+    pub place: Placement,
+    /// Print nothing.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
 /// Seed, threads, results folder and shard: where `run`, `sensitivity` and `rare-event` fly their trials.
 #[derive(Debug, Default, clap::Args)]
 pub struct Placement {
@@ -324,8 +364,8 @@ pub struct Placement {
     /// Worker threads (default: one per core).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Results folder (default: `results/<study name>`, and under it sensitivity/ or rare_event/ for
-    /// those commands; a shard's in shard-I-of-N under it).
+    /// Results folder (default: `results/<study name>`, and under it sensitivity/, rare_event/ or
+    /// worst_case/ for those commands; a shard's in shard-I-of-N under it).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Run only shard I of N (0-based) of the trial chunks (rare-event splitting: of the replicas), e.g.
@@ -480,6 +520,7 @@ pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
             })
             .map(|_| ()),
         Command::RareEvent(args) => commands.exec_rare_event(args),
+        Command::WorstCase(args) => commands.exec_worst_case(args),
         Command::Sensitivity { deck, base_samples, bootstrap, folder, thresholds } => {
             if !(2..=crate::engine::scenario::streams::MAX_TRIAL / 64).contains(&base_samples) {
                 Err(CliError::Invalid(format!(

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::cli::{CliError, Placement, RareEventArgs, RunFolder};
+use crate::cli::{CliError, Placement, RareEventArgs, RunFolder, WorstCaseArgs};
 use crate::engine::method::{self, Inputs, Method, Opt, Study};
 use crate::engine::results::summary;
 use crate::engine::results::thresholds::Calibration;
@@ -648,6 +648,60 @@ impl Kinds {
             if flight.is_some() {
                 println!("wrote {}", opts.out.join(crate::engine::rare_event::flights::PER_HOUR_FILE).display());
             }
+        }
+        Ok(())
+    }
+
+    /// `fdimc worst-case`: checks the sizes, then searches.
+    pub fn exec_worst_case(&self, a: WorstCaseArgs) -> Result<(), CliError> {
+        use crate::engine::worst_case::{Objective, SearchOptions, WorstCaseOptions};
+        let bad = |m: String| Err(CliError::Invalid(m));
+        let objective = Objective::parse(&a.objective).expect("clap checked the value");
+        if !(10..=crate::engine::scenario::streams::MAX_TRIAL / 4).contains(&a.batch) {
+            return bad(format!(
+                "--batch {}: allowed 10 to {}",
+                a.batch,
+                crate::engine::scenario::streams::MAX_TRIAL / 4
+            ));
+        }
+        if a.budget < 2 * a.batch {
+            return bad(format!(
+                "--budget {}: at least two candidates of --batch {} trials ({})",
+                a.budget,
+                a.batch,
+                2 * a.batch
+            ));
+        }
+        if !(10..=crate::engine::scenario::streams::MAX_TRIAL / 4).contains(&a.confirm) {
+            return bad(format!(
+                "--confirm {}: allowed 10 to {}",
+                a.confirm,
+                crate::engine::scenario::streams::MAX_TRIAL / 4
+            ));
+        }
+        if let Some(file) = &a.write_deck
+            && file.extension().is_none_or(|e| e != "toml")
+        {
+            return bad(format!("--write-deck {}: a deck is a .toml file", file.display()));
+        }
+        let (method, mut study) = self.load(&a.deck, None)?;
+        method::require(self.0, method, Opt::WorstCase)?;
+        let (out, shard, _) = place(&a.place, study.as_mut(), Some("worst_case"))?;
+        if shard != Shard::WHOLE {
+            return bad("--shard: a worst-case search runs on one machine (its candidates follow each other)".into());
+        }
+        let seed = study.header().seed;
+        let opts = WorstCaseOptions {
+            search: SearchOptions { objective, budget: a.budget, batch: a.batch, confirm: a.confirm, seed },
+            detector: a.detector,
+            out,
+            write_deck: a.write_deck,
+            deck: a.deck,
+            quiet: a.quiet,
+        };
+        runner::thread_pool(a.place.threads)?.install(|| study.worst_case(&opts))?;
+        if !a.quiet {
+            println!("wrote {}", opts.out.join("worst_case.csv").display());
         }
         Ok(())
     }

@@ -127,6 +127,8 @@ pub enum Opt {
     Sensitivity,
     /// `run --fmu-processes`: the kind can fly its trials in worker processes (its decks run FMUs).
     FmuProcesses,
+    /// `fdimc worst-case`: the kind's trials can take a point of the deck's uncertainty box.
+    WorstCase,
 }
 
 impl Opt {
@@ -139,6 +141,7 @@ impl Opt {
             Opt::RareEvent => "fdimc rare-event",
             Opt::Sensitivity => "fdimc sensitivity",
             Opt::FmuProcesses => "--fmu-processes",
+            Opt::WorstCase => "fdimc worst-case",
         }
     }
 }
@@ -172,6 +175,10 @@ pub trait Study: Sync {
     /// `fdimc rare-event` ([`Opt::RareEvent`]): estimates, writes and prints rare false alarms.
     fn rare_event(&self, _opts: &crate::engine::rare_event::study::RareEventOptions) -> Result<(), RunError> {
         Err(RunError::Internal("this kind lists no rare-event paths".into()))
+    }
+    /// `fdimc worst-case` ([`Opt::WorstCase`]): searches, writes and prints the worst point.
+    fn worst_case(&self, _opts: &crate::engine::worst_case::WorstCaseOptions) -> Result<(), RunError> {
+        Err(RunError::Internal("this kind lists no worst-case search".into()))
     }
     /// `fdimc sensitivity` ([`Opt::Sensitivity`]): makes the study's trials the rows of a Saltelli design
     /// of `base_samples` rows per matrix over the factors its trials draw, and returns the design.

@@ -10,8 +10,9 @@
 //!    the writing of tables;
 //! 4. [`results`]: the outcome schema, reading records back, thresholds, the summary and its tail-fit
 //!    tables, the regression check;
-//! 5. [`rare_event`], [`sensitivity`], [`logs`]: the commands that read or feed results (rare false
-//!    alarms by simulation, Sobol indices, recorded flights);
+//! 5. [`rare_event`], [`sensitivity`], [`worst_case`], [`logs`]: the commands that read or feed results
+//!    (rare false alarms by simulation, Sobol indices, the worst point of the uncertainty box, recorded
+//!    flights);
 //! 6. [`report`]: plots and the HTML page;
 //! 7. [`method`]: the plug-in contract a kind of study implements, which ties one piece of every layer
 //!    (its deck, its trials, its summary spec, its report) into one [`method::Method`].
@@ -25,3 +26,4 @@ pub mod run;
 pub mod scenario;
 pub mod sensitivity;
 pub mod stats;
+pub mod worst_case;

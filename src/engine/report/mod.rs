@@ -812,6 +812,15 @@ fn page(
             .unwrap_or_default(),
     );
     section(
+        "The worst point of the uncertainty box",
+        "Written by <code>fdimc worst-case</code> into <code>worst_case/</code> (when it has been run): the point of \
+         the deck's parameter errors, noise scale, fault size and onset where the objective is worst, found by \
+         CMA-ES and by random points of the same budget, each judged on the same trials and confirmed on fresh \
+         ones beside the deck as drawn (<code>confirmed</code> with its 95 % interval). Table: \
+         <code>worst_case/worst_case.csv</code>.",
+        table_of(dir, "worst_case/worst_case.csv", &["lower", "upper", "batch_trials"])?.unwrap_or_default(),
+    );
+    section(
         "Which factors matter (Sobol indices)",
         "Written by <code>fdimc sensitivity</code> into <code>sensitivity/</code> (when it has been run): the share \
          of each outcome's variance each factor explains alone (S1) and with its interactions (ST), with 95 % \

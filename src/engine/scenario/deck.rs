@@ -611,6 +611,17 @@ pub fn time_to_hazard(times: &HazardTimes, kind: &str, target: &str) -> Option<f
     of_kind.get(target).or_else(|| of_kind.get("")).copied()
 }
 
+/// A point of the deck's uncertainty box that every trial takes (`fdimc worst-case`): per dimension
+/// the unit draw to use instead of the sampler's (`None`: drawn as usual), a listed factor picked
+/// from its list by it; and whether trials are fault-free (`None`: drawn as usual). The fault kind and
+/// component (the grid) and the noise stay each trial's own, so points are compared on the same
+/// trials.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SearchPoint {
+    pub units: Vec<Option<f64>>,
+    pub fault_free: Option<bool>,
+}
+
 /// The shared fields of `[monte_carlo]`, validated.
 #[derive(Debug, Clone, PartialEq)]
 pub struct MonteCarlo {
@@ -636,6 +647,8 @@ pub struct MonteCarlo {
     pub time_to_hazard_s: HazardTimes,
     /// Set by `fdimc sensitivity`, never by a deck: the trials are the rows of this design.
     pub design: Option<std::sync::Arc<Design>>,
+    /// Set by `fdimc worst-case`, never by a deck: every trial takes this point's factors.
+    pub search_point: Option<std::sync::Arc<SearchPoint>>,
 }
 
 impl MonteCarlo {
@@ -763,6 +776,7 @@ impl Validator<'_> {
                 profile: Default::default(),
                 time_to_hazard_s: HazardTimes::new(),
                 design: None,
+                search_point: None,
             };
             return Ok((defaults, None, Vec::new()));
         };
@@ -896,6 +910,7 @@ impl Validator<'_> {
                 profile,
                 time_to_hazard_s,
                 design: None,
+                search_point: None,
             },
             Some(own),
             parameter_errors,

@@ -17,7 +17,7 @@ use rand::rngs::ChaCha8Rng;
 
 use std::sync::Arc;
 
-use crate::engine::scenario::deck::{Factor, MonteCarlo, ParameterError, Sampler};
+use crate::engine::scenario::deck::{Factor, MonteCarlo, ParameterError, Sampler, SearchPoint};
 use crate::engine::scenario::design::Design;
 use crate::engine::scenario::streams::{Substream, trial_rng};
 
@@ -41,6 +41,8 @@ pub struct UnitSampler {
     lhs: Vec<Vec<u32>>,
     /// A sensitivity study's design, whose rows replace the sampler ([`MonteCarlo::design`]).
     design: Option<Arc<Design>>,
+    /// A worst-case search's point ([`MonteCarlo::search_point`]).
+    point: Option<Arc<SearchPoint>>,
 }
 
 impl UnitSampler {
@@ -64,8 +66,8 @@ impl UnitSampler {
         } else {
             Vec::new()
         };
-        let design = mc.design.clone();
-        UnitSampler { sampler, trials, seed, dims, fault_free_fraction: mc.fault_free_fraction, lhs, design }
+        let (design, point) = (mc.design.clone(), mc.search_point.clone());
+        UnitSampler { sampler, trials, seed, dims, fault_free_fraction: mc.fault_free_fraction, lhs, design, point }
     }
 
     /// Trial `trial`'s draws, in the same order for every kind of study: whether it is fault-free (the
@@ -75,12 +77,26 @@ impl UnitSampler {
         if let Some(design) = &self.design {
             let d = design.draws(self.seed, trial, self.dims);
             let digits = Some(DesignDigits { units: d.digit_units, taken: 0 });
-            return TrialDraws { fault_free: d.fault_free, units: d.dim_units, grid: GridDigits::new(0), digits };
+            return TrialDraws {
+                fault_free: d.fault_free,
+                units: d.dim_units,
+                grid: GridDigits::new(0),
+                digits,
+                searched: Vec::new(),
+            };
         }
         let mut rng = trial_rng(self.seed, trial, Substream::Scenario);
-        let fault_free = rng.random::<f64>() < self.fault_free_fraction;
-        let units = (0..self.dims).map(|d| self.unit(trial, d, &mut rng)).collect();
-        TrialDraws { fault_free, units, grid: GridDigits::new(trial), digits: None }
+        let mut fault_free = rng.random::<f64>() < self.fault_free_fraction;
+        let mut units: Vec<f64> = (0..self.dims).map(|d| self.unit(trial, d, &mut rng)).collect();
+        let mut searched = Vec::new();
+        if let Some(point) = &self.point {
+            fault_free = point.fault_free.unwrap_or(fault_free);
+            for (u, set) in units.iter_mut().zip(&point.units) {
+                *u = set.unwrap_or(*u);
+            }
+            searched = point.units.iter().map(Option::is_some).collect();
+        }
+        TrialDraws { fault_free, units, grid: GridDigits::new(trial), digits: None, searched }
     }
 
     /// The trial whose noise streams trial `trial` uses: itself, except in a sensitivity design.
@@ -117,6 +133,8 @@ pub struct TrialDraws {
     grid: GridDigits,
     /// A sensitivity design's digits, which replace the grid's.
     digits: Option<DesignDigits>,
+    /// The dimensions a worst-case point sets (a listed factor there is picked by its unit draw).
+    searched: Vec<bool>,
 }
 
 /// The unit draws of a design row's grid digits, taken in order.
@@ -147,7 +165,7 @@ impl TrialDraws {
     /// listed factor is drawn from its list by its dimension's unit draw, not by the grid.
     pub fn factor(&mut self, f: &Factor, dim: usize) -> (f64, f64) {
         let u = self.units[dim];
-        if self.digits.is_some() {
+        if self.digits.is_some() || self.searched.get(dim).copied().unwrap_or(false) {
             return draw(f, u, &mut |n| pick(u, n));
         }
         let grid = &mut self.grid;
@@ -190,6 +208,12 @@ impl GridDigits {
         self.0 /= n as u64;
         d
     }
+}
+
+/// A factor's value where a unit draw `u` sets it alone (a list picked by `u`), as a sensitivity
+/// design's or a worst-case point's trials take it.
+pub fn value_at(f: &Factor, u: f64) -> f64 {
+    draw(f, u, &mut |n| pick(u, n)).0
 }
 
 /// A factor's value and group label, from the unit draw `u` (ranges) or the next grid digit (lists).

@@ -19,6 +19,7 @@ pub mod study;
 pub mod trial;
 pub mod trials;
 pub mod workers;
+pub mod worst_case;
 
 use polars::prelude::*;
 
@@ -79,6 +80,9 @@ impl Study for LtiStudy {
     }
     fn run(&self, opts: &RunOptions, _: Inputs) -> Result<RunReport, RunError> {
         run_study(self, opts)
+    }
+    fn worst_case(&self, opts: &crate::engine::worst_case::WorstCaseOptions) -> Result<(), RunError> {
+        worst_case::run(self, opts)
     }
     fn rare_event(&self, opts: &crate::engine::rare_event::study::RareEventOptions) -> Result<(), RunError> {
         if !self.fmus().is_empty() {

@@ -8,7 +8,7 @@ use crate::engine::scenario::draws::{DIM_NOISE, DIM_ONSET, DIM_SIZE, FIRST_OWN_D
 use crate::fault::deck::{FaultTarget, TrialFaults};
 
 /// Continuous-factor dimensions, fixed so a trial's draws do not depend on which factors are present.
-const DIM_PARAMETERS: usize = FIRST_OWN_DIM;
+pub(super) const DIM_PARAMETERS: usize = FIRST_OWN_DIM;
 
 /// One trial's scenario.
 #[derive(Debug, Clone, PartialEq)]

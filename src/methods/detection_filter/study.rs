@@ -21,7 +21,8 @@ use crate::lti::LtiPlant;
 
 /// The options this kind takes beyond the common ones (its `Method::options`): said here, where its deck
 /// rules read them (`monte_carlo.target_pfa` with [`Opt::Thresholds`]).
-pub const OPTIONS: &[Opt] = &[Opt::Thresholds, Opt::Design, Opt::RareEvent, Opt::Sensitivity, Opt::FmuProcesses];
+pub const OPTIONS: &[Opt] =
+    &[Opt::Thresholds, Opt::Design, Opt::RareEvent, Opt::Sensitivity, Opt::FmuProcesses, Opt::WorstCase];
 
 /// The shape of an excitation signal on one input.
 #[derive(Debug, Clone, Copy, PartialEq)]
