@@ -164,10 +164,8 @@ seed and options give the same numbers for any --threads.")]
     /// onset (each within the deck's range or list) where a detector misses most, alarms falsely most,
     /// detects latest or isolates worst, by CMA-ES against random points of the same budget, both
     /// confirmed on fresh trials. Writes DIR/worst_case.csv.
-    #[command(
-        after_help = "Example: fdimc worst-case studies/starter_detection_filter.toml --objective pd --budget 4000
-Each candidate point is judged on the same batch of trials (the same noise, fault kinds and outputs), so candidates differ only in the point; the best of each search is judged again on --confirm fresh trials, beside the deck as drawn. The same deck, seed and options give the same point for any --threads. --write-deck FILE writes the deck at the found point, for fdimc simulate, run and report --trials."
-    )]
+    #[command(after_help = "Example: fdimc worst-case studies/seed000_worst_case.toml --objective pd --detector fast
+Each candidate point is judged on the same batch of trials (the same noise, fault kinds and outputs), so candidates differ only in the point; the best of each search is judged again on --confirm fresh trials, beside the deck as drawn. The same deck, seed and options give the same point for any --threads. --write-deck FILE writes the deck at the found point, for fdimc simulate, run and report --trials.")]
     WorstCase(WorstCaseArgs),
     /// Which uncertainty drives the misses and false alarms: Sobol indices (first and total order, with
     /// 95 % bootstrap intervals) of Pd, isolation, delay and Pfa per detector to every factor the deck's
@@ -339,7 +337,7 @@ pub struct WorstCaseArgs {
     #[arg(long, default_value_t = 4000)]
     pub budget: u64,
     /// Trials per candidate (the same trials for every candidate).
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = 100)]
     pub batch: u64,
     /// Fresh trials on which the found points and the deck as drawn are judged again.
     #[arg(long, default_value_t = 2000)]
