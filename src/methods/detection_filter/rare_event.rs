@@ -58,6 +58,8 @@ pub struct Path {
     /// and the time to hazard (s); for `HazardTrials`.
     next: usize,
     window: (f64, f64),
+    /// A sample's noise draws, reused from sample to sample (`HazardTrials`).
+    draws: Vec<f64>,
 }
 
 impl Clone for Path {
@@ -76,6 +78,7 @@ impl Clone for Path {
             faults: self.faults.clone(),
             next: self.next,
             window: self.window,
+            draws: self.draws.clone(),
         }
     }
 }
@@ -184,6 +187,7 @@ impl RareEventModel for FaultFreeTrials<'_> {
             faults: None,
             next: 0,
             window: (f64::INFINITY, 0.0),
+            draws: Vec::new(),
         }
     }
 
@@ -368,31 +372,15 @@ impl<'a> HazardTrials<'a> {
     }
 }
 
-impl SurvivalModel for HazardTrials<'_> {
-    type Path = Path;
-
-    fn start(&self, unit: u64) -> Option<Path> {
+impl HazardTrials<'_> {
+    /// [`SurvivalModel::advance`] with `draws` the sample's noise buffer.
+    fn advance_with(&self, p: &mut Path, level: f64, draws: &mut [f64]) -> (Survival, u64) {
         let s = self.trials.study;
-        let spec = self.trials.engine.spec(unit);
-        let kind = spec.fault.kind;
-        let hazard_s = time_to_hazard(&s.monte_carlo.common.time_to_hazard_s, kind, spec.target_name(s)?)?;
-        if spec.fault.faults.is_empty() {
-            return None;
-        }
-        let mut path = self.trials.start(unit);
-        path.faults = Some(ActiveFaults::new(spec.fault.faults.clone()));
-        path.window = (spec.fault.onset_s, hazard_s);
-        Some(path)
-    }
-
-    fn advance(&self, p: &mut Path, level: f64) -> (Survival, u64) {
-        let s = self.trials.study;
-        let mut draws = vec![0.0; s.plant.n_outputs()];
         let (onset_s, hazard_s) = p.window;
         let mut cost = 0;
         while p.next < s.header.steps {
             let k = p.next;
-            self.trials.step(p, k, None, &mut draws);
+            self.trials.step(p, k, None, draws);
             p.next += 1;
             cost += 1;
             // The run's rule: a detection at t >= onset, its delay t - onset within the time to hazard.
@@ -408,6 +396,33 @@ impl SurvivalModel for HazardTrials<'_> {
             return (if alarm { Survival::Failed } else { Survival::Alive }, cost);
         }
         (Survival::Done, cost)
+    }
+}
+
+impl SurvivalModel for HazardTrials<'_> {
+    type Path = Path;
+
+    fn start(&self, unit: u64) -> Option<Path> {
+        let s = self.trials.study;
+        let spec = self.trials.engine.spec(unit);
+        let kind = spec.fault.kind;
+        let hazard_s = time_to_hazard(&s.monte_carlo.common.time_to_hazard_s, kind, spec.target_name(s)?)?;
+        if spec.fault.faults.is_empty() {
+            return None;
+        }
+        let mut path = self.trials.start(unit);
+        path.faults = Some(ActiveFaults::new(spec.fault.faults.clone()));
+        path.window = (spec.fault.onset_s, hazard_s);
+        path.draws = vec![0.0; s.plant.n_outputs()];
+        Some(path)
+    }
+
+    fn advance(&self, p: &mut Path, level: f64) -> (Survival, u64) {
+        // The path's own draw buffer, lent to the step: this runs once per sample of every particle.
+        let mut draws = std::mem::take(&mut p.draws);
+        let result = self.advance_with(p, level, &mut draws);
+        p.draws = draws;
+        result
     }
 
     fn renew_noise(&self, p: &mut Path, rng: &mut dyn FnMut(BranchStream) -> NoiseRng) {

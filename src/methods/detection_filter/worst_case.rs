@@ -75,7 +75,8 @@ fn judge(
             let run = engine.run(t);
             let outcome = run.detectors[detector].as_ref().ok()?;
             let onset = run.spec.fault.onset_s;
-            let detection = outcome.detection.filter(|(t, _)| *t >= onset);
+            // The tracker records a detection only at or after the onset.
+            let detection = outcome.detection;
             let correct = match (run.spec.fault.target(), outcome.isolated_by_max) {
                 (Some(FaultTarget::Output(j)), Some(named)) => named == j,
                 _ => false,
