@@ -3,4 +3,5 @@
 
 pub mod output;
 pub mod progress;
+pub mod row_groups;
 pub mod runner;

@@ -26,6 +26,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::engine::run::output::temporary_sibling;
 use crate::engine::run::progress::Progress;
+use crate::engine::run::row_groups::{RowGroupError, RowGroupWriter};
 use crate::engine::scenario::deck::{MonteCarlo, StudyHeader};
 
 /// What the runner needs of a study.
@@ -86,6 +87,16 @@ pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, RunError
 
 pub(crate) fn pol(file: &Path) -> impl FnOnce(PolarsError) -> RunError + '_ {
     move |source| RunError::Polars { file: file.into(), source }
+}
+
+impl From<RowGroupError> for RunError {
+    fn from(e: RowGroupError) -> Self {
+        match e {
+            RowGroupError::Io { file, source } => RunError::Io { file, source },
+            RowGroupError::Invalid(why) => RunError::Invalid(why),
+            RowGroupError::Internal(why) => RunError::Internal(why),
+        }
+    }
 }
 
 impl From<crate::engine::scenario::deck::DeckError> for RunError {
@@ -748,11 +759,12 @@ enum Chunk<R> {
 
 /// The writer thread: a part file per chunk (for `--resume`) while the pool simulates the next, and
 /// the rows in trial order in trials.parquet (under a temporary name until complete, then renamed, and
-/// the parts removed). By default each chunk's rows are appended as they come, so the run ends when its
-/// last chunk is written, and the disk holds the records twice until then. With `low_disk`, the parts
-/// are appended only after the last chunk, each removed once its rows are in: the disk holds the
-/// records once plus one part, for a longer run (every part read back); a run killed while assembling
-/// has lost the parts already appended, and `--resume` simulates them again (the same rows).
+/// the parts removed). Each chunk is encoded once, into its part; trials.parquet takes the part's row
+/// groups byte for byte ([`RowGroupWriter`]). By default each part is appended as it comes, so the run
+/// ends when its last chunk is written, and the disk holds the records twice until then. With
+/// `low_disk`, the parts are appended only after the last chunk, each removed once appended: the disk
+/// holds the records once plus one part; a run killed while assembling has lost the parts already
+/// appended, and `--resume` simulates them again (the same rows).
 /// Returns the rows of trials.parquet, or `None` if the run stopped before its last chunk. With a
 /// `stop` rule, each chunk's rows are measured in trial order, and the file is finished at the first
 /// chunk that makes the run precise enough (`precise` tells the simulating side; the parts stay, so a
@@ -766,73 +778,55 @@ fn write_chunks<S: TrialSource>(
     low_disk: bool,
 ) -> Result<Option<Written>, RunError> {
     let out = dir.join("trials.parquet");
-    let tmp = temporary_sibling(&out);
+    let mut writer = if low_disk { None } else { Some(RowGroupWriter::create(&out)?) };
     let result = (|| {
-        let mut writer: Option<polars::io::parquet::write::BatchedWriter<File>> = None;
-        let mut rows = 0;
         let mut parts = Vec::new();
         // The rows so far in trials.parquet, renamed into place; `remove_parts`: the run is complete.
-        let finish = |writer: Option<polars::io::parquet::write::BatchedWriter<File>>,
-                      parts: &[PathBuf],
-                      rows: u64,
-                      remove_parts: bool|
-         -> Result<u64, RunError> {
-            if low_disk {
-                return concatenate(parts, &out, remove_parts);
-            }
-            let w = writer.ok_or_else(|| RunError::Internal("no chunk before the end".into()))?;
-            w.finish().map_err(pol(&out))?;
-            std::fs::rename(&tmp, &out).map_err(io(&out))?;
-            Ok(rows)
-        };
+        let finish =
+            |writer: &mut Option<RowGroupWriter>, parts: &[PathBuf], remove_parts: bool| -> Result<u64, RunError> {
+                match writer.take() {
+                    Some(w) => Ok(w.finish()?),
+                    None => concatenate(parts, &out, remove_parts && low_disk),
+                }
+            };
         for chunk in chunks {
             let (df, path, chunk_end) = match chunk {
                 Chunk::Fresh { path, results, end } => {
                     let mut df = source.frame(&results).map_err(pol(&path))?;
-                    // By default a part only serves `--resume` and is removed at the end, while its rows
-                    // are compressed into trials.parquet: LZ4 without statistics costs a fraction of
-                    // zstd's CPU. With `low_disk` the parts are the only copy until assembled: zstd.
-                    let codec = if low_disk { PartCodec::Compact } else { PartCodec::Fast };
-                    write_parquet_as(&mut df, &path, codec)?;
-                    (Some(df), path, end)
+                    let bytes = encode_parquet(&mut df, &path)?;
+                    write_atomically(&path, &bytes)?;
+                    if let Some(w) = &mut writer {
+                        w.append(&bytes, &path)?;
+                    }
+                    (stop.is_some().then_some(df), path, end)
                 }
                 Chunk::Resumed { path, end } => {
-                    let df = if low_disk && stop.is_none() { None } else { Some(read_parquet(&path)?) };
-                    (df, path, end)
+                    if let Some(w) = &mut writer {
+                        w.append_file(&path)?;
+                    }
+                    (stop.map(|_| read_parquet(&path)).transpose()?, path, end)
                 }
                 Chunk::Complete => {
-                    let rows = finish(writer, &parts, rows, true)?;
+                    let rows = finish(&mut writer, &parts, true)?;
                     std::fs::remove_dir_all(dir.join("parts")).map_err(io(dir))?;
                     return Ok(Some(Written { rows, stopped_at: None }));
                 }
             };
             parts.push(path.clone());
-            if let (false, Some(df)) = (low_disk, &df) {
-                let w = match &mut writer {
-                    Some(w) => w,
-                    None => writer.insert(
-                        ParquetWriter::new(File::create(&tmp).map_err(io(&out))?)
-                            .batched(df.schema())
-                            .map_err(pol(&out))?,
-                    ),
-                };
-                w.write_batch(df).map_err(pol(&out))?;
-                rows += df.height() as u64;
-            }
             if let (Some(stop), Some(df)) = (stop, &df) {
                 let mut rule = stop.lock()?;
                 rule.add(df, &path)?;
                 if rule.enough() {
                     precise.store(true, std::sync::atomic::Ordering::SeqCst);
-                    let rows = finish(writer, &parts, rows, false)?;
+                    let rows = finish(&mut writer, &parts, false)?;
                     return Ok(Some(Written { rows, stopped_at: Some(chunk_end) }));
                 }
             }
         }
         Ok(None)
     })();
-    if !matches!(result, Ok(Some(_))) {
-        let _ = std::fs::remove_file(&tmp);
+    if let Some(w) = writer {
+        w.abandon();
     }
     result
 }
@@ -845,28 +839,14 @@ struct Written {
 
 /// Writes a complete Parquet file atomically.
 pub fn write_parquet(df: &mut DataFrame, path: &Path) -> Result<(), RunError> {
-    write_parquet_as(df, path, PartCodec::Compact)
+    write_atomically(path, &encode_parquet(df, path)?)
 }
 
-/// How a Parquet file is encoded: the default (zstd, with column statistics), or quick to write.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum PartCodec {
-    Compact,
-    Fast,
-}
-
-/// Writes a complete Parquet file atomically, encoded as `codec` says.
-fn write_parquet_as(df: &mut DataFrame, path: &Path, codec: PartCodec) -> Result<(), RunError> {
-    let tmp = temporary_sibling(path);
-    let file = File::create(&tmp).map_err(io(path))?;
-    let writer = match codec {
-        PartCodec::Compact => ParquetWriter::new(file),
-        PartCodec::Fast => ParquetWriter::new(file)
-            .with_compression(ParquetCompression::Lz4Raw)
-            .with_statistics(StatisticsOptions::empty()),
-    };
-    writer.finish(df).map_err(pol(path))?;
-    std::fs::rename(&tmp, path).map_err(io(path))
+/// `df` as a Parquet file (zstd, with column statistics: polars' defaults), in memory.
+fn encode_parquet(df: &mut DataFrame, path: &Path) -> Result<Vec<u8>, RunError> {
+    let mut bytes = Vec::new();
+    ParquetWriter::new(&mut bytes).finish(df).map_err(pol(path))?;
+    Ok(bytes)
 }
 
 /// Reads a Parquet file, naming it in errors (a corrupt file is the user's input: exit 2).
@@ -877,43 +857,24 @@ pub fn read_parquet(path: &Path) -> Result<DataFrame, RunError> {
     })
 }
 
-/// Concatenates Parquet files (same schema) in order into `out`, one input in memory at a time; with
-/// `remove_inputs`, each input is removed once its rows are written, so the disk never holds both.
-/// Returns the rows written.
+/// Concatenates Parquet files (same schema) in order into `out`, their row groups copied as they are
+/// ([`RowGroupWriter`]), one input in memory at a time; with `remove_inputs`, each input is removed
+/// once its rows are written, so the disk never holds both. Returns the rows written.
 pub fn concatenate(inputs: &[PathBuf], out: &Path, remove_inputs: bool) -> Result<u64, RunError> {
-    let tmp = temporary_sibling(out);
-    let result = (|| {
-        let file = File::create(&tmp).map_err(io(out))?;
-        let mut writer = None;
-        let mut rows = 0;
-        for path in inputs {
-            let df = read_parquet(path)?;
-            let w = match &mut writer {
-                Some(w) => w,
-                None => writer.insert(
-                    ParquetWriter::new(file.try_clone().map_err(io(out))?).batched(df.schema()).map_err(pol(out))?,
-                ),
-            };
-            w.write_batch(&df)
-                .map_err(|e| RunError::Invalid(format!("{}: does not match the other parts ({e})", path.display())))?;
-            rows += df.height() as u64;
-            if remove_inputs {
-                std::fs::remove_file(path).map_err(io(path))?;
-            }
-        }
-        match writer {
-            Some(w) => {
-                w.finish().map_err(pol(out))?;
-            }
-            None => return Err(RunError::Internal("nothing to concatenate".into())),
-        }
-        std::fs::rename(&tmp, out).map_err(io(out))?;
-        Ok(rows)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+    if inputs.is_empty() {
+        return Err(RunError::Internal("nothing to concatenate".into()));
     }
-    result
+    let mut writer = RowGroupWriter::create(out)?;
+    for path in inputs {
+        if let Err(e) = writer.append_file(path) {
+            writer.abandon();
+            return Err(e.into());
+        }
+        if remove_inputs {
+            std::fs::remove_file(path).map_err(io(path))?;
+        }
+    }
+    Ok(writer.finish()?)
 }
 
 #[cfg(test)]

@@ -17,7 +17,7 @@ use crate::lti::{DiscreteLti, LtiPlant};
 use crate::methods::detection_filter::filter::DetectionFilter;
 
 /// Trials advanced together by the lane path.
-pub const LANES: usize = 8;
+pub const LANES: usize = 16;
 
 /// One scalar quantity of every lane.
 pub type Lane = [f64; LANES];
@@ -81,6 +81,8 @@ pub trait Element: Copy + std::fmt::Debug {
     fn mul_add(m: &Self, x: &Self, acc: &mut Self);
     /// [`Element::mul_add`] with the same coefficient `m` for every trial: the same operations.
     fn mul_add_shared(m: f64, x: &Self, acc: &mut Self);
+    /// Equal bit for bit (a -0.0 coefficient is not a 0.0 one: the products' zeros would differ).
+    fn same_bits(a: &Self, b: &Self) -> bool;
 }
 
 impl Element for f64 {
@@ -96,6 +98,9 @@ impl Element for f64 {
     #[inline(always)]
     fn mul_add_shared(m: f64, x: &Self, acc: &mut Self) {
         *acc = m * x + *acc;
+    }
+    fn same_bits(a: &Self, b: &Self) -> bool {
+        a.to_bits() == b.to_bits()
     }
 }
 
@@ -116,6 +121,9 @@ impl Element for Lane {
         for l in 0..LANES {
             acc[l] = m * x[l] + acc[l];
         }
+    }
+    fn same_bits(a: &Self, b: &Self) -> bool {
+        a.iter().zip(b).all(|(a, b)| a.to_bits() == b.to_bits())
     }
 }
 
@@ -170,6 +178,21 @@ impl<E: Element> Product<E> {
         }
         let shared = (E::WIDTH > 1).then(|| shared.into_iter().collect::<Option<Vec<_>>>()).flatten();
         Product { row_end, entries, shared }
+    }
+
+    /// Does `other` do exactly the same operations on the same coefficients (bit for bit)?
+    fn same_arithmetic(&self, other: &Self) -> bool {
+        let same_entries = |a: &[(usize, E)], b: &[(usize, E)]| {
+            a.len() == b.len() && a.iter().zip(b).all(|((i, x), (j, y))| i == j && E::same_bits(x, y))
+        };
+        let same_shared = match (&self.shared, &other.shared) {
+            (None, None) => true,
+            (Some(a), Some(b)) => {
+                a.len() == b.len() && a.iter().zip(b).all(|((i, x), (j, y))| i == j && x.to_bits() == y.to_bits())
+            }
+            _ => false,
+        };
+        self.row_end == other.row_end && same_entries(&self.entries, &other.entries) && same_shared
     }
 
     /// `out = M v` (accumulated from zero, see the module docs for the operation order).
@@ -413,6 +436,15 @@ impl<E: Element> Filter<E> {
                 designs,
             ),
         }
+    }
+
+    /// Does `other` compute the same residuals from the same inputs, bit for bit? Two detectors of a
+    /// deck built on the same filter (a CUSUM on the seed filter beside the seed filter) then need
+    /// one filter step per sample between them.
+    pub fn same_arithmetic(&self, other: &Self) -> bool {
+        (self.n, self.nu) == (other.n, other.nu)
+            && self.residual.same_arithmetic(&other.residual)
+            && self.advance.same_arithmetic(&other.advance)
     }
 
     /// Consumes sample k (`u(k)`, measured `y(k)`): sets the residual `gamma(k)` and advances the

@@ -4,6 +4,7 @@
 //! has few), up to [`DESIGN_CACHE`] of them.
 
 use std::borrow::Cow;
+use std::sync::Arc;
 
 use crate::design::DesignError;
 use crate::engine::scenario::deck::{Factor, ModelTarget};
@@ -45,6 +46,8 @@ pub struct Engine<'a> {
     sampler: ScenarioSampler<'a>,
     nominal_truth: DiscreteLti,
     nominal_filters: Vec<Result<DetectionFilter, DesignError>>,
+    /// The same, shared with the trials.
+    nominal_designs: Vec<Design>,
     perturb_truth: bool,
     perturb_design: bool,
     plant_patterns: PlantPatterns,
@@ -59,7 +62,7 @@ pub struct Engine<'a> {
     /// a function of its model alone, so a kept one is the one the trial would compute. Kept only when
     /// every design-model error is fixed or listed (a range makes every trial's model new).
     keep_designs: bool,
-    designs_seen: std::sync::RwLock<std::collections::HashMap<Vec<u64>, Vec<Result<DetectionFilter, DesignError>>>>,
+    designs_seen: std::sync::RwLock<std::collections::HashMap<Vec<u64>, Vec<Design>>>,
 }
 
 /// How many distinct design models' designs an [`Engine`] keeps (listed errors: at most the product of
@@ -67,8 +70,8 @@ pub struct Engine<'a> {
 pub const DESIGN_CACHE: usize = 4096;
 
 /// A trial's design of one detector configuration: the nominal one when the design model is not
-/// perturbed, else its own.
-type Design<'e> = Result<Cow<'e, DetectionFilter>, DesignError>;
+/// perturbed, else its own; shared, not copied (a design is a dozen matrices).
+type Design = Result<Arc<DetectionFilter>, DesignError>;
 
 impl<'a> Engine<'a> {
     pub fn new(study: &'a LtiStudy) -> Self {
@@ -97,6 +100,7 @@ impl<'a> Engine<'a> {
             study,
             sampler,
             nominal_truth,
+            nominal_designs: nominal_filters.iter().map(|f| f.clone().map(Arc::new)).collect(),
             nominal_filters,
             perturb_truth,
             perturb_design,
@@ -150,32 +154,27 @@ impl<'a> Engine<'a> {
     }
 
     /// The trial's design of every detector configuration (deck order).
-    fn designs(&self, spec: &TrialSpec) -> Vec<Design<'_>> {
+    fn designs(&self, spec: &TrialSpec) -> Vec<Design> {
         self.designs_of(spec, 0..self.study.detectors.len())
     }
 
     /// The trial's design of the detector configurations `which` (deck indices), in that order.
-    fn designs_of(&self, spec: &TrialSpec, which: std::ops::Range<usize>) -> Vec<Design<'_>> {
+    fn designs_of(&self, spec: &TrialSpec, which: std::ops::Range<usize>) -> Vec<Design> {
         if !self.perturb_design {
-            return self.nominal_filters[which]
-                .iter()
-                .map(|f| f.as_ref().map(Cow::Borrowed).map_err(Clone::clone))
-                .collect();
+            return self.nominal_designs[which].to_vec();
         }
         let key: Vec<u64> = (self.study.monte_carlo.parameter_errors.iter().zip(&spec.parameter_errors))
             .filter(|(pe, _)| pe.model == ModelTarget::Design)
             .map(|(_, e)| e.to_bits())
             .collect();
-        let owned = |all: &[Result<DetectionFilter, DesignError>]| -> Vec<Design<'_>> {
-            all[which.clone()].iter().map(|f| f.clone().map(Cow::Owned)).collect()
-        };
         if let Some(all) = self.designs_seen.read().expect("no panic while holding it").get(&key) {
-            return owned(all);
+            return all[which].to_vec();
         }
         let design = self.perturbed(&self.study.design_plant, spec, ModelTarget::Design);
-        let all: Vec<Result<DetectionFilter, DesignError>> =
-            self.study.detectors.iter().map(|d| d.params.design(&design, self.study.header.dt_s)).collect();
-        let designs = owned(&all);
+        let all: Vec<Design> = (self.study.detectors.iter())
+            .map(|d| d.params.design(&design, self.study.header.dt_s).map(Arc::new))
+            .collect();
+        let designs = all[which].to_vec();
         if self.keep_designs {
             let mut seen = self.designs_seen.write().expect("no panic while holding it");
             if seen.len() < DESIGN_CACHE {
@@ -217,7 +216,7 @@ impl<'a> Engine<'a> {
     ) -> Result<(PlantStep, DetectionFilter, FilterStep), DesignError> {
         let plant = PlantStep::new(&self.plant_patterns, &[Some(&*self.truth(spec))], &self.study.output_feedback);
         // Only this detector's design (a perturbed model's designs are kept for the next trial of it).
-        let design = self.designs_of(spec, detector..detector + 1).remove(0)?.into_owned();
+        let design = Arc::unwrap_or_clone(self.designs_of(spec, detector..detector + 1).remove(0)?);
         let step = FilterStep::new(&self.filter_patterns[detector], &[Some(&design)]);
         Ok((plant, design, step))
     }
@@ -270,7 +269,7 @@ impl<'a> Engine<'a> {
                 &own_plant
             }
         };
-        let designs: Vec<Vec<Design<'_>>> = specs.iter().map(|sp| self.designs(sp)).collect();
+        let designs: Vec<Vec<Design>> = specs.iter().map(|sp| self.designs(sp)).collect();
         let own_filters: Vec<Option<LaneFilter>> = (0..s.detectors.len())
             .map(|d| {
                 self.lane_filters[d].is_none().then(|| {
