@@ -270,7 +270,7 @@ pub fn is_late(delay_s: f64, detection_window_s: f64) -> bool {
     delay_s > detection_window_s
 }
 
-pub use crate::engine::scenario::profile_grid::{DEFAULT_PROFILE_RESOLUTION, ProfileGrid};
+pub use crate::engine::scenario::profile_grid::{DEFAULT_PROFILE_RESOLUTION, NO_LEVEL, ProfileGrid};
 
 /// A statistic's first-passage profile after the onset while a unit is flown: a point `(t, value)`
 /// each time its running maximum rises past a level of the [`ProfileGrid`], and the final maximum to
@@ -283,11 +283,18 @@ pub struct FirstPassage {
     running_max: f64,
     running_max_t: f64,
     next_kept: f64,
+    next_level: i32,
 }
 
 impl FirstPassage {
     pub fn new(grid: ProfileGrid) -> Self {
-        FirstPassage { grid, running_max: 0.0, running_max_t: f64::NAN, next_kept: f64::NEG_INFINITY }
+        FirstPassage {
+            grid,
+            running_max: 0.0,
+            running_max_t: f64::NAN,
+            next_kept: f64::NEG_INFINITY,
+            next_level: NO_LEVEL,
+        }
     }
 
     /// The statistic's value `a` at `t` (s), after the onset.
@@ -295,7 +302,7 @@ impl FirstPassage {
         if a > self.running_max || self.running_max_t.is_nan() {
             self.running_max = a;
             self.running_max_t = t;
-            if let Some(v) = self.grid.keep(&mut self.next_kept, a) {
+            if let Some(v) = self.grid.keep(&mut self.next_kept, &mut self.next_level, a) {
                 profile_t_s.push(t);
                 profile_value.push(v);
             }

@@ -16,7 +16,7 @@
 
 use nalgebra::DVector;
 
-use crate::engine::results::schema::{ProfileGrid, close_profile};
+use crate::engine::results::schema::{NO_LEVEL, ProfileGrid, close_profile};
 use crate::engine::scenario::streams::{Substream, noise_rng};
 use crate::fault::ActiveFaults;
 use crate::methods::detection_filter::decision::{Decision, LaneStatistic};
@@ -352,6 +352,8 @@ struct LaneTracker<'f> {
     /// Per output: a post-onset statistic above this adds a profile point (+inf before the onset, -inf
     /// at it: the first point), and the grid that places the points ([`ProfileGrid::keep`]).
     next_kept: Vec<Lane>,
+    /// Per output: the level index of `next_kept` ([`ProfileGrid::keep`]).
+    next_level: Vec<[i32; LANES]>,
     grid: ProfileGrid,
     abs: Vec<Lane>,
     /// What replaces `abs` as the statistic, for a test other than `|r|`.
@@ -388,6 +390,7 @@ impl<'f> LaneTracker<'f> {
             max: vec![[0.0; LANES]; ny],
             max_t: vec![[f64::NAN; LANES]; ny],
             next_kept: vec![[f64::INFINITY; LANES]; ny],
+            next_level: vec![[NO_LEVEL; LANES]; ny],
             grid,
             abs: vec![[0.0; LANES]; ny],
             test: LaneTest::new(d, ny),
@@ -486,6 +489,7 @@ impl<'f> LaneTracker<'f> {
             self.max[j][l] = f64::NEG_INFINITY;
             self.max_t[j][l] = f64::NAN;
             self.next_kept[j][l] = f64::NEG_INFINITY;
+            self.next_level[j][l] = NO_LEVEL;
             self.armed[j][l] = self.thresholds[j];
         }
     }
@@ -508,7 +512,7 @@ impl<'f> LaneTracker<'f> {
         let mut alarm = None;
         for j in 0..self.abs.len() {
             let a = self.abs[j][l];
-            if let Some(v) = self.grid.keep(&mut self.next_kept[j][l], a) {
+            if let Some(v) = self.grid.keep(&mut self.next_kept[j][l], &mut self.next_level[j][l], a) {
                 self.out[l].profile_t_s[j].push(t);
                 self.out[l].profile_value[j].push(v);
             }
