@@ -1,7 +1,7 @@
 //! Standard normal draws for a group of lanes: lane `l` gets exactly the numbers
-//! `rand_distr::StandardNormal` draws from lane `l`'s own [`NoiseRng`], eight lanes at a time.
+//! `rand_distr::StandardNormal` draws from lane `l`'s own [`NoiseRng`], four or eight lanes at a time.
 //!
-//! With AVX2, the eight xoshiro256++ states live in vector registers and the ziggurat's common case
+//! With AVX2 (AVX-512: eight lanes to a register, the edges gathered), the xoshiro256++ states live in vector registers and the ziggurat's common case
 //! (one 64-bit word, a layer index, `u * x_i` accepted when `|u * x_i| < x_(i+1)`, about 98.5 % of
 //! draws) runs on all lanes at once, with each lane's two layer edges loaded from the table together.
 //! A lane that the fast case rejects is redrawn from its state before the draw by `rand_distr` itself
@@ -16,28 +16,38 @@ use crate::engine::scenario::noise::NoiseRng;
 use crate::engine::scenario::noise::ZIG_NORM_X;
 use crate::methods::detection_filter::kernel::{LANES, Lane};
 
-/// Eight noise generators advanced together; see the module docs.
+/// A lane group's noise generators advanced together; see the module docs.
 #[derive(Debug, Clone)]
 pub struct LaneNormals {
     /// `state[w][l]`: word `w` of lane `l`'s xoshiro256++ state.
     state: [[u64; LANES]; 4],
-    avx2: bool,
+    vectors: Vectors,
+}
+
+/// The widest vector form of the draws the CPU runs (all give the same numbers).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Vectors {
+    Avx512,
+    Avx2,
+    Scalar,
 }
 
 impl LaneNormals {
     pub fn new(rngs: [NoiseRng; LANES]) -> Self {
         let states = rngs.map(|r| r.state());
-        LaneNormals { state: std::array::from_fn(|w| std::array::from_fn(|l| states[l][w])), avx2: has_avx2() }
+        LaneNormals { state: std::array::from_fn(|w| std::array::from_fn(|l| states[l][w])), vectors: vectors() }
     }
 
     /// Fills each row of `out` with one draw per lane, rows in order.
     #[inline]
     pub fn fill(&mut self, out: &mut [Lane]) {
         #[cfg(target_arch = "x86_64")]
-        if self.avx2 {
-            // SAFETY: `avx2` is set only when the CPU has AVX2.
-            unsafe { self.fill_avx2(out) };
-            return;
+        match self.vectors {
+            // SAFETY: `vectors` names a form only when the CPU has its features.
+            Vectors::Avx512 => return unsafe { self.fill_avx512(out) },
+            // SAFETY: as above.
+            Vectors::Avx2 => return unsafe { self.fill_avx2(out) },
+            Vectors::Scalar => {}
         }
         self.fill_scalar(out);
     }
@@ -145,6 +155,78 @@ impl LaneNormals {
             }
         }
     }
+
+    /// [`fill_avx2`](Self::fill_avx2)'s draws eight lanes to a register: the same integer and
+    /// floating-point operations, with native rotates and the layer edges gathered.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn fill_avx512(&mut self, out: &mut [Lane]) {
+        use std::arch::x86_64::*;
+
+        const OCTETS: usize = LANES / 8;
+        type Octet = [__m512i; 4];
+        let load = |w: &[u64; LANES], h: usize| -> __m512i {
+            // SAFETY: 8 in-bounds words (h < LANES / 8); unaligned load.
+            unsafe { _mm512_loadu_si512(w[8 * h..].as_ptr().cast()) }
+        };
+        let mut octets: [Octet; OCTETS] = std::array::from_fn(|h| std::array::from_fn(|w| load(&self.state[w], h)));
+        let layer_mask = _mm512_set1_epi64(0xff);
+        let exponent_2 = _mm512_set1_epi64(0x4000_0000_0000_0000);
+        let three = _mm512_set1_pd(3.0);
+        let edges = ZIG_NORM_X.as_ptr();
+
+        for row in out.iter_mut() {
+            let before = octets;
+            let mut rejected = 0u32;
+            for (h, octet) in octets.iter_mut().enumerate() {
+                let [s0, s1, s2, s3] = *octet;
+                let bits = _mm512_add_epi64(_mm512_rol_epi64::<23>(_mm512_add_epi64(s0, s3)), s0);
+                let t = _mm512_slli_epi64::<17>(s1);
+                let s2 = _mm512_xor_si512(s2, s0);
+                let s3 = _mm512_xor_si512(s3, s1);
+                let s1 = _mm512_xor_si512(s1, s2);
+                let s0 = _mm512_xor_si512(s0, s3);
+                let s2 = _mm512_xor_si512(s2, t);
+                *octet = [s0, s1, s2, _mm512_rol_epi64::<45>(s3)];
+
+                let layer = _mm512_and_si512(bits, layer_mask);
+                let u = _mm512_sub_pd(
+                    _mm512_castsi512_pd(_mm512_or_si512(_mm512_srli_epi64::<12>(bits), exponent_2)),
+                    three,
+                );
+                // SAFETY: every layer is at most 255, so `edges + layer` and `edges + layer + 1` are in
+                // the 257-entry table.
+                let (x_i, x_next) =
+                    unsafe { (_mm512_i64gather_pd::<8>(layer, edges), _mm512_i64gather_pd::<8>(layer, edges.add(1))) };
+                let x = _mm512_mul_pd(u, x_i);
+                let accepted = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(_mm512_abs_pd(x), x_next);
+                rejected |= u32::from(!accepted) << (8 * h);
+                // SAFETY: 8 in-bounds f64 of the row; unaligned store.
+                unsafe { _mm512_storeu_pd(row[8 * h..].as_mut_ptr(), x) };
+            }
+            if rejected != 0 {
+                let store = |octets: &[Octet; OCTETS]| {
+                    let mut state = [[0u64; LANES]; 4];
+                    for (h, octet) in octets.iter().enumerate() {
+                        for (w, reg) in octet.iter().enumerate() {
+                            // SAFETY: 8 in-bounds words; unaligned store.
+                            unsafe { _mm512_storeu_si512(state[w][8 * h..].as_mut_ptr().cast(), *reg) };
+                        }
+                    }
+                    state
+                };
+                let mut after = store(&octets);
+                redraw(rejected, &store(&before), &mut after, row);
+                octets = std::array::from_fn(|h| std::array::from_fn(|w| load(&after[w], h)));
+            }
+        }
+        for (h, octet) in octets.iter().enumerate() {
+            for (w, reg) in octet.iter().enumerate() {
+                // SAFETY: 8 in-bounds words; unaligned store.
+                unsafe { _mm512_storeu_si512(self.state[w][8 * h..].as_mut_ptr().cast(), *reg) };
+            }
+        }
+    }
 }
 
 /// Lanes in the bit set `rejected` draw again from their states `before` the fast case, by
@@ -161,11 +243,17 @@ fn redraw(rejected: u32, before: &[[u64; LANES]; 4], after: &mut [[u64; LANES]; 
     }
 }
 
-fn has_avx2() -> bool {
+fn vectors() -> Vectors {
     #[cfg(target_arch = "x86_64")]
-    return std::arch::is_x86_feature_detected!("avx2");
-    #[cfg(not(target_arch = "x86_64"))]
-    false
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            return Vectors::Avx512;
+        }
+        if std::arch::is_x86_feature_detected!("avx2") {
+            return Vectors::Avx2;
+        }
+    }
+    Vectors::Scalar
 }
 
 #[cfg(test)]
@@ -181,9 +269,12 @@ mod tests {
     /// rejected draws (about 1.5 % of draws, so thousands of them here) and ragged row counts.
     #[test]
     fn lanes_draw_exactly_rand_distr_per_lane() {
-        for avx2 in [has_avx2(), false] {
+        let forms = [Vectors::Avx512, Vectors::Avx2, Vectors::Scalar];
+        let cpu = forms.iter().position(|&v| v == vectors()).expect("one of them");
+        // The CPU's own form and every narrower one.
+        for &form in &forms[cpu..] {
             let mut group = LaneNormals::new(lanes(3));
-            group.avx2 = avx2;
+            group.vectors = form;
             let mut reference = lanes(3);
             let mut rows = vec![[0.0; LANES]; 7];
             for block in 0..40_000 {
@@ -192,7 +283,7 @@ mod tests {
                 for row in rows.iter() {
                     for (l, rng) in reference.iter_mut().enumerate() {
                         let want: f64 = rng.sample(StandardNormal);
-                        assert_eq!(row[l].to_bits(), want.to_bits(), "lane {l}, block {block}, avx2 {avx2}");
+                        assert_eq!(row[l].to_bits(), want.to_bits(), "lane {l}, block {block}, {form:?}");
                     }
                 }
             }
