@@ -45,8 +45,7 @@ pub struct Engine<'a> {
     study: &'a LtiStudy,
     sampler: ScenarioSampler<'a>,
     nominal_truth: DiscreteLti,
-    nominal_filters: Vec<Result<DetectionFilter, DesignError>>,
-    /// The same, shared with the trials.
+    /// Shared with the trials whose design model is not perturbed.
     nominal_designs: Vec<Design>,
     perturb_truth: bool,
     perturb_design: bool,
@@ -71,7 +70,7 @@ pub const DESIGN_CACHE: usize = 4096;
 
 /// A trial's design of one detector configuration: the nominal one when the design model is not
 /// perturbed, else its own; shared, not copied (a design is a dozen matrices).
-type Design = Result<Arc<DetectionFilter>, DesignError>;
+pub type Design = Result<Arc<DetectionFilter>, DesignError>;
 
 impl<'a> Engine<'a> {
     pub fn new(study: &'a LtiStudy) -> Self {
@@ -79,20 +78,21 @@ impl<'a> Engine<'a> {
         let perturb_truth = sampler.perturbs(ModelTarget::Plant);
         let perturb_design = sampler.perturbs(ModelTarget::Design);
         let nominal_truth = study.plant.discretise(study.header.dt_s);
-        let nominal_filters: Vec<_> =
-            study.detectors.iter().map(|d| d.params.design(&study.design_plant, study.header.dt_s)).collect();
+        let nominal_designs: Vec<Design> = (study.detectors.iter())
+            .map(|d| d.params.design(&study.design_plant, study.header.dt_s).map(Arc::new))
+            .collect();
         let plant_patterns = PlantPatterns::new(&nominal_truth, &study.output_feedback, perturb_truth);
-        let filter_patterns: Vec<FilterPatterns> = nominal_filters
+        let filter_patterns: Vec<FilterPatterns> = nominal_designs
             .iter()
-            .map(|f| FilterPatterns::new(&study.design_plant, f.as_ref().ok(), perturb_design))
+            .map(|f| FilterPatterns::new(&study.design_plant, f.as_deref().ok(), perturb_design))
             .collect();
         let lane_plant = (!perturb_truth)
             .then(|| LanePlant::new(&plant_patterns, &[Some(&nominal_truth); LANES], &study.output_feedback));
-        let lane_filters = nominal_filters
+        let lane_filters = nominal_designs
             .iter()
             .zip(&filter_patterns)
             .map(|(f, p)| match f {
-                Ok(f) if !perturb_design => Some(LaneFilter::new(p, &[Some(f); LANES])),
+                Ok(f) if !perturb_design => Some(LaneFilter::new(p, &[Some(&**f); LANES])),
                 _ => None,
             })
             .collect();
@@ -100,8 +100,7 @@ impl<'a> Engine<'a> {
             study,
             sampler,
             nominal_truth,
-            nominal_designs: nominal_filters.iter().map(|f| f.clone().map(Arc::new)).collect(),
-            nominal_filters,
+            nominal_designs,
             perturb_truth,
             perturb_design,
             plant_patterns,
@@ -120,8 +119,8 @@ impl<'a> Engine<'a> {
     }
 
     /// The nominal designs (deck order), for reports and to fail fast on an infeasible deck.
-    pub fn nominal_filters(&self) -> &[Result<DetectionFilter, DesignError>] {
-        &self.nominal_filters
+    pub fn nominal_filters(&self) -> &[Design] {
+        &self.nominal_designs
     }
 
     pub fn spec(&self, trial: u64) -> TrialSpec {
