@@ -11,7 +11,7 @@
 //! written after the last row group, as polars writes them.
 
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use polars_parquet_format::thrift::protocol::{TCompactInputProtocol, TCompactOutputProtocol};
@@ -36,6 +36,9 @@ const MAGIC: &[u8; 4] = b"PAR1";
 /// The largest footer or page index read (a corrupt length would otherwise ask for any amount).
 const MAX_THRIFT_BYTES: usize = 1 << 30;
 
+/// The row groups are copied through a buffer of this size.
+const COPY_BUFFER_BYTES: usize = 1 << 20;
+
 /// Appends whole Parquet files' row groups to a new file (under a temporary name until
 /// [`finish`](Self::finish)).
 pub struct RowGroupWriter {
@@ -50,6 +53,9 @@ pub struct RowGroupWriter {
     /// Per row group, per column: the column index as it was, the offset index shifted.
     indexes: Vec<Vec<(Option<Vec<u8>>, Option<OffsetIndex>)>>,
     rows: u64,
+    /// The row groups are copied through a buffer of this size ([`COPY_BUFFER_BYTES`]; smaller in a
+    /// test, so that one file takes several pieces).
+    piece_bytes: usize,
 }
 
 impl RowGroupWriter {
@@ -66,21 +72,43 @@ impl RowGroupWriter {
             row_groups: Vec::new(),
             indexes: Vec::new(),
             rows: 0,
+            piece_bytes: COPY_BUFFER_BYTES,
         })
     }
 
     /// Appends the row groups of the Parquet file `bytes` (read from, or written to, `name`).
     pub fn append(&mut self, bytes: &[u8], name: &Path) -> Result<(), RowGroupError> {
+        self.append_from(&mut std::io::Cursor::new(bytes), name)
+    }
+
+    /// Appends the row groups of the Parquet file at `path`, read piece by piece: a shard of any size
+    /// needs only its footer and page indexes in memory.
+    pub fn append_file(&mut self, path: &Path) -> Result<(), RowGroupError> {
+        let mut file = File::open(path).map_err(io(path))?;
+        self.append_from(&mut file, path)
+    }
+
+    fn append_from<R: Read + Seek>(&mut self, input: &mut R, name: &Path) -> Result<(), RowGroupError> {
         let bad =
             |why: &str| RowGroupError::Invalid(format!("{}: not a readable Parquet file ({why})", name.display()));
-        let n = bytes.len();
-        if n < 12 || &bytes[..4] != MAGIC || &bytes[n - 4..] != MAGIC {
+        let n = usize::try_from(input.seek(SeekFrom::End(0)).map_err(io(name))?).map_err(|_| bad("its size"))?;
+        let (mut head, mut tail) = ([0u8; 4], [0u8; 8]);
+        if n >= 12 {
+            read_at(input, 0, &mut head).map_err(io(name))?;
+            read_at(input, n - 8, &mut tail).map_err(io(name))?;
+        }
+        if n < 12 || &head != MAGIC || &tail[4..] != MAGIC {
             return Err(bad("no PAR1 at its start and end"));
         }
-        let footer_len = u32::from_le_bytes(bytes[n - 8..n - 4].try_into().expect("4 bytes")) as usize;
+        let footer_len = u32::from_le_bytes(tail[..4].try_into().expect("4 bytes")) as usize;
         let footer_start = (n - 8).checked_sub(footer_len).filter(|&s| s >= 4).ok_or_else(|| bad("footer length"))?;
-        let mut meta = read_thrift(&bytes[footer_start..n - 8], FileMetaData::read_from_in_protocol)
-            .map_err(|e| bad(&format!("footer: {e}")))?;
+        if footer_len > MAX_THRIFT_BYTES {
+            return Err(bad("footer length"));
+        }
+        let mut footer = vec![0u8; footer_len];
+        read_at(input, footer_start, &mut footer).map_err(io(name))?;
+        let mut meta =
+            read_thrift(&footer, FileMetaData::read_from_in_protocol).map_err(|e| bad(&format!("footer: {e}")))?;
         match &self.first {
             Some(first) if first.schema != meta.schema => {
                 return Err(RowGroupError::Invalid(format!(
@@ -101,15 +129,29 @@ impl RowGroupWriter {
         if data_end < 4 || data_end > footer_start {
             return Err(bad("page index offsets"));
         }
+        // The page indexes lie between the row groups and the footer.
+        let mut page_indexes = vec![0u8; footer_start - data_end];
+        read_at(input, data_end, &mut page_indexes).map_err(io(name))?;
         let shift = self.offset as i64 - 4;
-        self.file.write_all(&bytes[4..data_end]).map_err(io(&self.out))?;
+        input.seek(SeekFrom::Start(4)).map_err(io(name))?;
+        let mut buffer = vec![0u8; self.piece_bytes.min(data_end - 4)];
+        let mut left = data_end - 4;
+        while left > 0 {
+            let piece = &mut buffer[..left.min(self.piece_bytes)];
+            input.read_exact(piece).map_err(io(name))?;
+            self.file.write_all(piece).map_err(io(&self.out))?;
+            left -= piece.len();
+        }
         self.offset += (data_end - 4) as u64;
         let slice = |offset: Option<i64>, len: Option<i32>| -> Result<Option<&[u8]>, RowGroupError> {
             match (offset, len) {
                 (Some(o), Some(l)) => {
                     let (o, l) = (usize::try_from(o).ok(), usize::try_from(l).ok());
-                    let range = o.zip(l).map(|(o, l)| o..o + l).filter(|r| r.end <= footer_start);
-                    range.map(|r| Some(&bytes[r])).ok_or_else(|| bad("page index range"))
+                    let range =
+                        o.zip(l).map(|(o, l)| o..o + l).filter(|r| r.start >= data_end && r.end <= footer_start);
+                    range
+                        .map(|r| Some(&page_indexes[r.start - data_end..r.end - data_end]))
+                        .ok_or_else(|| bad("page index range"))
                 }
                 _ => Ok(None),
             }
@@ -144,12 +186,6 @@ impl RowGroupWriter {
             self.indexes.push(indexes);
         }
         Ok(())
-    }
-
-    /// Appends the row groups of the Parquet file at `path`.
-    pub fn append_file(&mut self, path: &Path) -> Result<(), RowGroupError> {
-        let bytes = std::fs::read(path).map_err(io(path))?;
-        self.append(&bytes, path)
     }
 
     /// Writes the page indexes and the footer, and renames the file into place. Returns its rows.
@@ -212,6 +248,12 @@ fn read_thrift<'b, T>(
     read(&mut TCompactInputProtocol::new(bytes, MAX_THRIFT_BYTES))
 }
 
+/// Fills `buf` from `input` at byte `at`.
+fn read_at<R: Read + Seek>(input: &mut R, at: usize, buf: &mut [u8]) -> std::io::Result<()> {
+    input.seek(SeekFrom::Start(at as u64))?;
+    input.read_exact(buf)
+}
+
 fn write_thrift(
     write: impl FnOnce(&mut TCompactOutputProtocol<&mut Vec<u8>>) -> polars_parquet_format::thrift::Result<usize>,
 ) -> Result<Vec<u8>, RowGroupError> {
@@ -266,8 +308,23 @@ mod tests {
         assert_eq!(w.finish().unwrap(), 341);
         let joined = ParquetReader::new(File::open(&out).unwrap()).finish().unwrap();
         assert!(joined.equals_missing(&a.vstack(&b).unwrap()));
-
         let bytes = std::fs::read(&out).unwrap();
+
+        // From files, copied in pieces of 100 bytes (a shard is never whole in memory): the same bytes.
+        let (file_a, file_b, from_files) = (dir.join("a.parquet"), dir.join("b.parquet"), dir.join("files.parquet"));
+        std::fs::write(&file_a, &bytes_a).unwrap();
+        std::fs::write(&file_b, &bytes_b).unwrap();
+        let mut w = RowGroupWriter::create(&from_files).unwrap();
+        w.piece_bytes = 100;
+        w.append_file(&file_a).unwrap();
+        w.append_file(&file_b).unwrap();
+        assert_eq!(w.finish().unwrap(), 341);
+        assert!(bytes_a.len() > 1000, "several pieces: {} bytes", bytes_a.len());
+        assert_eq!(std::fs::read(&from_files).unwrap(), bytes);
+        for f in [file_a, file_b, from_files] {
+            std::fs::remove_file(f).unwrap();
+        }
+
         let meta = footer(&bytes);
         assert_eq!((meta.num_rows, meta.row_groups.len()), (341, 2));
         assert_eq!(meta.schema, footer(&bytes_a).schema);
