@@ -3517,7 +3517,23 @@ fn an_fmu_that_crashes_its_process_fails_only_its_trials_in_worker_processes() {
         assert!(o.status.success(), "{}", text(&o.stderr));
         read_frame(&out.join("trials.parquet"))
     };
-    let crashed = run(&aborting, "crashed", &["--fmu-processes"]);
+    // The crashing run in a temporary folder of its own: the workers' unpacked FMUs (killed and
+    // crashed children cannot remove them) are gone with the run.
+    let temporary = dir.path().join("tmp");
+    std::fs::create_dir(&temporary).unwrap();
+    let crashed_out = dir.path().join("crashed");
+    let o = Command::new(env!("CARGO_BIN_EXE_fdimc"))
+        .args(["run", aborting.to_str().unwrap(), "--trials", "24", "--threads", "2", "--quiet", "--fmu-processes"])
+        .arg("--out")
+        .arg(&crashed_out)
+        .env("TMPDIR", &temporary)
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let left: Vec<_> = std::fs::read_dir(&temporary).unwrap().map(|e| e.unwrap().path()).collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+    let crashed = read_frame(&crashed_out.join("trials.parquet"));
     let errored = run(&failing, "errored", &[]);
     assert_eq!(crashed.height(), 3 * 24);
     let failure = crashed.column("failure").unwrap().str().unwrap().clone();

@@ -61,10 +61,14 @@ struct Worker {
     child: Child,
     stdin: ChildStdin,
     stdout: BufReader<ChildStdout>,
+    /// The child's temporary folder (its `TMPDIR`), where it unpacks its FMUs: removed by the parent
+    /// after the child is gone, since a child that is killed or crashes cannot remove it.
+    _temporary: tempfile::TempDir,
 }
 
 impl Drop for Worker {
-    /// A worker holds nothing unsaved: it is stopped and reaped (no zombie stays behind).
+    /// A worker holds nothing unsaved: it is stopped and reaped (no zombie stays behind), then its
+    /// temporary folder goes (the field's own drop, after this).
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
@@ -155,8 +159,13 @@ impl WorkerSpec {
 
     /// A started child that has built the study and said so with the parent's [`fingerprint`].
     fn spawn(&self, detectors: usize) -> Result<Worker, String> {
+        let temporary = tempfile::Builder::new()
+            .prefix("fdimc-worker")
+            .tempdir()
+            .map_err(|e| format!("cannot make a temporary folder for a worker process: {e}"))?;
         let mut command = Command::new(&self.executable);
         command
+            .env("TMPDIR", temporary.path())
             .arg("fmu-worker")
             .arg(&self.deck)
             .args(["--seed", &self.seed.to_string(), "--trials", &self.trials.to_string()])
@@ -182,7 +191,7 @@ impl WorkerSpec {
             .map_err(|e| format!("cannot start a worker process ({}): {e}", self.executable.display()))?;
         let stdin = child.stdin.take().expect("piped");
         let stdout = BufReader::new(child.stdout.take().expect("piped"));
-        let mut worker = Worker { spec: self.clone(), child, stdin, stdout };
+        let mut worker = Worker { spec: self.clone(), child, stdin, stdout, _temporary: temporary };
         let mut ready = String::new();
         let _ = worker.stdout.read_line(&mut ready);
         let want = fingerprint(detectors, self.seed, self.trials, &self.deck_sha256);
