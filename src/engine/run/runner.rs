@@ -865,16 +865,21 @@ pub fn concatenate(inputs: &[PathBuf], out: &Path, remove_inputs: bool) -> Resul
         return Err(RunError::Internal("nothing to concatenate".into()));
     }
     let mut writer = RowGroupWriter::create(out)?;
-    for path in inputs {
-        if let Err(e) = writer.append_file(path) {
-            writer.abandon();
-            return Err(e.into());
-        }
+    let appended = inputs.iter().try_for_each(|path| {
+        writer.append_file(path)?;
         if remove_inputs {
             std::fs::remove_file(path).map_err(io(path))?;
         }
+        Ok(())
+    });
+    match appended {
+        Ok(()) => Ok(writer.finish()?),
+        // Whatever failed, the unfinished file goes.
+        Err(e) => {
+            writer.abandon();
+            Err(e)
+        }
     }
-    Ok(writer.finish()?)
 }
 
 #[cfg(test)]

@@ -22,6 +22,30 @@ pub const LANES: usize = 16;
 /// One scalar quantity of every lane.
 pub type Lane = [f64; LANES];
 
+/// The widest vector instructions the CPU offers the lane path (every form gives the same numbers).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Vectors {
+    Avx512,
+    Avx2,
+    Scalar,
+}
+
+impl Vectors {
+    /// This CPU's (the standard library caches the check).
+    pub fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                return Vectors::Avx512;
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                return Vectors::Avx2;
+            }
+        }
+        Vectors::Scalar
+    }
+}
+
 /// Which entries of an `nrows x ncols` matrix a product visits, row-major.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Pattern {
@@ -182,14 +206,9 @@ impl<E: Element> Product<E> {
 
     /// Does `other` do exactly the same operations on the same coefficients (bit for bit)?
     fn same_arithmetic(&self, other: &Self) -> bool {
-        let same_entries = |a: &[(usize, E)], b: &[(usize, E)]| {
-            a.len() == b.len() && a.iter().zip(b).all(|((i, x), (j, y))| i == j && E::same_bits(x, y))
-        };
         let same_shared = match (&self.shared, &other.shared) {
             (None, None) => true,
-            (Some(a), Some(b)) => {
-                a.len() == b.len() && a.iter().zip(b).all(|((i, x), (j, y))| i == j && x.to_bits() == y.to_bits())
-            }
+            (Some(a), Some(b)) => same_entries(a, b),
             _ => false,
         };
         self.row_end == other.row_end && same_entries(&self.entries, &other.entries) && same_shared
@@ -217,6 +236,11 @@ impl<E: Element> Product<E> {
         }
         rows(&self.row_end, &self.entries, out, v, start, E::mul_add);
     }
+}
+
+/// The same (index, coefficient) entries, bit for bit.
+fn same_entries<C: Element>(a: &[(usize, C)], b: &[(usize, C)]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|((i, x), (j, y))| i == j && C::same_bits(x, y))
 }
 
 /// Row i of `out`: `acc = start(i)`, then `mul_add(m, v_j, acc)` over the row's entries; `out_i = acc`.

@@ -21,7 +21,7 @@ use crate::engine::scenario::streams::{Substream, noise_rng};
 use crate::fault::ActiveFaults;
 use crate::methods::detection_filter::decision::{Decision, LaneStatistic};
 use crate::methods::detection_filter::filter::{DetectionFilter, DetectionFilterParams};
-use crate::methods::detection_filter::kernel::{FilterState, LANES, Lane, LaneFilter, LanePlant, PlantState};
+use crate::methods::detection_filter::kernel::{FilterState, LANES, Lane, LaneFilter, LanePlant, PlantState, Vectors};
 use crate::methods::detection_filter::normals::LaneNormals;
 use crate::methods::detection_filter::scenario::TrialSpec;
 use crate::methods::detection_filter::study::LtiStudy;
@@ -45,14 +45,12 @@ pub(super) fn run_lanes(
 ) -> Vec<Vec<Option<DetectorOutcome>>> {
     assert!((1..=LANES).contains(&specs.len()), "a lane group holds 1 to {LANES} trials");
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx512f") {
-        // SAFETY: the CPU has AVX-512F, checked just above.
-        return unsafe { run_avx512(study, plant, specs, detectors) };
-    }
-    #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { run_avx2(study, plant, specs, detectors) };
+    match Vectors::detect() {
+        // SAFETY: `detect` names a form only when the CPU has its features.
+        Vectors::Avx512 => return unsafe { run_avx512(study, plant, specs, detectors) },
+        // SAFETY: as above.
+        Vectors::Avx2 => return unsafe { run_avx2(study, plant, specs, detectors) },
+        Vectors::Scalar => {}
     }
     run_lanes_in(study, plant, specs, detectors)
 }

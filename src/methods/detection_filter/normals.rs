@@ -14,7 +14,7 @@ use rand_distr::StandardNormal;
 use crate::engine::scenario::noise::NoiseRng;
 #[cfg(target_arch = "x86_64")]
 use crate::engine::scenario::noise::ZIG_NORM_X;
-use crate::methods::detection_filter::kernel::{LANES, Lane};
+use crate::methods::detection_filter::kernel::{LANES, Lane, Vectors};
 
 /// A lane group's noise generators advanced together; see the module docs.
 #[derive(Debug, Clone)]
@@ -24,18 +24,13 @@ pub struct LaneNormals {
     vectors: Vectors,
 }
 
-/// The widest vector form of the draws the CPU runs (all give the same numbers).
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Vectors {
-    Avx512,
-    Avx2,
-    Scalar,
-}
-
 impl LaneNormals {
     pub fn new(rngs: [NoiseRng; LANES]) -> Self {
         let states = rngs.map(|r| r.state());
-        LaneNormals { state: std::array::from_fn(|w| std::array::from_fn(|l| states[l][w])), vectors: vectors() }
+        LaneNormals {
+            state: std::array::from_fn(|w| std::array::from_fn(|l| states[l][w])),
+            vectors: Vectors::detect(),
+        }
     }
 
     /// Fills each row of `out` with one draw per lane, rows in order.
@@ -243,19 +238,6 @@ fn redraw(rejected: u32, before: &[[u64; LANES]; 4], after: &mut [[u64; LANES]; 
     }
 }
 
-fn vectors() -> Vectors {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            return Vectors::Avx512;
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            return Vectors::Avx2;
-        }
-    }
-    Vectors::Scalar
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -270,7 +252,7 @@ mod tests {
     #[test]
     fn lanes_draw_exactly_rand_distr_per_lane() {
         let forms = [Vectors::Avx512, Vectors::Avx2, Vectors::Scalar];
-        let cpu = forms.iter().position(|&v| v == vectors()).expect("one of them");
+        let cpu = forms.iter().position(|&v| v == Vectors::detect()).expect("one of them");
         // The CPU's own form and every narrower one.
         for &form in &forms[cpu..] {
             let mut group = LaneNormals::new(lanes(3));
