@@ -12,7 +12,7 @@
 use std::collections::VecDeque;
 use std::path::PathBuf;
 
-use fdimc::engine::run::runner::{RunOptions, Shard};
+use fdimc::engine::run::runner::{FmuProcesses, RunOptions, Shard};
 use fdimc::engine::scenario::deck::FromDeck;
 use fdimc::methods::detection_filter::decision::{Decision, ResidualTest, TestState};
 use fdimc::methods::detection_filter::study::{DetectorConfig, LtiStudy};
@@ -96,7 +96,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         stop: None,
         sensitivity: None,
         command_line: std::env::args().collect(),
-        fmu_processes: false,
+        fmu_processes: FmuProcesses::InProcess,
         low_disk: false,
     };
     let run = fdimc::methods::detection_filter::run_study(&study, &opts)?;

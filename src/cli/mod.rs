@@ -391,11 +391,17 @@ pub struct RunFolder {
     /// if interrupted; continue later with --resume.
     #[arg(long, value_name = "N")]
     pub stop_after: Option<u64>,
-    /// Fly each thread's trials in a worker process of its own (detection-filter decks with FMUs):
-    /// an FMU that crashes the process then fails only the trial it was flying, recorded as failed
-    /// with how the process died, and the run goes on. The records are otherwise the same.
-    #[arg(long)]
+    /// Insist on worker processes (the default for a deck with FMUs): each thread's trials fly in a
+    /// process of its own, so an FMU that crashes its process or is not thread-safe fails only the
+    /// trial it was flying, recorded with how the process died, and the run goes on. A deck without
+    /// FMUs is refused. The records are the same either way.
+    #[arg(long, conflicts_with = "fmu_in_process")]
     pub fmu_processes: bool,
+    /// Fly a deck's FMUs in this process, on the run's threads (no worker processes): saves a process
+    /// start per thread and a pipe round trip per trial, but an FMU that crashes, or whose runtime is
+    /// not thread-safe, takes the whole run down. For FMUs known to be safe.
+    #[arg(long)]
+    pub fmu_in_process: bool,
     /// Hold the records on disk once: the part files are appended to trials.parquet only after the
     /// last one, each removed once appended (by default rows are appended as they come and the parts
     /// kept until the end, twice the records' size). Costs copying every part's bytes at the end (the

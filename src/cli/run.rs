@@ -7,7 +7,7 @@ use crate::cli::{CliError, Placement, RareEventArgs, RunFolder, WorstCaseArgs};
 use crate::engine::method::{self, Inputs, Method, Opt, Study};
 use crate::engine::results::summary;
 use crate::engine::results::thresholds::Calibration;
-use crate::engine::run::runner::{self, Manifest, RunError, RunOptions, Shard};
+use crate::engine::run::runner::{self, FmuProcesses, Manifest, RunError, RunOptions, Shard};
 
 impl From<RunError> for CliError {
     fn from(e: RunError) -> Self {
@@ -193,7 +193,11 @@ impl Kinds {
             },
             sensitivity: design,
             command_line: std::env::args().collect(),
-            fmu_processes: f.fmu_processes,
+            fmu_processes: match (f.fmu_processes, f.fmu_in_process) {
+                (true, _) => FmuProcesses::Always,
+                (false, true) => FmuProcesses::InProcess,
+                (false, false) => FmuProcesses::Auto,
+            },
             low_disk: f.low_disk,
         };
         let report = study.run(&opts, Inputs { classifiers: a.classifiers, quiet: f.quiet })?;
@@ -421,6 +425,7 @@ impl Kinds {
                     quiet: true,
                     stop_after: None,
                     fmu_processes: false,
+                    fmu_in_process: false,
                     low_disk: false,
                     profile_resolution: None,
                 },

@@ -1,9 +1,9 @@
 //! What an FMU's `modelDescription.xml` says that a deck needs: version, interfaces and their
 //! capabilities, variables with causality, start, unit and declared range, the default experiment.
 //!
-//! Read here with roxmltree rather than through the `fmi` crate's schema types: those drop the unit,
-//! min and max of an FMI 2.0 `<Real>` and refuse attributes real exporters write (Dymola's
-//! `canHandleMultipleSetPerTimeInstant`), and a deck's checks need the range and `fdimc fmu` the units.
+//! Read with roxmltree, leniently: exporters write vendor attributes (Dymola's
+//! `canHandleMultipleSetPerTimeInstant`) and elements a strict schema would refuse, and a deck's
+//! checks need only what is read here.
 
 use std::collections::HashMap;
 
@@ -121,7 +121,14 @@ pub struct Variable {
     pub unit: Option<String>,
     pub min: Option<f64>,
     pub max: Option<f64>,
+    /// The declared `nominal` (its order of magnitude, FMI's scaling hint).
+    pub nominal: Option<f64>,
     pub description: Option<String>,
+    /// FMI 3.0 array variables: their dimensions' sizes where given as numbers (`start` sizes and
+    /// `<Dimension start=...>`), empty for a scalar. fdimc exchanges scalars only.
+    pub dimensions: Vec<Option<u64>>,
+    /// The type's name as the description writes it (`Real`, `Float64`, `Int64`, `String`, ...).
+    pub type_name: String,
 }
 
 impl Variable {
@@ -165,6 +172,12 @@ pub struct Description {
     /// order of `<Derivatives>`); what directional derivatives are asked of. Empty when not declared.
     pub state_derivative_vrs: Vec<(u32, u32)>,
     pub n_event_indicators: usize,
+    /// `<LogCategories>`' names: fdimc turns on the `logStatus*` ones, so the FMU logs its errors.
+    pub log_categories: Vec<String>,
+    /// `<ModelStructure>`'s declared dependencies of outputs and state derivatives, by the unknown's
+    /// value reference: the value references it depends on. An unknown without a `dependencies`
+    /// attribute is absent (it may depend on anything).
+    pub dependencies: HashMap<u32, Vec<u32>>,
 }
 
 impl Description {
@@ -274,10 +287,41 @@ impl Description {
             }
             FmiVersion::V3 => {
                 let count = |tag: &str| structure.map_or(0, |s| s.children().filter(|n| n.has_tag_name(tag)).count());
+                // Each ContinuousStateDerivative's variable names its state in its `derivative` attribute.
+                let by_vr: HashMap<u32, roxmltree::Node> = child("ModelVariables")
+                    .map(|v| {
+                        v.children()
+                            .filter(|n| n.is_element())
+                            .filter_map(|n| Some((n.attribute("valueReference")?.trim().parse().ok()?, n)))
+                            .collect()
+                    })
+                    .unwrap_or_default();
+                for d in
+                    structure.iter().flat_map(|s| s.children()).filter(|n| n.has_tag_name("ContinuousStateDerivative"))
+                {
+                    let dvr = d.attribute("valueReference").and_then(|v| v.trim().parse::<u32>().ok());
+                    let svr = dvr
+                        .and_then(|d| by_vr.get(&d))
+                        .and_then(|n| n.attribute("derivative"))
+                        .and_then(|v| v.trim().parse::<u32>().ok());
+                    match (svr, dvr) {
+                        (Some(s), Some(d)) => state_derivative_vrs.push((s, d)),
+                        _ => {
+                            state_derivative_vrs.clear();
+                            break;
+                        }
+                    }
+                }
                 (count("ContinuousStateDerivative"), count("EventIndicator"))
             }
         };
+        let dependencies = dependencies_of(structure, version, child("ModelVariables"));
+        let log_categories = child("LogCategories")
+            .map(|c| c.children().filter_map(|n| n.attribute("name").map(str::to_string)).collect())
+            .unwrap_or_default();
         Ok(Description {
+            dependencies,
+            log_categories,
             version,
             fmi_version: fmi_version.to_string(),
             model_name: root.attribute("modelName").unwrap_or_default().to_string(),
@@ -303,29 +347,23 @@ impl Description {
         }
     }
 
-    /// The description the `fmi` crate loads the binary with: the root's identity and the interfaces'
-    /// library names, nothing else. Its schema types are strict (they refuse `unit` on an FMI 3.0
-    /// `Float64`, valid FMI, and vendor attributes such as Dymola's), and everything else fdimc reads
-    /// here.
-    pub fn for_loader(&self) -> String {
-        let esc = |s: &str| s.replace('&', "&amp;").replace('"', "&quot;").replace('<', "&lt;");
-        let token = if self.version == FmiVersion::V2 { "guid" } else { "instantiationToken" };
-        let mut xml = format!(
-            "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<fmiModelDescription fmiVersion=\"{}\" modelName=\"{}\" {token}=\"{}\">",
-            esc(&self.fmi_version),
-            esc(&self.model_name),
-            esc(&self.instantiation_token)
-        );
-        for (tag, info) in [("ModelExchange", &self.model_exchange), ("CoSimulation", &self.co_simulation)] {
-            if let Some(info) = info {
-                xml += &format!("<{tag} modelIdentifier=\"{}\"/>", esc(&info.model_identifier));
-            }
-        }
-        xml + "</fmiModelDescription>\n"
-    }
-
     pub fn variable(&self, name: &str) -> Option<&Variable> {
         self.variables.iter().find(|v| v.name == name)
+    }
+
+    /// The real variable of value reference `vr` (value references are unique per type only).
+    pub fn real(&self, vr: u32) -> Option<&Variable> {
+        self.variables.iter().find(|v| v.value_reference == vr && v.value_type == ValueType::Real)
+    }
+
+    /// The real variable's name, or `vr N` where the description has none.
+    pub fn real_name(&self, vr: u32) -> String {
+        self.real(vr).map_or_else(|| format!("vr {vr}"), |v| v.name.clone())
+    }
+
+    /// The continuous states' names in state order, where `<ModelStructure>` declares them.
+    pub fn state_names(&self) -> Vec<String> {
+        self.state_derivative_vrs.iter().map(|s| self.real_name(s.0)).collect()
     }
 
     /// The names of the variables of `causality`, for messages that list what a deck may name.
@@ -334,8 +372,8 @@ impl Description {
     }
 }
 
-/// A declared type's unit and range, by type name.
-type Types = HashMap<String, (Option<String>, Option<f64>, Option<f64>)>;
+/// A declared type's unit, range and nominal, by type name.
+type Types = HashMap<String, (Option<String>, Option<f64>, Option<f64>, Option<f64>)>;
 
 fn type_definitions(
     node: Option<roxmltree::Node>,
@@ -358,7 +396,12 @@ fn type_definitions(
         };
         types.insert(
             name.to_string(),
-            (attrs.attribute("unit").map(str::to_string), number(attrs, "min")?, number(attrs, "max")?),
+            (
+                attrs.attribute("unit").map(str::to_string),
+                number(attrs, "min")?,
+                number(attrs, "max")?,
+                number(attrs, "nominal")?,
+            ),
         );
     }
     Ok(types)
@@ -383,7 +426,7 @@ fn variables_v2(
         };
         let value_type = match elem.tag_name().name() {
             "Real" => ValueType::Real,
-            "Integer" => ValueType::Integer,
+            "Integer" | "Enumeration" => ValueType::Integer,
             "Boolean" => ValueType::Boolean,
             _ => ValueType::Other,
         };
@@ -398,7 +441,10 @@ fn variables_v2(
             unit: elem.attribute("unit").map(str::to_string).or_else(|| declared.and_then(|d| d.0.clone())),
             min: number(elem, "min")?.or(declared.and_then(|d| d.1)),
             max: number(elem, "max")?.or(declared.and_then(|d| d.2)),
+            nominal: number(elem, "nominal")?.or(declared.and_then(|d| d.3)),
             description: v.attribute("description").map(str::to_string),
+            dimensions: Vec::new(),
+            type_name: elem.tag_name().name().to_string(),
         });
     }
     Ok(out)
@@ -432,10 +478,69 @@ fn variables_v3(
             unit: v.attribute("unit").map(str::to_string).or_else(|| declared.and_then(|d| d.0.clone())),
             min: number(v, "min")?.or(declared.and_then(|d| d.1)),
             max: number(v, "max")?.or(declared.and_then(|d| d.2)),
+            nominal: number(v, "nominal")?.or(declared.and_then(|d| d.3)),
             description: v.attribute("description").map(str::to_string),
+            dimensions: v
+                .children()
+                .filter(|n| n.has_tag_name("Dimension"))
+                .map(|n| n.attribute("start").and_then(|s| s.trim().parse().ok()))
+                .collect(),
+            type_name: v.tag_name().name().to_string(),
         });
     }
     Ok(out)
+}
+
+/// The declared dependencies of the outputs and state derivatives (see [`Description::dependencies`]):
+/// FMI 2.0 writes 1-based variable indices, FMI 3.0 value references.
+fn dependencies_of(
+    structure: Option<roxmltree::Node>,
+    version: FmiVersion,
+    variables: Option<roxmltree::Node>,
+) -> HashMap<u32, Vec<u32>> {
+    let mut out = HashMap::new();
+    let Some(structure) = structure else { return out };
+    let numbers = |s: &str| s.split_ascii_whitespace().map(|w| w.parse::<usize>().ok()).collect::<Option<Vec<_>>>();
+    match version {
+        FmiVersion::V2 => {
+            let vrs: Vec<Option<u32>> = variables
+                .map(|v| {
+                    v.children()
+                        .filter(|n| n.has_tag_name("ScalarVariable"))
+                        .map(|n| n.attribute("valueReference").and_then(|r| r.trim().parse().ok()))
+                        .collect()
+                })
+                .unwrap_or_default();
+            let vr_of = |i: usize| vrs.get(i.checked_sub(1)?).copied().flatten();
+            for group in structure.children().filter(|n| n.has_tag_name("Outputs") || n.has_tag_name("Derivatives")) {
+                for u in group.children().filter(|n| n.has_tag_name("Unknown")) {
+                    let unknown = u.attribute("index").and_then(|i| i.trim().parse().ok()).and_then(vr_of);
+                    let deps = u
+                        .attribute("dependencies")
+                        .and_then(numbers)
+                        .and_then(|d| d.into_iter().map(vr_of).collect::<Option<Vec<u32>>>());
+                    if let (Some(unknown), Some(deps)) = (unknown, deps) {
+                        out.insert(unknown, deps);
+                    }
+                }
+            }
+        }
+        FmiVersion::V3 => {
+            for u in
+                structure.children().filter(|n| n.has_tag_name("Output") || n.has_tag_name("ContinuousStateDerivative"))
+            {
+                let unknown = u.attribute("valueReference").and_then(|i| i.trim().parse::<u32>().ok());
+                let deps = u
+                    .attribute("dependencies")
+                    .and_then(numbers)
+                    .map(|d| d.into_iter().map(|v| v as u32).collect::<Vec<u32>>());
+                if let (Some(unknown), Some(deps)) = (unknown, deps) {
+                    out.insert(unknown, deps);
+                }
+            }
+        }
+    }
+    out
 }
 
 fn value_reference(v: roxmltree::Node, name: &str) -> Result<u32, String> {

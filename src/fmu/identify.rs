@@ -36,6 +36,12 @@ pub const PULSE_RELATIVE: f64 = 1e-4;
 pub const SPAN_S: f64 = 5.0;
 /// The validation square waves' amplitude, in pulses.
 pub const VALIDATION_FACTOR: f64 = 10.0;
+/// The fit below which an identified model is refused (%, on every output; a choice: a model that
+/// explains less than this of the FMU's response is not one to design a detector on).
+pub const MIN_FIT_PERCENT: f64 = 90.0;
+/// The share of the pulse responses, sampled at the study's step, the identified model may miss
+/// before fdimc warns that a mode is faster than the ERA stride can see (a choice).
+pub const MISSED_RESPONSE: f64 = 0.05;
 
 /// An identified model and how well it fits.
 #[derive(Debug, Clone)]
@@ -102,18 +108,10 @@ pub fn identify(plant: &FmuPlant, n: usize, dt_s: f64, output_names: &[String]) 
         .ok_or_else(|| invalid("the identified discrete model has no real logarithm (a mode too fast or too oscillatory for the study's step)".into()))?
         / (stride as f64 * dt_s);
     // Phi = int_0^dt exp(A t) dt: the input block of the zero-order hold with B = I.
-    let hold = LtiPlant {
-        state_names: Vec::new(),
-        input_names: Vec::new(),
-        output_names: Vec::new(),
-        A: a.clone(),
-        B: DMatrix::identity(n, n),
-        C: DMatrix::zeros(0, n),
-        D: DMatrix::zeros(0, n),
-    };
+    let hold = hold_model(&a, &DMatrix::identity(n, n), &DMatrix::zeros(0, n), &DMatrix::zeros(0, n));
     let b = hold.discretise(dt_s).Bd.lu().solve(&bd).ok_or_else(|| invalid("the hold matrix is singular".into()))?;
 
-    let fit_percent = fit(plant, &LtiPlant { B: b.clone(), C: c.clone(), D: d.clone(), ..hold }, dt_s, &pulse)?;
+    let fit_percent = fit(plant, &hold_model(&a, &b, &c, &d), dt_s, &pulse)?;
     let fits: Vec<String> = output_names.iter().zip(&fit_percent).map(|(name, f)| format!("{name} {f:.3} %")).collect();
     // The Hankel singular values kept and the first dropped, relative to the largest: a gap after the
     // n-th says the order is right; none says the model has more (or fewer) states than the deck's.
@@ -129,8 +127,58 @@ pub fn identify(plant: &FmuPlant, n: usize, dt_s: f64, output_names: &[String]) 
         relative.get(n).map_or("none", String::as_str),
         fits.join(", ")
     );
-    let linearisation = Linearisation { a, b, c, d, x_trim: Vec::new(), derivative_at_trim: Vec::new(), method };
+    if let Some((name, worst)) =
+        output_names.iter().zip(&fit_percent).find(|(_, f)| !(**f >= MIN_FIT_PERCENT)).map(|(n, f)| (n, *f))
+    {
+        return Err(invalid(format!(
+            "the identified model fits its response poorly: {name} {worst:.1} %, below the {MIN_FIT_PERCENT} % \
+             fdimc accepts ({}); the FMU is too nonlinear about the trim, has more states than [plant] names, or a \
+             mode faster than the sampling sees: give [plant] a, b, c, or a model-exchange FMU with linearise = true",
+            fits.join(", ")
+        )));
+    }
+    // The model against the pulse responses at every step, not just the stride's: what it misses there
+    // is a mode faster than the stride's Nyquist frequency (aliased into a slow one), or unmodelled.
+    let model = hold_model(&a, &b, &c, &d);
+    let at_dt = model.discretise(dt_s);
+    let (mut missed, mut total) = (0.0, 0.0);
+    let mut x = at_dt.Bd.clone();
+    for y in markov.iter().skip(1) {
+        let predicted = &at_dt.C * &x;
+        missed += (y - &predicted).norm_squared();
+        total += y.norm_squared();
+        x = &at_dt.Ad * &x;
+    }
+    let mut warnings = Vec::new();
+    let share = (missed / total.max(f64::MIN_POSITIVE)).sqrt();
+    if share > MISSED_RESPONSE {
+        warnings.push(format!(
+            "the identified model misses {:.0} % of {}'s pulse responses sampled every {dt_s} s: a mode faster \
+             than the identification sees (pi / {} s = {:.3} rad/s), aliased into a slower one, or one the {n} \
+             states do not hold; the fastest identified mode is {:.3} rad/s",
+            100.0 * share,
+            plant.fmu.file_name(),
+            stride as f64 * dt_s,
+            std::f64::consts::PI / (stride as f64 * dt_s),
+            a.clone().complex_eigenvalues().iter().map(|l| l.norm()).fold(0.0, f64::max)
+        ));
+    }
+    let linearisation =
+        Linearisation { a, b, c, d, x_trim: Vec::new(), derivative_at_trim: Vec::new(), method, warnings };
     Ok(Identified { linearisation, fit_percent })
+}
+
+/// An unnamed linear model of the matrices.
+fn hold_model(a: &DMatrix<f64>, b: &DMatrix<f64>, c: &DMatrix<f64>, d: &DMatrix<f64>) -> LtiPlant {
+    LtiPlant {
+        state_names: Vec::new(),
+        input_names: Vec::new(),
+        output_names: Vec::new(),
+        A: a.clone(),
+        B: b.clone(),
+        C: c.clone(),
+        D: d.clone(),
+    }
 }
 
 /// The mapped outputs (deviations from their trim) at samples `0..samples` of a flight from the trim

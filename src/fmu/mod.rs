@@ -2,13 +2,14 @@
 //! kind can use where a model is needed.
 //!
 //! [`Fmu::open`] checks a `.fmu` file (a zip, its `modelDescription.xml`, a binary for this platform)
-//! and loads it with the `fmi` crate (jondo2010/rust-fmi: the maintained Rust importer of FMI 2.0 and
-//! 3.0, MIT/Apache-2.0); [`Description`] is what the description says, read by fdimc itself;
-//! [`Instance`] steps one instance: co-simulation (FMI 2.0 and 3.0) through the FMU's own `doStep`,
-//! model exchange (FMI 2.0) by fdimc's fixed-step [`integrator::Rk4`] with the FMU's time and state
-//! events handled. Instances are not `Send`: each worker thread instantiates its own.
+//! and unpacks it; its library is loaded through fdimc's own declarations of the FMI C interface
+//! ([`ffi`]) when an interface is first instantiated; [`Description`] is what the description says;
+//! [`Instance`] steps one instance: co-simulation through the FMU's own `doStep`, model exchange by
+//! fdimc's fixed-step [`integrator::Rk4`] with the FMU's time and state events handled (FMI 2.0 and
+//! 3.0 alike). Instances are not `Send`: each worker thread instantiates its own.
 
 pub mod description;
+pub mod ffi;
 pub mod identify;
 pub mod instance;
 pub mod integrator;
@@ -16,10 +17,12 @@ pub mod messages;
 pub mod plant;
 pub mod trim;
 
+use std::collections::HashMap;
 use std::io::Read;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 
-use fmi::traits::FmiImport;
 use sha2::{Digest, Sha256};
 
 pub use description::{Causality, Description, FmiVersion, Interface, ValueType, Variable};
@@ -52,18 +55,31 @@ pub fn platform_folder(version: FmiVersion) -> Option<&'static str> {
     }
 }
 
-enum Import {
-    V2(fmi::fmi2::import::Fmi2Import),
-    V3(fmi::fmi3::import::Fmi3Import),
+/// An FMU library, loaded once per FMU and model identifier and shared by its instances.
+pub(crate) struct Loaded {
+    library: ffi::Library,
+    /// An instance returned Fatal: the FMI standard allows no further call into any of them.
+    poisoned: AtomicBool,
 }
 
-/// An opened FMU: its file, its SHA-256 (for the manifest), its description and the loaded archive
-/// (unpacked into a temporary folder that lives as long as this value).
+impl Loaded {
+    fn is_poisoned(&self) -> bool {
+        self.poisoned.load(Ordering::Relaxed)
+    }
+    fn poison(&self) {
+        self.poisoned.store(true, Ordering::Relaxed);
+    }
+}
+
+/// An opened FMU: its file, its SHA-256 (for the manifest), its description and the archive unpacked
+/// into a temporary folder that lives as long as this value.
 pub struct Fmu {
     pub path: PathBuf,
     pub sha256: String,
     pub description: Description,
-    import: Import,
+    unpacked: tempfile::TempDir,
+    /// Libraries by model identifier, loaded at their interface's first instance.
+    libraries: Mutex<HashMap<String, Arc<Loaded>>>,
 }
 
 impl std::fmt::Debug for Fmu {
@@ -113,21 +129,42 @@ impl Fmu {
                 return Err(FmuError::Invalid(format!("{shown}: no binary for this platform: expected {lib}; {has}")));
             }
         }
-        messages::install();
-        // Unpacked here (the binary and its resources live as long as the import), then handed to the
-        // fmi crate with the description it needs to load the binary (Description::for_loader).
-        let dir = tempfile::Builder::new()
+        // Unpacked here: the binary and its resources live as long as this value.
+        let unpacked = tempfile::Builder::new()
             .prefix("fdimc-fmu")
             .tempdir()
             .map_err(|e| FmuError::Invalid(format!("{shown}: cannot make a folder to unpack it into: {e}")))?;
-        zip.extract(dir.path()).map_err(|e| FmuError::Invalid(format!("{shown}: cannot unpack: {e}")))?;
-        let loaded = |e: fmi::Error| FmuError::Invalid(format!("{shown}: the fmi crate cannot load this FMU: {e}"));
-        let xml = description.for_loader();
-        let import = match description.version {
-            FmiVersion::V2 => Import::V2(FmiImport::new(dir, &xml).map_err(loaded)?),
-            FmiVersion::V3 => Import::V3(FmiImport::new(dir, &xml).map_err(loaded)?),
+        zip.extract(unpacked.path()).map_err(|e| FmuError::Invalid(format!("{shown}: cannot unpack: {e}")))?;
+        Ok(Fmu { path: path.to_path_buf(), sha256, description, unpacked, libraries: Mutex::default() })
+    }
+
+    /// The library of `interface`, loaded at first use (a library that does not load, for a missing
+    /// dependency say, is the deck's error and names what the loader said).
+    fn library(&self, interface: Interface) -> Result<Arc<Loaded>, FmuError> {
+        let d = &self.description;
+        let info = d.interface(interface).ok_or_else(|| {
+            FmuError::Invalid(format!("{}: the FMU has no {} interface", self.path.display(), interface.name()))
+        })?;
+        let mut libraries = self.libraries.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(loaded) = libraries.get(&info.model_identifier) {
+            return Ok(Arc::clone(loaded));
+        }
+        let folder = platform_folder(d.version).expect("Fmu::open checked the platform");
+        let file = self.unpacked.path().join("binaries").join(folder).join(format!(
+            "{}{}",
+            info.model_identifier,
+            std::env::consts::DLL_SUFFIX
+        ));
+        let version = match d.version {
+            FmiVersion::V2 => 2,
+            FmiVersion::V3 => 3,
         };
-        Ok(Fmu { path: path.to_path_buf(), sha256, description, import })
+        let library = ffi::Library::load(&file, version).map_err(|e| {
+            FmuError::Invalid(format!("{}: its library for this platform does not load: {e}", self.path.display()))
+        })?;
+        let loaded = Arc::new(Loaded { library, poisoned: AtomicBool::new(false) });
+        libraries.insert(info.model_identifier.clone(), Arc::clone(&loaded));
+        Ok(loaded)
     }
 
     /// The file's name (the manifest's record of it).
@@ -154,12 +191,6 @@ impl Fmu {
         if info.needs_execution_tool {
             return Err(FmuError::Invalid(format!(
                 "{shown}: the FMU needs its exporting tool to run (needsExecutionTool); fdimc runs self-contained FMUs"
-            )));
-        }
-        if interface == Interface::ModelExchange && d.version == FmiVersion::V3 {
-            return Err(FmuError::Invalid(format!(
-                "{shown}: FMI 3.0 model exchange is not supported (the fmi crate lacks its state and derivative \
-                 calls fdimc needs); use the FMU's co-simulation interface or an FMI 2.0 export"
             )));
         }
         Ok(())

@@ -17,7 +17,7 @@
 //! | `onset_s` | f64 | fault onset (null when fault-free) |
 //! | `fault_free` | bool | the trial has no fault (its alarms are false alarms) |
 //! | `failure` | str | why the unit was not flown to the end (design failure, left the envelope, ...); null: flown. Failed units are left out of every rate |
-//! | `diverged` | bool | a filter of the detector became non-finite (the unit still counts) |
+//! | `diverged` | bool | a filter of the detector became non-finite (the unit still counts), or an FMU truth's outputs left their declared range, passed 10^6 x their scale or became non-finite (the unit is `failed` too) |
 //! | `false_alarm`, `false_alarm_s` | bool, f64 | an alarm before the onset (anywhere when fault-free), and the first one's time |
 //! | `detected`, `delay_s` | bool, f64 | the fault detected at or after its onset, within `monte_carlo.detection_window_s` of it, and the delay from the onset |
 //! | `late_alarm_s` | f64 | the first alarm after the onset when it came later than the detection window: then a miss (`detected` false, nothing isolated), its delay here; null otherwise |

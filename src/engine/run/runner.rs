@@ -469,9 +469,23 @@ pub struct RunOptions {
     /// Append the parts to trials.parquet only after the last chunk, removing each once appended: the
     /// records on disk once rather than twice, for a longer run (`run --low-disk`).
     pub low_disk: bool,
-    /// Fly the trials in worker processes, one per thread (`run --fmu-processes`), so that an FMU
-    /// that crashes its process fails only the trial it was flying.
-    pub fmu_processes: bool,
+    /// Where a deck's FMUs fly: in worker processes, one per thread, so that an FMU that crashes its
+    /// process (or is not thread-safe) fails only the trial it was flying, or in this process.
+    pub fmu_processes: FmuProcesses,
+}
+
+/// Where the trials of a deck with FMUs fly (`fdimc run`'s default, `--fmu-processes`,
+/// `--fmu-in-process`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FmuProcesses {
+    /// In worker processes when the deck runs FMUs and the run allows them (not a sensitivity design:
+    /// then in this process, with a note); the command-line default. The workers are this executable
+    /// (`fdimc fmu-worker`): a library caller's own program cannot be one, so it asks for `InProcess`.
+    Auto,
+    /// In worker processes, or refused: a deck without FMUs or a sensitivity design is an error.
+    Always,
+    /// In this process, on the run's threads: an FMU that crashes takes the run down with it.
+    InProcess,
 }
 
 /// What decides, chunk by chunk in trial order, that a run has enough trials (the summary's

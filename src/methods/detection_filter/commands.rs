@@ -52,6 +52,26 @@ fn print_truth(study: &LtiStudy) {
             None => "the deck's matrices, in deviations from the trim",
         }
     );
+    if let Some(a) = &t.at_start {
+        let h = study.header.dt_s / t.substeps as f64;
+        println!(
+            "            model exchange: RK4, {} step{} of {h} s per study step; fastest mode at the trim {:.4} rad/s (|lambda| h = {:.3})",
+            t.substeps,
+            if t.substeps == 1 { "" } else { "s" },
+            a.fastest_mode_per_s,
+            a.fastest_mode_per_s * h
+        );
+        println!(
+            "            states at the start: {}",
+            (a.state_names.iter().zip(&a.states).zip(&a.derivatives))
+                .map(|((n, x), dx)| format!("{n} {x} (d/dt {dx:.3e})"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    for w in study.truth_warnings() {
+        eprintln!("warning: {}: {w}", study.header.path.display());
+    }
 }
 
 /// `fdimc design`: gains, closed-loop eigenvalues, conditioning and bias signatures per detector.
@@ -91,6 +111,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                 };
                 let false_alarms = match for_detector(study, f, f.thresholds.as_slice()) {
                     Ok(a) => json!({
+                        "residual_sd_end": a.residual_sd_end,
                         "lower": a.lower,
                         "upper": a.upper(),
                         "sidak_upper": a.sidak_upper,
@@ -187,6 +208,25 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
         match for_detector(study, filter, filter.thresholds.as_slice()) {
             Ok(f) => {
                 let hour = |p: f64| crate::engine::results::thresholds::per_flight_hour(p, study.header.duration_s);
+                println!(
+                    "fault-free residual standard deviation per output at the trial's end (model exact, white Gaussian noise): {}",
+                    p.output_names
+                        .iter()
+                        .zip(&f.residual_sd_end)
+                        .map(|(n, s)| format!("{n} {s:.4e}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+                println!(
+                    "  thresholds at the deck: {}",
+                    p.output_names
+                        .iter()
+                        .zip(filter.thresholds.iter())
+                        .zip(&f.residual_sd_end)
+                        .map(|((n, t), s)| format!("{n} {t} ({:.1} sd)", t / s))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
                 println!(
                     "false alarms at the deck's thresholds, analytic (fault-free, model exact, white Gaussian noise, {} samples):",
                     f.samples
@@ -376,9 +416,17 @@ pub fn simulate(study: &LtiStudy, trial: u64, detector: Option<&str>, out: &Path
     let index = select_detector(&study.header, &names, detector)?.unwrap_or(0);
     let engine = Engine::new(study);
     let mut trace = Trace::default();
-    let (spec, outcome) = engine
-        .simulate(trial, index, &mut trace)
-        .map_err(|e| design_error(deck, &format!("trial {trial}, detector {}", names[index]), e))?;
+    let (spec, outcome) = match engine.simulate(trial, index, &mut trace) {
+        Ok(flown) => flown,
+        Err(e) => {
+            // What the trial flew before it failed is what shows why.
+            if !trace.float_columns.is_empty() {
+                trace.write(out)?;
+                eprintln!("trial {trial}: its samples up to the failure -> {}", out.display());
+            }
+            return Err(design_error(deck, &format!("trial {trial}, detector {}", names[index]), e));
+        }
+    };
     trace.write(out)?;
 
     println!(

@@ -70,6 +70,12 @@ pub struct TruthSection {
     pub fault_inputs: Vec<String>,
     /// `[truth.trim]`: the trim solved on the FMU instead of given.
     pub trim: Option<TrimSection>,
+    /// Model exchange: fdimc's RK4 step (s), at most `dt_s` (rounded down to `dt_s / k`). By default
+    /// `|lambda| h <= 0.1` for the fastest mode of the linearisation at the trim.
+    pub integrator_step_s: Option<f64>,
+    /// The FMU is meant to start off an equilibrium (no warning from `validate` and `run`).
+    #[serde(default)]
+    pub transient_start: bool,
 }
 
 /// The FMU inputs and parameters the engine adjusts (from their deck values) until the variables

@@ -41,6 +41,9 @@ use crate::engine::stats::intervals::normal_sf;
 #[derive(Debug, Clone, PartialEq)]
 pub struct AnalyticFalseAlarms {
     pub samples: usize,
+    /// The fault-free residual's standard deviation per output at the trial's last sample (settled
+    /// from `e(0) = 0`): the scale a first threshold is a multiple of.
+    pub residual_sd_end: Vec<f64>,
     /// The largest single sample's exceedance probability over its outputs (Sidak's bound).
     pub largest_sample: f64,
     /// The sum of every sample's and output's exceedance probability (the union bound).
@@ -330,6 +333,7 @@ pub fn analytic_false_alarms(
     let draws = ((5e9 / per_draw) as usize).clamp(200, 4_000);
     let (conditional, conditional_lo, conditional_hi) = law.conditional_monte_carlo(sum, draws);
     AnalyticFalseAlarms {
+        residual_sd_end: sd.last().cloned().unwrap_or_default(),
         samples,
         largest_sample,
         sum,

@@ -27,7 +27,9 @@ use std::path::Path;
 
 use crate::engine::method::{Inputs, Method, Study};
 use crate::engine::results::summary_spec::{Extra, Isolates, SummarySpec};
-use crate::engine::run::runner::{Manifest, ModelFile, RunError, RunOptions, RunReport, TrialSource, run};
+use crate::engine::run::runner::{
+    FmuProcesses, Manifest, ModelFile, RunError, RunOptions, RunReport, TrialSource, run,
+};
 use crate::engine::scenario::deck::FromDeck;
 use crate::engine::scenario::design::Design;
 use kernel::LANES;
@@ -123,20 +125,36 @@ pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunEr
             _ => {}
         }
     }
+    if opts.progress {
+        for w in study.truth_warnings() {
+            eprintln!("warning: {}: {w}", opts.deck.display());
+        }
+    }
     let workers = match opts.fmu_processes {
-        false => None,
-        true if study.fmus().is_empty() => {
+        FmuProcesses::InProcess => None,
+        FmuProcesses::Auto if study.fmus().is_empty() => None,
+        FmuProcesses::Always if study.fmus().is_empty() => {
             return Err(RunError::Invalid(format!(
                 "--fmu-processes: {} runs no FMU (it isolates FMU crashes in worker processes)",
                 opts.deck.display()
             )));
         }
-        true if opts.sensitivity.is_some() => {
+        FmuProcesses::Always if opts.sensitivity.is_some() => {
             return Err(RunError::Invalid("--fmu-processes: not with a sensitivity design (not yet)".into()));
         }
-        true => Some(workers::WorkerSpec::new(
+        FmuProcesses::Auto if opts.sensitivity.is_some() => {
+            if opts.progress {
+                eprintln!(
+                    "note: a sensitivity design flies its FMUs in this process (worker processes do not take \
+                     its trials yet): an FMU that crashes or is not thread-safe takes the run down; \
+                     --threads 1 avoids the second"
+                );
+            }
+            None
+        }
+        FmuProcesses::Auto | FmuProcesses::Always => Some(workers::WorkerSpec::new(
             std::env::current_exe()
-                .map_err(|e| RunError::Internal(format!("--fmu-processes: where is this program? {e}")))?,
+                .map_err(|e| RunError::Internal(format!("worker processes: where is this program? {e}")))?,
             &opts.deck,
             study.header.seed,
             study.monte_carlo.common.trials,

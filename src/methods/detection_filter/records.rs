@@ -4,14 +4,14 @@
 //! - `target` is the faulty output, `isolated` the output whose bias signature the mean residual after
 //!   the alarm is most parallel to (the paper's "direction of the residual vector");
 //! - `size` and `size_bin` are in the unit the deck gives (`size_sigma`: multiples of the sensor sigma);
-//! - `failure` is the design error for the trial's model, `diverged` a residual that became non-finite;
+//! - `failure` is the design error for the trial's model, `diverged` a residual that became non-finite or an FMU truth that diverged (then `failed` too);
 //! - alarms and isolation are at the deck's thresholds;
 //!
 //! then the filters' own columns:
 //!
 //! | column | meaning |
 //! |---|---|
-//! | `diverged_at_s` | time a residual became non-finite (null: never) |
+//! | `diverged_at_s` | time a residual became non-finite or the FMU truth diverged (null: never) |
 //! | `false_alarm_output` | the output of the first pre-onset alarm |
 //! | `alarm_s`, `alarm_output` | first post-onset alarm and its output |
 //! | `isolated_by_max` | the output whose threshold-scaled mean residual is largest |
@@ -61,6 +61,11 @@ impl<'a> RecordBuilder<'a> {
         let spec = &result.spec;
         for (d, outcome) in s.detectors.iter().zip(&result.detectors) {
             let o = outcome.as_ref().ok();
+            // A filter's residual or the truth itself (then also a failure).
+            let diverged_at_s = match outcome {
+                Ok(o) => o.diverged_at_s,
+                Err(e) => e.diverged_at_s(),
+            };
             let truth = spec.target_name(s);
             // A detector names outputs: an actuator fault's input is nothing it could name.
             let nameable = !spec.fault.faults.is_empty();
@@ -79,7 +84,7 @@ impl<'a> RecordBuilder<'a> {
                 onset_s: Some(spec.fault.onset_s),
                 fault_free: spec.fault.is_fault_free(),
                 failure: outcome.as_ref().err().map(ToString::to_string),
-                diverged: o.is_some_and(|o| o.diverged_at_s.is_some()),
+                diverged: diverged_at_s.is_some(),
                 false_alarm_s: o.and_then(|o| o.false_alarm.map(|a| a.0)),
                 delay_s: o.and_then(|o| o.detection.map(|a| a.0 - spec.fault.onset_s)),
                 isolated: isolated.map(Cow::Borrowed),
@@ -89,7 +94,7 @@ impl<'a> RecordBuilder<'a> {
                 param_error_bin: spec.parameter_error_bin,
                 param_errors: &spec.parameter_errors,
             });
-            self.diverged_at_s.push(o.and_then(|o| o.diverged_at_s));
+            self.diverged_at_s.push(diverged_at_s);
             self.false_alarm_output.push(o.and_then(|o| name(o.false_alarm.map(|a| a.1))));
             self.alarm_s.push(o.and_then(|o| o.detection.map(|a| a.0)));
             self.alarm_output.push(o.and_then(|o| name(o.detection.map(|a| a.1))));

@@ -183,6 +183,29 @@ impl LtiStudy {
         !self.actuator_faults.is_empty() || self.monte_carlo.faults.iter().any(|f| !f.inputs.is_empty())
     }
 
+    /// What doubts the FMU truth's model: its linearisation's warnings, a start that is not an
+    /// equilibrium, an integrator step too long for its fastest mode (`validate`, `design` and `run`
+    /// print them).
+    pub fn truth_warnings(&self) -> Vec<String> {
+        let mut out: Vec<String> = self.linearisation.iter().flat_map(|l| l.warnings.iter().cloned()).collect();
+        let Some(t) = &self.truth else { return out };
+        if let Some(a) = &t.at_start {
+            out.extend(a.not_an_equilibrium());
+            let h = self.header.dt_s / t.substeps as f64;
+            if a.fastest_mode_per_s * h > 2.0 * crate::fmu::plant::MODE_STEP {
+                out.push(format!(
+                    "the integrator step {h} s is long for the FMU's fastest mode at the trim, {:.4} rad/s (|lambda| h = \
+                     {:.3}; RK4 loses accuracy above {} and diverges near 2.8): remove truth.integrator_step_s to let \
+                     fdimc choose",
+                    a.fastest_mode_per_s,
+                    a.fastest_mode_per_s * h,
+                    crate::fmu::plant::MODE_STEP
+                ));
+            }
+        }
+        out
+    }
+
     /// Every FMU the study runs: its truth, its controller, its detectors'.
     pub fn fmus(&self) -> Vec<&FmuPlant> {
         let detectors = self.detectors.iter().filter_map(|d| d.params.decision.as_ref().and_then(|t| t.fmu()));
@@ -510,7 +533,27 @@ fn fmu_truth(
         stop_s: header.duration_s,
         dt_s: header.dt_s,
     };
-    Ok((chk.fmu("truth", &t.fmu, &mapping)?, trim))
+    let mut plant = chk.fmu("truth", &t.fmu, &mapping)?;
+    if let Some(h) = t.integrator_step_s {
+        let h = chk.positive("truth.integrator_step_s", h)?;
+        if interface != crate::fmu::Interface::ModelExchange {
+            return Err(chk.err(
+                "truth.integrator_step_s",
+                "only with interface = \"model_exchange\" (a co-simulation FMU steps itself)",
+            ));
+        }
+        if h > header.dt_s {
+            return Err(chk.err(
+                "truth.integrator_step_s",
+                format!("{h} s is longer than the study's dt_s ({} s): at most dt_s", header.dt_s),
+            ));
+        }
+        plant.set_integrator_step(h, header.dt_s);
+    }
+    if let Some(a) = plant.at_start.as_mut() {
+        a.transient_intended = t.transient_start;
+    }
+    Ok((plant, trim))
 }
 
 /// `[truth.trim]`: solves the trim on the FMU and writes the solved values into the trial's

@@ -216,91 +216,107 @@ pub fn run_trial(
         None => None,
     };
 
-    for k in 0..s.header.steps {
-        let t = k as f64 * s.header.dt_s;
-        match flight.as_mut() {
-            None => measure(
-                s,
-                plant,
-                &mut plant_state,
-                t,
-                sensor_sigma.as_slice(),
-                &mut sensor_rng,
-                tails.as_mut(),
-                &mut y,
-                None,
-            ),
-            Some(f) => {
-                reference(s, &mut plant_state, t);
-                f.outputs(&mut y).map_err(FmuFailure::truth)?;
-                add_sensor_noise(&mut y, sensor_sigma.as_slice(), &mut sensor_rng, tails.as_mut(), None);
-            }
-        }
-        faults.apply(t, &mut y);
-        match controller.as_mut() {
-            None => plant.close_loop(&mut plant_state, &y),
-            Some((c, ctrl, inputs, outputs)) => {
-                // Its inputs: the measured outputs (the FMU gets them plus the output trims), then the
-                // commands (the excitation, no trim). Its outputs (absolute) drive their plant inputs,
-                // the others take their excitation.
-                let (r, u) = plant_state.reference_and_inputs_mut();
-                for (k, &j) in c.measured.iter().enumerate() {
-                    inputs[k] = y[j];
-                }
-                for (k, &j) in c.commands.iter().enumerate() {
-                    inputs[c.measured.len() + k] = r[j];
-                }
-                ctrl.set_inputs(inputs).map_err(FmuFailure::controller)?;
-                ctrl.outputs(outputs).map_err(FmuFailure::controller)?;
-                u.copy_from_slice(r);
-                for (&j, v) in c.drives.iter().zip(outputs.iter()) {
-                    u[j] = v - c.plant_input_trim[j];
+    // The samples flown, in a closure so that a failing trial's trace keeps what it flew.
+    let flown = (|| -> Result<(), FmuFailure> {
+        for k in 0..s.header.steps {
+            let t = k as f64 * s.header.dt_s;
+            match flight.as_mut() {
+                None => measure(
+                    s,
+                    plant,
+                    &mut plant_state,
+                    t,
+                    sensor_sigma.as_slice(),
+                    &mut sensor_rng,
+                    tails.as_mut(),
+                    &mut y,
+                    None,
+                ),
+                Some(f) => {
+                    reference(s, &mut plant_state, t);
+                    f.outputs(&mut y).map_err(FmuFailure::truth)?;
+                    if let Some(why) = f.plant().beyond(&y) {
+                        return Err(FmuFailure {
+                            role: "truth".into(),
+                            error: FmuError::Failed(format!("diverged at t = {t} s: {why}")),
+                            diverged_at_s: Some(t),
+                        });
+                    }
+                    add_sensor_noise(&mut y, sensor_sigma.as_slice(), &mut sensor_rng, tails.as_mut(), None);
                 }
             }
-        }
-        let u = plant_state.inputs();
+            faults.apply(t, &mut y);
+            match controller.as_mut() {
+                None => plant.close_loop(&mut plant_state, &y),
+                Some((c, ctrl, inputs, outputs)) => {
+                    // Its inputs: the measured outputs (the FMU gets them plus the output trims), then the
+                    // commands (the excitation, no trim). Its outputs (absolute) drive their plant inputs,
+                    // the others take their excitation.
+                    let (r, u) = plant_state.reference_and_inputs_mut();
+                    for (k, &j) in c.measured.iter().enumerate() {
+                        inputs[k] = y[j];
+                    }
+                    for (k, &j) in c.commands.iter().enumerate() {
+                        inputs[c.measured.len() + k] = r[j];
+                    }
+                    ctrl.set_inputs(inputs).map_err(FmuFailure::controller)?;
+                    ctrl.outputs(outputs).map_err(FmuFailure::controller)?;
+                    u.copy_from_slice(r);
+                    for (&j, v) in c.drives.iter().zip(outputs.iter()) {
+                        u[j] = v - c.plant_input_trim[j];
+                    }
+                }
+            }
+            let u = plant_state.inputs();
 
-        let after_onset = onset_s.is_some_and(|t0| t >= t0);
-        for (i, ((_, filter), (state, tracker))) in
-            filters.iter().zip(states.iter_mut().zip(trackers.iter_mut())).enumerate()
-        {
-            if i == 0
-                && let Some(rec) = rec.as_mut()
+            let after_onset = onset_s.is_some_and(|t0| t >= t0);
+            for (i, ((_, filter), (state, tracker))) in
+                filters.iter().zip(states.iter_mut().zip(trackers.iter_mut())).enumerate()
             {
-                rec.before_step(t, u, &y, state.estimate());
+                if i == 0
+                    && let Some(rec) = rec.as_mut()
+                {
+                    rec.before_step(t, u, &y, state.estimate());
+                }
+                filter.step(state, u, &y);
+                tracker.observe(t, after_onset, u, state.residual());
+                if let Some(why) = tracker.test.failure() {
+                    return Err(FmuFailure {
+                        role: "detector".into(),
+                        error: FmuError::Failed(why),
+                        diverged_at_s: None,
+                    });
+                }
+                if i == 0
+                    && let Some(rec) = rec.as_mut()
+                {
+                    rec.after_step(state.residual(), &tracker.statistic, &tracker.thresholds);
+                }
             }
-            filter.step(state, u, &y);
-            tracker.observe(t, after_onset, u, state.residual());
-            if let Some(why) = tracker.test.failure() {
-                return Err(FmuFailure { role: "detector".into(), error: FmuError::Failed(why) });
-            }
-            if i == 0
-                && let Some(rec) = rec.as_mut()
-            {
-                rec.after_step(state.residual(), &tracker.statistic, &tracker.thresholds);
-            }
-        }
 
-        if let Some((faults, applied)) = actuators.as_mut() {
-            let (_, u) = plant_state.reference_and_inputs_mut();
-            applied[..nu].copy_from_slice(u);
-            faults.apply(t, applied);
-            u.copy_from_slice(&applied[..nu]);
-            if let Some(f) = flight.as_mut() {
-                f.set_fault_inputs(&applied[nu..]).map_err(FmuFailure::truth)?;
+            if let Some((faults, applied)) = actuators.as_mut() {
+                let (_, u) = plant_state.reference_and_inputs_mut();
+                applied[..nu].copy_from_slice(u);
+                faults.apply(t, applied);
+                u.copy_from_slice(&applied[..nu]);
+                if let Some(f) = flight.as_mut() {
+                    f.set_fault_inputs(&applied[nu..]).map_err(FmuFailure::truth)?;
+                }
+            }
+            match flight.as_mut() {
+                None => advance(s, plant, &mut plant_state, &mut process_rng, has_process_noise),
+                Some(f) => f.step(t, s.header.dt_s, plant_state.inputs()).map_err(FmuFailure::truth)?,
+            }
+            if let Some((_, ctrl, _, _)) = controller.as_mut() {
+                ctrl.advance(t, s.header.dt_s).map_err(FmuFailure::controller)?;
             }
         }
-        match flight.as_mut() {
-            None => advance(s, plant, &mut plant_state, &mut process_rng, has_process_noise),
-            Some(f) => f.step(t, s.header.dt_s, plant_state.inputs()).map_err(FmuFailure::truth)?,
-        }
-        if let Some((_, ctrl, _, _)) = controller.as_mut() {
-            ctrl.advance(t, s.header.dt_s).map_err(FmuFailure::controller)?;
-        }
-    }
+        Ok(())
+    })();
     if let Some(rec) = rec {
         rec.finish();
     }
+    flown?;
     Ok(trackers.into_iter().zip(filters).map(|(tr, (design, _))| tr.finish(design)).collect())
 }
 
@@ -311,15 +327,17 @@ pub fn run_trial(
 pub struct FmuFailure {
     pub role: String,
     pub error: FmuError,
+    /// The truth's trajectory diverged or left its physical range at this time: the trial is not data.
+    pub diverged_at_s: Option<f64>,
 }
 
 impl FmuFailure {
     fn truth(error: FmuError) -> Self {
-        FmuFailure { role: "truth".into(), error }
+        FmuFailure { role: "truth".into(), error, diverged_at_s: None }
     }
 
     fn controller(error: FmuError) -> Self {
-        FmuFailure { role: "controller".into(), error }
+        FmuFailure { role: "controller".into(), error, diverged_at_s: None }
     }
 }
 
@@ -483,7 +501,13 @@ impl<'t> TraceWriter<'t> {
         }
     }
 
-    fn finish(self) {
+    /// Writes the columns, each cut to the samples completed (a trial that failed mid-sample).
+    fn finish(mut self) {
+        let done = self.r.first().map_or(self.t.len(), Vec::len);
+        self.t.truncate(done);
+        for c in self.u.iter_mut().chain(&mut self.y).chain(&mut self.yhat).chain(&mut self.xhat) {
+            c.truncate(done);
+        }
         let (inputs, outputs, states) = self.names;
         let tr = self.trace;
         tr.float_columns.push(("t_s".into(), self.t));

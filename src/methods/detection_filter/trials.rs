@@ -39,6 +39,20 @@ pub enum TrialFailure {
     /// A failure as a worker process reported it, or the worker's own death (`run --fmu-processes`).
     #[error("{0}")]
     Reported(String),
+    /// A diverged truth as a worker process reported it: when, and the failure's text.
+    #[error("{why}")]
+    Diverged { at_s: f64, why: String },
+}
+
+impl TrialFailure {
+    /// When the trial's truth diverged (a failure that is also `diverged` in the records).
+    pub fn diverged_at_s(&self) -> Option<f64> {
+        match self {
+            TrialFailure::Fmu(f) => f.diverged_at_s,
+            TrialFailure::Diverged { at_s, .. } => Some(*at_s),
+            TrialFailure::Design(_) | TrialFailure::Reported(_) => None,
+        }
+    }
 }
 
 pub struct Engine<'a> {

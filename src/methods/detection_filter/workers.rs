@@ -219,13 +219,14 @@ fn died(worker: &mut Worker, t: u64) -> String {
 /// `fdimc fmu-worker DECK --seed S --trials N --profile-resolution R`: answers `first end` requests on
 /// stdin until it closes.
 pub fn serve(deck: &Path, seed: u64, trials: u64, profile_resolution: f64) -> Result<(), RunError> {
-    // First: whatever the FMUs print while the study is built goes to stderr, not into the answers.
-    let mut stdout = protocol_channel()?;
+    // First: whatever the FMUs print goes to a file of the worker's, not into the answers.
+    let (mut stdout, mut printed) = protocol_channel()?;
     let mut study = LtiStudy::load(deck).map_err(|e| RunError::Invalid(e.to_string()))?;
     let (s, n) = study.seed_and_trials();
     (*s, *n) = (seed, trials);
     study.monte_carlo.common.profile = crate::engine::results::schema::ProfileGrid::new(profile_resolution);
     let engine = Engine::new(&study);
+    printed.pass_on();
     writeln!(stdout, "{}", fingerprint(engine.detectors(), seed, trials, &deck_sha256(deck)?))
         .and_then(|()| stdout.flush())
         .map_err(|e| RunError::Internal(format!("fmu-worker: {e}")))?;
@@ -238,7 +239,9 @@ pub fn serve(deck: &Path, seed: u64, trials: u64, profile_resolution: f64) -> Re
             return Err(RunError::Internal(format!("fmu-worker: not a request: {request:?}")));
         };
         for t in first..end {
-            let line = encode_trial(&engine.run(t).detectors);
+            let mut detectors = engine.run(t).detectors;
+            printed.attach(&mut detectors);
+            let line = encode_trial(&detectors);
             // One line per trial, flushed: what a crash loses is the trial in flight.
             stdout.write_all(line.as_bytes()).and_then(|()| stdout.flush()).map_err(io)?;
         }
@@ -246,21 +249,105 @@ pub fn serve(deck: &Path, seed: u64, trials: u64, profile_resolution: f64) -> Re
     Ok(())
 }
 
-/// The pipe to the parent: the process's stdout as it started, with stdout itself then pointed at
-/// stderr, so that what an FMU prints cannot mix with the answers.
-fn protocol_channel() -> Result<std::fs::File, RunError> {
+/// What the FMUs print on the process's stdout (some exporters' runtimes print their errors there and
+/// not through the FMI logger: OpenModelica's "division leads to inf or nan"), caught in a file per
+/// trial: a trial an FMU failed gets its last lines in its failure; anything else goes on to stderr.
+struct Printed {
+    file: std::fs::File,
+}
+
+/// How much of what an FMU printed a failure keeps: its last lines, each at most this long.
+const PRINTED_LINES: usize = 4;
+const PRINTED_LINE_CHARS: usize = 400;
+
+impl Printed {
+    /// What was printed since the last call, the file emptied.
+    fn take(&mut self) -> String {
+        use std::io::{Read, Seek, SeekFrom};
+        // SAFETY: fflush(NULL) flushes every C stdio stream; the FMU's buffered printf output lands
+        // in the file before it is read.
+        unsafe {
+            libc::fflush(std::ptr::null_mut());
+        }
+        let mut text = String::new();
+        let read = self.file.seek(SeekFrom::Start(0)).and_then(|_| {
+            let mut bytes = Vec::new();
+            self.file.read_to_end(&mut bytes)?;
+            text = String::from_utf8_lossy(&bytes).into_owned();
+            self.file.set_len(0)?;
+            // stdout shares this file's offset: the next print starts at the beginning again.
+            self.file.seek(SeekFrom::Start(0))
+        });
+        if let Err(e) = read {
+            return format!("(what the FMU printed cannot be read: {e})");
+        }
+        text
+    }
+
+    /// Sends what was printed on to stderr (where a worker's other messages go).
+    fn pass_on(&mut self) {
+        let text = self.take();
+        if !text.is_empty() {
+            eprint!("{text}");
+        }
+    }
+
+    /// A trial's FMU failures get the last lines the FMU printed during the trial; with none, what was
+    /// printed goes on to stderr.
+    fn attach(&mut self, detectors: &mut [Result<DetectorOutcome, TrialFailure>]) {
+        let text = self.take();
+        let failed = detectors.iter().any(|d| matches!(d, Err(TrialFailure::Fmu(_))));
+        if !failed {
+            if !text.is_empty() {
+                eprint!("{text}");
+            }
+            return;
+        }
+        let lines: Vec<&str> = text.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+        if lines.is_empty() {
+            return;
+        }
+        let last: Vec<String> = lines[lines.len().saturating_sub(PRINTED_LINES)..]
+            .iter()
+            .map(|l| {
+                if l.chars().count() > PRINTED_LINE_CHARS {
+                    l.chars().take(PRINTED_LINE_CHARS).collect()
+                } else {
+                    l.to_string()
+                }
+            })
+            .collect();
+        for d in detectors.iter_mut() {
+            if let Err(e @ TrialFailure::Fmu(_)) = d {
+                let why = format!("{e}; the FMU printed: {}", last.join(" | "));
+                *e = match e.diverged_at_s() {
+                    Some(at_s) => TrialFailure::Diverged { at_s, why },
+                    None => TrialFailure::Reported(why),
+                };
+            }
+        }
+    }
+}
+
+/// The pipe to the parent: the process's stdout as it started, with stdout itself then pointed at a
+/// file of the worker's ([`Printed`]), so that what an FMU prints cannot mix with the answers.
+fn protocol_channel() -> Result<(std::fs::File, Printed), RunError> {
     #[cfg(unix)]
     {
-        use std::os::fd::FromRawFd;
-        std::io::stdout().flush().map_err(|e| RunError::Internal(format!("fmu-worker: {e}")))?;
+        use std::os::fd::{AsRawFd, FromRawFd};
+        let internal = |e: String| RunError::Internal(format!("fmu-worker: {e}"));
+        std::io::stdout().flush().map_err(|e| internal(e.to_string()))?;
+        // In the worker's TMPDIR, which the parent removes.
+        let file =
+            tempfile::tempfile().map_err(|e| internal(format!("cannot make a file for what FMUs print: {e}")))?;
         // SAFETY: dup and dup2 on the standard descriptors, before any other thread exists; the
-        // duplicate is owned by the File alone.
+        // duplicate is owned by the File alone, and `file` outlives every print (it is held to the end).
         unsafe {
             let fd = libc::dup(1);
-            if fd < 0 || libc::dup2(2, 1) < 0 {
-                return Err(RunError::Internal("fmu-worker: cannot set up its pipe".into()));
+            if fd < 0 || libc::dup2(file.as_raw_fd(), 1) < 0 {
+                return Err(internal("cannot set up its pipe".into()));
             }
-            Ok(std::fs::File::from_raw_fd(fd))
+            Ok((std::fs::File::from_raw_fd(fd), Printed { file }))
         }
     }
     #[cfg(not(unix))]
@@ -278,7 +365,12 @@ fn encode_trial(detectors: &[Result<DetectorOutcome, TrialFailure>]) -> String {
                 encode_outcome(o, &mut s);
             }
             Err(e) => {
-                s.push_str("E ");
+                match e.diverged_at_s() {
+                    Some(at_s) => {
+                        let _ = write!(s, "D {:x} ", at_s.to_bits());
+                    }
+                    None => s.push_str("E "),
+                }
                 let text = e.to_string();
                 let hex: String = text.bytes().map(|b| format!("{b:02x}")).collect();
                 s.push_str(if hex.is_empty() { "-" } else { &hex });
@@ -331,7 +423,11 @@ fn decode_trial(line: &str, detectors: usize) -> Option<Vec<Result<DetectorOutco
     for _ in 0..detectors {
         match w.next()? {
             "O" => out.push(Ok(decode_outcome(&mut w)?)),
-            "E" => {
+            kind @ ("E" | "D") => {
+                let at_s = match kind {
+                    "D" => Some(f64::from_bits(u64::from_str_radix(w.next()?, 16).ok()?)),
+                    _ => None,
+                };
                 let hex = w.next()?;
                 let bytes: Option<Vec<u8>> = if hex == "-" {
                     Some(Vec::new())
@@ -341,7 +437,11 @@ fn decode_trial(line: &str, detectors: usize) -> Option<Vec<Result<DetectorOutco
                         .map(|i| hex.get(i..i + 2).and_then(|b| u8::from_str_radix(b, 16).ok()))
                         .collect()
                 };
-                out.push(Err(TrialFailure::Reported(String::from_utf8(bytes?).ok()?)));
+                let why = String::from_utf8(bytes?).ok()?;
+                out.push(Err(match at_s {
+                    Some(at_s) => TrialFailure::Diverged { at_s, why },
+                    None => TrialFailure::Reported(why),
+                }));
             }
             _ => return None,
         }
@@ -407,8 +507,12 @@ mod tests {
             diverged_at_s: Some(19.99),
         };
         let failure = TrialFailure::Reported("the FMU truth failed: x.fmu: ü at t = 1 s".into());
-        let line = encode_trial(&[Ok(outcome.clone()), Err(failure.clone())]);
-        let back = decode_trial(&line, 2).unwrap();
+        let diverged = TrialFailure::Diverged { at_s: 21.86, why: "the FMU truth failed: diverged".into() };
+        let line = encode_trial(&[Ok(outcome.clone()), Err(failure.clone()), Err(diverged.clone())]);
+        let back = decode_trial(&line, 3).unwrap();
+        // A diverged truth stays diverged across the pipe (the records' `diverged`), an error does not.
+        assert_eq!(back[2], Err(diverged));
+        assert_eq!(back[1].as_ref().unwrap_err().diverged_at_s(), None);
         let got = back[0].as_ref().unwrap();
         // Bit for bit, NaN and the sign of zero included.
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
@@ -418,7 +522,7 @@ mod tests {
         assert_eq!((got.isolated_by_max, got.isolated_by_direction), (Some(1), None));
         assert_eq!(back[1].as_ref().unwrap_err().to_string(), failure.to_string());
         // A truncated line (a child that died mid-write) is not taken for an answer.
-        assert!(decode_trial(&line[..line.len() / 2], 2).is_none());
-        assert!(decode_trial(&line, 3).is_none());
+        assert!(decode_trial(&line[..line.len() / 2], 3).is_none());
+        assert!(decode_trial(&line, 4).is_none());
     }
 }

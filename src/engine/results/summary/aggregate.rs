@@ -101,11 +101,12 @@ impl Counts {
     pub(super) fn add(&mut self, u: &Unit, extras: Option<&[f64]>, spec: &SummarySpec) {
         self.units += 1;
         self.faulty |= u.faulty;
+        // A diverged truth is a failed unit too: counted in both, in no rate.
+        self.diverged += u.diverged as u64;
         if !u.flown {
             self.failed += 1;
             return;
         }
-        self.diverged += u.diverged as u64;
         self.false_alarms += u.false_alarm as u64;
         self.late_alarms += (u.faulty && u.late_alarm) as u64;
         if u.faulty && u.detected {

@@ -291,7 +291,11 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
         warnings.push(format!("{failed} trial x detector units were not flown to the end (failure in trials.parquet)"));
     }
     if diverged > 0 {
-        warnings.push(format!("{diverged} trial x detector units had a filter diverge (diverged in trials.parquet)"));
+        warnings.push(format!(
+            "{diverged} trial x detector units diverged (diverged in trials.parquet): a filter's residual became \
+             non-finite (the unit counts), or the truth left its physical range (the unit failed: in no rate, no \
+             calibration)"
+        ));
     }
     let settings = Settings {
         thresholds: set.map(str::to_string),

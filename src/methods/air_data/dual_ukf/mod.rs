@@ -564,6 +564,7 @@ mod tests {
             invalid(&|p| p.levels.clear_probability = 0.95),
             invalid(&|p| p.false_alarm_probability = 1.0),
             invalid(&|p| p.isolation_window = 0),
+            invalid(&|p| p.isolation_window = super::params::MAX_ISOLATION_WINDOW + 1),
             invalid(&|p| p.noise.alpha_std_rad = 0.0),
             invalid(&|p| p.levels.declare_hold_s = f64::NAN),
         ] {

