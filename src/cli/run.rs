@@ -80,6 +80,27 @@ fn results_folder(out: Option<&Path>, study: &str, sub: Option<&str>, shard: Sha
 
 /// The shared summary of the run in `dir`, with what `method` adds, or the indices of a sensitivity run;
 /// printed unless `print` is false.
+/// A run in which more than this share of the trial x detector units failed (an FMU that errors, a
+/// design that fails for most models) exits 2 after writing its tables: its rates rest on the few that
+/// flew, if any. Half is fdimc's choice.
+const MOST_FAILED: f64 = 0.5;
+
+/// Refuses a run whose units mostly failed, saying how many and the first failure's reason.
+fn refuse_mostly_failed(dir: &Path, units: u64, failed: u64) -> Result<(), CliError> {
+    if units == 0 || (failed as f64) <= MOST_FAILED * units as f64 {
+        return Ok(());
+    }
+    let (manifest, path) = crate::engine::results::tables::complete_run(dir)?;
+    let (_, first) = crate::engine::results::tables::failures(&path, manifest.rows as usize)?;
+    Err(CliError::Invalid(format!(
+        "{}: {failed} of {units} trial x detector units failed (not flown to the end), so its rates rest on the {} \
+         that flew; the first failure: {}. The tables are written; see `failure` in trials.parquet",
+        dir.display(),
+        units - failed,
+        first.as_deref().unwrap_or("(not recorded)")
+    )))
+}
+
 fn summarize(method: &Method, dir: &Path, calibration: Option<&Calibration>, print: bool) -> Result<(), CliError> {
     if Manifest::read(dir)?.sensitivity.is_some() {
         let thresholds = match calibration {
@@ -98,7 +119,7 @@ fn summarize(method: &Method, dir: &Path, calibration: Option<&Calibration>, pri
     if print {
         summary::print(&spec, &s);
     }
-    Ok(())
+    refuse_mostly_failed(dir, s.units, s.failed_units)
 }
 
 /// The commands over the kinds of study this command line knows: fdimc's own and, through

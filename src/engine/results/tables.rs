@@ -60,6 +60,24 @@ pub fn slices<'a>(
     (0..rows).step_by(step).map(move |offset| read_slice(path, offset, step, Some(columns.to_vec())))
 }
 
+/// The first `failure` of a run's records and how many rows have one, read a slice at a time: why a run
+/// whose trials mostly failed did (a kind without the column has none).
+pub fn failures(path: &Path, rows: usize) -> Result<(u64, Option<String>), RunError> {
+    if !column_names(path)?.iter().any(|c| c == "failure") {
+        return Ok((0, None));
+    }
+    let (mut count, mut first) = (0, None);
+    for slice in slices(path, rows, 1 << 16, &["failure".to_string()]) {
+        let slice = slice?;
+        let failure = str_col(&slice, "failure", path)?;
+        count += (failure.len() - failure.null_count()) as u64;
+        if first.is_none() {
+            first = failure.iter().flatten().next().map(str::to_string);
+        }
+    }
+    Ok((count, first))
+}
+
 pub fn str_col<'a>(df: &'a DataFrame, name: &str, file: &Path) -> Result<&'a StringChunked, RunError> {
     df.column(name).and_then(|c| c.str()).map_err(pol(file))
 }

@@ -385,7 +385,18 @@ pub fn thresholds(
         Some(f) => f.confidence,
         None => calibration.confidence(),
     };
+    // Every calibration unit failed (a diverged or crashed truth): nothing to calibrate on, and the
+    // thresholds (NaN) must not read as calibrated.
+    let none_flown = !matches!(calibration, Calibration::File(_)) && n.iter().all(|&k| k == 0);
+    if none_flown {
+        warnings.push(
+            "no calibration trial was flown to the end (each failed: see failure in trials.parquet): no thresholds \
+             calibrated"
+                .into(),
+        );
+    }
     let source = match calibration {
+        _ if none_flown => "not calibrated: no calibration trial was flown to the end".to_string(),
         Calibration::File(f) => format!(
             "thresholds from {}{}, validated on this run's {}",
             f.display(),

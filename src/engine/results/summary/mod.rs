@@ -284,9 +284,9 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     }
 
     // Failures and divergence, counted once per unit (every threshold set holds the same units).
-    let (failed, diverged) = agg.per_detector[..manifest.detectors.len()]
+    let (units, failed, diverged) = agg.per_detector[..manifest.detectors.len()]
         .iter()
-        .fold((0, 0), |(f, d), (units, _, _)| (f + units.failed, d + units.diverged));
+        .fold((0, 0, 0), |(n, f, d), (u, _, _)| (n + u.units, f + u.failed, d + u.diverged));
     if failed > 0 {
         warnings.push(format!("{failed} trial x detector units were not flown to the end (failure in trials.parquet)"));
     }
@@ -321,6 +321,8 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
         files,
         out_dir: dir_out,
         set,
+        units,
+        failed_units: failed,
     })
 }
 

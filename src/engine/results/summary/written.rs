@@ -36,6 +36,9 @@ pub struct Summary {
     pub out_dir: std::path::PathBuf,
     /// The threshold set beside `deck`: `calibrated` or `validation` (none for kinds without a statistic).
     pub set: Option<&'static str>,
+    /// Trial x detector units in the run, and those not flown to the end (`failure` set).
+    pub units: u64,
+    pub failed_units: u64,
 }
 
 /// `summarize.json`: the settings and warnings of the summary in a folder.
