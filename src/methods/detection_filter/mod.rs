@@ -132,7 +132,8 @@ pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunEr
     }
     let workers = match opts.fmu_processes {
         FmuProcesses::InProcess => None,
-        FmuProcesses::Auto if study.fmus().is_empty() => None,
+        // Worker processes need Unix (their pipes and descriptors): elsewhere the default is in process.
+        FmuProcesses::Auto if study.fmus().is_empty() || !cfg!(unix) => None,
         FmuProcesses::Always if study.fmus().is_empty() => {
             return Err(RunError::Invalid(format!(
                 "--fmu-processes: {} runs no FMU (it isolates FMU crashes in worker processes)",
