@@ -333,7 +333,7 @@ fn a_diverging_co_simulation_is_counted_diverged_and_left_out_and_a_failing_fmu_
     let dir = tempfile::tempdir().unwrap();
     // The mass-damper's own Euler at 10 ms diverges in every trial: each is failed and diverged, none
     // is calibrated, and the run says so.
-    let deck = mass_damper_deck(dir.path(), "co_simulation", 2.0, "").to_str().unwrap().replace("linearise = true", "");
+    let deck = mass_damper_deck(dir.path(), "co_simulation", 2.0, "").to_str().unwrap().to_string();
     let deck_text = std::fs::read_to_string(&deck)
         .unwrap()
         .replace("linearise = true\n", "")
@@ -376,16 +376,15 @@ dt_s = 0.01
 
 [plant]
 states = ["v1", "v2", "x1", "x2"]
-inputs = ["k1"]
+inputs = ["m1"]
 outputs = ["x1"]
 
 [truth]
 fmu = "{}"
 interface = "model_exchange"
-inputs = ["k1"]
+inputs = ["m1"]
 outputs = ["x1"]
-trim_inputs = [1.0]
-parameters = {{ }}
+trim_inputs = [0.0]
 linearise = true
 
 [noise]
@@ -408,14 +407,6 @@ kind = "bias"
 size_sigma = {{ values = [5.0] }}
 "#,
             thirdparty("om_mass_spring.fmu").display()
-        )
-        .replace(
-            "inputs = [\"k1\"]\noutputs = [\"x1\"]\ntrim_inputs = [1.0]",
-            "inputs = [\"m1\"]\noutputs = [\"x1\"]\ntrim_inputs = [0.0]",
-        )
-        .replace(
-            "inputs = [\"k1\"]\noutputs = [\"x1\"]\n\n[truth]",
-            "inputs = [\"m1\"]\noutputs = [\"x1\"]\n\n[truth]",
         ),
     )
     .unwrap();
@@ -457,6 +448,24 @@ fn the_openmodelica_reproductions_never_abort_and_end_as_their_model_allows() {
     let decks = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/openmodelica");
     let dir = tempfile::tempdir().unwrap();
     // At a 30 ms sample the 100 rad/s mode gets 30 RK4 steps of 1 ms (it diverged to 2e35 in one).
+    // A study step of 2 s would take 2,000 RK4 steps each: refused, with the step to set; set, it is taken.
+    let slow = std::fs::read_to_string(decks.join("md_me.toml"))
+        .unwrap()
+        .replace("dt_s = 0.001", "dt_s = 2.0")
+        .replace("../../../fmus/thirdparty/om_mass_damper.fmu", thirdparty("om_mass_damper.fmu").to_str().unwrap());
+    assert!(slow.contains("dt_s = 2.0"));
+    for (name, extra, refused) in [("slow.toml", "", true), ("slow_set.toml", "integrator_step_s = 0.001\n", false)] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, slow.replace("trim_inputs = [0.0]\n", &format!("trim_inputs = [0.0]\n{extra}"))).unwrap();
+        let o = fdimc(&["validate", path.to_str().unwrap()]);
+        let said = String::from_utf8_lossy(&o.stderr);
+        if refused {
+            assert_eq!(o.status.code(), Some(2), "{said}");
+            assert!(said.contains("truth.integrator_step_s: the FMU's fastest mode at the trim is 1.0000e2 rad/s: RK4 would need 2000 steps"), "{said}");
+        } else {
+            assert!(o.status.success(), "{said}");
+        }
+    }
     let validated = fdimc(&["validate", decks.join("md_me_dt0p03.toml").to_str().unwrap()]);
     let said = String::from_utf8_lossy(&validated.stdout);
     assert!(validated.status.success(), "{}", String::from_utf8_lossy(&validated.stderr));

@@ -275,7 +275,7 @@ impl FmuPlant {
 
     /// Model exchange: the RK4 step the deck asks (`h_s`), as a whole number of steps per study step.
     pub fn set_integrator_step(&mut self, h_s: f64, dt_s: f64) {
-        self.substeps = ((dt_s / h_s) * (1.0 - 1e-12)).ceil().max(1.0) as u32;
+        self.substeps = steps_of_at_most(dt_s, h_s);
     }
 
     /// A trial's flight: this thread's instance (instantiated once, reset between trials), the deck's
@@ -680,9 +680,20 @@ impl FmuPlant {
 
 /// RK4 steps per study step `dt_s` that keep `|lambda| h <= MODE_STEP` for a mode of `fastest_per_s`.
 pub fn substeps_for(fastest_per_s: f64, dt_s: f64) -> u32 {
-    let k = (fastest_per_s * dt_s / MODE_STEP * (1.0 - 1e-12)).ceil();
+    steps_of_at_most(dt_s, MODE_STEP / fastest_per_s)
+}
+
+/// The fewest equal steps of `dt_s` each at most `h_s` long (1 for an infinite or NaN `h_s`); the
+/// factor keeps a quotient that is a whole number up to rounding from taking one step more.
+fn steps_of_at_most(dt_s: f64, h_s: f64) -> u32 {
+    let k = (dt_s / h_s * (1.0 - 1e-12)).ceil();
     if k.is_finite() { k.clamp(1.0, 1e6) as u32 } else { 1 }
 }
+
+/// RK4 steps per study step fdimc chooses by itself, at most: more means a mode so fast (a stiff model,
+/// or a linearisation across a discontinuity) that an explicit integrator would crawl; the deck is
+/// refused unless it sets `truth.integrator_step_s` (a choice: 1,000 is 10 us at a 100 Hz study).
+pub const MAX_AUTO_SUBSTEPS: u32 = 1000;
 
 /// Frees this thread's pooled instances of `fmu`.
 pub fn release(fmu: &Arc<Fmu>) {

@@ -550,6 +550,25 @@ fn fmu_truth(
         }
         plant.set_integrator_step(h, header.dt_s);
     }
+    if t.integrator_step_s.is_none()
+        && plant.substeps > crate::fmu::plant::MAX_AUTO_SUBSTEPS
+        && let Some(a) = &plant.at_start
+    {
+        return Err(chk.err(
+            "truth.integrator_step_s",
+            format!(
+                "the FMU's fastest mode at the trim is {:.4e} rad/s: RK4 would need {} steps per study step of {} s \
+                 (more than the {} fdimc takes by itself: a stiff model, or a linearisation across a discontinuity). \
+                 Set truth.integrator_step_s (stable below about {:.3e} s for that mode), or fly the FMU's co-simulation \
+                 interface",
+                a.fastest_mode_per_s,
+                plant.substeps,
+                header.dt_s,
+                crate::fmu::plant::MAX_AUTO_SUBSTEPS,
+                2.8 / a.fastest_mode_per_s
+            ),
+        ));
+    }
     if let Some(a) = plant.at_start.as_mut() {
         a.transient_intended = t.transient_start;
     }
