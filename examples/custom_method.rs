@@ -295,6 +295,7 @@ impl TrialSource for Trials<'_> {
                     fault_free: sc.fault_free,
                     failure: None,
                     diverged: false,
+                    truth_diverged: false,
                     false_alarm_s: o.false_alarm_s,
                     delay_s: o.alarm_s.map(|t| t - sc.onset_s),
                     isolated_correctly: isolated.as_ref().map(|_| true),

@@ -3102,7 +3102,7 @@ fn fmu_prints_what_a_deck_needs_and_refuses_a_file_that_is_not_an_fmu() {
         "model_exchange  library aircraft",
         "instances per process many: runs here",
         "inputs (commands, actuators, the model's own fault inputs): 3",
-        "parameters (set before initialisation; a deck's parameter errors act on these): 26",
+        "parameters (set before initialisation; a deck's parameter errors act on these): 28",
     ] {
         assert!(stdout.contains(line), "{line:?} not in\n{stdout}");
     }
@@ -3598,6 +3598,112 @@ fn an_fmu_that_crashes_its_process_fails_only_its_trials_in_worker_processes() {
         "{}",
         text(&out.stderr)
     );
+}
+
+/// `studies/fmu_aircraft.toml` with the aircraft's test hook `hook` (fmus/README.md) at 30 s less a
+/// parameter error of 0 or -18 s: half the trials reach it at 12 s.
+fn hooked_aircraft_deck(dir: &Path, hook: &str) -> PathBuf {
+    let text = std::fs::read_to_string("studies/fmu_aircraft.toml")
+        .unwrap()
+        .replace("fmu = \"fmus/aircraft.fmu\"", &format!("fmu = {:?}", bundled_fmus().join("aircraft.fmu")))
+        .replace("h0_m = 1000.0 }", &format!("h0_m = 1000.0, {hook} = 30.0 }}"))
+        // The pitch-stiffness error held at 0: listed values are drawn as a grid in trial order.
+        .replace("relative = { values = [-0.2, -0.1, 0.0, 0.1, 0.2] }", "relative = { values = [0.0] }");
+    assert!(text.contains(&format!("{hook} = 30.0")) && text.contains("values = [0.0] }"));
+    let text = format!(
+        "{text}\n[[monte_carlo.parameter_error]]\nname = \"hook\"\nmodel = \"plant\"\nfmu_parameters = [\"{hook}\"]\n\
+         absolute = {{ values = [0.0, -18.0] }}\n"
+    );
+    let path = dir.join(format!("{hook}.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// The project's own FMU made to write through a null pointer (SIGSEGV inside a step) and made to
+/// diverge (an unstable pitch mode of 10/s from 12 s), in runs at default settings: the run survives
+/// the first, each of those trials failed with the signal; the second's trials are marked
+/// `truth_diverged` with where the truth left the linear plant's prediction, counted apart from a
+/// filter's `diverged`, and no threshold is calibrated on them.
+#[test]
+fn an_fmu_that_segfaults_or_diverges_fails_only_its_trials_and_calibrates_nothing_on_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |deck: &Path, out: &str| {
+        let out = dir.path().join(out);
+        let o = fdimc(&["run", deck.to_str().unwrap(), "--trials", "24", "--out", out.to_str().unwrap()]);
+        let df = read_frame(&out.join("trials.parquet"));
+        mostly_failed_exits_2(&o, &df);
+        (df, format!("{}{}", text(&o.stdout), text(&o.stderr)), out)
+    };
+    let failed_rows = |df: &polars::prelude::DataFrame| -> Vec<usize> {
+        let failure = df.column("failure").unwrap().str().unwrap().clone();
+        (0..df.height()).filter(|&i| failure.get(i).is_some()).collect()
+    };
+    let hooked = |df: &polars::prelude::DataFrame| -> Vec<usize> {
+        let hook = df.column("perr_hook").unwrap().f64().unwrap().clone();
+        (0..df.height()).filter(|&i| hook.get(i) == Some(-18.0)).collect()
+    };
+
+    let (crashed, _, _) = run(&hooked_aircraft_deck(dir.path(), "segfault_at_s"), "segfault");
+    assert_eq!(crashed.height(), 3 * 24);
+    assert_eq!(failed_rows(&crashed), hooked(&crashed), "exactly the hooked trials failed");
+    assert!((3..3 * 24).contains(&hooked(&crashed).len()), "some trials hooked, not all");
+    let failure = crashed.column("failure").unwrap().str().unwrap().clone();
+    for i in hooked(&crashed) {
+        let why = failure.get(i).unwrap();
+        assert!(why.contains("the worker process died while flying trial") && why.contains("SIGSEGV"), "{why}");
+    }
+    let truth_diverged = |df: &polars::prelude::DataFrame| -> Vec<usize> {
+        let c = df.column("truth_diverged").unwrap().bool().unwrap().clone();
+        (0..df.height()).filter(|&i| c.get(i) == Some(true)).collect()
+    };
+    assert!(truth_diverged(&crashed).is_empty(), "a crash is no divergence");
+
+    let (diverged, said, out) = run(&hooked_aircraft_deck(dir.path(), "diverge_at_s"), "diverge");
+    assert_eq!(failed_rows(&diverged), hooked(&diverged));
+    assert_eq!(truth_diverged(&diverged), hooked(&diverged), "every hooked trial's truth diverged, no other");
+    let filter_diverged = diverged.column("diverged").unwrap().bool().unwrap().clone();
+    assert_eq!(filter_diverged.sum(), Some(0), "no filter went non-finite");
+    let failure = diverged.column("failure").unwrap().str().unwrap().clone();
+    let at = diverged.column("diverged_at_s").unwrap().f64().unwrap().clone();
+    for i in hooked(&diverged) {
+        let why = failure.get(i).unwrap();
+        // The pitch loop turns the 10/s mode into a growing oscillation; the nonlinear aerodynamics
+        // then blow up within a sample or two (a pitch rate of tens of rad/s, under the default stray
+        // limit of 100 x (prediction + 1 rad/s), to 1e5 or 1e8 m/s): by either rule.
+        let t = at.get(i).unwrap();
+        assert!(why.starts_with("the FMU truth failed: diverged at t = "), "{why}");
+        assert!((15.0..19.0).contains(&t), "diverged at {t} s: {why}");
+    }
+    // With [truth] stray_factor = 1 the linear plant catches them earlier, when the pitch rate first
+    // strays from its prediction by more than that prediction's peak + 1 rad/s (about 14.7 s), and
+    // nothing else: the other trials stay within it.
+    let strict = dir.path().join("strict.toml");
+    let deck = std::fs::read_to_string(dir.path().join("diverge_at_s.toml")).unwrap();
+    std::fs::write(&strict, deck.replace("linearise = true\n", "linearise = true\nstray_factor = 1.0\n")).unwrap();
+    let (strayed, _, _) = run(&strict, "strict");
+    assert_eq!(truth_diverged(&strayed), hooked(&strayed));
+    let failure_strict = strayed.column("failure").unwrap().str().unwrap().clone();
+    let at_strict = strayed.column("diverged_at_s").unwrap().f64().unwrap().clone();
+    for i in hooked(&strayed) {
+        let why = failure_strict.get(i).unwrap();
+        assert!(why.contains("where the deck's linear plant predicts") && why.contains("stray_factor"), "{why}");
+        assert!(at_strict.get(i).unwrap() < at.get(i).unwrap() - 1.0, "{why}");
+    }
+    let n = hooked(&diverged).len() / 3;
+    assert!(said.contains(&format!("{n} trials' truth diverged or left its physical range")), "{said}");
+    assert!(said.contains("calibration trial x detector units left out of the calibration"), "{said}");
+    // summary.csv counts them apart; the fault-free ones are not among the calibration trials.
+    let summary = csv_frame(&out.join("detectors.csv"));
+    let flights = summary.column("flights_truth_diverged").unwrap().cast(&polars::prelude::DataType::Int64).unwrap();
+    assert!(flights.i64().unwrap().iter().all(|v| v == Some(n as i64)), "{flights:?}");
+    let fault_free = diverged.column("fault_free").unwrap().bool().unwrap().clone();
+    let calibrating =
+        (0..diverged.height()).filter(|&i| fault_free.get(i) == Some(true) && failure.get(i).is_none()).count() as i64
+            / 3;
+    let thresholds = csv_frame(&out.join("thresholds.csv"));
+    let trials = thresholds.column("trials").unwrap().cast(&polars::prelude::DataType::Int64).unwrap();
+    assert!(trials.i64().unwrap().iter().all(|v| v == Some(calibrating)), "{trials:?} against {calibrating}");
+    assert!(calibrating > 0, "some fault-free trials flew to the end");
 }
 
 #[test]

@@ -354,13 +354,14 @@ fn a_diverging_co_simulation_is_counted_diverged_and_left_out_and_a_failing_fmu_
         "{stderr}"
     );
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("120 trial x detector units diverged"), "{stdout}");
-    let summary = std::fs::read_to_string(out_dir.join("summary.csv")).unwrap();
-    for row in summary.lines().filter(|l| l.starts_with("deck,kalman,")) {
-        let f: Vec<&str> = row.split(',').collect();
-        // trials, failed, diverged: all of them; no rate.
-        assert_eq!((f[8], f[9]), (f[7], f[7]), "{row}");
-        assert_eq!(f[16], "", "{row}");
+    assert!(stdout.contains("120 trials' truth diverged or left its physical range"), "{stdout}");
+    assert!(!stdout.contains("units diverged"), "no filter diverged: {stdout}");
+    // Every unit failed with its truth diverged, no filter did; no rate.
+    for f in summary_rows(&out_dir, &["trials", "failed", "truth_diverged", "diverged", "pd"]) {
+        assert_eq!(
+            (f[1].as_str(), f[2].as_str(), f[3].as_str(), f[4].as_str()),
+            (f[0].as_str(), f[0].as_str(), "0", "")
+        );
     }
     // A mass of zero fails the FMU's initialisation: the deck is refused (exit 2) with the call and
     // the FMU named.
@@ -486,14 +487,18 @@ fn the_openmodelica_reproductions_never_abort_and_end_as_their_model_allows() {
             ]);
             let stderr = String::from_utf8_lossy(&o.stderr);
             assert!(o.status.code().is_some(), "{deck} try {r} died: {:?}\n{stderr}", o.status);
-            let rows = summary_rows(&out, &["trials", "failed", "diverged"]);
+            let rows = summary_rows(&out, &["trials", "failed", "truth_diverged", "diverged"]);
             let count = |c: usize| rows.iter().map(|f| f[c].parse::<u64>().unwrap()).sum::<u64>();
             let units = count(0);
             assert_eq!(units, 2 * trials.parse::<u64>().unwrap(), "{deck}: two detectors' units");
             if diverges {
                 assert_eq!(o.status.code(), Some(2), "{deck} try {r}: {stderr}");
                 assert!(stderr.contains(&format!("{units} of {units} trial x detector units failed")), "{stderr}");
-                assert_eq!((count(1), count(2)), (units, units), "{deck} try {r}: every unit failed and diverged");
+                assert_eq!(
+                    (count(1), count(2), count(3)),
+                    (units, units, 0),
+                    "{deck} try {r}: every unit failed, its truth diverged, no filter"
+                );
                 let thresholds = std::fs::read_to_string(out.join("thresholds.csv")).unwrap();
                 assert!(
                     !thresholds.contains("calibrated at Pfa"),
@@ -507,7 +512,7 @@ fn the_openmodelica_reproductions_never_abort_and_end_as_their_model_allows() {
                 }
             } else {
                 assert!(o.status.success(), "{deck} try {r}: {stderr}");
-                assert_eq!((count(1), count(2)), (0, 0), "{deck} try {r}: none failed or diverged");
+                assert_eq!((count(1), count(2), count(3)), (0, 0, 0), "{deck} try {r}: none failed or diverged");
             }
         }
     }

@@ -34,7 +34,7 @@ typedef enum {
     vr_CL0, vr_CLa, vr_CLa3, vr_CLq, vr_CLde, vr_CD0, vr_k_induced,
     vr_Cm0, vr_Cma, vr_Cma3, vr_Cmq, vr_Cmde, vr_T_max_N,
     vr_V0_m_s, vr_alpha0_rad, vr_q0_rad_s, vr_theta0_rad, vr_h0_m,
-    vr_fail_at_s, vr_abort_at_s
+    vr_fail_at_s, vr_abort_at_s, vr_segfault_at_s, vr_diverge_at_s
 } ValueReference;
 
 typedef struct {
@@ -89,6 +89,8 @@ typedef struct {
     double h0_m;
     double fail_at_s;
     double abort_at_s;
+    double segfault_at_s;
+    double diverge_at_s;
 
 } ModelData;
 

@@ -7,6 +7,7 @@
 // without -ffast-math and without FMA contraction, i.e. without -march=native).
 
 #include <math.h>   // sin, cos
+#include <stddef.h> // NULL
 #include <stdlib.h> // abort
 #include "config.h"
 #include "model.h"
@@ -17,7 +18,7 @@
     X(CL0) X(CLa) X(CLa3) X(CLq) X(CLde) X(CD0) X(k_induced) \
     X(Cm0) X(Cma) X(Cma3) X(Cmq) X(Cmde) X(T_max_N) \
     X(V0_m_s) X(alpha0_rad) X(q0_rad_s) X(theta0_rad) X(h0_m) \
-    X(fail_at_s) X(abort_at_s)
+    X(fail_at_s) X(abort_at_s) X(segfault_at_s) X(diverge_at_s)
 
 // inputs: settable at any time the FMI allows setting inputs
 #define AIRCRAFT_INPUTS(X) X(elevator_rad) X(throttle) X(elevator_effectiveness)
@@ -63,6 +64,8 @@ Status setStartValues(ModelInstance *comp) {
 
     M(fail_at_s)  = 1e30;
     M(abort_at_s) = 1e30;
+    M(segfault_at_s) = 1e30;
+    M(diverge_at_s)  = 1e30;
 
     M(V_m_s)     = M(V0_m_s);
     M(alpha_rad) = M(alpha0_rad);
@@ -338,6 +341,11 @@ Status getDerivatives(ModelInstance *comp, double dx[], size_t nx) {
         abort();
     }
 
+    if (comp->time >= M(segfault_at_s)) {
+        logError(comp, "aircraft: writing through a null pointer at t=%.17g as asked by segfault_at_s", comp->time);
+        *(volatile double *)NULL = comp->time;
+    }
+
     if (comp->time >= M(fail_at_s)) {
         logError(comp, "aircraft: failing at t=%.17g as asked by fail_at_s", comp->time);
         return Error;
@@ -350,6 +358,12 @@ Status getDerivatives(ModelInstance *comp, double dx[], size_t nx) {
     dx[2] = M(der_q_rad_s);
     dx[3] = M(der_theta_rad);
     dx[4] = M(der_h_m);
+
+    // Test hook: an unstable pitch mode of 10/s from diverge_at_s on (der_q_rad_s, as read, keeps the
+    // equations' value).
+    if (comp->time >= M(diverge_at_s)) {
+        dx[2] += 10.0 * (M(q_rad_s) + 0.01);
+    }
 
     return OK;
 }

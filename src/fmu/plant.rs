@@ -32,6 +32,12 @@ pub struct FmuPlant {
     /// Per mapped output, the absolute values beyond which a trial's truth has diverged or left its
     /// physical range (see [`FmuPlant::beyond`]).
     pub output_limits: Vec<(f64, f64)>,
+    /// Per mapped output, its scale: the largest of its declared `nominal`, its declared range's
+    /// bounds, its value at the trim and 1.
+    pub output_scale: Vec<f64>,
+    /// How far the outputs may stray from the linear plant's prediction (see [`FmuPlant::strays`]), in
+    /// multiples of that prediction's largest magnitude so far plus the output's scale.
+    pub stray_factor: f64,
     /// Model exchange: RK4 steps per study step (1 for co-simulation). By default enough that every
     /// mode of the linearisation at the trim has `|lambda| h <= MODE_STEP`; a deck may set the step.
     pub substeps: u32,
@@ -232,6 +238,8 @@ impl FmuPlant {
             substeps: 1,
             at_start: None,
             output_limits: Vec::new(),
+            output_scale: Vec::new(),
+            stray_factor: STRAY_FACTOR,
         };
         // The outputs at the trim, read while `output_trim` is still empty (so nothing is subtracted).
         let trim = plant.start(&[]).and_then(|mut t| {
@@ -247,9 +255,12 @@ impl FmuPlant {
             Err(e) => return Err((prefix.to_string(), format!("the FMU fails at its trim: {e}"))),
         }
         let described = &plant.fmu.description;
-        plant.output_limits = (m.outputs.iter().zip(&plant.output_trim))
-            .map(|(name, &trim)| output_limits(described.variable(name).expect("mapped above"), trim))
-            .collect();
+        (plant.output_limits, plant.output_scale) = (m.outputs.iter().zip(&plant.output_trim))
+            .map(|(name, &trim)| {
+                let v = described.variable(name).expect("mapped above");
+                (output_limits(v, trim), output_scale(v, trim))
+            })
+            .unzip();
         if m.interface == Interface::ModelExchange && plant.fmu.description.n_states > 0 {
             let l = plant
                 .linearise_by(Jacobian::CentralDifferences)
@@ -637,12 +648,23 @@ impl FmuPlant {
 pub const DIVERGED_FACTOR: f64 = 1e6;
 pub const RANGE_MARGIN: f64 = 0.01;
 
-fn output_limits(v: &super::Variable, trim: f64) -> (f64, f64) {
-    let scale = [v.nominal, v.min, v.max, Some(trim), Some(1.0)]
+/// How far an output may stray from what the deck's linear plant predicts for the same inputs before
+/// its trial is not data, by default: this many times the prediction's largest magnitude so far plus
+/// the output's scale (a choice: a nonlinear model that is the linear one's truth differs from it by a
+/// fraction of the motion, not by a hundred times the motion and the output's scale; `[truth]
+/// stray_factor` sets another, `inf` none).
+pub const STRAY_FACTOR: f64 = 100.0;
+
+fn output_scale(v: &super::Variable, trim: f64) -> f64 {
+    [v.nominal, v.min, v.max, Some(trim), Some(1.0)]
         .into_iter()
         .flatten()
         .filter(|x| x.is_finite())
-        .fold(0.0f64, |m, x| m.max(x.abs()));
+        .fold(0.0f64, |m, x| m.max(x.abs()))
+}
+
+fn output_limits(v: &super::Variable, trim: f64) -> (f64, f64) {
+    let scale = output_scale(v, trim);
     let (mut lo, mut hi) = (trim - DIVERGED_FACTOR * scale, trim + DIVERGED_FACTOR * scale);
     if let Some(min) = v.min.filter(|x| x.is_finite()) {
         lo = lo.max(min - RANGE_MARGIN * scale);
@@ -671,6 +693,28 @@ impl FmuPlant {
                     } else {
                         String::new()
                     }
+                ));
+            }
+        }
+        None
+    }
+
+    /// Why the outputs `y_dev` are no trajectory next to what the deck's linear plant predicts for the
+    /// same inputs, if they are not: an output `j` with `|y_dev_j - y_lin_j| > stray_factor (peak_j +
+    /// scale_j)`, `peak_j` the largest `|y_lin_j|` so far (all deviations from the trim).
+    pub fn strays(&self, y_dev: &[f64], y_lin: &[f64], peak_lin: &[f64]) -> Option<String> {
+        for (k, ((y, lin), (peak, scale))) in
+            y_dev.iter().zip(y_lin).zip(peak_lin.iter().zip(&self.output_scale)).enumerate()
+        {
+            let allowed = self.stray_factor * (peak + scale);
+            if (y - lin).abs() > allowed {
+                let name = self.fmu.description.real_name(self.output_vrs[k]);
+                return Some(format!(
+                    "{name} = {:e} ({y:e} from the trim), where the deck's linear plant predicts {lin:e} for the \
+                     same inputs: more than {} x ({peak:e}, the prediction's largest magnitude so far, + {scale:e}, \
+                     the output's scale) apart ([truth] stray_factor)",
+                    y + self.output_trim[k],
+                    self.stray_factor
                 ));
             }
         }

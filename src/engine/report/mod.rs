@@ -457,6 +457,13 @@ fn health_warnings(summary: &DataFrame) -> Vec<String> {
     if failures > 0 {
         warnings.push(format!("{failures} trial x detector runs failed (failure in trials.parquet)"));
     }
+    let truth_diverged = sum("truth_diverged");
+    if truth_diverged > 0 {
+        warnings.push(format!(
+            "{truth_diverged} trial x detector runs had a truth that diverged or left its physical range \
+             (truth_diverged in trials.parquet): in no rate and no calibration"
+        ));
+    }
     let diverged = sum("diverged");
     if diverged > 0 {
         warnings.push(format!("{diverged} trial x detector runs diverged (diverged in trials.parquet)"));

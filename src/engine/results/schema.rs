@@ -17,7 +17,8 @@
 //! | `onset_s` | f64 | fault onset (null when fault-free) |
 //! | `fault_free` | bool | the trial has no fault (its alarms are false alarms) |
 //! | `failure` | str | why the unit was not flown to the end (design failure, left the envelope, ...); null: flown. Failed units are left out of every rate |
-//! | `diverged` | bool | a filter of the detector became non-finite (the unit still counts), or an FMU truth's outputs left their declared range, passed 10^6 x their scale or became non-finite (the unit is `failed` too) |
+//! | `diverged` | bool | a filter of the detector became non-finite (the unit still counts) |
+//! | `truth_diverged` | bool | the trial's truth is no trajectory: an FMU truth's outputs became non-finite, left their declared range, passed 10^6 x their scale or strayed from the deck's linear plant by more than its stated multiple (the unit is `failed` too, in no rate and no calibration) |
 //! | `false_alarm`, `false_alarm_s` | bool, f64 | an alarm before the onset (anywhere when fault-free), and the first one's time |
 //! | `detected`, `delay_s` | bool, f64 | the fault detected at or after its onset, within `monte_carlo.detection_window_s` of it, and the delay from the onset |
 //! | `late_alarm_s` | f64 | the first alarm after the onset when it came later than the detection window: then a miss (`detected` false, nothing isolated), its delay here; null otherwise |
@@ -63,6 +64,7 @@ pub mod col {
     pub const FAULT_FREE: &str = "fault_free";
     pub const FAILURE: &str = "failure";
     pub const DIVERGED: &str = "diverged";
+    pub const TRUTH_DIVERGED: &str = "truth_diverged";
     pub const FALSE_ALARM: &str = "false_alarm";
     pub const FALSE_ALARM_S: &str = "false_alarm_s";
     pub const DETECTED: &str = "detected";
@@ -113,6 +115,8 @@ pub struct Outcome<'a> {
     pub fault_free: bool,
     pub failure: Option<String>,
     pub diverged: bool,
+    /// The trial's truth diverged or left its physical range (then `failure` says how).
+    pub truth_diverged: bool,
     pub false_alarm_s: Option<f64>,
     pub delay_s: Option<f64>,
     pub isolated: Option<Cow<'a, str>>,
@@ -139,6 +143,7 @@ pub struct CoreColumns<'a> {
     fault_free: Vec<bool>,
     failure: Vec<Option<String>>,
     diverged: Vec<bool>,
+    truth_diverged: Vec<bool>,
     false_alarm: Vec<bool>,
     false_alarm_s: Vec<Option<f64>>,
     detected: Vec<bool>,
@@ -174,6 +179,7 @@ impl<'a> CoreColumns<'a> {
             fault_free: Vec::with_capacity(rows),
             failure: Vec::with_capacity(rows),
             diverged: Vec::with_capacity(rows),
+            truth_diverged: Vec::with_capacity(rows),
             false_alarm: Vec::with_capacity(rows),
             false_alarm_s: Vec::with_capacity(rows),
             detected: Vec::with_capacity(rows),
@@ -202,6 +208,7 @@ impl<'a> CoreColumns<'a> {
         self.fault_free.push(o.fault_free);
         self.failure.push(o.failure);
         self.diverged.push(o.diverged);
+        self.truth_diverged.push(o.truth_diverged);
         self.false_alarm.push(o.false_alarm_s.is_some());
         self.false_alarm_s.push(o.false_alarm_s);
         let late = o.delay_s.filter(|&d| is_late(d, self.detection_window_s));
@@ -245,6 +252,7 @@ impl<'a> CoreColumns<'a> {
             Column::new(col::FAULT_FREE.into(), self.fault_free),
             Column::new(col::FAILURE.into(), self.failure),
             Column::new(col::DIVERGED.into(), self.diverged),
+            Column::new(col::TRUTH_DIVERGED.into(), self.truth_diverged),
             Column::new(col::FALSE_ALARM.into(), self.false_alarm),
             Column::new(col::FALSE_ALARM_S.into(), self.false_alarm_s),
             Column::new(col::DETECTED.into(), self.detected),
@@ -550,6 +558,7 @@ mod tests {
                 fault_free: false,
                 failure: None,
                 diverged: false,
+                truth_diverged: false,
                 false_alarm_s: None,
                 delay_s: delay,
                 isolated: delay.map(|_| Cow::Borrowed("x")),

@@ -23,7 +23,9 @@ use std::path::{Path, PathBuf};
 use polars::prelude::*;
 
 use crate::engine::results::schema::{col, is_late};
-use crate::engine::results::tables::{bool_col, f64_col, list_col, numbers, read_summary, slices, str_col};
+use crate::engine::results::tables::{
+    bool_col, column_names, f64_col, list_col, numbers, read_summary, slices, str_col,
+};
 use crate::engine::run::output::{VALIDATION_DIR, write_table};
 use crate::engine::run::runner::{Manifest, RunError, pol};
 use crate::engine::stats::intervals::{Z95, wilson};
@@ -305,6 +307,8 @@ pub(crate) struct CalibrationRows {
     pub detector: Vec<Option<usize>>,
     /// `pre[j][row]`, NaN where null.
     pub pre: Vec<Vec<f64>>,
+    /// Rows that would calibrate but whose truth diverged (left out, as every failed row).
+    pub truth_diverged: u64,
 }
 
 /// Reads the calibration rows of `path` slice by slice and hands each slice to `visit`; `fault_free_only`
@@ -319,6 +323,11 @@ pub(crate) fn for_each_slice(
     mut visit: impl FnMut(&CalibrationRows),
 ) -> Result<(), RunError> {
     let mut select = vec![col::DETECTOR.to_string(), col::FAULT_FREE.to_string(), col::FAILURE.to_string()];
+    // Runs of an fdimc before the column have none.
+    let has_truth_diverged = column_names(path)?.iter().any(|c| c == col::TRUTH_DIVERGED);
+    if has_truth_diverged {
+        select.push(col::TRUTH_DIVERGED.to_string());
+    }
     select.extend(statistics.iter().map(|s| col::pre_max(s)));
     for df in slices(path, rows as usize, SLICE_ROWS, &select) {
         let df = df?;
@@ -327,9 +336,13 @@ pub(crate) fn for_each_slice(
             bool_col(&df, col::FAULT_FREE, path)?,
             str_col(&df, col::FAILURE, path)?,
         );
+        let diverged = if has_truth_diverged { Some(bool_col(&df, col::TRUTH_DIVERGED, path)?) } else { None };
         let mut detector = Vec::with_capacity(df.height());
+        let mut truth_diverged = 0;
         for i in 0..df.height() {
-            let calibrates = failure.get(i).is_none() && (!fault_free_only || fault_free.get(i) == Some(true));
+            let candidate = !fault_free_only || fault_free.get(i) == Some(true);
+            let calibrates = failure.get(i).is_none() && candidate;
+            truth_diverged += (candidate && diverged.is_some_and(|c| c.get(i) == Some(true))) as u64;
             let d = det.get(i).and_then(|name| manifest.detectors.iter().position(|n| n == name));
             detector.push(d.filter(|_| calibrates));
         }
@@ -340,7 +353,7 @@ pub(crate) fn for_each_slice(
                 Ok(c.iter().map(|v| v.unwrap_or(f64::NAN)).collect())
             })
             .collect::<Result<Vec<Vec<f64>>, RunError>>()?;
-        visit(&CalibrationRows { detector, pre });
+        visit(&CalibrationRows { detector, pre, truth_diverged });
     }
     Ok(())
 }
@@ -370,9 +383,17 @@ pub fn thresholds(
         any
     };
     let mut n = vec![0u64; nd];
+    let mut truth_diverged = 0;
     for_each_slice(path, rows, manifest, &[], fault_free_rows, |s| {
         s.detector.iter().flatten().for_each(|&d| n[d] += 1);
+        truth_diverged += s.truth_diverged;
     })?;
+    if truth_diverged > 0 && !matches!(calibration, Calibration::File(_)) {
+        warnings.push(format!(
+            "{truth_diverged} calibration trial x detector units left out of the calibration: their truth diverged \
+             (truth_diverged in trials.parquet)"
+        ));
+    }
     let file = match calibration {
         Calibration::File(f) => Some(read_thresholds(f)?),
         Calibration::Target(_) | Calibration::Confident { .. } => None,
@@ -433,6 +454,17 @@ pub fn thresholds(
             // the tail fit's upper bound instead, where one can be made.
             let mut by_tail = vec![false; nd];
             for (d, name) in manifest.detectors.iter().enumerate() {
+                if n[d] == 0 {
+                    // NaN thresholds; the run's warning says it when no detector has a unit.
+                    if !none_flown {
+                        warnings.push(format!(
+                            "detector {name}: not calibrated: none of its calibration units was flown to the end \
+                             (see failure in trials.parquet); its thresholds are NaN"
+                        ));
+                    }
+                    k.push(1);
+                    continue;
+                }
                 let exceedances = match confidence {
                     None => {
                         if (n[d] as f64) * p < 1.0 {

@@ -67,6 +67,7 @@ pub fn frame(
                 fault_free,
                 failure: r.outcome.as_ref().err().cloned(),
                 diverged: o.is_some_and(|o| o.health.filter.non_finite > 0),
+                truth_diverged: false,
                 false_alarm_s: o.and_then(|o| o.false_alarm_s),
                 delay_s: o.and_then(|o| o.alarm_s).filter(|_| !fault_free).map(|a| a - s.onset_s),
                 isolated: predicted.map(|p| Cow::Borrowed(p.name())),

@@ -78,6 +78,7 @@ pub fn frame(study: &AirDataStudy, results: &[AirDataTrialResult]) -> PolarsResu
                 fault_free: !faulty,
                 failure: r.outcome.as_ref().err().cloned(),
                 diverged: h.is_some_and(|h| h.no_fault.non_finite + h.fault.non_finite > 0),
+                truth_diverged: false,
                 false_alarm_s: o.and_then(|o| o.false_alarm_s),
                 delay_s: o.and_then(|o| o.detection_s).filter(|_| faulty).map(|t| t - s.fault.onset_s),
                 isolated: isolated.map(|i| Cow::Owned(sensor_set(i))),

@@ -76,6 +76,10 @@ pub struct TruthSection {
     /// The FMU is meant to start off an equilibrium (no warning from `validate` and `run`).
     #[serde(default)]
     pub transient_start: bool,
+    /// A trial's truth diverged when an output strays from `[plant]`'s prediction for the same inputs by
+    /// more than this many times (the prediction's largest magnitude so far + the output's scale); by
+    /// default [`crate::fmu::plant::STRAY_FACTOR`], `inf` never.
+    pub stray_factor: Option<f64>,
 }
 
 /// The FMU inputs and parameters the engine adjusts (from their deck values) until the variables

@@ -4,7 +4,8 @@
 //! - `target` is the faulty output, `isolated` the output whose bias signature the mean residual after
 //!   the alarm is most parallel to (the paper's "direction of the residual vector");
 //! - `size` and `size_bin` are in the unit the deck gives (`size_sigma`: multiples of the sensor sigma);
-//! - `failure` is the design error for the trial's model, `diverged` a residual that became non-finite or an FMU truth that diverged (then `failed` too);
+//! - `failure` is the design error for the trial's model or the FMU's, `diverged` a residual that became
+//!   non-finite, `truth_diverged` an FMU truth that diverged (then `failure` too);
 //! - alarms and isolation are at the deck's thresholds;
 //!
 //! then the filters' own columns:
@@ -61,10 +62,10 @@ impl<'a> RecordBuilder<'a> {
         let spec = &result.spec;
         for (d, outcome) in s.detectors.iter().zip(&result.detectors) {
             let o = outcome.as_ref().ok();
-            // A filter's residual or the truth itself (then also a failure).
-            let diverged_at_s = match outcome {
-                Ok(o) => o.diverged_at_s,
-                Err(e) => e.diverged_at_s(),
+            // A filter's residual (the unit counts) or the truth itself (a failure).
+            let (diverged_at_s, truth_diverged) = match outcome {
+                Ok(o) => (o.diverged_at_s, false),
+                Err(e) => (e.diverged_at_s(), e.diverged_at_s().is_some()),
             };
             let truth = spec.target_name(s);
             // A detector names outputs: an actuator fault's input is nothing it could name.
@@ -84,7 +85,8 @@ impl<'a> RecordBuilder<'a> {
                 onset_s: Some(spec.fault.onset_s),
                 fault_free: spec.fault.is_fault_free(),
                 failure: outcome.as_ref().err().map(ToString::to_string),
-                diverged: diverged_at_s.is_some(),
+                diverged: diverged_at_s.is_some() && !truth_diverged,
+                truth_diverged,
                 false_alarm_s: o.and_then(|o| o.false_alarm.map(|a| a.0)),
                 delay_s: o.and_then(|o| o.detection.map(|a| a.0 - spec.fault.onset_s)),
                 isolated: isolated.map(Cow::Borrowed),

@@ -572,6 +572,15 @@ fn fmu_truth(
     if let Some(a) = plant.at_start.as_mut() {
         a.transient_intended = t.transient_start;
     }
+    if let Some(f) = t.stray_factor {
+        if f.is_nan() || f <= 0.0 {
+            return Err(chk.err(
+                "truth.stray_factor",
+                format!("must be a number > 0 (inf: never compare the truth with [plant]), got {f}"),
+            ));
+        }
+        plant.stray_factor = f;
+    }
     Ok((plant, trim))
 }
 

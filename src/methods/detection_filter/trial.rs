@@ -216,6 +216,21 @@ pub fn run_trial(
         None => None,
     };
 
+    // What the deck's linear plant predicts for the FMU truth's inputs, and its largest magnitude per
+    // output so far: a truth that strays far from it is no trajectory (`FmuPlant::strays`). Not in a
+    // trial that fails an FMU fault input, which the linear plant does not have.
+    let mut linear = match &s.truth {
+        Some(t) if t.stray_factor.is_finite() && spec.fault.actuators.iter().all(|f| f.channel < nu) => {
+            Some((PlantState::new(x0, nu), vec![0.0; ny], vec![0.0f64; ny]))
+        }
+        _ => None,
+    };
+    let diverged = |t: f64, why: String| FmuFailure {
+        role: "truth".into(),
+        error: FmuError::Failed(format!("diverged at t = {t} s: {why}")),
+        diverged_at_s: Some(t),
+    };
+
     // The samples flown, in a closure so that a failing trial's trace keeps what it flew.
     let flown = (|| -> Result<(), FmuFailure> {
         for k in 0..s.header.steps {
@@ -236,11 +251,15 @@ pub fn run_trial(
                     reference(s, &mut plant_state, t);
                     f.outputs(&mut y).map_err(FmuFailure::truth)?;
                     if let Some(why) = f.plant().beyond(&y) {
-                        return Err(FmuFailure {
-                            role: "truth".into(),
-                            error: FmuError::Failed(format!("diverged at t = {t} s: {why}")),
-                            diverged_at_s: Some(t),
-                        });
+                        return Err(diverged(t, why));
+                    }
+                    if let Some((state, y_lin, peak)) = linear.as_mut() {
+                        reference(s, state, t);
+                        plant.measure(state, y_lin);
+                        peak.iter_mut().zip(y_lin.iter()).for_each(|(p, v)| *p = p.max(v.abs()));
+                        if let Some(why) = f.plant().strays(&y, y_lin, peak) {
+                            return Err(diverged(t, why));
+                        }
                     }
                     add_sensor_noise(&mut y, sensor_sigma.as_slice(), &mut sensor_rng, tails.as_mut(), None);
                 }
@@ -305,7 +324,13 @@ pub fn run_trial(
             }
             match flight.as_mut() {
                 None => advance(s, plant, &mut plant_state, &mut process_rng, has_process_noise),
-                Some(f) => f.step(t, s.header.dt_s, plant_state.inputs()).map_err(FmuFailure::truth)?,
+                Some(f) => {
+                    if let Some((state, _, _)) = linear.as_mut() {
+                        state.reference_and_inputs_mut().1.copy_from_slice(plant_state.inputs());
+                        plant.advance(state, |_| {});
+                    }
+                    f.step(t, s.header.dt_s, plant_state.inputs()).map_err(FmuFailure::truth)?
+                }
             }
             if let Some((_, ctrl, _, _)) = controller.as_mut() {
                 ctrl.advance(t, s.header.dt_s).map_err(FmuFailure::controller)?;

@@ -76,6 +76,7 @@ pub fn frame(study: &SurfaceStudy, results: &[SurfaceTrialResult]) -> PolarsResu
                     fault_free: spec.faults.is_empty(),
                     failure: r.outcome.as_ref().err().map(|e| e.to_string()),
                     diverged: outcome.is_some_and(|o| o.health.non_finite > 0),
+                    truth_diverged: false,
                     false_alarm_s: outcome.and_then(|o| o.first_false_alarm_s),
                     delay_s: scored.and_then(|s| s.detection_delay_s),
                     isolated: isolated.map(|j| Cow::Borrowed(SURFACE_NAMES[j])),

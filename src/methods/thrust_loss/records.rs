@@ -70,6 +70,7 @@ pub fn frame(study: &LaunchStudy, results: &[LaunchTrialResult]) -> PolarsResult
                 fault_free: s.fault.is_none(),
                 failure: r.outcome.as_ref().err().cloned(),
                 diverged: h.is_some_and(|h| h.filter.non_finite > 0),
+                truth_diverged: false,
                 false_alarm_s: o.and_then(|o| o.false_alarm_s),
                 delay_s: o.and_then(|o| o.alarm_s).zip(onset).map(|(a, t0)| a - t0),
                 isolated: localised.map(|e| Cow::Owned(e.map_or(NO_FAULT.to_string(), col::engine_name))),

@@ -54,6 +54,8 @@ pub(super) struct Unit {
     pub(super) flown: bool,
     pub(super) faulty: bool,
     pub(super) diverged: bool,
+    /// The trial's truth diverged (the unit is not flown either).
+    pub(super) truth_diverged: bool,
     pub(super) false_alarm: bool,
     pub(super) detected: bool,
     pub(super) delay_s: Option<f64>,
@@ -74,6 +76,7 @@ pub(super) struct Counts {
     pub(super) units: u64,
     pub(super) failed: u64,
     pub(super) diverged: u64,
+    pub(super) truth_diverged: u64,
     pub(super) false_alarms: u64,
     pub(super) detected: u64,
     pub(super) late_alarms: u64,
@@ -101,8 +104,9 @@ impl Counts {
     pub(super) fn add(&mut self, u: &Unit, extras: Option<&[f64]>, spec: &SummarySpec) {
         self.units += 1;
         self.faulty |= u.faulty;
-        // A diverged truth is a failed unit too: counted in both, in no rate.
         self.diverged += u.diverged as u64;
+        // A diverged truth is a failed unit too: counted in both, in no rate.
+        self.truth_diverged += u.truth_diverged as u64;
         if !u.flown {
             self.failed += 1;
             return;
@@ -139,6 +143,7 @@ impl Counts {
         self.units += o.units;
         self.failed += o.failed;
         self.diverged += o.diverged;
+        self.truth_diverged += o.truth_diverged;
         self.false_alarms += o.false_alarms;
         self.detected += o.detected;
         self.late_alarms += o.late_alarms;
@@ -310,6 +315,11 @@ impl<'s> Aggregates<'s> {
         let fault_free = bool_col(df, col::FAULT_FREE, file)?;
         let failure = str_col(df, col::FAILURE, file)?;
         let diverged = bool_col(df, col::DIVERGED, file)?;
+        // Runs of an fdimc before the column have none (their diverged truths are in `diverged`).
+        let truth_diverged = match df.column(col::TRUTH_DIVERGED) {
+            Ok(_) => Some(bool_col(df, col::TRUTH_DIVERGED, file)?),
+            Err(_) => None,
+        };
         let false_alarm = bool_col(df, col::FALSE_ALARM, file)?;
         let detected = bool_col(df, col::DETECTED, file)?;
         let delay = f64_col(df, col::DELAY_S, file)?;
@@ -371,6 +381,7 @@ impl<'s> Aggregates<'s> {
                         flown,
                         faulty,
                         diverged: diverged.get(i) == Some(true),
+                        truth_diverged: truth_diverged.is_some_and(|c| c.get(i) == Some(true)),
                         false_alarm: false_alarm.get(i) == Some(true),
                         detected: detected.get(i) == Some(true),
                         delay_s: delay.get(i),
@@ -387,6 +398,7 @@ impl<'s> Aggregates<'s> {
                         flown,
                         faulty,
                         diverged: diverged.get(i) == Some(true),
+                        truth_diverged: truth_diverged.is_some_and(|c| c.get(i) == Some(true)),
                         false_alarm: fa,
                         detected: alarm.is_some(),
                         delay_s: alarm.map(|a| a - onset.get(i).unwrap_or(f64::NAN)),

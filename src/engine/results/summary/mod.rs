@@ -14,7 +14,7 @@
 //!
 //! | file | one row per | what |
 //! |---|---|---|
-//! | `summary.csv`, `summary.parquet` | thresholds x detector x kind x target x size bin x noise bin x parameter-error bin (x the kind's own bins) | the key columns, then `trials` (units), `failed`, `diverged`, `false_alarms`, `detected`, `missed`, `late_alarms`, `isolation_decided`, `isolated_correctly`, Pd, Pfa and isolation accuracy with intervals, delay p50/p90/p99, then the kind's own aggregates |
+//! | `summary.csv`, `summary.parquet` | thresholds x detector x kind x target x size bin x noise bin x parameter-error bin (x the kind's own bins) | the key columns, then `trials` (units), `failed`, `diverged`, `truth_diverged`, `false_alarms`, `detected`, `missed`, `late_alarms`, `isolation_decided`, `isolated_correctly`, Pd, Pfa and isolation accuracy with intervals, delay p50/p90/p99, then the kind's own aggregates |
 //! | `curves.csv` | thresholds x detector x kind x target x size bin | the same counts and rates (noise and parameter-error bins pooled): Pd against fault size |
 //! | `min_detectable.csv` | thresholds x detector x kind x target | the smallest fault (by \|size\|, or \|factor - 1\| for gain) whose size bin has Pd >= 0.9, and whose Wilson lower bound is >= 0.9 |
 //! | `detectors.csv` | thresholds x detector | over the faulty units: Pd, isolation, delays, the kind's aggregates; over every trial once (its first unit): flights, failures, false alarms, Pfa |
@@ -134,6 +134,10 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
         }
     }
 
+    // Runs of an fdimc before the column have none (their diverged truths are in `diverged`).
+    if columns.iter().any(|c| c == col::TRUTH_DIVERGED) {
+        select.push(col::TRUTH_DIVERGED.to_string());
+    }
     let mut agg = Aggregates::new(spec, sets.clone(), &manifest.detectors, manifest.detection_window_s);
     agg.parameters = parameter_bins(&path, &manifest, &columns)?;
     agg.hazard_times = manifest.time_to_hazard_s.clone();
@@ -284,17 +288,24 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     }
 
     // Failures and divergence, counted once per unit (every threshold set holds the same units).
-    let (units, failed, diverged) = agg.per_detector[..manifest.detectors.len()]
-        .iter()
-        .fold((0, 0, 0), |(n, f, d), (u, _, _)| (n + u.units, f + u.failed, d + u.diverged));
+    let per_detector = &agg.per_detector[..manifest.detectors.len()];
+    let (units, failed, diverged) =
+        per_detector.iter().fold((0, 0, 0), |(n, f, d), (u, _, _)| (n + u.units, f + u.failed, d + u.diverged));
+    // A truth is the trial's, shared by its detectors: counted in flights, once.
+    let truth_diverged = per_detector.iter().map(|(_, _, flights)| flights.truth_diverged).max().unwrap_or(0);
     if failed > 0 {
         warnings.push(format!("{failed} trial x detector units were not flown to the end (failure in trials.parquet)"));
+    }
+    if truth_diverged > 0 {
+        warnings.push(format!(
+            "{truth_diverged} trials' truth diverged or left its physical range (truth_diverged in trials.parquet, \
+             failure says where and how): left out of every rate and calibration"
+        ));
     }
     if diverged > 0 {
         warnings.push(format!(
             "{diverged} trial x detector units diverged (diverged in trials.parquet): a filter's residual became \
-             non-finite (the unit counts), or the truth left its physical range (the unit failed: in no rate, no \
-             calibration)"
+             non-finite; the units count in the rates"
         ));
     }
     let settings = Settings {

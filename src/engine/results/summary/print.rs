@@ -29,6 +29,8 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
             let list = |v: &[f64]| named(&s.statistics, v);
             let (label, trials) = match s.set {
                 Some(VALIDATION) => ("applied", "this run's trials"),
+                // NaN thresholds from no flown unit: nothing was calibrated.
+                _ if t.calibration_units == 0 => ("not calibrated (no calibration unit flown)", "no trial"),
                 _ => ("calibrated", "the calibration trials"),
             };
             let p = t.whole_false_alarms as f64 / t.calibration_units.max(1) as f64;

@@ -77,6 +77,7 @@ pub(super) fn count_columns(counts: &[&Counts], spec: &SummarySpec, at_deck: Opt
         Column::new("trials".into(), u(&|c| c.units)),
         Column::new("failed".into(), u(&|c| c.failed)),
         Column::new("diverged".into(), u(&|c| c.diverged)),
+        Column::new("truth_diverged".into(), u(&|c| c.truth_diverged)),
         Column::new("false_alarms".into(), u(&|c| c.false_alarms)),
         Column::new("detected".into(), u(&|c| c.detected)),
         Column::new(
@@ -223,6 +224,7 @@ pub(super) fn detector_table(agg: &Aggregates, sets: &[&'static str], spec: &Sum
         Column::new("flights".into(), trials.iter().map(|c| c.units).collect::<Vec<u64>>()),
         Column::new("flights_failed".into(), trials.iter().map(|c| c.failed).collect::<Vec<u64>>()),
         Column::new("flights_diverged".into(), trials.iter().map(|c| c.diverged).collect::<Vec<u64>>()),
+        Column::new("flights_truth_diverged".into(), trials.iter().map(|c| c.truth_diverged).collect::<Vec<u64>>()),
         Column::new("flights_with_false_alarm".into(), trials.iter().map(|c| c.false_alarms).collect::<Vec<u64>>()),
     ]);
     columns.extend(rate_columns("pfa", &trials.iter().map(|c| (c.false_alarms, c.flown(), true)).collect::<Vec<_>>()));
