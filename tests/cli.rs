@@ -3706,6 +3706,42 @@ fn an_fmu_that_segfaults_or_diverges_fails_only_its_trials_and_calibrates_nothin
     assert!(calibrating > 0, "some fault-free trials flew to the end");
 }
 
+/// A sensitivity design flies its FMUs in worker processes by default too: an FMU that writes
+/// through a null pointer fails only the design's trials that reach it, and every other record is
+/// the one the in-process design of the twin deck (an FMU error instead of the crash) wrote.
+#[test]
+fn a_sensitivity_design_survives_an_fmu_that_segfaults() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |hook: &str, extra: &[&str]| {
+        let deck = hooked_aircraft_deck(dir.path(), hook);
+        let out = dir.path().join(format!("{hook}-out"));
+        let mut args = vec!["sensitivity", deck.to_str().unwrap(), "--base-samples", "4", "--quiet", "--out"];
+        args.push(out.to_str().unwrap());
+        args.extend_from_slice(extra);
+        let o = fdimc(&args);
+        assert!(o.status.code().is_some(), "{hook}: died: {:?}\n{}", o.status, text(&o.stderr));
+        read_frame(&out.join("trials.parquet"))
+    };
+    let crashed = run("segfault_at_s", &[]);
+    let errored = run("fail_at_s", &["--fmu-in-process"]);
+    let failed = |df: &polars::prelude::DataFrame| -> Vec<usize> {
+        let failure = df.column("failure").unwrap().str().unwrap().clone();
+        (0..df.height()).filter(|&i| failure.get(i).is_some()).collect()
+    };
+    let hook = crashed.column("perr_hook").unwrap().f64().unwrap().clone();
+    let hooked: Vec<usize> = (0..crashed.height()).filter(|&i| hook.get(i) == Some(-18.0)).collect();
+    assert!(!hooked.is_empty() && hooked.len() < crashed.height(), "the design varies the hook");
+    assert_eq!(failed(&crashed), hooked);
+    assert_eq!(failed(&errored), hooked);
+    let failure = crashed.column("failure").unwrap().str().unwrap().clone();
+    for &i in &hooked {
+        let why = failure.get(i).unwrap();
+        assert!(why.contains("the worker process died while flying trial") && why.contains("SIGSEGV"), "{why}");
+    }
+    let flown = |df: &polars::prelude::DataFrame| df.drop("failure").unwrap();
+    assert!(flown(&crashed).equals_missing(&flown(&errored)), "the records of the trials that flew differ");
+}
+
 #[test]
 fn the_engine_solves_the_trim_on_the_fmu_and_prints_its_residual() {
     let fmus = bundled_fmus();

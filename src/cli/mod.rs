@@ -204,6 +204,11 @@ It prints the factors before it runs. Shards, --resume and `fdimc merge` work as
         trials: u64,
         #[arg(long)]
         profile_resolution: f64,
+        /// `fdimc sensitivity`'s design: its base samples and bootstrap resamples.
+        #[arg(long, requires = "design_bootstrap")]
+        design_base_samples: Option<u64>,
+        #[arg(long, requires = "design_base_samples")]
+        design_bootstrap: Option<u64>,
     },
     /// Join the results folders of all shards of one run into one, then summarize.
     Merge {
@@ -552,8 +557,9 @@ pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
             commands.exec_summarize(&dir, target_pfa, target_pfa_per_hour, confidence, thresholds.as_deref())
         }
         Command::Merge { dirs, out, force } => commands.exec_merge(&dirs, &out, force),
-        Command::FmuWorker { deck, seed, trials, profile_resolution } => {
-            crate::methods::detection_filter::workers::serve(&deck, seed, trials, profile_resolution)
+        Command::FmuWorker { deck, seed, trials, profile_resolution, design_base_samples, design_bootstrap } => {
+            let design = design_base_samples.zip(design_bootstrap);
+            crate::methods::detection_filter::workers::serve(&deck, seed, trials, profile_resolution, design)
                 .map_err(CliError::from)
         }
         Command::Report { dir, trials } => commands.exec_report(&dir, &trials),

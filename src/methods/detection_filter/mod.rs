@@ -140,19 +140,6 @@ pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunEr
                 opts.deck.display()
             )));
         }
-        FmuProcesses::Always if opts.sensitivity.is_some() => {
-            return Err(RunError::Invalid("--fmu-processes: not with a sensitivity design (not yet)".into()));
-        }
-        FmuProcesses::Auto if opts.sensitivity.is_some() => {
-            if opts.progress {
-                eprintln!(
-                    "note: a sensitivity design flies its FMUs in this process (worker processes do not take \
-                     its trials yet): an FMU that crashes or is not thread-safe takes the run down; \
-                     --threads 1 avoids the second"
-                );
-            }
-            None
-        }
         FmuProcesses::Auto | FmuProcesses::Always => Some(workers::WorkerSpec::new(
             std::env::current_exe()
                 .map_err(|e| RunError::Internal(format!("worker processes: where is this program? {e}")))?,
@@ -160,6 +147,7 @@ pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunEr
             study.header.seed,
             study.monte_carlo.common.trials,
             study.monte_carlo.common.profile.step(),
+            opts.sensitivity.as_ref().map(|d| (d.base_samples, d.bootstrap)),
         )?),
     };
     // An FMU that may be instantiated only once per process gets one worker thread: one instance

@@ -34,6 +34,9 @@ pub struct WorkerSpec {
     pub profile_resolution: f64,
     /// SHA-256 of the deck file as the run read it; a child that reads another refuses to fly.
     pub deck_sha256: String,
+    /// `fdimc sensitivity`: the design's base samples and bootstrap resamples, which the child's study
+    /// takes too (its trials are the design's).
+    pub design: Option<(u64, u64)>,
 }
 
 impl WorkerSpec {
@@ -44,9 +47,10 @@ impl WorkerSpec {
         seed: u64,
         trials: u64,
         profile_resolution: f64,
+        design: Option<(u64, u64)>,
     ) -> Result<Self, RunError> {
         let deck_sha256 = deck_sha256(deck)?;
-        Ok(WorkerSpec { executable, deck: deck.to_path_buf(), seed, trials, profile_resolution, deck_sha256 })
+        Ok(WorkerSpec { executable, deck: deck.to_path_buf(), seed, trials, profile_resolution, deck_sha256, design })
     }
 }
 
@@ -170,6 +174,14 @@ impl WorkerSpec {
             .arg(&self.deck)
             .args(["--seed", &self.seed.to_string(), "--trials", &self.trials.to_string()])
             .args(["--profile-resolution", &self.profile_resolution.to_string()])
+            .args(self.design.iter().flat_map(|(base, bootstrap)| {
+                [
+                    "--design-base-samples".to_string(),
+                    base.to_string(),
+                    "--design-bootstrap".into(),
+                    bootstrap.to_string(),
+                ]
+            }))
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit());
@@ -216,12 +228,21 @@ fn died(worker: &mut Worker, t: u64) -> String {
     format!("the worker process died while flying trial {t} ({status}): an FMU crashed the process")
 }
 
-/// `fdimc fmu-worker DECK --seed S --trials N --profile-resolution R`: answers `first end` requests on
-/// stdin until it closes.
-pub fn serve(deck: &Path, seed: u64, trials: u64, profile_resolution: f64) -> Result<(), RunError> {
+/// `fdimc fmu-worker DECK --seed S --trials N --profile-resolution R [--design-base-samples B
+/// --design-bootstrap K]`: answers `first end` requests on stdin until it closes.
+pub fn serve(
+    deck: &Path,
+    seed: u64,
+    trials: u64,
+    profile_resolution: f64,
+    design: Option<(u64, u64)>,
+) -> Result<(), RunError> {
     // First: whatever the FMUs print goes to a file of the worker's, not into the answers.
     let (mut stdout, mut printed) = protocol_channel()?;
     let mut study = LtiStudy::load(deck).map_err(|e| RunError::Invalid(e.to_string()))?;
+    if let Some((base_samples, bootstrap)) = design {
+        study.sensitivity_design(base_samples, bootstrap)?;
+    }
     let (s, n) = study.seed_and_trials();
     (*s, *n) = (seed, trials);
     study.monte_carlo.common.profile = crate::engine::results::schema::ProfileGrid::new(profile_resolution);
