@@ -33,7 +33,8 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
                 _ if t.calibration_units == 0 => ("not calibrated (no calibration unit flown)", "no trial"),
                 _ => ("calibrated", "the calibration trials"),
             };
-            let p = t.whole_false_alarms as f64 / t.calibration_units.max(1) as f64;
+            // No unit: no rate (NaN prints `-`).
+            let p = t.whole_false_alarms as f64 / t.calibration_units as f64;
             let per_hour = t.unit_duration_s.map_or(String::new(), |d| {
                 let h = |p: f64| per_flight_hour(p, d);
                 format!(
