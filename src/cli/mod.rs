@@ -130,8 +130,9 @@ Precision: `--precision 0.01 --precision-rates pd,pfa --trials 1000000` runs unt
     /// false-alarm rates and thresholds below 1/trials (1e-5 to 1e-9 per flight hour) from a
     /// generalised Pareto fit, with 95 % intervals and when not to trust it. A calibration other than
     /// the deck's (--target-pfa, --target-pfa-per-hour, --confidence) is written to
-    /// a folder of its own under DIR/calibrations/ (pfa_0.05, pfa_0.01_confidence_0.95, ...), --thresholds
-    /// to DIR/validation/: the run's own tables stay.
+    /// a folder of its own under DIR/calibrations/ (pfa_0.05, pfa_0.01_confidence_0.95,
+    /// pfa_per_hour_1e-5, ...), --thresholds to DIR/validation/: the run's own tables stay. A target the
+    /// fault-free trials cannot resolve is refused (exit 2), nothing written.
     Summarize {
         /// Results folder of a complete run.
         dir: PathBuf,

@@ -289,58 +289,53 @@ impl Kinds {
         thresholds: Option<&Path>,
     ) -> Result<(), CliError> {
         let (method, manifest) = self.method_of_run(dir)?;
-        let target_pfa = match (target_pfa, target_pfa_per_hour) {
-            (Some(_), Some(_)) => {
-                return Err(CliError::Invalid(
-                    "give --target-pfa (per trial) or --target-pfa-per-hour, not both".into(),
-                ));
-            }
-            (_, Some(h)) if !(h > 0.0 && h < 1.0) => {
-                return Err(CliError::Invalid(format!("--target-pfa-per-hour {h}: allowed 0 < p < 1")));
-            }
-            (_, Some(h)) => {
-                let duration_s = manifest.trial_duration_s.ok_or_else(|| {
-                    CliError::Invalid(format!(
-                        "{}: the manifest does not give the trial's duration (a run of an older fdimc): use --target-pfa",
-                        dir.display()
-                    ))
-                })?;
-                let p = crate::engine::results::thresholds::per_segment(h, duration_s);
-                println!(
-                    "target {h} per flight hour = {p:.4e} per {duration_s} s trial (the hour's trials taken as independent)"
-                );
-                Some(p)
-            }
-            (p, None) => p,
-        };
+        if let (Some(_), Some(_)) = (target_pfa, target_pfa_per_hour) {
+            return Err(CliError::Invalid("give --target-pfa (per trial) or --target-pfa-per-hour, not both".into()));
+        }
         if let Some(c) = confidence
             && !(c > 0.0 && c < 1.0)
         {
             return Err(CliError::Invalid(format!("--confidence {c}: allowed 0 < c < 1 (e.g. 0.95)")));
         }
-        let calibration = match (target_pfa, thresholds, confidence) {
-            (Some(_), Some(_), _) => {
+        let calibration = match (target_pfa, target_pfa_per_hour, thresholds, confidence) {
+            (Some(_), _, Some(_), _) | (_, Some(_), Some(_), _) => {
                 return Err(CliError::Invalid("give --target-pfa or --thresholds, not both".into()));
             }
-            (_, Some(_), Some(_)) => {
+            (_, _, Some(_), Some(_)) => {
                 return Err(CliError::Invalid("--confidence calibrates; --thresholds applies another run's".into()));
             }
-            (_, Some(f), None) => Some(Calibration::File(f.into())),
-            (Some(p), None, _) if !(p > 0.0 && p < 1.0) => {
+            (_, _, Some(f), None) => Some(Calibration::File(f.into())),
+            (_, Some(h), None, _) if !(h > 0.0 && h < 1.0) => {
+                return Err(CliError::Invalid(format!("--target-pfa-per-hour {h}: allowed 0 < p < 1")));
+            }
+            (_, Some(per_hour), None, c) => {
+                let segment_s = manifest.trial_duration_s.ok_or_else(|| {
+                    CliError::Invalid(format!(
+                        "{}: the manifest does not give the trial's duration (a run of an older fdimc): use --target-pfa",
+                        dir.display()
+                    ))
+                })?;
+                let calibration = Calibration::PerHour { per_hour, segment_s, confidence: c.or(manifest.confidence) };
+                println!("target {}", calibration.describe());
+                Some(calibration)
+            }
+            (Some(p), None, None, _) if !(p > 0.0 && p < 1.0) => {
                 return Err(CliError::Invalid(format!("--target-pfa {p}: allowed 0 < p < 1")));
             }
             // Target and confidence each from the command line where given, else from the deck.
-            (Some(p), None, None) => Some(match manifest.confidence {
+            (Some(p), None, None, c) => Some(match c.or(manifest.confidence) {
                 Some(confidence) => Calibration::Confident { pfa: p, confidence },
                 None => Calibration::Target(p),
             }),
-            (p, None, Some(confidence)) => {
-                Some(Calibration::Confident { pfa: p.unwrap_or(manifest.target_pfa), confidence })
+            (None, None, None, Some(confidence)) => {
+                Some(Calibration::Confident { pfa: manifest.target_pfa, confidence })
             }
-            (None, None, None) => None,
+            (None, None, None, None) => None,
         };
-        if matches!(calibration, Some(Calibration::Target(_) | Calibration::Confident { .. }))
-            && manifest.sensitivity.is_some()
+        if matches!(
+            calibration,
+            Some(Calibration::Target(_) | Calibration::Confident { .. } | Calibration::PerHour { .. })
+        ) && manifest.sensitivity.is_some()
         {
             return Err(CliError::Invalid(format!(
                 "{}: a sensitivity run calibrates no thresholds: give another run's --thresholds, or none for the deck's",

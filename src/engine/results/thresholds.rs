@@ -46,6 +46,10 @@ pub enum Calibration {
     Confident { pfa: f64, confidence: f64 },
     /// Read from another run's `thresholds.csv`.
     File(PathBuf),
+    /// Calibrated here at this false-alarm probability per flight hour, as the user gave it, converted
+    /// to one per unit of `segment_s` seconds by [`per_segment`] (the hour's units taken as
+    /// independent); with a confidence, as [`Calibration::Confident`] at that probability.
+    PerHour { per_hour: f64, segment_s: f64, confidence: Option<f64> },
 }
 
 impl Calibration {
@@ -60,11 +64,14 @@ impl Calibration {
 
     /// The folder (under the run's `calibrations/`) a calibration other than the deck's is written to:
     /// `pfa_<p>` or `pfa_<p>_confidence_<c>`, numbers in Rust's shortest form (`pfa_0.05`, `pfa_1e-5`).
+    /// A per-hour target is named as given: `pfa_per_hour_<h>` (`pfa_per_hour_1e-7`).
     pub fn folder_name(&self) -> String {
+        let with = |c: Option<f64>| c.map_or(String::new(), |c| format!("_confidence_{}", short(c)));
         match self {
             Calibration::Target(p) => format!("pfa_{}", short(*p)),
-            Calibration::Confident { pfa, confidence } => {
-                format!("pfa_{}_confidence_{}", short(*pfa), short(*confidence))
+            Calibration::Confident { pfa, confidence } => format!("pfa_{}{}", short(*pfa), with(Some(*confidence))),
+            Calibration::PerHour { per_hour, confidence, .. } => {
+                format!("pfa_per_hour_{}{}", short(*per_hour), with(*confidence))
             }
             Calibration::File(_) => VALIDATION_DIR.to_string(),
         }
@@ -74,7 +81,34 @@ impl Calibration {
     pub fn confidence(&self) -> Option<f64> {
         match self {
             Calibration::Confident { confidence, .. } => Some(*confidence),
+            Calibration::PerHour { confidence, .. } => *confidence,
             _ => None,
+        }
+    }
+
+    /// The false-alarm probability per calibration unit it calibrates at (`None`: a file's).
+    pub fn target_pfa(&self) -> Option<f64> {
+        match self {
+            Calibration::Target(p) | Calibration::Confident { pfa: p, .. } => Some(*p),
+            Calibration::PerHour { per_hour, segment_s, .. } => Some(per_segment(*per_hour, *segment_s)),
+            Calibration::File(_) => None,
+        }
+    }
+
+    /// The target as the user gave it: `Pfa 0.01`, `Pfa 0.01 with 0.95 confidence`, `1e-7 per flight
+    /// hour (Pfa 2.7778e-10 per 10 s trial, the hour's trials taken as independent)`.
+    pub fn describe(&self) -> String {
+        let with = |c: Option<f64>| c.map_or(String::new(), |c| format!(" with {c} confidence"));
+        match self {
+            Calibration::Target(p) => format!("Pfa {p}"),
+            Calibration::Confident { pfa, confidence } => format!("Pfa {pfa}{}", with(Some(*confidence))),
+            Calibration::PerHour { per_hour, segment_s, confidence } => format!(
+                "{per_hour} per flight hour (Pfa {:.4e} per {segment_s} s trial, the hour's trials taken as \
+                 independent){}",
+                per_segment(*per_hour, *segment_s),
+                with(*confidence)
+            ),
+            Calibration::File(f) => format!("the thresholds of {}", f.display()),
         }
     }
 }
@@ -359,12 +393,15 @@ pub(crate) fn for_each_slice(
 }
 
 /// Calibrates (or reads) every detector's thresholds on the run in `path` (module docs); returns them
-/// and where they came from, and adds warnings.
+/// and where they came from, and adds warnings. A target past what the calibration units resolve (the
+/// thresholds would be only the largest values seen) is refused when `asked` (a calibration other than
+/// the deck's), and said in the source when it is the deck's own.
 pub fn thresholds(
     path: &Path,
     manifest: &Manifest,
     statistics: &[String],
     calibration: &Calibration,
+    asked: bool,
     warnings: &mut Vec<String>,
 ) -> Result<(Vec<DetectorThresholds>, String), RunError> {
     let nd = manifest.detectors.len();
@@ -396,12 +433,9 @@ pub fn thresholds(
     }
     let file = match calibration {
         Calibration::File(f) => Some(read_thresholds(f)?),
-        Calibration::Target(_) | Calibration::Confident { .. } => None,
+        _ => None,
     };
-    let target_pfa = match (calibration, &file) {
-        (Calibration::Target(p) | Calibration::Confident { pfa: p, .. }, _) => Some(*p),
-        (_, file) => file.as_ref().and_then(|f| f.target_pfa),
-    };
+    let target_pfa = calibration.target_pfa().or_else(|| file.as_ref().and_then(|f| f.target_pfa));
     let confidence = match &file {
         Some(f) => f.confidence,
         None => calibration.confidence(),
@@ -416,7 +450,8 @@ pub fn thresholds(
                 .into(),
         );
     }
-    let source = match calibration {
+    let target = calibration.describe();
+    let mut source = match calibration {
         _ if none_flown => "not calibrated: no calibration trial was flown to the end".to_string(),
         Calibration::File(f) => format!(
             "thresholds from {}{}, validated on this run's {}",
@@ -424,31 +459,31 @@ pub fn thresholds(
             target_pfa.map_or(String::new(), |p| format!(" (calibrated at Pfa {p})")),
             if fault_free_rows { "fault-free trials" } else { "pre-onset windows" }
         ),
-        Calibration::Target(p) if fault_free_rows => format!("calibrated at Pfa {p} on the fault-free trials"),
-        Calibration::Confident { pfa, confidence } if fault_free_rows => {
-            format!(
-                "calibrated at Pfa {pfa} with {confidence} confidence (order statistic; with too few trials for it, the tail fit's bound) on the fault-free trials"
-            )
-        }
-        Calibration::Target(p) | Calibration::Confident { pfa: p, .. } => {
+        _ if fault_free_rows && confidence.is_some() => format!(
+            "calibrated at {target} (order statistic; with too few trials for it, the tail fit's bound) on the \
+             fault-free trials"
+        ),
+        _ if fault_free_rows => format!("calibrated at {target} on the fault-free trials"),
+        _ => {
             warnings.push(
                 "no fault-free trials: thresholds calibrated on the pre-onset windows (shorter than a whole trial)"
                     .into(),
             );
-            format!("calibrated at Pfa {p} on the pre-onset windows")
+            format!("calibrated at {target} on the pre-onset windows")
         }
     };
+    // Detectors whose thresholds are only the largest values seen: the target is past what the units
+    // resolve (per detector: why, and how many units would).
+    let mut unresolved: Vec<(String, u64)> = Vec::new();
 
-    let (per, whole): (Vec<Vec<f64>>, Vec<Vec<f64>>) = match calibration {
-        Calibration::File(f) => match &file {
+    let (per, whole): (Vec<Vec<f64>>, Vec<Vec<f64>>) = match (calibration, target_pfa) {
+        (Calibration::File(f), _) => match &file {
             Some(file) => file.for_run(f, &manifest.detectors, ns)?,
             None => return Err(RunError::Internal("a thresholds file that was not read".into())),
         },
-        Calibration::Target(p) | Calibration::Confident { pfa: p, .. } => {
-            let confidence = match calibration {
-                Calibration::Confident { confidence, .. } => Some(*confidence),
-                _ => None,
-            };
+        (_, None) => return Err(RunError::Internal("a calibration without a target".into())),
+        (_, Some(p)) => {
+            let p = &p;
             let mut k = Vec::with_capacity(nd);
             // Detectors whose order statistic cannot give the confidence: their common factor comes from
             // the tail fit's upper bound instead, where one can be made.
@@ -468,17 +503,19 @@ pub fn thresholds(
                 let exceedances = match confidence {
                     None => {
                         if (n[d] as f64) * p < 1.0 {
+                            let needs = (1.0 / p).ceil();
                             warnings.push(format!(
-                                "detector {name}: {} calibration trials cannot resolve Pfa {p} (needs >= {}): thresholds are the largest values seen",
+                                "detector {name}: {} calibration trials cannot resolve Pfa {p} (needs >= {needs}): thresholds are the largest values seen",
                                 n[d],
-                                (1.0 / p).ceil()
                             ));
+                            unresolved.push((name.clone(), needs as u64));
                         }
                         allowed(n[d], *p)
                     }
                     Some(c) => confident_allowed(n[d], *p, c).unwrap_or_else(|| {
                         by_tail[d] = crate::engine::stats::tail::exceedances_for(n[d]).is_some();
                         if !by_tail[d] {
+                            unresolved.push((name.clone(), trials_needed(*p, c)));
                             warnings.push(format!(
                                 "detector {name}: {} calibration trials cannot give Pfa {p} with {c} confidence (needs >= {} fault-free trials for the order statistic, {} for a tail fit): thresholds are the largest values seen, without that confidence",
                                 n[d],
@@ -533,6 +570,7 @@ pub fn thresholds(
                         ));
                         bound
                     } else {
+                        unresolved.push((name.clone(), trials_needed(*p, c)));
                         warnings.push(format!(
                             "detector {name}: {} calibration trials cannot give Pfa {p} with {c} confidence (needs >= {} fault-free trials), and the tail fit bounds no threshold: thresholds are the largest values seen, without that confidence",
                             n[d],
@@ -554,6 +592,37 @@ pub fn thresholds(
             (per, whole)
         }
     };
+
+    if let Some(&(_, needs)) = unresolved.iter().max_by_key(|u| u.1) {
+        let names: Vec<&str> = unresolved.iter().map(|u| u.0.as_str()).collect();
+        let have = unresolved.iter().map(|u| n[manifest.detectors.iter().position(|d| *d == u.0).unwrap_or(0)]);
+        let have = have.min().unwrap_or(0);
+        let units = if fault_free_rows { "fault-free trials" } else { "pre-onset windows" };
+        if asked {
+            let dir = path.parent().unwrap_or(path);
+            let all = if have > 0 && fault_free_rows {
+                let trials = (needs as f64 * manifest.trials as f64 / have as f64).ceil();
+                format!(", about {trials} trials in all at this run's share of fault-free ones")
+            } else {
+                String::new()
+            };
+            return Err(RunError::Invalid(format!(
+                "{}: {target} is past what this run resolves: {have} {units} per detector ({}), where the order \
+                 statistic needs >= {needs}; no calibration written. Fly more trials (fdimc run DECK --trials N{all}), \
+                 read the generalised Pareto tail fit's thresholds for rare targets in tail.csv (an extrapolation \
+                 below 1/trials: tail_diagnostics.csv says when not to trust it), or estimate the false-alarm rate \
+                 of given thresholds with fdimc rare-event (importance sampling or splitting on a linear truth; \
+                 --flight-s for a whole flight)",
+                dir.display(),
+                names.join(", ")
+            )));
+        }
+        source = format!(
+            "not calibrated at {target}: {have} {units} cannot resolve it (needs >= {needs}); the thresholds of {} \
+             are the largest values seen",
+            names.join(", ")
+        );
+    }
 
     // Pass 4: what each threshold set lets through on the calibration units.
     let mut per_fa = vec![vec![0u64; ns]; nd];

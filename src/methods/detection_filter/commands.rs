@@ -124,6 +124,9 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                         "conditional_monte_carlo_lo": a.conditional_lo,
                         "conditional_monte_carlo_hi": a.conditional_hi,
                         "conditional_monte_carlo_draws": a.conditional_draws,
+                        "hour_over_conversion": a.hour.map(|h| h.ratio),
+                        "slowest_time_constant_s": a.hour.map(|h| h.slowest_time_constant_s),
+                        "conversion_undercounts": a.hour.map(|h| h.ratio > super::false_alarms::UNDERCOUNT_FLAG),
                     }),
                     Err(why) => json!({ "not_computed": why }),
                 };
@@ -253,6 +256,23 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                     "  largest single sample (Sidak over its outputs) {:.3e}; sum over samples (union bound) {:.3e}",
                     f.largest_sample, f.sum
                 );
+                if let Some(h) = f.hour {
+                    // The per-hour figures above take the hour's trials as independent, each begun
+                    // with the filter on the truth: a slow mode leaves a trial's residual unsettled.
+                    println!(
+                        "  per flight hour by that conversion: over a whole hour from the same start the samples' exceedance sum is {:.3} x the {} trials' (slowest mode of A - K C: time constant {:.3} s, against {} s trials)",
+                        h.ratio,
+                        3600.0 / study.header.duration_s,
+                        h.slowest_time_constant_s,
+                        study.header.duration_s
+                    );
+                    if h.ratio > super::false_alarms::UNDERCOUNT_FLAG {
+                        eprintln!(
+                            "warning: detector {:?}: the per-flight-hour figures converted from a trial under-count false alarms about {:.2} times (the residual has not settled within a {} s trial: a mode of time constant {:.3} s): they are lower bounds, not figures to quote; estimate a whole flight with `fdimc rare-event DECK --flight-s 3600`",
+                            d.name, h.ratio, study.header.duration_s, h.slowest_time_constant_s
+                        );
+                    }
+                }
             }
             Err(why) => println!("false alarms, analytic: not computed: {why}"),
         }

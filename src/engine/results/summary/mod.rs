@@ -71,8 +71,9 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     let thresholds = if statistics.is_empty() {
         None
     } else {
+        let asked = calibration.is_some();
         let calibration = calibration.cloned().unwrap_or_else(|| Calibration::of_deck(&manifest));
-        Some(thresholds(&path, &manifest, &statistics, &calibration, &mut warnings)?)
+        Some(thresholds(&path, &manifest, &statistics, &calibration, asked, &mut warnings)?)
     };
     let validating = matches!(calibration, Some(Calibration::File(_)));
     let set = thresholds.as_ref().map(|_| if validating { VALIDATION } else { CALIBRATED });
