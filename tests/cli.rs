@@ -301,6 +301,16 @@ fn rare_event_flights_are_checked_and_reach_the_safety_summary_and_report() {
         "{methods:?}"
     );
     assert!(summary.contains("extremal index against the segment conversion"), "{summary}");
+    // Which row is the figure (issue 81, item 2): the flights', the segments' beside it.
+    let role = safety.column("role").unwrap().str().unwrap().clone();
+    for (i, m) in methods.iter().enumerate() {
+        let r = role.get(i).unwrap_or("");
+        if m.contains("flights of 20 s") {
+            assert!(r.starts_with("the figure to quote"), "{m}: {r}");
+        } else if m.contains("trials of 10 s") {
+            assert!(r.starts_with("consistent with") || r.starts_with("a lower bound"), "{m}: {r}");
+        }
+    }
     ok(&fdimc(&["report", run.to_str().unwrap()]));
     let page = std::fs::read_to_string(run.join("report/report.html")).unwrap();
     assert!(page.contains("rare_event/per_hour.csv") && page.contains("extremal_index_conditional"));

@@ -65,8 +65,24 @@ pub fn read_rare_event(dir: &Path, deck_sha256: &str) -> Result<Option<RareEvent
     }))
 }
 
+/// What a false-alarm row rests on: the hour's segments converted (each begun afresh), or whole flights
+/// as long as the hour (or longer than a segment, flown through).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Basis {
+    Conversion,
+    WholeFlight,
+    /// A missed-detection row: no conversion.
+    Other,
+}
+
+/// An extremal index (whole-flight figure over the segment conversion) above this: the conversion is a
+/// lower bound, not a figure (a choice: the issue that asked for it, #81).
+pub const UNDERCOUNT_FLAG: f64 = 1.5;
+
 #[derive(Default)]
 struct Rows {
+    basis: Vec<Option<Basis>>,
+    role: Vec<Option<String>>,
     detector: Vec<String>,
     set: Vec<String>,
     figure: Vec<String>,
@@ -79,11 +95,23 @@ struct Rows {
 }
 
 impl Rows {
-    fn push(&mut self, detector: &str, set: &str, figure: &str, v: [f64; 3], method: String, assumptions: String) {
+    #[allow(clippy::too_many_arguments)]
+    fn push(
+        &mut self,
+        basis: Basis,
+        detector: &str,
+        set: &str,
+        figure: &str,
+        v: [f64; 3],
+        method: String,
+        assumptions: String,
+    ) {
         let statement = format!(
             "{detector} at the {set} thresholds: {figure} {} (95 %), by {method}; assuming {assumptions}",
             rate_interval(v[0], v[1], v[2])
         );
+        self.basis.push(Some(basis));
+        self.role.push(None);
         self.detector.push(detector.into());
         self.set.push(set.into());
         self.figure.push(figure.into());
@@ -93,6 +121,33 @@ impl Rows {
         self.method.push(method);
         self.assumptions.push(assumptions);
         self.statement.push(statement);
+    }
+
+    /// Where `detector` has a whole-flight figure and its extremal index `theta` against the segment
+    /// conversion: the whole-flight rows are the figure, the converted ones a lower bound when `theta`
+    /// exceeds [`UNDERCOUNT_FLAG`] (else consistent with it); the statements say so.
+    fn mark(&mut self, detector: &str, theta: f64) {
+        for i in 0..self.detector.len() {
+            if self.detector[i] != detector {
+                continue;
+            }
+            let role = match self.basis[i] {
+                Some(Basis::WholeFlight) => {
+                    "the figure to quote (flights flown through, not restarted segments)".to_string()
+                }
+                Some(Basis::Conversion) if theta > UNDERCOUNT_FLAG => format!(
+                    "a lower bound: the segment conversion under-counts here (extremal index {} > {UNDERCOUNT_FLAG}); \
+                     quote the whole-flight figure",
+                    significant(theta)
+                ),
+                Some(Basis::Conversion) => {
+                    format!("consistent with the whole-flight figure (extremal index {})", significant(theta))
+                }
+                _ => continue,
+            };
+            self.statement[i] = format!("{} [{role}]", self.statement[i]);
+            self.role[i] = Some(role);
+        }
     }
 }
 
@@ -127,6 +182,7 @@ pub fn safety(
         let (name, set) = (names[i].as_str(), sets[i].as_str());
         if flights[i] > 0 {
             rows.push(
+                Basis::Conversion,
                 name,
                 set,
                 figure,
@@ -145,6 +201,7 @@ pub fn safety(
                 format!("; the fit's doubts: {}", t.concerns.join("; "))
             };
             rows.push(
+                Basis::Conversion,
                 name,
                 set,
                 figure,
@@ -156,6 +213,7 @@ pub fn safety(
         let j = (0..detectors.height()).find(|&j| d_sets[j] == set && d_names[j] == name);
         if let Some(j) = j.filter(|&j| !miss[j].is_nan()) {
             rows.push(
+                Basis::Other,
                 name,
                 set,
                 "missed detection before the hazard",
@@ -189,6 +247,7 @@ pub fn safety(
         Column::new("value_hi".into(), r.hi),
         Column::new("method".into(), r.method),
         Column::new("assumptions".into(), r.assumptions),
+        Column::new("role".into(), r.role),
         Column::new("statement".into(), r.statement),
     ])
 }
@@ -204,6 +263,7 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
         let p = [t.f64s("p_miss_before_hazard"), t.f64s("p_miss_before_hazard_lo"), t.f64s("p_miss_before_hazard_hi")];
         for i in (0..miss.height()).filter(|&i| names[i] == name && scales[i] == 1.0 && answers[i]) {
             rows.push(
+                Basis::Other,
                 name,
                 crate::engine::results::thresholds::DECK,
                 "missed detection before the hazard",
@@ -228,8 +288,10 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
         "splitting" => format!("adaptive multilevel splitting: {units} replicas over {what}"),
         _ => format!("importance sampling on the sensor noise: {units} weighted {what}"),
     };
+    let mut whole_flight_index = None;
     for i in (0..table.height()).filter(|&i| names[i] == name && scales[i] == 1.0 && answers[i]) {
         rows.push(
+            Basis::Conversion,
             name,
             crate::engine::results::thresholds::DECK,
             figure,
@@ -253,8 +315,16 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
             format!("flights of {} s, the hour's taken as independent", significant(flight_s[j]))
         };
         let theta = triple("extremal_index");
+        // The whole flight against the conversion: measured over its flights where they answer, else
+        // by the conditional estimate on the exact law.
+        let conditional_theta = f.f64s("extremal_index_conditional").get(j).copied().unwrap_or(f64::NAN);
+        let index = if f.bools("answer")[j] && theta[0].is_finite() { theta[0] } else { conditional_theta };
+        if index.is_finite() {
+            whole_flight_index = Some(index);
+        }
         if f.bools("answer")[j] {
             rows.push(
+                Basis::WholeFlight,
                 name,
                 crate::engine::results::thresholds::DECK,
                 figure,
@@ -271,6 +341,7 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
         let conditional = triple("conditional_per_flight");
         if conditional[0] > 0.0 {
             rows.push(
+                Basis::WholeFlight,
                 name,
                 crate::engine::results::thresholds::DECK,
                 figure,
@@ -282,6 +353,9 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
             );
         }
     }
+    if let Some(theta) = whole_flight_index {
+        rows.mark(name, theta);
+    }
 }
 
 /// The statements on the console.
@@ -292,5 +366,51 @@ pub fn print(safety: &DataFrame) {
     println!("  safety figures (safety.csv; to quote with their assumptions):");
     for s in Table(safety).strs("statement") {
         println!("    {s}");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// With a whole-flight figure, the flights' rows are the figure and the converted ones a lower
+    /// bound above an extremal index of 1.5 (the issue's 2.737), consistent with it below; another
+    /// detector's rows and a missed-detection row are left alone.
+    #[test]
+    fn rows_say_which_is_the_figure_and_which_a_lower_bound() {
+        let mut rows = Rows::default();
+        let push = |rows: &mut Rows, basis, detector: &str| {
+            rows.push(
+                basis,
+                detector,
+                "deck",
+                "false alarms per flight hour",
+                [1e-4, 5e-5, 2e-4],
+                "m".into(),
+                "a".into(),
+            )
+        };
+        push(&mut rows, Basis::Conversion, "a");
+        push(&mut rows, Basis::WholeFlight, "a");
+        push(&mut rows, Basis::Other, "a");
+        push(&mut rows, Basis::Conversion, "b");
+        push(&mut rows, Basis::Conversion, "c");
+        rows.mark("a", 2.737);
+        rows.mark("c", 1.2);
+        assert!(
+            rows.role[0]
+                .as_deref()
+                .unwrap()
+                .starts_with("a lower bound: the segment conversion under-counts here (extremal index 2.737 > 1.5)"),
+            "{:?}",
+            rows.role
+        );
+        assert_eq!(
+            rows.role[1].as_deref(),
+            Some("the figure to quote (flights flown through, not restarted segments)")
+        );
+        assert_eq!((rows.role[2].as_deref(), rows.role[3].as_deref()), (None, None));
+        assert_eq!(rows.role[4].as_deref(), Some("consistent with the whole-flight figure (extremal index 1.2)"));
+        assert!(rows.statement[0].ends_with("quote the whole-flight figure]"), "{}", rows.statement[0]);
     }
 }
