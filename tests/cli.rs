@@ -303,7 +303,12 @@ fn rare_event_flights_are_checked_and_reach_the_safety_summary_and_report() {
     assert!(summary.contains("extremal index against the segment conversion"), "{summary}");
     // Which row is the figure (issue 81, item 2): the flights', the segments' beside it.
     let role = safety.column("role").unwrap().str().unwrap().clone();
-    for (i, m) in methods.iter().enumerate() {
+    let detector = safety.column("detector").unwrap().str().unwrap().clone();
+    let flown: Vec<&str> = (0..methods.len())
+        .filter(|&i| methods[i].contains("flights of 20 s"))
+        .filter_map(|i| detector.get(i))
+        .collect();
+    for (i, m) in methods.iter().enumerate().filter(|(i, _)| flown.contains(&detector.get(*i).unwrap())) {
         let r = role.get(i).unwrap_or("");
         if m.contains("flights of 20 s") {
             assert!(r.starts_with("the figure to quote"), "{m}: {r}");
@@ -4397,10 +4402,33 @@ fn time_to_hazard_gives_the_probability_of_missing_the_hazard() {
         })
         .unwrap();
     assert!((value(plain) - (1.0 - (1.0 - p).powf(360.0))).abs() < 1e-12, "{}", value(plain));
-    assert!(
-        text_of("assumptions", plain)
-            .starts_with("the hour's 360 flights of 10 s taken as independent; sensor noise Gaussian")
-    );
+    assert!(text_of("assumptions", plain).starts_with(
+        "per flight hour: at least one false alarm in an hour of flight, the hour's 360 trials of 10 s taken as \
+         independent, each begun with the filter on the truth; sensor noise Gaussian"
+    ));
+    // The sentence to paste (issue 81, item 3): its thresholds, the one-sided 95 % upper bound (Wilson
+    // at z = 1.645, computed here), what it leaves out, the deck's hash and fdimc's version; 10 s
+    // trials are trials, not flights.
+    let (k, n) = (cell("fault_free_false_alarms"), cell("fault_free_flights"));
+    let z = 1.6448536269514722f64;
+    let one_sided =
+        (p + z * z / (2.0 * n) + z * (p * (1.0 - p) / n + z * z / (4.0 * n * n)).sqrt()) / (1.0 + z * z / n);
+    let upper = safety.column("value_upper_95").unwrap().f64().unwrap().get(plain).unwrap();
+    assert!((upper / (1.0 - (1.0 - one_sided).powf(360.0)) - 1.0).abs() < 1e-9, "{upper} ({k} of {n})");
+    let statement = text_of("statement", plain);
+    let manifest: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("manifest.json")).unwrap()).unwrap();
+    let sha = manifest["deck_sha256"].as_str().unwrap()[..16].to_string();
+    for part in [
+        "seed at the calibrated thresholds (".to_string(),
+        "one-sided 95 % upper bound ".to_string(),
+        "fault-free trials of 10 s; assuming per flight hour".to_string(),
+        "not covered: model error beyond the deck's parameter errors".to_string(),
+        format!("deck sha256 {sha}, fdimc {}", env!("CARGO_PKG_VERSION")),
+    ] {
+        assert!(statement.contains(&part), "{part:?} not in {statement}");
+    }
+    assert!(!statement.contains("fault-free flights"), "{statement}");
     let missed = (0..safety.height())
         .find(|&i| text_of("detector", i) == "seed" && text_of("figure", i) == "missed detection before the hazard")
         .unwrap();
@@ -4411,9 +4439,11 @@ fn time_to_hazard_gives_the_probability_of_missing_the_hazard() {
         })
         .unwrap();
     assert_eq!(Some(value(missed)), detectors.column("p_miss_before_hazard").unwrap().f64().unwrap().get(calibrated));
+    let said = text_of("statement", missed);
+    assert!(said.starts_with("seed at the calibrated thresholds (v_m_s "), "{said}");
     assert!(
-        text_of("statement", missed)
-            .starts_with("seed at the calibrated thresholds: missed detection before the hazard ")
+        said.contains("): missed detection before the hazard ") && said.contains("not covered: fault kinds"),
+        "{said}"
     );
     assert!(stdout.contains("  safety figures (safety.csv; to quote with their assumptions):"), "{stdout}");
 

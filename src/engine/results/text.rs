@@ -25,6 +25,36 @@ pub fn rate_interval(x: f64, lo: f64, hi: f64) -> String {
     format!("{} [{}, {}]", rate(x), rate(lo), rate(hi))
 }
 
+/// `values` to the fewest significant digits, 2 to 6, at which those that differ print apart (an
+/// interval that does not collapse onto its estimate: `1.9e-4 [1.9e-4, 1.9e-4]` becomes `1.894e-4
+/// [1.887e-4, 1.901e-4]`); below 0.1 in exponent form, as [`rate`].
+pub fn apart(values: &[f64]) -> Vec<String> {
+    let at = |x: f64, digits: usize| -> String {
+        if x.is_nan() {
+            "-".into()
+        } else if x == 0.0 {
+            "0".into()
+        } else if x.abs() < 0.1 || x.abs() >= 1e4 {
+            format!("{x:.*e}", digits - 1)
+        } else {
+            let decimals = (digits as i32 - 1 - x.abs().log10().floor() as i32).max(0) as usize;
+            format!("{x:.decimals$}")
+        }
+    };
+    let mut digits = 2;
+    loop {
+        let shown: Vec<String> = values.iter().map(|&x| at(x, digits)).collect();
+        let collapsed = (0..values.len()).any(|i| {
+            (0..i)
+                .any(|j| values[i] != values[j] && !(values[i].is_nan() && values[j].is_nan()) && shown[i] == shown[j])
+        });
+        if !collapsed || digits == 6 {
+            return shown;
+        }
+        digits += 1;
+    }
+}
+
 /// `k` of `n` as a rate with its 95 % Wilson interval; `-` when `n` is 0.
 pub fn proportion(k: u64, n: u64) -> String {
     if n == 0 {
@@ -74,5 +104,21 @@ mod tests {
         assert_eq!(significant(54999.59), "55000");
         assert_eq!(significant(2.5e7), "2.500e7");
         assert_eq!(significant(2.5), "2.5");
+    }
+}
+
+#[cfg(test)]
+mod apart_tests {
+    use super::apart;
+
+    /// Two digits where they tell the numbers apart; more where an interval would collapse; equal
+    /// values stay equal; six at most.
+    #[test]
+    fn numbers_print_apart_with_the_fewest_digits() {
+        assert_eq!(apart(&[1.9e-4, 1.2e-4, 2.8e-4]), ["1.9e-4", "1.2e-4", "2.8e-4"]);
+        assert_eq!(apart(&[1.894e-4, 1.887e-4, 1.901e-4]), ["1.894e-4", "1.887e-4", "1.901e-4"]);
+        assert_eq!(apart(&[0.25, 0.25, 0.31]), ["0.25", "0.25", "0.31"]);
+        assert_eq!(apart(&[0.5, 0.5000001]), ["0.500000", "0.500000"]);
+        assert_eq!(apart(&[f64::NAN, 0.0, 3e-9]), ["-", "0", "3.0e-9"]);
     }
 }

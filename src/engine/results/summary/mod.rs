@@ -253,7 +253,13 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     files.push(answer::ANSWER_FILE);
     let noise = manifest.sensor_noise.clone().unwrap_or_else(|| "Gaussian (the kind's model)".to_string());
     let rare_event = safety::read_rare_event(dir, &manifest.deck_sha256)?;
-    let setting = safety::Setting { flight_s: manifest.trial_duration_s, noise: &noise, rare_event };
+    let setting = safety::Setting {
+        flight_s: manifest.trial_duration_s,
+        noise: &noise,
+        rare_event,
+        deck_sha256: &manifest.deck_sha256,
+        fdimc_version: &manifest.fdimc_version,
+    };
     let mut safety = safety::safety(&answer, &detectors, &tails, &setting).map_err(pol(&path))?;
     write_table(&mut safety, &out(safety::SAFETY_FILE))?;
     files.push(safety::SAFETY_FILE);

@@ -11,9 +11,10 @@ use polars::prelude::*;
 use crate::engine::results::schema::col;
 use crate::engine::results::tables::{Table, read_summary};
 use crate::engine::results::tails::DetectorTail;
-use crate::engine::results::text::{rate_interval, significant};
+use crate::engine::results::text::{apart, significant};
 use crate::engine::results::thresholds::per_flight_hour;
 use crate::engine::run::runner::RunError;
+use crate::engine::stats::intervals::wilson;
 
 pub const SAFETY_FILE: &str = "safety.csv";
 
@@ -25,7 +26,20 @@ pub struct Setting<'a> {
     pub noise: &'a str,
     /// `fdimc rare-event`'s tables in the run's folder, for the same deck.
     pub rare_event: Option<RareEventTables>,
+    /// The deck's SHA-256 and the fdimc that flew it, which each statement names.
+    pub deck_sha256: &'a str,
+    pub fdimc_version: &'a str,
 }
+
+/// What a false-alarm figure does not cover, said in its statement.
+const FALSE_ALARMS_LEAVE_OUT: &str = "model error beyond the deck's parameter errors, turbulence, coloured or \
+     correlated noise and any sensor law the deck does not draw, faults, other flight lengths or starts";
+/// What a missed-detection figure does not cover.
+const MISSES_LEAVE_OUT: &str = "fault kinds, sizes and onsets outside the deck's populations, model error beyond \
+     its parameter errors, noise the deck does not draw";
+
+/// Two-sided 90 % normal quantile: a one-sided 95 % bound.
+const Z_ONE_SIDED_95: f64 = 1.644_853_626_951_472_2;
 
 /// `rare_event/rare_event.csv` and, with `--flight-s`, `rare_event/per_hour.csv`; with
 /// `--miss-before-hazard`, `rare_event/miss_before_hazard.csv`.
@@ -81,6 +95,11 @@ pub const UNDERCOUNT_FLAG: f64 = 1.5;
 
 #[derive(Default)]
 struct Rows {
+    /// `deck sha256 ..., fdimc ...`, the end of every statement.
+    stamp: String,
+    /// (detector, threshold set, the thresholds' values in words) of the rows to come.
+    thresholds: Vec<(String, String, String)>,
+    upper: Vec<f64>,
     basis: Vec<Option<Basis>>,
     role: Vec<Option<String>>,
     detector: Vec<String>,
@@ -96,6 +115,9 @@ struct Rows {
 
 impl Rows {
     #[allow(clippy::too_many_arguments)]
+    /// A figure `v` (estimate, 95 % interval) with its one-sided 95 % upper bound where the method
+    /// gives one (`None`: the interval's upper end, a 97.5 % one-sided bound).
+    #[allow(clippy::too_many_arguments)]
     fn push(
         &mut self,
         basis: Basis,
@@ -103,13 +125,25 @@ impl Rows {
         set: &str,
         figure: &str,
         v: [f64; 3],
+        upper: Option<f64>,
         method: String,
         assumptions: String,
     ) {
+        let shown = apart(&[v[0], v[1], v[2], upper.unwrap_or(v[2])]);
+        let bound = match upper {
+            Some(_) => format!("one-sided 95 % upper bound {}", shown[3]),
+            None => format!("upper bound {} (the interval's end: 97.5 % one-sided)", shown[3]),
+        };
+        let values = (self.thresholds.iter())
+            .find(|(d, s, _)| d == detector && s == set)
+            .map_or(String::new(), |(_, _, v)| format!(" ({v})"));
+        let leave_out = if basis == Basis::Other { MISSES_LEAVE_OUT } else { FALSE_ALARMS_LEAVE_OUT };
         let statement = format!(
-            "{detector} at the {set} thresholds: {figure} {} (95 %), by {method}; assuming {assumptions}",
-            rate_interval(v[0], v[1], v[2])
+            "{detector} at the {set} thresholds{values}: {figure} {} (95 % interval [{}, {}]; {bound}), by {method}; \
+             assuming {assumptions}; not covered: {leave_out}; {}",
+            shown[0], shown[1], shown[2], self.stamp
         );
+        self.upper.push(upper.unwrap_or(v[2]));
         self.basis.push(Some(basis));
         self.role.push(None);
         self.detector.push(detector.into());
@@ -174,10 +208,27 @@ pub fn safety(
     );
     let per = |p: f64| setting.flight_s.map_or(p, |s| per_flight_hour(p, s));
     let unit = setting.flight_s.map_or("per flight (its length unknown)".to_string(), |s| {
-        format!("the hour's {} flights of {s} s taken as independent", significant(3600.0 / s))
+        format!(
+            "per flight hour: at least one false alarm in an hour of flight, the hour's {} trials of {s} s taken as \
+             independent, each begun with the filter on the truth",
+            significant(3600.0 / s)
+        )
     });
     let figure = if setting.flight_s.is_some() { "false alarms per flight hour" } else { "false alarms per flight" };
-    let mut rows = Rows::default();
+    // A trial is a flight only where the run's flights are not segments of an hour.
+    let trials_named = setting
+        .flight_s
+        .map_or("fault-free trials".to_string(), |s| format!("fault-free trials of {} s", significant(s)));
+    let values = a.strs("threshold_values");
+    let mut rows = Rows {
+        stamp: format!(
+            "deck sha256 {}, fdimc {}",
+            &setting.deck_sha256[..setting.deck_sha256.len().min(16)],
+            setting.fdimc_version
+        ),
+        thresholds: (0..answer.height()).map(|i| (names[i].clone(), sets[i].clone(), values[i].clone())).collect(),
+        ..Rows::default()
+    };
     for i in 0..answer.height() {
         let (name, set) = (names[i].as_str(), sets[i].as_str());
         if flights[i] > 0 {
@@ -187,7 +238,8 @@ pub fn safety(
                 set,
                 figure,
                 [per(p[i]), per(p_lo[i]), per(p_hi[i])],
-                format!("plain Monte Carlo: {} alarming of {} fault-free flights", alarms[i], flights[i]),
+                Some(per(wilson(alarms[i], flights[i], Z_ONE_SIDED_95).1)),
+                format!("plain Monte Carlo: {} alarming of {} {trials_named}", alarms[i], flights[i]),
                 format!("{}; sensor noise {}", unit, setting.noise),
             );
         }
@@ -206,7 +258,8 @@ pub fn safety(
                 set,
                 figure,
                 [per(at.estimate), per(at.lo), per(at.hi)],
-                format!("a generalised Pareto fit to the tail of the {} fault-free flights' largest statistics", t.n),
+                None,
+                format!("a generalised Pareto fit to the tail of the {} {trials_named}' largest statistics", t.n),
                 format!("{unit}; sensor noise {}; the fitted tail holds beyond the data{doubts}", setting.noise),
             );
         }
@@ -218,7 +271,8 @@ pub fn safety(
                 set,
                 "missed detection before the hazard",
                 [miss[j], miss_lo[j], miss_hi[j]],
-                format!("plain Monte Carlo: {} faulty flights", hazard_units[j]),
+                None,
+                format!("plain Monte Carlo: {} faulty trials", hazard_units[j]),
                 format!(
                     "the deck's fault kinds, sizes and onsets as drawn, each kind's time to hazard (time_to_hazard_s), sensor noise {}",
                     setting.noise
@@ -245,6 +299,7 @@ pub fn safety(
         Column::new("value".into(), r.value),
         Column::new("value_lo".into(), r.lo),
         Column::new("value_hi".into(), r.hi),
+        Column::new("value_upper_95".into(), r.upper),
         Column::new("method".into(), r.method),
         Column::new("assumptions".into(), r.assumptions),
         Column::new("role".into(), r.role),
@@ -268,6 +323,7 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
                 crate::engine::results::thresholds::DECK,
                 "missed detection before the hazard",
                 [p[0][i], p[1][i], p[2][i]],
+                None,
                 format!(
                     "splitting in time: {} replicas of {} particles over the deck's faulty trials (rare_event/)",
                     replicas[i], particles[i]
@@ -296,6 +352,7 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
             crate::engine::results::thresholds::DECK,
             figure,
             [hour[0][i], hour[1][i], hour[2][i]],
+            None,
             method(&estimators[i], units[i], &format!("fault-free trials of {} s", significant(trial_s[i]))),
             format!(
                 "the hour's {} segments of {} s taken as independent restarts; sensor noise {noise}",
@@ -329,6 +386,7 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
                 crate::engine::results::thresholds::DECK,
                 figure,
                 triple("pfa_per_flight_hour_flights"),
+                None,
                 method(&estimators[i], f.u64s("flight_units")[j], &over) + " (their own run: rare_event/flights/)",
                 format!(
                     "{independence}; extremal index against the segment conversion {} [{}, {}]; sensor noise {noise}",
@@ -346,6 +404,7 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
                 crate::engine::results::thresholds::DECK,
                 figure,
                 conditional.map(|p| per_flight_hour(p, flight_s[j])),
+                None,
                 format!("conditional Monte Carlo on the residual's exact Gaussian law over {over}"),
                 format!(
                     "{independence}; the model exact (no parameter error), white Gaussian sensor noise, the |residual| test"
@@ -386,6 +445,7 @@ mod tests {
                 "deck",
                 "false alarms per flight hour",
                 [1e-4, 5e-5, 2e-4],
+                None,
                 "m".into(),
                 "a".into(),
             )
