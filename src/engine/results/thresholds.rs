@@ -151,6 +151,11 @@ pub fn per_flight_hour(p: f64, segment_s: f64) -> f64 {
     -((-p).ln_1p() * (3600.0 / segment_s)).exp_m1()
 }
 
+/// A whole flight's false-alarm figure above this many times the hour's segments converted by
+/// [`per_flight_hour`] (the extremal index, or `design`'s exact ratio): the converted figure is a lower
+/// bound, not one to quote (a choice: the issue that asked for it, #81).
+pub const UNDERCOUNT_FLAG: f64 = 1.5;
+
 /// The probability per segment of `segment_s` seconds that gives `per_hour` per flight hour (the
 /// inverse of [`per_flight_hour`]).
 pub fn per_segment(per_hour: f64, segment_s: f64) -> f64 {
@@ -474,7 +479,7 @@ pub fn thresholds(
     };
     // Detectors whose thresholds are only the largest values seen: the target is past what the units
     // resolve (per detector: why, and how many units would).
-    let mut unresolved: Vec<(String, u64)> = Vec::new();
+    let mut unresolved: Vec<(usize, u64)> = Vec::new();
 
     let (per, whole): (Vec<Vec<f64>>, Vec<Vec<f64>>) = match (calibration, target_pfa) {
         (Calibration::File(f), _) => match &file {
@@ -508,14 +513,14 @@ pub fn thresholds(
                                 "detector {name}: {} calibration trials cannot resolve Pfa {p} (needs >= {needs}): thresholds are the largest values seen",
                                 n[d],
                             ));
-                            unresolved.push((name.clone(), needs as u64));
+                            unresolved.push((d, needs as u64));
                         }
                         allowed(n[d], *p)
                     }
                     Some(c) => confident_allowed(n[d], *p, c).unwrap_or_else(|| {
                         by_tail[d] = crate::engine::stats::tail::exceedances_for(n[d]).is_some();
                         if !by_tail[d] {
-                            unresolved.push((name.clone(), trials_needed(*p, c)));
+                            unresolved.push((d, trials_needed(*p, c)));
                             warnings.push(format!(
                                 "detector {name}: {} calibration trials cannot give Pfa {p} with {c} confidence (needs >= {} fault-free trials for the order statistic, {} for a tail fit): thresholds are the largest values seen, without that confidence",
                                 n[d],
@@ -570,7 +575,7 @@ pub fn thresholds(
                         ));
                         bound
                     } else {
-                        unresolved.push((name.clone(), trials_needed(*p, c)));
+                        unresolved.push((d, trials_needed(*p, c)));
                         warnings.push(format!(
                             "detector {name}: {} calibration trials cannot give Pfa {p} with {c} confidence (needs >= {} fault-free trials), and the tail fit bounds no threshold: thresholds are the largest values seen, without that confidence",
                             n[d],
@@ -594,9 +599,8 @@ pub fn thresholds(
     };
 
     if let Some(&(_, needs)) = unresolved.iter().max_by_key(|u| u.1) {
-        let names: Vec<&str> = unresolved.iter().map(|u| u.0.as_str()).collect();
-        let have = unresolved.iter().map(|u| n[manifest.detectors.iter().position(|d| *d == u.0).unwrap_or(0)]);
-        let have = have.min().unwrap_or(0);
+        let names: Vec<&str> = unresolved.iter().map(|u| manifest.detectors[u.0].as_str()).collect();
+        let have = unresolved.iter().map(|u| n[u.0]).min().unwrap_or(0);
         let units = if fault_free_rows { "fault-free trials" } else { "pre-onset windows" };
         if asked {
             let dir = path.parent().unwrap_or(path);

@@ -126,7 +126,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                         "conditional_monte_carlo_draws": a.conditional_draws,
                         "hour_over_conversion": a.hour.map(|h| h.ratio),
                         "slowest_time_constant_s": a.hour.map(|h| h.slowest_time_constant_s),
-                        "conversion_undercounts": a.hour.map(|h| h.ratio > super::false_alarms::UNDERCOUNT_FLAG),
+                        "conversion_undercounts": a.hour.map(|h| h.ratio > crate::engine::results::thresholds::UNDERCOUNT_FLAG),
                     }),
                     Err(why) => json!({ "not_computed": why }),
                 };
@@ -256,7 +256,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                     "  largest single sample (Sidak over its outputs) {:.3e}; sum over samples (union bound) {:.3e}",
                     f.largest_sample, f.sum
                 );
-                if let Some(h) = f.hour {
+                if let Some(h) = f.hour.filter(|h| h.ratio.is_finite()) {
                     // The per-hour figures above take the hour's trials as independent, each begun
                     // with the filter on the truth: a slow mode leaves a trial's residual unsettled.
                     println!(
@@ -266,7 +266,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                         h.slowest_time_constant_s,
                         study.header.duration_s
                     );
-                    if h.ratio > super::false_alarms::UNDERCOUNT_FLAG {
+                    if h.ratio > crate::engine::results::thresholds::UNDERCOUNT_FLAG {
                         eprintln!(
                             "warning: detector {:?}: the per-flight-hour figures converted from a trial under-count false alarms about {:.2} times (the residual has not settled within a {} s trial: a mode of time constant {:.3} s): they are lower bounds, not figures to quote; estimate a whole flight with `fdimc rare-event DECK --flight-s 3600`",
                             d.name, h.ratio, study.header.duration_s, h.slowest_time_constant_s

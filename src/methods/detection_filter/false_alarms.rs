@@ -63,10 +63,6 @@ pub struct AnalyticFalseAlarms {
     pub hour: Option<HourConversion>,
 }
 
-/// An hour's exceedance sum above this many times the conversion's: the per-hour figure by the
-/// conversion is not one to quote (the issue that asked for it: the extremal index above 1.5).
-pub const UNDERCOUNT_FLAG: f64 = 1.5;
-
 impl AnalyticFalseAlarms {
     pub fn upper(&self) -> f64 {
         self.sidak_upper.min(self.hunter_upper)
@@ -123,6 +119,22 @@ pub fn for_detector(
     Ok(f)
 }
 
+/// The error's closed loop `Phi = Ad - Kd C`, the sensor noise's covariance `R` and the error's drive
+/// per step `Kd R Kd' + W` (`W` the process noise's), which every computation of the residual's law
+/// starts from.
+fn closed_loop(
+    Ad: &DMatrix<f64>,
+    Kd: &DMatrix<f64>,
+    C: &DMatrix<f64>,
+    sensor_sigma: &DVector<f64>,
+    process_sigma_per_step: &DVector<f64>,
+) -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>) {
+    let R = DMatrix::from_diagonal(&sensor_sigma.map(|s| s * s));
+    let W = DMatrix::from_diagonal(&process_sigma_per_step.map(|s| s * s));
+    let drive = Kd * &R * Kd.transpose() + W;
+    (Ad - Kd * C, R, drive)
+}
+
 /// What converting a trial's false-alarm probability to one per flight hour misses (the conversion
 /// takes the hour's trials as independent, each starting with the filter on the truth): the sum of
 /// every sample's exceedance probability over a whole hour flown from `e(0) = 0`, against `3600 /
@@ -151,12 +163,13 @@ pub fn hour_conversion(
     trial_samples: usize,
     dt_s: f64,
 ) -> HourConversion {
-    let Phi = Ad - Kd * C;
+    let (Phi, R, drive) = closed_loop(Ad, Kd, C, sensor_sigma, process_sigma_per_step);
     let largest = Phi.clone().complex_eigenvalues().iter().map(|l| l.norm()).fold(0.0, f64::max);
+    if largest >= 1.0 {
+        // An unstable or undamped filter never settles: no hour to compare.
+        return HourConversion { ratio: f64::NAN, slowest_time_constant_s: f64::INFINITY };
+    }
     let slowest_time_constant_s = -dt_s / largest.ln();
-    let R = DMatrix::from_diagonal(&sensor_sigma.map(|s| s * s));
-    let W = DMatrix::from_diagonal(&process_sigma_per_step.map(|s| s * s));
-    let drive = Kd * &R * Kd.transpose() + W;
     let hour_samples = (3600.0 / dt_s).round() as usize;
     let exceedance = |p: &DMatrix<f64>| -> f64 {
         let var = (C * p * C.transpose() + &R).diagonal();
@@ -196,10 +209,7 @@ pub fn residual_law(
     samples: usize,
 ) -> (Vec<DMatrix<f64>>, Vec<Vec<f64>>) {
     let n = Ad.nrows();
-    let Phi = Ad - Kd * C;
-    let R = DMatrix::from_diagonal(&sensor_sigma.map(|s| s * s));
-    let W = DMatrix::from_diagonal(&process_sigma_per_step.map(|s| s * s));
-    let drive = Kd * &R * Kd.transpose() + W;
+    let (Phi, R, drive) = closed_loop(Ad, Kd, C, sensor_sigma, process_sigma_per_step);
     let (mut H, mut sd): (Vec<DMatrix<f64>>, Vec<Vec<f64>>) =
         (Vec::with_capacity(samples), Vec::with_capacity(samples));
     let mut p_k = DMatrix::zeros(n, n);
@@ -224,8 +234,7 @@ pub fn analytic_false_alarms(
     samples: usize,
 ) -> AnalyticFalseAlarms {
     let (n, ny) = (Ad.nrows(), C.nrows());
-    let Phi = Ad - Kd * C;
-    let R = DMatrix::from_diagonal(&sensor_sigma.map(|s| s * s));
+    let (Phi, R, _) = closed_loop(Ad, Kd, C, sensor_sigma, process_sigma_per_step);
     let (H, sd) = residual_law(Ad, Kd, C, sensor_sigma, process_sigma_per_step, samples);
     let single = |k: usize, j: usize| 2.0 * normal_sf(thresholds[j] / sd[k][j]);
     let (mut sum, mut log_none, mut largest_sample) = (0.0, 0.0, 0.0f64);

@@ -12,7 +12,7 @@ use crate::engine::results::schema::col;
 use crate::engine::results::tables::{Table, read_summary};
 use crate::engine::results::tails::DetectorTail;
 use crate::engine::results::text::{apart, significant};
-use crate::engine::results::thresholds::per_flight_hour;
+use crate::engine::results::thresholds::{UNDERCOUNT_FLAG, per_flight_hour};
 use crate::engine::run::runner::RunError;
 use crate::engine::stats::intervals::wilson;
 
@@ -89,10 +89,6 @@ enum Basis {
     Other,
 }
 
-/// An extremal index (whole-flight figure over the segment conversion) above this: the conversion is a
-/// lower bound, not a figure (a choice: the issue that asked for it, #81).
-pub const UNDERCOUNT_FLAG: f64 = 1.5;
-
 #[derive(Default)]
 struct Rows {
     /// `deck sha256 ..., fdimc ...`, the end of every statement.
@@ -100,7 +96,7 @@ struct Rows {
     /// (detector, threshold set, the thresholds' values in words) of the rows to come.
     thresholds: Vec<(String, String, String)>,
     upper: Vec<f64>,
-    basis: Vec<Option<Basis>>,
+    basis: Vec<Basis>,
     role: Vec<Option<String>>,
     detector: Vec<String>,
     set: Vec<String>,
@@ -114,7 +110,6 @@ struct Rows {
 }
 
 impl Rows {
-    #[allow(clippy::too_many_arguments)]
     /// A figure `v` (estimate, 95 % interval) with its one-sided 95 % upper bound where the method
     /// gives one (`None`: the interval's upper end, a 97.5 % one-sided bound).
     #[allow(clippy::too_many_arguments)]
@@ -144,7 +139,7 @@ impl Rows {
             shown[0], shown[1], shown[2], self.stamp
         );
         self.upper.push(upper.unwrap_or(v[2]));
-        self.basis.push(Some(basis));
+        self.basis.push(basis);
         self.role.push(None);
         self.detector.push(detector.into());
         self.set.push(set.into());
@@ -166,18 +161,16 @@ impl Rows {
                 continue;
             }
             let role = match self.basis[i] {
-                Some(Basis::WholeFlight) => {
-                    "the figure to quote (flights flown through, not restarted segments)".to_string()
-                }
-                Some(Basis::Conversion) if theta > UNDERCOUNT_FLAG => format!(
+                Basis::WholeFlight => "the figure to quote (flights flown through, not restarted segments)".to_string(),
+                Basis::Conversion if theta > UNDERCOUNT_FLAG => format!(
                     "a lower bound: the segment conversion under-counts here (extremal index {} > {UNDERCOUNT_FLAG}); \
                      quote the whole-flight figure",
                     significant(theta)
                 ),
-                Some(Basis::Conversion) => {
+                Basis::Conversion => {
                     format!("consistent with the whole-flight figure (extremal index {})", significant(theta))
                 }
-                _ => continue,
+                Basis::Other => continue,
             };
             self.statement[i] = format!("{} [{role}]", self.statement[i]);
             self.role[i] = Some(role);
