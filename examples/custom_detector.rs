@@ -104,7 +104,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     // 4. The same summaries (thresholds calibrated to the deck's Pfa, paired comparison) and report.
     let method = &fdimc::methods::detection_filter::METHOD;
-    let summary = fdimc::engine::results::summary::summarize(&out_dir, &method.summary, None)?;
+    let summary = fdimc::engine::results::summary::summarize(&out_dir, &method.summary, None, None)?;
     fdimc::engine::results::summary::print(&method.summary, &summary);
     let report = method.write_report(&out_dir, &[])?;
     println!("report: {}", report.files.last().map(|p| p.display().to_string()).unwrap_or_default());

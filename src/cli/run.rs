@@ -115,7 +115,17 @@ fn summarize(method: &Method, dir: &Path, calibration: Option<&Calibration>, pri
         return Ok(());
     }
     let spec = method.summary;
-    let s = summary::summarize(dir, &spec, calibration)?;
+    // The run's deck, where it is unchanged, checks the per-hour conversion by the residual's exact
+    // law (read only when the summary asks).
+    let manifest = Manifest::read(dir)?;
+    let study = std::cell::OnceCell::new();
+    let laws = std::cell::RefCell::new(std::collections::HashMap::new());
+    let law = |d: usize, statistics: &[String], thresholds: &[f64]| {
+        let study = study.get_or_init(|| method.run_study(&manifest).ok()).as_ref()?;
+        let mut laws = laws.borrow_mut();
+        Some(laws.entry(d).or_insert_with(|| study.hour_law(d, statistics)).as_ref()?(thresholds))
+    };
+    let s = summary::summarize(dir, &spec, calibration, Some(&law))?;
     if print {
         summary::print(&spec, &s);
     }
@@ -467,7 +477,7 @@ impl Kinds {
                     (pfa, None) => Calibration::Target(pfa),
                 };
                 let (method, _) = self.method_of_run(&dir)?;
-                let s = summary::summarize(&dir, &method.summary, Some(&calibration))?;
+                let s = summary::summarize(&dir, &method.summary, Some(&calibration), None)?;
                 println!(
                     "the baseline's thresholds are calibrated at {}: this run calibrated there too ({})",
                     crate::engine::results::check::describe(Some(wanted)),

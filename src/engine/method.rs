@@ -43,6 +43,18 @@ pub struct Method {
 }
 
 impl Method {
+    /// The study of the deck a run in a folder read (`manifest`), when it is where the run read it and
+    /// unchanged (its SHA-256 the run's); else why not.
+    pub fn run_study(&self, manifest: &Manifest) -> Result<Box<dyn Study>, String> {
+        let deck = Path::new(&manifest.deck);
+        let same = crate::engine::run::runner::deck_sha256(deck).map(|h| h == manifest.deck_sha256).unwrap_or(false);
+        if !same {
+            return Err(format!("{} is missing or changed since the run", deck.display()));
+        }
+        let text = read_deck(deck).map_err(|e| e.to_string())?;
+        (self.load)(&text, deck).map_err(|e| e.to_string())
+    }
+
     /// The kind records a detection statistic whose thresholds `summarize` calibrates after the run
     /// ([`Opt::Thresholds`]); its decks then take `monte_carlo.target_pfa`.
     pub fn calibrates(&self) -> bool {
@@ -192,6 +204,17 @@ pub trait Study: Sync {
     /// `fdimc train` ([`Opt::Classifiers`]): trains what the study evaluates and writes it to `out`.
     fn train(&self, _out: Option<&Path>) -> Result<(), RunError> {
         Err(RunError::Internal("this kind lists nothing to train".into()))
+    }
+    /// How far converting a trial's false-alarm probability to one per flight hour under-counts for
+    /// detector `detector` at thresholds (one per statistic, named `statistics`), by the residual's
+    /// exact law where the kind knows it for this deck; `None` where it does not (the summary then
+    /// leaves the conversion unchecked).
+    fn hour_law(
+        &self,
+        _detector: usize,
+        _statistics: &[String],
+    ) -> Option<crate::engine::results::thresholds::HourLaw> {
+        None
     }
 }
 

@@ -6,8 +6,10 @@
 //! without a trial duration) with 95 % intervals; the upper end of a threshold's interval is a threshold
 //! whose Pfa is at most the target with 97.5 % confidence, if the fitted law holds.
 //!
-//! Tables: `tail.csv` (the figures, a row per statistic's threshold) and `tail_diagnostics.csv` (the fit
-//! over a range of thresholds: shape with its interval, modified scale, mean excess).
+//! Tables: `tail.csv` (the figures, a row per statistic's threshold; where the kind knows the residual's
+//! exact law, `hour_over_conversion`: how many times an hour flown through alarms as often as the
+//! row's per-hour conversion says, above 1.5 a lower bound) and `tail_diagnostics.csv` (the fit over a
+//! range of thresholds: shape with its interval, modified scale, mean excess).
 
 use std::path::Path;
 
@@ -16,7 +18,9 @@ use rayon::prelude::*;
 
 use crate::engine::results::schema::col;
 use crate::engine::results::thresholds::DECK;
-use crate::engine::results::thresholds::{DetectorThresholds, TopValues, for_each_slice, per_flight_hour, per_segment};
+use crate::engine::results::thresholds::{
+    DetectorThresholds, HourConversion, TopValues, for_each_slice, per_flight_hour, per_segment,
+};
 use crate::engine::run::output::write_table;
 use crate::engine::run::runner::{Manifest, RunError, pol};
 use crate::engine::stats::intervals::{Z95, wilson};
@@ -49,6 +53,9 @@ pub struct DetectorTail {
     pub at_set: Option<Interval>,
     /// For the calibrated set: the scale of its thresholds per target.
     pub targets: Vec<Target>,
+    /// The exact law's verdict on the per-hour conversion at the set's thresholds, where the kind
+    /// knows it (filled by the summary: [`crate::engine::method::Study::hour_law`]).
+    pub hour: Option<HourConversion>,
 }
 
 #[derive(Debug, Clone)]
@@ -59,6 +66,8 @@ pub struct Target {
     pub per_hour: Option<f64>,
     /// The factor on the set's thresholds.
     pub scale: Interval,
+    /// The exact law's verdict on the conversion at the thresholds for the target (as [`DetectorTail::hour`]).
+    pub hour: Option<HourConversion>,
 }
 
 /// Fits every detector's tail against the deck's thresholds (where the deck gives one per statistic)
@@ -129,6 +138,7 @@ fn tail_of(
         concerns: Vec::new(),
         at_set: None,
         targets: Vec::new(),
+        hour: None,
     };
     let Some(k) = exceedances_for(n) else {
         tail.concerns.push(format!(
@@ -155,7 +165,7 @@ fn tail_of(
                     Some(d) => (per_segment(target, d), Some(target)),
                     None => (target, None),
                 };
-                (pfa < fit.zeta()).then(|| Target { pfa, per_hour, scale: fit.quantile_interval(pfa) })
+                (pfa < fit.zeta()).then(|| Target { pfa, per_hour, scale: fit.quantile_interval(pfa), hour: None })
             })
             .collect()
     };
@@ -188,7 +198,7 @@ pub fn write_tail_tables(dir: &Path, tails: &[DetectorTail], statistics: &[Strin
         let at = t.at_set.unwrap_or(Interval { estimate: rate, lo, hi });
         let one = Interval { estimate: 1.0, lo: 1.0, hi: 1.0 };
         let estimate = if fitted { "tail fit" } else { "observed" };
-        c.push(t, statistics, "pfa_at_thresholds", None, at, one, estimate);
+        c.push(t, statistics, "pfa_at_thresholds", None, at, one, estimate, t.hour);
         for x in &t.targets {
             c.push(
                 t,
@@ -198,6 +208,7 @@ pub fn write_tail_tables(dir: &Path, tails: &[DetectorTail], statistics: &[Strin
                 Interval { estimate: x.pfa, lo: x.pfa, hi: x.pfa },
                 x.scale,
                 "tail fit",
+                x.hour,
             );
         }
     }
@@ -254,6 +265,7 @@ struct TailColumns {
     counts: [Vec<u64>; 3],
     fit: [Vec<Option<f64>>; 4],
     trust: Vec<String>,
+    hour_over_conversion: Vec<Option<f64>>,
 }
 
 impl TailColumns {
@@ -267,6 +279,7 @@ impl TailColumns {
         pfa: Interval,
         scale: Interval,
         estimate: &str,
+        hour: Option<HourConversion>,
     ) {
         let xi = t.xi;
         for (j, s) in statistics.iter().enumerate() {
@@ -294,6 +307,7 @@ impl TailColumns {
                 v.push(x);
             }
             self.trust.push(if t.concerns.is_empty() { "ok".into() } else { t.concerns.join("; ") });
+            self.hour_over_conversion.push(hour.map(|h| h.ratio));
         }
     }
 
@@ -332,6 +346,7 @@ impl TailColumns {
             Column::new("xi_lo".into(), xi_lo),
             Column::new("xi_hi".into(), xi_hi),
             Column::new("trust".into(), self.trust),
+            Column::new("hour_over_conversion".into(), self.hour_over_conversion),
         ])
     }
 }

@@ -156,6 +156,35 @@ pub fn per_flight_hour(p: f64, segment_s: f64) -> f64 {
 /// bound, not one to quote (a choice: the issue that asked for it, #81).
 pub const UNDERCOUNT_FLAG: f64 = 1.5;
 
+/// What converting a trial's false-alarm probability to one per flight hour misses, where a kind knows
+/// its residual's exact law ([`crate::engine::method::Study::hour_law`]; the conversion takes the
+/// hour's trials as independent, each starting with the filter on the truth): an upper bound on an
+/// alarm in a whole hour flown from the filter on the truth (Sidak's, over every sample and output),
+/// against the conversion [`per_flight_hour`] of a trial's bound. Near 1 when the residual settles
+/// early in a trial; above it when a slow mode keeps the residual below its settled spread for much of
+/// the trial, where the hour's samples are nearly all settled: the conversion then under-counts about
+/// this many times (clusters of alarms aside). Where alarms are rare it is the ratio of the hour's
+/// exceedance sum to its trials'; where they are not, Sidak keeps it a ratio of probabilities
+/// (tests/support/exact_false_alarms.rs brackets it by the exact law). With the model exact and white
+/// Gaussian noise.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HourConversion {
+    /// The hour's bound over the trial's converted; NaN where a trial's is 0.
+    pub ratio: f64,
+    /// The residual's slowest mode as a time constant (s).
+    pub slowest_time_constant_s: f64,
+}
+
+/// A detector's [`HourConversion`] at any thresholds (one per statistic), its law computed once.
+pub type HourLaw = Box<dyn Fn(&[f64]) -> HourConversion + Send + Sync>;
+
+impl HourConversion {
+    /// The converted figures are lower bounds, not figures to quote (above [`UNDERCOUNT_FLAG`]).
+    pub fn undercounts(&self) -> bool {
+        self.ratio > UNDERCOUNT_FLAG
+    }
+}
+
 /// The probability per segment of `segment_s` seconds that gives `per_hour` per flight hour (the
 /// inverse of [`per_flight_hour`]).
 pub fn per_segment(per_hour: f64, segment_s: f64) -> f64 {

@@ -126,7 +126,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                         "conditional_monte_carlo_draws": a.conditional_draws,
                         "hour_over_conversion": a.hour.map(|h| h.ratio),
                         "slowest_time_constant_s": a.hour.map(|h| h.slowest_time_constant_s),
-                        "conversion_undercounts": a.hour.map(|h| h.ratio > crate::engine::results::thresholds::UNDERCOUNT_FLAG),
+                        "conversion_undercounts": a.hour.map(|h| h.undercounts()),
                     }),
                     Err(why) => json!({ "not_computed": why }),
                 };
@@ -260,13 +260,10 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                     // The per-hour figures above take the hour's trials as independent, each begun
                     // with the filter on the truth: a slow mode leaves a trial's residual unsettled.
                     println!(
-                        "  per flight hour by that conversion: over a whole hour from the same start the samples' exceedance sum is {:.3} x the {} trials' (slowest mode of A - K C: time constant {:.3} s, against {} s trials)",
-                        h.ratio,
-                        3600.0 / study.header.duration_s,
-                        h.slowest_time_constant_s,
-                        study.header.duration_s
+                        "  per flight hour by that conversion: a whole hour flown from the same start alarms {:.3} x as often (Sidak's bounds on the hour and on the trial converted; slowest mode of A - K C: time constant {:.3} s, against {} s trials)",
+                        h.ratio, h.slowest_time_constant_s, study.header.duration_s
                     );
-                    if h.ratio > crate::engine::results::thresholds::UNDERCOUNT_FLAG {
+                    if h.undercounts() {
                         eprintln!(
                             "warning: detector {:?}: the per-flight-hour figures converted from a trial under-count false alarms about {:.2} times (the residual has not settled within a {} s trial: a mode of time constant {:.3} s): they are lower bounds, not figures to quote; estimate a whole flight with `fdimc rare-event DECK --flight-s 3600`",
                             d.name, h.ratio, study.header.duration_s, h.slowest_time_constant_s

@@ -105,6 +105,9 @@ impl Study for LtiStudy {
         let parts = scenario::ScenarioSampler::sensitivity_parts(self);
         Ok(self.monte_carlo.common.use_design(base_samples, bootstrap, parts))
     }
+    fn hour_law(&self, detector: usize, statistics: &[String]) -> Option<crate::engine::results::thresholds::HourLaw> {
+        false_alarms::hour_law(self, detector, statistics)
+    }
 }
 use trials::{Engine, TrialResult};
 

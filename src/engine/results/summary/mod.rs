@@ -50,7 +50,10 @@ use polars::prelude::*;
 use crate::engine::results::schema::col;
 use crate::engine::results::summary_spec::{Extra, SummarySpec};
 use crate::engine::results::tables::{column_names, complete_run, slices};
-use crate::engine::results::thresholds::{Calibration, DECK, SLICE_ROWS, thresholds, write_thresholds};
+use crate::engine::results::text::significant;
+use crate::engine::results::thresholds::{
+    Calibration, DECK, DetectorThresholds, HourConversion, SLICE_ROWS, thresholds, write_thresholds,
+};
 use crate::engine::run::output::write_table;
 use crate::engine::run::runner::{RunError, pol, write_parquet};
 
@@ -60,9 +63,20 @@ use tables::{
     with_size_unit,
 };
 
+/// The exact law's verdict on the per-hour conversion for a detector (its index in the run) at
+/// thresholds (one per statistic, named): a kind's [`crate::engine::method::Study::hour_law`] on
+/// the run's deck.
+pub type HourLaw<'a> = &'a dyn Fn(usize, &[String], &[f64]) -> Option<HourConversion>;
+
 /// Reads the run in `dir`, writes the tables of the module docs and returns what `print` shows.
-/// `calibration` applies to kinds that record statistics (default: the deck's target Pfa).
-pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibration>) -> Result<Summary, RunError> {
+/// `calibration` applies to kinds that record statistics (default: the deck's target Pfa); `law`, where
+/// given, checks the per-flight-hour conversion at every threshold set's values.
+pub fn summarize(
+    dir: &Path,
+    spec: &SummarySpec,
+    calibration: Option<&Calibration>,
+    law: Option<HourLaw>,
+) -> Result<Summary, RunError> {
     let (manifest, path) = complete_run(dir)?;
     let columns = column_names(&path)?;
     let statistics: Vec<String> =
@@ -217,10 +231,45 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
     let out = |f: &str| dir_out.join(f);
     let mut files = Vec::new();
     let mut tails = Vec::new();
+    let mut conversions = Vec::new();
     if let (Some((t, source)), Some(set)) = (&thresholds, set) {
         write_thresholds(&dir_out, t, &statistics, source)?;
         files.push("thresholds.csv");
         tails = crate::engine::results::tails::tails(&path, &manifest, &statistics, t, set)?;
+        let hour_at = |detector: &str, values: &[f64]| hour_at(law, &manifest, &statistics, detector, values);
+        for tail in &mut tails {
+            tail.hour = hour_at(&tail.detector, &tail.base);
+            let base = tail.base.clone();
+            for x in tail.targets.iter_mut().filter(|x| x.per_hour.is_some()) {
+                x.hour = hour_at(&tail.detector, &base.iter().map(|b| b * x.scale.estimate).collect::<Vec<_>>());
+            }
+            let low: Vec<String> = (tail.targets.iter())
+                .filter_map(|x| x.hour.filter(HourConversion::undercounts).zip(x.per_hour))
+                .map(|(h, p)| format!("{p:e} per hour: {} times", significant(h.ratio)))
+                .collect();
+            if !low.is_empty() {
+                warnings.push(format!(
+                    "tail.csv's thresholds of {} for per-flight-hour targets convert from trials, and by the residual's \
+                     exact law an hour flown through alarms more often at them ({}): too low for their targets \
+                     (hour_over_conversion in tail.csv)",
+                    tail.detector,
+                    low.join(", ")
+                ));
+            }
+        }
+        conversions = conversions_of(t, set, &hour_at);
+        for (detector, set, h) in conversions.iter().filter(|(_, _, h)| h.undercounts()) {
+            warnings.push(format!(
+                "{detector} at the {set} thresholds: the per-flight-hour figures converted from {} s trials \
+                 under-count false alarms about {} times by the residual's exact law (a mode of time constant {} s): \
+                 lower bounds, not figures to quote (safety.csv); estimate whole flights with \
+                 `fdimc rare-event {} --flight-s 3600`",
+                significant(manifest.trial_duration_s.unwrap_or(f64::NAN)),
+                significant(h.ratio),
+                significant(h.slowest_time_constant_s),
+                manifest.deck
+            ));
+        }
         // A doubt about a figure the fit gives is a warning; the fit's details are tail.csv's (and
         // `--verbose`'s). At thresholds inside the data the fit gives no figure to doubt.
         for tail in tails.iter().filter(|t| !t.concerns.is_empty() && (t.at_set.is_some() || !t.targets.is_empty())) {
@@ -257,6 +306,7 @@ pub fn summarize(dir: &Path, spec: &SummarySpec, calibration: Option<&Calibratio
         flight_s: manifest.trial_duration_s,
         noise: &noise,
         rare_event,
+        conversions: &conversions,
         deck_sha256: &manifest.deck_sha256,
         fdimc_version: &manifest.fdimc_version,
     };
@@ -430,7 +480,7 @@ pub mod hand_made {
             let dir = tempfile::tempdir().unwrap();
             write_parquet(&mut records, &dir.path().join("trials.parquet")).unwrap();
             Manifest { rows: records.height() as u64, complete: true, ..manifest }.write(dir.path()).unwrap();
-            super::summarize(dir.path(), spec, None).unwrap();
+            super::summarize(dir.path(), spec, None, None).unwrap();
             let summary = read_summary(&dir.path().join("summary.csv")).unwrap();
             Summarized { dir, summary }
         }
@@ -545,4 +595,40 @@ mod tests {
         assert_eq!(edges("size_bin_lo"), [Some(8.0), Some(0.0), Some(14.0), Some(4.0), Some(3.0), None]);
         assert_eq!(edges("size_bin_hi"), [Some(14.0), Some(0.5), Some(20.0), Some(4.0), Some(3.0), None]);
     }
+}
+
+/// The exact law's verdict for `detector` of the run at `values` (one per statistic), where `law` is
+/// given, the run's trials have a duration and the values are thresholds.
+fn hour_at(
+    law: Option<HourLaw>,
+    manifest: &crate::engine::run::runner::Manifest,
+    statistics: &[String],
+    detector: &str,
+    values: &[f64],
+) -> Option<HourConversion> {
+    let law = law?;
+    manifest.trial_duration_s?;
+    if values.len() != statistics.len() || !values.iter().all(|v| v.is_finite() && *v > 0.0) {
+        return None;
+    }
+    let d = manifest.detectors.iter().position(|n| n == detector)?;
+    law(d, statistics, values).filter(|h| h.ratio.is_finite())
+}
+
+/// Per detector and threshold set in use (the deck's, and `set`'s whole-detector thresholds), the
+/// exact law's verdict on the conversion where `hour_at` gives one.
+fn conversions_of(
+    thresholds: &[DetectorThresholds],
+    set: &'static str,
+    hour_at: &dyn Fn(&str, &[f64]) -> Option<HourConversion>,
+) -> Vec<(String, &'static str, HourConversion)> {
+    let mut out = Vec::new();
+    for t in thresholds {
+        for (name, values) in [(DECK, &t.deck), (set, &t.whole)] {
+            if let Some(h) = hour_at(&t.detector, values) {
+                out.push((t.detector.clone(), name, h));
+            }
+        }
+    }
+    out
 }

@@ -12,7 +12,7 @@ use crate::engine::results::schema::col;
 use crate::engine::results::tables::{Table, read_summary};
 use crate::engine::results::tails::DetectorTail;
 use crate::engine::results::text::{apart, significant};
-use crate::engine::results::thresholds::{UNDERCOUNT_FLAG, per_flight_hour};
+use crate::engine::results::thresholds::{DECK, HourConversion, UNDERCOUNT_FLAG, per_flight_hour};
 use crate::engine::run::runner::RunError;
 use crate::engine::stats::intervals::wilson;
 
@@ -26,6 +26,9 @@ pub struct Setting<'a> {
     pub noise: &'a str,
     /// `fdimc rare-event`'s tables in the run's folder, for the same deck.
     pub rare_event: Option<RareEventTables>,
+    /// Per (detector, threshold set): the exact law's verdict on the segment conversion, where the
+    /// kind knows the law for the run's deck.
+    pub conversions: &'a [(String, &'static str, HourConversion)],
     /// The deck's SHA-256 and the fdimc that flew it, which each statement names.
     pub deck_sha256: &'a str,
     pub fdimc_version: &'a str,
@@ -152,12 +155,42 @@ impl Rows {
         self.statement.push(statement);
     }
 
-    /// Where `detector` has a whole-flight figure and its extremal index `theta` against the segment
-    /// conversion: the whole-flight rows are the figure, the converted ones a lower bound when `theta`
-    /// exceeds [`UNDERCOUNT_FLAG`] (else consistent with it); the statements say so.
+    /// Where the exact law gives `detector`'s conversion at the `set` thresholds: its converted rows
+    /// there are a lower bound when the law's ratio exceeds [`UNDERCOUNT_FLAG`], else consistent with
+    /// a whole flight; the statements say so.
+    fn mark_by_law(&mut self, detector: &str, set: &str, h: &HourConversion, segment_s: f64) {
+        for i in 0..self.detector.len() {
+            if self.detector[i] != detector || self.set[i] != set || self.basis[i] != Basis::Conversion {
+                continue;
+            }
+            self.role[i] = Some(if h.undercounts() {
+                format!(
+                    "a lower bound: the segment conversion under-counts here (by the residual's exact law an hour flown \
+                     through alarms {} times as often: a mode of time constant {} s against {} s trials); \
+                     estimate whole flights with fdimc rare-event DECK --flight-s 3600",
+                    significant(h.ratio),
+                    significant(h.slowest_time_constant_s),
+                    significant(segment_s)
+                )
+            } else {
+                format!(
+                    "consistent with an hour flown through (by the residual's exact law, {} times the conversion)",
+                    significant(h.ratio)
+                )
+            });
+        }
+    }
+
+    /// Where `detector` has a whole-flight figure (at the deck's thresholds) and its extremal index
+    /// `theta` against the segment conversion: the whole-flight rows are the figure, the converted ones
+    /// at the deck's thresholds a lower bound when `theta` exceeds [`UNDERCOUNT_FLAG`] (else consistent
+    /// with it), unless the exact law has judged them (an estimate does not overrule it; the index
+    /// moves with the thresholds, so other sets are left alone); the statements say so.
     fn mark(&mut self, detector: &str, theta: f64) {
         for i in 0..self.detector.len() {
-            if self.detector[i] != detector {
+            if self.detector[i] != detector
+                || (self.basis[i] == Basis::Conversion && (self.set[i] != DECK || self.role[i].is_some()))
+            {
                 continue;
             }
             let role = match self.basis[i] {
@@ -172,9 +205,15 @@ impl Rows {
                 }
                 Basis::Other => continue,
             };
-            self.statement[i] = format!("{} [{role}]", self.statement[i]);
             self.role[i] = Some(role);
         }
+    }
+
+    /// Each row's statement, its role (where it has one) at the end.
+    fn statements(&self) -> Vec<String> {
+        (self.statement.iter().zip(&self.role))
+            .map(|(s, r)| r.as_ref().map_or(s.clone(), |r| format!("{s} [{r}]")))
+            .collect()
     }
 }
 
@@ -273,6 +312,11 @@ pub fn safety(
             );
         }
     }
+    if let Some(segment_s) = setting.flight_s {
+        for (detector, set, h) in setting.conversions {
+            rows.mark_by_law(detector, set, h, segment_s);
+        }
+    }
     // The rare-event figures are at the deck's thresholds (its levels scale them), whichever set the
     // answer uses: one group per detector, after the figures in use.
     if let Some(re) = &setting.rare_event {
@@ -284,6 +328,7 @@ pub fn safety(
             }
         }
     }
+    let statements = rows.statements();
     let r = rows;
     DataFrame::new_infer_height(vec![
         Column::new(col::DETECTOR.into(), r.detector),
@@ -296,7 +341,7 @@ pub fn safety(
         Column::new("method".into(), r.method),
         Column::new("assumptions".into(), r.assumptions),
         Column::new("role".into(), r.role),
-        Column::new("statement".into(), r.statement),
+        Column::new("statement".into(), statements),
     ])
 }
 
@@ -313,7 +358,7 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
             rows.push(
                 Basis::Other,
                 name,
-                crate::engine::results::thresholds::DECK,
+                DECK,
                 "missed detection before the hazard",
                 [p[0][i], p[1][i], p[2][i]],
                 None,
@@ -342,7 +387,7 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
         rows.push(
             Basis::Conversion,
             name,
-            crate::engine::results::thresholds::DECK,
+            DECK,
             figure,
             [hour[0][i], hour[1][i], hour[2][i]],
             None,
@@ -376,7 +421,7 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
             rows.push(
                 Basis::WholeFlight,
                 name,
-                crate::engine::results::thresholds::DECK,
+                DECK,
                 figure,
                 triple("pfa_per_flight_hour_flights"),
                 None,
@@ -394,7 +439,7 @@ fn rare_event_rows(rows: &mut Rows, name: &str, re: &RareEventTables, noise: &st
             rows.push(
                 Basis::WholeFlight,
                 name,
-                crate::engine::results::thresholds::DECK,
+                DECK,
                 figure,
                 conditional.map(|p| per_flight_hour(p, flight_s[j])),
                 None,
@@ -464,6 +509,48 @@ mod tests {
         );
         assert_eq!((rows.role[2].as_deref(), rows.role[3].as_deref()), (None, None));
         assert_eq!(rows.role[4].as_deref(), Some("consistent with the whole-flight figure (extremal index 1.2)"));
-        assert!(rows.statement[0].ends_with("quote the whole-flight figure]"), "{}", rows.statement[0]);
+        assert!(rows.statements()[0].ends_with("quote the whole-flight figure]"), "{}", rows.statements()[0]);
+    }
+
+    /// The exact law judges the converted rows at the thresholds it was computed for: a lower bound
+    /// above 1.5 (the lateral deck's 2.555), consistent below; a later whole-flight figure (at the
+    /// deck's thresholds) does not overrule it, and judges only the deck's rows the law left.
+    #[test]
+    fn the_exact_law_marks_the_converted_rows_at_its_thresholds() {
+        let mut rows = Rows::default();
+        for (detector, set) in
+            [("d", "deck"), ("d", "calibrated"), ("e", "calibrated"), ("f", "deck"), ("f", "calibrated")]
+        {
+            let v = [1e-2, 5e-3, 2e-2];
+            rows.push(
+                Basis::Conversion,
+                detector,
+                set,
+                "false alarms per flight hour",
+                v,
+                None,
+                "m".into(),
+                "a".into(),
+            );
+        }
+        let slow = HourConversion { ratio: 2.555, slowest_time_constant_s: 16.665 };
+        rows.mark_by_law("d", "deck", &slow, 10.0);
+        rows.mark_by_law("d", "calibrated", &slow, 10.0);
+        rows.mark_by_law("e", "calibrated", &HourConversion { ratio: 1.1, slowest_time_constant_s: 1.0 }, 10.0);
+        let lower = "a lower bound: the segment conversion under-counts here (by the residual's exact law an hour \
+                     flown through alarms 2.555 times as often: a mode of time constant 16.66 s against 10 s trials)";
+        assert!(rows.role[1].as_deref().unwrap().starts_with(lower), "{:?}", rows.role[1]);
+        assert_eq!(
+            rows.role[2].as_deref(),
+            Some("consistent with an hour flown through (by the residual's exact law, 1.1 times the conversion)")
+        );
+        rows.mark("d", 1.2);
+        rows.mark("f", 1.2);
+        for i in [0, 1] {
+            assert!(rows.role[i].as_deref().unwrap().starts_with(lower), "{:?}", rows.role[i]);
+        }
+        assert_eq!(rows.role[3].as_deref(), Some("consistent with the whole-flight figure (extremal index 1.2)"));
+        assert_eq!(rows.role[4], None);
+        assert!(rows.statements()[1].contains("[a lower bound"), "{}", rows.statements()[1]);
     }
 }
