@@ -142,8 +142,8 @@ fn design_flags_a_per_hour_conversion_that_a_slow_mode_undercounts() {
     assert!(slow_text.contains("process_sigma_per_step") && slow_text.contains("[1.05,"));
     std::fs::write(&slow, slow_text).unwrap();
     let (slow_ratio, _) = ratio(slow.to_str().unwrap());
-    // 3.41 and 6.18 (the seed's and the raised thresholds: an hour's Sidak bound 0.93 and 0.45).
-    assert!(slow_ratio.iter().all(|r| *r > 3.0 && *r < 7.0), "{slow_ratio:?}");
+    // 6.92 and 8.15 (the seed's and the raised thresholds).
+    assert!(slow_ratio.iter().all(|r| *r > 6.0 && *r < 9.0), "{slow_ratio:?}");
     let out = fdimc(&["design", slow.to_str().unwrap()]);
     let said = text(&out.stderr);
     assert_eq!(said.matches("under-count false alarms about").count(), 2, "{said}");
@@ -151,20 +151,13 @@ fn design_flags_a_per_hour_conversion_that_a_slow_mode_undercounts() {
     assert!(said.contains("rare-event DECK --flight-s 3600"), "{said}");
 }
 
-/// The exact law against fdimc's figures (issue 81, item 4), on the project's deck with a slow unassigned
-/// mode and three outputs: `tests/support/exact_false_alarms.rs` (sharing no code with fdimc's
-/// estimators; only the filter's gain `Kd` is read from `design --json`, and checked) brackets a 10 s
-/// trial's false-alarm probability and a one-hour flight's from `e(0) = 0`. `design`'s bounds hold
-/// and lie within 0.2 % of the trial's; the flight's over the trial's converted, the extremal index, exceeds 1.5 by the
-/// exact law (2.38 to 2.56), and `design` flags the conversion there; the calibration at Pfa 0.01 per
-/// trial gives thresholds whose exact Pfa its interval covers; a per-hour target the run cannot
-/// resolve is refused with nothing written.
-#[test]
+/// The bundled slow-unassigned-mode deck's exact law (`tests/support/exact_false_alarms.rs`), its
+/// thresholds and `design --json`'s detector: the plant from the deck, the filter's gain `Kd` from
+/// `design`, checked (Ad - Kd C has the three assigned eigenvalues, -1, -2 and -3 per s, and leaves a
+/// slow mode: sideslip's, 16.7 s in the discrete filter).
 #[allow(non_snake_case)]
-fn the_exact_law_confirms_the_flagged_conversion_and_the_calibration_on_a_slow_unassigned_mode() {
-    use exact_false_alarms::{ResidualLaw, extremal_index};
+fn lateral_slow_mode_law(deck: &str) -> (exact_false_alarms::ResidualLaw, Vec<f64>, serde_json::Value) {
     use nalgebra::DMatrix;
-    let deck = "studies/seed000_lateral_slow_mode.toml";
     let parsed: toml::Table = std::fs::read_to_string(deck).unwrap().parse().unwrap();
     let matrix = |v: &toml::Value| -> DMatrix<f64> {
         let rows: Vec<Vec<f64>> = v
@@ -184,11 +177,9 @@ fn the_exact_law_confirms_the_flagged_conversion_and_the_calibration_on_a_slow_u
     let out = fdimc(&["design", deck, "--json"]);
     assert_eq!(out.status.code(), Some(0), "{}", text(&out.stderr));
     let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let det = &doc["detectors"][0];
+    let det = doc["detectors"][0].clone();
     let Kd = matrix(&toml::Value::try_from(&det["discrete"]["K"]).unwrap());
     let Ad = (&A * dt).exp();
-    // The gain is the filter the deck asks for: Ad - Kd C has the three assigned, -1, -2 and -3 per s,
-    // and leaves a slow mode (sideslip's, 16.7 s in the discrete filter).
     let mut z: Vec<f64> = (&Ad - &Kd * &C).complex_eigenvalues().iter().map(|l| l.re).collect();
     z.sort_by(f64::total_cmp);
     for (z, l) in z.iter().zip([-3.0, -2.0, -1.0]) {
@@ -196,7 +187,22 @@ fn the_exact_law_confirms_the_flagged_conversion_and_the_calibration_on_a_slow_u
     }
     let slowest_s = -dt / z[3].ln();
     assert!((16.6..16.7).contains(&slowest_s), "{z:?}");
-    let law = ResidualLaw::new(&Ad, &Kd, &C, &sigma, &[0.0; 4]);
+    (exact_false_alarms::ResidualLaw::new(&Ad, &Kd, &C, &sigma, &[0.0; 4]), thresholds, det)
+}
+
+/// The exact law against fdimc's figures (issue 81, item 4), on the project's deck with a slow unassigned
+/// mode and three outputs: `tests/support/exact_false_alarms.rs` (sharing no code with fdimc's
+/// estimators) brackets a 10 s trial's false-alarm probability and a one-hour flight's from `e(0) = 0`.
+/// `design`'s bounds hold and lie within 0.2 % of the trial's; the extremal index against the
+/// conversion exceeds 1.5 by the exact law (2.53 to 2.74), and `design` flags the conversion there with
+/// the bracket's upper end (its Sidak bounds); the calibration at Pfa 0.01 per trial gives thresholds
+/// whose exact Pfa its interval covers; a per-hour target the run cannot resolve is refused with
+/// nothing written.
+#[test]
+fn the_exact_law_confirms_the_flagged_conversion_and_the_calibration_on_a_slow_unassigned_mode() {
+    use exact_false_alarms::extremal_index;
+    let deck = "studies/seed000_lateral_slow_mode.toml";
+    let (law, thresholds, det) = lateral_slow_mode_law(deck);
     let trial = law.window(&thresholds, 1000);
     let hour = law.flight(&thresholds, 360_000);
     // Tight enough to decide: the trial's bounds within 0.2 %, the hour's within 8 % (its lower bound
@@ -214,7 +220,7 @@ fn the_exact_law_confirms_the_flagged_conversion_and_the_calibration_on_a_slow_u
     assert!(theta.lower > 1.5 && theta.upper < 3.0, "{theta:?}");
     assert_eq!(fa["conversion_undercounts"], serde_json::json!(true));
     let ratio = fa["hour_over_conversion"].as_f64().unwrap();
-    assert!(theta.lower <= ratio && ratio <= theta.upper, "design's {ratio} vs exact {theta:?}");
+    assert!(theta.lower <= ratio && ratio <= theta.upper * (1.0 + 1e-9), "design's {ratio} vs exact {theta:?}");
     // The calibration at Pfa 0.01 per trial on 4,000 fault-free trials, for seeds 1 to 8: the exact Pfa
     // at the calibrated thresholds is a draw around 0.01 (sd 0.0016 for the 41st largest of 4,000)
     // that the calibration's 95 % interval covers (6 or more of 8: at 95 % coverage, with probability
@@ -240,8 +246,10 @@ fn the_exact_law_confirms_the_flagged_conversion_and_the_calibration_on_a_slow_u
     assert!((0.0085..0.012).contains(&mean), "{mean}");
     // The tail fit's thresholds for 1e-7 per flight hour (issue 81, item 2): tail.csv gives the
     // conversion's under-count there, inside the exact law's bracket and above 1.5, and the summary
-    // says they are too low; at the calibrated thresholds (about 0.97 per hour) the hour saturates and
-    // the safety rows are consistent with a whole flight (the exact ratio is below 1.5 there).
+    // says they are too low; at the calibrated thresholds (0.97 per hour converted, where an hour flown
+    // through alarms with probability 0.999) the safety rows are lower bounds too, their extremal
+    // index at most the exact law's upper bound (its lower bound says nothing where alarms are this
+    // common).
     let tail = csv_frame(&run.join("tail.csv"));
     let s = |name: &str, i: usize| tail.column(name).unwrap().str().unwrap().get(i).map(str::to_string);
     let f = |name: &str, i: usize| tail.column(name).unwrap().f64().unwrap().get(i);
@@ -261,17 +269,53 @@ fn the_exact_law_confirms_the_flagged_conversion_and_the_calibration_on_a_slow_u
     let safety = csv_frame(&run.join("safety.csv"));
     let roles = safety.column("role").unwrap().str().unwrap().clone();
     assert_eq!(roles.len(), 2, "{safety}");
-    for r in roles.iter() {
-        assert!(r.is_some_and(|r| r.starts_with("consistent with an hour flown through")), "{safety}");
-    }
     let theta = extremal_index(law.flight(&last, 360_000), law.window(&last, 1000), 360.0);
-    assert!(theta.upper < 1.5, "{theta:?} at {last:?}");
+    for r in roles.iter().map(|r| r.unwrap()) {
+        assert!(r.starts_with("a lower bound: the segment conversion under-counts here"), "{safety}");
+        let index: f64 = r.split("extremal index ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap();
+        assert!(1.5 < index && index <= theta.upper * 1.001, "{index} vs exact {theta:?} at {last:?}");
+    }
     assert_eq!(s("statistic", rows[0]).as_deref(), Some("r_rad_s"));
     // 1e-7 per flight hour is 2.8e-10 per trial: refused, nothing written.
     let out = fdimc(&["summarize", run.to_str().unwrap(), "--target-pfa-per-hour", "1e-7"]);
     assert_eq!(out.status.code(), Some(2), "{}", text(&out.stdout));
     assert!(text(&out.stderr).contains("needs >= 3599999821"), "{}", text(&out.stderr));
     assert!(!run.join("calibrations").exists());
+}
+
+/// `rare-event --flight-s` against the exact law (issue 82, item 1), on the slow-unassigned-mode deck
+/// at its thresholds over one-hour flights: the conditional estimates per segment and per flight, and
+/// the extremal index between them, each meet the exact law's bracket within their 95 % intervals, and
+/// the importance-sampled flights' interval holds the exact flight (not an answer here: at 0.19 per
+/// flight the event is not rare enough for the tilt).
+#[test]
+fn rare_event_flights_meet_the_exact_law_on_a_slow_unassigned_mode() {
+    use exact_false_alarms::extremal_index;
+    let deck = "studies/seed000_lateral_slow_mode.toml";
+    let (law, thresholds, _) = lateral_slow_mode_law(deck);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("re");
+    let args = ["rare-event", deck, "--flight-s", "3600", "--flight-trials", "20", "--trials", "1000", "--quiet"];
+    ok(&fdimc(&[&args[..], &["--out", out.to_str().unwrap()]].concat()));
+    let t = csv_frame(&out.join("per_hour.csv"));
+    assert_eq!(t.height(), 1, "{t}");
+    let v = |name: &str| t.column(name).unwrap().f64().unwrap().get(0).unwrap();
+    let segment = law.window(&thresholds, 1000);
+    let flight = law.flight(&thresholds, 360_000);
+    let theta = extremal_index(flight, segment, 360.0);
+    println!("segment {segment:?} flight {flight:?} extremal index {theta:?}");
+    let overlaps = |name: &str, lower: f64, upper: f64| {
+        let (lo, hi) = (v(&format!("{name}_lo")), v(&format!("{name}_hi")));
+        assert!(lo <= upper && lower <= hi, "{name} [{lo}, {hi}] vs exact [{lower}, {upper}]");
+    };
+    overlaps("conditional_per_segment", segment.lower, segment.upper);
+    overlaps("conditional_per_flight", flight.lower, flight.upper);
+    overlaps("extremal_index_conditional", theta.lower, theta.upper);
+    overlaps("pfa_per_flight", flight.lower, flight.upper);
+    // Tight enough to mean something: the exact flight within 8 %, the conditional within 7 %.
+    assert!(flight.upper / flight.lower - 1.0 < 0.08, "{flight:?}");
+    assert!(v("conditional_per_flight_hi") / v("conditional_per_flight_lo") - 1.0 < 0.07);
+    assert!(theta.lower > 1.5, "{theta:?}");
 }
 
 /// Rare-event simulation (issue 23, item 2): `fdimc rare-event` on the bundled rare-false-alarm deck

@@ -174,12 +174,16 @@ impl ResidualLaw {
     }
 }
 
-/// The bounds on `flight` over the segment conversion's `1 - (1 - p)^(flight_s / segment_s)`: the
-/// extremal index, how many times the conversion under-counts.
-/// (A Bonferroni bound at or below 0, where alarms are not rare, leaves the upper end infinite.)
+/// The bounds on the extremal index against the segment conversion, `ln(1 - flight) / (segments x
+/// ln(1 - segment))` (as `fdimc rare-event --flight-s` defines it): how many times the conversion
+/// under-counts. (A Bonferroni bound at or below 0, where alarms are not rare, leaves the upper end
+/// infinite.)
 pub fn extremal_index(flight: Bounds, segment: Bounds, segments_per_flight: f64) -> Bounds {
-    let converted = |p: f64| -((-p.max(0.0)).ln_1p() * segments_per_flight).exp_m1();
-    Bounds { lower: flight.lower.max(0.0) / converted(segment.upper), upper: flight.upper / converted(segment.lower) }
+    let hazard = |p: f64| -(-p.max(0.0)).ln_1p();
+    Bounds {
+        lower: hazard(flight.lower) / (segments_per_flight * hazard(segment.upper)),
+        upper: hazard(flight.upper) / (segments_per_flight * hazard(segment.lower)),
+    }
 }
 
 /// `P(|Z| > z)`.

@@ -158,18 +158,18 @@ pub const UNDERCOUNT_FLAG: f64 = 1.5;
 
 /// What converting a trial's false-alarm probability to one per flight hour misses, where a kind knows
 /// its residual's exact law ([`crate::engine::method::Study::hour_law`]; the conversion takes the
-/// hour's trials as independent, each starting with the filter on the truth): an upper bound on an
-/// alarm in a whole hour flown from the filter on the truth (Sidak's, over every sample and output),
-/// against the conversion [`per_flight_hour`] of a trial's bound. Near 1 when the residual settles
-/// early in a trial; above it when a slow mode keeps the residual below its settled spread for much of
-/// the trial, where the hour's samples are nearly all settled: the conversion then under-counts about
-/// this many times (clusters of alarms aside). Where alarms are rare it is the ratio of the hour's
-/// exceedance sum to its trials'; where they are not, Sidak keeps it a ratio of probabilities
-/// (tests/support/exact_false_alarms.rs brackets it by the exact law). With the model exact and white
+/// hour's trials as independent, each starting with the filter on the truth): the extremal index
+/// against the conversion, `ln P(no alarm in an hour flown through) / ln P(no alarm in the hour's
+/// trials converted)` as `fdimc rare-event --flight-s` measures it, each `P` by Sidak's bound over every
+/// sample and output. Near 1 when the residual settles early in a trial; above it when a slow mode
+/// keeps the residual below its settled spread for much of the trial, where the hour's samples are
+/// nearly all settled: the conversion then under-counts about this many times (for rare alarms, the
+/// ratio of the hour's exceedance sum to its trials'; clusters of alarms aside).
+/// tests/support/exact_false_alarms.rs brackets it by the exact law. With the model exact and white
 /// Gaussian noise.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HourConversion {
-    /// The hour's bound over the trial's converted; NaN where a trial's is 0.
+    /// The extremal index against the conversion; NaN where a trial's bound is 0.
     pub ratio: f64,
     /// The residual's slowest mode as a time constant (s).
     pub slowest_time_constant_s: f64,

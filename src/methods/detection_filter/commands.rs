@@ -260,7 +260,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                     // The per-hour figures above take the hour's trials as independent, each begun
                     // with the filter on the truth: a slow mode leaves a trial's residual unsettled.
                     println!(
-                        "  per flight hour by that conversion: a whole hour flown from the same start alarms {:.3} x as often (Sidak's bounds on the hour and on the trial converted; slowest mode of A - K C: time constant {:.3} s, against {} s trials)",
+                        "  per flight hour by that conversion: extremal index {:.3} against it over a whole hour flown from the same start (-ln P(no alarm) by Sidak's bounds, the hour's over its trials'; slowest mode of A - K C: time constant {:.3} s, against {} s trials)",
                         h.ratio, h.slowest_time_constant_s, study.header.duration_s
                     );
                     if h.undercounts() {

@@ -273,5 +273,6 @@ mod tests {
                 assert_eq!(group.lane(l), *rng, "lane {l} state after the draws");
             }
         }
+        println!("lane draws checked in the forms {:?} (this CPU's widest: {:?})", &forms[cpu..], forms[cpu]);
     }
 }

@@ -245,13 +245,13 @@ pub fn summarize(
             }
             let low: Vec<String> = (tail.targets.iter())
                 .filter_map(|x| x.hour.filter(HourConversion::undercounts).zip(x.per_hour))
-                .map(|(h, p)| format!("{p:e} per hour: {} times", significant(h.ratio)))
+                .map(|(h, p)| format!("{} at {p:e} per hour", significant(h.ratio)))
                 .collect();
             if !low.is_empty() {
                 warnings.push(format!(
                     "tail.csv's thresholds of {} for per-flight-hour targets convert from trials, and by the residual's \
-                     exact law an hour flown through alarms more often at them ({}): too low for their targets \
-                     (hour_over_conversion in tail.csv)",
+                     exact law an hour flown through alarms more often at them (extremal index {}): too low for their \
+                     targets (hour_over_conversion in tail.csv)",
                     tail.detector,
                     low.join(", ")
                 ));

@@ -165,16 +165,16 @@ impl Rows {
             }
             self.role[i] = Some(if h.undercounts() {
                 format!(
-                    "a lower bound: the segment conversion under-counts here (by the residual's exact law an hour flown \
-                     through alarms {} times as often: a mode of time constant {} s against {} s trials); \
-                     estimate whole flights with fdimc rare-event DECK --flight-s 3600",
+                    "a lower bound: the segment conversion under-counts here (by the residual's exact law, extremal \
+                     index {} against it over an hour flown through: a mode of time constant {} s against {} s \
+                     trials); estimate whole flights with fdimc rare-event DECK --flight-s 3600",
                     significant(h.ratio),
                     significant(h.slowest_time_constant_s),
                     significant(segment_s)
                 )
             } else {
                 format!(
-                    "consistent with an hour flown through (by the residual's exact law, {} times the conversion)",
+                    "consistent with an hour flown through (by the residual's exact law, extremal index {})",
                     significant(h.ratio)
                 )
             });
@@ -537,12 +537,13 @@ mod tests {
         rows.mark_by_law("d", "deck", &slow, 10.0);
         rows.mark_by_law("d", "calibrated", &slow, 10.0);
         rows.mark_by_law("e", "calibrated", &HourConversion { ratio: 1.1, slowest_time_constant_s: 1.0 }, 10.0);
-        let lower = "a lower bound: the segment conversion under-counts here (by the residual's exact law an hour \
-                     flown through alarms 2.555 times as often: a mode of time constant 16.66 s against 10 s trials)";
+        let lower = "a lower bound: the segment conversion under-counts here (by the residual's exact law, extremal \
+                     index 2.555 against it over an hour flown through: a mode of time constant 16.66 s against 10 s \
+                     trials)";
         assert!(rows.role[1].as_deref().unwrap().starts_with(lower), "{:?}", rows.role[1]);
         assert_eq!(
             rows.role[2].as_deref(),
-            Some("consistent with an hour flown through (by the residual's exact law, 1.1 times the conversion)")
+            Some("consistent with an hour flown through (by the residual's exact law, extremal index 1.1)")
         );
         rows.mark("d", 1.2);
         rows.mark("f", 1.2);
