@@ -3343,6 +3343,103 @@ fn the_roc_of_a_white_residual_meets_its_closed_form() {
     }
 }
 
+/// Coverage against a known law (issue 82, item 1), over 60 seeds of 400 fault-free flights of
+/// `tests/data/white_residual.toml`, whose residual is white N(0, 1): a flight of 200 samples alarms at
+/// threshold c with probability 1 - (1 - 2 Q(c))^200 (Q from statrs' erfc here, none of fdimc's code).
+/// - The deck row's 95 % Wilson interval holds the law's Pfa at c = 3.5 (0.0888733) in at least 52 of
+///   60 seeds (57 expected; 51 or fewer with probability 0.003 if the intervals hold 95 %).
+/// - The calibration at Pfa 0.05 with 95 % confidence gives a threshold the law lets through more than
+///   0.05 in at most 8 of 60 seeds (3 expected; 9 or more with probability 0.004 at 5 %), and the plain
+///   calibration (no confidence) in about half (the order statistic's median: 20 to 40 of 60).
+#[test]
+fn wilson_intervals_and_confident_thresholds_cover_a_known_law_over_seeds() {
+    let q = |z: f64| 0.5 * statrs::function::erf::erfc(z / std::f64::consts::SQRT_2);
+    let law = |c: f64| -((1.0 - 2.0 * q(c)).ln() * 200.0).exp_m1();
+    assert!((law(3.5) - 0.0888733).abs() < 1e-6, "{}", law(3.5));
+    let deck = std::fs::read_to_string("tests/data/white_residual.toml").unwrap();
+    assert!(deck.contains("fault_free_fraction = 0.5") && deck.contains("target_pfa = 0.05"));
+    let tmp = tempfile::tempdir().unwrap();
+    let mut paths = Vec::new();
+    for (name, confidence) in [("confident.toml", "\nconfidence = 0.95"), ("plain.toml", "")] {
+        let path = tmp.path().join(name);
+        let text = deck
+            .replace("fault_free_fraction = 0.5", "fault_free_fraction = 1.0")
+            .replace("target_pfa = 0.05", &format!("target_pfa = 0.05{confidence}"));
+        std::fs::write(&path, text).unwrap();
+        paths.push(path);
+    }
+    let dir = tmp.path().join("run");
+    let (mut covered, mut confident_over, mut plain_over) = (0, 0, 0);
+    for seed in 1..=60 {
+        for (k, path) in paths.iter().enumerate() {
+            let args = ["run", path.to_str().unwrap(), "--trials", "400", "--seed", &seed.to_string()];
+            ok(&fdimc(&[&args[..], &["--quiet", "--force", "--out", dir.to_str().unwrap()]].concat()));
+            let t = csv_frame(&dir.join("thresholds.csv"));
+            let stat = t.column("statistic").unwrap().str().unwrap().clone();
+            let i = (0..t.height()).find(|&i| stat.get(i) == Some("y")).unwrap();
+            let c = t.column("detector_threshold").unwrap().f64().unwrap().get(i).unwrap();
+            if k == 0 {
+                confident_over += (law(c) > 0.05) as usize;
+                let d = csv_frame(&dir.join("detectors.csv"));
+                let set = d.column("thresholds").unwrap().str().unwrap().clone();
+                let at = (0..d.height()).find(|&i| set.get(i) == Some("deck")).unwrap();
+                let f = |name: &str| d.column(name).unwrap().f64().unwrap().get(at).unwrap();
+                covered += (f("pfa_lo") <= law(3.5) && law(3.5) <= f("pfa_hi")) as usize;
+            } else {
+                plain_over += (law(c) > 0.05) as usize;
+            }
+        }
+    }
+    println!("of 60 seeds: Wilson covered {covered}, confident over 0.05 {confident_over}, plain {plain_over}");
+    assert!(covered >= 52, "the 95 % Wilson interval held the law in {covered} of 60 seeds");
+    assert!(confident_over <= 8, "95 %-confident thresholds let through more than 0.05 in {confident_over} of 60");
+    assert!((20..=40).contains(&plain_over), "plain thresholds over 0.05 in {plain_over} of 60");
+}
+
+/// The miss before the hazard against its exact answer (issue 82, item 1): on
+/// `tests/data/white_residual.toml` the residual is white N(0, 1) plus the fault's bias b from the
+/// onset, so a fault is missed within a time to hazard of 0.195 s (the 20 samples at delays 0 to 0.19
+/// s) with probability (Phi(c - b) - Phi(-c - b))^20 at threshold c = 3.5 (statrs' erfc here): 0.882807
+/// for b = 1, by plain trials (`detectors.csv`'s 95 % interval at the deck's threshold) and 6.2e-4 for
+/// b = 3, by splitting in time (`rare-event --miss-before-hazard`'s interval).
+#[test]
+fn the_miss_before_the_hazard_meets_a_white_residuals_exact_answer() {
+    let phi = |x: f64| 1.0 - 0.5 * statrs::function::erf::erfc(x / std::f64::consts::SQRT_2);
+    let exact = |b: f64| (phi(3.5 - b) - phi(-3.5 - b)).powi(20);
+    let deck = std::fs::read_to_string("tests/data/white_residual.toml").unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let with_bias = |b: &str| -> PathBuf {
+        let text = deck
+            .replace("fault_free_fraction = 0.5", "fault_free_fraction = 0.1")
+            .replace("size_sigma = 1.0", &format!("size_sigma = {b}"))
+            + "\n[monte_carlo.time_to_hazard_s]\nbias = 0.195\n";
+        let path = tmp.path().join(format!("bias{b}.toml"));
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let one = with_bias("1.0");
+    let run = tmp.path().join("run");
+    ok(&fdimc(&["run", one.to_str().unwrap(), "--quiet", "--out", run.to_str().unwrap()]));
+    let d = csv_frame(&run.join("detectors.csv"));
+    let set = d.column("thresholds").unwrap().str().unwrap().clone();
+    let at = (0..d.height()).find(|&i| set.get(i) == Some("deck")).unwrap();
+    let f = |name: &str| d.column(name).unwrap().f64().unwrap().get(at).unwrap();
+    let (p, lo, hi) = (f("p_miss_before_hazard"), f("p_miss_before_hazard_lo"), f("p_miss_before_hazard_hi"));
+    assert!((exact(1.0) - 0.882807).abs() < 1e-6, "{}", exact(1.0));
+    println!("plain {p} [{lo}, {hi}] vs exact {}", exact(1.0));
+    assert!(lo <= exact(1.0) && exact(1.0) <= hi, "plain {p} [{lo}, {hi}] vs exact {}", exact(1.0));
+    let three = with_bias("3.0");
+    let out = tmp.path().join("split");
+    let args = ["rare-event", three.to_str().unwrap(), "--miss-before-hazard", "--estimator", "splitting", "--quiet"];
+    ok(&fdimc(&[&args[..], &["--out", out.to_str().unwrap()]].concat()));
+    let t = csv_frame(&out.join("miss_before_hazard.csv"));
+    let g = |name: &str| t.column(name).unwrap().f64().unwrap().get(0).unwrap();
+    let (p, lo, hi) = (g("p_miss_before_hazard"), g("p_miss_before_hazard_lo"), g("p_miss_before_hazard_hi"));
+    println!("splitting {p} [{lo}, {hi}] vs exact {}", exact(3.0));
+    assert!(lo <= exact(3.0) && exact(3.0) <= hi, "splitting {p} [{lo}, {hi}] vs exact {}", exact(3.0));
+    assert!(hi / lo < 3.0, "[{lo}, {hi}]");
+}
+
 #[test]
 fn fmu_prints_what_a_deck_needs_and_refuses_a_file_that_is_not_an_fmu() {
     let dir = tempfile::tempdir().unwrap();
