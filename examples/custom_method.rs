@@ -58,6 +58,7 @@ static RANDOM_WALK: Method = Method {
     own_plots: &[],
     starter: ("examples/random_walk.toml", include_str!("random_walk.toml")),
     replay_starter: None,
+    hour_laws: None,
 };
 
 fn main() -> std::process::ExitCode {

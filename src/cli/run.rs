@@ -118,12 +118,10 @@ fn summarize(method: &Method, dir: &Path, calibration: Option<&Calibration>, pri
     // The run's deck, where it is unchanged, checks the per-hour conversion by the residual's exact
     // law (read only when the summary asks).
     let manifest = Manifest::read(dir)?;
-    let study = std::cell::OnceCell::new();
-    let laws = std::cell::RefCell::new(std::collections::HashMap::new());
+    let laws = std::cell::OnceCell::new();
     let law = |d: usize, statistics: &[String], thresholds: &[f64]| {
-        let study = study.get_or_init(|| method.run_study(&manifest).ok()).as_ref()?;
-        let mut laws = laws.borrow_mut();
-        Some(laws.entry(d).or_insert_with(|| study.hour_law(d, statistics)).as_ref()?(thresholds))
+        let laws = laws.get_or_init(|| method.hour_laws_of_run(&manifest, statistics));
+        Some(laws.get(d)?.as_ref()?(thresholds))
     };
     let s = summary::summarize(dir, &spec, calibration, Some(&law))?;
     if print {

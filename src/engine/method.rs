@@ -40,19 +40,32 @@ pub struct Method {
     /// `fdimc new <kind> FILE --replay LOG`: for kinds that replay flight logs, the starter deck of study
     /// `study` (first argument) replaying LOG, to be written to FILE; or why LOG cannot be replayed so.
     pub replay_starter: Option<fn(&str, &Path, &Path) -> Result<String, String>>,
+    /// Where the kind knows its residual's exact law: per detector of a deck (its text and path), how
+    /// far converting a trial's false-alarm probability to one per flight hour under-counts at any
+    /// thresholds (one per statistic, named as given), `None` for a detector whose law it does not
+    /// know. `summarize` checks the conversion with it ([`Method::hour_laws_of_run`]); it must not run
+    /// a user's code (an FMU) in this process.
+    pub hour_laws: Option<HourLaws>,
 }
 
+/// See [`Method::hour_laws`].
+pub type HourLaws = fn(&str, &Path, &[String]) -> Vec<Option<crate::engine::results::thresholds::HourLaw>>;
+
 impl Method {
-    /// The study of the deck a run in a folder read (`manifest`), when it is where the run read it and
-    /// unchanged (its SHA-256 the run's); else why not.
-    pub fn run_study(&self, manifest: &Manifest) -> Result<Box<dyn Study>, String> {
+    /// [`Method::hour_laws`] of the deck a run in a folder read (`manifest`), when the kind has them and
+    /// the deck is where the run read it and unchanged (its SHA-256 the run's); else none.
+    pub fn hour_laws_of_run(
+        &self,
+        manifest: &Manifest,
+        statistics: &[String],
+    ) -> Vec<Option<crate::engine::results::thresholds::HourLaw>> {
+        let Some(laws) = self.hour_laws else { return Vec::new() };
         let deck = Path::new(&manifest.deck);
-        let same = crate::engine::run::runner::deck_sha256(deck).map(|h| h == manifest.deck_sha256).unwrap_or(false);
-        if !same {
-            return Err(format!("{} is missing or changed since the run", deck.display()));
+        let same = crate::engine::run::runner::deck_sha256(deck).is_ok_and(|h| h == manifest.deck_sha256);
+        match read_deck(deck) {
+            Ok(text) if same => laws(&text, deck, statistics),
+            _ => Vec::new(),
         }
-        let text = read_deck(deck).map_err(|e| e.to_string())?;
-        (self.load)(&text, deck).map_err(|e| e.to_string())
     }
 
     /// The kind records a detection statistic whose thresholds `summarize` calibrates after the run
@@ -204,17 +217,6 @@ pub trait Study: Sync {
     /// `fdimc train` ([`Opt::Classifiers`]): trains what the study evaluates and writes it to `out`.
     fn train(&self, _out: Option<&Path>) -> Result<(), RunError> {
         Err(RunError::Internal("this kind lists nothing to train".into()))
-    }
-    /// How far converting a trial's false-alarm probability to one per flight hour under-counts for
-    /// detector `detector` at thresholds (one per statistic, named `statistics`), by the residual's
-    /// exact law where the kind knows it for this deck; `None` where it does not (the summary then
-    /// leaves the conversion unchecked).
-    fn hour_law(
-        &self,
-        _detector: usize,
-        _statistics: &[String],
-    ) -> Option<crate::engine::results::thresholds::HourLaw> {
-        None
     }
 }
 

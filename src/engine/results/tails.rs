@@ -54,7 +54,7 @@ pub struct DetectorTail {
     /// For the calibrated set: the scale of its thresholds per target.
     pub targets: Vec<Target>,
     /// The exact law's verdict on the per-hour conversion at the set's thresholds, where the kind
-    /// knows it (filled by the summary: [`crate::engine::method::Study::hour_law`]).
+    /// knows it (filled by the summary: [`crate::engine::method::Method::hour_laws`]).
     pub hour: Option<HourConversion>,
 }
 

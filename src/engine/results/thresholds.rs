@@ -157,7 +157,7 @@ pub fn per_flight_hour(p: f64, segment_s: f64) -> f64 {
 pub const UNDERCOUNT_FLAG: f64 = 1.5;
 
 /// What converting a trial's false-alarm probability to one per flight hour misses, where a kind knows
-/// its residual's exact law ([`crate::engine::method::Study::hour_law`]; the conversion takes the
+/// its residual's exact law ([`crate::engine::method::Method::hour_laws`]; the conversion takes the
 /// hour's trials as independent, each starting with the filter on the truth): the extremal index
 /// against the conversion, `ln P(no alarm in an hour flown through) / ln P(no alarm in the hour's
 /// trials converted)` as `fdimc rare-event --flight-s` measures it, each `P` by Sidak's bound over every

@@ -46,6 +46,7 @@ pub static METHOD: Method = Method {
     own_plots: &[],
     starter: ("studies/ci_seed003.toml", include_str!("../../../studies/ci_seed003.toml")),
     replay_starter: Some(starter::replay_deck),
+    hour_laws: None,
 };
 
 impl Study for AccelerometerStudy {

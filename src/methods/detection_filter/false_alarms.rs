@@ -87,16 +87,35 @@ pub fn for_detector(
 ) -> Result<AnalyticFalseAlarms, String> {
     let sensor_sigma = exact_law_sensor_sigma(study, filter)?;
     let (Ad, Kd, C) = (&filter.model.Ad, &filter.discrete.K, &filter.model.C);
-    let mut f =
-        analytic_false_alarms(Ad, Kd, C, &sensor_sigma, &study.process_sigma_per_step, thresholds, study.header.steps);
-    f.hour = Some(hour_of(study, filter, &sensor_sigma, thresholds));
+    let (steps, dt_s, process) = (study.header.steps, study.header.dt_s, &study.process_sigma_per_step);
+    let mut f = analytic_false_alarms(Ad, Kd, C, &sensor_sigma, process, thresholds, steps);
+    f.hour = Some(hour_conversion(Ad, Kd, C, &sensor_sigma, process, thresholds, steps, dt_s));
     Ok(f)
 }
 
-/// [`HourConversion`] for detector `detector` of a run of `study`'s deck at any thresholds (one per
-/// statistic, named `statistics`: the deck's outputs in order), where the residual's exact law is the
-/// trials' (a linear truth, the model exact, white Gaussian noise, the |residual| test, a stable filter).
-pub fn hour_law(study: &LtiStudy, detector: usize, statistics: &[String]) -> Option<HourLaw> {
+/// `Method::hour_laws` of detection-filter decks: per detector of the deck in `text` (read from
+/// `path`), its [`HourConversion`] at any thresholds (one per statistic, named `statistics`: the deck's
+/// outputs in order), where the residual's exact law is the trials' (a linear truth, the model exact,
+/// white Gaussian noise, the |residual| test, a stable filter). A deck that flies an FMU (truth,
+/// controller or detector) is only parsed, never loaded: loading runs the FMU in this process (its
+/// linearisation, its checks), where a user's FMU may crash, and its trials' law is not the linear
+/// model's anyway.
+pub fn hour_laws(text: &str, path: &std::path::Path, statistics: &[String]) -> Vec<Option<HourLaw>> {
+    use crate::engine::scenario::deck::FromDeck;
+    let Ok(deck) = crate::engine::scenario::deck::parse_deck::<super::deck::Deck>(text, path) else {
+        return Vec::new();
+    };
+    let flies_fmu = deck.truth.is_some()
+        || deck.controller.as_ref().is_some_and(|c| c.fmu.is_some())
+        || deck.detector.iter().any(|d| d.fmu.is_some());
+    if flies_fmu {
+        return Vec::new();
+    }
+    let Ok(study) = LtiStudy::from_toml(text, path) else { return Vec::new() };
+    (0..study.detectors.len()).map(|d| hour_law(&study, d, statistics)).collect()
+}
+
+fn hour_law(study: &LtiStudy, detector: usize, statistics: &[String]) -> Option<HourLaw> {
     if study.truth.is_some() || statistics != study.plant.output_names.as_slice() {
         return None;
     }
@@ -106,17 +125,6 @@ pub fn hour_law(study: &LtiStudy, detector: usize, statistics: &[String]) -> Opt
     let (steps, dt_s) = (study.header.steps, study.header.dt_s);
     let spread = HourSpread::new(Ad, Kd, C, &sensor_sigma, &study.process_sigma_per_step, steps, dt_s)?;
     Some(Box::new(move |thresholds: &[f64]| spread.conversion(thresholds)))
-}
-
-fn hour_of(
-    study: &LtiStudy,
-    filter: &DetectionFilter,
-    sensor_sigma: &DVector<f64>,
-    thresholds: &[f64],
-) -> HourConversion {
-    let (Ad, Kd, C) = (&filter.model.Ad, &filter.discrete.K, &filter.model.C);
-    let (steps, dt_s) = (study.header.steps, study.header.dt_s);
-    hour_conversion(Ad, Kd, C, sensor_sigma, &study.process_sigma_per_step, thresholds, steps, dt_s)
 }
 
 /// The sensor sigmas of the residual's exact law for `filter` on `study`, or why the deck is outside

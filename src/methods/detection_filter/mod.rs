@@ -67,6 +67,7 @@ pub static METHOD: Method = Method {
     own_plots: &[],
     starter: ("studies/starter_detection_filter.toml", include_str!("../../../studies/starter_detection_filter.toml")),
     replay_starter: None,
+    hour_laws: Some(false_alarms::hour_laws),
 };
 
 impl Study for LtiStudy {
@@ -104,9 +105,6 @@ impl Study for LtiStudy {
     fn sensitivity_design(&mut self, base_samples: u64, bootstrap: u64) -> Result<Design, RunError> {
         let parts = scenario::ScenarioSampler::sensitivity_parts(self);
         Ok(self.monte_carlo.common.use_design(base_samples, bootstrap, parts))
-    }
-    fn hour_law(&self, detector: usize, statistics: &[String]) -> Option<crate::engine::results::thresholds::HourLaw> {
-        false_alarms::hour_law(self, detector, statistics)
     }
 }
 use trials::{Engine, TrialResult};

@@ -64,7 +64,7 @@ use tables::{
 };
 
 /// The exact law's verdict on the per-hour conversion for a detector (its index in the run) at
-/// thresholds (one per statistic, named): a kind's [`crate::engine::method::Study::hour_law`] on
+/// thresholds (one per statistic, named): a kind's [`crate::engine::method::Method::hour_laws`] on
 /// the run's deck.
 pub type HourLaw<'a> = &'a dyn Fn(usize, &[String], &[f64]) -> Option<HourConversion>;
 
