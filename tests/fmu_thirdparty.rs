@@ -6,34 +6,20 @@
 //! default step against CVode), linearisations against FMPy-side central differences, a 2-thread
 //! study repeated until a crash would have shown, and the failing cases.
 //!
-//! FMPy is found through `FDIMC_FMPY_PYTHON` (a Python with `fmpy` installed; `.ci/run` makes one).
-//! Without it the FMPy comparisons are skipped with a note, unless `FDIMC_REQUIRE_FMPY=1`, which CI sets.
+//! FMPy is found as `tests/support/fmpy.rs` says.
+
+#[path = "support/fmpy.rs"]
+mod fmpy;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use fdimc::fmu::plant::{FmuPlant, Linearisation, PlantMapping};
 use fdimc::fmu::{Fmu, Interface};
+use fmpy::fmpy;
 use serde_json::Value;
 
 fn thirdparty(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("fmus/thirdparty").join(name)
-}
-
-/// FMPy's answer to `scripts/fmpy_thirdparty.py ARGS`, or `None` (skipped) where no FMPy is set up.
-fn fmpy(args: &[&str]) -> Option<Value> {
-    let Ok(python) = std::env::var("FDIMC_FMPY_PYTHON") else {
-        assert!(
-            std::env::var("FDIMC_REQUIRE_FMPY").is_err(),
-            "FDIMC_REQUIRE_FMPY is set but FDIMC_FMPY_PYTHON is not (a Python with fmpy installed)"
-        );
-        eprintln!("note: FDIMC_FMPY_PYTHON not set: the comparison with FMPy is skipped");
-        return None;
-    };
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/fmpy_thirdparty.py");
-    let out = Command::new(python).arg(script).args(args).output().expect("the FMPy script runs");
-    assert!(out.status.success(), "fmpy_thirdparty.py {args:?}: {}", String::from_utf8_lossy(&out.stderr));
-    Some(serde_json::from_slice(&out.stdout).expect("one JSON object"))
 }
 
 fn column(v: &Value, name: &str) -> Vec<f64> {
@@ -298,7 +284,7 @@ size_sigma = {{ values = [5.0, 10.0] }}
 }
 
 fn fdimc(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_fdimc")).args(args).output().unwrap()
+    std::process::Command::new(env!("CARGO_BIN_EXE_fdimc")).args(args).output().unwrap()
 }
 
 #[test]

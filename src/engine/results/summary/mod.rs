@@ -309,6 +309,7 @@ pub fn summarize(
         conversions: &conversions,
         deck_sha256: &manifest.deck_sha256,
         fdimc_version: &manifest.fdimc_version,
+        profile_resolution: manifest.profile_resolution,
     };
     let mut safety = safety::safety(&answer, &detectors, &tails, &setting).map_err(pol(&path))?;
     write_table(&mut safety, &out(safety::SAFETY_FILE))?;

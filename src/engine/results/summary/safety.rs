@@ -32,6 +32,9 @@ pub struct Setting<'a> {
     /// The deck's SHA-256 and the fdimc that flew it, which each statement names.
     pub deck_sha256: &'a str,
     pub fdimc_version: &'a str,
+    /// The recorded profiles' grid step (`monte_carlo.profile_resolution`; 0: every rise; `None`: a run
+    /// written before the grid): how late an alarm replayed at other thresholds may be.
+    pub profile_resolution: Option<f64>,
 }
 
 /// What a false-alarm figure does not cover, said in its statement.
@@ -217,6 +220,22 @@ impl Rows {
     }
 }
 
+/// What a miss before the hazard at thresholds other than the deck's leaves out: their alarm times are
+/// replayed from the recorded profiles, whose grid may place one up to a grid step late, so a fault
+/// detected near the end of its window can count as missed (nothing with the full profiles).
+fn replayed_late(set: &str, profile_resolution: Option<f64>) -> String {
+    match profile_resolution {
+        _ if set == DECK => String::new(),
+        Some(0.0) => String::new(),
+        step => format!(
+            "; at these thresholds the alarm times are replayed from the recorded profiles (grid step {}), which may \
+             place a detection up to a grid step late: a fault detected near the end of its time to hazard may count \
+             as missed, so the figure may be high (exact with monte_carlo.profile_resolution = 0)",
+            step.map_or("2 %".to_string(), |s| format!("{} %", significant(100.0 * s)))
+        ),
+    }
+}
+
 /// The rows of `safety.csv` from `answer.csv`'s rows (the thresholds in use), `detectors.csv` (the
 /// miss before the hazard), the tail fits and, where `fdimc rare-event` wrote into the run's folder,
 /// its answers at the deck's thresholds.
@@ -232,11 +251,12 @@ pub fn safety(
     let (p, p_lo, p_hi) = (a.f64s("pfa_fault_free"), a.f64s("pfa_fault_free_lo"), a.f64s("pfa_fault_free_hi"));
     let d = Table(detectors);
     let (d_sets, d_names) = (d.strs("thresholds"), d.strs(col::DETECTOR));
-    let (miss, miss_lo, miss_hi, hazard_units) = (
+    let (miss, miss_lo, miss_hi, hazard_units, missed) = (
         d.f64s("p_miss_before_hazard"),
         d.f64s("p_miss_before_hazard_lo"),
         d.f64s("p_miss_before_hazard_hi"),
         d.u64s("hazard_units"),
+        d.u64s("missed_before_hazard"),
     );
     let per = |p: f64| setting.flight_s.map_or(p, |s| per_flight_hour(p, s));
     let unit = setting.flight_s.map_or("per flight (its length unknown)".to_string(), |s| {
@@ -303,11 +323,12 @@ pub fn safety(
                 set,
                 "missed detection before the hazard",
                 [miss[j], miss_lo[j], miss_hi[j]],
-                None,
+                Some(wilson(missed[j], hazard_units[j], Z_ONE_SIDED_95).1),
                 format!("plain Monte Carlo: {} faulty trials", hazard_units[j]),
                 format!(
-                    "the deck's fault kinds, sizes and onsets as drawn, each kind's time to hazard (time_to_hazard_s), sensor noise {}",
-                    setting.noise
+                    "the deck's fault kinds, sizes and onsets as drawn, each kind's time to hazard (time_to_hazard_s), sensor noise {}{}",
+                    setting.noise,
+                    replayed_late(set, setting.profile_resolution)
                 ),
             );
         }
