@@ -219,6 +219,50 @@ fn linearisations_of_openmodelica_exports_match_fmpy_side_differences_and_their_
     }
 }
 
+/// The Reference-FMUs' VanDerPol (FMI 2.0) provides directional derivatives, and gives 0 for its outputs'
+/// own states (d x0 / d x0): the linearisation holds them against central differences, says so, and
+/// uses the differences: C = I, and A is FMPy's side differences'.
+#[test]
+fn directional_derivatives_that_disagree_with_central_differences_are_named_and_not_used() {
+    let p = plant("ref2_van_der_pol.fmu", Interface::ModelExchange, &[], &[], &["x0", "x1"], &[], 0.01);
+    let l = p.linearise().unwrap();
+    assert!((&l.c - nalgebra::DMatrix::<f64>::identity(2, 2)).amax() < 1e-8, "C = {}", l.c);
+    let said = l.warnings.join("\n");
+    assert!(
+        said.contains("ref2_van_der_pol.fmu's directional derivatives disagree with central differences")
+            && said.contains("d x0 / d x0: the FMU's 0.000000e0, central differences 1.000000e0")
+            && l.method.contains("central differences"),
+        "{said}\n{}",
+        l.method
+    );
+    let Some(r) = fmpy(&["jacobian", thirdparty("ref2_van_der_pol.fmu").to_str().unwrap()]) else { return };
+    assert_close("ref2_van_der_pol.fmu A", &l.a, &r["A"], 1e-6);
+}
+
+/// Identification on a mode faster than it samples (issue 83, item 2): the OpenModelica mass-damper
+/// (100 rad/s, damped at 10 per s; `[plant]` of 2 states) from its pulse responses every 0.25 s, which
+/// see modes up to 12.566 rad/s. On model exchange (fdimc's RK4) and on co-simulation at 1 ms (its own
+/// Euler, stable there) the fit is far below 90 %: refused, naming the fit, the sampling and the fix; a
+/// fit far below zero (the model's response growing past the FMU's) is said as such, not in digits.
+#[test]
+fn identification_of_a_mode_faster_than_its_sampling_is_refused() {
+    use fdimc::fmu::identify::identify;
+    for (interface, dt) in [(Interface::ModelExchange, 0.01), (Interface::CoSimulation, 0.001)] {
+        let p = plant("om_mass_damper.fmu", interface, &["f"], &[0.0], &["y"], &[], dt);
+        let Err(e) = identify(&p, 2, dt, &["y".to_string()]) else { panic!("{interface:?} at {dt} s: identified") };
+        let said = e.to_string();
+        assert!(
+            said.starts_with("om_mass_damper.fmu: the identified model fits its response poorly: y ")
+                && said.contains("below the 90 % fdimc accepts")
+                && said.contains("sampled every 0.25 s see (pi / 0.25 s = 12.566 rad/s")
+                && said.contains("a model-exchange FMU with linearise = true"),
+            "{said}"
+        );
+        let fit: f64 = said.split("poorly: y ").nth(1).unwrap().split(' ').next().unwrap().parse().unwrap_or(-1e4);
+        assert!(fit < 0.0 || said.contains("y below -1000 %"), "{said}");
+    }
+}
+
 #[test]
 fn fmi3_reference_fmus_describe_their_types_and_arrays_and_fmi3_model_exchange_runs() {
     let f = Fmu::open(&thirdparty("ref3_feedthrough.fmu")).unwrap();
@@ -231,6 +275,40 @@ fn fmi3_reference_fmus_describe_their_types_and_arrays_and_fmi3_model_exchange_r
     assert_eq!(a.dimensions.len(), 2, "A is a matrix: {:?}", a.dimensions);
     let vdp = Fmu::open(&thirdparty("ref3_van_der_pol.fmu")).unwrap();
     assert_eq!(vdp.description.state_names(), ["x0", "x1"]);
+    // `fdimc fmu` says so: an array state is as many states as it has elements (its size a structural
+    // parameter, n = 3), every type by its name with its array sizes, the states with their derivatives.
+    assert_eq!(s.description.n_states, 3);
+    let listed = |file: &str, extra: &[&str]| {
+        let path = thirdparty(file);
+        let out = fdimc(&[&["fmu", path.to_str().unwrap()][..], extra].concat());
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).to_string()
+    };
+    let row = |listing: &str, name: &str| -> Vec<String> {
+        let line = listing
+            .lines()
+            .find(|l| l.split_whitespace().next() == Some(name))
+            .unwrap_or_else(|| panic!("{name} in {listing}"));
+        line.split_whitespace().map(str::to_string).collect()
+    };
+    let state_space = listed("ref3_state_space.fmu", &[]);
+    assert!(state_space.contains("continuous states 3, event indicators 0"), "{state_space}");
+    assert_eq!(row(&state_space, "A")[..3], ["A", "4", "float64[3x3]"]);
+    assert!(state_space.contains("continuous states (in the FMU's state order"), "{state_space}");
+    assert_eq!(row(&state_space, "x")[..8], ["x", "11", "float64[3]", "-", "-", "-", "-", "der(x)"]);
+    let feedthrough = listed("ref3_feedthrough.fmu", &[]);
+    for (name, ty) in [("Int64_input", "int64"), ("String_input", "string"), ("Enumeration_input", "enumeration")] {
+        assert_eq!(row(&feedthrough, name)[2], ty, "{feedthrough}");
+    }
+    // FMI 2.0, OpenModelica: the states in state order with their derivatives, locals on request.
+    let damper = listed("om_mass_damper.fmu", &[]);
+    assert!(
+        damper.contains("continuous states (in the FMU's state order")
+            && damper.contains("(fdimc fmu --locals lists them)"),
+        "{damper}"
+    );
+    let with_locals = listed("om_mass_damper.fmu", &["--locals"]);
+    assert!(with_locals.contains("locals (the model's internal variables): "), "{with_locals}");
 }
 
 /// A deck flying the OpenModelica mass-damper as the truth of a Kalman chi-square detector.

@@ -7,7 +7,7 @@ use crate::fmu::{Causality, Fmu, FmuError, Interface, Variable};
 
 use super::CliError;
 
-pub fn exec_fmu(file: &Path) -> Result<(), CliError> {
+pub fn exec_fmu(file: &Path, locals: bool) -> Result<(), CliError> {
     let fmu = Fmu::open(file).map_err(|e| CliError::Invalid(e.to_string()))?;
     let d = &fmu.description;
     println!(
@@ -45,35 +45,78 @@ pub fn exec_fmu(file: &Path) -> Result<(), CliError> {
             if interface == Interface::CoSimulation && !info.variable_step { ", fixed communication step" } else { "" },
         );
     }
-    for (title, causality) in [
-        ("inputs (commands, actuators, the model's own fault inputs)", &[Causality::Input][..]),
-        ("outputs (sensors a deck may measure)", &[Causality::Output]),
-        ("parameters (set before initialisation; a deck's parameter errors act on these)", &[Causality::Parameter]),
-    ] {
-        let vars: Vec<&Variable> = d.variables.iter().filter(|v| causality.contains(&v.causality)).collect();
-        println!("\n{title}: {}", vars.len());
-        if vars.is_empty() {
-            continue;
-        }
-        println!(
-            "  {:<28} {:>6} {:<9} {:>14} {:<10} {:>10} {:>10}  description",
-            "name", "vr", "type", "start", "unit", "min", "max"
-        );
-        for v in vars {
-            println!(
-                "  {:<28} {:>6} {:<9} {:>14} {:<10} {:>10} {:>10}  {}",
-                v.name,
-                v.value_reference,
-                format!("{:?}", v.value_type).to_lowercase(),
-                v.start.as_deref().unwrap_or("-"),
-                v.unit.as_deref().unwrap_or("-"),
-                show(v.min),
-                show(v.max),
-                v.description.as_deref().unwrap_or("")
-            );
-        }
+    let inputs = d.variables.iter().filter(|v| v.causality == Causality::Input).collect::<Vec<_>>();
+    table("inputs (commands, actuators, the model's own fault inputs)", &inputs, None);
+    let outputs = d.variables.iter().filter(|v| v.causality == Causality::Output).collect::<Vec<_>>();
+    table("outputs (sensors a deck may measure)", &outputs, None);
+    // The states in state order, each with its derivative: a deck's [plant] states follow this order.
+    let states: Vec<&Variable> = d
+        .state_derivative_vrs
+        .iter()
+        .filter_map(|&(s, _)| d.variables.iter().find(|v| v.value_reference == s))
+        .collect();
+    let derivatives: Vec<String> = d.state_derivative_vrs.iter().map(|&(_, der)| d.real_name(der)).collect();
+    let declared: usize = states.iter().map(|v| v.elements().unwrap_or(1)).sum();
+    let title = if declared == d.n_states {
+        "continuous states (in the FMU's state order, which a deck's [plant] states follow; an array holds as many \
+         as it has elements)"
+            .to_string()
+    } else {
+        format!("continuous states (<ModelStructure> declares {declared} of the {} here)", d.n_states)
+    };
+    table(&title, &states, Some(&derivatives));
+    let parameters = d.variables.iter().filter(|v| v.causality == Causality::Parameter).collect::<Vec<_>>();
+    table("parameters (set before initialisation; a deck's parameter errors act on these)", &parameters, None);
+    let local: Vec<&Variable> = d
+        .variables
+        .iter()
+        .filter(|v| {
+            v.causality == Causality::Local
+                && !d.state_derivative_vrs.iter().any(|&(s, der)| v.value_reference == s || v.value_reference == der)
+        })
+        .collect();
+    if locals {
+        table("locals (the model's internal variables)", &local, None);
+    } else {
+        println!("\nlocals: {} (fdimc fmu --locals lists them)", local.len());
     }
     Ok(())
+}
+
+/// A titled table of variables: name, value reference, type (with array sizes), start, unit, range,
+/// where given each one's derivative, and its description.
+fn table(title: &str, vars: &[&Variable], derivatives: Option<&[String]>) {
+    println!("\n{title}: {}", vars.len());
+    if vars.is_empty() {
+        return;
+    }
+    let show = |v: Option<f64>| v.map_or_else(|| "-".to_string(), |v| v.to_string());
+    let der = |i: usize| derivatives.map(|d| format!(" {:<16}", d[i])).unwrap_or_default();
+    println!(
+        "  {:<28} {:>6} {:<12} {:>14} {:<10} {:>10} {:>10}{}  description",
+        "name",
+        "vr",
+        "type",
+        "start",
+        "unit",
+        "min",
+        "max",
+        if derivatives.is_some() { format!(" {:<16}", "derivative") } else { String::new() }
+    );
+    for (i, v) in vars.iter().enumerate() {
+        println!(
+            "  {:<28} {:>6} {:<12} {:>14} {:<10} {:>10} {:>10}{}  {}",
+            v.name,
+            v.value_reference,
+            v.type_label(),
+            v.start.as_deref().unwrap_or("-"),
+            v.unit.as_deref().unwrap_or("-"),
+            show(v.min),
+            show(v.max),
+            der(i),
+            v.description.as_deref().unwrap_or("")
+        );
+    }
 }
 
 fn yes(b: bool) -> &'static str {

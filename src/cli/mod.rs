@@ -259,14 +259,19 @@ Times are seconds from the first sample, as a deck's [log] evaluate_s and train_
         deck: Option<PathBuf>,
     },
     /// What an FMU (FMI 2.0 or 3.0) offers a deck: its interfaces and whether they run here, its
-    /// capabilities (get/set state, directional derivatives, instances per process), inputs, outputs
-    /// and parameters with start values, units and declared ranges, and the default experiment.
+    /// capabilities (get/set state, directional derivatives, instances per process), inputs, outputs,
+    /// continuous states (in state order, with their derivatives) and parameters with types and array
+    /// sizes, start values, units and declared ranges, and the default experiment.
     #[command(
         after_help = "Example: fdimc fmu target/fmus/aircraft.fmu   (cargo run --release --example build_fmus builds the test FMUs)"
     )]
     Fmu {
         /// The FMU file (.fmu).
         file: PathBuf,
+        /// List the model's local variables too (internal values a trim or an initial state may be
+        /// read from).
+        #[arg(long)]
+        locals: bool,
     },
     /// Statistical regression check against a baseline summary; exit 1 on regression.
     #[command(after_help = "Make a baseline: cp results/<study>/summary.csv results/baselines/<study>.csv")]
@@ -572,7 +577,7 @@ pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
             signals: &signals,
             deck: deck.as_deref(),
         }),
-        Command::Fmu { file } => fmu::exec_fmu(&file),
+        Command::Fmu { file, locals } => fmu::exec_fmu(&file, locals),
         Command::Check { target, baseline, alpha, threads } => {
             match commands.exec_check(&target, &baseline, alpha, threads) {
                 Ok(true) => Ok(()),

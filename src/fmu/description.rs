@@ -132,6 +132,22 @@ pub struct Variable {
 }
 
 impl Variable {
+    /// How many values it holds: 1 for a scalar, the product of an array's sizes (`None`: a size
+    /// the description does not give as a number).
+    pub fn elements(&self) -> Option<usize> {
+        self.dimensions.iter().try_fold(1usize, |n, d| Some(n * usize::try_from((*d)?).ok()?))
+    }
+
+    /// Its type as the description names it, lower case, with an array's sizes: `float64[3x3]`.
+    pub fn type_label(&self) -> String {
+        let name = self.type_name.to_lowercase();
+        if self.dimensions.is_empty() {
+            return name;
+        }
+        let sizes: Vec<String> = self.dimensions.iter().map(|d| d.map_or("?".to_string(), |n| n.to_string())).collect();
+        format!("{name}[{}]", sizes.join("x"))
+    }
+
     pub fn start_f64(&self) -> Option<f64> {
         self.start.as_deref().and_then(|s| s.trim().parse().ok())
     }
@@ -312,7 +328,12 @@ impl Description {
                         }
                     }
                 }
-                (count("ContinuousStateDerivative"), count("EventIndicator"))
+                // An array state is as many states as it has elements (where its sizes are known).
+                let elements = state_derivative_vrs.iter().try_fold(0usize, |sum, &(state, _)| {
+                    let v = variables.iter().find(|v| v.value_reference == state)?;
+                    Some(sum + v.elements()?)
+                });
+                (elements.unwrap_or(count("ContinuousStateDerivative")), count("EventIndicator"))
             }
         };
         let dependencies = dependencies_of(structure, version, child("ModelVariables"));
@@ -483,7 +504,16 @@ fn variables_v3(
             dimensions: v
                 .children()
                 .filter(|n| n.has_tag_name("Dimension"))
-                .map(|n| n.attribute("start").and_then(|s| s.trim().parse().ok()))
+                .map(|n| {
+                    n.attribute("start").and_then(|s| s.trim().parse().ok()).or_else(|| {
+                        // A structural parameter's size: its start value.
+                        let vr: u32 = n.attribute("valueReference")?.trim().parse().ok()?;
+                        let sizes = vars.children().filter(|m| m.is_element());
+                        sizes
+                            .filter(|m| m.attribute("valueReference").and_then(|r| r.trim().parse().ok()) == Some(vr))
+                            .find_map(|m| m.attribute("start")?.trim().parse().ok())
+                    })
+                })
                 .collect(),
             type_name: v.tag_name().name().to_string(),
         });

@@ -112,7 +112,10 @@ pub fn identify(plant: &FmuPlant, n: usize, dt_s: f64, output_names: &[String]) 
     let b = hold.discretise(dt_s).Bd.lu().solve(&bd).ok_or_else(|| invalid("the hold matrix is singular".into()))?;
 
     let fit_percent = fit(plant, &hold_model(&a, &b, &c, &d), dt_s, &pulse)?;
-    let fits: Vec<String> = output_names.iter().zip(&fit_percent).map(|(name, f)| format!("{name} {f:.3} %")).collect();
+    // A fit far below zero is a model whose response grows past the FMU's: its digits say nothing.
+    let percent = |f: f64| if f < -1000.0 { "below -1000 %".to_string() } else { format!("{f:.3} %") };
+    let fits: Vec<String> =
+        output_names.iter().zip(&fit_percent).map(|(name, f)| format!("{name} {}", percent(*f))).collect();
     // The Hankel singular values kept and the first dropped, relative to the largest: a gap after the
     // n-th says the order is right; none says the model has more (or fewer) states than the deck's.
     let relative: Vec<String> =
@@ -131,10 +134,15 @@ pub fn identify(plant: &FmuPlant, n: usize, dt_s: f64, output_names: &[String]) 
         output_names.iter().zip(&fit_percent).find(|(_, f)| !(**f >= MIN_FIT_PERCENT)).map(|(n, f)| (n, *f))
     {
         return Err(invalid(format!(
-            "the identified model fits its response poorly: {name} {worst:.1} %, below the {MIN_FIT_PERCENT} % \
-             fdimc accepts ({}); the FMU is too nonlinear about the trim, has more states than [plant] names, or a \
-             mode faster than the sampling sees: give [plant] a, b, c, or a model-exchange FMU with linearise = true",
-            fits.join(", ")
+            "the identified model fits its response poorly: {name} {}, below the {MIN_FIT_PERCENT} % fdimc accepts \
+             ({}); the FMU is too nonlinear about the trim, has more states than [plant] names, or a mode faster than \
+             its pulse responses sampled every {} s see (pi / {} s = {:.3} rad/s; a faster one is aliased into a \
+             slower one): give [plant] a, b, c, or a model-exchange FMU with linearise = true",
+            percent(worst),
+            fits.join(", "),
+            stride as f64 * dt_s,
+            stride as f64 * dt_s,
+            std::f64::consts::PI / (stride as f64 * dt_s)
         )));
     }
     // The model against the pulse responses at every step, not just the stride's: what it misses there

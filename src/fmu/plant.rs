@@ -501,11 +501,64 @@ impl FmuPlant {
     /// The linearisation at the trim (the deck's parameters and trim inputs) on the FMU's
     /// model-exchange interface: from its directional derivatives where it provides them (and declares
     /// its states), else by central differences. An FMU without model exchange cannot be linearised.
+    ///
+    /// The FMU's directional derivatives are held against central differences: an exporter may return
+    /// wrong ones (the Modelica Reference-FMUs' VanDerPol gives 0 for an output that is a state, d x0 /
+    /// d x0), so where any entry of `[A B; C D]` differs by more than 1e-5 of its row's largest, the
+    /// central differences are used and a warning names the entries.
     pub fn linearise(&self) -> Result<Linearisation, FmuError> {
         let d = &self.fmu.description;
         let directional = d.model_exchange.as_ref().is_some_and(|me| me.provides_directional_derivatives)
             && d.state_derivative_vrs.len() == d.n_states;
-        self.linearise_by(if directional { Jacobian::Directional } else { Jacobian::CentralDifferences })
+        let differences = self.linearise_by(Jacobian::CentralDifferences)?;
+        if !directional {
+            return Ok(differences);
+        }
+        let own = self.linearise_by(Jacobian::Directional)?;
+        let stack = |l: &Linearisation| {
+            let (n, nu, ny) = (l.a.nrows(), l.b.ncols(), l.c.nrows());
+            let mut j = nalgebra::DMatrix::zeros(n + ny, n + nu);
+            j.view_mut((0, 0), (n, n)).copy_from(&l.a);
+            j.view_mut((0, n), (n, nu)).copy_from(&l.b);
+            j.view_mut((n, 0), (ny, n)).copy_from(&l.c);
+            j.view_mut((n, n), (ny, nu)).copy_from(&l.d);
+            j
+        };
+        let (by_fmu, by_differences) = (stack(&own), stack(&differences));
+        let name = |vr: u32| d.real_name(vr);
+        let rows: Vec<String> = (d.state_derivative_vrs.iter().map(|s| name(s.1)))
+            .chain(self.output_vrs.iter().map(|&vr| name(vr)))
+            .collect();
+        let columns: Vec<String> = (d.state_derivative_vrs.iter().map(|s| name(s.0)))
+            .chain(self.input_vrs.iter().map(|&vr| name(vr)))
+            .collect();
+        let mut differ = Vec::new();
+        for r in 0..by_fmu.nrows() {
+            let scale = by_fmu.row(r).amax().max(by_differences.row(r).amax());
+            for c in 0..by_fmu.ncols() {
+                let (ours, theirs) = (by_differences[(r, c)], by_fmu[(r, c)]);
+                if (ours - theirs).abs() > 1e-5 * scale || !theirs.is_finite() {
+                    differ.push(format!(
+                        "d {} / d {}: the FMU's {theirs:.6e}, central differences {ours:.6e}",
+                        rows[r], columns[c]
+                    ));
+                }
+            }
+        }
+        if differ.is_empty() {
+            return Ok(own);
+        }
+        let shown = differ.len().min(4);
+        let more = if differ.len() > shown { format!("; and {} more", differ.len() - shown) } else { String::new() };
+        let mut used = differences;
+        used.warnings.push(format!(
+            "{}'s directional derivatives disagree with central differences at the trim ({}{more}): fdimc uses the \
+             central differences",
+            self.fmu.file_name(),
+            differ[..shown].join("; ")
+        ));
+        used.method = format!("{} (the FMU's directional derivatives disagree with them)", used.method);
+        Ok(used)
     }
 
     /// [`linearise`](Self::linearise) with the Jacobian from `how`: derivatives and mapped outputs with

@@ -64,6 +64,21 @@ impl ResidualLaw {
         &self.Phi * P * self.C.transpose() - &self.Kd * &self.R
     }
 
+    /// Sidak's bound alone (the window's upper bound, without its pairs): for many thresholds where the
+    /// pairs' lower bound has been seen to meet it.
+    pub fn sidak(&self, thresholds: &[f64], samples: usize) -> f64 {
+        let mut P = DMatrix::zeros(self.Phi.nrows(), self.Phi.nrows());
+        let mut log_none = 0.0;
+        for _ in 0..samples {
+            let S = &self.C * &P * self.C.transpose() + &self.R;
+            for (j, t) in thresholds.iter().enumerate() {
+                log_none += (-two_sided(t / S[(j, j)].sqrt())).ln_1p();
+            }
+            P = self.next(&P);
+        }
+        -log_none.exp_m1()
+    }
+
     /// An alarm within a window of `samples` samples from the start, every pair of events summed.
     pub fn window(&self, thresholds: &[f64], samples: usize) -> Bounds {
         let m = self.C.nrows();
