@@ -3638,6 +3638,47 @@ fn the_miss_before_the_hazard_of_a_cusum_meets_brook_and_evans_chain() {
     assert!(lo <= exact && exact <= hi && hi / lo < 3.0, "splitting {p} [{lo}, {hi}] vs the chain's {exact}");
 }
 
+/// Splitting over flights against an exact law where the statistic has memory (issue 82, item 1): the
+/// CUSUM (drift 1, threshold 10) on `tests/data/white_residual.toml`'s fault-free residual, flights of
+/// 20 s in segments of the deck's 2 s trials, every one starting at g = 0. Brook and Evans' chain
+/// (`tests/support/exact_cusum.rs`) gives P(an alarm in 200 samples) and in 2,000; `rare-event
+/// --estimator splitting --flight-s 20` (500 particles by 32 replicas) answers, and its intervals per
+/// segment and per flight hold them.
+#[test]
+fn splitting_over_flights_meets_a_cusums_exact_law() {
+    let alarm = |samples: usize| {
+        let chain = exact_cusum::CusumWindow { drift: 1.0, threshold: 10.0, bias: 0.0, before: 0, window: samples };
+        1.0 - chain.miss(0.04, 0.0)
+    };
+    let (segment, flight) = (alarm(200), alarm(2000));
+    let deck = std::fs::read_to_string("tests/data/white_residual.toml").unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("cusum.toml");
+    let text = deck
+        .replace("kind = \"detection_filter\"", "kind = \"cusum\"\ndrift = [1.0]")
+        .replace("thresholds = [3.5]", "thresholds = [10.0]")
+        .replace("fault_free_fraction = 0.5", "fault_free_fraction = 1.0");
+    std::fs::write(&path, text).unwrap();
+    let out = tmp.path().join("flights");
+    let args = ["rare-event", path.to_str().unwrap(), "--estimator", "splitting", "--flight-s", "20"];
+    let more = ["--particles", "500", "--replicas", "32", "--quiet", "--out", out.to_str().unwrap()];
+    ok(&fdimc(&[&args[..], &more[..]].concat()));
+    let t = csv_frame(&out.join("per_hour.csv"));
+    let f = |name: &str| t.column(name).unwrap().f64().unwrap().get(0).unwrap();
+    println!(
+        "segment {} [{}, {}] vs {segment}; flight {} [{}, {}] vs {flight}",
+        f("pfa_per_segment"),
+        f("pfa_per_segment_lo"),
+        f("pfa_per_segment_hi"),
+        f("pfa_per_flight"),
+        f("pfa_per_flight_lo"),
+        f("pfa_per_flight_hi")
+    );
+    assert_eq!(t.column("answer").unwrap().bool().unwrap().get(0), Some(true), "{t}");
+    assert!(f("pfa_per_segment_lo") <= segment && segment <= f("pfa_per_segment_hi"), "{t} vs {segment}");
+    assert!(f("pfa_per_flight_lo") <= flight && flight <= f("pfa_per_flight_hi"), "{t} vs {flight}");
+}
+
 #[test]
 fn fmu_prints_what_a_deck_needs_and_refuses_a_file_that_is_not_an_fmu() {
     let dir = tempfile::tempdir().unwrap();
