@@ -50,12 +50,12 @@ pub fn exec_fmu(file: &Path, locals: bool) -> Result<(), CliError> {
     let outputs = d.variables.iter().filter(|v| v.causality == Causality::Output).collect::<Vec<_>>();
     table("outputs (sensors a deck may measure)", &outputs, None);
     // The states in state order, each with its derivative: a deck's [plant] states follow this order.
-    let states: Vec<&Variable> = d
+    // Each state with its own derivative (a state the description does not list is left out, with its).
+    let (states, derivatives): (Vec<&Variable>, Vec<String>) = d
         .state_derivative_vrs
         .iter()
-        .filter_map(|&(s, _)| d.variables.iter().find(|v| v.value_reference == s))
-        .collect();
-    let derivatives: Vec<String> = d.state_derivative_vrs.iter().map(|&(_, der)| d.real_name(der)).collect();
+        .filter_map(|&(s, der)| Some((d.variables.iter().find(|v| v.value_reference == s)?, d.real_name(der))))
+        .unzip();
     let declared: usize = states.iter().map(|v| v.elements().unwrap_or(1)).sum();
     let title = if declared == d.n_states {
         "continuous states (in the FMU's state order, which a deck's [plant] states follow; an array holds as many \
