@@ -59,6 +59,7 @@ static RANDOM_WALK: Method = Method {
     starter: ("examples/random_walk.toml", include_str!("random_walk.toml")),
     replay_starter: None,
     hour_laws: None,
+    flight_thresholds: None,
 };
 
 fn main() -> std::process::ExitCode {

@@ -161,6 +161,21 @@ Every trial is fault-free (the deck's faults are removed; its noise scale and pa
 threshold scale: the detector alarms when a statistic exceeds its deck threshold times the level. The same deck, \
 seed and options give the same numbers for any --threads.")]
     RareEvent(RareEventArgs),
+    /// Thresholds for a false-alarm target per flight hour (or per flight) over whole flights of a
+    /// stated length, found on the residual's exact law and confirmed by fresh draws of another
+    /// estimate: their per-flight (and per-hour) figure with its one-sided 95 % upper bound, which must
+    /// lie below the target. Writes DIR/flight_thresholds.csv and, for the confirmed detectors,
+    /// DIR/thresholds.csv (`summarize RUN --thresholds` reads it); exit 1 when a detector's could not
+    /// be confirmed (nothing written as its calibration). Detection-filter decks with a linear truth;
+    /// other kinds are told what to run instead.
+    #[command(
+        after_help = "Example: fdimc flight-thresholds studies/seed000_lateral_slow_mode.toml --per-hour 1e-7 --flight-s 3600
+An hour is 3600 / F flights of F seconds, each begun with the filter on the truth, independent. With --allocation \
+equal each output gets the same share of the target; with deck the deck's thresholds are scaled together. \
+The search aims at 0.9 of the target (room for the confirmation's interval). Then: \
+fdimc summarize RUN --thresholds DIR/thresholds.csv reads detection at the thresholds found."
+    )]
+    FlightThresholds(FlightThresholdsArgs),
     /// The worst point of the deck's uncertainty box: the parameter errors, noise scale, fault size and
     /// onset (each within the deck's range or list) where a detector misses most, alarms falsely most,
     /// detects latest or isolates worst, by CMA-ES against random points of the same budget, both
@@ -333,6 +348,38 @@ pub struct RareEventArgs {
     pub quiet: bool,
 }
 
+/// The options of `flight-thresholds`.
+#[derive(Debug, clap::Args)]
+pub struct FlightThresholdsArgs {
+    /// Study deck (TOML).
+    pub deck: PathBuf,
+    /// The target: the probability of at least one false alarm in a flight hour (e.g. 1e-7).
+    #[arg(long, value_name = "P", required_unless_present = "per_flight", conflicts_with = "per_flight")]
+    pub per_hour: Option<f64>,
+    /// The target per flight instead (at least one false alarm in a flight of --flight-s).
+    #[arg(long, value_name = "P")]
+    pub per_flight: Option<f64>,
+    /// The flights' length in seconds: each begins with the filter on the truth.
+    #[arg(long, value_name = "F", default_value_t = 3600.0)]
+    pub flight_s: f64,
+    /// How the target is shared among a detector's outputs: equal (each the same share) or deck (the
+    /// deck's thresholds scaled together).
+    #[arg(long, default_value = "equal", value_parser = ["equal", "deck"])]
+    pub allocation: String,
+    /// The detector (default: every one of the deck).
+    #[arg(long)]
+    pub detector: Option<String>,
+    /// Seed of the confirmation's draws (default: the deck's study.seed).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Results folder (default: results/<study name>/flight_thresholds).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Worker threads (default: one per core).
+    #[arg(long)]
+    pub threads: Option<usize>,
+}
+
 #[derive(Debug, clap::Args)]
 pub struct WorstCaseArgs {
     /// Study deck (TOML).
@@ -458,6 +505,8 @@ pub mod exit {
     pub const OK: u8 = 0;
     /// `check` found a regression against the baseline.
     pub const REGRESSION: u8 = 1;
+    /// `flight-thresholds` could not confirm a detector's thresholds.
+    pub const NOT_CONFIRMED: u8 = 1;
     /// Invalid input: a deck, an argument or an input file; the message names the file and the field.
     pub const INVALID_INPUT: u8 = 2;
     /// An I/O or internal error.
@@ -466,7 +515,7 @@ pub mod exit {
     /// The codes as `--help` prints them.
     pub fn help() -> String {
         format!(
-            "Exit codes: {OK} ok, {REGRESSION} regression found (check), {INVALID_INPUT} invalid input (deck, \
+            "Exit codes: {OK} ok, {REGRESSION} regression found (check) or thresholds not confirmed (flight-thresholds), {INVALID_INPUT} invalid input (deck, \
              arguments, files), {INTERNAL} I/O or internal error."
         )
     }
@@ -537,6 +586,11 @@ pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
             .map(|_| ()),
         Command::RareEvent(args) => commands.exec_rare_event(args),
         Command::WorstCase(args) => commands.exec_worst_case(args),
+        Command::FlightThresholds(args) => match commands.exec_flight_thresholds(args) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::from(exit::NOT_CONFIRMED),
+            Err(e) => Err(e),
+        },
         Command::Sensitivity { deck, base_samples, bootstrap, folder, thresholds } => {
             if !(2..=crate::engine::scenario::streams::MAX_TRIAL / 64).contains(&base_samples) {
                 Err(CliError::Invalid(format!(

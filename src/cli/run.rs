@@ -681,6 +681,71 @@ impl Kinds {
         Ok(())
     }
 
+    /// `fdimc flight-thresholds`: checks the target, finds the kind's way (or says what to run
+    /// instead), searches, prints each detector's statement and writes the files; `false` when a
+    /// detector's thresholds were not confirmed.
+    pub fn exec_flight_thresholds(&self, a: crate::cli::FlightThresholdsArgs) -> Result<bool, CliError> {
+        use crate::engine::results::flight_thresholds::{self as found, Allocation, FlightTarget};
+        let bad = |m: String| Err(CliError::Invalid(m));
+        let (flag, p) = match (a.per_hour, a.per_flight) {
+            (Some(p), _) => ("--per-hour", p),
+            (_, Some(p)) => ("--per-flight", p),
+            (None, None) => unreachable!("clap requires one"),
+        };
+        if !(p > 0.0 && p < 0.5) {
+            return bad(format!("{flag} {p}: a false-alarm probability, allowed > 0 and < 0.5"));
+        }
+        if !(a.flight_s.is_finite() && a.flight_s > 0.0) {
+            return bad(format!("--flight-s {}: a flight's length in seconds, allowed > 0", a.flight_s));
+        }
+        if a.threads == Some(0) {
+            return bad("--threads 0: give at least 1 (or leave it out for one per core)".into());
+        }
+        let allocation = if a.allocation == "deck" { Allocation::Deck } else { Allocation::Equal };
+        let target = match a.per_hour {
+            Some(h) => FlightTarget::per_hour(h, a.flight_s, allocation, a.seed),
+            None => FlightTarget::per_flight(p, a.flight_s, allocation, a.seed),
+        };
+        let text = crate::engine::scenario::deck::read_deck(&a.deck)?;
+        let kind = method::method_of(self.0, &text, &a.deck)?;
+        let Some(search) = kind.flight_thresholds else {
+            let instead = if kind.options.contains(&Opt::RareEvent) {
+                format!(
+                    "estimate per flight with fdimc rare-event {} --flight-s F --levels S1,S2,... and take the \
+                     smallest level whose per_hour.csv upper bound is below the target",
+                    a.deck.display()
+                )
+            } else {
+                format!(
+                    "the nearest is fdimc summarize RUN --target-pfa-per-hour P on a run of the deck (the tail fit \
+                     and the conversion from trials to hours, neither confirmed over whole flights: {}'s role and \
+                     statement say how far to trust them)",
+                    crate::engine::results::summary::safety::SAFETY_FILE
+                )
+            };
+            return bad(format!(
+                "{}: a {} study ({}) has no exact false-alarm law to find thresholds on; {instead}",
+                a.deck.display(),
+                kind.kind,
+                kind.title
+            ));
+        };
+        let name = toml::from_str::<toml::Table>(&text)
+            .ok()
+            .and_then(|t| t.get("study")?.get("name")?.as_str().map(String::from))
+            .unwrap_or_else(|| "study".into());
+        let out = results_folder(a.out.as_deref(), &name, Some("flight_thresholds"), Shard::WHOLE, false);
+        let results =
+            runner::thread_pool(a.threads)?.install(|| search(&text, &a.deck, a.detector.as_deref(), &target))?;
+        for f in &results {
+            println!("{}", f.statement(&target));
+        }
+        for file in found::write(&out, &results, &target)? {
+            println!("wrote {file}");
+        }
+        Ok(results.iter().all(|f| f.confirmed))
+    }
+
     /// `fdimc worst-case`: checks the sizes, then searches.
     pub fn exec_worst_case(&self, a: WorstCaseArgs) -> Result<(), CliError> {
         use crate::engine::worst_case::{Objective, SearchOptions, WorstCaseOptions};

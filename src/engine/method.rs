@@ -46,10 +46,22 @@ pub struct Method {
     /// know. `summarize` checks the conversion with it ([`Method::hour_laws_of_run`]); it must not run
     /// a user's code (an FMU) in this process.
     pub hour_laws: Option<HourLaws>,
+    /// `fdimc flight-thresholds`: where the kind can find thresholds for a false-alarm target over
+    /// whole flights, per detector of a deck (its text and path; the named detector or every one).
+    /// `None`: it cannot, and the command says what to run instead.
+    pub flight_thresholds: Option<FlightThresholds>,
 }
 
 /// See [`Method::hour_laws`].
 pub type HourLaws = fn(&str, &Path, &[String]) -> Vec<Option<crate::engine::results::thresholds::HourLaw>>;
+
+/// See [`Method::flight_thresholds`].
+pub type FlightThresholds = fn(
+    &str,
+    &Path,
+    Option<&str>,
+    &crate::engine::results::flight_thresholds::FlightTarget,
+) -> Result<Vec<crate::engine::results::flight_thresholds::FoundThresholds>, RunError>;
 
 impl Method {
     /// [`Method::hour_laws`] of the deck a run in a folder read (`manifest`), when the kind has them and

@@ -2,6 +2,7 @@
 //! after the run, the summary tables with their tail fits, and the regression check against a baseline.
 
 pub mod check;
+pub mod flight_thresholds;
 pub mod roc;
 pub mod schema;
 pub mod summary;

@@ -292,6 +292,7 @@ pub struct FirstPassage {
     running_max_t: f64,
     next_kept: f64,
     next_level: i32,
+    exact: ExactDelays,
 }
 
 impl FirstPassage {
@@ -302,11 +303,20 @@ impl FirstPassage {
             running_max_t: f64::NAN,
             next_kept: f64::NEG_INFINITY,
             next_level: NO_LEVEL,
+            exact: ExactDelays::NONE,
         }
+    }
+
+    /// A profile that also keeps the running maximum exactly at `exact`'s delays after the onset.
+    pub fn with_exact_delays(grid: ProfileGrid, exact: ExactDelays) -> Self {
+        FirstPassage { exact, ..FirstPassage::new(grid) }
     }
 
     /// The statistic's value `a` at `t` (s), after the onset.
     pub fn observe(&mut self, t: f64, a: f64, profile_t_s: &mut Vec<f64>, profile_value: &mut Vec<f64>) {
+        if self.exact.passed(t) {
+            keep_exact(self.running_max_t, self.running_max, profile_t_s, profile_value);
+        }
         if a > self.running_max || self.running_max_t.is_nan() {
             self.running_max = a;
             self.running_max_t = t;
@@ -320,6 +330,73 @@ impl FirstPassage {
     /// Closes the profile with the final maximum, where the last point kept is not it.
     pub fn close(&self, profile_t_s: &mut Vec<f64>, profile_value: &mut Vec<f64>) {
         close_profile(self.running_max_t, self.running_max, profile_t_s, profile_value);
+    }
+}
+
+/// The delays after a unit's onset (s) at which its profiles keep the running maximum exactly, so that
+/// "alarmed within this delay" replays exactly at every threshold whatever the grid: the detection
+/// window (a detection, [`is_late`]) and the fault's time to hazard (a miss before the hazard). A
+/// delay passes at the first sample with `t - onset > delay`, the replay's own rule; the profile then
+/// keeps the maximum so far ([`keep_exact`]), reached at or before the delay.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExactDelays {
+    onset_s: f64,
+    /// Ascending; +inf where none.
+    delays_s: [f64; 2],
+    next: usize,
+}
+
+impl ExactDelays {
+    /// No exact points (the grid's only).
+    pub const NONE: ExactDelays = ExactDelays { onset_s: 0.0, delays_s: [f64::INFINITY; 2], next: 2 };
+
+    /// The delays `delays_s` after `onset_s` (non-finite or negative ones: none).
+    pub fn new(onset_s: f64, delays_s: [f64; 2]) -> Self {
+        let mut d = delays_s.map(|d| if d.is_finite() && d >= 0.0 && onset_s.is_finite() { d } else { f64::INFINITY });
+        d.sort_by(f64::total_cmp);
+        ExactDelays { onset_s, delays_s: d, next: d.iter().position(|d| d.is_finite()).map_or(2, |_| 0) }
+    }
+
+    /// Whether the sample at `t_s` is the first past a delay (then past every delay it passed).
+    #[inline]
+    pub fn passed(&mut self, t_s: f64) -> bool {
+        if self.next < 2 && t_s - self.onset_s > self.delays_s[self.next] {
+            while self.next < 2 && t_s - self.onset_s > self.delays_s[self.next] {
+                self.next += 1;
+            }
+            true
+        } else {
+            false
+        }
+    }
+
+    /// The absolute time (s) a sample must pass for [`ExactDelays::passed`] to be worth asking: a
+    /// little before the next delay (the subtraction there may round either way), +inf after the last.
+    pub fn next_check_s(&self) -> f64 {
+        match self.delays_s.get(self.next) {
+            Some(d) if d.is_finite() => {
+                let at = self.onset_s + d;
+                at - 1e-9 * (1.0 + at.abs())
+            }
+            _ => f64::INFINITY,
+        }
+    }
+}
+
+/// Adds the running maximum `max`, reached at `max_t` (NaN: no value after the onset yet), to a profile
+/// as an exact point where its last point is below it: at the same time as the last point, that
+/// point's value becomes exact. The grid's later points stay above it (it is below the next bar).
+#[cold]
+pub fn keep_exact(max_t: f64, max: f64, profile_t_s: &mut Vec<f64>, profile_value: &mut Vec<f64>) {
+    if max_t.is_nan() || profile_value.last().is_some_and(|&v| v >= max) {
+        return;
+    }
+    match (profile_t_s.last(), profile_value.last_mut()) {
+        (Some(&t), Some(v)) if t == max_t => *v = max,
+        _ => {
+            profile_t_s.push(max_t);
+            profile_value.push(max);
+        }
     }
 }
 
@@ -538,6 +615,54 @@ mod tests {
         }
         // Fewer points than rises: 2,000 samples, a maximum rising from 0.5 to about 4.9.
         assert!(v.len() < 60, "{} points", v.len());
+    }
+
+    /// With exact delays of 3.33 s and 7.5 s after an onset at 0.02 s, on the 5 % grid: at every
+    /// threshold, "alarmed within the delay" read from the profile (the replay's rule: the first point
+    /// above the threshold, no later than the delay) is exactly the statistic's, where the grid alone
+    /// misses some (a point up to a grid step late); the profile still rises and ends at the maximum.
+    #[test]
+    fn a_profile_is_exact_at_its_delays_whatever_the_grid() {
+        let onset = 0.02;
+        let series: Vec<(f64, f64)> = (2..2000)
+            .map(|k| {
+                (k as f64 * 0.01, 0.5 + 0.4 * (k as f64 * 0.37).sin() + 0.002 * k as f64 + 0.05 * (k as f64).cos())
+            })
+            .collect();
+        let delays = [7.5, 3.33];
+        let record = |exact: ExactDelays| {
+            let mut fp = FirstPassage::with_exact_delays(ProfileGrid::new(0.05), exact);
+            let (mut t, mut v) = (Vec::new(), Vec::new());
+            series.iter().for_each(|&(ts, a)| fp.observe(ts, a, &mut t, &mut v));
+            fp.close(&mut t, &mut v);
+            (t, v)
+        };
+        let (t, v) = record(ExactDelays::new(onset, delays));
+        let (t_grid, v_grid) = record(ExactDelays::NONE);
+        assert!(v.windows(2).all(|w| w[1] >= w[0]) && t.windows(2).all(|w| w[1] >= w[0]));
+        assert_eq!(v.last(), v_grid.last());
+        let within = |t: &[f64], v: &[f64], thr: f64, delay: f64| {
+            t.iter().zip(v).find(|(_, v)| **v > thr).is_some_and(|(t, _)| t - onset <= delay)
+        };
+        let (mut checked, mut grid_wrong) = (0, 0);
+        for delay in delays {
+            let max = series.iter().filter(|p| p.0 - onset <= delay).map(|p| p.1).fold(f64::MIN, f64::max);
+            for k in 0..400 {
+                let thr = 0.3 + k as f64 * 0.01;
+                let exact = max > thr;
+                assert_eq!(within(&t, &v, thr, delay), exact, "delay {delay}, threshold {thr}");
+                grid_wrong += (within(&t_grid, &v_grid, thr, delay) != exact) as usize;
+                checked += 1;
+            }
+            // Just below the maximum within the delay: the exact point itself.
+            assert!(within(&t, &v, max - 1e-12, delay) && !within(&t, &v, max, delay));
+        }
+        assert_eq!(checked, 800);
+        assert!(grid_wrong > 0, "the grid alone misses some (else this test shows nothing)");
+        // No delay (onset not finite, or negative or infinite delays): the grid's profile.
+        for none in [ExactDelays::new(f64::NAN, delays), ExactDelays::new(onset, [-1.0, f64::INFINITY])] {
+            assert_eq!(record(none), (t_grid.clone(), v_grid.clone()));
+        }
     }
 
     /// With a 2 s window: a delay of 1 s is a detection, 3 s a late alarm (a miss, nothing isolated),

@@ -278,6 +278,11 @@ pub struct Manifest {
     /// 0: every rise; `None`: a run written before the grid, whose points rose by 2 % each).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub profile_resolution: Option<f64>,
+    /// The profiles keep the running maximum exactly at the end of the detection window and at the
+    /// time to hazard ([`crate::engine::results::schema::ExactDelays`]), so detections and misses before
+    /// the hazard replay exactly at any thresholds (`false`: a kind or an fdimc that does not).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub profiles_exact_at_deadlines: bool,
     /// Unit of each fault kind's size bins (for plot axes).
     #[serde(default)]
     pub fault_size_units: std::collections::BTreeMap<String, String>,
@@ -363,6 +368,7 @@ impl Manifest {
             && self.sensitivity == other.sensitivity
             && self.models == other.models
             && self.profile_resolution == other.profile_resolution
+            && self.profiles_exact_at_deadlines == other.profiles_exact_at_deadlines
     }
 }
 
@@ -576,6 +582,7 @@ impl Manifest {
             trial_duration_s: None,
             detection_window_s: None,
             profile_resolution: None,
+            profiles_exact_at_deadlines: false,
             fault_size_units: Default::default(),
             fault_size_bins: Default::default(),
             parameter_error_bins: Default::default(),

@@ -2,6 +2,8 @@
 
 /// Two-sided 95 % normal quantile.
 pub const Z95: f64 = 1.959_963_984_540_054;
+/// The standard normal quantile of a one-sided 95 % bound.
+pub const Z_ONE_SIDED_95: f64 = 1.644_853_626_951_472_2;
 
 /// Wilson score interval for `k` successes in `n` trials at normal quantile `z` (`(NaN, NaN)` if n = 0).
 pub fn wilson(k: u64, n: u64, z: f64) -> (f64, f64) {

@@ -47,6 +47,7 @@ pub static METHOD: Method = Method {
     starter: ("studies/ci_seed003.toml", include_str!("../../../studies/ci_seed003.toml")),
     replay_starter: Some(starter::replay_deck),
     hour_laws: None,
+    flight_thresholds: None,
 };
 
 impl Study for AccelerometerStudy {

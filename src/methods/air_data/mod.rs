@@ -78,6 +78,7 @@ pub static METHOD: Method = Method {
     starter: ("studies/ci_seed002.toml", include_str!("../../../studies/ci_seed002.toml")),
     replay_starter: None,
     hour_laws: None,
+    flight_thresholds: None,
 };
 
 crate::plain_study!(AirDataStudy, monte_carlo.common, |s| Ok::<_, RunError>(AirDataTrials::new(s)),

@@ -58,6 +58,8 @@ pub struct AnalyticFalseAlarms {
     pub conditional: f64,
     pub conditional_lo: f64,
     pub conditional_hi: f64,
+    /// Its one-sided 95 % upper bound.
+    pub conditional_upper_95: f64,
     pub conditional_draws: usize,
     /// What a conversion of the trial's figure to one per flight hour misses (`None`: not computed,
     /// the trial's sample time not given).
@@ -88,7 +90,7 @@ pub fn for_detector(
     let sensor_sigma = exact_law_sensor_sigma(study, filter)?;
     let (Ad, Kd, C) = (&filter.model.Ad, &filter.discrete.K, &filter.model.C);
     let (steps, dt_s, process) = (study.header.steps, study.header.dt_s, &study.process_sigma_per_step);
-    let mut f = analytic_false_alarms(Ad, Kd, C, &sensor_sigma, process, thresholds, steps);
+    let mut f = analytic_false_alarms(Ad, Kd, C, &sensor_sigma, process, thresholds, steps, CONDITIONAL_SEED);
     f.hour = Some(hour_conversion(Ad, Kd, C, &sensor_sigma, process, thresholds, steps, dt_s));
     Ok(f)
 }
@@ -129,7 +131,7 @@ fn hour_law(study: &LtiStudy, detector: usize, statistics: &[String]) -> Option<
 
 /// The sensor sigmas of the residual's exact law for `filter` on `study`, or why the deck is outside
 /// what it assumes.
-fn exact_law_sensor_sigma(study: &LtiStudy, filter: &DetectionFilter) -> Result<DVector<f64>, String> {
+pub fn exact_law_sensor_sigma(study: &LtiStudy, filter: &DetectionFilter) -> Result<DVector<f64>, String> {
     use crate::engine::scenario::deck::Factor;
     let (p, d) = (&study.plant, &study.design_plant);
     if p.A != d.A || p.B != d.B || p.C != d.C || p.D != d.D {
@@ -210,6 +212,22 @@ impl HourSpread {
         trial_samples: usize,
         dt_s: f64,
     ) -> Option<Self> {
+        Self::reaching(Ad, Kd, C, sensor_sigma, process_sigma_per_step, trial_samples, dt_s, 0)
+    }
+
+    /// As [`HourSpread::new`], the ramp followed for at least `reach_samples` samples when it has not
+    /// settled (a flight longer than an hour).
+    #[allow(clippy::too_many_arguments)]
+    pub fn reaching(
+        Ad: &DMatrix<f64>,
+        Kd: &DMatrix<f64>,
+        C: &DMatrix<f64>,
+        sensor_sigma: &DVector<f64>,
+        process_sigma_per_step: &DVector<f64>,
+        trial_samples: usize,
+        dt_s: f64,
+        reach_samples: usize,
+    ) -> Option<Self> {
         let (Phi, R, drive) = closed_loop(Ad, Kd, C, sensor_sigma, process_sigma_per_step);
         let largest = Phi.clone().complex_eigenvalues().iter().map(|l| l.norm()).fold(0.0, f64::max);
         if largest >= 1.0 {
@@ -221,7 +239,7 @@ impl HourSpread {
         };
         let mut ramp = Vec::new();
         let mut p_k = DMatrix::zeros(Ad.nrows(), Ad.nrows());
-        for k in 0..hour_samples {
+        for k in 0..hour_samples.max(reach_samples) {
             ramp.push(sd(&p_k));
             let next = &Phi * &p_k * Phi.transpose() + &drive;
             // Settled (past the trial): every later sample is the same.
@@ -238,6 +256,19 @@ impl HourSpread {
             trial_samples,
             slowest_time_constant_s: -dt_s / largest.ln(),
         })
+    }
+
+    /// `ln` of Sidak's bound on no alarm of output `j` at `threshold` over the first `samples` samples
+    /// (the filter started on the truth): `sum_k ln(1 - 2 Q(threshold / sigma_j(k)))`.
+    pub fn log_no_alarm(&self, j: usize, threshold: f64, samples: usize) -> f64 {
+        let term = |sd: f64| (-2.0 * normal_sf(threshold / sd)).ln_1p();
+        let ramp = samples.min(self.ramp.len());
+        self.ramp[..ramp].iter().map(|sd| term(sd[j])).sum::<f64>() + term(self.settled[j]) * (samples - ramp) as f64
+    }
+
+    /// Each output's settled standard deviation.
+    pub fn settled(&self) -> &[f64] {
+        &self.settled
     }
 
     /// The extremal index against the conversion at `thresholds` (one per output), by Sidak's bound.
@@ -279,8 +310,13 @@ pub fn residual_law(
     (H, sd)
 }
 
+/// The seed of the conditional Monte Carlo draws of `design`, `report` and `rare-event --flight-s`.
+pub const CONDITIONAL_SEED: u64 = 0x5eed_ca11;
+
 /// The residual's law over `samples` samples and the bounds at `thresholds` (one per output).
-/// `sensor_sigma` and `process_sigma_per_step` are the noise standard deviations.
+/// `sensor_sigma` and `process_sigma_per_step` are the noise standard deviations; `draws_seed` seeds
+/// the conditional Monte Carlo draws.
+#[allow(clippy::too_many_arguments)]
 pub fn analytic_false_alarms(
     Ad: &DMatrix<f64>,
     Kd: &DMatrix<f64>,
@@ -289,6 +325,7 @@ pub fn analytic_false_alarms(
     process_sigma_per_step: &DVector<f64>,
     thresholds: &[f64],
     samples: usize,
+    draws_seed: u64,
 ) -> AnalyticFalseAlarms {
     let (n, ny) = (Ad.nrows(), C.nrows());
     let (Phi, R, _) = closed_loop(Ad, Kd, C, sensor_sigma, process_sigma_per_step);
@@ -471,7 +508,8 @@ pub fn analytic_false_alarms(
     // 747 deck: about 640, 3 s).
     let per_draw = (samples * (n * n + 3 * n * ny)) as f64;
     let draws = ((5e9 / per_draw) as usize).clamp(200, 4_000);
-    let (conditional, conditional_lo, conditional_hi) = law.conditional_monte_carlo(sum, draws);
+    let (conditional, conditional_lo, conditional_hi, conditional_upper_95) =
+        law.conditional_monte_carlo(sum, draws, draws_seed);
     AnalyticFalseAlarms {
         residual_sd_end: sd.last().cloned().unwrap_or_default(),
         samples,
@@ -484,6 +522,7 @@ pub fn analytic_false_alarms(
         conditional,
         conditional_lo,
         conditional_hi,
+        conditional_upper_95,
         conditional_draws: draws,
         hour: None,
     }
@@ -515,14 +554,15 @@ impl Law<'_> {
 
     /// `S / N` averaged over `draws` draws (see the module docs), with its 95 % interval. Draw `d`
     /// takes its numbers from trial stream `d` of a fixed seed: the same answer every time.
-    fn conditional_monte_carlo(&self, sum: f64, draws: usize) -> (f64, f64, f64) {
+    /// The estimate, its 95 % interval and its one-sided 95 % upper bound.
+    fn conditional_monte_carlo(&self, sum: f64, draws: usize, seed: u64) -> (f64, f64, f64, f64) {
         use crate::engine::scenario::streams::{Substream, noise_rng};
         use rand::RngExt;
         use rand_distr::StandardNormal;
         use rayon::prelude::*;
         let (samples, ny, n) = (self.sd.len(), self.C.nrows(), self.Phi.nrows());
         if samples == 0 || !(sum > 0.0) {
-            return (0.0, 0.0, 0.0);
+            return (0.0, 0.0, 0.0, 0.0);
         }
         // Events in order (k, j), their probabilities accumulated for the draw.
         let p: Vec<f64> =
@@ -536,7 +576,7 @@ impl Law<'_> {
         let values: Vec<f64> = (0..draws as u64)
             .into_par_iter()
             .map(|d| {
-                let mut rng = noise_rng(0x5eed_ca11, d, Substream::SensorNoise);
+                let mut rng = noise_rng(seed, d, Substream::SensorNoise);
                 let at = rng.random::<f64>() * acc;
                 let event = cumulative.partition_point(|c| *c < at).min(p.len() - 1);
                 let (k, j) = (event / ny, event % ny);
@@ -579,11 +619,13 @@ impl Law<'_> {
             .collect();
         let mean = values.iter().sum::<f64>() / draws as f64;
         let var = values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (draws.max(2) - 1) as f64;
-        let half = crate::engine::stats::intervals::Z95 * (var / draws as f64).sqrt();
+        let se = (var / draws as f64).sqrt();
+        let half = crate::engine::stats::intervals::Z95 * se;
+        let upper_95 = (mean + crate::engine::stats::intervals::Z_ONE_SIDED_95 * se).min(sum);
         // S / N <= S always. When no draw saw a second event (every value S), the share of draws that
         // would is still up to about 3 / draws (95 %), each worth at most S / 2 less: say so.
         let unresolved = if values.iter().all(|v| *v == sum) { sum * 1.5 / draws as f64 } else { 0.0 };
-        (mean, (mean - half - unresolved).max(0.0), (mean + half).min(sum))
+        (mean, (mean - half - unresolved).max(0.0), (mean + half).min(sum), upper_95)
     }
 }
 
@@ -748,6 +790,7 @@ mod tests {
             &DVector::from_element(1, process),
             &[threshold],
             samples,
+            CONDITIONAL_SEED,
         );
         let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(4);
         let mut alarms = 0;
@@ -787,6 +830,7 @@ mod tests {
             &DVector::zeros(n),
             &[threshold],
             samples,
+            CONDITIONAL_SEED,
         );
         let p = 2.0 * normal_sf(threshold / sigma);
         let exact = 1.0 - (1.0 - p).powi(samples as i32);

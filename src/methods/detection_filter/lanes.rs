@@ -16,7 +16,7 @@
 
 use nalgebra::DVector;
 
-use crate::engine::results::schema::{NO_LEVEL, ProfileGrid, close_profile};
+use crate::engine::results::schema::{ExactDelays, NO_LEVEL, ProfileGrid, close_profile, keep_exact};
 use crate::engine::scenario::streams::{Substream, noise_rng};
 use crate::fault::ActiveFaults;
 use crate::methods::detection_filter::decision::{Decision, LaneStatistic};
@@ -139,8 +139,9 @@ fn run_lanes_in(
         })
         .collect();
     let mut filter_states: Vec<FilterState<Lane>> = filters.iter().map(|_| FilterState::new(&x0, nu, ny)).collect();
+    let exact: [ExactDelays; LANES] = std::array::from_fn(|l| spec(l).exact_delays(s));
     let mut trackers: Vec<LaneTracker> =
-        detectors.iter().map(|d| LaneTracker::new(d, onset_s, ny, s.monte_carlo.common.profile)).collect();
+        detectors.iter().map(|d| LaneTracker::new(d, onset_s, exact, ny, s.monte_carlo.common.profile)).collect();
 
     for k in 0..s.header.steps {
         let t = k as f64 * s.header.dt_s;
@@ -352,6 +353,11 @@ fn running_max_and_events(
     event
 }
 
+/// The earliest time a live lane may pass one of its exact delays ([`ExactDelays::next_check_s`]).
+fn next_exact_s(exact: &[ExactDelays; LANES], live: &[bool; LANES]) -> f64 {
+    (0..LANES).filter(|&l| live[l]).map(|l| exact[l].next_check_s()).fold(f64::INFINITY, f64::min)
+}
+
 /// [`crate::methods::detection_filter::trial::Tracker`]'s bookkeeping for a group of lanes (see the module docs for the arrangement).
 struct LaneTracker<'f> {
     designs: [Option<&'f DetectionFilter>; LANES],
@@ -368,6 +374,10 @@ struct LaneTracker<'f> {
     /// Per output: the level index of `next_kept` ([`ProfileGrid::keep`]).
     next_level: Vec<[i32; LANES]>,
     grid: ProfileGrid,
+    /// Per lane: where its profiles keep the running maximum exactly, and the earliest time a live lane
+    /// may pass one (before it, no lane does).
+    exact: [ExactDelays; LANES],
+    next_exact_s: f64,
     abs: Vec<Lane>,
     /// What replaces `abs` as the statistic, for a test other than `|r|`.
     test: LaneTest,
@@ -390,7 +400,7 @@ struct LaneTracker<'f> {
 }
 
 impl<'f> LaneTracker<'f> {
-    fn new(d: &LaneDetector<'f>, onset_s: Lane, ny: usize, grid: ProfileGrid) -> Self {
+    fn new(d: &LaneDetector<'f>, onset_s: Lane, exact: [ExactDelays; LANES], ny: usize, grid: ProfileGrid) -> Self {
         let live: [bool; LANES] = std::array::from_fn(|l| d.designs[l].is_some());
         let thresholds: Vec<f64> = d.params.thresholds.iter().copied().collect();
         LaneTracker {
@@ -405,6 +415,8 @@ impl<'f> LaneTracker<'f> {
             next_kept: vec![[f64::INFINITY; LANES]; ny],
             next_level: vec![[NO_LEVEL; LANES]; ny],
             grid,
+            exact,
+            next_exact_s: next_exact_s(&exact, &live),
             abs: vec![[0.0; LANES]; ny],
             test: LaneTest::new(d, ny),
             onset_s,
@@ -442,6 +454,9 @@ impl<'f> LaneTracker<'f> {
                 .filter(|&l| self.live[l] && !self.after_onset[l])
                 .map(|l| self.onset_s[l])
                 .fold(f64::INFINITY, f64::min);
+        }
+        if t >= self.next_exact_s {
+            self.keep_exact(t);
         }
         let non_finite = abs_and_non_finite(residual, &mut self.abs);
         if non_finite.iter().any(|&b| b != 0) {
@@ -505,6 +520,21 @@ impl<'f> LaneTracker<'f> {
             self.next_level[j][l] = NO_LEVEL;
             self.armed[j][l] = self.thresholds[j];
         }
+    }
+
+    /// The lanes whose sample at `t` is the first past one of their exact delays keep their running
+    /// maxima so far in their profiles, as [`FirstPassage`](crate::engine::results::schema::FirstPassage) does.
+    #[cold]
+    fn keep_exact(&mut self, t: f64) {
+        for l in 0..LANES {
+            if self.live[l] && self.after_onset[l] && self.exact[l].passed(t) {
+                for j in 0..self.max.len() {
+                    let out = &mut self.out[l];
+                    keep_exact(self.max_t[j][l], self.max[j][l], &mut out.profile_t_s[j], &mut out.profile_value[j]);
+                }
+            }
+        }
+        self.next_exact_s = next_exact_s(&self.exact, &self.live);
     }
 
     #[cold]

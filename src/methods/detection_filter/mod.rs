@@ -6,6 +6,7 @@ pub mod decision;
 pub mod deck;
 pub mod false_alarms;
 pub mod filter;
+pub mod flight_thresholds;
 pub mod fmu_detector;
 pub mod kalman_chi2;
 pub mod kernel;
@@ -68,6 +69,7 @@ pub static METHOD: Method = Method {
     starter: ("studies/starter_detection_filter.toml", include_str!("../../../studies/starter_detection_filter.toml")),
     replay_starter: None,
     hour_laws: Some(false_alarms::hour_laws),
+    flight_thresholds: Some(flight_thresholds::for_deck),
 };
 
 impl Study for LtiStudy {
@@ -202,6 +204,7 @@ impl TrialSource for LtiTrials<'_> {
                 &study.monte_carlo.parameter_errors,
             ),
             sensor_noise: Some(noise_in_words(study)),
+            profiles_exact_at_deadlines: true,
             models: (study.fmus().into_iter())
                 .map(|t| ModelFile { file: t.fmu.file_name(), sha256: t.fmu.sha256.clone() })
                 .collect(),

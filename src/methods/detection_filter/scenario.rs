@@ -2,7 +2,8 @@
 //! level and parameter errors trial i has, by the shared scheme of [`crate::engine::scenario::draws`].
 
 use super::study::LtiStudy;
-use crate::engine::scenario::deck::ModelTarget;
+use crate::engine::results::schema::ExactDelays;
+use crate::engine::scenario::deck::{ModelTarget, time_to_hazard};
 use crate::engine::scenario::design::{Factors, Part, Slot};
 use crate::engine::scenario::draws::{DIM_NOISE, DIM_ONSET, DIM_SIZE, FIRST_OWN_DIM, UnitSampler};
 use crate::fault::deck::{FaultTarget, TrialFaults};
@@ -34,6 +35,17 @@ impl TrialSpec {
             FaultTarget::Output(j) => study.plant.output_names[j].as_str(),
             FaultTarget::Input(j) => study.failing_inputs[j].as_str(),
         })
+    }
+
+    /// Where this trial's profiles keep the running maximum exactly: at the end of the detection window
+    /// and at the fault's time to hazard, after its onset (the detection and the miss before the hazard
+    /// then replay exactly at any threshold).
+    pub fn exact_delays(&self, study: &LtiStudy) -> ExactDelays {
+        let common = &study.monte_carlo.common;
+        let hazard_s = self
+            .target_name(study)
+            .and_then(|target| time_to_hazard(&common.time_to_hazard_s, self.fault.kind, target));
+        ExactDelays::new(self.fault.onset_s, [common.detection_window_s, hazard_s.unwrap_or(f64::INFINITY)])
     }
 }
 

@@ -40,7 +40,7 @@ use super::decision::TestState;
 use super::kernel::{FilterState, FilterStep, PlantState, PlantStep};
 use crate::engine::run::output::Trace;
 
-use crate::engine::results::schema::{FirstPassage, ProfileGrid};
+use crate::engine::results::schema::{ExactDelays, FirstPassage, ProfileGrid};
 
 /// What one detector made of one trial, in compact form.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -78,7 +78,7 @@ struct Tracker {
 }
 
 impl Tracker {
-    fn new(filter: &DetectionFilter, ny: usize, dt_s: f64, grid: ProfileGrid) -> Self {
+    fn new(filter: &DetectionFilter, ny: usize, dt_s: f64, grid: ProfileGrid, exact: ExactDelays) -> Self {
         Tracker {
             out: DetectorOutcome {
                 pre_onset_max_abs_residual: vec![0.0; ny],
@@ -87,7 +87,7 @@ impl Tracker {
                 ..Default::default()
             },
             thresholds: filter.thresholds.clone(),
-            first_passage: vec![FirstPassage::new(grid); ny],
+            first_passage: vec![FirstPassage::with_exact_delays(grid, exact); ny],
             iso_sum: DVector::zeros(ny),
             iso_count: 0,
             iso_window: None,
@@ -198,7 +198,7 @@ pub fn run_trial(
     let mut states: Vec<FilterState<f64>> = filters.iter().map(|_| FilterState::new(x0, nu, ny)).collect();
     let mut trackers: Vec<Tracker> = filters
         .iter()
-        .map(|(design, _)| Tracker::new(design, ny, s.header.dt_s, s.monte_carlo.common.profile))
+        .map(|(design, _)| Tracker::new(design, ny, s.header.dt_s, s.monte_carlo.common.profile, spec.exact_delays(s)))
         .collect();
     let mut rec = trace.map(|t| TraceWriter::new(t, s, n));
     // An FMU truth flies instead of the LTI plant, which then only closes the loop (`u = r - G y`).

@@ -531,8 +531,13 @@ mod tests {
                      [[monte_carlo.parameter_error]]\nname = \"unstable\"\nmodel = \"plant\"\nmatrix = \"a\"\n\
                      entries = [[\"q_rad_s\", \"q_rad_s\"]]\nabsolute = { range = [0.0, 60.0] }\n\
                      [[monte_carlo.fault]]\nkind = \"drift\"\nsize = { range = [0.001, 0.01] }\n\
-                     [[monte_carlo.fault]]\nkind = \"oscillation\"\nfrequency_hz = 0.5\nsize = { range = [0.01, 0.1] }\n";
-        let deck = ROBUST.replace("[noise]", "[noise]\nprocess_sigma_per_step = [0.001, 0.0001, 0.0001, 0.0001, 0.01]");
+                     [[monte_carlo.fault]]\nkind = \"oscillation\"\nfrequency_hz = 0.5\nsize = { range = [0.01, 0.1] }\n\
+                     [monte_carlo.time_to_hazard_s]\nbias = 0.7\ndrift = 2.5\n";
+        // A detection window and times to hazard: the profiles' exact points at both, in both paths.
+        let deck = ROBUST
+            .replace("[noise]", "[noise]\nprocess_sigma_per_step = [0.001, 0.0001, 0.0001, 0.0001, 0.01]")
+            .replace("[monte_carlo]\n", "[monte_carlo]\ndetection_window_s = 4.0\n");
+        assert!(deck.contains("detection_window_s = 4.0"));
         assert!(deck.contains("process_sigma_per_step"));
         let s = LtiStudy::from_toml(&format!("{deck}\n{extra}"), Path::new("deck.toml")).unwrap();
         // All four detectors, the CUSUM and the Kalman chi-square test included, run on the lanes.

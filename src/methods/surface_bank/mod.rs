@@ -111,6 +111,7 @@ pub static METHOD: Method = Method {
     starter: ("studies/ci_seed004.toml", include_str!("../../../studies/ci_seed004.toml")),
     replay_starter: None,
     hour_laws: None,
+    flight_thresholds: None,
 };
 
 crate::plain_study!(SurfaceStudy, monte_carlo.common, |s| Ok::<_, RunError>(SurfaceTrials::new(s)));

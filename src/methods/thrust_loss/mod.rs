@@ -76,6 +76,7 @@ pub static METHOD: Method = Method {
     starter: ("studies/ci_seed001.toml", include_str!("../../../studies/ci_seed001.toml")),
     replay_starter: None,
     hour_laws: None,
+    flight_thresholds: None,
 };
 
 // Designs and loss tables are the deck's: one that cannot be designed is invalid input.

@@ -310,6 +310,7 @@ pub fn summarize(
         deck_sha256: &manifest.deck_sha256,
         fdimc_version: &manifest.fdimc_version,
         profile_resolution: manifest.profile_resolution,
+        profiles_exact_at_deadlines: manifest.profiles_exact_at_deadlines,
     };
     let mut safety = safety::safety(&answer, &detectors, &tails, &setting).map_err(pol(&path))?;
     write_table(&mut safety, &out(safety::SAFETY_FILE))?;

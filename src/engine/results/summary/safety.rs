@@ -14,7 +14,7 @@ use crate::engine::results::tails::DetectorTail;
 use crate::engine::results::text::{apart, significant};
 use crate::engine::results::thresholds::{DECK, HourConversion, UNDERCOUNT_FLAG, per_flight_hour};
 use crate::engine::run::runner::RunError;
-use crate::engine::stats::intervals::wilson;
+use crate::engine::stats::intervals::{Z_ONE_SIDED_95, wilson};
 
 pub const SAFETY_FILE: &str = "safety.csv";
 
@@ -35,6 +35,9 @@ pub struct Setting<'a> {
     /// The recorded profiles' grid step (`monte_carlo.profile_resolution`; 0: every rise; `None`: a run
     /// written before the grid): how late an alarm replayed at other thresholds may be.
     pub profile_resolution: Option<f64>,
+    /// The profiles keep the running maximum exactly at the time to hazard (the manifest's
+    /// `profiles_exact_at_deadlines`): the replay is then exact whatever the grid.
+    pub profiles_exact_at_deadlines: bool,
 }
 
 /// What a false-alarm figure does not cover, said in its statement.
@@ -43,9 +46,6 @@ const FALSE_ALARMS_LEAVE_OUT: &str = "model error beyond the deck's parameter er
 /// What a missed-detection figure does not cover.
 const MISSES_LEAVE_OUT: &str = "fault kinds, sizes and onsets outside the deck's populations, model error beyond \
      its parameter errors, noise the deck does not draw";
-
-/// Two-sided 90 % normal quantile: a one-sided 95 % bound.
-const Z_ONE_SIDED_95: f64 = 1.644_853_626_951_472_2;
 
 /// `rare_event/rare_event.csv` and, with `--flight-s`, `rare_event/per_hour.csv`; with
 /// `--miss-before-hazard`, `rare_event/miss_before_hazard.csv`.
@@ -220,12 +220,13 @@ impl Rows {
     }
 }
 
-/// What a miss before the hazard at thresholds other than the deck's leaves out: their alarm times are
-/// replayed from the recorded profiles, whose grid may place one up to a grid step late, so a fault
-/// detected near the end of its window can count as missed (nothing with the full profiles).
-fn replayed_late(set: &str, profile_resolution: Option<f64>) -> String {
-    match profile_resolution {
-        _ if set == DECK => String::new(),
+/// What a miss before the hazard at thresholds other than the deck's leaves out in a run written by an
+/// fdimc whose profiles had no exact point at the time to hazard: their alarm times are replayed from
+/// the recorded profiles, whose grid may place one up to a grid step late, so a fault detected near the
+/// end of its window can count as missed (nothing with the full profiles).
+fn replayed_late(set: &str, setting: &Setting) -> String {
+    match setting.profile_resolution {
+        _ if set == DECK || setting.profiles_exact_at_deadlines => String::new(),
         Some(0.0) => String::new(),
         step => format!(
             "; at these thresholds the alarm times are replayed from the recorded profiles (grid step {}), which may \
@@ -328,7 +329,7 @@ pub fn safety(
                 format!(
                     "the deck's fault kinds, sizes and onsets as drawn, each kind's time to hazard (time_to_hazard_s), sensor noise {}{}",
                     setting.noise,
-                    replayed_late(set, setting.profile_resolution)
+                    replayed_late(set, setting)
                 ),
             );
         }
