@@ -372,7 +372,7 @@ pub struct FlightThresholdsArgs {
     /// Seed of the confirmation's draws (default: the deck's study.seed).
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Results folder (default: results/<study name>/flight_thresholds).
+    /// Results folder (default: `results/<study name>/flight_thresholds`).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Worker threads (default: one per core).

@@ -250,3 +250,59 @@ pub fn write(dir: &Path, found: &[FoundThresholds], target: &FlightTarget) -> Re
     }
     Ok(written)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn found(detector: &str, upper_95: f64, confirmed: bool) -> FoundThresholds {
+        let estimate = Estimate { value: 0.8e-7, lo: 0.7e-7, hi: 0.9e-7, upper_95, draws: 100 };
+        FoundThresholds {
+            detector: detector.into(),
+            statistics: vec!["p".into(), "q".into()],
+            deck_thresholds: vec![1.0, 2.0],
+            thresholds: vec![3.0, 4.0],
+            method: "test".into(),
+            upper: 0.9e-7,
+            upper_from: "Sidak".into(),
+            lower: 0.7e-7,
+            lower_from: "Bonferroni S1 - S2".into(),
+            search: estimate.clone(),
+            confirmation: estimate,
+            seed: 7,
+            confirmed,
+        }
+    }
+
+    /// An hour of 10 flights of 360 s at 1e-6 per hour is 1e-7 per flight (to 1e-12), and back.
+    #[test]
+    fn a_per_hour_target_is_the_hours_flights_taken_as_independent() {
+        let t = FlightTarget::per_hour(1e-6, 360.0, Allocation::Equal, None);
+        // Python's -expm1(0.1 * log1p(-1e-6)), free of the cancellation of 1 - (1 - 1e-6)^0.1.
+        assert!((t.per_flight / 1.0000004500002851e-07 - 1.0).abs() < 1e-12, "{}", t.per_flight);
+        assert!((t.per_flight / 1e-7 - 1.0).abs() < 1e-6);
+        assert!((t.hour_of(t.per_flight) / 1e-6 - 1.0).abs() < 1e-12);
+        assert_eq!(FlightTarget::per_hour(1e-7, 3600.0, Allocation::Deck, None).per_flight, 1e-7);
+    }
+
+    /// Only confirmed detectors go into `thresholds.csv`; with none confirmed nothing is written as a
+    /// calibration and an earlier search's file is removed, while `flight_thresholds.csv` says why.
+    #[test]
+    fn an_unconfirmed_detector_is_no_calibration() {
+        let target = FlightTarget::per_flight(1e-7, 30.0, Allocation::Equal, None);
+        let (yes, no) = (found("a", 0.95e-7, true), found("b", 1.2e-7, false));
+        assert!(no.statement(&target).contains("NOT confirmed: the one-sided bound is above the target"));
+        assert!(yes.statement(&target).ends_with(": confirmed"), "{}", yes.statement(&target));
+        let dir = tempfile::tempdir().unwrap();
+        let written = write(dir.path(), &[yes.clone(), no.clone()], &target).unwrap();
+        assert_eq!(written.len(), 2);
+        let calibration =
+            crate::engine::results::thresholds::read_thresholds(&dir.path().join(THRESHOLDS_FILE)).unwrap();
+        assert_eq!(calibration.detectors, vec![("a".to_string(), vec![3.0, 4.0], vec![3.0, 4.0])]);
+        let table = std::fs::read_to_string(dir.path().join(FLIGHT_THRESHOLDS_FILE)).unwrap();
+        assert_eq!(table.lines().count(), 5, "{table}");
+        let written = write(dir.path(), &[no], &target).unwrap();
+        assert_eq!(written.len(), 1);
+        assert!(!dir.path().join(THRESHOLDS_FILE).exists());
+    }
+}

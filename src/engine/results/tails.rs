@@ -68,6 +68,29 @@ pub struct Target {
     pub scale: Interval,
     /// The exact law's verdict on the conversion at the thresholds for the target (as [`DetectorTail::hour`]).
     pub hour: Option<HourConversion>,
+    /// Why these thresholds in particular should not be trusted (the exact law against the fit).
+    pub doubt: Option<String>,
+}
+
+/// The fit's figure at its thresholds for a target is doubted where the exact law's upper bound on a
+/// trial's Pfa there is more than this many times the target per trial (a choice: Sidak's bound can
+/// exceed the probability where alarms cluster, so a small excess proves nothing).
+pub const EXACT_OVER_FIT_DOUBT: f64 = 2.0;
+
+impl Target {
+    /// The doubt the exact law's verdict `hour` at the thresholds casts on the fit, if any.
+    pub fn doubt_from(&self, hour: &HourConversion) -> Option<String> {
+        (hour.trial_upper > EXACT_OVER_FIT_DOUBT * self.pfa).then(|| {
+            format!(
+                "the residual's exact law puts a trial's Pfa at these thresholds at up to {:.3e} (Sidak's bound), \
+                 {} times the {:.3e} the fit gives them: the fit may be far too low (fdimc flight-thresholds \
+                 finds thresholds on the exact law)",
+                hour.trial_upper,
+                crate::engine::results::text::significant(hour.trial_upper / self.pfa),
+                self.pfa
+            )
+        })
+    }
 }
 
 /// Fits every detector's tail against the deck's thresholds (where the deck gives one per statistic)
@@ -165,7 +188,13 @@ fn tail_of(
                     Some(d) => (per_segment(target, d), Some(target)),
                     None => (target, None),
                 };
-                (pfa < fit.zeta()).then(|| Target { pfa, per_hour, scale: fit.quantile_interval(pfa), hour: None })
+                (pfa < fit.zeta()).then(|| Target {
+                    pfa,
+                    per_hour,
+                    scale: fit.quantile_interval(pfa),
+                    hour: None,
+                    doubt: None,
+                })
             })
             .collect()
     };
@@ -198,7 +227,7 @@ pub fn write_tail_tables(dir: &Path, tails: &[DetectorTail], statistics: &[Strin
         let at = t.at_set.unwrap_or(Interval { estimate: rate, lo, hi });
         let one = Interval { estimate: 1.0, lo: 1.0, hi: 1.0 };
         let estimate = if fitted { "tail fit" } else { "observed" };
-        c.push(t, statistics, "pfa_at_thresholds", None, at, one, estimate, t.hour);
+        c.push(t, statistics, "pfa_at_thresholds", None, at, one, estimate, t.hour, None);
         for x in &t.targets {
             c.push(
                 t,
@@ -209,6 +238,7 @@ pub fn write_tail_tables(dir: &Path, tails: &[DetectorTail], statistics: &[Strin
                 x.scale,
                 "tail fit",
                 x.hour,
+                x.doubt.as_deref(),
             );
         }
     }
@@ -280,6 +310,7 @@ impl TailColumns {
         scale: Interval,
         estimate: &str,
         hour: Option<HourConversion>,
+        doubt: Option<&str>,
     ) {
         let xi = t.xi;
         for (j, s) in statistics.iter().enumerate() {
@@ -306,7 +337,8 @@ impl TailColumns {
             for (v, x) in self.fit.iter_mut().zip(f) {
                 v.push(x);
             }
-            self.trust.push(if t.concerns.is_empty() { "ok".into() } else { t.concerns.join("; ") });
+            let concerns: Vec<&str> = t.concerns.iter().map(String::as_str).chain(doubt).collect();
+            self.trust.push(if concerns.is_empty() { "ok".into() } else { concerns.join("; ") });
             self.hour_over_conversion.push(hour.map(|h| h.ratio));
         }
     }

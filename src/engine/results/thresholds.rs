@@ -173,6 +173,9 @@ pub struct HourConversion {
     pub ratio: f64,
     /// The residual's slowest mode as a time constant (s).
     pub slowest_time_constant_s: f64,
+    /// Sidak's bound on a trial's false-alarm probability at the thresholds: the exact law's upper
+    /// bound (tight where alarms are rare and do not cluster within a trial); NaN where not computed.
+    pub trial_upper: f64,
 }
 
 /// A detector's [`HourConversion`] at any thresholds (one per statistic), its law computed once.

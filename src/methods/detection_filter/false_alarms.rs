@@ -186,7 +186,7 @@ pub fn hour_conversion(
     match HourSpread::new(Ad, Kd, C, sensor_sigma, process_sigma_per_step, trial_samples, dt_s) {
         Some(spread) => spread.conversion(thresholds),
         // An unstable or undamped filter never settles: no hour to compare.
-        None => HourConversion { ratio: f64::NAN, slowest_time_constant_s: f64::INFINITY },
+        None => HourConversion { ratio: f64::NAN, slowest_time_constant_s: f64::INFINITY, trial_upper: f64::NAN },
     }
 }
 
@@ -281,7 +281,7 @@ impl HourSpread {
         let hour = ramp + log_none(&self.settled) * (self.hour_samples - self.ramp.len()) as f64;
         let trials_per_hour = self.hour_samples as f64 / self.trial_samples as f64;
         let ratio = if trial < 0.0 { hour / (trials_per_hour * trial) } else { f64::NAN };
-        HourConversion { ratio, slowest_time_constant_s: self.slowest_time_constant_s }
+        HourConversion { ratio, slowest_time_constant_s: self.slowest_time_constant_s, trial_upper: -trial.exp_m1() }
     }
 }
 

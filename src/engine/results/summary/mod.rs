@@ -242,6 +242,26 @@ pub fn summarize(
             let base = tail.base.clone();
             for x in tail.targets.iter_mut().filter(|x| x.per_hour.is_some()) {
                 x.hour = hour_at(&tail.detector, &base.iter().map(|b| b * x.scale.estimate).collect::<Vec<_>>());
+                x.doubt = x.hour.as_ref().and_then(|h| x.doubt_from(h));
+            }
+            // One warning per detector: the targets whose thresholds the exact law doubts.
+            let doubted: Vec<(f64, f64, f64)> = (tail.targets.iter())
+                .filter(|x| x.doubt.is_some())
+                .filter_map(|x| Some((x.per_hour?, x.hour?.trial_upper, x.pfa)))
+                .collect();
+            if !doubted.is_empty() {
+                let each: Vec<String> = (doubted.iter())
+                    .map(|(h, upper, pfa)| {
+                        format!("{h:e} per hour up to {upper:.3e} ({} times)", significant(upper / pfa))
+                    })
+                    .collect();
+                warnings.push(format!(
+                    "tail.csv's thresholds of {} for per-flight-hour targets: the residual's exact law puts a trial's Pfa \
+                     at them far above what the fit gives (Sidak's bound): {}; the fit may be far too low there \
+                     (trust in tail.csv); fdimc flight-thresholds finds thresholds on the exact law",
+                    tail.detector,
+                    each.join(", ")
+                ));
             }
             let low: Vec<String> = (tail.targets.iter())
                 .filter_map(|x| x.hour.filter(HourConversion::undercounts).zip(x.per_hour))

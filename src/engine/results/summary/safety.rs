@@ -555,10 +555,15 @@ mod tests {
                 "a".into(),
             );
         }
-        let slow = HourConversion { ratio: 2.555, slowest_time_constant_s: 16.665 };
+        let slow = HourConversion { ratio: 2.555, slowest_time_constant_s: 16.665, trial_upper: f64::NAN };
         rows.mark_by_law("d", "deck", &slow, 10.0);
         rows.mark_by_law("d", "calibrated", &slow, 10.0);
-        rows.mark_by_law("e", "calibrated", &HourConversion { ratio: 1.1, slowest_time_constant_s: 1.0 }, 10.0);
+        rows.mark_by_law(
+            "e",
+            "calibrated",
+            &HourConversion { ratio: 1.1, slowest_time_constant_s: 1.0, trial_upper: f64::NAN },
+            10.0,
+        );
         let lower = "a lower bound: the segment conversion under-counts here (by the residual's exact law, extremal \
                      index 2.555 against it over an hour flown through: a mode of time constant 16.66 s against 10 s \
                      trials)";
