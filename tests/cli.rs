@@ -266,6 +266,19 @@ fn flight_thresholds_meet_the_exact_law_on_a_slow_mode_and_several_outputs() {
 #[test]
 fn flight_thresholds_refuses_what_it_cannot_answer() {
     let tmp = tempfile::tempdir().unwrap();
+    // A deck beside a CUSUM: the CUSUM is skipped with why, the |residual| filters are searched; named,
+    // the CUSUM is refused.
+    let mixed = tmp.path().join("mixed.toml");
+    let ci = std::fs::read_to_string("studies/ci_seed000.toml").unwrap();
+    let cusum = "[[detector]]\nname = \"cusum\"\nkind = \"cusum\"\neigenvalues_per_s = [-1.0, -2.0, -3.0, -4.0, -5.0]\n\
+                 drift = [0.2, 0.004, 0.01, 0.004, 0.004, 1.0]\nthresholds = [1.0, 0.02, 0.05, 0.02, 0.02, 5.0]\n\n[monte_carlo]";
+    std::fs::write(&mixed, ci.replacen("[monte_carlo]", cusum, 1)).unwrap();
+    let searched = tmp.path().join("searched");
+    let args = ["flight-thresholds", mixed.to_str().unwrap(), "--per-flight", "1e-5", "--flight-s", "10", "--out"];
+    let said = ok(&fdimc(&[&args[..], &[searched.to_str().unwrap()]].concat()));
+    assert!(said.contains("skipped cusum: not the exact law's setting: the test is"), "{said}");
+    assert_eq!(said.matches(": confirmed").count(), 2, "{said}");
+    assert_eq!(csv_frame(&searched.join("thresholds.csv")).height(), 12);
     let out = tmp.path().join("out");
     let o = out.to_str().unwrap();
     let lateral = "studies/seed000_lateral_slow_mode.toml";
@@ -274,8 +287,13 @@ fn flight_thresholds_refuses_what_it_cannot_answer() {
         (vec!["studies/ci_seed004.toml", "--per-hour", "1e-7"], "fdimc summarize RUN --target-pfa-per-hour P"),
         (vec!["studies/fmu_aircraft.toml", "--per-hour", "1e-7"], "fmu_aircraft.toml: flies an FMU"),
         (vec![lateral, "--per-hour", "1e-7", "--detector", "none"], "no detector \"none\" (the deck has lateral)"),
+        (
+            vec![mixed.to_str().unwrap(), "--per-hour", "1e-7", "--detector", "cusum"],
+            "cusum: not the exact law's setting: the test is",
+        ),
         (vec![lateral, "--per-hour", "0"], "--per-hour 0: a false-alarm probability, allowed > 0 and < 0.5"),
         (vec![lateral, "--per-flight", "0.5"], "--per-flight 0.5: a false-alarm probability"),
+        (vec![lateral, "--per-hour", "0.4", "--flight-s", "36000"], "--per-hour 0.4 over flights of 36000 s is 0.994"),
         (vec![lateral, "--per-hour", "1e-7", "--flight-s", "0.001"], "--flight-s 0.001: 0 samples"),
         (vec![lateral, "--per-hour", "1e-7", "--flight-s=-3"], "--flight-s -3: a flight's length in seconds"),
         (vec![lateral, "--per-hour", "1e-7", "--per-flight", "1e-7"], "cannot be used with"),
@@ -1790,7 +1808,7 @@ fn records_are_identical_for_any_threads_shards_and_resume() {
         (vec![&tiny[0], &tiny[1], &tiny[1], &tiny[2], &tiny[3]], "got [0, 1, 1, 2, 3]"),
         (
             vec![&tiny[0], &tiny[1], &tiny[2], &other],
-            "other3: from another run (deck, seed, trial count, shard count or profile resolution",
+            "other3: from another run (deck, seed, trial count, shard count, profile resolution or the profiles",
         ),
         (vec![&tiny[0], &tiny[1], &tiny[2], &grid], "grid3: from another run"),
     ] {

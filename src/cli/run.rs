@@ -385,9 +385,11 @@ impl Kinds {
                 || m.shard.count != count
                 || m.sensitivity != first.sensitivity
                 || m.profile_resolution != first.profile_resolution
+                || m.profiles_exact_at_deadlines != first.profiles_exact_at_deadlines
             {
                 return Err(CliError::Invalid(format!(
-                    "{}: from another run (deck, seed, trial count, shard count or profile resolution differ from {})",
+                    "{}: from another run (deck, seed, trial count, shard count, profile resolution or the profiles' \
+                     exact points at the window and the hazard, written by another fdimc, differ from {})",
                     d.display(),
                     manifests[0].0.display()
                 )));
@@ -706,6 +708,12 @@ impl Kinds {
             Some(h) => FlightTarget::per_hour(h, a.flight_s, allocation, a.seed),
             None => FlightTarget::per_flight(p, a.flight_s, allocation, a.seed),
         };
+        if !(target.per_flight < 0.5) {
+            return bad(format!(
+                "{flag} {p} over flights of {} s is {:.3} per flight: allowed below 0.5 (a shorter --flight-s)",
+                a.flight_s, target.per_flight
+            ));
+        }
         let text = crate::engine::scenario::deck::read_deck(&a.deck)?;
         let kind = method::method_of(self.0, &text, &a.deck)?;
         let Some(search) = kind.flight_thresholds else {
@@ -735,8 +743,12 @@ impl Kinds {
             .and_then(|t| t.get("study")?.get("name")?.as_str().map(String::from))
             .unwrap_or_else(|| "study".into());
         let out = results_folder(a.out.as_deref(), &name, Some("flight_thresholds"), Shard::WHOLE, false);
-        let results =
+        let searched =
             runner::thread_pool(a.threads)?.install(|| search(&text, &a.deck, a.detector.as_deref(), &target))?;
+        for why in &searched.skipped {
+            println!("skipped {why}");
+        }
+        let results = searched.found;
         for f in &results {
             println!("{}", f.statement(&target));
         }

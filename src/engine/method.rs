@@ -47,7 +47,8 @@ pub struct Method {
     /// a user's code (an FMU) in this process.
     pub hour_laws: Option<HourLaws>,
     /// `fdimc flight-thresholds`: where the kind can find thresholds for a false-alarm target over
-    /// whole flights, per detector of a deck (its text and path; the named detector or every one).
+    /// whole flights, per detector of a deck (its text and path; the named detector, or every one it can
+    /// search, the others skipped with why).
     /// `None`: it cannot, and the command says what to run instead.
     pub flight_thresholds: Option<FlightThresholds>,
 }
@@ -61,7 +62,7 @@ pub type FlightThresholds = fn(
     &Path,
     Option<&str>,
     &crate::engine::results::flight_thresholds::FlightTarget,
-) -> Result<Vec<crate::engine::results::flight_thresholds::FoundThresholds>, RunError>;
+) -> Result<crate::engine::results::flight_thresholds::FlightSearch, RunError>;
 
 impl Method {
     /// [`Method::hour_laws`] of the deck a run in a folder read (`manifest`), when the kind has them and

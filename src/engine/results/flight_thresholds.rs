@@ -81,6 +81,14 @@ pub struct Estimate {
     pub draws: usize,
 }
 
+/// A search over a deck's detectors: the thresholds found, and each detector it could not search with
+/// why (a statistic other than `|residual|`, a filter whose error never settles).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FlightSearch {
+    pub found: Vec<FoundThresholds>,
+    pub skipped: Vec<String>,
+}
+
 /// One detector's thresholds for a [`FlightTarget`], found and checked.
 #[derive(Debug, Clone, PartialEq)]
 pub struct FoundThresholds {
@@ -100,7 +108,7 @@ pub struct FoundThresholds {
     pub search: Estimate,
     /// The confirmation's, on fresh draws.
     pub confirmation: Estimate,
-    /// The seed of the confirmation's draws.
+    /// The seed of the confirmation's draws (derived from the deck's or `--seed`'s).
     pub seed: u64,
     /// The confirmation's one-sided 95 % upper bound is below the per-flight target.
     pub confirmed: bool,

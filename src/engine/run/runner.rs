@@ -638,7 +638,8 @@ pub fn run<S: TrialSource>(source: &S, opts: &RunOptions) -> Result<RunReport, R
         let old = Manifest::read(dir)?;
         if !old.same_study(&manifest) || old.shard != manifest.shard {
             return Err(RunError::Invalid(format!(
-                "{}: holds a run of another deck, seed, trial count, shard or profile resolution (deck {}, seed {}, {} trials, shard {}/{}); \
+                "{}: holds a run of another deck, seed, trial count, shard or profile resolution, or one whose profiles \
+                 lack the exact points at the window and the hazard (an older fdimc) (deck {}, seed {}, {} trials, shard {}/{}); \
                  --resume continues only the same run: use another --out",
                 dir.display(),
                 old.deck,

@@ -277,8 +277,8 @@ impl HourSpread {
         let log_none =
             |sd: &[f64]| -> f64 { sd.iter().zip(thresholds).map(|(s, t)| (-2.0 * normal_sf(t / s)).ln_1p()).sum() };
         let trial: f64 = self.ramp[..self.trial_samples].iter().map(|sd| log_none(sd)).sum();
-        let ramp: f64 = self.ramp.iter().map(|sd| log_none(sd)).sum();
-        let hour = ramp + log_none(&self.settled) * (self.hour_samples - self.ramp.len()) as f64;
+        let ramp: f64 = self.ramp.iter().take(self.hour_samples).map(|sd| log_none(sd)).sum();
+        let hour = ramp + log_none(&self.settled) * self.hour_samples.saturating_sub(self.ramp.len()) as f64;
         let trials_per_hour = self.hour_samples as f64 / self.trial_samples as f64;
         let ratio = if trial < 0.0 { hour / (trials_per_hour * trial) } else { f64::NAN };
         HourConversion { ratio, slowest_time_constant_s: self.slowest_time_constant_s, trial_upper: -trial.exp_m1() }

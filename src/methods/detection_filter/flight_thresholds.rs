@@ -18,7 +18,7 @@
 
 use super::false_alarms::{AnalyticFalseAlarms, CONDITIONAL_SEED, HourSpread, analytic_false_alarms};
 use super::study::LtiStudy;
-use crate::engine::results::flight_thresholds::{Allocation, Estimate, FlightTarget, FoundThresholds};
+use crate::engine::results::flight_thresholds::{Allocation, Estimate, FlightSearch, FlightTarget, FoundThresholds};
 use crate::engine::run::runner::RunError;
 
 /// The share of the target the search aims at, leaving room for the confirmation's interval (a
@@ -37,7 +37,7 @@ pub fn for_deck(
     path: &std::path::Path,
     detector: Option<&str>,
     target: &FlightTarget,
-) -> Result<Vec<FoundThresholds>, RunError> {
+) -> Result<FlightSearch, RunError> {
     use crate::engine::scenario::deck::FromDeck;
     let invalid = |e: crate::engine::scenario::deck::DeckError| RunError::Invalid(e.to_string());
     let deck = crate::engine::scenario::deck::parse_deck::<super::deck::Deck>(text, path).map_err(invalid)?;
@@ -61,11 +61,24 @@ pub fn for_deck(
             RunError::Invalid(format!("{}: no detector {name:?} (the deck has {})", path.display(), names.join(", ")))
         })?],
     };
-    // One detector's search at a time, each using every worker for its draws.
-    chosen
-        .into_iter()
-        .map(|d| find(&study, d, target).map_err(|e| RunError::Invalid(format!("{}: {e}", path.display()))))
-        .collect()
+    // One detector's search at a time, each using every worker for its draws. Unnamed, a detector the
+    // exact law does not cover is skipped (said why); named, or none covered, it is refused.
+    let mut search = FlightSearch::default();
+    for d in chosen {
+        match find(&study, d, target) {
+            Ok(found) => search.found.push(found),
+            Err(e) if detector.is_none() => search.skipped.push(e),
+            Err(e) => return Err(RunError::Invalid(format!("{}: {e}", path.display()))),
+        }
+    }
+    if search.found.is_empty() {
+        return Err(RunError::Invalid(format!(
+            "{}: no detector the residual's exact law covers: {}",
+            path.display(),
+            search.skipped.join("; ")
+        )));
+    }
+    Ok(search)
 }
 
 /// The thresholds of detector `detector` of `study` for `target`, or why its residual's law is not
@@ -131,8 +144,10 @@ pub fn find(study: &LtiStudy, detector: usize, target: &FlightTarget) -> Result<
         search = law(&thresholds, CONDITIONAL_SEED.wrapping_add(round));
     }
     // Fresh draws: a seed none of the search's used.
-    let seed = target.seed.unwrap_or(study.header.seed);
-    let check = law(&thresholds, seed ^ 0xc0ff_1a7e_5eed);
+    // The confirmation's draws: from the deck's (or --seed's) seed, on the conditional estimate's streams
+    // with a mark the search's seeds (CONDITIONAL_SEED and the next few) do not carry.
+    let seed = target.seed.unwrap_or(study.header.seed) ^ 0xc0ff_1a7e_5eed;
+    let check = law(&thresholds, seed);
     let estimate = |a: &AnalyticFalseAlarms| Estimate {
         value: a.conditional,
         lo: a.conditional_lo,

@@ -455,9 +455,6 @@ impl<'f> LaneTracker<'f> {
                 .map(|l| self.onset_s[l])
                 .fold(f64::INFINITY, f64::min);
         }
-        if t >= self.next_exact_s {
-            self.keep_exact(t);
-        }
         let non_finite = abs_and_non_finite(residual, &mut self.abs);
         if non_finite.iter().any(|&b| b != 0) {
             for l in 0..LANES {
@@ -479,6 +476,10 @@ impl<'f> LaneTracker<'f> {
                     self.diverge(l, t);
                 }
             }
+        }
+        // After the divergence checks, as the one-trial path (a lane that diverges here keeps no point).
+        if t >= self.next_exact_s {
+            self.keep_exact(t);
         }
         let event = running_max_and_events(t, &self.abs, &mut self.max, &mut self.max_t, &self.armed, &self.next_kept);
         if event.iter().any(|&e| e != 0) {

@@ -257,8 +257,9 @@ pub fn summarize(
                     .collect();
                 warnings.push(format!(
                     "tail.csv's thresholds of {} for per-flight-hour targets: the residual's exact law puts a trial's Pfa \
-                     at them far above what the fit gives (Sidak's bound): {}; the fit may be far too low there \
-                     (trust in tail.csv); fdimc flight-thresholds finds thresholds on the exact law",
+                     at them far above what the fit gives, by Sidak's bound (an upper bound, loose where alarms cluster \
+                     within a trial): {}; the fit may be far too low there (trust in tail.csv); fdimc flight-thresholds \
+                     finds thresholds on the exact law",
                     tail.detector,
                     each.join(", ")
                 ));
