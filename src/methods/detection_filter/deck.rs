@@ -24,6 +24,16 @@ pub struct Deck {
     pub monte_carlo: Option<crate::engine::scenario::deck::MonteCarloSection>,
 }
 
+impl Deck {
+    /// The deck flies an FMU (truth, controller or detector): loading it runs the FMU in this process,
+    /// and its residual's law is not the linear model's.
+    pub fn flies_fmu(&self) -> bool {
+        self.truth.is_some()
+            || self.controller.as_ref().is_some_and(|c| c.fmu.is_some())
+            || self.detector.iter().any(|d| d.fmu.is_some())
+    }
+}
+
 /// Matrices are lists of rows.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]

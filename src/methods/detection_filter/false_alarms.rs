@@ -107,10 +107,7 @@ pub fn hour_laws(text: &str, path: &std::path::Path, statistics: &[String]) -> V
     let Ok(deck) = crate::engine::scenario::deck::parse_deck::<super::deck::Deck>(text, path) else {
         return Vec::new();
     };
-    let flies_fmu = deck.truth.is_some()
-        || deck.controller.as_ref().is_some_and(|c| c.fmu.is_some())
-        || deck.detector.iter().any(|d| d.fmu.is_some());
-    if flies_fmu {
+    if deck.flies_fmu() {
         return Vec::new();
     }
     let Ok(study) = LtiStudy::from_toml(text, path) else { return Vec::new() };

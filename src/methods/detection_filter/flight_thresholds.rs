@@ -41,10 +41,7 @@ pub fn for_deck(
     use crate::engine::scenario::deck::FromDeck;
     let invalid = |e: crate::engine::scenario::deck::DeckError| RunError::Invalid(e.to_string());
     let deck = crate::engine::scenario::deck::parse_deck::<super::deck::Deck>(text, path).map_err(invalid)?;
-    if deck.truth.is_some()
-        || deck.controller.as_ref().is_some_and(|c| c.fmu.is_some())
-        || deck.detector.iter().any(|d| d.fmu.is_some())
-    {
+    if deck.flies_fmu() {
         return Err(RunError::Invalid(format!(
             "{}: flies an FMU (truth, controller or detector): its residual's law is not the linear model's, so \
              no exact law finds its thresholds; estimate per flight with fdimc rare-event {} --flight-s F --levels ... \
