@@ -3618,6 +3618,77 @@ fn wilson_intervals_and_confident_thresholds_cover_a_known_law_over_seeds() {
     assert!((20..=40).contains(&plain_over), "plain thresholds over 0.05 in {plain_over} of 60");
 }
 
+/// The false-alarm row's one-sided 95 % bound against a known law (issue 82, item 1): `safety.csv`'s
+/// `value_upper_95` of the plain Monte Carlo row, over 60 seeds of 400 fault-free trials. The deck is
+/// `tests/data/white_residual.toml` stretched to trials of 360 samples of 1 s at the threshold 3.7, so
+/// a trial alarms with probability p = 1 - (1 - 2 Q(3.7))^360 = 0.0746879 and, its residual being white,
+/// an hour of 10 trials with 1 - (1 - p)^10 = 0.539868 exactly (the conversion is exact here; statrs'
+/// erfc in the test). Wilson's one-sided bound at 400 trials covers that p with probability 0.94973 (the
+/// binomial sum over the counts, computed in the test), so the per-hour bound holds the hour's truth in
+/// at least 52 of 60 seeds (51 or fewer with probability 0.003), and lies inside the two-sided
+/// interval's upper end (a wider bound would cover more for the wrong reason). The row is read at the
+/// deck's threshold (`summarize --thresholds`): the run's answer is at its calibration's.
+#[test]
+fn the_one_sided_bound_of_false_alarms_per_hour_covers_a_known_law_over_seeds() {
+    let q = |z: f64| 0.5 * statrs::function::erf::erfc(z / std::f64::consts::SQRT_2);
+    let p = -((1.0 - 2.0 * q(3.7)).ln() * 360.0).exp_m1();
+    let hour = -((-p).ln_1p() * 10.0).exp_m1();
+    assert!((p - 0.0746879).abs() < 1e-6 && (hour - 0.539868).abs() < 1e-6, "{p} {hour}");
+    // Wilson's one-sided upper bound written out (z = 1.6448536), and its coverage at p over Bin(400, p).
+    let upper = |k: f64, n: f64| {
+        let (z, f) = (1.6448536269514722_f64, k / n);
+        let d = 1.0 + z * z / n;
+        ((f + z * z / (2.0 * n)) + z * (f * (1.0 - f) / n + z * z / (4.0 * n * n)).sqrt()) / d
+    };
+    let mut log_pmf = 400.0 * (-p).ln_1p();
+    let mut coverage = 0.0;
+    for k in 0..=400 {
+        if k > 0 {
+            log_pmf += ((400 - k + 1) as f64 / k as f64).ln() + (p / (1.0 - p)).ln();
+        }
+        coverage += if upper(k as f64, 400.0) >= p { log_pmf.exp() } else { 0.0 };
+    }
+    assert!((coverage - 0.94973).abs() < 5e-5, "coverage {coverage}");
+    let deck = std::fs::read_to_string("tests/data/white_residual.toml").unwrap();
+    let edits = [
+        ("duration_s = 2.0", "duration_s = 360.0"),
+        ("dt_s = 0.01", "dt_s = 1.0"),
+        ("thresholds = [3.5]", "thresholds = [3.7]"),
+        ("fault_free_fraction = 0.5", "fault_free_fraction = 1.0"),
+    ];
+    let text = edits.iter().fold(deck.clone(), |text, (from, to)| {
+        assert!(text.contains(from), "{from}");
+        text.replace(from, to)
+    });
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("hour.toml");
+    std::fs::write(&path, text).unwrap();
+    let at_deck = tmp.path().join("deck_thresholds.csv");
+    std::fs::write(&at_deck, "detector,statistic,per_statistic_threshold,detector_threshold\nwhite,y,3.7,3.7\n")
+        .unwrap();
+    let dir = tmp.path().join("run");
+    let mut covered = 0;
+    for seed in 1..=60 {
+        let args = ["run", path.to_str().unwrap(), "--trials", "400", "--seed", &seed.to_string(), "--quiet"];
+        ok(&fdimc(&[&args[..], &["--force", "--out", dir.to_str().unwrap()]].concat()));
+        ok(&fdimc(&["summarize", dir.to_str().unwrap(), "--thresholds", at_deck.to_str().unwrap()]));
+        let s = csv_frame(&dir.join("validation/safety.csv"));
+        let set = s.column("thresholds").unwrap().str().unwrap().clone();
+        assert!(set.iter().all(|v| v == Some("validation")), "{s}");
+        let method = s.column("method").unwrap().str().unwrap().clone();
+        let rows: Vec<usize> =
+            (0..s.height()).filter(|&i| method.get(i).unwrap().starts_with("plain Monte Carlo: ")).collect();
+        assert_eq!(rows.len(), 1, "{s}");
+        assert!(method.get(rows[0]).unwrap().ends_with("of 400 fault-free trials of 360 s"), "{s}");
+        let f = |name: &str| s.column(name).unwrap().f64().unwrap().get(rows[0]).unwrap();
+        let (value, hi, bound) = (f("value"), f("value_hi"), f("value_upper_95"));
+        assert!(value <= bound && bound < hi, "seed {seed}: {value} {bound} {hi}");
+        covered += (hour <= bound) as usize;
+    }
+    println!("of 60 seeds the one-sided bound held {hour} per hour in {covered}");
+    assert!(covered >= 52, "the one-sided 95 % bound held the hour's truth in {covered} of 60 seeds");
+}
+
 /// The miss before the hazard against its exact answer (issue 82, item 1): on
 /// `tests/data/white_residual.toml` the residual is white N(0, 1) plus the fault's bias b from the
 /// onset, so a fault is missed within a time to hazard of 0.195 s (the 20 samples at delays 0 to 0.19

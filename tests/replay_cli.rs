@@ -168,7 +168,8 @@ fn log_plot_draws_the_signals_and_the_decks_parts() {
 
 /// Issue 51, items 7 to 9, on the bundled decks. A run with the threshold calibrated on the log prints
 /// and records, for each part, the largest fault-free statistic and where it occurred (the evaluated
-/// part's 394.8 at 9.59 s, the training part's 411.2 at 4.77 s, where they are on this log); with
+/// part's 394.8 at 9.59 s, the training part's 411.2 at 4.77 s, where they are on this log; an
+/// attitude EKF written apart in NumPy, `scripts/reference/replay_attitude_ekf_numpy.py`, prints the same); with
 /// `calibration_transient_factor` below their ratio (1.04) it warns, naming both, on the console, in
 /// fault_free_replay.json and in the report; at the default (10) it does not. The log's path and
 /// SHA-256 are in manifest.json and fault_free_replay.json, and the report has the section "Replay of a

@@ -2,8 +2,9 @@
 //! it needs ([`Needs`]: a deck name with its unit, and the ULog field it is read from by default); the
 //! deck's `[log]` section names the file and may map each signal to another field or, for a table, a
 //! column. The log is read once per study ([`crate::engine::logs::flight_log`]: checked, streamed), resampled
-//! onto the study's step by linear interpolation (the documented repair for a log's own jittery rate and
-//! for gaps up to `max_gap_s`), and split into parts: trials are drawn from the evaluation part, and
+//! onto the study's step (each step the mean of the samples within half a step of it, a step without one
+//! the linear interpolation across the gap: the documented repair for a log's own jittery rate and for
+//! gaps up to `max_gap_s`), and split into parts: trials are drawn from the evaluation part, and
 //! whatever learns from the log (a classifier, a threshold) only from the training part, which may not
 //! overlap it.
 //!
