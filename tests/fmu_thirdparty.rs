@@ -581,3 +581,105 @@ fn the_openmodelica_reproductions_never_abort_and_end_as_their_model_allows() {
         }
     }
 }
+
+/// The columns of `fdimc simulate`'s trace of `deck` (noise off), by name.
+fn trace(deck: &Path) -> std::collections::HashMap<String, Vec<f64>> {
+    let csv = deck.with_extension("csv");
+    let out = fdimc(&["simulate", deck.to_str().unwrap(), "--out", csv.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    let names: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let mut columns: std::collections::HashMap<String, Vec<f64>> = Default::default();
+    for line in lines {
+        for (name, v) in names.iter().zip(line.split(',')) {
+            columns.entry(name.to_string()).or_default().push(v.parse().unwrap_or(f64::NAN));
+        }
+    }
+    columns
+}
+
+/// Issue 85, item 4, on the Reference-FMUs: the shapes a user's FMU comes in.
+/// - An FMU with no inputs (Dahlquist, `x' = -k x` from `x = 1`) is the truth of a deck whose
+///   `plant.inputs` is empty (refused before: "must name at least one"); its outputs are the closed form
+///   `e^-t - 1` from the trim to 1e-9 (fdimc's RK4 at 0.01 s; seen 3.1e-11).
+/// - A direct feedthrough (Feedthrough, `y = u`, FMI 3.0, both interfaces) gives at sample k the input
+///   at sample k, as the linear truth's `D u` does: the excitation `sin(2 pi t)`, to the bit. Before, the
+///   outputs were read before the inputs were set and lagged a sample (0.063 on this sine); and the model
+///   exchange interface failed at the trim (`fmi3GetContinuousStates` on a model with no states).
+#[test]
+fn an_autonomous_fmu_is_a_truth_and_a_feedthrough_answers_at_its_own_sample() {
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, plant: &str, truth: &str, extra: &str| -> PathBuf {
+        let path = dir.path().join(format!("{name}.toml"));
+        let text = format!(
+            r#"[study]
+name = "{name}"
+seed = 1
+duration_s = 2.0
+dt_s = 0.01
+
+[plant]
+states = ["x"]
+outputs = ["y"]
+{plant}
+
+[truth]
+{truth}
+outputs = ["y_fmu"]
+{extra}
+[noise]
+sensor_sigma = [0.0]
+
+[[detector]]
+name = "df"
+kind = "detection_filter"
+eigenvalues_per_s = [-5.0]
+thresholds = [0.01]
+
+[monte_carlo]
+trials = 20
+outputs = ["y"]
+onset_s = 1.0
+
+[[monte_carlo.fault]]
+kind = "bias"
+size_sigma = 1.0
+"#
+        )
+        .replace("\"y_fmu\"", if name == "dahlquist" { "\"x\"" } else { "\"Float64_continuous_output\"" });
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let dahlquist = write(
+        "dahlquist",
+        "inputs = []",
+        &format!(
+            "fmu = \"{}\"\ninterface = \"model_exchange\"\ninputs = []\ntrim_inputs = []\nlinearise = true\ntransient_start = true",
+            thirdparty("ref2_dahlquist.fmu").display()
+        ),
+        "",
+    );
+    let out = fdimc(&["validate", dahlquist.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let t = trace(&dahlquist);
+    let worst = (t["t_s"].iter().zip(&t["y_y"])).map(|(t, y)| (y - ((-t).exp() - 1.0)).abs()).fold(0.0, f64::max);
+    assert!(worst < 1e-9 && t["t_s"].len() == 200, "Dahlquist against e^-t - 1: {worst:e}");
+
+    for interface in ["co_simulation", "model_exchange"] {
+        let deck = write(
+            &format!("feedthrough_{interface}"),
+            "inputs = [\"u\"]\na = [[-1.0]]\nb = [[0.0]]\nc = [[1.0]]\nd = [[1.0]]\n\n[[excitation]]\ninput = \"u\"\nshape = \"sine\"\namplitude = 1.0\nperiod_s = 1.0",
+            &format!(
+                "fmu = \"{}\"\ninterface = \"{interface}\"\ninputs = [\"Float64_continuous_input\"]\ntrim_inputs = [0.0]",
+                thirdparty("ref3_feedthrough.fmu").display()
+            ),
+            "",
+        );
+        let t = trace(&deck);
+        for (k, ((time, u), y)) in t["t_s"].iter().zip(&t["u_u"]).zip(&t["y_y"]).enumerate() {
+            let sine = (2.0 * std::f64::consts::PI * time).sin();
+            assert!(y == u && (u - sine).abs() < 1e-12, "{interface}: sample {k}: u {u}, y {y}, sin {sine}");
+        }
+    }
+}

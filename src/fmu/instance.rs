@@ -431,7 +431,12 @@ impl Instance {
         }
     }
 
+    // A model without continuous states (a feedthrough, a lookup) has nothing to get or set: the
+    // Reference-FMUs' FMI 3.0 Feedthrough answers such a call with an error.
     fn set_states(&self, x: &[f64]) -> Call {
+        if x.is_empty() {
+            return Ok(());
+        }
         let h = self.handle;
         match &self.library.library.functions {
             Functions::V2(f) => call!(f, fmi2SetContinuousStates(h, x.as_ptr(), x.len())),
@@ -440,6 +445,9 @@ impl Instance {
     }
 
     fn get_states(&self, x: &mut [f64]) -> Call {
+        if x.is_empty() {
+            return Ok(());
+        }
         let h = self.handle;
         match &self.library.library.functions {
             Functions::V2(f) => call!(f, fmi2GetContinuousStates(h, x.as_mut_ptr(), x.len())),
@@ -448,6 +456,9 @@ impl Instance {
     }
 
     fn get_derivatives(&self, dx: &mut [f64]) -> Call {
+        if dx.is_empty() {
+            return Ok(());
+        }
         let h = self.handle;
         match &self.library.library.functions {
             Functions::V2(f) => call!(f, fmi2GetDerivatives(h, dx.as_mut_ptr(), dx.len())),

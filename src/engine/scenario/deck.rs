@@ -340,6 +340,11 @@ impl Validator<'_> {
         if names.is_empty() {
             return Err(self.err(field, "must name at least one"));
         }
+        self.names_if_any(field, names)
+    }
+
+    /// As [`Validator::names`], where none is allowed (an autonomous plant's inputs).
+    pub fn names_if_any(&self, field: &str, names: &[String]) -> Result<(), DeckError> {
         for (i, n) in names.iter().enumerate() {
             if n.is_empty() || !n.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
                 return Err(self.err(
@@ -394,10 +399,10 @@ impl Validator<'_> {
     }
 
     pub fn index_of(&self, field: &str, name: &str, names: &[String], list: &str) -> Result<usize, DeckError> {
-        names
-            .iter()
-            .position(|n| n == name)
-            .ok_or_else(|| self.err(field, format!("{name:?} is not one of {list}: {}", names.join(", "))))
+        names.iter().position(|n| n == name).ok_or_else(|| match names.is_empty() {
+            true => self.err(field, format!("{name:?}: {list} is empty, so nothing can name one of it")),
+            false => self.err(field, format!("{name:?} is not one of {list}: {}", names.join(", "))),
+        })
     }
 
     /// `[study]`: a name fit for a folder, a positive duration and step.

@@ -399,6 +399,11 @@ impl<E: Element> PlantState<E> {
         &mut self.v[self.n..self.n + self.nu]
     }
 
+    /// The reference inputs `r`, as set this step.
+    pub fn reference(&self) -> &[E] {
+        &self.v[self.n..self.n + self.nu]
+    }
+
     /// The applied inputs `u` (after [`Plant::close_loop`]).
     pub fn inputs(&self) -> &[E] {
         &self.v[self.n + self.nu..]

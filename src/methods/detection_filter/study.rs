@@ -227,7 +227,8 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
 
     let p = &deck.plant;
     chk.names("plant.states", &p.states)?;
-    chk.names("plant.inputs", &p.inputs)?;
+    // None: an autonomous plant (the commonest FMU: a model with no inputs), flown on its own dynamics.
+    chk.names_if_any("plant.inputs", &p.inputs)?;
     chk.names("plant.outputs", &p.outputs)?;
     let (n, nu, ny) = (p.states.len(), p.inputs.len(), p.outputs.len());
     let dims = format!("{n} states, {nu} inputs, {ny} outputs");
@@ -279,7 +280,11 @@ fn study(chk: &Validator, deck: Deck) -> Result<LtiStudy, DeckError> {
         Some(l) => (l.a.clone(), l.b.clone(), l.c.clone(), l.d.clone()),
         None => (
             given("plant.a", &p.a, n, n, "n x n")?,
-            given("plant.b", &p.b, n, nu, "n x inputs")?,
+            match (&p.b, nu) {
+                // An autonomous plant has no input matrix to give.
+                (None, 0) => DMatrix::zeros(n, 0),
+                _ => given("plant.b", &p.b, n, nu, "n x inputs")?,
+            },
             given("plant.c", &p.c, ny, n, "outputs x n")?,
             match &p.d {
                 Some(d) => chk.matrix("plant.d", d, ny, nu, &format!("outputs x inputs, {dims}"))?,

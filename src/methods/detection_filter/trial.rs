@@ -248,7 +248,11 @@ pub fn run_trial(
                     None,
                 ),
                 Some(f) => {
+                    // The outputs at sample k see the inputs at k, as the linear truth's `D r` does: the
+                    // loop's reference (the feedback and actuator faults act on the step, which avoids
+                    // an algebraic loop). Read before setting them, a feedthrough would lag a sample.
                     reference(s, &mut plant_state, t);
+                    f.set_inputs(plant_state.reference()).map_err(FmuFailure::truth)?;
                     f.outputs(&mut y).map_err(FmuFailure::truth)?;
                     if let Some(why) = f.plant().beyond(&y) {
                         return Err(diverged(t, why));
