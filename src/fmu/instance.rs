@@ -1,13 +1,13 @@
 //! One instance of an FMU, stepped at the communication step a study gives it.
 //!
 //! Co-simulation: the FMU's `doStep` (FMI 2.0 and 3.0). Model exchange (FMI 2.0 and 3.0): fdimc
-//! integrates the FMU's derivatives with [`Rk4`] over the step, inputs held, as FMI's reference
-//! simulator `fmusim` and FMPy's fixed-step solver do with their Euler step: a time event
+//! integrates the FMU's derivatives with [`Rk4`] over the step, inputs held: a time event
 //! (`nextEventTime`) ends a sub-step exactly at the event; a state event (an event indicator changing
-//! sign) and a step event (`enterEventMode` from `completedIntegratorStep`) are handled at the end of the
-//! sub-step in which they happen, with the event iteration (`newDiscreteStates` /
-//! `updateDiscreteStates` until no update is needed) and the states re-read when the FMU re-initialised
-//! them. An event iteration that does not settle, or an FMU asking to terminate, fails the trial: fdimc
+//! sign) is located within the sub-step by bisection (as CVode's root finding, where FMI's `fmusim` and
+//! FMPy's fixed-step solver take the sub-step's end); a step event (`enterEventMode` from
+//! `completedIntegratorStep`) is handled at the end of its sub-step; each with the event iteration
+//! (`newDiscreteStates` / `updateDiscreteStates` until no update is needed) and the states re-read when
+//! the FMU re-initialised them. An event iteration that does not settle, or an FMU asking to terminate, fails the trial: fdimc
 //! never steps on past an event it did not handle.
 //!
 //! A call that returns Discard, Error or Fatal fails with the call, the model time and what the FMU
@@ -26,9 +26,15 @@ use super::{Fmu, FmuError, Interface, Loaded};
 /// Event iterations at one time instant before the FMU is judged not to settle (a chattering model).
 const MAX_EVENT_ITERATIONS: usize = 100;
 
+/// A state event is located to this fraction of the sub-step (or of 1 s, the larger): 2^-40 of it,
+/// CVode's root finding's order of accuracy, in at most 40 bisections.
+const EVENT_BISECTIONS: u32 = 40;
+
 /// Model exchange: the continuous states, the integrator and the event bookkeeping.
 struct Continuous {
     x: Vec<f64>,
+    /// The states at the sub-step's start, which a state event's search integrates from again.
+    x_start: Vec<f64>,
     z: Vec<f64>,
     z_new: Vec<f64>,
     next_event_s: Option<f64>,
@@ -228,6 +234,7 @@ impl Instance {
             let (n, nz) = (d.n_states, d.n_event_indicators);
             Continuous {
                 x: vec![0.0; n],
+                x_start: vec![0.0; n],
                 z: vec![0.0; nz],
                 z_new: vec![0.0; nz],
                 next_event_s: None,
@@ -579,7 +586,7 @@ impl Instance {
             k += 1;
             // The parts' ends are counted from t0 (no rounding accumulates); the last is `end` itself.
             let grid = if k >= c.substeps { end } else { t0 + part * k as f64 };
-            let to = match time_event {
+            let mut to = match time_event {
                 Some(te) if te < grid => {
                     k -= 1; // the part resumes after the event
                     te
@@ -587,23 +594,54 @@ impl Instance {
                 Some(te) if te == grid => te,
                 _ => grid,
             };
-            let hits_event = time_event == Some(to);
+            let mut hits_event = time_event == Some(to);
             // The whole step is `dt_s` itself: `(t0 + dt) - t0` is not `dt` in floating point.
             let h = if to == end && t == t0 { dt_s } else { to - t };
-            c.rk4.step(&mut c.x, t, h, |ts, x, dx| self.rhs(ts, x, dx, &mut t_set))?;
-            if t_set != to {
-                self.set_time(to).map_err(|e| self.failed(e, to))?;
-                t_set = to;
+            c.x_start.copy_from_slice(&c.x);
+            // One RK4 step of `tau` from the sub-step's start, the FMU left at its end with the event
+            // indicators read there: whether one changed sign.
+            let mut try_step = |c: &mut Continuous, tau: f64, at: f64| -> Result<bool, FmuError> {
+                c.x.copy_from_slice(&c.x_start);
+                c.rk4.step(&mut c.x, t, tau, |ts, x, dx| self.rhs(ts, x, dx, &mut t_set))?;
+                if t_set != at {
+                    self.set_time(at).map_err(|e| self.failed(e, at))?;
+                    t_set = at;
+                }
+                self.set_states(&c.x).map_err(|e| self.failed(e, at))?;
+                if c.z.is_empty() {
+                    return Ok(false);
+                }
+                self.get_event_indicators(&mut c.z_new).map_err(|e| self.failed(e, at))?;
+                Ok(c.z.iter().zip(&c.z_new).any(|(a, b)| (*a > 0.0) != (*b > 0.0)))
+            };
+            let mut state_event = try_step(c, h, to)?;
+            if state_event {
+                // Located by bisection on the step's length, as CVode's root finding would (at the
+                // sub-step's end, a bouncing ball loses up to a sub-step of fall per bounce and never
+                // comes to rest). The FMU takes the step to the first time past the sign change; the
+                // part resumes from there.
+                let (mut lo, mut hi) = (0.0, h);
+                let tolerance = h.max(1.0) * 0.5f64.powi(EVENT_BISECTIONS as i32);
+                while hi - lo > tolerance {
+                    let mid = 0.5 * (lo + hi);
+                    if try_step(c, mid, t + mid)? {
+                        hi = mid;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                if hi < h {
+                    if to == grid {
+                        k -= 1; // the part resumes after the event (a time event's cut did so already)
+                    }
+                    to = t + hi;
+                    hits_event = false;
+                    state_event = try_step(c, hi, to)?;
+                }
             }
-            self.set_states(&c.x).map_err(|e| self.failed(e, to))?;
             let (step_event, terminate) = self.completed_integrator_step().map_err(|e| self.failed(e, to))?;
             if terminate {
                 return Err(FmuError::Failed(format!("{}: the FMU asked to terminate at t = {to} s", self.label)));
-            }
-            let mut state_event = false;
-            if !c.z.is_empty() {
-                self.get_event_indicators(&mut c.z_new).map_err(|e| self.failed(e, to))?;
-                state_event = c.z.iter().zip(&c.z_new).any(|(a, b)| (*a > 0.0) != (*b > 0.0));
             }
             if hits_event || state_event || step_event {
                 self.enter_event_mode().map_err(|e| self.failed(e, to))?;

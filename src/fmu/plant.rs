@@ -135,26 +135,42 @@ impl FmuPlant {
 
     fn map(fmu: Arc<Fmu>, prefix: &str, m: &PlantMapping) -> Result<FmuPlant, MappingError> {
         let d = &fmu.description;
+        // The variables a deck may name: fdimc's inputs and sensors are real numbers.
+        let allowed = |causality: &[Causality]| -> String {
+            let names: Vec<&str> = (d.variables.iter())
+                .filter(|v| causality.contains(&v.causality) && v.value_type == ValueType::Real)
+                .map(|v| v.name.as_str())
+                .collect();
+            match names.is_empty() {
+                true => "a real variable, and this FMU has none of that causality".to_string(),
+                false => format!("one of: {}", names.join(", ")),
+            }
+        };
         let lookup = |field: String, name: &str, causality: &[Causality], what: &str| -> Result<u32, MappingError> {
             match d.variable(name) {
                 Some(v) if causality.contains(&v.causality) && v.value_type == ValueType::Real => Ok(v.value_reference),
+                Some(v) if v.value_type == ValueType::Real => Err((
+                    field,
+                    format!(
+                        "{name:?} of {} has causality {} and type Real; {what} must be {}",
+                        fmu.file_name(),
+                        v.causality.label(),
+                        allowed(causality)
+                    ),
+                )),
                 Some(v) => Err((
                     field,
                     format!(
-                        "{name:?} of {} has causality {} and type {:?}; {what} must be one of: {}",
+                        "{name:?} of {} has type {}: fdimc reads real variables only (Real, Float64, Float32), no \
+                         integer, boolean or string as a signal; {what} must be {}",
                         fmu.file_name(),
-                        v.causality.label(),
-                        v.value_type,
-                        d.names_of(causality).join(", ")
+                        v.type_name,
+                        allowed(causality)
                     ),
                 )),
                 None => Err((
                     field,
-                    format!(
-                        "{} has no variable {name:?}; {what} must be one of: {}",
-                        fmu.file_name(),
-                        d.names_of(causality).join(", ")
-                    ),
+                    format!("{} has no variable {name:?}; {what} must be {}", fmu.file_name(), allowed(causality)),
                 )),
             }
         };
