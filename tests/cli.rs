@@ -4607,7 +4607,7 @@ fn the_engine_solves_the_trim_on_the_fmu_and_prints_its_residual() {
             "free = [\"throttle\"",
             "free = [\"thrust\"",
             "truth.trim.free[0]",
-            "aircraft.fmu has no such Real variable \"thrust\"",
+            "aircraft.fmu has no such scalar Real variable \"thrust\"",
         ),
         ("\"der(h_m)\"]", "\"h_m\"]", "truth.trim", "the trim's Jacobian is singular"),
         ("trim_inputs = [0.6, 0.0]", "trim_inputs = []", "truth.trim_inputs", "0 values for 2 inputs"),

@@ -138,7 +138,9 @@ impl FmuPlant {
         // The variables a deck may name: fdimc's inputs and sensors are real numbers.
         let allowed = |causality: &[Causality]| -> String {
             let names: Vec<&str> = (d.variables.iter())
-                .filter(|v| causality.contains(&v.causality) && v.value_type == ValueType::Real)
+                .filter(|v| {
+                    causality.contains(&v.causality) && v.value_type == ValueType::Real && v.dimensions.is_empty()
+                })
                 .map(|v| v.name.as_str())
                 .collect();
             match names.is_empty() {
@@ -148,6 +150,17 @@ impl FmuPlant {
         };
         let lookup = |field: String, name: &str, causality: &[Causality], what: &str| -> Result<u32, MappingError> {
             match d.variable(name) {
+                // An FMI 3.0 array would take one value where it needs all its elements.
+                Some(v) if !v.dimensions.is_empty() => Err((
+                    field,
+                    format!(
+                        "{name:?} of {} is an array ({}): fdimc exchanges scalar variables only, so a deck cannot \
+                         map it (an FMU that exposes its elements as scalars can be); {what} must be {}",
+                        fmu.file_name(),
+                        v.type_label(),
+                        allowed(causality)
+                    ),
+                )),
                 Some(v) if causality.contains(&v.causality) && v.value_type == ValueType::Real => Ok(v.value_reference),
                 Some(v) if v.value_type == ValueType::Real => Err((
                     field,

@@ -620,11 +620,15 @@ fn solve_trim(
     let d = &fmu.description;
     let real = |field: String, name: &str, causality: &[Causality]| -> Result<u32, DeckError> {
         match d.variable(name) {
-            Some(v) if v.value_type == ValueType::Real && causality.contains(&v.causality) => Ok(v.value_reference),
+            Some(v)
+                if v.value_type == ValueType::Real && causality.contains(&v.causality) && v.dimensions.is_empty() =>
+            {
+                Ok(v.value_reference)
+            }
             _ => Err(chk.err(
                 field,
                 format!(
-                    "{} has no such Real variable {name:?}; allowed: {}",
+                    "{} has no such scalar Real variable {name:?}; allowed: {}",
                     fmu.file_name(),
                     d.names_of(causality).join(", ")
                 ),
