@@ -868,3 +868,35 @@ fn every_reference_fmu_flies_a_study_on_both_interfaces_ten_times_the_same() {
         "{err}"
     );
 }
+
+/// Issue 85, item 2: the Reference-FMUs' co-simulation (their own fixed-step Euler) against FMPy run now,
+/// at 0.01 s over 3 s: to rounding (1e-12 relative) at every sample, through BouncingBall's bounces.
+#[test]
+fn reference_fmus_co_simulation_gives_fmpys_trajectory_to_rounding() {
+    let cases: [(&str, &[&str]); 5] = [
+        ("ref2_bouncing_ball.fmu", &["h", "v"]),
+        ("ref3_bouncing_ball.fmu", &["h", "v"]),
+        ("ref2_dahlquist.fmu", &["x"]),
+        ("ref2_van_der_pol.fmu", &["x0", "x1"]),
+        ("ref3_van_der_pol.fmu", &["x0", "x1"]),
+    ];
+    for (file, outputs) in cases {
+        let p = plant(file, Interface::CoSimulation, &[], &[], outputs, &[], 0.01);
+        let ours = fly(&p, 300, 0.01);
+        let Some(r) = fmpy(&["cs", thirdparty(file).to_str().unwrap(), "--step", "0.01", "--stop", "3"]) else {
+            return;
+        };
+        for (j, name) in outputs.iter().enumerate() {
+            let theirs = column(&r, name);
+            assert_eq!(theirs.len(), 301, "{file}");
+            for k in 0..=300 {
+                let (a, b) = (ours[k][j], theirs[k]);
+                assert!(
+                    (a - b).abs() <= 1e-12 * b.abs().max(1.0),
+                    "{file} {name} at {} s: {a} vs FMPy {b}",
+                    k as f64 * 0.01
+                );
+            }
+        }
+    }
+}
