@@ -900,3 +900,115 @@ fn reference_fmus_co_simulation_gives_fmpys_trajectory_to_rounding() {
         }
     }
 }
+
+/// Issue 85, item 1: PythonFMU 0.7.0 (FMI 2.0) and PythonFMU3 0.3.4 (FMI 3.0) exports of
+/// `fmus/pythonfmu/`'s first-order lag (`x' = (u - x) / 0.5`, stepped exactly by the slave), built by
+/// `scripts/build_pythonfmu.sh` into `FDIMC_PYTHONFMU_DIR` (`.ci/run` builds them and sets
+/// `FDIMC_REQUIRE_PYTHONFMU=1`; otherwise the test skips with a note).
+/// - Built with the exporter's defaults (`needsExecutionTool`) it is refused at `validate`, saying so.
+/// - Without libpython in the process its library does not load, and the message says what to load.
+/// - With it (`LD_PRELOAD`, the build's libpython): a unit step's response is `1 - e^(-t / 0.5)` to
+///   1e-12 and FMPy's (run now) to 1e-12, and a 2-thread study writes the same records in worker
+///   processes and in process, no trial failed.
+#[test]
+fn pythonfmu_exports_fly_with_libpython_loaded_and_are_refused_clearly_without() {
+    let Ok(built) = std::env::var("FDIMC_PYTHONFMU_DIR") else {
+        assert!(
+            std::env::var("FDIMC_REQUIRE_PYTHONFMU").is_err(),
+            "FDIMC_REQUIRE_PYTHONFMU=1 and no FDIMC_PYTHONFMU_DIR"
+        );
+        eprintln!("note: FDIMC_PYTHONFMU_DIR is not set (scripts/build_pythonfmu.sh builds the exports): skipped");
+        return;
+    };
+    let built = PathBuf::from(built);
+    let libpython = std::fs::read_to_string(built.join("libpython.txt"))
+        .expect("libpython.txt: the build script writes it where its Python has a shared libpython")
+        .trim()
+        .to_string();
+    let dir = tempfile::tempdir().unwrap();
+    let deck = |fmu: &str| -> PathBuf {
+        let path = dir.path().join(fmu.replace(".fmu", ".toml"));
+        let text = format!(
+            "[study]\nname = \"lag\"\nseed = 3\nduration_s = 2.0\ndt_s = 0.01\n\n[plant]\nstates = [\"x\"]\n\
+             inputs = [\"u\"]\noutputs = [\"y\"]\na = [[-2.0]]\nb = [[2.0]]\nc = [[1.0]]\n\n[truth]\nfmu = \"{}\"\n\
+             interface = \"co_simulation\"\ninputs = [\"u\"]\noutputs = [\"y\"]\ntrim_inputs = [0.0]\n\n\
+             [[excitation]]\ninput = \"u\"\nshape = \"step\"\namplitude = 1.0\n\n[noise]\nsensor_sigma = [0.0]\n\n\
+             [[detector]]\nname = \"kalman\"\nkind = \"kalman_chi2\"\nwindow = 10\nfalse_alarm_probability = 0.01\n\
+             design_process_sigma_per_step = [0.001]\n\n[monte_carlo]\ntrials = 40\nfault_free_fraction = 0.3\n\
+             outputs = [\"y\"]\nonset_s = 1.0\n\n[[monte_carlo.fault]]\nkind = \"bias\"\nsize_sigma = 5.0\n",
+            built.join(fmu).display()
+        );
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let with_python = |args: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_fdimc"))
+            .args(args)
+            .env("LD_PRELOAD", &libpython)
+            .output()
+            .unwrap()
+    };
+    for (fmu, tool) in
+        [("pythonfmu_lag.fmu", "pythonfmu_lag_tool.fmu"), ("pythonfmu3_lag.fmu", "pythonfmu3_lag_tool.fmu")]
+    {
+        let out = with_python(&["validate", deck(tool).to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(
+            out.status.code() == Some(2) && err.contains("needs its exporting tool to run (needsExecutionTool)"),
+            "{err}"
+        );
+        let d = deck(fmu);
+        let out = fdimc(&["validate", d.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(
+            out.status.code() == Some(2)
+                && err.contains("undefined symbol")
+                && err.contains("LD_PRELOAD=/path/to/libpython"),
+            "{err}"
+        );
+
+        let csv = dir.path().join("trace.csv");
+        let out = with_python(&["simulate", d.to_str().unwrap(), "--out", csv.to_str().unwrap()]);
+        assert!(out.status.success(), "{fmu}: {}", String::from_utf8_lossy(&out.stderr));
+        let text = std::fs::read_to_string(&csv).unwrap();
+        let names: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+        let (t_at, y_at) =
+            (names.iter().position(|n| *n == "t_s").unwrap(), names.iter().position(|n| *n == "y_y").unwrap());
+        let rows: Vec<Vec<f64>> =
+            text.lines().skip(1).map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)).collect()).collect();
+        assert_eq!(rows.len(), 200);
+        let fmpy_y = fmpy(&["cs", built.join(fmu).to_str().unwrap(), "--step", "0.01", "--stop", "2", "--set", "u=1"])
+            .map(|r| column(&r, "y"));
+        for (k, row) in rows.iter().enumerate() {
+            let (t, y) = (row[t_at], row[y_at]);
+            assert!((y - (1.0 - (-t / 0.5).exp())).abs() < 1e-12, "{fmu} at {t} s: {y}");
+            if let Some(theirs) = &fmpy_y {
+                assert!((y - theirs[k]).abs() < 1e-12, "{fmu} at {t} s: {y} vs FMPy {}", theirs[k]);
+            }
+        }
+        let mut records = Vec::new();
+        for in_process in [false, true] {
+            let out_dir = dir.path().join(format!("run{in_process}"));
+            let mut args = vec![
+                "run",
+                d.to_str().unwrap(),
+                "--threads",
+                "2",
+                "--quiet",
+                "--force",
+                "--out",
+                out_dir.to_str().unwrap(),
+            ];
+            if in_process {
+                args.push("--fmu-in-process");
+            }
+            let out = with_python(&args);
+            assert!(out.status.success(), "{fmu}: {}", String::from_utf8_lossy(&out.stderr));
+            records.push(std::fs::read(out_dir.join("trials.parquet")).unwrap());
+            let summary = std::fs::read_to_string(out_dir.join("summary.csv")).unwrap();
+            let failed = summary.lines().next().unwrap().split(',').position(|c| c == "failed").unwrap();
+            assert!(summary.lines().skip(1).all(|l| l.split(',').nth(failed) == Some("0")), "{fmu}: {summary}");
+        }
+        assert!(records[0] == records[1], "{fmu}: workers and in process differ");
+    }
+}

@@ -2,11 +2,13 @@
 
 Part of fdimc's FMU conformance suite (a third exporter); see README.md here. The same model as
 PythonFmuLag.py: do_step advances x exactly for an input held constant over the step,
-x(t + h) = u + (x(t) - u) exp(-h / tau). Build: `pythonfmu3 build -f PythonFmu3Lag.py`.
+x(t + h) = u + (x(t) - u) exp(-h / tau). A non-positive tau is logged (status warning) and
+do_step returns False, which the exporter reports to the host as Discard.
+Build: `pythonfmu3 build -f PythonFmu3Lag.py`.
 """
 import math
 
-from pythonfmu3 import Fmi3Causality, Fmi3Slave, Fmi3Variability, Float64
+from pythonfmu3 import Fmi3Causality, Fmi3Slave, Fmi3Status, Fmi3Variability, Float64
 
 
 class PythonFmu3Lag(Fmi3Slave):
@@ -32,7 +34,7 @@ class PythonFmu3Lag(Fmi3Slave):
 
     def do_step(self, current_time, step_size):
         if not self.tau > 0.0:
-            self.log(f"tau must be positive, is {self.tau}")
+            self.log(f"tau must be positive, is {self.tau}", Fmi3Status.warning)
             return False
         self.y = self.u + (self.y - self.u) * math.exp(-step_size / self.tau)
         self.time = current_time + step_size

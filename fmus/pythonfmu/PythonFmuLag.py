@@ -2,11 +2,14 @@
 
 Part of fdimc's FMU conformance suite (a third exporter); see README.md here. The slave integrates
 itself: do_step advances x exactly for an input held constant over the step (zero-order hold),
-x(t + h) = u + (x(t) - u) exp(-h / tau). Build: `pythonfmu build -f PythonFmuLag.py`.
+x(t + h) = u + (x(t) - u) exp(-h / tau). A non-positive tau is logged (status warning) and
+do_step returns False, which the exporter reports to the host as Discard.
+Build: `pythonfmu build -f PythonFmuLag.py`.
 """
 import math
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
+from pythonfmu.enums import Fmi2Status
 
 
 class PythonFmuLag(Fmi2Slave):
@@ -29,7 +32,7 @@ class PythonFmuLag(Fmi2Slave):
 
     def do_step(self, current_time, step_size):
         if not self.tau > 0.0:
-            self.log(f"tau must be positive, is {self.tau}")
+            self.log(f"tau must be positive, is {self.tau}", Fmi2Status.warning)
             return False
         self.y = self.u + (self.y - self.u) * math.exp(-step_size / self.tau)
         return True

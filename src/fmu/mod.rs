@@ -160,7 +160,21 @@ impl Fmu {
             FmiVersion::V3 => 3,
         };
         let library = ffi::Library::load(&file, version).map_err(|e| {
-            FmuError::Invalid(format!("{}: its library for this platform does not load: {e}", self.path.display()))
+            // PythonFMU's exports leave the CPython API to the host: a host that is not Python must
+            // load libpython first, as their README says.
+            let hint = match e.to_string().contains("undefined symbol: _Py")
+                || e.to_string().contains("undefined symbol: Py")
+            {
+                true => {
+                    " (it calls into Python, as PythonFMU's exports do: run fdimc with that Python's shared \
+                         library loaded first, LD_PRELOAD=/path/to/libpython3.X.so.1.0)"
+                }
+                false => "",
+            };
+            FmuError::Invalid(format!(
+                "{}: its library for this platform does not load: {e}{hint}",
+                self.path.display()
+            ))
         })?;
         let loaded = Arc::new(Loaded { library, poisoned: AtomicBool::new(false) });
         libraries.insert(info.model_identifier.clone(), Arc::clone(&loaded));
