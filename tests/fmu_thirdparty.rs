@@ -909,7 +909,8 @@ fn reference_fmus_co_simulation_gives_fmpys_trajectory_to_rounding() {
 /// - Without libpython in the process its library does not load, and the message says what to load.
 /// - With it (`LD_PRELOAD`, the build's libpython): a unit step's response is `1 - e^(-t / 0.5)` to
 ///   1e-12 and FMPy's (run now) to 1e-12, and a 2-thread study writes the same records in worker
-///   processes and in process, no trial failed.
+///   processes and in process, no trial failed. With a parameter error that shifts tau by -0.7 to 0.5,
+///   exactly the trials whose tau is not positive fail, with the slave's Discard and message.
 #[test]
 fn pythonfmu_exports_fly_with_libpython_loaded_and_are_refused_clearly_without() {
     let Ok(built) = std::env::var("FDIMC_PYTHONFMU_DIR") else {
@@ -1010,5 +1011,100 @@ fn pythonfmu_exports_fly_with_libpython_loaded_and_are_refused_clearly_without()
             assert!(summary.lines().skip(1).all(|l| l.split(',').nth(failed) == Some("0")), "{fmu}: {summary}");
         }
         assert!(records[0] == records[1], "{fmu}: workers and in process differ");
+
+        // A parameter error that takes tau to 0 or below in some trials: the slave returns Discard in
+        // exactly those (its definition), which are recorded failed with its message; the rest fly.
+        let text = std::fs::read_to_string(&d).unwrap()
+            + "\n[[monte_carlo.parameter_error]]\nname = \"tau\"\nmodel = \"plant\"\nfmu_parameters = [\"tau\"]\n\
+               absolute = { range = [-0.7, 0.5] }\n";
+        let erring = dir.path().join("erring.toml");
+        std::fs::write(&erring, text).unwrap();
+        let out_dir = dir.path().join("erring");
+        let out = with_python(&[
+            "run",
+            erring.to_str().unwrap(),
+            "--threads",
+            "2",
+            "--quiet",
+            "--force",
+            "--out",
+            out_dir.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{fmu}: {}", String::from_utf8_lossy(&out.stderr));
+        use polars::prelude::*;
+        let t = ParquetReader::new(std::fs::File::open(out_dir.join("trials.parquet")).unwrap()).finish().unwrap();
+        let (shift, failure) =
+            (t.column("perr_tau").unwrap().f64().unwrap(), t.column("failure").unwrap().str().unwrap());
+        let mut failed = 0;
+        for i in 0..t.height() {
+            let tau = 0.5 + shift.get(i).unwrap();
+            match failure.get(i) {
+                Some(why) => {
+                    failed += 1;
+                    assert!(
+                        tau <= 0.0 && why.contains("Discard") && why.contains("tau must be positive"),
+                        "{fmu}: tau {tau}: {why}"
+                    );
+                }
+                None => assert!(tau > 0.0, "{fmu}: tau {tau} flew"),
+            }
+        }
+        println!("{fmu}: {failed} of {} trials failed (tau <= 0)", t.height());
+        assert!((1..=20).contains(&failed), "{fmu}: {failed} of {} failed", t.height());
     }
+}
+
+/// Issue 85, item 2, over every FMU in fmus/thirdparty/: `fdimc fmu` lists it and says each interface
+/// it declares runs here; where it has states and model exchange, its linearisation at the start
+/// (A, and C of its Real outputs) meets FMPy's central differences (run now) to 1e-6.
+#[test]
+fn every_thirdparty_fmu_is_listed_and_linearised_as_fmpy_differences_say() {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(thirdparty(""))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "fmu"))
+        .collect();
+    files.sort();
+    assert_eq!(files.len(), 11, "{files:?}");
+    let mut linearised = 0;
+    for path in &files {
+        let file = path.file_name().unwrap().to_str().unwrap();
+        let out = fdimc(&["fmu", path.to_str().unwrap()]);
+        let listing = String::from_utf8_lossy(&out.stdout).to_string();
+        assert!(out.status.success(), "{file}: {}", String::from_utf8_lossy(&out.stderr));
+        let f = Fmu::open(path).unwrap();
+        for (label, declared) in [
+            ("model_exchange", f.description.model_exchange.is_some()),
+            ("co_simulation", f.description.co_simulation.is_some()),
+        ] {
+            let line = listing.lines().find(|l| l.trim_start().starts_with(label));
+            assert_eq!(line.is_some(), declared, "{file} {label}: {listing}");
+            if let Some(line) = line {
+                assert!(line.ends_with("runs here"), "{file}: {line}");
+            }
+        }
+        // Linearised where there are states to linearise and inputs are not required (the OpenModelica
+        // ones have their own test, with their inputs and trims).
+        let d = &f.description;
+        if d.n_states == 0 || d.model_exchange.is_none() || file.starts_with("om_") || file.contains("state_space") {
+            continue;
+        }
+        let outputs: Vec<String> = (d.variables.iter())
+            .filter(|v| v.causality == fdimc::fmu::Causality::Output && v.value_type == fdimc::fmu::ValueType::Real)
+            .map(|v| v.name.clone())
+            .collect();
+        let outputs: Vec<&str> = outputs.iter().map(String::as_str).collect();
+        let p = plant(file, Interface::ModelExchange, &[], &[], &outputs, &[], 0.01);
+        let l = p.linearise().unwrap();
+        let Some(r) = fmpy(&["jacobian", path.to_str().unwrap()]) else { return };
+        assert_close(&format!("{file} A"), &l.a, &r["A"], 1e-6);
+        let names: Vec<String> =
+            r["outputs"].as_array().unwrap().iter().map(|v| v.as_str().unwrap().to_string()).collect();
+        let rows: Vec<Value> =
+            outputs.iter().map(|n| r["C"][names.iter().position(|o| o == n).unwrap()].clone()).collect();
+        assert_close(&format!("{file} C"), &l.c, &Value::Array(rows), 1e-6);
+        linearised += 1;
+    }
+    // BouncingBall and VanDerPol in both versions, Dahlquist.
+    assert_eq!(linearised, 5);
 }
