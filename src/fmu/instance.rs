@@ -630,7 +630,9 @@ impl Instance {
                         lo = mid;
                     }
                 }
-                if hi < h {
+                // Late in a long flight `t + hi` may round to `t`: then the sub-step's end it is, as
+                // before, so that time always moves on.
+                if hi < h && t + hi > t {
                     if to == grid {
                         k -= 1; // the part resumes after the event (a time event's cut did so already)
                     }
