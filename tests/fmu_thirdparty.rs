@@ -365,6 +365,12 @@ fn fdimc(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_fdimc")).args(args).output().unwrap()
 }
 
+/// How many times each study below is run in each mode: `FDIMC_FMU_REPEATS` where it asks for more than
+/// the 10 issue 85 names (`scripts/repeat_thirdparty_fmus.sh` asks for 100), never fewer.
+fn repeats() -> usize {
+    std::env::var("FDIMC_FMU_REPEATS").ok().and_then(|v| v.parse().ok()).map_or(10, |n: usize| n.max(10))
+}
+
 #[test]
 fn a_two_thread_study_of_an_openmodelica_export_completes_every_time_and_gives_the_same_records() {
     // In one process, two threads' OpenModelica instances share the runtime's unlocked global memory
@@ -500,16 +506,17 @@ fn summary_rows(dir: &Path, names: &[&str]) -> Vec<Vec<String>> {
 }
 
 /// Issue 80's reproductions (`tests/data/openmodelica/`: its decks on the same OpenModelica FMU), each
-/// run at default settings (two threads, so worker processes) `FDIMC_OM_REPEATS` times (10) with
-/// `FDIMC_OM_TRIALS` trials (24; `scripts/repeat_openmodelica.sh` runs the decks' own counts): on main
+/// run at default settings (two threads, so worker processes) [`repeats`] times with `FDIMC_OM_TRIALS`
+/// trials (24; `scripts/repeat_thirdparty_fmus.sh` runs the decks' own counts): on main
 /// at 1414250 the co-simulation decks aborted in every try and the model-exchange ones in one of four.
 /// None may die of a signal; model exchange completes with every trial flown (its trajectory matches
 /// CVode: the test above), co-simulation diverges in every trial and is refused after its tables,
 /// with no threshold calibrated from it.
 #[test]
 fn the_openmodelica_reproductions_never_abort_and_end_as_their_model_allows() {
-    let env = |name: &str, default: usize| std::env::var(name).ok().and_then(|v| v.parse().ok()).unwrap_or(default);
-    let (repeats, trials) = (env("FDIMC_OM_REPEATS", 10), env("FDIMC_OM_TRIALS", 24).to_string());
+    let trials: usize =
+        std::env::var("FDIMC_OM_TRIALS").ok().and_then(|v| v.parse().ok()).map_or(24, |n: usize| n.max(24));
+    let (repeats, trials) = (repeats(), trials.to_string());
     let decks = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/openmodelica");
     let dir = tempfile::tempdir().unwrap();
     // At a 30 ms sample the 100 rad/s mode gets 30 RK4 steps of 1 ms (it diverged to 2e35 in one).
@@ -801,8 +808,8 @@ fn reference_deck(
 }
 
 /// Issue 85, item 2: every Reference-FMU that can be a truth flies a study of 40 trials on both
-/// interfaces, 2 threads, in worker processes (the default) and in process (`--fmu-in-process`), ten
-/// times each: none aborts, no trial fails, and all twenty runs write the same trials.parquet.
+/// interfaces, 2 threads, in worker processes (the default) and in process (`--fmu-in-process`),
+/// [`repeats`] times each: none aborts, no trial fails, and every run writes the same trials.parquet.
 /// StateSpace's array input is refused at `validate`, saying why (it failed at its trim before).
 #[test]
 fn every_reference_fmu_flies_a_study_on_both_interfaces_ten_times_the_same() {
@@ -826,7 +833,7 @@ fn every_reference_fmu_flies_a_study_on_both_interfaces_ten_times_the_same() {
         for interface in ["model_exchange", "co_simulation"] {
             let deck = reference_deck(dir.path(), file, interface, inputs, outputs, matrices);
             let mut first: Option<Vec<u8>> = None;
-            for attempt in 0..20 {
+            for attempt in 0..2 * repeats() {
                 let out_dir = dir.path().join("out");
                 let mut args = vec!["run", deck.to_str().unwrap(), "--threads", "2", "--quiet", "--force", "--out"];
                 args.push(out_dir.to_str().unwrap());
@@ -908,9 +915,10 @@ fn reference_fmus_co_simulation_gives_fmpys_trajectory_to_rounding() {
 /// - Built with the exporter's defaults (`needsExecutionTool`) it is refused at `validate`, saying so.
 /// - Without libpython in the process its library does not load, and the message says what to load.
 /// - With it (`LD_PRELOAD`, the build's libpython): a unit step's response is `1 - e^(-t / 0.5)` to
-///   1e-12 and FMPy's (run now) to 1e-12, and a 2-thread study writes the same records in worker
-///   processes and in process, no trial failed. With a parameter error that shifts tau by -0.7 to 0.5,
-///   exactly the trials whose tau is not positive fail, with the slave's Discard and message.
+///   1e-12 and FMPy's (run now) to 1e-12, and a 2-thread study run [`repeats`] times in worker
+///   processes and as many in process writes the same records every time, no trial failed. With a
+///   parameter error that shifts tau by -0.7 to 0.5, exactly the trials whose tau is not positive
+///   fail, with the slave's Discard and message.
 #[test]
 fn pythonfmu_exports_fly_with_libpython_loaded_and_are_refused_clearly_without() {
     let Ok(built) = std::env::var("FDIMC_PYTHONFMU_DIR") else {
@@ -987,9 +995,10 @@ fn pythonfmu_exports_fly_with_libpython_loaded_and_are_refused_clearly_without()
                 assert!((y - theirs[k]).abs() < 1e-12, "{fmu} at {t} s: {y} vs FMPy {}", theirs[k]);
             }
         }
-        let mut records = Vec::new();
-        for in_process in [false, true] {
-            let out_dir = dir.path().join(format!("run{in_process}"));
+        let mut first: Option<Vec<u8>> = None;
+        for attempt in 0..2 * repeats() {
+            let in_process = attempt % 2 == 1;
+            let out_dir = dir.path().join("run");
             let mut args = vec![
                 "run",
                 d.to_str().unwrap(),
@@ -1004,13 +1013,16 @@ fn pythonfmu_exports_fly_with_libpython_loaded_and_are_refused_clearly_without()
                 args.push("--fmu-in-process");
             }
             let out = with_python(&args);
-            assert!(out.status.success(), "{fmu}: {}", String::from_utf8_lossy(&out.stderr));
-            records.push(std::fs::read(out_dir.join("trials.parquet")).unwrap());
+            assert!(out.status.success(), "{fmu} #{attempt}: {}", String::from_utf8_lossy(&out.stderr));
+            let records = std::fs::read(out_dir.join("trials.parquet")).unwrap();
+            match &first {
+                None => first = Some(records),
+                Some(f) => assert!(f == &records, "{fmu} #{attempt} (in process: {in_process}): other records"),
+            }
             let summary = std::fs::read_to_string(out_dir.join("summary.csv")).unwrap();
             let failed = summary.lines().next().unwrap().split(',').position(|c| c == "failed").unwrap();
             assert!(summary.lines().skip(1).all(|l| l.split(',').nth(failed) == Some("0")), "{fmu}: {summary}");
         }
-        assert!(records[0] == records[1], "{fmu}: workers and in process differ");
 
         // A parameter error that takes tau to 0 or below in some trials: the slave returns Discard in
         // exactly those (its definition), which are recorded failed with its message; the rest fly.

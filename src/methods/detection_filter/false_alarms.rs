@@ -355,10 +355,29 @@ pub fn analytic_false_alarms(
             h => &G[h] * &H[k] - &GKR[h - 1],
         }
     };
+    // From `settled` on, P(k) C' and the standard deviations repeat to the bit (the ramp from e(0) = 0
+    // has reached its fixed point in doubles), so a pair of samples there depends only on their lag:
+    // its probability is integrated once per lag and outputs and reused, the same bits as integrating
+    // it again (an hour's flight is mostly such pairs).
+    let settled = (0..samples).rev().take_while(|&k| H[k] == H[samples - 1] && sd[k] == sd[samples - 1]).last();
+    let settled = settled.unwrap_or(samples);
+    let stationary = std::sync::Mutex::new(std::collections::HashMap::<(usize, usize, usize, u64), f64>::new());
     // P(|gamma_jl(l)| > T_jl, |gamma_je(k)| > T_je) from `cov` = Cov(gamma(l), gamma(k)), to `relative`.
     let pair = |cov: &DMatrix<f64>, (l, jl): (usize, usize), (k, je): (usize, usize), relative: f64| -> f64 {
-        let rho = (cov[(jl, je)] / (sd[l][jl] * sd[k][je])).clamp(-1.0, 1.0);
-        both_exceed_to(thresholds[je] / sd[k][je], thresholds[jl] / sd[l][jl], rho, relative)
+        let integrate = || {
+            let rho = (cov[(jl, je)] / (sd[l][jl] * sd[k][je])).clamp(-1.0, 1.0);
+            both_exceed_to(thresholds[je] / sd[k][je], thresholds[jl] / sd[l][jl], rho, relative)
+        };
+        if k < settled {
+            return integrate();
+        }
+        let key = (l - k, jl, je, relative.to_bits());
+        if let Some(&p) = stationary.lock().unwrap().get(&key) {
+            return p;
+        }
+        let p = integrate();
+        stationary.lock().unwrap().insert(key, p);
+        p
     };
     let mut chains = 0.0;
     for k in 0..samples.saturating_sub(1) {
