@@ -3213,9 +3213,10 @@ fn launch_and_air_data_decks_take_a_sensitivity_design() {
 fn a_second_writer_is_refused_and_a_killed_runs_lock_is_not_stale() {
     let tmp = tempfile::tempdir().unwrap();
     let s = |n: &str| tmp.path().join(n).to_str().unwrap().to_string();
-    // 40,960 CI trials on one thread: ten part files, several seconds of writing.
+    // 16,384 CI trials on one thread: four part files, a few seconds of writing, the second run refused
+    // within milliseconds of the first part file.
     fn args(out: &str) -> Vec<&str> {
-        vec!["run", CI_DECK, "--trials", "40960", "--threads", "1", "--quiet", "--out", out]
+        vec!["run", CI_DECK, "--trials", "16384", "--threads", "1", "--quiet", "--out", out]
     }
     let busy = s("busy");
     let mut first = Command::new(env!("CARGO_BIN_EXE_fdimc"))
@@ -3241,7 +3242,7 @@ fn a_second_writer_is_refused_and_a_killed_runs_lock_is_not_stale() {
     first.kill().unwrap();
     first.wait().unwrap();
     assert!(!tmp.path().join("busy/trials.parquet").exists(), "killed before its end");
-    let resumed = ok(&fdimc(&["run", CI_DECK, "--trials", "40960", "--resume", "--out", &busy]));
+    let resumed = ok(&fdimc(&["run", CI_DECK, "--trials", "16384", "--resume", "--out", &busy]));
     assert!(resumed.contains(" resumed)") && !resumed.contains(", 0 resumed)"), "{resumed}");
     ok(&fdimc(&args(&s("whole"))));
     let whole = read_frame(&tmp.path().join("whole/trials.parquet"));
@@ -4293,7 +4294,13 @@ fn an_fmu_allowed_one_instance_per_process_runs_on_one_thread_with_the_same_reco
             .replace("<CoSimulation", &format!("<CoSimulation{flag}"))
     });
     let shown = ok(&fdimc(&["fmu", once.to_str().unwrap()]));
-    assert!(shown.contains("instances per process one (runs on one thread)"), "{shown}");
+    assert!(
+        shown.contains(
+            "instances per process one thread in process (it may be instantiated only once per process \
+             (canBeInstantiatedOnlyOncePerProcess))"
+        ),
+        "{shown}"
+    );
     let deck = std::fs::read_to_string("studies/fmu_aircraft.toml").unwrap();
     let write = |name: &str, fmu: &Path| {
         let p = dir.path().join(name);
@@ -4313,7 +4320,10 @@ fn an_fmu_allowed_one_instance_per_process_runs_on_one_thread_with_the_same_reco
     let ((a, quiet), (b, said)) = (run(&many, "many", &[]), run(&one, "once", &["--fmu-in-process"]));
     assert!(!quiet.contains("once per process"), "{quiet}");
     assert!(
-        said.contains("aircraft_once.fmu may be instantiated only once per process") && said.contains("one thread"),
+        said.contains(
+            "note: aircraft_once.fmu: it may be instantiated only once per process \
+             (canBeInstantiatedOnlyOncePerProcess): the run in process uses one thread"
+        ),
         "{said}"
     );
     assert!(a.equals_missing(&b), "the one-thread run's records differ");

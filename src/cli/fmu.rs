@@ -41,7 +41,10 @@ pub fn exec_fmu(file: &Path, locals: bool) -> Result<(), CliError> {
             info.model_identifier,
             yes(info.can_get_and_set_state),
             yes(info.provides_directional_derivatives),
-            if info.only_one_instance_per_process { "one (runs on one thread)" } else { "many" },
+            match d.one_thread_per_process(interface) {
+                Some(why) => format!("one thread in process ({why})"),
+                None => "many".into(),
+            },
             if interface == Interface::CoSimulation && !info.variable_step { ", fixed communication step" } else { "" },
         );
     }

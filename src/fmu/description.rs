@@ -368,6 +368,21 @@ impl Description {
         }
     }
 
+    /// Why two instances on `interface` must not run on two threads of one process (`None`: they may):
+    /// the description forbids a second instance (`canBeInstantiatedOnlyOncePerProcess`), or the
+    /// exporter's runtime is known to share unlocked global state between instances. OpenModelica's
+    /// does (its memory pool: a 2-thread run in process died in about 1 run of 10 with a heap corruption
+    /// or a segmentation fault, tests/data/openmodelica/README.md), though its descriptions do not say
+    /// so. In worker processes each process has its own, so only a run in process needs one thread.
+    pub fn one_thread_per_process(&self, interface: Interface) -> Option<String> {
+        if self.interface(interface).is_some_and(|i| i.only_one_instance_per_process) {
+            return Some("it may be instantiated only once per process (canBeInstantiatedOnlyOncePerProcess)".into());
+        }
+        let tool = self.generation_tool.as_deref().unwrap_or_default();
+        tool.contains("OpenModelica")
+            .then(|| format!("its exporter's runtime ({tool}) shares unlocked global memory between instances"))
+    }
+
     pub fn variable(&self, name: &str) -> Option<&Variable> {
         self.variables.iter().find(|v| v.name == name)
     }

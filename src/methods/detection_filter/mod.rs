@@ -153,21 +153,17 @@ pub fn run_study(study: &LtiStudy, opts: &RunOptions) -> Result<RunReport, RunEr
             opts.sensitivity.as_ref().map(|d| (d.base_samples, d.bootstrap)),
         )?),
     };
-    // An FMU that may be instantiated only once per process gets one worker thread: one instance
-    // (in worker processes, each process has its own).
-    let once = study
+    // An FMU whose instances may not share a process's threads (only one allowed, or a runtime that is
+    // not thread-safe) gets one worker thread in process; in worker processes each has its own.
+    let alone = study
         .fmus()
         .into_iter()
-        .find(|p| p.fmu.description.interface(p.interface).is_some_and(|i| i.only_one_instance_per_process));
+        .find_map(|p| p.fmu.description.one_thread_per_process(p.interface).map(|why| (p.fmu.file_name(), why)));
     let one_thread;
-    let opts = match once {
-        Some(p) if opts.threads != Some(1) && workers.is_none() => {
+    let opts = match alone {
+        Some((file, why)) if opts.threads != Some(1) && workers.is_none() => {
             if opts.progress {
-                eprintln!(
-                    "note: {} may be instantiated only once per process (canBeInstantiatedOnlyOncePerProcess): \
-                     the run uses one thread",
-                    p.fmu.file_name()
-                );
+                eprintln!("note: {file}: {why}: the run in process uses one thread (worker processes need not)");
             }
             one_thread = RunOptions { threads: Some(1), ..opts.clone() };
             &one_thread
