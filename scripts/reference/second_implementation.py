@@ -7,7 +7,7 @@ Written from the deck (TOML) and the user documentation only: docs/deck.md, docs
 /work/shared/methods.md section 000 (the design K = (A F - F Lambda)(C F)^+). No fdimc source was read
 and nothing fdimc computes (gains, thresholds, records) is used here: only the deck.
 
-    second_implementation.py DECK --trials N --seed S --out FILE.csv [--analytic]
+    second_implementation.py DECK --trials N --seed S --out FILE.csv [--analytic] [--calibrate]
 
 writes one row per trial x detector: trial, detector, fault_free, kind, target, size, size_unit,
 size_bin, onset_s, noise_scale, noise_bin, false_alarm, false_alarm_s, detected, delay_s,
@@ -15,7 +15,10 @@ pre_max_<output> (largest detection statistic before the onset; the whole trial 
 `--analytic` also prints, per detector, the fault-free residual's standard deviation at the trial's end
 from the covariance recursion (the discrete Lyapunov equation from e(0) = 0) against this simulation's,
 and the per-trial false-alarm probability of the |r| test from that exact Gaussian law (Sidak's product
-and the union bound).
+and the union bound). `--calibrate` calibrates each detector's thresholds on this implementation's own
+fault-free trials at the deck's `target_pfa` (D13-D15), prints them, flies the same trials again at
+them (the same seed gives the same trials: no draw depends on a threshold) and adds the columns
+cal_false_alarm, cal_detected, cal_delay_s (`calibrate`, `simulate(extra_sets=...)`).
 
 Environment: Python 3.11 (tomllib) with numpy 2.4.6 and scipy 1.17.1 (polars 1.31.0 for the comparison
 script), in the venv $HOME/.cache/fdimc-ref:
@@ -62,6 +65,34 @@ D11 (deck.md) a range factor with k bins labels each trial by its bin's centre; 
    itself. Parameter errors scale the listed entries by 1 + relative (or add absolute); "design"
    errors change the model the filter is designed on and runs, "plant" ones the truth flown.
 D12 (deck.md) student_t(N) noise is scaled so that its standard deviation is sensor_sigma.
+
+Calibrated thresholds (the `--calibrate` option; statistics.md "Thresholds: calibration, validation,
+per flight hour", outputs.md "thresholds.csv", the threshold set `calibrated`, deck.md `target_pfa`,
+`confidence`):
+D13 (deck.md, outputs.md) Calibration uses the detector's fault-free trials (all of them, whatever
+   their noise scale or parameter errors; failed ones are in no calibration), at monte_carlo.target_pfa
+   (default 0.01); the statistic per output is the one whose largest value before the onset is recorded
+   as pre_max_<output> (|gamma_j| for the detection filter, the CUSUM g_j), over the whole fault-free
+   trial; an alarm is the statistic strictly above the threshold (D5).
+D14 (statistics.md) Counting rule: of n fault-free trials a calibration lets through m = floor(P n)
+   alarms (with `confidence` C: the largest m with P(Binomial(n, P) <= m) <= 1 - C, Wilks), exactly m
+   unless trials tie. Per statistic (`per_statistic_threshold`, "the statistic alone at the target
+   Pfa") that is the (m+1)-th largest pre_max_<output>; with fewer than 1/P trials (m = 0) the largest
+   value seen ("not calibrated"). The whole detector (`detector_threshold`): the per-statistic
+   thresholds times a common factor c, chosen so the whole detector lets through m alarms, "raised to
+   the largest value of the trials the factor lets through, so rounding cannot add one".
+D15 (outputs.md) Pd at the calibrated thresholds counts detections at or after the onset among the
+   faulty trials flown to the end (within detection_window_s when given), whatever happened before the
+   onset, the statistics as recorded (not flown again: the same statistics at other thresholds).
+
+Choices for the calibration where the docs leave a step open:
+C9  The common factor: with h_s the per-statistic thresholds, each trial's z = max_s pre_max_s / h_s;
+    c = the (m+1)-th largest z (the trial alarms at thresholds c h_s exactly when z > c). "Raised":
+    each detector threshold is max(c h_s, the largest pre_max_s among the trials with z <= c), which
+    changes c h_s only by rounding. A statistic with h_s = 0 (never positive) keeps threshold 0.
+C10 A calibration set's alarms after the onset are found by flying the same trials again (same seed)
+    with the calibrated thresholds as extra threshold sets; the statistics do not depend on a threshold
+    (C3), so this equals reading them at other thresholds.
 
 My choices where the docs are silent
 ------------------------------------
@@ -231,6 +262,8 @@ class Deck:
         self.onset = Factor(mc.get("onset_s", self.duration / 3.0), "onset_s")
         self.noise_scale = Factor(mc.get("noise_scale", 1.0), "noise_scale")
         self.window = float(mc["detection_window_s"]) if "detection_window_s" in mc else None
+        self.target_pfa = float(mc.get("target_pfa", 0.01))
+        self.confidence = float(mc["confidence"]) if "confidence" in mc else None
         self.faults = []
         for fl in mc.get("fault", []):
             if "inputs" in fl:
@@ -349,7 +382,9 @@ def draw_scenarios(deck, trials, rng):
     return sc
 
 
-def simulate(deck: Deck, trials: int, seed: int, keep_residual_var=False):
+def simulate(deck: Deck, trials: int, seed: int, keep_residual_var=False, extra_sets=None):
+    """extra_sets: {detector name: {label: thresholds (p,)}}: alarms also looked for at those sets (C10)."""
+    extra_sets = extra_sets or {}
     rng = np.random.default_rng(seed)
     sc = draw_scenarios(deck, trials, rng)
     T, n, p, dt = trials, deck.n, deck.p, deck.dt
@@ -366,7 +401,10 @@ def simulate(deck: Deck, trials: int, seed: int, keep_residual_var=False):
         dad, dbd, kd = per_trial(design_keys, build)
         dets.append(dict(det, ad=dad, bd=dbd, kd=kd, xhat=np.tile(deck.x0, (T, 1)), g=np.zeros((T, p)),
                          pre_alarm_s=np.full(T, np.nan), post_alarm_s=np.full(T, np.nan),
-                         pre_max=np.zeros((T, p)), r_sum=np.zeros(p), r_sq=np.zeros(p)))
+                         pre_max=np.zeros((T, p)), r_sum=np.zeros(p), r_sq=np.zeros(p),
+                         extra={lab: dict(thr=np.asarray(v, dtype=float), pre=np.full(T, np.nan),
+                                          post=np.full(T, np.nan))
+                                for lab, v in extra_sets.get(det["name"], {}).items()}))
     x = np.tile(deck.x0, (T, 1))
     idx = np.arange(T)
     out = sc["out"]
@@ -419,6 +457,10 @@ def simulate(deck: Deck, trials: int, seed: int, keep_residual_var=False):
             dd["pre_alarm_s"][first_pre] = t
             first_post = active & alarm & np.isnan(dd["post_alarm_s"])
             dd["post_alarm_s"][first_post] = t
+            for ex in dd["extra"].values():
+                al = (stat > ex["thr"]).any(axis=1)
+                ex["pre"][before & al & np.isnan(ex["pre"])] = t
+                ex["post"][active & al & np.isnan(ex["post"])] = t
             dd["xhat"] = mv(dd["ad"], dd["xhat"]) + mv(dd["bd"], u) + mv(dd["kd"], gam)
         x = mv(ad, x) + mv(bd, u)
         if np.any(proc):
@@ -429,8 +471,17 @@ def simulate(deck: Deck, trials: int, seed: int, keep_residual_var=False):
         detected = ~np.isnan(dd["post_alarm_s"])
         if deck.window is not None:
             detected &= delay <= deck.window
+        extra = {}
+        for lab, ex in dd["extra"].items():
+            d_ex = ex["post"] - onset
+            det_ex = ~np.isnan(ex["post"])
+            if deck.window is not None:
+                det_ex &= d_ex <= deck.window
+            extra[lab] = dict(thr=ex["thr"], false_alarm=~np.isnan(ex["pre"]), detected=det_ex,
+                              delay=np.where(det_ex, d_ex, np.nan))
         rows.append(dict(detector=dd["name"], pre_alarm_s=dd["pre_alarm_s"], detected=detected,
-                         delay=np.where(detected, delay, np.nan), pre_max=dd["pre_max"], r_end=dd.get("r_end")))
+                         delay=np.where(detected, delay, np.nan), pre_max=dd["pre_max"], r_end=dd.get("r_end"),
+                         extra=extra))
     return sc, rows
 
 
@@ -450,6 +501,11 @@ def to_records(deck, sc, rows):
                 rec[f"pre_max_{o}"] = r["pre_max"][i, j]
             for j, pe in enumerate(deck.perrs):
                 rec[f"perr_{pe['name']}"] = sc["perr"][i, j]
+            for lab, ex in r.get("extra", {}).items():
+                pre = "cal" if lab == "own" else f"at_{lab}"
+                rec[f"{pre}_false_alarm"] = bool(ex["false_alarm"][i])
+                rec[f"{pre}_detected"] = bool(ex["detected"][i])
+                rec[f"{pre}_delay_s"] = ex["delay"][i]
             recs.append(rec)
     return recs
 
@@ -458,6 +514,62 @@ def run_study(deck_path, trials, seed, keep_residual_var=False):
     deck = Deck(deck_path)
     sc, rows = simulate(deck, trials, seed, keep_residual_var)
     return deck, sc, rows
+
+
+# ---------------------------------------------------------------- calibration (D13-D15, C9-C10)
+def allowed_alarms(n, target_pfa, confidence=None):
+    """m of D14: floor(P n), or Wilks' largest m with P(Binomial(n, P) <= m) <= 1 - C (None: none)."""
+    if confidence is None:
+        return int(math.floor(target_pfa * n + 1e-9))
+    from scipy.stats import binom
+    m = -1
+    while binom.cdf(m + 1, n, target_pfa) <= 1.0 - confidence:
+        m += 1
+    return m if m >= 0 else None
+
+
+def calibrate(pre_max, target_pfa, confidence=None):
+    """pre_max: (n, p) fault-free trials' largest statistics. Returns a dict with m, n, per_statistic (h),
+    factor (c), detector (thresholds), per-statistic and whole-detector alarms on these trials."""
+    x = np.asarray(pre_max, dtype=float)
+    n, p = x.shape
+    m = allowed_alarms(n, target_pfa, confidence)
+    if m is None:
+        raise ValueError(f"{n} fault-free trials cannot resolve Pfa {target_pfa} at confidence {confidence}")
+    m = min(m, n - 1)
+    desc = -np.sort(-x, axis=0)                       # each column descending
+    h = desc[m].copy()                                # the (m+1)-th largest: m values strictly above (no ties)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(h > 0, x / np.where(h > 0, h, 1.0), 0.0)
+    z = ratio.max(axis=1)
+    c = float(-np.sort(-z)[m])
+    keep = z <= c
+    thr = np.where(h > 0, c * h, 0.0)
+    if keep.any():
+        thr = np.maximum(thr, x[keep].max(axis=0))   # "raised" (C9)
+    return dict(n=n, m=m, per_statistic=h, factor=c, detector=thr,
+                statistic_alarms=(x > h).sum(axis=0), detector_alarms=int((x > thr).any(axis=1).sum()),
+                calibrated=bool(target_pfa * n >= 1.0))
+
+
+def run_calibrated(deck_path, trials, seed, other_sets=None):
+    """Fly, calibrate each detector on its own fault-free trials (D13, D14), fly the same trials again
+    with the calibrated thresholds as the set "own" (and any other_sets {detector: {label: thr}})."""
+    deck = Deck(deck_path)
+    sc, rows = simulate(deck, trials, seed)
+    ff = sc["fault_free"]
+    cal = {}
+    for r in rows:
+        cal[r["detector"]] = calibrate(r["pre_max"][ff], deck.target_pfa, deck.confidence)
+    sets = {name: {"own": c["detector"]} for name, c in cal.items()}
+    for name, extra in (other_sets or {}).items():
+        if name in sets:
+            sets[name].update(extra)
+    sc2, rows2 = simulate(deck, trials, seed, extra_sets=sets)
+    for r1, r2 in zip(rows, rows2):                   # the same trials (C10)
+        if not np.array_equal(r1["pre_max"], r2["pre_max"]):
+            raise RuntimeError("the second flight of the same seed differs from the first")
+    return deck, sc2, rows2, cal
 
 
 def write_csv(path, recs):
@@ -512,13 +624,24 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=12345)
     ap.add_argument("--out", required=True)
     ap.add_argument("--analytic", action="store_true", help="print the residual's exact law against the simulation")
+    ap.add_argument("--calibrate", action="store_true",
+                    help="calibrate at the deck's target_pfa on the own fault-free trials, print the thresholds, "
+                         "add cal_false_alarm, cal_detected, cal_delay_s (D13-D15)")
     a = ap.parse_args(argv)
     deck = Deck(a.deck)
     trials = a.trials or deck.trials
     for name, kind in deck.skipped:
         print(f"note: detector {name} of kind {kind} is skipped (not implemented here)", file=sys.stderr)
     t0 = time.time()
-    sc, rows = simulate(deck, trials, a.seed, keep_residual_var=a.analytic)
+    if a.calibrate:
+        deck, sc, rows, cal = run_calibrated(a.deck, trials, a.seed)
+        for name, c in cal.items():
+            print(f"detector {name}: {c['n']} fault-free trials, Pfa {deck.target_pfa}: m = {c['m']} alarms, "
+                  f"factor {c['factor']:.6f}, whole-detector alarms {c['detector_alarms']}")
+            for j, o in enumerate(deck.outputs):
+                print(f"    {o:>10}: per statistic {c['per_statistic'][j]:.9g}  detector {c['detector'][j]:.9g}")
+    else:
+        sc, rows = simulate(deck, trials, a.seed, keep_residual_var=a.analytic)
     recs = to_records(deck, sc, rows)
     write_csv(a.out, recs)
     print(f"{trials} trials x {len(rows)} detectors in {time.time() - t0:.1f} s -> {a.out}", file=sys.stderr)
