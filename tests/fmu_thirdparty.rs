@@ -371,13 +371,45 @@ fn repeats() -> usize {
     std::env::var("FDIMC_FMU_REPEATS").ok().and_then(|v| v.parse().ok()).map_or(10, |n: usize| n.max(10))
 }
 
+/// Runs `deck` on two threads [`repeats`] times in worker processes and as many in process
+/// (`--fmu-in-process`, the odd runs), with `env` set: every run succeeds, none of its trials failed
+/// (`summary.csv`'s `failed`), and every run writes the same trials.parquet. Each run's stderr, in order.
+fn repeated_study(deck: &Path, env: &[(&str, &str)]) -> Vec<String> {
+    let name = deck.file_name().unwrap().to_string_lossy().to_string();
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("run");
+    let (mut first, mut said) = (None::<Vec<u8>>, Vec::new());
+    for attempt in 0..2 * repeats() {
+        let mut args = vec!["run", deck.to_str().unwrap(), "--threads", "2", "--force", "--out"];
+        args.push(out_dir.to_str().unwrap());
+        if attempt % 2 == 1 {
+            args.push("--fmu-in-process");
+        }
+        let out =
+            std::process::Command::new(env!("CARGO_BIN_EXE_fdimc")).args(&args).envs(env.iter().copied()).output();
+        let out = out.unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(out.status.success(), "{name} #{attempt}: {stderr}");
+        let records = std::fs::read(out_dir.join("trials.parquet")).unwrap();
+        match &first {
+            None => first = Some(records),
+            Some(f) => assert!(f == &records, "{name} #{attempt} (in process: {}): other records", attempt % 2 == 1),
+        }
+        let summary = std::fs::read_to_string(out_dir.join("summary.csv")).unwrap();
+        let failed = summary.lines().next().unwrap().split(',').position(|c| c == "failed").unwrap();
+        assert!(summary.lines().skip(1).all(|l| l.split(',').nth(failed) == Some("0")), "{name}: {summary}");
+        said.push(stderr);
+    }
+    said
+}
+
 #[test]
 fn a_two_thread_study_of_an_openmodelica_export_completes_every_time_and_gives_the_same_records() {
     // In one process, two threads' OpenModelica instances share the runtime's unlocked global memory
     // pool: on main at 1414250 this run died with a heap corruption in 3 of 12 tries, and at 3e20529
     // `--fmu-in-process` with two threads still died in 1 of 12 (a segmentation fault). By default the
     // FMUs fly in worker processes; in process, an OpenModelica export's run takes one thread, saying
-    // why. [`repeats`] times each way: none dies, every run gives the same summary.
+    // why. Each way [`repeats`] times: none dies, no trial fails, every run writes the same records.
     let listed = fdimc(&["fmu", thirdparty("om_mass_damper.fmu").to_str().unwrap()]);
     let listed = String::from_utf8_lossy(&listed.stdout).to_string();
     let why = "its exporter's runtime (OpenModelica Compiler OpenModelica 1.19.3) shares unlocked global memory \
@@ -385,30 +417,10 @@ fn a_two_thread_study_of_an_openmodelica_export_completes_every_time_and_gives_t
     assert!(listed.contains(&format!("instances per process one thread in process ({why})")), "{listed}");
     let dir = tempfile::tempdir().unwrap();
     let deck = mass_damper_deck(dir.path(), "model_exchange", 2.0, "transient_start = true");
-    let mut first: Option<Vec<u8>> = None;
-    for attempt in 0..2 * repeats() {
-        let out_dir = dir.path().join(format!("out{attempt}"));
-        let mut args = vec!["run", deck.to_str().unwrap(), "--threads", "2", "--out", out_dir.to_str().unwrap()];
-        if attempt % 2 == 1 {
-            args.push("--fmu-in-process");
-        }
-        let out = fdimc(&args);
-        let said = String::from_utf8_lossy(&out.stderr);
-        assert!(out.status.success(), "attempt {attempt}: {said}");
-        let note = format!("note: om_mass_damper.fmu: {why}: the run in process uses one thread");
+    let note = format!("note: om_mass_damper.fmu: {why}: the run in process uses one thread");
+    for (attempt, said) in repeated_study(&deck, &[]).iter().enumerate() {
         assert_eq!(said.contains(&note), attempt % 2 == 1, "attempt {attempt}: {said}");
-        let summary = std::fs::read(out_dir.join("summary.csv")).unwrap();
-        match &first {
-            None => first = Some(summary),
-            Some(f) => assert_eq!(f, &summary, "attempt {attempt}: another summary"),
-        }
     }
-    let summary = String::from_utf8(first.unwrap()).unwrap();
-    // 120 trials flown to the end: none failed, none diverged.
-    let deck_rows: Vec<&str> = summary.lines().filter(|l| l.starts_with("deck,kalman,")).collect();
-    let trials: u64 = deck_rows.iter().map(|l| l.split(',').nth(7).unwrap().parse::<u64>().unwrap()).sum();
-    let failed: u64 = deck_rows.iter().map(|l| l.split(',').nth(8).unwrap().parse::<u64>().unwrap()).sum();
-    assert_eq!((trials, failed), (120, 0), "{summary}");
 }
 
 #[test]
@@ -845,31 +857,7 @@ fn every_reference_fmu_flies_a_study_on_both_interfaces_ten_times_the_same() {
     for (file, inputs, outputs, matrices) in cases {
         for interface in ["model_exchange", "co_simulation"] {
             let deck = reference_deck(dir.path(), file, interface, inputs, outputs, matrices);
-            let mut first: Option<Vec<u8>> = None;
-            for attempt in 0..2 * repeats() {
-                let out_dir = dir.path().join("out");
-                let mut args = vec!["run", deck.to_str().unwrap(), "--threads", "2", "--quiet", "--force", "--out"];
-                args.push(out_dir.to_str().unwrap());
-                if attempt % 2 == 1 {
-                    args.push("--fmu-in-process");
-                }
-                let out = fdimc(&args);
-                assert!(
-                    out.status.success(),
-                    "{file} {interface} #{attempt}: {}",
-                    String::from_utf8_lossy(&out.stderr)
-                );
-                let records = std::fs::read(out_dir.join("trials.parquet")).unwrap();
-                match &first {
-                    None => first = Some(records),
-                    Some(f) => assert!(f == &records, "{file} {interface} #{attempt}: other records"),
-                }
-                let summary = std::fs::read_to_string(out_dir.join("summary.csv")).unwrap();
-                let failed = summary.lines().next().unwrap().split(',').position(|c| c == "failed").unwrap();
-                for line in summary.lines().skip(1) {
-                    assert_eq!(line.split(',').nth(failed), Some("0"), "{file} {interface}: {summary}");
-                }
-            }
+            repeated_study(&deck, &[]);
         }
     }
     let deck = reference_deck(
@@ -1008,34 +996,7 @@ fn pythonfmu_exports_fly_with_libpython_loaded_and_are_refused_clearly_without()
                 assert!((y - theirs[k]).abs() < 1e-12, "{fmu} at {t} s: {y} vs FMPy {}", theirs[k]);
             }
         }
-        let mut first: Option<Vec<u8>> = None;
-        for attempt in 0..2 * repeats() {
-            let in_process = attempt % 2 == 1;
-            let out_dir = dir.path().join("run");
-            let mut args = vec![
-                "run",
-                d.to_str().unwrap(),
-                "--threads",
-                "2",
-                "--quiet",
-                "--force",
-                "--out",
-                out_dir.to_str().unwrap(),
-            ];
-            if in_process {
-                args.push("--fmu-in-process");
-            }
-            let out = with_python(&args);
-            assert!(out.status.success(), "{fmu} #{attempt}: {}", String::from_utf8_lossy(&out.stderr));
-            let records = std::fs::read(out_dir.join("trials.parquet")).unwrap();
-            match &first {
-                None => first = Some(records),
-                Some(f) => assert!(f == &records, "{fmu} #{attempt} (in process: {in_process}): other records"),
-            }
-            let summary = std::fs::read_to_string(out_dir.join("summary.csv")).unwrap();
-            let failed = summary.lines().next().unwrap().split(',').position(|c| c == "failed").unwrap();
-            assert!(summary.lines().skip(1).all(|l| l.split(',').nth(failed) == Some("0")), "{fmu}: {summary}");
-        }
+        repeated_study(&d, &[("LD_PRELOAD", libpython.as_str())]);
 
         // A parameter error that takes tau to 0 or below in some trials: the slave returns Discard in
         // exactly those (its definition), which are recorded failed with its message; the rest fly.
