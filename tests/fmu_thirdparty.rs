@@ -372,8 +372,8 @@ fn repeats() -> usize {
 }
 
 /// Runs `deck` on two threads [`repeats`] times in worker processes and as many in process
-/// (`--fmu-in-process`, the odd runs), with `env` set: every run succeeds, none of its trials failed
-/// (`summary.csv`'s `failed`), and every run writes the same trials.parquet. Each run's stderr, in order.
+/// (`--fmu-in-process`, the odd runs), with `env` set: every run succeeds and flies trials, none of them
+/// failed (`summary.csv`'s `failed`), and every run writes the same trials.parquet. Each run's stderr, in order.
 fn repeated_study(deck: &Path, env: &[(&str, &str)]) -> Vec<String> {
     let name = deck.file_name().unwrap().to_string_lossy().to_string();
     let dir = tempfile::tempdir().unwrap();
@@ -396,8 +396,12 @@ fn repeated_study(deck: &Path, env: &[(&str, &str)]) -> Vec<String> {
             Some(f) => assert!(f == &records, "{name} #{attempt} (in process: {}): other records", attempt % 2 == 1),
         }
         let summary = std::fs::read_to_string(out_dir.join("summary.csv")).unwrap();
-        let failed = summary.lines().next().unwrap().split(',').position(|c| c == "failed").unwrap();
+        let column = |name: &str| summary.lines().next().unwrap().split(',').position(|c| c == name).unwrap();
+        let (failed, trials) = (column("failed"), column("trials"));
         assert!(summary.lines().skip(1).all(|l| l.split(',').nth(failed) == Some("0")), "{name}: {summary}");
+        let flown: u64 =
+            summary.lines().skip(1).map(|l| l.split(',').nth(trials).unwrap().parse::<u64>().unwrap()).sum();
+        assert!(flown > 0, "{name}: no trial flown: {summary}");
         said.push(stderr);
     }
     said

@@ -80,21 +80,19 @@ from pathlib import Path
 import numpy as np
 import polars as pl
 from scipy.special import gammaln
-from scipy.stats import binom, fisher_exact, ks_2samp, mannwhitneyu, norm
+from scipy.stats import binom, binomtest, fisher_exact, ks_2samp, mannwhitneyu
 
 sys.dont_write_bytecode = True  # no __pycache__ beside the scripts
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import second_implementation as second  # noqa: E402
 
 
-def wilson(k, n, z=norm.ppf(0.975)):
+def wilson(k, n):
+    """The share k / n with its 95 % Wilson interval (SciPy's)."""
     if n == 0:
         return float("nan"), float("nan"), float("nan")
-    p = k / n
-    den = 1 + z * z / n
-    c = (p + z * z / (2 * n)) / den
-    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return p, max(0.0, c - h), min(1.0, c + h)
+    ci = binomtest(k, n).proportion_ci(0.95, method="wilson")
+    return k / n, ci.low, ci.high
 
 
 def quantile_ci(v, q):
