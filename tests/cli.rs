@@ -397,7 +397,7 @@ fn the_exact_law_confirms_the_flagged_conversion_and_the_calibration_on_a_slow_u
     let out = ok(&fdimc(&["summarize", run.to_str().unwrap()]));
     assert!(out.contains("tail.csv's thresholds of lateral for per-flight-hour targets convert from trials"), "{out}");
     assert!(
-        out.contains("tail.csv's thresholds of lateral for per-flight-hour targets: the residual's exact law puts"),
+        out.contains("tail.csv's thresholds of lateral for per-flight-hour targets may be far too low by the residual's exact law: fdimc flight-thresholds"),
         "{out}"
     );
     let safety = csv_frame(&run.join("safety.csv"));
@@ -678,7 +678,8 @@ fn rare_event_flights_are_checked_and_reach_the_safety_summary_and_report() {
     assert!(printed.contains("per flight of 20 s, measured over flights against 2 segments of 10 s"), "{printed}");
     assert!(printed.contains("conditional estimate on the exact law"), "{printed}");
     assert!(beside.join("per_hour.csv").exists() && beside.join("flights/rare_event.csv").exists());
-    let summary = ok(&fdimc(&["summarize", run.to_str().unwrap()]));
+    // --verbose prints the safety sentences.
+    let summary = ok(&fdimc(&["--verbose", "summarize", run.to_str().unwrap()]));
     let safety = csv_frame(&run.join("safety.csv"));
     let column = safety.column("method").unwrap().str().unwrap().clone();
     let methods: Vec<String> = (0..column.len()).map(|i| column.get(i).unwrap().to_string()).collect();
@@ -1475,7 +1476,8 @@ fn assert_identical_runs_of(
         args.extend_from_slice(extra);
         fdimc(&args)
     };
-    let one = ok(&run(&["--threads", "1"], "one"));
+    // --verbose: callers read the per-detector table (the details behind the answer).
+    let one = ok(&run(&["--threads", "1", "--verbose"], "one"));
     assert!(one.contains(&format!("trials 0..{trials} of {trials} ({trials} run, 0 resumed)")), "{one}");
     ok(&run(&["--threads", "2"], "two"));
     ok(&run(&["--shard", "1/2"], "s1"));
@@ -2228,7 +2230,7 @@ fn accelerometer_classifiers_train_save_load_and_runs_are_identical() {
     let tables = ["confusion.csv", "summary.csv", "detectors.csv", "comparison.csv"];
     let (one, stdout) = assert_identical_runs(deck, tmp.path(), 600, 512, &tables);
     for name in ["tree", "flat"] {
-        assert_eq!(stdout.lines().filter(|l| l.starts_with(&format!("    deck       {name} "))).count(), 1, "{stdout}");
+        assert_eq!(stdout.lines().filter(|l| l.starts_with(&format!("    {name}  Pfa "))).count(), 1, "{stdout}");
         assert!(stdout.contains(&format!("  confusion ({name}): rows the true class")), "{stdout}");
     }
     let reference = read_frame(&one.join("trials.parquet"));
@@ -2351,7 +2353,8 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
     let own = std::fs::read(val.join("thresholds.csv")).unwrap();
     let own_summary = std::fs::read(val.join("summary.csv")).unwrap();
     let cal_thr = cal.join("thresholds.csv");
-    let stdout = ok(&fdimc(&["summarize", val.to_str().unwrap(), "--thresholds", cal_thr.to_str().unwrap()]));
+    let stdout =
+        ok(&fdimc(&["--verbose", "summarize", val.to_str().unwrap(), "--thresholds", cal_thr.to_str().unwrap()]));
     assert!(
         stdout.contains("thresholds from") && stdout.contains("(calibrated at Pfa 0.01), validated on"),
         "{stdout}"
@@ -2454,14 +2457,16 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
     for i in (0..t.height()).filter(|&i| out.get(i) == Some("all")) {
         assert!(n.get(i).unwrap() > 800 && whole.get(i).unwrap() <= 3, "row {i}: {t}");
     }
-    let out = fdimc(&["summarize", cal.to_str().unwrap(), "--confidence", "0.9999999"]);
+    // The warnings whole (the console's line drops the parenthesised counts).
+    let out = fdimc(&["--verbose", "summarize", cal.to_str().unwrap(), "--confidence", "0.9999999"]);
     let stdout = text(&out.stdout);
     assert!(stdout.contains("cannot give Pfa 0.01 with 0.9999999 confidence"), "{stdout}");
     assert!(stdout.contains("needs >= 1604 fault-free trials"), "{stdout}");
     // Where the order statistic cannot reach, the tail fit's upper bound sets the thresholds (item 6):
     // Pfa 1e-4 with 95 % confidence needs 29,956 trials by the order statistic; the fit's 0.95 bound
     // lies above every calibration value, and no calibration trial alarms.
-    let stdout = ok(&fdimc(&["summarize", cal.to_str().unwrap(), "--target-pfa", "1e-4", "--confidence", "0.95"]));
+    let stdout =
+        ok(&fdimc(&["--verbose", "summarize", cal.to_str().unwrap(), "--target-pfa", "1e-4", "--confidence", "0.95"]));
     assert!(
         stdout.contains("needs >= 29956 fault-free trials): thresholds at the tail fit's 0.95 upper bound"),
         "{stdout}"
@@ -2478,7 +2483,7 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
     }
     // Per flight hour (issue 23, item 4): 0.5 per hour over 10 s trials is 1 - 0.5^(1/360) per trial,
     // and the achieved rates are printed both ways.
-    let stdout = ok(&fdimc(&["summarize", cal.to_str().unwrap(), "--target-pfa-per-hour", "0.5"]));
+    let stdout = ok(&fdimc(&["--verbose", "summarize", cal.to_str().unwrap(), "--target-pfa-per-hour", "0.5"]));
     let target = "0.5 per flight hour (Pfa 1.9236e-3 per 10 s trial, the hour's trials taken as independent)";
     assert!(stdout.contains(&format!("target {target}")), "{stdout}");
     assert!(stdout.contains(&format!("calibrated at {target} on the fault-free trials")), "{stdout}");
@@ -2515,10 +2520,29 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
 fn the_tail_fit_gives_thresholds_for_per_hour_targets() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("run");
-    // The fits' figures print behind --verbose; without it, a pointer to tail.csv and any doubt a warning.
+    // The console answers first (issue 87): the answer, a line per warning naming its file, what next;
+    // the fits' figures, the calibration and the safety sentences print behind --verbose.
     let quiet = ok(&fdimc(&["run", CI_DECK, "--out", dir.to_str().unwrap()]));
-    assert!(!quiet.contains("fit on the 86 largest") && quiet.contains("the tail fits are in tail.csv"), "{quiet}");
-    assert!(quiet.contains("warning: rare false alarms of seed at the calibrated thresholds: do not trust"), "{quiet}");
+    assert!(!quiet.contains("fit on the 86 largest") && !quiet.contains("Pfa achieved"), "{quiet}");
+    let lines: Vec<&str> = quiet.lines().collect();
+    assert_eq!(lines.len(), 9, "{quiet}");
+    assert!(
+        lines[1].starts_with("  answer, at the calibrated thresholds (calibrated at Pfa 0.01 on the fault-free"),
+        "{quiet}"
+    );
+    assert!(
+        lines[2].trim_start().starts_with("seed  Pfa 9.2e-3 [4.7e-3, 1.8e-2] on 869 fault-free flights; Pd "),
+        "{quiet}"
+    );
+    let warnings = [
+        "  warning: tail.csv's thresholds of seed, fast for per-flight-hour targets may be far too low by the residual's exact law: fdimc flight-thresholds finds thresholds on the exact law",
+        "  warning: rare false alarms of seed at the calibrated thresholds: do not trust the tail fit's figures; tail.csv",
+    ];
+    assert_eq!(lines[6..8], warnings, "{quiet}");
+    assert!(lines[8].starts_with("  next: `fdimc report "), "{quiet}");
+    // Every warning whole is in summarize.json (and --verbose); the console's line is its head.
+    let settings = std::fs::read_to_string(dir.join("summarize.json")).unwrap();
+    assert!(settings.contains("do not trust the tail fit's figures (misfit at the 3 largest"), "{settings}");
     let stdout = ok(&fdimc(&["--verbose", "run", CI_DECK, "--out", dir.to_str().unwrap(), "--force"]));
     assert!(stdout.contains("seed vs calibrated thresholds: fit on the 86 largest of 869, shape"), "{stdout}");
     assert!(stdout.contains("for 1.00e-9 per flight hour: thresholds x "), "{stdout}");
@@ -3013,7 +3037,7 @@ fn replay_records_are_identical_for_any_threads_shards_and_resume() {
     let tables = ["confusion.csv", "summary.csv", "detectors.csv", "comparison.csv"];
     let (one, stdout) = assert_identical_runs(deck, tmp.path(), 600, 512, &tables);
     for name in ["tree_sim", "flat_sim", "tree_log", "flat_log"] {
-        assert_eq!(stdout.lines().filter(|l| l.starts_with(&format!("    deck       {name} "))).count(), 1, "{stdout}");
+        assert_eq!(stdout.lines().filter(|l| l.starts_with(&format!("    {name}  Pfa "))).count(), 1, "{stdout}");
     }
     let records = read_frame(&one.join("trials.parquet"));
     assert_eq!(records.height(), 600 * 4);
@@ -5348,7 +5372,11 @@ fn time_to_hazard_gives_the_probability_of_missing_the_hazard() {
         said.contains("): missed detection before the hazard ") && said.contains("not covered: fault kinds"),
         "{said}"
     );
-    assert!(stdout.contains("  safety figures (safety.csv; to quote with their assumptions):"), "{stdout}");
+    // The answer says it; the safety sentences are safety.csv's (and --verbose's).
+    assert!(
+        stdout.contains("P(not detected before the hazard): ") && stdout.contains("safety.csv (the figures to quote"),
+        "{stdout}"
+    );
 
     for (name, extra, field, allowed) in [
         ("negative", "\n[monte_carlo.time_to_hazard_s]\nbias = -1.0\n", "bias", "must be a finite number > 0, got -1"),

@@ -196,9 +196,10 @@ impl Rows {
     }
 }
 
-/// The answer's lines on the console: a line per detector, then its Pd per fault kind, the smallest
-/// detectable faults and its thresholds, each on a line of its own.
-pub fn print(answer: &DataFrame) {
+/// The answer's lines on the console: a line per detector, then its Pd per fault kind and its
+/// probability of missing the hazard, each on a line of its own; with `details` (`--verbose`) also
+/// the smallest detectable faults and the thresholds, which otherwise the header names once.
+pub fn print(answer: &DataFrame, details: bool) {
     let t = Table(answer);
     if answer.height() == 0 {
         return;
@@ -210,7 +211,9 @@ pub fn print(answer: &DataFrame) {
     let (per_kind, detectable) = (t.strs("pd_by_fault"), t.strs("min_size_pd90"));
     let hazard = t.strs("p_miss_before_hazard");
     let set = t.strs("thresholds");
-    println!("  answer, at the {} thresholds (answer.csv; 95 % Wilson intervals):", set[0]);
+    let source =
+        if !details && sources.iter().all(|x| *x == sources[0]) { format!("{}; ", sources[0]) } else { String::new() };
+    println!("  answer, at the {} thresholds ({source}answer.csv; 95 % Wilson intervals):", set[0]);
     let width = names.iter().map(String::len).max().unwrap_or(0);
     for i in 0..names.len() {
         let quiet = if flights[i] > 0 {
@@ -224,11 +227,14 @@ pub fn print(answer: &DataFrame) {
         if !per_kind[i].is_empty() {
             println!("    {pad}  Pd by fault: {}", per_kind[i]);
         }
-        if !detectable[i].is_empty() {
+        if details && !detectable[i].is_empty() {
             println!("    {pad}  smallest with Pd >= 0.9: {}", detectable[i]);
         }
         if !hazard[i].is_empty() {
             println!("    {pad}  P(not detected before the hazard): {}", hazard[i]);
+        }
+        if !details {
+            continue;
         }
         println!(
             "    {pad}  thresholds: {}{}",

@@ -256,10 +256,10 @@ pub fn summarize(
                     })
                     .collect();
                 warnings.push(format!(
-                    "tail.csv's thresholds of {} for per-flight-hour targets: the residual's exact law puts a trial's Pfa \
-                     at them far above what the fit gives, by Sidak's bound (an upper bound, loose where alarms cluster \
-                     within a trial): {}; the fit may be far too low there (trust in tail.csv); fdimc flight-thresholds \
-                     finds thresholds on the exact law",
+                    "tail.csv's thresholds of {} for per-flight-hour targets may be far too low by the residual's exact \
+                     law (it puts a trial's Pfa at them far above what the fit gives, by Sidak's bound, an upper bound \
+                     loose where alarms cluster within a trial: {}; trust in tail.csv): fdimc flight-thresholds finds \
+                     thresholds on the exact law",
                     tail.detector,
                     each.join(", ")
                 ));

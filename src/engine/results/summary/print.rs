@@ -17,11 +17,109 @@ pub fn set_verbose(on: bool) {
 
 use super::written::{Summary, VALIDATION};
 
-/// What `run`, `summarize` and `merge` print: the thresholds (kinds with a statistic; the tail fits'
-/// figures with `--verbose`), per threshold set and detector Pd, isolation, delay and Pfa with the
-/// kind's printed aggregates, a classifier's confusion matrices, warnings, the files written and, last,
-/// the answer ([`super::answer`]).
+fn verbose() -> bool {
+    VERBOSE.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+/// What `run`, `summarize` and `merge` print: one screen that answers ([`super::answer`]: per
+/// detector Pfa, Pd and delay), the warnings a line each with the file that explains them, and what
+/// to look at next. With `--verbose`, first the details behind it ([`print_details`]), then the answer
+/// with its thresholds and smallest detectable faults, the safety sentences and the warnings whole.
 pub fn print(spec: &SummarySpec, s: &Summary) {
+    let verbose = verbose();
+    if verbose {
+        print_details(spec, s);
+    } else if s.answer.height() == 0 {
+        // A kind without an answer table still gets its per-detector rates.
+        print_table(spec, s);
+    }
+    super::answer::print(&s.answer, verbose);
+    // A classifier's answer includes which class it named (before the answer with --verbose).
+    if !verbose && spec.isolates == Isolates::Kind {
+        print_confusion(s);
+    }
+    if verbose {
+        super::safety::print(&s.safety);
+        for w in &s.warnings {
+            println!("  warning: {w}");
+        }
+        return;
+    }
+    let names = Table(&s.answer).strs(col::DETECTOR);
+    for w in one_line_warnings(&s.warnings, &names) {
+        println!("  warning: {w}");
+    }
+    let run_dir = match s.out_dir.file_name() {
+        Some(n) if n == super::written::VALIDATION_DIR => s.out_dir.parent().unwrap_or(&s.out_dir),
+        _ => &s.out_dir,
+    };
+    let safety = if s.safety.height() > 0 { ", safety.csv (the figures to quote, with their assumptions)" } else { "" };
+    println!(
+        "  next: `fdimc report {}` for plots and report.html; in {}: summary.csv (per fault kind and size){safety}; \
+         --verbose for the calibration and every table",
+        run_dir.display(),
+        s.out_dir.display()
+    );
+}
+
+/// The warnings for the console, one line each: parenthesised details dropped (the full text is in
+/// summarize.json and `--verbose`), the files they named kept at the end, and warnings that differ
+/// only in the detector named merged into one line naming them all.
+fn one_line_warnings(warnings: &[String], detectors: &[String]) -> Vec<String> {
+    const LONGEST: usize = 200;
+    let mut lines: Vec<(String, Vec<String>)> = Vec::new();
+    for w in warnings {
+        let (mut text, mut files) = (String::new(), Vec::<String>::new());
+        let mut depth = 0usize;
+        for c in w.chars() {
+            match c {
+                '(' => depth += 1,
+                ')' => depth = depth.saturating_sub(1),
+                _ if depth == 0 => text.push(c),
+                _ => {}
+            }
+        }
+        for word in w.split(|c: char| c.is_whitespace() || "();,`'".contains(c)) {
+            let word = word.trim_end_matches(['.', ':']);
+            let named = [".csv", ".json", ".parquet", ".html", ".toml"].iter().any(|e| word.ends_with(e));
+            if named && !files.iter().any(|f| f == word) {
+                files.push(word.to_string());
+            }
+        }
+        let mut text = text.split_whitespace().collect::<Vec<_>>().join(" ").replace(" ;", ";").replace(" :", ":");
+        text = text.trim_end_matches([';', ',', ' ']).to_string();
+        if text.chars().count() > LONGEST {
+            let cut: String = text.chars().take(LONGEST).collect();
+            text = format!("{}...", cut.rsplit_once(' ').map_or(cut.as_str(), |(a, _)| a));
+        }
+        files.retain(|f| !text.contains(f.as_str()));
+        let line = if files.is_empty() { text } else { format!("{text}; {}", files.join(", ")) };
+        // Merge with an earlier line that says the same of another detector.
+        let named = |line: &str| {
+            detectors.iter().find_map(|d| {
+                let at = line.match_indices(d.as_str()).find(|&(i, _)| {
+                    let before = line[..i].chars().next_back().is_none_or(|c| !c.is_alphanumeric() && c != '_');
+                    let after = line[i + d.len()..].chars().next().is_none_or(|c| !c.is_alphanumeric() && c != '_');
+                    before && after
+                })?;
+                Some((format!("{}\u{0}{}", &line[..at.0], &line[at.0 + d.len()..]), d.clone()))
+            })
+        };
+        match named(&line) {
+            Some((key, d)) => match lines.iter_mut().find(|(k, _)| *k == key) {
+                Some((_, names)) => names.push(d),
+                None => lines.push((key, vec![d])),
+            },
+            None => lines.push((line, Vec::new())),
+        }
+    }
+    lines.into_iter().map(|(key, names)| key.replace('\u{0}', &names.join(", "))).collect()
+}
+
+/// The details behind the answer (`--verbose`): the thresholds (kinds with a statistic; the tail
+/// fits' figures), per threshold set and detector the table, a classifier's confusion matrices and
+/// the files written.
+fn print_details(spec: &SummarySpec, s: &Summary) {
     if let Some((thresholds, source)) = &s.thresholds {
         println!("  thresholds: {source}");
         for t in thresholds {
@@ -56,12 +154,17 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
                 rate(hi),
             );
         }
-        if VERBOSE.load(std::sync::atomic::Ordering::Relaxed) {
-            crate::engine::results::tails::print_tails(&s.tails);
-        } else if !s.tails.is_empty() {
-            println!("  rare false alarms: the tail fits are in tail.csv (and printed with --verbose)");
-        }
+        crate::engine::results::tails::print_tails(&s.tails);
     }
+    print_table(spec, s);
+    if spec.isolates == Isolates::Kind {
+        print_confusion(s);
+    }
+    println!("  wrote {} in {}", s.files.join(", "), s.out_dir.display());
+}
+
+/// Per threshold set and detector: Pd, isolation, delay and Pfa with the kind's printed aggregates.
+fn print_table(spec: &SummarySpec, s: &Summary) {
     let t = Table(&s.detectors);
     let (sets, names, units, flights) =
         (t.strs("thresholds"), t.strs(col::DETECTOR), t.u64s("faulty_units"), t.u64s("flights"));
@@ -96,39 +199,34 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
         }
         println!("{line}");
     }
-    if spec.isolates == Isolates::Kind {
-        let c = Table(&s.confusion);
-        let (det, truth, isolated, n) =
-            (c.strs(col::DETECTOR), c.strs("truth"), c.strs(col::ISOLATED), c.u64s("units"));
-        let mut classes: Vec<&str> = truth.iter().map(String::as_str).collect();
-        classes.sort_unstable();
-        classes.dedup();
-        let mut detectors: Vec<&String> = Vec::new();
-        for d in &det {
-            if !detectors.contains(&d) {
-                detectors.push(d);
-            }
-        }
-        for name in detectors {
-            println!("  confusion ({name}): rows the true class, columns the class named: {}", classes.join(" / "));
-            for class in &classes {
-                let row: Vec<String> = classes
-                    .iter()
-                    .map(|p| {
-                        let k = (0..det.len())
-                            .find(|&i| det[i] == **name && truth[i] == *class && isolated[i] == *p)
-                            .map_or(0, |i| n[i]);
-                        format!("{k:>6}")
-                    })
-                    .collect();
-                println!("    {class:<8} {}", row.join(" "));
-            }
+}
+
+/// A classifier's confusion matrices, per detector.
+fn print_confusion(s: &Summary) {
+    let c = Table(&s.confusion);
+    let (det, truth, isolated, n) = (c.strs(col::DETECTOR), c.strs("truth"), c.strs(col::ISOLATED), c.u64s("units"));
+    let mut classes: Vec<&str> = truth.iter().map(String::as_str).collect();
+    classes.sort_unstable();
+    classes.dedup();
+    let mut detectors: Vec<&String> = Vec::new();
+    for d in &det {
+        if !detectors.contains(&d) {
+            detectors.push(d);
         }
     }
-    println!("  wrote {} in {}", s.files.join(", "), s.out_dir.display());
-    super::answer::print(&s.answer);
-    super::safety::print(&s.safety);
-    for w in &s.warnings {
-        println!("  warning: {w}");
+    for name in detectors {
+        println!("  confusion ({name}): rows the true class, columns the class named: {}", classes.join(" / "));
+        for class in &classes {
+            let row: Vec<String> = classes
+                .iter()
+                .map(|p| {
+                    let k = (0..det.len())
+                        .find(|&i| det[i] == **name && truth[i] == *class && isolated[i] == *p)
+                        .map_or(0, |i| n[i]);
+                    format!("{k:>6}")
+                })
+                .collect();
+            println!("    {class:<8} {}", row.join(" "));
+        }
     }
 }
