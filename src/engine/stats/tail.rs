@@ -503,6 +503,57 @@ mod tests {
     /// On exact generalised Pareto excesses the fit recovers the law: 20,000 draws of xi = 0.25,
     /// sigma = 2 by inversion give estimates within 3 standard errors (sd(xi) ~ (1 + xi) / sqrt(k) =
     /// 0.009, sd(sigma) / sigma ~ 0.011), and the profile interval of xi covers 0.25.
+    /// The profile-likelihood optimiser on closed forms: an interior smooth maximum (pi / 3 and, on a
+    /// skewed curve, x e^-x at 1), a kink (-|x - 0.3|) and a maximum at the range's end.
+    #[test]
+    fn maximize_finds_closed_form_maxima() {
+        let (x, v) = maximize(|x| -(x - std::f64::consts::FRAC_PI_3).powi(2), 0.0, 2.0);
+        assert!((x - std::f64::consts::FRAC_PI_3).abs() < 1e-7 && v.abs() < 1e-13, "{x} {v}");
+        let (x, v) = maximize(|x| x * (-x).exp(), 0.0, 5.0);
+        assert!((x - 1.0).abs() < 1e-6 && (v - (-1f64).exp()).abs() < 1e-12, "{x} {v}");
+        let (x, _) = maximize(|x| -(x - 0.3).abs(), 0.0, 1.0);
+        assert!((x - 0.3).abs() < 1e-7, "{x}");
+        let (x, v) = maximize(|x| x, 0.0, 1.0);
+        assert!((x - 1.0).abs() < 1e-7 && (v - 1.0).abs() < 1e-7, "{x} {v}");
+    }
+
+    /// The interval ends' root finder on closed forms, and its step count: x^3 = 2 and e^x = 10 to the
+    /// stated tolerance within 12 evaluations (bisection to 1e-7 of a width of 2 takes 25), and a
+    /// near-step tanh(50 (x - 0.7)), where plain regula falsi stalls at one end, to 0.7.
+    #[test]
+    fn crossing_finds_closed_form_roots_in_few_steps() {
+        let calls = &std::cell::Cell::new(0);
+        let counted = |g: fn(f64) -> f64| {
+            move |x: f64| {
+                calls.set(calls.get() + 1);
+                g(x)
+            }
+        };
+        let cube: fn(f64) -> f64 = |x| x * x * x - 2.0;
+        let x = crossing(counted(cube), (0.0, -2.0), (2.0, 6.0));
+        assert!((x - 2f64.cbrt()).abs() < 3e-7 && calls.get() <= 12, "{x} in {} calls", calls.get());
+        calls.set(0);
+        let exp: fn(f64) -> f64 = |x| x.exp() - 10.0;
+        let x = crossing(counted(exp), (0.0, -9.0), (5.0, 5f64.exp() - 10.0));
+        assert!((x - 10f64.ln()).abs() < 4e-7 && calls.get() <= 12, "{x} in {} calls", calls.get());
+        calls.set(0);
+        let step: fn(f64) -> f64 = |x| (50.0 * (x - 0.7)).tanh();
+        let x = crossing(counted(step), (0.0, step(0.0)), (1.0, step(1.0)));
+        assert!((x - 0.7).abs() < 2e-7 && calls.get() <= 40, "{x} in {} calls", calls.get());
+    }
+
+    /// `bound_at` walks out from the estimate with doubling steps to the cutoff's crossing: a deviance
+    /// x^2 crosses 3.8415 at +-1.95999 (the chi-square 95 % point's root), either way; none before a
+    /// limit that comes first.
+    #[test]
+    fn bound_at_finds_where_a_deviance_crosses_its_cutoff() {
+        let cutoff = 3.841458820694124;
+        let up = bound_at(cutoff, |x| x * x, 0.0, 0.1, 10.0).unwrap();
+        let down = bound_at(cutoff, |x| x * x, 0.0, -0.1, -10.0).unwrap();
+        assert!((up - 1.959963984540054).abs() < 5e-7 && (down + 1.959963984540054).abs() < 5e-7, "{up} {down}");
+        assert_eq!(bound_at(cutoff, |x| x * x, 0.0, 0.1, 1.5), None);
+    }
+
     #[test]
     fn the_fit_recovers_a_known_generalised_pareto_law() {
         let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(7);
