@@ -2442,6 +2442,13 @@ fn thresholds_calibrated_on_one_seed_validate_on_another() {
     let plain = detector_thresholds(&cal_thr);
     let stdout = ok(&fdimc(&["summarize", cal.to_str().unwrap(), "--target-pfa", "0.01", "--confidence", "0.95"]));
     assert!(stdout.contains("calibrated at Pfa 0.01 with 0.95 confidence (order statistic;"), "{stdout}");
+    // The report command the console suggests is the run's (a calibration's folder has no manifest).
+    let next = format!(
+        "  next: `fdimc report {}` for the run's plots and report.html; in {}: ",
+        cal.display(),
+        cal.join("calibrations/pfa_0.01_confidence_0.95").display()
+    );
+    assert!(stdout.contains(&next), "{next:?} not in {stdout}");
     let confident_thr = cal.join("calibrations/pfa_0.01_confidence_0.95/thresholds.csv");
     assert_eq!(detector_thresholds(&cal_thr), plain, "the run's own thresholds stay");
     let confident = detector_thresholds(&confident_thr);

@@ -23,7 +23,7 @@ fn verbose() -> bool {
 
 /// What `run`, `summarize` and `merge` print: one screen that answers ([`super::answer`]: per
 /// detector Pfa, Pd and delay), the warnings a line each with the file that explains them, and what
-/// to look at next. With `--verbose`, first the details behind it ([`print_details`]), then the answer
+/// to look at next. With `--verbose`, first the details behind it (`print_details`), then the answer
 /// with its thresholds and smallest detectable faults, the safety sentences and the warnings whole.
 pub fn print(spec: &SummarySpec, s: &Summary) {
     let verbose = verbose();
@@ -49,15 +49,15 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
     for w in one_line_warnings(&s.warnings, &names) {
         println!("  warning: {w}");
     }
-    let run_dir = match s.out_dir.file_name() {
-        Some(n) if n == super::written::VALIDATION_DIR => s.out_dir.parent().unwrap_or(&s.out_dir),
-        _ => &s.out_dir,
-    };
+    // The report draws a run's folder: the nearest one up with a manifest (a validation's or another
+    // calibration's tables sit in a folder inside it).
+    let run_dir = s.out_dir.ancestors().find(|d| d.join("manifest.json").exists()).unwrap_or(&s.out_dir);
     let safety = if s.safety.height() > 0 { ", safety.csv (the figures to quote, with their assumptions)" } else { "" };
     println!(
-        "  next: `fdimc report {}` for plots and report.html; in {}: summary.csv (per fault kind and size){safety}; \
+        "  next: `fdimc report {}` for {}plots and report.html; in {}: summary.csv (per fault kind and size){safety}; \
          --verbose for the calibration and every table",
         run_dir.display(),
+        if run_dir == s.out_dir { "" } else { "the run's " },
         s.out_dir.display()
     );
 }
