@@ -3886,6 +3886,12 @@ fn the_miss_before_the_hazard_of_a_cusum_meets_brook_and_evans_chain() {
     assert!(lo <= exact && exact <= hi && hi / lo < 3.0, "splitting {p} [{lo}, {hi}] vs the chain's {exact}");
 }
 
+/// P(an alarm within `samples`) of that deck's CUSUM at threshold `h`, from g = 0: Brook and Evans' chain.
+fn fault_free_cusum_alarm(h: f64, samples: usize) -> f64 {
+    let chain = exact_cusum::CusumWindow { drift: 1.0, threshold: h, bias: 0.0, before: 0, window: samples };
+    1.0 - chain.miss(0.04, 0.0)
+}
+
 /// `tests/data/white_residual.toml` as a fault-free CUSUM deck (drift 1, threshold `h`) in `dir`: Page's
 /// CUSUM on |r| with r white N(0, 1), whose alarm probability over any window Brook and Evans' chain
 /// gives exactly (`tests/support/exact_cusum.rs`).
@@ -3908,11 +3914,7 @@ fn fault_free_cusum_deck(dir: &Path, h: f64) -> PathBuf {
 /// segment and per flight hold them.
 #[test]
 fn splitting_over_flights_meets_a_cusums_exact_law() {
-    let alarm = |samples: usize| {
-        let chain = exact_cusum::CusumWindow { drift: 1.0, threshold: 10.0, bias: 0.0, before: 0, window: samples };
-        1.0 - chain.miss(0.04, 0.0)
-    };
-    let (segment, flight) = (alarm(200), alarm(2000));
+    let (segment, flight) = (fault_free_cusum_alarm(10.0, 200), fault_free_cusum_alarm(10.0, 2000));
     let tmp = tempfile::tempdir().unwrap();
     let path = fault_free_cusum_deck(tmp.path(), 10.0);
     let out = tmp.path().join("flights");
@@ -3942,17 +3944,14 @@ fn splitting_over_flights_meets_a_cusums_exact_law() {
 /// not). `rare-event --estimator splitting --flight-s 20` (300 particles by 24 replicas) on seeds 1 to
 /// 40: the index's interval (the delta method, `src/engine/rare_event/flights.rs`) and the segment's
 /// hold their exact values in at least 34 of 40 seeds (33 or fewer at 95 % coverage with probability
-/// 0.003; `FDIMC_COVERAGE_SEEDS` more seeds, the least the same binomial rule allows), and the index's and the flight's estimates average within 1.5 % and 1 % of theirs (4 and
-/// 4.5 standard errors on the 260-seed spread). On 260 seeds the index covered in 254, the segment in
+/// 0.003; `FDIMC_COVERAGE_SEEDS` more seeds, the least the same binomial rule allows), and the index's
+/// and the flight's estimates average within 1.5 % and 1 % of theirs (4 and 4.5 standard errors on the
+/// 260-seed spread). On 260 seeds the index covered in 254, the segment in
 /// 248 and the flight in 244 (93.8 %); seeds 1 to 40 happen to miss the flight 8 times, so its
-/// coverage is the script's (docs/verification.md (d)), not asserted here. About 40 s.
+/// coverage is the script's (docs/verification.md (d)), not asserted here. About 35 s.
 #[test]
 fn the_extremal_index_interval_covers_a_cusums_exact_index_over_seeds() {
-    let alarm = |samples: usize| {
-        let chain = exact_cusum::CusumWindow { drift: 1.0, threshold: 7.0, bias: 0.0, before: 0, window: samples };
-        1.0 - chain.miss(0.04, 0.0)
-    };
-    let (segment, flight) = (alarm(200), alarm(2000));
+    let (segment, flight) = (fault_free_cusum_alarm(7.0, 200), fault_free_cusum_alarm(7.0, 2000));
     let index = (-flight).ln_1p() / (10.0 * (-segment).ln_1p());
     assert!((index - 1.08984).abs() < 2e-4, "the chain's index {index}");
     let tmp = tempfile::tempdir().unwrap();
