@@ -26,8 +26,13 @@ pub fn build_all(root: &Path, out: &Path) -> Result<Vec<PathBuf>, String> {
 fn build(root: &Path, out: &Path, model: &str, xml: &str, name: &str, version: u8) -> Result<PathBuf, String> {
     let src = root.join("fmus");
     let folder = if version == 2 { "linux64" } else { "x86_64-linux" };
-    // Per process: test binaries may build into the same folder at once; the final rename is atomic.
-    let stage = out.join(format!(".{name}.build.{}", std::process::id()));
+    // Per process and per call: test binaries, and tests in one binary's threads, may build into the
+    // same folder at once (two threads sharing a stage removed each other's library); the final rename
+    // is atomic.
+    static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let unique = format!("{}.{call}", std::process::id());
+    let stage = out.join(format!(".{name}.build.{unique}"));
     std::fs::create_dir_all(&stage).map_err(|e| format!("{}: {e}", stage.display()))?;
     let lib = stage.join(format!("{model}.so"));
     let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
@@ -52,7 +57,7 @@ fn build(root: &Path, out: &Path, model: &str, xml: &str, name: &str, version: u
         return Err(format!("{cc} failed to compile fmus/{model} (FMI {version})"));
     }
     let fmu = out.join(format!("{name}.fmu"));
-    let tmp = out.join(format!(".{name}.fmu.tmp.{}", std::process::id()));
+    let tmp = out.join(format!(".{name}.fmu.tmp.{unique}"));
     let mut zip = zip::ZipWriter::new(std::fs::File::create(&tmp).map_err(|e| format!("{}: {e}", tmp.display()))?);
     let options = zip::write::SimpleFileOptions::default();
     let mut add = |path: String, bytes: Vec<u8>| -> Result<(), String> {
