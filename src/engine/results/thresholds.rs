@@ -601,7 +601,7 @@ pub fn thresholds(
                     let name = &manifest.detectors[d];
                     if bound.is_finite() {
                         warnings.push(format!(
-                            "detector {name}: {} calibration trials cannot give Pfa {p} with {c} confidence by the order statistic (needs >= {} fault-free trials): thresholds at the tail fit's {c} upper bound, {bound:.4} x the per-statistic maxima (holds if the generalised Pareto law holds beyond the data; tail.csv)",
+                            "detector {name}: {} calibration trials cannot give Pfa {p} with {c} confidence by the order statistic (needs >= {} fault-free trials): thresholds at the tail fit's {c} upper bound over tail shapes >= 0, {bound:.4} x the per-statistic maxima (holds if the generalised Pareto law holds beyond the data; tail.csv)",
                             n[d],
                             trials_needed(*p, c)
                         ));

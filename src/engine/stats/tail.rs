@@ -128,13 +128,28 @@ impl TailFit {
     }
 
     /// A one-sided upper bound on the `x` with `P(X > x) = p` at `confidence` (the profile deviance's
-    /// cut-off `z_c^2`); infinite when the data allow any heavier tail.
+    /// cut-off `z_c^2`) over shapes `xi >= 0` only; infinite when the data allow any heavier tail.
+    ///
+    /// Why the shape is held at 0 or above: the statistics fdimc calibrates (maxima of Gaussian
+    /// residuals, of chi-square tests) lie in the Gumbel domain, where the excesses over a finite
+    /// threshold look like a slightly negative shape that tends to 0 as the threshold rises; a bound
+    /// that trusts the fitted negative shape extrapolates too light a tail. On the maxima of 200
+    /// `|N(0, 1)|` the free shape's 95 % bound for 1e-3 from 400 values fell below the truth in 7 % to
+    /// 12 % of the sets, this one in 1 of 400 (test
+    /// `the_confident_bound_holds_its_confidence_on_gaussian_maxima`). A fit with `xi >= 0` is
+    /// unchanged at its estimate; the price is a higher threshold where the tail is truly bounded.
     pub fn quantile_upper(&self, p: f64, confidence: f64) -> f64 {
         use statrs::distribution::{ContinuousCDF, Normal};
         let z = Normal::standard().inverse_cdf(confidence);
-        let d = (self.quantile(p) - self.u).max(f64::MIN_POSITIVE);
-        let deviance = |ln_d: f64| 2.0 * (self.loglik - self.profile(ln_d.exp(), p));
-        let ln_d = d.ln();
+        let profile = |ln_d: f64| self.profile_over(ln_d.exp(), p, Some(0.0));
+        let (ln_d, best) = if self.xi >= 0.0 {
+            ((self.quantile(p) - self.u).max(f64::MIN_POSITIVE).ln(), self.loglik)
+        } else {
+            // The best fit with xi >= 0 lies near the exponential's (xi = 0, its scale the mean excess).
+            let ln_exponential = (self.mean_excess() * (self.zeta() / p).ln()).max(f64::MIN_POSITIVE).ln();
+            maximize(profile, ln_exponential - 3.0, ln_exponential + 3.0)
+        };
+        let deviance = |ln_d: f64| 2.0 * (best - profile(ln_d));
         bound_at(z * z, deviance, ln_d, std::f64::consts::LN_2, ln_d + 40.0).map_or(f64::INFINITY, |h| self.u + h.exp())
     }
 
@@ -159,6 +174,11 @@ impl TailFit {
     /// The largest joint log-likelihood among the parameters with `P(X > u + d) = p`: over the shape
     /// and `zeta`, the scale then follows.
     fn profile(&self, d: f64, p: f64) -> f64 {
+        self.profile_over(d, p, None)
+    }
+
+    /// [`Self::profile`] over shapes at or above `xi_floor` where one is given.
+    fn profile_over(&self, d: f64, p: f64, xi_floor: Option<f64>) -> f64 {
         if !(d > 0.0 && p > 0.0) {
             return f64::NEG_INFINITY;
         }
@@ -180,7 +200,11 @@ impl TailFit {
             )
             .1
         };
-        maximize(given_xi, (self.xi - 1.5).max(-0.999), self.xi + 1.5).1
+        let (xi_lo, xi_hi) = match xi_floor {
+            None => ((self.xi - 1.5).max(-0.999), self.xi + 1.5),
+            Some(floor) => ((self.xi - 1.5).max(floor), self.xi.max(floor) + 1.5),
+        };
+        maximize(given_xi, xi_lo, xi_hi).1
     }
 
     /// What the data say against trusting the fit's extrapolation (empty: nothing), given the shape
@@ -706,6 +730,54 @@ mod tests {
         widths.sort_by(f64::total_cmp);
         assert!(widths[19] < 1000.0, "the median interval spans {} (hi / lo): {widths:?}", widths[19]);
         assert!((0.5..2.0).contains(&middle), "middle estimate / truth {middle}: {ratios:?}");
+    }
+
+    /// The confident calibration's bound past Wilks' count (issue 82): the 95 % upper bound on the
+    /// threshold for 1e-3 from 400 values (Wilks needs 2,995), over 200 sets each of two laws whose
+    /// quantile is known. Maxima of 200 `|N(0, 1)|` (the white residual's fault-free statistic;
+    /// `1 - (1 - 2 Q(x))^200 = 1e-3` at x = 4.5647): the bound falls below the truth in at most 4 of 200
+    /// (2 %: the Gumbel domain's negative-looking shape is not trusted; the free shape's bound fell below
+    /// in 7 % to 12 %, 14 to 24 of 200). Exponential values (x = ln 1000), the shape 0 the truth: at most
+    /// 10 of 200 (5 %; on the boundary of the shapes allowed the bound is conservative too). Its
+    /// price: the true probability beyond the median set's bound is about 0.5 % (Gaussian) and 2 %
+    /// (exponential) of the target, asserted within [0.2 %, 10 %].
+    #[test]
+    fn the_confident_bound_holds_its_confidence_on_gaussian_maxima() {
+        use statrs::distribution::{ContinuousCDF, Normal};
+        let (n, k, p) = (400u64, 40usize, 1e-3f64);
+        let per_sample = -((1.0 - p).ln() / 200.0).exp_m1();
+        let x_gauss = Normal::standard().inverse_cdf(1.0 - per_sample / 2.0);
+        assert!((x_gauss - 4.5647).abs() < 1e-3, "{x_gauss}");
+        let (mut gauss_below, mut exp_below) = (0, 0);
+        // What the bound costs: the true probability beyond it over the target, per set.
+        let (mut gauss_cost, mut exp_cost) = (Vec::new(), Vec::new());
+        for seed in 0..200 {
+            let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(5000 + seed);
+            let maxima: Vec<f64> = (0..n)
+                .map(|_| (0..200).map(|_| f64::abs(StandardNormal.sample(&mut rng))).fold(0.0, f64::max))
+                .collect();
+            let bound = TailFit::fit(&maxima, n, k).unwrap().quantile_upper(p, 0.95);
+            gauss_below += (bound < x_gauss) as u32;
+            let sf = crate::engine::stats::intervals::normal_sf(bound);
+            gauss_cost.push(-(200.0 * (-2.0 * sf).ln_1p()).exp_m1() / p);
+            let bound = TailFit::fit(&exponential(n as usize, 9000 + seed), n, k).unwrap().quantile_upper(p, 0.95);
+            exp_below += (bound < 1000f64.ln()) as u32;
+            exp_cost.push((-bound).exp() / p);
+        }
+        gauss_cost.sort_by(f64::total_cmp);
+        exp_cost.sort_by(f64::total_cmp);
+        println!(
+            "of 200 sets the bound fell below the truth: Gaussian maxima {gauss_below}, exponential {exp_below}; \
+             the law's probability beyond it over the target, median and 90 %: Gaussian {:.3} {:.3}, exponential {:.3} {:.3}",
+            gauss_cost[100], gauss_cost[180], exp_cost[100], exp_cost[180]
+        );
+        assert!(gauss_below <= 4, "Gaussian maxima: below the truth in {gauss_below} of 200");
+        assert!(exp_below <= 10, "exponential: below the truth in {exp_below} of 200");
+        // The price, stated in the docs (statistics.md): the median set's threshold lets through 0.5 %
+        // (Gaussian) and 2 % (exponential) of the target; a bound far above would be useless.
+        for (law, cost) in [("Gaussian", &gauss_cost), ("exponential", &exp_cost)] {
+            assert!((0.002..0.1).contains(&cost[100]), "{law}: median probability over target {}", cost[100]);
+        }
     }
 
     /// A bounded tail (uniform values on (0, 1], xi = -1 in the limit) puts the probability beyond its
