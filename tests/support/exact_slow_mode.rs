@@ -1,0 +1,134 @@
+//! The exact miss before the hazard of a residual whose filter leaves a slow mode (issue 82, item 1),
+//! for checking fdimc's figure where the residual itself has memory. Written for the tests and sharing
+//! nothing with fdimc's code (statrs' `erfc` only).
+//!
+//! The residual is `r(k) = e(k) + v(k)`, plus the bias `b` from the onset sample `k0`, `v` white
+//! N(0, `sensor_sigma^2`), and `e` the state error of a gain-0 filter on a one-state plant with process
+//! noise: `e(k+1) = phi e(k) + w(k)`, `w ~ N(0, q)`, from `e(0) = 0`. Given `e`'s path the samples
+//! alarm independently, so the fault is missed through the window with probability `E[prod g(e(k))]`,
+//! `g(e) = Phi((c - b - e) / s) - Phi((-c - b - e) / s)`. `e(k0)` is N(0, `q (1 - phi^(2 k0)) / (1 -
+//! phi^2)`); its density is carried through the window on a grid by the Gaussian kernel (trapezoid rule
+//! over nine stationary standard deviations, where the kernel's own spread is many grid steps, so the
+//! rule converges faster than any power of the step). Checked against its one-sample closed form, its
+//! own convergence and `scripts/reference/slow_mode_miss_numpy.py` by its own test.
+#![allow(dead_code)]
+
+fn phi(x: f64) -> f64 {
+    0.5 * statrs::function::erf::erfc(-x / std::f64::consts::SQRT_2)
+}
+
+fn normal_pdf(x: f64, mean: f64, sd: f64) -> f64 {
+    let z = (x - mean) / sd;
+    (-0.5 * z * z).exp() / (sd * (2.0 * std::f64::consts::PI).sqrt())
+}
+
+/// A bias fault's window on a residual with one slow mode.
+pub struct SlowModeWindow {
+    /// `e`'s factor per step, `exp(lambda dt)`.
+    pub phi: f64,
+    /// Process noise variance per step.
+    pub q: f64,
+    pub sensor_sigma: f64,
+    pub threshold: f64,
+    /// The onset sample (the samples before it are fault-free; alarms there do not matter).
+    pub onset: usize,
+    pub window: usize,
+}
+
+impl SlowModeWindow {
+    /// `e(onset)`'s variance.
+    pub fn onset_variance(&self) -> f64 {
+        self.q * (1.0 - self.phi.powi(2 * self.onset as i32)) / (1.0 - self.phi * self.phi)
+    }
+
+    /// The miss for bias `b` on a grid of `points` points.
+    pub fn miss(&self, bias: f64, points: usize) -> f64 {
+        self.miss_sizes(&[bias], points)[0]
+    }
+
+    /// The miss for each bias of `biases`, on one grid (its kernel built once).
+    pub fn miss_sizes(&self, biases: &[f64], points: usize) -> Vec<f64> {
+        let spread = 9.0 * (self.q / (1.0 - self.phi * self.phi)).sqrt();
+        let dx = 2.0 * spread / (points - 1) as f64;
+        let x: Vec<f64> = (0..points).map(|i| -spread + dx * i as f64).collect();
+        let step_sd = self.q.sqrt();
+        // kernel[i * points + j]: from x_i to x_j, times the trapezoid's weight of x_j (the ends' halves
+        // are below 1e-17 of the density there and left out).
+        let kernel: Vec<f64> =
+            x.iter().flat_map(|&from| x.iter().map(move |&to| normal_pdf(to, self.phi * from, step_sd) * dx)).collect();
+        let onset_sd = self.onset_variance().sqrt();
+        biases
+            .iter()
+            .map(|&b| {
+                let s = self.sensor_sigma;
+                let g: Vec<f64> =
+                    x.iter().map(|&e| phi((self.threshold - b - e) / s) - phi((-self.threshold - b - e) / s)).collect();
+                let mut density: Vec<f64> = x.iter().map(|&e| normal_pdf(e, 0.0, onset_sd)).collect();
+                for k in 0..self.window {
+                    let kept: Vec<f64> = density.iter().zip(&g).map(|(f, g)| f * g).collect();
+                    if k + 1 == self.window {
+                        return kept.iter().sum::<f64>() * dx;
+                    }
+                    density = vec![0.0; points];
+                    for (i, &mass) in kept.iter().enumerate() {
+                        let row = &kernel[i * points..(i + 1) * points];
+                        density.iter_mut().zip(row).for_each(|(d, k)| *d += mass * k);
+                    }
+                }
+                unreachable!("a window of at least one sample")
+            })
+            .collect()
+    }
+
+    /// The miss with the bias uniform on `[lo, hi]` (Simpson's rule on 41 points).
+    pub fn miss_uniform(&self, lo: f64, hi: f64, points: usize) -> f64 {
+        let h = (hi - lo) / 40.0;
+        let biases: Vec<f64> = (0..=40).map(|i| lo + h * i as f64).collect();
+        let misses = self.miss_sizes(&biases, points);
+        let weighted: f64 = misses
+            .iter()
+            .enumerate()
+            .map(|(i, m)| {
+                m * if i == 0 || i == 40 {
+                    1.0
+                } else if i % 2 == 1 {
+                    4.0
+                } else {
+                    2.0
+                }
+            })
+            .sum();
+        weighted * h / 3.0 / (hi - lo)
+    }
+}
+
+/// The deck of the slow-mode miss test: `exp(-0.01)` per 0.01 s step, `q = 0.141067^2`, unit sensor
+/// noise, threshold 4, onset at sample 100, a window of 20 samples.
+pub fn slow_mode_window() -> SlowModeWindow {
+    SlowModeWindow {
+        phi: (-0.01f64).exp(),
+        q: 0.141067 * 0.141067,
+        sensor_sigma: 1.0,
+        threshold: 4.0,
+        onset: 100,
+        window: 20,
+    }
+}
+
+/// The grid against a case it must get exactly (one sample: `e + v` is N(0, 1 + P), so the miss is
+/// `Phi((c - b) / sd) - Phi((-c - b) / sd)`), against itself on a finer grid, and against the reference
+/// script's NumPy (`scripts/reference/slow_mode_miss_numpy.py`: 0.531727682059 at b = 2, 0.526233355692
+/// with b uniform on [1, 3]); and the memory matters: each sample alone would give 0.2197543974.
+#[test]
+fn the_slow_mode_window_meets_its_closed_form_and_numpy() {
+    let one = SlowModeWindow { window: 1, ..slow_mode_window() };
+    let sd = (1.0 + one.onset_variance()).sqrt();
+    let closed = phi((4.0 - 2.0) / sd) - phi((-4.0 - 2.0) / sd);
+    assert!((one.miss(2.0, 801) - closed).abs() < 1e-11, "{} {closed}", one.miss(2.0, 801));
+    let window = slow_mode_window();
+    let (coarse, fine) = (window.miss(2.0, 401), window.miss(2.0, 801));
+    assert!((coarse - fine).abs() < 1e-11, "{coarse} {fine}");
+    assert!((fine - 0.531727682059).abs() < 1e-10, "{fine}");
+    let uniform = window.miss_uniform(1.0, 3.0, 401);
+    assert!((uniform - 0.526233355692).abs() < 1e-10, "{uniform}");
+}
