@@ -217,7 +217,11 @@ fn a_replay_run_records_its_calibration_and_warns_of_a_transient() {
     assert_eq!(manifest["models"][0]["sha256"], sha.as_str(), "{manifest}");
     assert_eq!(manifest["models"][0]["file"], log.display().to_string().as_str());
 
+    // The console's warning is one line, its parenthesised figures in report.html and behind --verbose.
     let report = ok(&fdimc(&["report", dir.to_str().unwrap()]));
+    let short = "warning: the threshold was calibrated on a training part whose largest T is 1.04 times the evaluated part's, more than";
+    assert!(report.contains(short) && !report.contains(&format!("warning: {warning}")), "{report}");
+    let report = ok(&fdimc(&["report", dir.to_str().unwrap(), "--verbose"]));
     assert!(report.contains(&format!("warning: {warning}")), "{report}");
     let page = std::fs::read_to_string(dir.join("report/report.html")).unwrap();
     for want in [

@@ -29,7 +29,7 @@ closed-loop eigenvalues, and `fdimc simulate DECK --trial 0 --out trace.csv` for
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
-    /// run, summarize, merge: print the details behind the answer too (the calibration, the tail fits,
+    /// run, summarize, merge, report: print the details behind the answer too (the calibration, the tail fits,
     /// the per-detector table, the safety sentences, every warning whole); otherwise the answer, a line
     /// per warning naming the file that explains it, and what to look at next.
     #[arg(long, global = true)]

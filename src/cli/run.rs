@@ -515,9 +515,10 @@ impl Kinds {
     }
 
     pub fn exec_report(&self, dir: &Path, trials: &[u64]) -> Result<(), CliError> {
-        let (method, _) = self.method_of_run(dir)?;
+        let (method, manifest) = self.method_of_run(dir)?;
         let report = method.write_report(dir, trials)?;
-        for w in &report.warnings {
+        // One line each (report.html has them whole, and `--verbose` prints them so).
+        for w in crate::engine::results::summary::console_warnings(&report.warnings, &manifest.detectors) {
             println!("warning: {w}");
         }
         if let Some(page) = report.files.last() {

@@ -35,7 +35,31 @@ pub struct SlowModeWindow {
     pub window: usize,
 }
 
+/// The density one step on: `kept` (the density times the no-alarm weight) through the kernel.
+fn carried(kept: &[f64], kernel: &[f64]) -> Vec<f64> {
+    let points = kept.len();
+    let mut density = vec![0.0; points];
+    for (i, &mass) in kept.iter().enumerate() {
+        let row = &kernel[i * points..(i + 1) * points];
+        density.iter_mut().zip(row).for_each(|(d, k)| *d += mass * k);
+    }
+    density
+}
+
 impl SlowModeWindow {
+    /// The grid over nine stationary standard deviations of `e`, its step, and the kernel:
+    /// `kernel[i * points + j]` from `x_i` to `x_j` times the trapezoid's weight of `x_j` (the ends'
+    /// halves are below 1e-17 of the density there and left out).
+    fn grid(&self, points: usize) -> (Vec<f64>, f64, Vec<f64>) {
+        let spread = 9.0 * (self.q / (1.0 - self.phi * self.phi)).sqrt();
+        let dx = 2.0 * spread / (points - 1) as f64;
+        let x: Vec<f64> = (0..points).map(|i| -spread + dx * i as f64).collect();
+        let step_sd = self.q.sqrt();
+        let kernel: Vec<f64> =
+            x.iter().flat_map(|&from| x.iter().map(move |&to| normal_pdf(to, self.phi * from, step_sd) * dx)).collect();
+        (x, dx, kernel)
+    }
+
     /// `e(onset)`'s variance.
     pub fn onset_variance(&self) -> f64 {
         self.q * (1.0 - self.phi.powi(2 * self.onset as i32)) / (1.0 - self.phi * self.phi)
@@ -48,14 +72,7 @@ impl SlowModeWindow {
 
     /// The miss for each bias of `biases`, on one grid (its kernel built once).
     pub fn miss_sizes(&self, biases: &[f64], points: usize) -> Vec<f64> {
-        let spread = 9.0 * (self.q / (1.0 - self.phi * self.phi)).sqrt();
-        let dx = 2.0 * spread / (points - 1) as f64;
-        let x: Vec<f64> = (0..points).map(|i| -spread + dx * i as f64).collect();
-        let step_sd = self.q.sqrt();
-        // kernel[i * points + j]: from x_i to x_j, times the trapezoid's weight of x_j (the ends' halves
-        // are below 1e-17 of the density there and left out).
-        let kernel: Vec<f64> =
-            x.iter().flat_map(|&from| x.iter().map(move |&to| normal_pdf(to, self.phi * from, step_sd) * dx)).collect();
+        let (x, dx, kernel) = self.grid(points);
         let onset_sd = self.onset_variance().sqrt();
         biases
             .iter()
@@ -69,15 +86,32 @@ impl SlowModeWindow {
                     if k + 1 == self.window {
                         return kept.iter().sum::<f64>() * dx;
                     }
-                    density = vec![0.0; points];
-                    for (i, &mass) in kept.iter().enumerate() {
-                        let row = &kernel[i * points..(i + 1) * points];
-                        density.iter_mut().zip(row).for_each(|(d, k)| *d += mass * k);
-                    }
+                    density = carried(&kept, &kernel);
                 }
                 unreachable!("a window of at least one sample")
             })
             .collect()
+    }
+
+    /// The fault-free residual's probability of an alarm in its first `samples` samples from `e(0) = 0`
+    /// (the onset, window and bias not used): the first sample alarms by `|v| > c` alone, `e(1)` is
+    /// N(0, q), and the density is carried on as in [`Self::miss_sizes`].
+    pub fn fault_free_alarm(&self, samples: usize, points: usize) -> f64 {
+        let (x, dx, kernel) = self.grid(points);
+        let (s, c, step_sd) = (self.sensor_sigma, self.threshold, self.q.sqrt());
+        // From the two tails: Phi(c - e) - Phi(-c - e) loses the tail's digits (1e-9 a sample here).
+        let tail = |z: f64| 0.5 * statrs::function::erf::erfc(z / std::f64::consts::SQRT_2);
+        let g: Vec<f64> = x.iter().map(|&e| 1.0 - (tail((c - e) / s) + tail((c + e) / s))).collect();
+        let first = 1.0 - 2.0 * tail(c / s);
+        let mut density: Vec<f64> = x.iter().map(|&e| first * normal_pdf(e, 0.0, step_sd)).collect();
+        for k in 1..samples {
+            let kept: Vec<f64> = density.iter().zip(&g).map(|(f, g)| f * g).collect();
+            if k + 1 == samples {
+                return 1.0 - kept.iter().sum::<f64>() * dx;
+            }
+            density = carried(&kept, &kernel);
+        }
+        1.0 - first
     }
 
     /// The miss with the bias uniform on `[lo, hi]` (Simpson's rule on 41 points).
@@ -118,7 +152,8 @@ pub fn slow_mode_window() -> SlowModeWindow {
 /// The grid against a case it must get exactly (one sample: `e + v` is N(0, 1 + P), so the miss is
 /// `Phi((c - b) / sd) - Phi((-c - b) / sd)`), against itself on a finer grid, and against the reference
 /// script's NumPy (`scripts/reference/slow_mode_miss_numpy.py`: 0.531727682059 at b = 2, 0.526233355692
-/// with b uniform on [1, 3]); and the memory matters: each sample alone would give 0.2197543974.
+/// with b uniform on [1, 3]; at threshold 6 fault-free, 1.908491715462e-3 in 200 samples and
+/// 3.615708392244e-2 in 2,000); and the memory matters: each sample alone would give 0.2197543974.
 #[test]
 fn the_slow_mode_window_meets_its_closed_form_and_numpy() {
     let one = SlowModeWindow { window: 1, ..slow_mode_window() };
@@ -131,4 +166,11 @@ fn the_slow_mode_window_meets_its_closed_form_and_numpy() {
     assert!((fine - 0.531727682059).abs() < 1e-10, "{fine}");
     let uniform = window.miss_uniform(1.0, 3.0, 401);
     assert!((uniform - 0.526233355692).abs() < 1e-10, "{uniform}");
+    let fault_free = SlowModeWindow { threshold: 6.0, ..slow_mode_window() };
+    let (segment, flight) = (fault_free.fault_free_alarm(200, 801), fault_free.fault_free_alarm(2000, 801));
+    // To 1e-8 of the alarm (the two grids part by 7e-12 of P(no alarm), 4e-9 of the trial's alarm).
+    assert!((segment / 1.908491715462e-3 - 1.0).abs() < 1e-8, "{segment}");
+    assert!((flight / 3.615708392244e-2 - 1.0).abs() < 1e-8, "{flight}");
+    // One sample: exactly |v| > c.
+    assert!((fault_free.fault_free_alarm(1, 801) / (2.0 * phi(-6.0)) - 1.0).abs() < 1e-7);
 }

@@ -39,7 +39,7 @@ mod tables;
 mod written;
 
 pub use precision::{PRECISION_RATES, PrecisionMonitor, PrecisionStatus};
-pub use print::{print, set_verbose};
+pub use print::{console_warnings, print, set_verbose};
 pub use written::{CALIBRATED, CALIBRATIONS_DIR, SETTINGS_FILE, Settings, Summary, VALIDATION, VALIDATION_DIR};
 
 use std::collections::HashMap;

@@ -62,6 +62,12 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
     );
 }
 
+/// Warnings as the console shows them: one line each (see [`one_line_warnings`]), or whole with
+/// `--verbose`. `report` prints its warnings (the summary's among them) this way too.
+pub fn console_warnings(warnings: &[String], detectors: &[String]) -> Vec<String> {
+    if verbose() { warnings.to_vec() } else { one_line_warnings(warnings, detectors) }
+}
+
 /// The warnings for the console, one line each: parenthesised details dropped (the full text is in
 /// summarize.json and `--verbose`), the files they named kept at the end, and warnings that differ
 /// only in the detector named merged into one line naming them all.
@@ -86,7 +92,13 @@ fn one_line_warnings(warnings: &[String], detectors: &[String]) -> Vec<String> {
                 files.push(word.to_string());
             }
         }
-        let mut text = text.split_whitespace().collect::<Vec<_>>().join(" ").replace(" ;", ";").replace(" :", ":");
+        let mut text = text
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ")
+            .replace(" ;", ";")
+            .replace(" :", ":")
+            .replace(" ,", ",");
         text = text.trim_end_matches([';', ',', ' ']).to_string();
         if text.chars().count() > LONGEST {
             let cut: String = text.chars().take(LONGEST).collect();
@@ -228,5 +240,31 @@ fn print_confusion(s: &Summary) {
                 .collect();
             println!("    {class:<8} {}", row.join(" "));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::one_line_warnings;
+
+    /// The console's one-line form: parenthesised details dropped without leaving a space before the
+    /// punctuation that followed them, the files they named kept at the end, and warnings that differ
+    /// only in the detector merged into one line naming both (in the order first seen).
+    #[test]
+    fn one_line_warnings_drop_details_keep_files_and_merge_detectors() {
+        let detectors = ["fast".to_string(), "slow".to_string()];
+        let warnings = [
+            "the largest T is 1.04 times the evaluated part's (394.8 at 9.59 s), more than 1.01".to_string(),
+            "detector fast: the tail fit doubts its shape (see tail_diagnostics.csv)".to_string(),
+            "detector slow: the tail fit doubts its shape (see tail_diagnostics.csv)".to_string(),
+        ];
+        let lines = one_line_warnings(&warnings, &detectors);
+        assert_eq!(
+            lines,
+            [
+                "the largest T is 1.04 times the evaluated part's, more than 1.01",
+                "detector fast, slow: the tail fit doubts its shape; tail_diagnostics.csv",
+            ]
+        );
     }
 }
