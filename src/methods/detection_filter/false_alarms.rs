@@ -808,9 +808,6 @@ mod tests {
         assert_eq!(both_exceed(a, b, -rho), p, "|X| and |Y| do not see the sign");
     }
 
-    /// A white residual (Kd = 0, no process noise: gamma = v): the samples are independent, the
-    /// probability of an alarm in N = 300 samples (every one in de Caen's family) is exactly
-    /// 1 - (1 - p)^N, Sidak's bound is it, and the lower bound is within 1 % of it.
     /// The settled pairs integrated once per lag give the bits a fresh integration of each gives: two
     /// coupled modes (poles 0.9 and 0.8) seen by two outputs, 600 samples of which the last 300 are
     /// settled to the bit, every bound and the conditional estimate equal with and without the reuse.
@@ -876,6 +873,9 @@ mod tests {
         assert!(f.conditional_hi - f.conditional_lo < 0.07 * p, "{f:?}");
     }
 
+    /// A white residual (Kd = 0, no process noise: gamma = v): the samples are independent, the
+    /// probability of an alarm in N = 300 samples (every one in de Caen's family) is exactly
+    /// 1 - (1 - p)^N, Sidak's bound is it, and the lower bound is within 1 % of it.
     #[test]
     fn a_white_residual_is_bracketed_by_its_exact_answer() {
         let n = 2;

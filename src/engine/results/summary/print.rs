@@ -62,8 +62,9 @@ pub fn print(spec: &SummarySpec, s: &Summary) {
     );
 }
 
-/// Warnings as the console shows them: one line each (parenthesised details dropped, the files named kept, detectors merged), or whole with
-/// `--verbose`. `report` prints its warnings (the summary's among them) this way too.
+/// Warnings as the console shows them: one line each (parenthesised details dropped, the files named
+/// kept, detectors merged), or whole with `--verbose`. `report` prints its warnings (the summary's
+/// among them) this way too.
 pub fn console_warnings(warnings: &[String], detectors: &[String]) -> Vec<String> {
     if verbose() { warnings.to_vec() } else { one_line_warnings(warnings, detectors) }
 }
