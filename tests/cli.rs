@@ -4111,9 +4111,8 @@ fn splitting_over_20_s_flights(deck: &Path, seed: u64, out: &Path) -> polars::pr
 ///   below with probability 0.004; 40 and 37 of 40 seen). Its own index needs the segment within
 ///   +-25 %, which a trial's 1.9e-3 from e = 0 often misses at this size (an answer on 11 of 40 seeds;
 ///   where it answers its index held the exact one on all 11); printed, not asserted;
-/// - the conditional estimate's intervals of the index, the flight and the segment hold the exact
-///   values, and its index is within 2 % of the exact one (1.0047 of it). Its draws are the fixed
-///   `CONDITIONAL_SEED`'s whatever `--seed` says, so it is checked once, not for coverage over seeds.
+/// - the conditional estimate on the exact law: its intervals of the index, the flight and the segment
+///   each hold the exact value on at least as many seeds (its draws follow `--seed`).
 #[test]
 fn the_extremal_index_intervals_cover_a_slow_mode_residuals_exact_index_over_seeds() {
     let law = exact_slow_mode::SlowModeWindow { threshold: 6.0, ..exact_slow_mode::slow_mode_window() };
@@ -4130,34 +4129,114 @@ fn the_extremal_index_intervals_cover_a_slow_mode_residuals_exact_index_over_see
         let f = |name: &str| t.column(name).unwrap().f64().unwrap().get(0).unwrap();
         f(&format!("{name}_lo")) <= exact && exact <= f(&format!("{name}_hi"))
     };
-    let (mut covered, mut answered, mut index_covered) = ([0u64; 2], 0, 0);
+    // The splitting's flight and segment, then the conditional estimate's index, flight and segment.
+    let figures = [
+        ("pfa_per_flight", flight),
+        ("pfa_per_segment", segment),
+        ("extremal_index_conditional", index),
+        ("conditional_per_flight", flight),
+        ("conditional_per_segment", segment),
+    ];
+    let (mut covered, mut answered, mut index_covered) = ([0u64; 5], 0, 0);
     for seed in 1..=seeds {
         let t = splitting_over_20_s_flights(&path, seed, &tmp.path().join(format!("seed{seed}")));
-        covered[0] += holds(&t, "pfa_per_flight", flight) as u64;
-        covered[1] += holds(&t, "pfa_per_segment", segment) as u64;
+        for (c, (name, exact)) in covered.iter_mut().zip(figures) {
+            *c += holds(&t, name, exact) as u64;
+        }
         if t.column("answer").unwrap().bool().unwrap().get(0) == Some(true) {
             answered += 1;
             index_covered += holds(&t, "extremal_index", index) as u64;
         }
-        if seed == 1 {
-            for (name, exact) in [
-                ("extremal_index_conditional", index),
-                ("conditional_per_flight", flight),
-                ("conditional_per_segment", segment),
-            ] {
-                assert!(holds(&t, name, exact), "{name}: the exact {exact} outside {t}");
-            }
-            let conditional = t.column("extremal_index_conditional").unwrap().f64().unwrap().get(0).unwrap();
-            assert!((conditional / index - 1.0).abs() < 0.02, "the conditional index {conditional}, exact {index}");
-        }
     }
     println!(
-        "of {seeds} seeds, the splitting's interval held the flight's exact value on {}, the segment's on {}; \
-         it answered on {answered}, its index covered on {index_covered}",
-        covered[0], covered[1]
+        "of {seeds} seeds, held the exact value ({}): {covered:?}; the splitting answered on {answered}, its \
+         index covered on {index_covered}",
+        figures.map(|f| f.0).join(", ")
     );
     assert!(seeds > 8 || least == 5, "{least}");
     assert!(covered.iter().all(|&c| c >= least), "covered {covered:?} of {seeds}, at least {least} asked");
+}
+
+/// The tail fit's per-hour row where the trials do not convert to hours (issue 82, item 1): the
+/// slow-mode deck (`slow_mode_deck`, a 1 s mode in 2 s trials) fault-free, 20,000 trials a seed,
+/// evaluated at threshold 8 (`summarize --thresholds`). The exact law (`tests/support/exact_slow_mode.rs`,
+/// checked against NumPy): a trial alarms with probability 1.1141e-6, the hour's 1,800 trials taken as
+/// independent (the row's own definition) 2.0034e-3, an hour flown through 5.7084e-3: an index of
+/// 2.8547. Per seed:
+/// - `safety.csv`'s tail-fit row at those thresholds: its 95 % interval holds 2.0034e-3, or its
+///   statement carries the fit's doubts. The fit extrapolates 200 times past 1/trials here and its
+///   intervals are not 95 % ones: 16 of 20 seeds held the value, the 4 misses all below it (thresholds'
+///   figures too low), each with "the data cannot pin the tail there" in its statement;
+/// - its role is "a lower bound" naming the index of fdimc's own conversion check (`hour_conversion`:
+///   Sidak's bound over the hour and over a trial), 2.867, within [1, 1.01] of the exact index;
+/// - `tail.csv`'s thresholds for 1e-5, 1e-7 and 1e-9 per hour (7.3 to 12.2 over seeds): their
+///   `hour_over_conversion` within [0.999, 1.03] of the exact index at each (Sidak's ratio is a little
+///   high where alarms cluster most: 1.8 % at threshold 7), and where the exact law puts a trial's Pfa
+///   above twice the fit's target, `trust` says the fit may be far too low.
+#[test]
+fn the_tail_fits_per_hour_row_meets_an_hour_flown_through_on_a_slow_mode() {
+    let (trials_per_hour, trial_samples, hour_samples) = (1800.0, 200, 360_000);
+    // A trial's alarm probability and the index of an hour flown through over its conversion, exact.
+    let exact = |threshold: f64, points: usize| -> (f64, f64) {
+        let law = exact_slow_mode::SlowModeWindow { threshold, ..exact_slow_mode::slow_mode_window() };
+        let (trial, hour) =
+            (law.fault_free_log_no_alarm(trial_samples, points), law.fault_free_log_no_alarm(hour_samples, points));
+        (-trial.exp_m1(), hour / (trials_per_hour * trial))
+    };
+    let (trial, index) = exact(8.0, 801);
+    let conversion = -(trials_per_hour * (-trial).ln_1p()).exp_m1();
+    assert!((conversion / 2.003367982961e-3 - 1.0).abs() < 1e-9 && (index / 2.8547150868 - 1.0).abs() < 1e-9);
+    let tmp = tempfile::tempdir().unwrap();
+    let deck = tmp.path().join("slow.toml");
+    let text = slow_mode_deck(8.0, "1.0", "1.0").replace("trials = 4000", "trials = 20000");
+    std::fs::write(&deck, text.replace("target_pfa = 0.05\n", "")).unwrap();
+    let at_8 = tmp.path().join("thresholds_8.csv");
+    std::fs::write(&at_8, "detector,statistic,per_statistic_threshold,detector_threshold\nwhite,y,8.0,8.0\n").unwrap();
+    let seeds: u64 =
+        std::env::var("FDIMC_COVERAGE_SEEDS").ok().and_then(|s| s.parse().ok()).map_or(8, |n: u64| n.max(8));
+    let mut covered = 0;
+    for seed in 1..=seeds {
+        let out = tmp.path().join(format!("seed{seed}"));
+        let (out_s, seed_s) = (out.to_str().unwrap(), seed.to_string());
+        ok(&fdimc(&["run", deck.to_str().unwrap(), "--seed", &seed_s, "--quiet", "--out", out_s]));
+        ok(&fdimc(&["summarize", out_s, "--thresholds", at_8.to_str().unwrap()]));
+        let safety = csv_frame(&out.join("validation/safety.csv"));
+        let column = |name: &str| safety.column(name).unwrap().clone();
+        let words = |name: &str, i: usize| column(name).str().unwrap().get(i).unwrap().to_string();
+        let row = (0..safety.height())
+            .find(|&i| words("method", i).contains("generalised Pareto"))
+            .expect("the tail fit's row");
+        let value = |name: &str| column(name).f64().unwrap().get(row).unwrap();
+        let (statement, role) = (words("statement", row), words("role", row));
+        if value("value_lo") <= conversion && conversion <= value("value_hi") {
+            covered += 1;
+        } else {
+            assert!(statement.contains("the fit's doubts: "), "seed {seed}: a miss said nothing: {statement}");
+        }
+        let named: f64 =
+            role.split("extremal index ").nth(1).and_then(|r| r.split(' ').next()).unwrap().parse().unwrap();
+        assert!(role.starts_with("a lower bound") && (1.0..1.01).contains(&(named / index)), "{role}");
+        let tail = csv_frame(&out.join("validation/tail.csv"));
+        let strs = |name: &str| tail.column(name).unwrap().str().unwrap().clone();
+        let f64s = |name: &str| tail.column(name).unwrap().f64().unwrap().clone();
+        let mut targets = 0;
+        for i in 0..tail.height() {
+            if strs("query").get(i) != Some("threshold_for_pfa") {
+                continue;
+            }
+            targets += 1;
+            let threshold = f64s("threshold").get(i).unwrap();
+            let (at_trial, at_index) = exact(threshold, 401);
+            let ratio = f64s("hour_over_conversion").get(i).unwrap() / at_index;
+            assert!((0.999..1.03).contains(&ratio), "seed {seed}, threshold {threshold}: {ratio} of the exact index");
+            if at_trial > 2.0 * f64s("pfa").get(i).unwrap() {
+                let trust = strs("trust").get(i).unwrap().to_string();
+                assert!(trust.contains("the residual's exact law puts"), "seed {seed}, {threshold}: {trust}");
+            }
+        }
+        assert_eq!(targets, 3, "{tail}");
+    }
+    println!("the tail fit's per-hour interval held the exact {conversion:.4e} on {covered} of {seeds} seeds");
 }
 
 #[test]

@@ -15,7 +15,10 @@ marginal alone: what the memory changes), the uniform average over [1, 3], and t
 form the grid must meet. Then the fault-free residual at threshold 6 from e(0) = 0: the probability of
 an alarm in a 2 s trial (200 samples) and in a 20 s flight (2,000), and the extremal index, -ln P(no
 alarm in the flight) over ten trials' (for
-`the_extremal_index_intervals_cover_a_slow_mode_residuals_exact_index_over_seeds`). Run:
+`the_extremal_index_intervals_cover_a_slow_mode_residuals_exact_index_over_seeds`). Last, at threshold 8,
+a trial and an hour flown through (360,000 samples): once a sample's hazard settles (changes by under
+1e-11 of itself: the kernel's leading eigenvalue) the samples left each take it; the hour's trials'
+conversion and the index (for `the_tail_fits_per_hour_row_meets_an_hour_flown_through_on_a_slow_mode`). Run:
   python3 scripts/reference/slow_mode_miss_numpy.py
 """
 import numpy as np
@@ -59,22 +62,39 @@ s = np.sqrt(1 + onset_variance())
 print(f"one sample, b = 2: {miss(2.0, window=1):.12f} on the grid, {norm.cdf((C - 2) / s) - norm.cdf((-C - 2) / s):.12f} closed")
 
 
-def fault_free_alarm(c, samples, n=801):
+def fault_free_log_no_alarm(c, samples, n=801):
     spread = 9 * np.sqrt(Q / (1 - PHI**2))
     x = np.linspace(-spread, spread, n)
     dx = x[1] - x[0]
-    # From the two tails: Phi(c - e) - Phi(-c - e) loses the tail's digits (the alarms are 1e-9 a sample).
-    g = 1 - (norm.sf(c - x) + norm.sf(c + x))
+    # The alarm from the two tails: 1 - (Phi(c - e) - Phi(-c - e)) loses the tail's digits (1e-9 a sample),
+    # and the hazards are summed as log1p(-h): the log of a survival near 1 would lose a hazard of 1e-17.
+    a = norm.sf(c - x) + norm.sf(c + x)
     kernel = norm.pdf(x[None, :], PHI * x[:, None], np.sqrt(Q)) * dx
     # e(0) = 0: the first sample alarms with |v| > c alone; e(1) ~ N(0, q).
-    f = (1 - 2 * norm.sf(c)) * norm.pdf(x, 0, np.sqrt(Q))
+    f = norm.pdf(x, 0, np.sqrt(Q))
+    log_s, before = np.log1p(-2 * norm.sf(c)), np.nan
     for k in range(1, samples):
-        h = f * g
+        h = (f * a).sum() / f.sum()
+        log_s += np.log1p(-h)
         if k == samples - 1:
-            return 1 - h.sum() * dx
-        f = h @ kernel
+            return log_s
+        if abs(h / before - 1) < 1e-11:
+            return log_s + np.log1p(-h) * (samples - 1 - k)
+        before = h
+        f = (f * (1 - a)) @ kernel
+
+
+def fault_free_alarm(c, samples, n=801):
+    return -np.expm1(fault_free_log_no_alarm(c, samples, n))
 
 
 segment, flight = fault_free_alarm(6.0, 200), fault_free_alarm(6.0, 2000)
 print(f"threshold 6: a trial {segment:.12e}, a flight {flight:.12e}, index {np.log1p(-flight) / (10 * np.log1p(-segment)):.10f}")
 print(f"  on 1601 points: {fault_free_alarm(6.0, 200, 1601):.12e}, {fault_free_alarm(6.0, 2000, 1601):.12e}")
+
+trial, hour = fault_free_log_no_alarm(8.0, 200), fault_free_log_no_alarm(8.0, 360_000)
+print(
+    f"threshold 8: a trial {-np.expm1(trial):.12e}, an hour flown through {-np.expm1(hour):.12e}, the conversion "
+    f"{-np.expm1(1800 * trial):.12e}, index {hour / (1800 * trial):.10f}"
+)
+print(f"  on 1601 points: {-np.expm1(fault_free_log_no_alarm(8.0, 200, 1601)):.12e}, {-np.expm1(fault_free_log_no_alarm(8.0, 360_000, 1601)):.12e}")

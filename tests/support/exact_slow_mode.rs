@@ -46,17 +46,30 @@ fn carried(kept: &[f64], kernel: &[f64]) -> Vec<f64> {
     density
 }
 
-/// The probability of no alarm at `samples` samples, `density` the first one's, each sample weighted by
-/// `no_alarm` at the grid's points and carried by `kernel` to the next (trapezoid rule, step `dx`).
-fn survival(mut density: Vec<f64>, no_alarm: &[f64], kernel: &[f64], dx: f64, samples: usize) -> f64 {
+/// `ln` P(no alarm through `samples` samples), `density` the first sample's (integrating to 1), each
+/// sample alarming with probability `alarm` at the grid's points and the density kept carried by `kernel`
+/// to the next (trapezoid rule, step `dx`). Summed as `ln(1 - h(k))` of each sample's hazard `h(k)` (its
+/// alarm given none before, from the alarm's own tail): `ln` of a survival near 1 would lose a hazard of
+/// 1e-17. Once the hazard changes by under 1e-11 of itself from one sample to the next (the density's
+/// shape has settled: the kernel's leading eigenvalue), the samples left each take it: an hour's 360,000
+/// samples without carrying every one (the drift left moves the hour's logarithm by about 1e-9 of itself).
+fn log_survival(mut density: Vec<f64>, alarm: &[f64], kernel: &[f64], dx: f64, samples: usize) -> f64 {
+    let (mut log_s, mut before) = (0.0, f64::NAN);
     for k in 0..samples {
-        let kept: Vec<f64> = density.iter().zip(no_alarm).map(|(f, g)| f * g).collect();
+        let mass: f64 = density.iter().sum::<f64>() * dx;
+        let hazard = density.iter().zip(alarm).map(|(f, a)| f * a).sum::<f64>() * dx / mass;
+        log_s += (-hazard).ln_1p();
         if k + 1 == samples {
-            return kept.iter().sum::<f64>() * dx;
+            break;
         }
+        if (hazard / before - 1.0).abs() < 1e-11 {
+            return log_s + (-hazard).ln_1p() * (samples - 1 - k) as f64;
+        }
+        before = hazard;
+        let kept: Vec<f64> = density.iter().zip(alarm).map(|(f, a)| f * (1.0 - a)).collect();
         density = carried(&kept, kernel);
     }
-    density.iter().sum::<f64>() * dx
+    log_s
 }
 
 impl SlowModeWindow {
@@ -73,11 +86,11 @@ impl SlowModeWindow {
         (x, dx, kernel)
     }
 
-    /// `P(|e + v + b| <= c)` given `e`, from the two tails: `Phi(c - b - e) - Phi(-c - b - e)` would lose
-    /// the tail's digits where alarms are rare (1e-9 a sample at threshold 6).
-    fn no_alarm(&self, e: f64, bias: f64) -> f64 {
+    /// `P(|e + v + b| > c)` given `e`, from the two tails: `1 - Phi(c - b - e) + Phi(-c - b - e)` would
+    /// lose the tail's digits where alarms are rare (1e-9 a sample at threshold 6).
+    fn alarm(&self, e: f64, bias: f64) -> f64 {
         let tail = |z: f64| 0.5 * statrs::function::erf::erfc(z / (std::f64::consts::SQRT_2 * self.sensor_sigma));
-        1.0 - (tail(self.threshold - bias - e) + tail(self.threshold + bias + e))
+        tail(self.threshold - bias - e) + tail(self.threshold + bias + e)
     }
 
     /// `e(onset)`'s variance.
@@ -98,25 +111,31 @@ impl SlowModeWindow {
         biases
             .iter()
             .map(|&b| {
-                let g: Vec<f64> = x.iter().map(|&e| self.no_alarm(e, b)).collect();
-                survival(onset.clone(), &g, &kernel, dx, self.window)
+                let alarm: Vec<f64> = x.iter().map(|&e| self.alarm(e, b)).collect();
+                log_survival(onset.clone(), &alarm, &kernel, dx, self.window).exp()
             })
             .collect()
     }
 
-    /// The fault-free residual's probability of an alarm in its first `samples` samples from `e(0) = 0`
-    /// (the onset, window and bias not used): the first sample alarms by `|v| > c` alone, `e(1)` is
-    /// N(0, q), and the density is carried on as in [`Self::miss_sizes`].
+    /// The fault-free residual's probability of an alarm in its first `samples` samples from `e(0) = 0`.
     pub fn fault_free_alarm(&self, samples: usize, points: usize) -> f64 {
-        let (x, dx, kernel) = self.grid(points);
-        let first = self.no_alarm(0.0, 0.0);
+        -self.fault_free_log_no_alarm(samples, points).exp_m1()
+    }
+
+    /// `ln` P(no alarm) of the fault-free residual through its first `samples` samples from `e(0) = 0`
+    /// (the onset, window and bias not used): the first sample alarms by `|v| > c` alone, `e(1)` is
+    /// N(0, q), and the density is carried on as in [`Self::miss_sizes`] (an hour's samples by the
+    /// settled decay, [`log_survival`]).
+    pub fn fault_free_log_no_alarm(&self, samples: usize, points: usize) -> f64 {
+        let first = (-self.alarm(0.0, 0.0)).ln_1p();
         if samples == 1 {
-            return 1.0 - first;
+            return first;
         }
-        let g: Vec<f64> = x.iter().map(|&e| self.no_alarm(e, 0.0)).collect();
+        let (x, dx, kernel) = self.grid(points);
+        let alarm: Vec<f64> = x.iter().map(|&e| self.alarm(e, 0.0)).collect();
         let step_sd = self.q.sqrt();
-        let density: Vec<f64> = x.iter().map(|&e| first * normal_pdf(e, 0.0, step_sd)).collect();
-        1.0 - survival(density, &g, &kernel, dx, samples - 1)
+        let density: Vec<f64> = x.iter().map(|&e| normal_pdf(e, 0.0, step_sd)).collect();
+        first + log_survival(density, &alarm, &kernel, dx, samples - 1)
     }
 
     /// The miss with the bias uniform on `[lo, hi]` (Simpson's rule on 41 points).
@@ -157,8 +176,9 @@ pub fn slow_mode_window() -> SlowModeWindow {
 /// The grid against a case it must get exactly (one sample: `e + v` is N(0, 1 + P), so the miss is
 /// `Phi((c - b) / sd) - Phi((-c - b) / sd)`), against itself on a finer grid, and against the reference
 /// script's NumPy (`scripts/reference/slow_mode_miss_numpy.py`: 0.531727682059 at b = 2, 0.526233355692
-/// with b uniform on [1, 3]; at threshold 6 fault-free, 1.908491715462e-3 in 200 samples and
-/// 3.615708392244e-2 in 2,000); and the memory matters: each sample alone would give 0.2197543974.
+/// with b uniform on [1, 3]; fault-free at threshold 6, 1.908491708269e-3 in 200 samples and
+/// 3.615708384512e-2 in 2,000; at threshold 8, 1.114097939833e-6 in 200 and 5.708425809165e-3 in an
+/// hour's 360,000; two samples: `1 - (1 - 2 Q(c)) (1 - 2 Q(c / sqrt(1 + q)))`); and the memory matters: each sample alone would give 0.2197543974.
 #[test]
 fn the_slow_mode_window_meets_its_closed_form_and_numpy() {
     let one = SlowModeWindow { window: 1, ..slow_mode_window() };
@@ -173,7 +193,17 @@ fn the_slow_mode_window_meets_its_closed_form_and_numpy() {
     assert!((uniform - 0.526233355692).abs() < 1e-10, "{uniform}");
     let fault_free = SlowModeWindow { threshold: 6.0, ..slow_mode_window() };
     let (segment, flight) = (fault_free.fault_free_alarm(200, 801), fault_free.fault_free_alarm(2000, 801));
-    // To 1e-8 of the alarm (the two grids part by 7e-12 of P(no alarm), 4e-9 of the trial's alarm).
-    assert!((segment / 1.908491715462e-3 - 1.0).abs() < 1e-8, "{segment}");
-    assert!((flight / 3.615708392244e-2 - 1.0).abs() < 1e-8, "{flight}");
+    // SciPy's and statrs' tails part by about 3e-11.
+    assert!((segment / 1.908491708269e-3 - 1.0).abs() < 1e-9, "{segment}");
+    assert!((flight / 3.615708384512e-2 - 1.0).abs() < 1e-9, "{flight}");
+    // Two samples: the first alarms by |v| > c, the second by |e(1) + v| > c with e(1) N(0, q). A sum of
+    // the grid's survival (not of each sample's hazard) was 7.6e-6 off here: the trapezoid's Gaussian
+    // weighs 1 - 3.6e-14 in doubles, a lost mass it counted as alarms.
+    let q = |z: f64| 0.5 * statrs::function::erf::erfc(z / std::f64::consts::SQRT_2);
+    let two = -((-2.0 * q(6.0)).ln_1p() + (-2.0 * q(6.0 / (1.0 + fault_free.q).sqrt())).ln_1p()).exp_m1();
+    assert!((fault_free.fault_free_alarm(2, 801) / two - 1.0).abs() < 1e-12, "{two}");
+    let rare = SlowModeWindow { threshold: 8.0, ..slow_mode_window() };
+    let (trial, hour) = (rare.fault_free_alarm(200, 801), rare.fault_free_alarm(360_000, 801));
+    assert!((trial / 1.114097939833e-6 - 1.0).abs() < 1e-9, "{trial}");
+    assert!((hour / 5.708425809165e-3 - 1.0).abs() < 1e-9, "{hour}");
 }

@@ -5,7 +5,7 @@ use std::path::Path;
 use nalgebra::DMatrix;
 use serde_json::json;
 
-use super::false_alarms::for_detector;
+use super::false_alarms::{CONDITIONAL_SEED, for_detector};
 use super::filter::{DetectionFilterParams, Gain, Isolation};
 use super::study::{LtiStudy, Shape};
 use super::trials::Engine;
@@ -109,7 +109,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
                     }
                     Gain::Own(_) => (json!(null), json!(null)),
                 };
-                let false_alarms = match for_detector(study, f, f.thresholds.as_slice()) {
+                let false_alarms = match for_detector(study, f, f.thresholds.as_slice(), CONDITIONAL_SEED) {
                     Ok(a) => json!({
                         "residual_sd_end": a.residual_sd_end,
                         "lower": a.lower,
@@ -208,7 +208,7 @@ pub fn design(study: &LtiStudy, as_json: bool) -> Result<(), RunError> {
         }
         println!("steady residual per unit bias on each output (columns: faulty output; rows: residual)");
         print!("{}", indent(&format!("{:.4}", filter.signatures)));
-        match for_detector(study, filter, filter.thresholds.as_slice()) {
+        match for_detector(study, filter, filter.thresholds.as_slice(), CONDITIONAL_SEED) {
             Ok(f) => {
                 let hour = |p: f64| crate::engine::results::thresholds::per_flight_hour(p, study.header.duration_s);
                 println!(

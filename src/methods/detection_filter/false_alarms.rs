@@ -81,16 +81,18 @@ impl AnalyticFalseAlarms {
 }
 
 /// The bounds for a designed detector of `study` at `thresholds` (one per output), or why the deck is
-/// outside what they assume.
+/// outside what they assume. `draws_seed` seeds the conditional Monte Carlo draws ([`CONDITIONAL_SEED`]
+/// where a figure must not move with the deck's seed).
 pub fn for_detector(
     study: &LtiStudy,
     filter: &DetectionFilter,
     thresholds: &[f64],
+    draws_seed: u64,
 ) -> Result<AnalyticFalseAlarms, String> {
     let sensor_sigma = exact_law_sensor_sigma(study, filter)?;
     let (Ad, Kd, C) = (&filter.model.Ad, &filter.discrete.K, &filter.model.C);
     let (steps, dt_s, process) = (study.header.steps, study.header.dt_s, &study.process_sigma_per_step);
-    let mut f = analytic_false_alarms(Ad, Kd, C, &sensor_sigma, process, thresholds, steps, CONDITIONAL_SEED);
+    let mut f = analytic_false_alarms(Ad, Kd, C, &sensor_sigma, process, thresholds, steps, draws_seed);
     f.hour = Some(hour_conversion(Ad, Kd, C, &sensor_sigma, process, thresholds, steps, dt_s));
     Ok(f)
 }
@@ -307,7 +309,9 @@ pub fn residual_law(
     (H, sd)
 }
 
-/// The seed of the conditional Monte Carlo draws of `design`, `report` and `rare-event --flight-s`.
+/// The seed of the conditional Monte Carlo draws of `design`, `report` and `flight-thresholds`' search:
+/// fixed, so their printed figures do not move with the deck's seed. `rare-event --flight-s` and
+/// `flight-thresholds`' confirmation draw from the deck's (or `--seed`'s) seed instead.
 pub const CONDITIONAL_SEED: u64 = 0x5eed_ca11;
 
 /// The residual's law over `samples` samples and the bounds at `thresholds` (one per output).

@@ -285,13 +285,16 @@ pub fn run(study: &LtiStudy, opts: &RareEventOptions) -> Result<(), RunError> {
         );
     }
     let flights = run_trials(&flown, &chosen, &flight_opts, &dir)?;
+    // The conditional estimate's draws follow the deck's seed (or --seed), so another seed gives fresh
+    // draws of it too; the segment's and the flight's share them, as their ratio is the index.
+    let draws_seed = study.header.seed ^ CONDITIONAL_DRAWS_MARK;
     let conditional = |name: &str, level: f64| -> Result<flights::Conditional, String> {
         let d = study.detectors.iter().position(|d| d.name == name).expect("a chosen detector");
         let of = |s: &LtiStudy| -> Result<[f64; 3], String> {
             let engine = Engine::new(s);
             let filter = engine.nominal_filters()[d].as_ref().map_err(|e| e.to_string())?;
             let thresholds: Vec<f64> = filter.thresholds.iter().map(|t| t * level).collect();
-            let a = super::false_alarms::for_detector(s, filter, &thresholds)?;
+            let a = super::false_alarms::for_detector(s, filter, &thresholds, draws_seed)?;
             Ok([a.conditional, a.conditional_lo, a.conditional_hi])
         };
         Ok(flights::Conditional { segment: of(study)?, flight: of(&flown)? })
@@ -303,6 +306,10 @@ pub fn run(study: &LtiStudy, opts: &RareEventOptions) -> Result<(), RunError> {
     }
     Ok(())
 }
+
+/// Marks the conditional estimate's draws apart from the trials' streams of the same seed and from
+/// `flight-thresholds`' confirmation.
+const CONDITIONAL_DRAWS_MARK: u64 = 0xf117_e5c0_d1a1;
 
 /// The study flown for `seconds` instead of its trials' duration: everything else the deck's.
 fn flights_of(study: &LtiStudy, seconds: f64) -> LtiStudy {
@@ -600,7 +607,13 @@ mod tests {
         let engine = Engine::new(&study);
         for d in 0..2 {
             let filter = engine.nominal_filters()[d].as_ref().unwrap();
-            let exact = super::super::false_alarms::for_detector(&study, filter, filter.thresholds.as_slice()).unwrap();
+            let exact = super::super::false_alarms::for_detector(
+                &study,
+                filter,
+                filter.thresholds.as_slice(),
+                super::super::false_alarms::CONDITIONAL_SEED,
+            )
+            .unwrap();
             assert!(exact.upper() / exact.lower < 1.001, "{exact:?}");
             let model = FaultFreeTrials::new(&study, d, false).unwrap();
             let (totals, _) = Importance { model: &model, seed: study.header.seed, levels: &[1.0], progress: &|_| {} }

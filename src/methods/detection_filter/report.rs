@@ -81,7 +81,8 @@ fn analytic_section(ctx: &ReportContext, study: &LtiStudy) -> Result<Option<Stri
             sets.push(("calibrated", c.2.clone()));
         }
         for (set, thresholds) in sets {
-            match super::false_alarms::for_detector(study, &filter, &thresholds) {
+            match super::false_alarms::for_detector(study, &filter, &thresholds, super::false_alarms::CONDITIONAL_SEED)
+            {
                 Ok(a) => {
                     let seen = tail_row(&d.name, set);
                     rows.push([
