@@ -3843,22 +3843,42 @@ fn fewest_covered(seeds: u64) -> u64 {
 /// (checked against NumPy): 0.53173 at b = 2 and threshold 4, where each sample taken alone would say
 /// 0.21975. Over 40 seeds of about 3,600 faulty trials each, `detectors.csv`'s 95 % interval at the
 /// deck's threshold holds the exact miss for b = 2 and for faults of random size (b uniform on [1, 3]:
-/// 0.52623), and `safety.csv`'s interval at the calibrated threshold (Pfa 0.05, new each seed) holds the
-/// exact miss there, each in at least 33 of 40 seeds (38 expected; 32 or fewer with probability 7e-4).
+/// 0.52623) and for faults of random onset (b = 2, the onset uniform on [0.5, 1.5] s: 0.53714, below),
+/// and `safety.csv`'s interval at the calibrated threshold (Pfa 0.05, new each seed) holds the exact miss
+/// there, each in at least 33 of 40 seeds (38 expected; 32 or fewer with probability 7e-4).
+///
+/// A random onset `u = 0.01 (m + f)` s (`m` whole, `f` in [0, 1)) is faulty from sample `m + 1` (the
+/// samples at `t >= u`), and the samples within 0.195 s of it are 19 where `f < 0.5` and 20 where
+/// `f >= 0.5`: the exact miss is the average over `m` from 50 to 149 of the two windows' misses from
+/// onset sample `m + 1`, each weighing half.
 #[test]
 fn the_miss_before_the_hazard_of_a_slow_mode_residual_meets_its_exact_law() {
     let window = exact_slow_mode::slow_mode_window();
     let (fixed, random) = (window.miss(2.0, 801), window.miss_uniform(1.0, 3.0, 401));
+    let onsets: f64 = (50..150)
+        .flat_map(|m| {
+            [19, 20].map(|samples| exact_slow_mode::SlowModeWindow { onset: m + 1, window: samples, ..window })
+        })
+        .map(|w| w.miss(2.0, 401))
+        .sum::<f64>()
+        / 200.0;
+    assert!((onsets - 0.5371403224).abs() < 1e-9, "{onsets}");
     let tmp = tempfile::tempdir().unwrap();
-    let write = |name: &str, size: &str| -> PathBuf {
-        let text = slow_mode_deck(4.0, "0.1", size) + "\n[monte_carlo.time_to_hazard_s]\nbias = 0.195\n";
+    let write = |name: &str, size: &str, onset: &str| -> PathBuf {
+        let text = slow_mode_deck(4.0, "0.1", size).replace("onset_s = 1.0", &format!("onset_s = {onset}"))
+            + "\n[monte_carlo.time_to_hazard_s]\nbias = 0.195\n";
+        assert!(text.contains(&format!("onset_s = {onset}")));
         let path = tmp.path().join(name);
         std::fs::write(&path, text).unwrap();
         path
     };
-    let decks = [(write("fixed.toml", "2.0"), fixed), (write("random.toml", "{ range = [1.0, 3.0] }"), random)];
+    let decks = [
+        (write("fixed.toml", "2.0", "1.0"), fixed),
+        (write("random.toml", "{ range = [1.0, 3.0] }", "1.0"), random),
+        (write("onsets.toml", "2.0", "{ range = [0.5, 1.5] }"), onsets),
+    ];
     let run = tmp.path().join("run");
-    let (mut covered, mut calibrated_covered) = ([0; 2], 0);
+    let (mut covered, mut calibrated_covered) = ([0; 3], 0);
     for seed in 1..=40 {
         for (k, (path, exact)) in decks.iter().enumerate() {
             let args = ["run", path.to_str().unwrap(), "--seed", &seed.to_string(), "--quiet", "--force", "--out"];
@@ -3874,10 +3894,16 @@ fn the_miss_before_the_hazard_of_a_slow_mode_residual_meets_its_exact_law() {
         }
     }
     println!(
-        "of 40 seeds: b = 2 covered {}, b uniform on [1, 3] {}, at the calibrated threshold {calibrated_covered}",
-        covered[0], covered[1]
+        "of 40 seeds: b = 2 covered {}, b uniform on [1, 3] {}, onsets uniform on [0.5, 1.5] s {}, at the \
+         calibrated threshold {calibrated_covered}",
+        covered[0], covered[1], covered[2]
     );
-    for (what, n) in [("b = 2", covered[0]), ("b uniform on [1, 3]", covered[1]), ("calibrated", calibrated_covered)] {
+    for (what, n) in [
+        ("b = 2", covered[0]),
+        ("b uniform on [1, 3]", covered[1]),
+        ("onsets uniform on [0.5, 1.5] s", covered[2]),
+        ("calibrated", calibrated_covered),
+    ] {
         assert!(n >= 33, "{what}: the interval held the exact miss in {n} of 40 seeds");
     }
 }

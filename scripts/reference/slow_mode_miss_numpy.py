@@ -11,7 +11,8 @@ Phi(-c - b - e): e's density at the onset is N(0, P(k0)), carried through the wi
 Gaussian kernel (trapezoid rule, SciPy's norm; no code shared with fdimc or with the Rust support).
 Faults of random size: the miss averaged over b uniform on [lo, hi] (Simpson's rule, 41 points).
 Printed: the miss at b = 2 on grids of 801 and 3201 points, the white approximation (each sample's
-marginal alone: what the memory changes), the uniform average over [1, 3], and the one-sample closed
+marginal alone: what the memory changes), the uniform average over [1, 3], the average over onsets
+uniform on [0.5, 1.5] s, and the one-sample closed
 form the grid must meet. Then the fault-free residual at threshold 6 from e(0) = 0: the probability of
 an alarm in a 2 s trial (200 samples) and in a 20 s flight (2,000), and the extremal index, -ln P(no
 alarm in the flight) over ten trials' (for
@@ -32,11 +33,11 @@ def onset_variance(k0=K0):
     return Q * (1 - PHI ** (2 * k0)) / (1 - PHI**2)
 
 
-def miss(b, window=WINDOW, n=801):
+def miss(b, window=WINDOW, n=801, k0=K0):
     spread = 9 * np.sqrt(Q / (1 - PHI**2))
     x = np.linspace(-spread, spread, n)
     dx = x[1] - x[0]
-    f = norm.pdf(x, 0, np.sqrt(onset_variance()))
+    f = norm.pdf(x, 0, np.sqrt(onset_variance(k0)))
     g = norm.cdf(C - b - x) - norm.cdf(-C - b - x)
     kernel = norm.pdf(x[None, :], PHI * x[:, None], np.sqrt(Q)) * dx
     for j in range(window):
@@ -58,6 +59,10 @@ print(f"b = 2: {miss(2.0):.12f} (801 points), {miss(2.0, n=3201):.12f} (3201 poi
 print(f"b = 2, each sample alone: {white(2.0):.10f}")
 sizes = np.linspace(1.0, 3.0, 41)
 print(f"b uniform on [1, 3]: {simpson([miss(b) for b in sizes], x=sizes) / 2.0:.12f}")
+# A random onset u uniform on [0.5, 1.5] s: faulty from sample m + 1 (u = 0.01 (m + f)), 19 samples within
+# 0.195 s of it where f < 0.5, 20 where f >= 0.5; on 401 points, as the test computes it.
+onsets = [miss(2.0, window=w, n=401, k0=m + 1) for m in range(50, 150) for w in (19, 20)]
+print(f"b = 2, the onset uniform on [0.5, 1.5] s: {np.mean(onsets):.10f}")
 s = np.sqrt(1 + onset_variance())
 print(f"one sample, b = 2: {miss(2.0, window=1):.12f} on the grid, {norm.cdf((C - 2) / s) - norm.cdf((-C - 2) / s):.12f} closed")
 
