@@ -713,8 +713,9 @@ fn rare_event_flights_are_checked_and_reach_the_safety_summary_and_report() {
     assert!(page.contains("rare_event/per_hour.csv") && page.contains("extremal_index_conditional"));
 }
 
-/// Issue 52, item 3: `rare-event --miss-before-hazard` refuses what does not go with it, and its
-/// table reaches the run's safety summary at the deck's thresholds.
+/// Issue 52, item 3: `rare-event --miss-before-hazard` refuses what does not go with it, its interval
+/// holds the exact miss (issue 82), and its table reaches the run's safety summary at the deck's
+/// thresholds.
 #[test]
 fn rare_event_miss_before_hazard_is_checked_and_reaches_the_safety_summary() {
     let dir = tempfile::tempdir().unwrap();
@@ -766,9 +767,11 @@ fn rare_event_miss_before_hazard_is_checked_and_reaches_the_safety_summary() {
     assert!(printed.is_empty(), "{printed}");
     let table = csv_frame(&beside.join("miss_before_hazard.csv"));
     assert_eq!(table.height(), 1);
-    let p = table.column("p_miss_before_hazard").unwrap().f64().unwrap().get(0).unwrap();
-    // A 3-sigma bias missed within 0.3 s about 65 % of the time (the unit test checks it against plain trials).
-    assert!((0.5..0.8).contains(&p), "{p}");
+    let at = |name: &str| table.column(name).unwrap().f64().unwrap().get(0).unwrap();
+    // A 3-sigma bias missed within 0.3 s: exactly 0.6496844 (scripts/reference/miss_gaussian_scipy.py,
+    // the window's Gaussian law by Genz's method); the estimate's 95 % interval holds it.
+    let (lo, hi) = (at("p_miss_before_hazard_lo"), at("p_miss_before_hazard_hi"));
+    assert!(lo <= 0.6496844 && 0.6496844 <= hi, "[{lo}, {hi}]");
     ok(&fdimc(&["summarize", run.to_str().unwrap()]));
     let safety = std::fs::read_to_string(run.join("safety.csv")).unwrap();
     // An answer (16 replicas: none can carry over 10 % of the estimate) at the deck's thresholds.

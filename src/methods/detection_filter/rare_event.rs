@@ -763,19 +763,25 @@ mod tests {
     }
 
     /// Issue 52, item 3: the probability that a fault is not detected within its time to hazard, by
-    /// splitting in time, against the run's own trials counted plainly (detection at or after the
-    /// onset, its delay within the time to hazard). The CI deck's plant and filters with one fault kind,
-    /// a bias on alpha or q, and a time to hazard (sizes and times our choices):
-    /// - 3 sigma, 0.3 s, the seed filter: a miss is common (about 0.65): the two agree within their
-    ///   intervals (6,000 trials, about 2,100 with the bias);
-    /// - 6 sigma, 0.25 s, the fast filter: about 3.7e-3, where the plain trials see a handful; splitting
-    ///   answers with fewer samples than plain trials would need for its interval.
+    /// splitting in time, against the exact Gaussian law and the run's own trials counted plainly
+    /// (detection at or after the onset, its delay within the time to hazard). The CI deck's plant and
+    /// filters with one fault kind, a bias on alpha or q, and a time to hazard (sizes and times our
+    /// choices). The exact miss is `scripts/reference/miss_gaussian_scipy.py`'s (the window's residuals
+    /// a Gaussian vector from the deck and `design`'s gain, its rectangle probability by Genz's method, to
+    /// about 1e-5):
+    /// - 3 sigma, 0.3 s, the seed filter: a miss is common (exact 0.6496844): splitting's interval and
+    ///   the plain trials' (6,000 trials, about 2,100 with the bias) each hold it;
+    /// - 6 sigma, 0.25 s, the fast filter: exact 3.856309e-3, where the plain trials see a handful;
+    ///   splitting's interval holds it, and splitting answers with fewer samples than plain trials would
+    ///   need for its interval.
     #[test]
     fn splitting_in_time_gives_the_miss_before_the_hazard() {
         use crate::engine::rare_event::estimators::{Combined, Totals, survival_replica};
         use crate::engine::stats::intervals::{Z95, wilson};
         const CI: &str = include_str!("../../../studies/ci_seed000.toml");
-        for (size, hazard_s, detector, particles) in [(3.0, 0.3, 0, 100), (6.0, 0.25, 1, 200)] {
+        for (size, hazard_s, detector, particles, exact) in
+            [(3.0, 0.3, 0, 100, 0.6496844), (6.0, 0.25, 1, 200, 3.856309e-3)]
+        {
             let deck = CI.replacen(
                 "size_sigma = { values = [1.0, 3.0, 6.0] }",
                 &format!("size_sigma = {{ values = [{size:.1}] }}"),
@@ -806,7 +812,8 @@ mod tests {
                 missed += u64::from(!outcome.detection.is_some_and(|(t, _)| t >= onset && t - onset <= hazard_s));
             }
             let (lo, hi) = wilson(missed, units, Z95);
-            assert!(lo <= e.high && e.low <= hi, "size {size}: splitting {e:?}, plain {missed} of {units}");
+            assert!(e.low <= exact && exact <= e.high, "size {size}: splitting {e:?}, exact {exact}");
+            assert!(lo <= exact && exact <= hi, "size {size}: plain {missed} of {units}, exact {exact}");
             if size == 6.0 {
                 assert!((1e-3..1e-2).contains(&e.estimate) && missed < 30, "{e:?}, {missed} of {units}");
                 assert!(e.plain_steps_same_precision(study.header.steps) > 5.0 * steps as f64, "{e:?} at {steps}");
