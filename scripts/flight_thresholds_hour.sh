@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # `fdimc flight-thresholds` over one-hour flights against the exact law (issue 84, item 4): the lateral
 # slow-mode deck as bundled (0.01 s, 360,000 samples a flight), at 1e-5, 1e-7 and 1e-9 per flight, each
-# checked in the test against tests/support/exact_false_alarms.rs (Sidak above, Bonferroni below with
+# checked in the test against src/exact/false_alarms.rs (Sidak above, Bonferroni below with
 # the pairs summed by lag once the residual has settled). CI runs the same test on 30 s flights.
 set -euo pipefail
 cd "$(dirname "$0")/.."

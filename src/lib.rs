@@ -11,6 +11,7 @@ pub mod design;
 pub mod dual;
 pub mod engine;
 pub mod estimation;
+pub mod exact;
 pub mod fault;
 pub mod fmu;
 pub mod kinematics;

@@ -2,16 +2,12 @@
 
 #[path = "support/build_fmus.rs"]
 mod build_fmus;
-#[path = "support/exact_cusum.rs"]
-mod exact_cusum;
-#[path = "support/exact_false_alarms.rs"]
-mod exact_false_alarms;
-#[path = "support/exact_slow_mode.rs"]
-mod exact_slow_mode;
 #[path = "support/fmpy.rs"]
 mod fmpy;
 
 use std::path::{Path, PathBuf};
+
+use fdimc::exact::{cusum as exact_cusum, false_alarms as exact_false_alarms, slow_mode as exact_slow_mode};
 use std::process::{Command, Output};
 
 const DECK: &str = "studies/seed000_pitch_rate.toml";
@@ -157,7 +153,7 @@ fn design_flags_a_per_hour_conversion_that_a_slow_mode_undercounts() {
     assert!(said.contains("rare-event DECK --flight-s 3600"), "{said}");
 }
 
-/// The bundled slow-unassigned-mode deck's exact law (`tests/support/exact_false_alarms.rs`), its
+/// The bundled slow-unassigned-mode deck's exact law (`src/exact/false_alarms.rs`), its
 /// thresholds and `design --json`'s detector: the plant from the deck, the filter's gain `Kd` from
 /// `design`, checked (Ad - Kd C has the three assigned eigenvalues, -1, -2 and -3 per s, and leaves a
 /// slow mode: sideslip's, 16.7 s in the discrete filter).
@@ -174,7 +170,7 @@ fn lateral_slow_mode_law(deck: &str) -> (exact_false_alarms::ResidualLaw, Vec<f6
     (law, thresholds, det)
 }
 
-/// The exact law of detector `i` of a linear deck without process noise (`tests/support/exact_false_alarms.rs`):
+/// The exact law of detector `i` of a linear deck without process noise (`src/exact/false_alarms.rs`):
 /// the plant, sample time, sensor noise and thresholds from the deck, only the filter's discrete gain
 /// from `fdimc design --json` (and its design record).
 #[allow(non_snake_case)]
@@ -209,7 +205,7 @@ fn deck_law(deck: &str, i: usize) -> (exact_false_alarms::ResidualLaw, Vec<f64>,
 
 /// `fdimc flight-thresholds` against the exact law (issue 84, item 4): the project's lateral deck (three
 /// outputs, a slow unassigned sideslip mode of 16.7 s) at a sample time of 0.05 s, flights of 30 s (600
-/// samples, so `tests/support/exact_false_alarms.rs` sums every pair of events). At the thresholds found
+/// samples, so `src/exact/false_alarms.rs` sums every pair of events). At the thresholds found
 /// for 1e-5, 1e-7 and 1e-9 per flight (each output an equal share; at 1e-7 also the deck's thresholds
 /// scaled together), the exact law's bracket on the per-flight probability (Bonferroni below, Sidak
 /// above) lies between half the target and the target; the confirmation's one-sided bound is below
@@ -309,7 +305,7 @@ fn flight_thresholds_refuses_what_it_cannot_answer() {
 }
 
 /// The exact law against fdimc's figures (issue 81, item 4), on the project's deck with a slow unassigned
-/// mode and three outputs: `tests/support/exact_false_alarms.rs` (sharing no code with fdimc's
+/// mode and three outputs: `src/exact/false_alarms.rs` (sharing no code with fdimc's
 /// estimators) brackets a 10 s trial's false-alarm probability and a one-hour flight's from `e(0) = 0`.
 /// `design`'s bounds hold and lie within 0.2 % of the trial's; the extremal index against the
 /// conversion exceeds 1.5 by the exact law (2.53 to 2.74), and `design` flags the conversion there with
@@ -3807,7 +3803,7 @@ fn calibrated_miss_row(run: &Path) -> (f64, f64, f64, f64) {
     (threshold, g("value_lo"), g("value_hi"), g("value_upper_95"))
 }
 
-/// `tests/data/white_residual.toml` with a slow mode (`tests/support/exact_slow_mode.rs`'s law): the
+/// `tests/data/white_residual.toml` with a slow mode (`src/exact/slow_mode.rs`'s law): the
 /// plant a = -1 /s with process noise 0.141067 per step (the state error's stationary sd 1), the filter's
 /// eigenvalue the plant's own (gain 0), at `threshold`, with the faults' `size_sigma` given.
 fn slow_mode_deck(threshold: f64, fault_free_fraction: &str, size_sigma: &str) -> String {
@@ -3842,7 +3838,7 @@ fn fewest_covered(seeds: u64) -> u64 {
 /// plant with a slow mode (a = -1 /s, process noise 0.141067 per step) under a gain-0 filter (its
 /// eigenvalue the plant's own), so the residual is an AR(1) state error (time constant 1 s) plus white
 /// sensor noise, and a bias fault of `size_sigma` from 1 s (sample 100), missed if no sample of the
-/// 20 at delays 0 to 0.19 s exceeds the threshold. The exact answer is `tests/support/exact_slow_mode.rs`
+/// 20 at delays 0 to 0.19 s exceeds the threshold. The exact answer is `src/exact/slow_mode.rs`
 /// (checked against NumPy): 0.53173 at b = 2 and threshold 4, where each sample taken alone would say
 /// 0.21975. Over 40 seeds of about 3,600 faulty trials each, `detectors.csv`'s 95 % interval at the
 /// deck's threshold holds the exact miss for b = 2 and for faults of random size (b uniform on [1, 3]:
@@ -3914,7 +3910,7 @@ fn the_miss_before_the_hazard_of_a_slow_mode_residual_meets_its_exact_law() {
 /// The miss before the hazard where the statistic has memory (issue 82, item 1): a CUSUM (`kind =
 /// "cusum"`, drift 1) on `tests/data/white_residual.toml`'s residual, white N(0, 1) with the fault's bias
 /// b from the onset at 1 s (sample 100). The exact answer is Brook and Evans' Markov chain
-/// (`tests/support/exact_cusum.rs`, checked against NumPy by its own test): the CUSUM runs 100 fault-free
+/// (`src/exact/cusum.rs`, checked against NumPy by its own test): the CUSUM runs 100 fault-free
 /// samples from 0, then the window's 20 (delays 0 to 0.19 s).
 /// - Over 40 seeds, b = 1, about 3,600 faulty trials each: `detectors.csv`'s 95 % interval at the deck's
 ///   threshold 4 holds the chain's answer (0.31075), and at the calibrated threshold (Pfa 0.05, a new one each
@@ -4030,7 +4026,7 @@ fn fault_free_cusum_alarm(h: f64, samples: usize) -> f64 {
 
 /// `tests/data/white_residual.toml` as a fault-free CUSUM deck (drift 1, threshold `h`) in `dir`: Page's
 /// CUSUM on |r| with r white N(0, 1), whose alarm probability over any window Brook and Evans' chain
-/// gives exactly (`tests/support/exact_cusum.rs`).
+/// gives exactly (`src/exact/cusum.rs`).
 fn fault_free_cusum_deck(dir: &Path, h: f64) -> PathBuf {
     let deck = std::fs::read_to_string("tests/data/white_residual.toml").unwrap();
     let path = dir.join("cusum.toml");
@@ -4045,7 +4041,7 @@ fn fault_free_cusum_deck(dir: &Path, h: f64) -> PathBuf {
 /// Splitting over flights against an exact law where the statistic has memory (issue 82, item 1): the
 /// CUSUM (drift 1, threshold 10) on `tests/data/white_residual.toml`'s fault-free residual, flights of
 /// 20 s in segments of the deck's 2 s trials, every one starting at g = 0. Brook and Evans' chain
-/// (`tests/support/exact_cusum.rs`) gives P(an alarm in 200 samples) and in 2,000; `rare-event
+/// (`src/exact/cusum.rs`) gives P(an alarm in 200 samples) and in 2,000; `rare-event
 /// --estimator splitting --flight-s 20` (500 particles by 32 replicas) answers, and its intervals per
 /// segment and per flight hold them.
 #[test]
@@ -4131,7 +4127,7 @@ fn splitting_over_20_s_flights(deck: &Path, seed: u64, out: &Path) -> polars::pr
 
 /// The extremal index where the residual itself has memory (issue 82, item 1): the slow-mode deck
 /// (`slow_mode_deck`, a 1 s mode) fault-free at threshold 6, flights of 20 s in segments of the deck's
-/// 2 s trials, each begun from e = 0. The exact law (`tests/support/exact_slow_mode.rs`, checked against
+/// 2 s trials, each begun from e = 0. The exact law (`src/exact/slow_mode.rs`, checked against
 /// NumPy) gives P(an alarm in a trial) = 1.9085e-3 and in a flight 3.6157e-2: an index of 1.9278, the
 /// trials' conversion undercounting the flight by half. `rare-event --estimator splitting --flight-s 20`
 /// (300 particles by 24 replicas, about 5 s a seed):
@@ -4188,7 +4184,7 @@ fn the_extremal_index_intervals_cover_a_slow_mode_residuals_exact_index_over_see
 
 /// The tail fit's per-hour row where the trials do not convert to hours (issue 82, item 1): the
 /// slow-mode deck (`slow_mode_deck`, a 1 s mode in 2 s trials) fault-free, 20,000 trials a seed,
-/// evaluated at threshold 8 (`summarize --thresholds`). The exact law (`tests/support/exact_slow_mode.rs`,
+/// evaluated at threshold 8 (`summarize --thresholds`). The exact law (`src/exact/slow_mode.rs`,
 /// checked against NumPy): a trial alarms with probability 1.1141e-6, the hour's 1,800 trials taken as
 /// independent (the row's own definition) 2.0034e-3, an hour flown through 5.7084e-3: an index of
 /// 2.8547. Per seed:

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 /// the folder, `linalg` the file); a file belongs to the longest name that is a prefix of its path.
 const LAYERS: &[&[&str]] = &[
     // Blocks that know nothing of studies.
-    &["linalg", "dual", "lti", "kinematics", "estimation", "design", "fmu"],
+    &["linalg", "dual", "lti", "kinematics", "estimation", "design", "fmu", "exact"],
     // The engine, in the order data flows.
     &["engine/stats"],
     &["engine/scenario"],
@@ -197,6 +197,13 @@ fn src_keeps_its_layers_and_has_no_circles() {
     let runner: Module = ["engine", "run", "runner"].iter().map(|s| s.to_string()).collect();
     let deck: Module = ["engine", "scenario", "deck"].iter().map(|s| s.to_string()).collect();
     assert!(edges[&runner].contains(&deck), "{:?}", edges[&runner]);
+    // The exact answers share nothing with what they check: they import no module outside their own.
+    let exact: Vec<&Module> = edges.keys().filter(|m| m.first().is_some_and(|p| p == "exact")).collect();
+    assert_eq!(exact.len(), 4, "{exact:?}");
+    for m in exact {
+        let outside: Vec<&Module> = edges[m].iter().filter(|t| t.first().is_none_or(|p| p != "exact")).collect();
+        assert!(outside.is_empty(), "src/exact/{} imports {outside:?}", m.join("/"));
+    }
 }
 
 /// A small crate with a planted upward import and a planted circle: both are found, named by file.

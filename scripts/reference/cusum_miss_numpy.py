@@ -3,7 +3,7 @@
 (tests/cli.rs): the probability that Page's CUSUM on |r|, g(k) = max(0, g(k-1) + |r(k)| - d) from
 g = 0, stays at or below its threshold h through a window, with r white N(0, 1) for the `before`
 samples ahead of the onset and N(b, 1) in the window's `window` samples. Brook and Evans' (1972)
-Markov chain in NumPy (no code shared with fdimc or with tests/support/exact_cusum.rs): g's range
+Markov chain in NumPy (no code shared with fdimc or with src/exact/cusum.rs): g's range
 [0, h + top] in bins of width w, each bin at its midpoint, an atom at 0; the increment's law
 P(|Z + b| - d <= x) = Phi(x + d - b) - Phi(-(x + d) - b) exactly (math.erfc). The bins' error falls as
 w^2 (printed for w = 0.04 to 0.005); the last line is Richardson's extrapolation. Run:

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Reference numbers for `tests/support/exact_slow_mode.rs` and the test that uses it,
+"""Reference numbers for `src/exact/slow_mode.rs` and the test that uses it,
 `the_miss_before_the_hazard_of_a_slow_mode_residual_meets_its_exact_law` (tests/cli.rs): the probability
 that a residual with a slow mode stays within +-c through the window after a bias fault's onset.
 

@@ -165,7 +165,7 @@ pub const UNDERCOUNT_FLAG: f64 = 1.5;
 /// keeps the residual below its settled spread for much of the trial, where the hour's samples are
 /// nearly all settled: the conversion then under-counts about this many times (for rare alarms, the
 /// ratio of the hour's exceedance sum to its trials'; clusters of alarms aside).
-/// tests/support/exact_false_alarms.rs brackets it by the exact law. With the model exact and white
+/// src/exact/false_alarms.rs brackets it by the exact law. With the model exact and white
 /// Gaussian noise.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HourConversion {

@@ -18,7 +18,7 @@
 //! only the samples after `P(k)` has settled (a subset of the alarms bounds the whole from below), and
 //! takes `P(k)` as settled once a step changes it by less than 1e-15 of its size (so both bounds hold
 //! to that rounding).
-#![allow(dead_code, non_snake_case)]
+#![allow(non_snake_case)]
 
 use nalgebra::{DMatrix, DVector};
 
@@ -261,27 +261,32 @@ fn gauss_legendre(points: usize) -> (Vec<f64>, Vec<f64>) {
     (x, w)
 }
 
-#[test]
-fn the_bivariate_tail_meets_its_closed_forms() {
-    // Sheppard: P(X > 0, Y > 0) = 1/4 + asin(rho) / (2 pi).
-    for rho in [-0.9, -0.3, 0.0, 0.5, 0.99] {
-        let exact = 0.25 + f64::asin(rho) / (2.0 * std::f64::consts::PI);
-        assert!((upper_both(0.0, 0.0, rho) - exact).abs() < 1e-14, "{rho}");
-    }
-    // Independent, and one variable: the product, and P(|Z| > a) when rho = 1 and a = b.
-    let (a, b) = (4.5, 5.2);
-    assert!((both(a, b, 0.0) / (two_sided(a) * two_sided(b)) - 1.0).abs() < 1e-12);
-    assert!((both(a, a, 1.0) / two_sided(a) - 1.0).abs() < 1e-6, "{}", both(a, a, 1.0) / two_sided(a));
-    // The rules integrate x^(2n - 2) exactly, and the 16-point one meets the 48-point one where it is used.
-    for (rule, n) in [(&RULES.0, 16), (&RULES.1, 48)] {
-        let moment: f64 = rule.0.iter().zip(&rule.1).map(|(x, w)| w * x.powi(2 * n - 2)).sum();
-        assert!((moment - 2.0 / (2 * n - 1) as f64).abs() < 1e-14, "{n}: {moment}");
-    }
-    for (a, b) in [(3.0, 3.0), (4.5, 5.2), (5.5, 5.5)] {
-        for rho in [-0.9, -0.5, 0.2, 0.6, 0.9] {
-            let by = |rule| upper_both_by(a, b, rho, rule) + upper_both_by(a, b, -rho, rule);
-            let (few, many) = (by(&RULES.0), by(&RULES.1));
-            assert!((few / many - 1.0).abs() < 1e-10, "{a} {b} {rho}: {few} vs {many}");
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_bivariate_tail_meets_its_closed_forms() {
+        // Sheppard: P(X > 0, Y > 0) = 1/4 + asin(rho) / (2 pi).
+        for rho in [-0.9, -0.3, 0.0, 0.5, 0.99] {
+            let exact = 0.25 + f64::asin(rho) / (2.0 * std::f64::consts::PI);
+            assert!((upper_both(0.0, 0.0, rho) - exact).abs() < 1e-14, "{rho}");
+        }
+        // Independent, and one variable: the product, and P(|Z| > a) when rho = 1 and a = b.
+        let (a, b) = (4.5, 5.2);
+        assert!((both(a, b, 0.0) / (two_sided(a) * two_sided(b)) - 1.0).abs() < 1e-12);
+        assert!((both(a, a, 1.0) / two_sided(a) - 1.0).abs() < 1e-6, "{}", both(a, a, 1.0) / two_sided(a));
+        // The rules integrate x^(2n - 2) exactly, and the 16-point one meets the 48-point one where it is used.
+        for (rule, n) in [(&RULES.0, 16), (&RULES.1, 48)] {
+            let moment: f64 = rule.0.iter().zip(&rule.1).map(|(x, w)| w * x.powi(2 * n - 2)).sum();
+            assert!((moment - 2.0 / (2 * n - 1) as f64).abs() < 1e-14, "{n}: {moment}");
+        }
+        for (a, b) in [(3.0, 3.0), (4.5, 5.2), (5.5, 5.5)] {
+            for rho in [-0.9, -0.5, 0.2, 0.6, 0.9] {
+                let by = |rule| upper_both_by(a, b, rho, rule) + upper_both_by(a, b, -rho, rule);
+                let (few, many) = (by(&RULES.0), by(&RULES.1));
+                assert!((few / many - 1.0).abs() < 1e-10, "{a} {b} {rho}: {few} vs {many}");
+            }
         }
     }
 }

@@ -10,11 +10,8 @@
 //! the bin in closed form (so the law's kink at `x = -d` costs nothing, wherever it falls). The error
 //! falls as `w^2` (checked: it quarters as `w` halves), so two widths and Richardson's step give the
 //! answer to well below a Monte Carlo interval's width.
-#![allow(dead_code)]
 
-fn phi(x: f64) -> f64 {
-    0.5 * statrs::function::erf::erfc(-x / std::f64::consts::SQRT_2)
-}
+use super::normal_cdf as phi;
 
 /// `P(|Z + b| - d <= x)`, `Z ~ N(0, 1)`.
 fn increment_cdf(x: f64, drift: f64, bias: f64) -> f64 {
@@ -110,25 +107,30 @@ impl CusumWindow {
     }
 }
 
-/// The chain against a case it must get exactly (one step from 0 stays below `h` with probability
-/// `P(|Z + b| - d <= h)`, whatever the width), against its own order of convergence, and against the
-/// reference script's NumPy chain, another scheme (each bin's mass at its midpoint) on the same range
-/// (`scripts/reference/cusum_miss_numpy.py`: 0.3107492003 and 2.440938496e-4, extrapolated).
-#[test]
-fn the_cusum_chain_meets_one_step_and_numpy() {
-    let one = CusumWindow { drift: 1.0, threshold: 4.0, bias: 1.0, before: 0, window: 1 };
-    assert!((one.chain(200, 8.0).0 - increment_cdf(4.0, 1.0, 1.0)).abs() < 1e-14);
-    let small = CusumWindow { drift: 1.0, threshold: 4.0, bias: 1.0, before: 100, window: 20 };
-    // Second order: the change from 0.04 to 0.02 is four times that from 0.02 to 0.01, to 1 %.
-    let [a, b, c] = [100, 200, 400].map(|bins| small.chain(bins, 8.0).0);
-    assert!(((a - b) / (b - c) - 4.0).abs() < 0.04, "{a} {b} {c}");
-    // The script's range (h + 8 and h + 6), which drops 9e-5 of the mass before the onset on the first.
-    let (p, lost) = small.extrapolated(0.01, 8.0);
-    assert!((p - 0.3107492003).abs() < 2e-9 && (8e-5..1e-4).contains(&lost), "{p} {lost}");
-    let rare = CusumWindow { drift: 1.0, threshold: 25.0, bias: 3.0, before: 100, window: 20 };
-    let (p, _) = rare.extrapolated(0.02, 6.0);
-    assert!((p / 2.440938496e-4 - 1.0).abs() < 1e-6, "{p}");
-    // The whole range (h + 30, nothing dropped) raises the answer by less than the mass the script drops.
-    let whole = small.miss(0.03, 30.0);
-    assert!(whole >= 0.3107492003 && whole - 0.3107492003 < 9e-5, "{whole}");
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The chain against a case it must get exactly (one step from 0 stays below `h` with probability
+    /// `P(|Z + b| - d <= h)`, whatever the width), against its own order of convergence, and against the
+    /// reference script's NumPy chain, another scheme (each bin's mass at its midpoint) on the same range
+    /// (`scripts/reference/cusum_miss_numpy.py`: 0.3107492003 and 2.440938496e-4, extrapolated).
+    #[test]
+    fn the_cusum_chain_meets_one_step_and_numpy() {
+        let one = CusumWindow { drift: 1.0, threshold: 4.0, bias: 1.0, before: 0, window: 1 };
+        assert!((one.chain(200, 8.0).0 - increment_cdf(4.0, 1.0, 1.0)).abs() < 1e-14);
+        let small = CusumWindow { drift: 1.0, threshold: 4.0, bias: 1.0, before: 100, window: 20 };
+        // Second order: the change from 0.04 to 0.02 is four times that from 0.02 to 0.01, to 1 %.
+        let [a, b, c] = [100, 200, 400].map(|bins| small.chain(bins, 8.0).0);
+        assert!(((a - b) / (b - c) - 4.0).abs() < 0.04, "{a} {b} {c}");
+        // The script's range (h + 8 and h + 6), which drops 9e-5 of the mass before the onset on the first.
+        let (p, lost) = small.extrapolated(0.01, 8.0);
+        assert!((p - 0.3107492003).abs() < 2e-9 && (8e-5..1e-4).contains(&lost), "{p} {lost}");
+        let rare = CusumWindow { drift: 1.0, threshold: 25.0, bias: 3.0, before: 100, window: 20 };
+        let (p, _) = rare.extrapolated(0.02, 6.0);
+        assert!((p / 2.440938496e-4 - 1.0).abs() < 1e-6, "{p}");
+        // The whole range (h + 30, nothing dropped) raises the answer by less than the mass the script drops.
+        let whole = small.miss(0.03, 30.0);
+        assert!(whole >= 0.3107492003 && whole - 0.3107492003 < 9e-5, "{whole}");
+    }
 }

@@ -1,6 +1,6 @@
 //! The exact miss before the hazard of a residual whose filter leaves a slow mode (issue 82, item 1),
-//! for checking fdimc's figure where the residual itself has memory. Written for the tests and sharing
-//! nothing with fdimc's code (statrs' `erfc` only).
+//! for checking fdimc's figure where the residual itself has memory. Written for the tests and `fdimc verify`,
+//! sharing nothing with fdimc's code (statrs' `erfc` only).
 //!
 //! The residual is `r(k) = e(k) + v(k)`, plus the bias `b` from the onset sample `k0`, `v` white
 //! N(0, `sensor_sigma^2`), and `e` the state error of a gain-0 filter on a one-state plant with process
@@ -11,11 +11,6 @@
 //! over nine stationary standard deviations, where the kernel's own spread is many grid steps, so the
 //! rule converges faster than any power of the step). Checked against its one-sample closed form, its
 //! own convergence and `scripts/reference/slow_mode_miss_numpy.py` by its own test.
-#![allow(dead_code)]
-
-fn phi(x: f64) -> f64 {
-    0.5 * statrs::function::erf::erfc(-x / std::f64::consts::SQRT_2)
-}
 
 fn normal_pdf(x: f64, mean: f64, sd: f64) -> f64 {
     let z = (x - mean) / sd;
@@ -125,7 +120,7 @@ impl SlowModeWindow {
     /// `ln` P(no alarm) of the fault-free residual through its first `samples` samples from `e(0) = 0`
     /// (the onset, window and bias not used): the first sample alarms by `|v| > c` alone, `e(1)` is
     /// N(0, q), and the density is carried on as in [`Self::miss_sizes`] (an hour's samples by the
-    /// settled decay, [`log_survival`]).
+    /// settled decay, as `log_survival` carries it).
     pub fn fault_free_log_no_alarm(&self, samples: usize, points: usize) -> f64 {
         let first = (-self.alarm(0.0, 0.0)).ln_1p();
         if samples == 1 {
@@ -173,37 +168,43 @@ pub fn slow_mode_window() -> SlowModeWindow {
     }
 }
 
-/// The grid against a case it must get exactly (one sample: `e + v` is N(0, 1 + P), so the miss is
-/// `Phi((c - b) / sd) - Phi((-c - b) / sd)`), against itself on a finer grid, and against the reference
-/// script's NumPy (`scripts/reference/slow_mode_miss_numpy.py`: 0.531727682059 at b = 2, 0.526233355692
-/// with b uniform on [1, 3]; fault-free at threshold 6, 1.908491708269e-3 in 200 samples and
-/// 3.615708384512e-2 in 2,000; at threshold 8, 1.114097939833e-6 in 200 and 5.708425809165e-3 in an
-/// hour's 360,000; two samples: `1 - (1 - 2 Q(c)) (1 - 2 Q(c / sqrt(1 + q)))`); and the memory matters: each sample alone would give 0.2197543974.
-#[test]
-fn the_slow_mode_window_meets_its_closed_form_and_numpy() {
-    let one = SlowModeWindow { window: 1, ..slow_mode_window() };
-    let sd = (1.0 + one.onset_variance()).sqrt();
-    let closed = phi((4.0 - 2.0) / sd) - phi((-4.0 - 2.0) / sd);
-    assert!((one.miss(2.0, 801) - closed).abs() < 1e-11, "{} {closed}", one.miss(2.0, 801));
-    let window = slow_mode_window();
-    let (coarse, fine) = (window.miss(2.0, 401), window.miss(2.0, 801));
-    assert!((coarse - fine).abs() < 1e-11, "{coarse} {fine}");
-    assert!((fine - 0.531727682059).abs() < 1e-10, "{fine}");
-    let uniform = window.miss_uniform(1.0, 3.0, 401);
-    assert!((uniform - 0.526233355692).abs() < 1e-10, "{uniform}");
-    let fault_free = SlowModeWindow { threshold: 6.0, ..slow_mode_window() };
-    let (segment, flight) = (fault_free.fault_free_alarm(200, 801), fault_free.fault_free_alarm(2000, 801));
-    // SciPy's and statrs' tails part by about 3e-11.
-    assert!((segment / 1.908491708269e-3 - 1.0).abs() < 1e-9, "{segment}");
-    assert!((flight / 3.615708384512e-2 - 1.0).abs() < 1e-9, "{flight}");
-    // Two samples: the first alarms by |v| > c, the second by |e(1) + v| > c with e(1) N(0, q). A sum of
-    // the grid's survival (not of each sample's hazard) was 7.6e-6 off here: the trapezoid's Gaussian
-    // weighs 1 - 3.6e-14 in doubles, a lost mass it counted as alarms.
-    let q = |z: f64| 0.5 * statrs::function::erf::erfc(z / std::f64::consts::SQRT_2);
-    let two = -((-2.0 * q(6.0)).ln_1p() + (-2.0 * q(6.0 / (1.0 + fault_free.q).sqrt())).ln_1p()).exp_m1();
-    assert!((fault_free.fault_free_alarm(2, 801) / two - 1.0).abs() < 1e-12, "{two}");
-    let rare = SlowModeWindow { threshold: 8.0, ..slow_mode_window() };
-    let (trial, hour) = (rare.fault_free_alarm(200, 801), rare.fault_free_alarm(360_000, 801));
-    assert!((trial / 1.114097939833e-6 - 1.0).abs() < 1e-9, "{trial}");
-    assert!((hour / 5.708425809165e-3 - 1.0).abs() < 1e-9, "{hour}");
+#[cfg(test)]
+mod tests {
+    use super::super::normal_cdf as phi;
+    use super::*;
+
+    /// The grid against a case it must get exactly (one sample: `e + v` is N(0, 1 + P), so the miss is
+    /// `Phi((c - b) / sd) - Phi((-c - b) / sd)`), against itself on a finer grid, and against the reference
+    /// script's NumPy (`scripts/reference/slow_mode_miss_numpy.py`: 0.531727682059 at b = 2, 0.526233355692
+    /// with b uniform on [1, 3]; fault-free at threshold 6, 1.908491708269e-3 in 200 samples and
+    /// 3.615708384512e-2 in 2,000; at threshold 8, 1.114097939833e-6 in 200 and 5.708425809165e-3 in an
+    /// hour's 360,000; two samples: `1 - (1 - 2 Q(c)) (1 - 2 Q(c / sqrt(1 + q)))`); and the memory matters: each sample alone would give 0.2197543974.
+    #[test]
+    fn the_slow_mode_window_meets_its_closed_form_and_numpy() {
+        let one = SlowModeWindow { window: 1, ..slow_mode_window() };
+        let sd = (1.0 + one.onset_variance()).sqrt();
+        let closed = phi((4.0 - 2.0) / sd) - phi((-4.0 - 2.0) / sd);
+        assert!((one.miss(2.0, 801) - closed).abs() < 1e-11, "{} {closed}", one.miss(2.0, 801));
+        let window = slow_mode_window();
+        let (coarse, fine) = (window.miss(2.0, 401), window.miss(2.0, 801));
+        assert!((coarse - fine).abs() < 1e-11, "{coarse} {fine}");
+        assert!((fine - 0.531727682059).abs() < 1e-10, "{fine}");
+        let uniform = window.miss_uniform(1.0, 3.0, 401);
+        assert!((uniform - 0.526233355692).abs() < 1e-10, "{uniform}");
+        let fault_free = SlowModeWindow { threshold: 6.0, ..slow_mode_window() };
+        let (segment, flight) = (fault_free.fault_free_alarm(200, 801), fault_free.fault_free_alarm(2000, 801));
+        // SciPy's and statrs' tails part by about 3e-11.
+        assert!((segment / 1.908491708269e-3 - 1.0).abs() < 1e-9, "{segment}");
+        assert!((flight / 3.615708384512e-2 - 1.0).abs() < 1e-9, "{flight}");
+        // Two samples: the first alarms by |v| > c, the second by |e(1) + v| > c with e(1) N(0, q). A sum of
+        // the grid's survival (not of each sample's hazard) was 7.6e-6 off here: the trapezoid's Gaussian
+        // weighs 1 - 3.6e-14 in doubles, a lost mass it counted as alarms.
+        let q = |z: f64| 0.5 * statrs::function::erf::erfc(z / std::f64::consts::SQRT_2);
+        let two = -((-2.0 * q(6.0)).ln_1p() + (-2.0 * q(6.0 / (1.0 + fault_free.q).sqrt())).ln_1p()).exp_m1();
+        assert!((fault_free.fault_free_alarm(2, 801) / two - 1.0).abs() < 1e-12, "{two}");
+        let rare = SlowModeWindow { threshold: 8.0, ..slow_mode_window() };
+        let (trial, hour) = (rare.fault_free_alarm(200, 801), rare.fault_free_alarm(360_000, 801));
+        assert!((trial / 1.114097939833e-6 - 1.0).abs() < 1e-9, "{trial}");
+        assert!((hour / 5.708425809165e-3 - 1.0).abs() < 1e-9, "{hour}");
+    }
 }
