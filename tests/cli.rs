@@ -7,6 +7,7 @@ mod fmpy;
 
 use std::path::{Path, PathBuf};
 
+use fdimc::cli::verify::slow_mode_deck;
 use fdimc::exact::{cusum as exact_cusum, false_alarms as exact_false_alarms, slow_mode as exact_slow_mode};
 use std::process::{Command, Output};
 
@@ -3803,25 +3804,6 @@ fn calibrated_miss_row(run: &Path) -> (f64, f64, f64, f64) {
     (threshold, g("value_lo"), g("value_hi"), g("value_upper_95"))
 }
 
-/// `tests/data/white_residual.toml` with a slow mode (`src/exact/slow_mode.rs`'s law): the
-/// plant a = -1 /s with process noise 0.141067 per step (the state error's stationary sd 1), the filter's
-/// eigenvalue the plant's own (gain 0), at `threshold`, with the faults' `size_sigma` given.
-fn slow_mode_deck(threshold: f64, fault_free_fraction: &str, size_sigma: &str) -> String {
-    let deck = std::fs::read_to_string("tests/data/white_residual.toml").unwrap();
-    let edits = [
-        ("a = [[-1000.0]]", "a = [[-1.0]]".to_string()),
-        ("eigenvalues_per_s = [-1000.0]", "eigenvalues_per_s = [-1.0]".to_string()),
-        ("sensor_sigma = [1.0]", "sensor_sigma = [1.0]\nprocess_sigma_per_step = [0.141067]".to_string()),
-        ("thresholds = [3.5]", format!("thresholds = [{threshold:?}]")),
-        ("fault_free_fraction = 0.5", format!("fault_free_fraction = {fault_free_fraction}")),
-        ("size_sigma = 1.0", format!("size_sigma = {size_sigma}")),
-    ];
-    edits.iter().fold(deck, |text, (from, to)| {
-        assert!(text.contains(from), "{from}");
-        text.replace(from, to)
-    })
-}
-
 /// The fewest of `seeds` seeds whose 95 % intervals must hold a known value: 95 % coverage falls below
 /// it with probability under 0.005.
 fn fewest_covered(seeds: u64) -> u64 {
@@ -3927,16 +3909,9 @@ fn the_miss_before_the_hazard_of_a_cusum_meets_brook_and_evans_chain() {
     use exact_cusum::CusumWindow;
     let window = |threshold: f64, bias: f64| CusumWindow { drift: 1.0, threshold, bias, before: 100, window: 20 };
     let at_four = window(4.0, 1.0).miss(0.04, 30.0);
-    let deck = std::fs::read_to_string("tests/data/white_residual.toml").unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let write = |name: &str, threshold: &str, bias: &str| -> PathBuf {
-        let text = deck
-            .replace("kind = \"detection_filter\"", "kind = \"cusum\"\ndrift = [1.0]")
-            .replace("thresholds = [3.5]", &format!("thresholds = [{threshold}]"))
-            .replace("fault_free_fraction = 0.5", "fault_free_fraction = 0.1")
-            .replace("size_sigma = 1.0", &format!("size_sigma = {bias}"))
-            + "\n[monte_carlo.time_to_hazard_s]\nbias = 0.195\n";
-        assert!(text.contains("drift = [1.0]") && text.contains(&format!("thresholds = [{threshold}]")));
+        let text = fdimc::cli::verify::cusum_deck(threshold, bias) + "\n[monte_carlo.time_to_hazard_s]\nbias = 0.195\n";
         let path = tmp.path().join(name);
         std::fs::write(&path, text).unwrap();
         path
@@ -4262,6 +4237,42 @@ fn the_tail_fits_per_hour_row_meets_an_hour_flown_through_on_a_slow_mode() {
         assert_eq!(targets, 3, "{tail}");
     }
     println!("the tail fit's per-hour interval held the exact {conversion:.4e} on {covered} of {seeds} seeds");
+}
+
+/// `fdimc verify` (issue 86, item 2): its five known-answer cases pass on this build, `verification.csv`
+/// has one row each with the expected value's source, and the CSV and the page name this build's commit
+/// (`git rev-parse`, independent of the build script's reading) and the lane path's vector form.
+#[test]
+fn verify_passes_its_known_answer_cases_and_names_the_build() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("verify");
+    let printed = ok(&fdimc(&["verify", "--out", out.to_str().unwrap()]));
+    assert!(printed.contains("5 of 5 cases passed"), "{printed}");
+    let t = csv_frame(&out.join("verification.csv"));
+    assert_eq!(t.height(), 5, "{t}");
+    let strs = |name: &str| -> Vec<String> {
+        let c = t.column(name).unwrap().str().unwrap().clone();
+        (0..t.height()).map(|i| c.get(i).unwrap().to_string()).collect()
+    };
+    let pass = t.column("pass").unwrap().bool().unwrap().clone();
+    assert!((0..t.height()).all(|i| pass.get(i) == Some(true)), "{t}");
+    assert_eq!(
+        strs("case"),
+        [
+            "exact_slow_mode_law",
+            "exact_cusum_chain",
+            "white_residual_pfa",
+            "slow_mode_miss_before_hazard",
+            "cusum_miss_before_hazard"
+        ]
+    );
+    assert!(strs("expected_from").iter().all(|s| !s.is_empty()));
+    let head = Command::new("git").args(["rev-parse", "--short=12", "HEAD"]).output().unwrap();
+    let commit = String::from_utf8_lossy(&head.stdout).trim().to_string();
+    assert!(strs("commit").iter().all(|c| *c == commit), "{commit} vs {t}");
+    let page = std::fs::read_to_string(out.join("verification.html")).unwrap();
+    assert!(page.contains(&format!("<td>{commit}</td>")) && page.contains("vector form"), "{page}");
+    assert_eq!(page.matches("<td>pass</td>").count(), 5, "{page}");
 }
 
 #[test]

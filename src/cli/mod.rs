@@ -15,6 +15,7 @@ use crate::engine::scenario::deck::DeckError;
 mod fmu;
 mod log;
 mod run;
+pub mod verify;
 
 #[derive(Debug, Parser)]
 #[command(
@@ -289,6 +290,16 @@ Times are seconds from the first sample, as a deck's [log] evaluate_s and train_
         #[arg(long)]
         locals: bool,
     },
+    /// Run known-answer cases on this build and machine (closed forms and the exact laws the tests use,
+    /// each against a run's 95 % interval) and write verification.csv and verification.html with the
+    /// build's version and commit, the CPU and the lane path's vector form; exit 1 when a case fails.
+    /// For a safety case's tool qualification (docs/verification.md); about half a minute.
+    #[command(after_help = "Example: fdimc verify --out results/verify && open results/verify/verification.html")]
+    Verify {
+        /// Results folder (default: results/verify).
+        #[arg(long, default_value = "results/verify")]
+        out: PathBuf,
+    },
     /// Statistical regression check against a baseline summary; exit 1 on regression.
     #[command(after_help = "Make a baseline: cp results/<study>/summary.csv results/baselines/<study>.csv")]
     Check {
@@ -508,6 +519,8 @@ pub mod exit {
     pub const REGRESSION: u8 = 1;
     /// `flight-thresholds` could not confirm a detector's thresholds.
     pub const NOT_CONFIRMED: u8 = 1;
+    /// `verify`: a known-answer case failed.
+    pub const CASE_FAILED: u8 = 1;
     /// Invalid input: a deck, an argument or an input file; the message names the file and the field.
     pub const INVALID_INPUT: u8 = 2;
     /// An I/O or internal error.
@@ -516,7 +529,7 @@ pub mod exit {
     /// The codes as `--help` prints them.
     pub fn help() -> String {
         format!(
-            "Exit codes: {OK} ok, {REGRESSION} regression found (check) or thresholds not confirmed (flight-thresholds), {INVALID_INPUT} invalid input (deck, \
+            "Exit codes: {OK} ok, {REGRESSION} regression found (check), thresholds not confirmed (flight-thresholds) or a case failed (verify), {INVALID_INPUT} invalid input (deck, \
              arguments, files), {INTERNAL} I/O or internal error."
         )
     }
@@ -633,6 +646,11 @@ pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
             deck: deck.as_deref(),
         }),
         Command::Fmu { file, locals } => fmu::exec_fmu(&file, locals),
+        Command::Verify { out } => match verify::exec_verify(&out) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::from(exit::CASE_FAILED),
+            Err(e) => Err(e),
+        },
         Command::Check { target, baseline, alpha, threads } => {
             match commands.exec_check(&target, &baseline, alpha, threads) {
                 Ok(true) => Ok(()),

@@ -1,0 +1,296 @@
+//! `fdimc verify` (issue 86, item 2): known-answer cases run by this build on this machine, for an
+//! analyst to attach to a safety case. Each case runs `fdimc run` (this executable, as a user runs it) on
+//! a deck whose answer is known from outside fdimc's estimators (a closed form, or an exact law of
+//! `fdimc::exact`, the module the tests use), and checks that the run's 95 % interval holds it; the
+//! exact laws themselves are checked against the reference scripts' printed numbers. It writes
+//! `verification.csv` and `verification.html` with the build's version and commit, the CPU and the
+//! vector forms the lane path runs here.
+
+use std::path::{Path, PathBuf};
+
+use polars::prelude::{Column, DataFrame};
+
+use super::CliError;
+use crate::engine::results::tables::{Table, read_summary};
+use crate::exact::cusum::CusumWindow;
+use crate::exact::false_alarms::two_sided;
+use crate::exact::slow_mode::slow_mode_window;
+use crate::methods::detection_filter::kernel::Vectors;
+
+/// A white N(0, 1) residual (closed form): `tests/data/white_residual.toml`.
+const WHITE_RESIDUAL: &str = include_str!("../../tests/data/white_residual.toml");
+
+/// The white-residual deck with a slow mode (`fdimc::exact::slow_mode`'s law): the plant a = -1 /s
+/// with process noise 0.141067 per step (the state error's stationary sd 1), the filter's eigenvalue the
+/// plant's own (gain 0), at `threshold`, with the fault-free share and the faults' `size_sigma` given.
+pub fn slow_mode_deck(threshold: f64, fault_free_fraction: &str, size_sigma: &str) -> String {
+    edited(&[
+        ("a = [[-1000.0]]", "a = [[-1.0]]".to_string()),
+        ("eigenvalues_per_s = [-1000.0]", "eigenvalues_per_s = [-1.0]".to_string()),
+        ("sensor_sigma = [1.0]", "sensor_sigma = [1.0]\nprocess_sigma_per_step = [0.141067]".to_string()),
+        ("thresholds = [3.5]", format!("thresholds = [{threshold:?}]")),
+        ("fault_free_fraction = 0.5", format!("fault_free_fraction = {fault_free_fraction}")),
+        ("size_sigma = 1.0", format!("size_sigma = {size_sigma}")),
+    ])
+}
+
+/// The white-residual deck with a CUSUM of drift 1 at `threshold`, a tenth of the trials fault-free
+/// and a bias of `bias` sigma (`fdimc::exact::cusum`'s law).
+pub fn cusum_deck(threshold: &str, bias: &str) -> String {
+    edited(&[
+        ("kind = \"detection_filter\"", "kind = \"cusum\"\ndrift = [1.0]".to_string()),
+        ("thresholds = [3.5]", format!("thresholds = [{threshold}]")),
+        ("fault_free_fraction = 0.5", "fault_free_fraction = 0.1".to_string()),
+        ("size_sigma = 1.0", format!("size_sigma = {bias}")),
+    ])
+}
+
+/// The white-residual deck with each `(from, to)` replaced; every `from` must be there.
+fn edited(edits: &[(&str, String)]) -> String {
+    edits.iter().fold(WHITE_RESIDUAL.to_string(), |text, (from, to)| {
+        assert!(text.contains(from), "the white-residual deck lost {from:?}");
+        text.replace(from, to)
+    })
+}
+
+/// The time to hazard the miss cases give their bias faults: the onset's sample and the 19 after it.
+const HAZARD: &str = "\n[monte_carlo.time_to_hazard_s]\nbias = 0.195\n";
+
+/// One known-answer case and what this build measured.
+#[derive(Debug, Clone)]
+pub struct Case {
+    pub name: &'static str,
+    pub checks: String,
+    pub expected_from: &'static str,
+    pub expected: f64,
+    pub measured: f64,
+    /// The measured value's 95 % interval (for a computation, its tolerance about the expected).
+    pub lo: f64,
+    pub hi: f64,
+}
+
+impl Case {
+    pub fn pass(&self) -> bool {
+        self.lo <= self.expected && self.expected <= self.hi
+    }
+}
+
+/// The figure `column` (with `_lo`, `_hi`) at the deck's thresholds of the run in `dir`.
+fn at_deck_thresholds(dir: &Path, column: &str) -> Result<[f64; 3], CliError> {
+    let path = dir.join("detectors.csv");
+    let df = read_summary(&path).map_err(|e| CliError::Internal(format!("{}: {e}", path.display())))?;
+    let t = Table(&df);
+    let row = (t.strs("thresholds").iter().position(|s| s == "deck"))
+        .ok_or_else(|| CliError::Internal(format!("{}: no row at the deck's thresholds", path.display())))?;
+    Ok([column.to_string(), format!("{column}_lo"), format!("{column}_hi")].map(|c| t.f64s(&c)[row]))
+}
+
+/// Runs `deck_text` (written to `out/decks/NAME.toml`) with this executable into `out/runs/NAME`.
+fn run_deck(out: &Path, name: &str, deck_text: &str) -> Result<PathBuf, CliError> {
+    let io = |e: std::io::Error| CliError::Internal(format!("{}: {e}", out.display()));
+    let decks = out.join("decks");
+    std::fs::create_dir_all(&decks).map_err(io)?;
+    let deck = decks.join(format!("{name}.toml"));
+    std::fs::write(&deck, deck_text).map_err(io)?;
+    let dir = out.join("runs").join(name);
+    let exe = std::env::current_exe().map_err(io)?;
+    let status = std::process::Command::new(exe)
+        .args(["run", &deck.to_string_lossy(), "--quiet", "--force", "--out", &dir.to_string_lossy()])
+        .status()
+        .map_err(io)?;
+    if !status.success() {
+        return Err(CliError::Internal(format!("fdimc run {} failed ({status})", deck.display())));
+    }
+    Ok(dir)
+}
+
+/// The quick form's cases, each run here.
+fn quick_cases(out: &Path) -> Result<Vec<Case>, CliError> {
+    let mut cases = Vec::new();
+    // The exact laws against the reference scripts' numbers (computed here, on this machine).
+    let slow = slow_mode_window();
+    let grid = slow.miss(2.0, 801);
+    cases.push(Case {
+        name: "exact_slow_mode_law",
+        checks: "the slow-mode residual's miss (b = 2, threshold 4, 20 samples) on this machine".into(),
+        expected_from: "scripts/reference/slow_mode_miss_numpy.py (NumPy, SciPy): 0.531727682059",
+        expected: 0.531727682059,
+        measured: grid,
+        lo: grid - 1e-10,
+        hi: grid + 1e-10,
+    });
+    let cusum = CusumWindow { drift: 1.0, threshold: 4.0, bias: 1.0, before: 100, window: 20 };
+    // The script's range (h + 8), extrapolated from bins of 0.01 and 0.02.
+    let (scripts_range, _) = cusum.extrapolated(0.01, 8.0);
+    cases.push(Case {
+        name: "exact_cusum_chain",
+        checks: "Brook and Evans' chain of a CUSUM (drift 1, threshold 4, b = 1, 100 + 20 samples) on this machine"
+            .into(),
+        expected_from: "scripts/reference/cusum_miss_numpy.py (NumPy, another binning): 0.3107492003",
+        expected: 0.3107492003,
+        measured: scripts_range,
+        lo: scripts_range - 2e-9,
+        hi: scripts_range + 2e-9,
+    });
+    let chain = cusum.miss(0.04, 30.0);
+    // A white N(0, 1) residual at threshold 3.5: half the flights fault-free over 200 samples, the
+    // faulty half over the 100 before the onset.
+    let sample = two_sided(3.5);
+    let pfa = 0.5 * -(200.0 * (-sample).ln_1p()).exp_m1() + 0.5 * -(100.0 * (-sample).ln_1p()).exp_m1();
+    let dir = run_deck(out, "white_residual", WHITE_RESIDUAL)?;
+    let [measured, lo, hi] = at_deck_thresholds(&dir, "pfa")?;
+    cases.push(Case {
+        name: "white_residual_pfa",
+        checks: "detectors.csv's Pfa at the deck's threshold, 4,000 trials of a white N(0, 1) residual".into(),
+        expected_from: "closed form: 0.5 (1 - (1 - 2 Q(3.5))^200) + 0.5 (1 - (1 - 2 Q(3.5))^100)",
+        expected: pfa,
+        measured,
+        lo,
+        hi,
+    });
+    let dir = run_deck(out, "slow_mode_miss", &(slow_mode_deck(4.0, "0.1", "2.0") + HAZARD))?;
+    let [measured, lo, hi] = at_deck_thresholds(&dir, "p_miss_before_hazard")?;
+    cases.push(Case {
+        name: "slow_mode_miss_before_hazard",
+        checks: "detectors.csv's miss before the hazard where the residual has a 1 s mode (b = 2, 20 samples)".into(),
+        expected_from: "exact law (fdimc::exact::slow_mode, the state error's density on a grid)",
+        expected: slow.miss(2.0, 401),
+        measured,
+        lo,
+        hi,
+    });
+    let dir = run_deck(out, "cusum_miss", &(cusum_deck("4.0", "1.0") + HAZARD))?;
+    let [measured, lo, hi] = at_deck_thresholds(&dir, "p_miss_before_hazard")?;
+    cases.push(Case {
+        name: "cusum_miss_before_hazard",
+        checks: "detectors.csv's miss before the hazard of a CUSUM (drift 1, threshold 4, b = 1, 20 samples)".into(),
+        expected_from: "exact law (fdimc::exact::cusum, Brook and Evans' chain)",
+        expected: chain,
+        measured,
+        lo,
+        hi,
+    });
+    Ok(cases)
+}
+
+/// Where and what ran: fdimc's version and commit, the CPU, the vector forms the lane path uses here.
+fn build_and_machine() -> Vec<(&'static str, String)> {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("model name"))
+                .map(|l| l.split(':').nth(1).unwrap_or("").trim().to_string())
+        })
+        .unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    let forms = match Vectors::detect() {
+        Vectors::Avx512 => "AVX-512 (and AVX2, scalar)",
+        Vectors::Avx2 => "AVX2 (and scalar; no AVX-512 here)",
+        Vectors::Scalar => "scalar only",
+    };
+    vec![
+        ("fdimc", env!("CARGO_PKG_VERSION").to_string()),
+        ("commit", env!("FDIMC_COMMIT").to_string()),
+        ("cpu", cpu),
+        ("cores", std::thread::available_parallelism().map_or(1, |n| n.get()).to_string()),
+        ("lane path's vector form", forms.to_string()),
+    ]
+}
+
+/// `fdimc verify --out DIR`: the cases, `verification.csv` and `verification.html`; whether all passed.
+pub fn exec_verify(out: &Path) -> Result<bool, CliError> {
+    std::fs::create_dir_all(out).map_err(|e| CliError::Invalid(format!("--out {}: {e}", out.display())))?;
+    let cases = quick_cases(out)?;
+    let about = build_and_machine();
+    let mut df = DataFrame::new_infer_height(vec![
+        Column::new("case".into(), cases.iter().map(|c| c.name).collect::<Vec<_>>()),
+        Column::new("checks".into(), cases.iter().map(|c| c.checks.clone()).collect::<Vec<_>>()),
+        Column::new("expected_from".into(), cases.iter().map(|c| c.expected_from).collect::<Vec<_>>()),
+        Column::new("expected".into(), cases.iter().map(|c| c.expected).collect::<Vec<_>>()),
+        Column::new("measured".into(), cases.iter().map(|c| c.measured).collect::<Vec<_>>()),
+        Column::new("measured_lo".into(), cases.iter().map(|c| c.lo).collect::<Vec<_>>()),
+        Column::new("measured_hi".into(), cases.iter().map(|c| c.hi).collect::<Vec<_>>()),
+        Column::new("pass".into(), cases.iter().map(Case::pass).collect::<Vec<_>>()),
+        Column::new("fdimc".into(), vec![about[0].1.clone(); cases.len()]),
+        Column::new("commit".into(), vec![about[1].1.clone(); cases.len()]),
+        Column::new("cpu".into(), vec![about[2].1.clone(); cases.len()]),
+        Column::new("vector_form".into(), vec![about[4].1.clone(); cases.len()]),
+    ])
+    .map_err(|e| CliError::Internal(e.to_string()))?;
+    crate::engine::run::output::write_table(&mut df, &out.join("verification.csv"))?;
+    let page = page(&cases, &about);
+    crate::engine::run::runner::write_atomically(&out.join("verification.html"), page.as_bytes())
+        .map_err(|e| CliError::Internal(e.to_string()))?;
+    let failed = cases.iter().filter(|c| !c.pass()).count();
+    for c in &cases {
+        println!(
+            "{} {:<30} expected {:.6e}, measured {:.6e} [{:.6e}, {:.6e}]",
+            if c.pass() { "pass" } else { "FAIL" },
+            c.name,
+            c.expected,
+            c.measured,
+            c.lo,
+            c.hi
+        );
+    }
+    println!(
+        "{} of {} cases passed on {} ({}); verification.csv and verification.html in {}",
+        cases.len() - failed,
+        cases.len(),
+        about[2].1,
+        about[4].1,
+        out.display()
+    );
+    Ok(failed == 0)
+}
+
+/// The page: what ran where, then each case.
+fn page(cases: &[Case], about: &[(&str, String)]) -> String {
+    let escape = |s: &str| s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;");
+    let mut html = String::from(
+        "<!DOCTYPE html>\n<html><head><meta charset=\"utf-8\"><title>fdimc verify</title>\n<style>body{font-family:sans-serif;max-width:70em;margin:2em auto}td,th{border:1px solid #ccc;padding:.3em;text-align:left}table{border-collapse:collapse}.fail{color:#b00;font-weight:bold}</style></head><body>\n<h1>fdimc verify: known-answer cases</h1>\n<p>Each case runs this build of fdimc on a deck whose answer comes from outside its estimators, and passes when the run's 95 % interval holds that answer (a computation: when it meets the reference to the tolerance shown). It shows that this build, on this machine, gives these figures; it does not show that a user's model, deck or noise is right, nor anything of the kinds these cases do not run.</p>\n<table>\n",
+    );
+    for (k, v) in about {
+        html.push_str(&format!("<tr><th>{}</th><td>{}</td></tr>\n", escape(k), escape(v)));
+    }
+    html.push_str("</table>\n<h2>Cases</h2>\n<table><tr><th>case</th><th>checks</th><th>expected, from</th><th>expected</th><th>measured [95 %]</th><th>result</th></tr>\n");
+    for c in cases {
+        let result = if c.pass() { "pass".to_string() } else { "<span class=\"fail\">FAIL</span>".to_string() };
+        html.push_str(&format!(
+            "<tr><td>{}</td><td>{}</td><td>{}</td><td>{:.6e}</td><td>{:.6e} [{:.6e}, {:.6e}]</td><td>{result}</td></tr>\n",
+            c.name,
+            escape(&c.checks),
+            escape(c.expected_from),
+            c.expected,
+            c.measured,
+            c.lo,
+            c.hi
+        ));
+    }
+    html.push_str("</table>\n</body></html>\n");
+    html
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A case passes exactly when its interval holds the expected value, and the page says FAIL for one
+    /// that does not.
+    #[test]
+    fn a_case_fails_when_its_interval_misses_the_answer() {
+        let case = |lo: f64, hi: f64| Case {
+            name: "c",
+            checks: "x".into(),
+            expected_from: "y",
+            expected: 0.5,
+            measured: 0.45,
+            lo,
+            hi,
+        };
+        assert!(case(0.4, 0.5).pass() && case(0.5, 0.6).pass());
+        assert!(!case(0.4, 0.49).pass() && !case(0.51, 0.6).pass());
+        let page = page(&[case(0.4, 0.49)], &[("commit", "abc".into())]);
+        assert!(page.contains("FAIL") && page.contains("<td>abc</td>"), "{page}");
+    }
+}
