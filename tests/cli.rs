@@ -1650,7 +1650,7 @@ fn a_kind_added_from_outside_the_crate_runs_every_command() {
     let help = ok(&run(&["new", "--help"]));
     assert!(help.contains("random_walk"), "{help}");
     assert!(ok(&run(&["--help"])).contains(
-        "Exit codes: 0 ok, 1 regression found (check) or thresholds not confirmed (flight-thresholds), 2 invalid input"
+        "Exit codes: 0 ok, 1 regression found (check), thresholds not confirmed (flight-thresholds) or a case failed (verify), 2 invalid input"
     ));
 
     let tmp = tempfile::tempdir().unwrap();
@@ -4239,7 +4239,7 @@ fn the_tail_fits_per_hour_row_meets_an_hour_flown_through_on_a_slow_mode() {
     println!("the tail fit's per-hour interval held the exact {conversion:.4e} on {covered} of {seeds} seeds");
 }
 
-/// `fdimc verify` (issue 86, item 2): its five known-answer cases pass on this build, `verification.csv`
+/// `fdimc verify` (issue 86, item 2): its six known-answer cases pass on this build, `verification.csv`
 /// has one row each with the expected value's source, and the CSV and the page name this build's commit
 /// (`git rev-parse`, independent of the build script's reading) and the lane path's vector form.
 #[test]
@@ -4247,9 +4247,9 @@ fn verify_passes_its_known_answer_cases_and_names_the_build() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("verify");
     let printed = ok(&fdimc(&["verify", "--out", out.to_str().unwrap()]));
-    assert!(printed.contains("5 of 5 cases passed"), "{printed}");
+    assert!(printed.contains("6 of 6 cases passed"), "{printed}");
     let t = csv_frame(&out.join("verification.csv"));
-    assert_eq!(t.height(), 5, "{t}");
+    assert_eq!(t.height(), 6, "{t}");
     let strs = |name: &str| -> Vec<String> {
         let c = t.column(name).unwrap().str().unwrap().clone();
         (0..t.height()).map(|i| c.get(i).unwrap().to_string()).collect()
@@ -4263,7 +4263,8 @@ fn verify_passes_its_known_answer_cases_and_names_the_build() {
             "exact_cusum_chain",
             "white_residual_pfa",
             "slow_mode_miss_before_hazard",
-            "cusum_miss_before_hazard"
+            "cusum_miss_before_hazard",
+            "records_identical_across_threads_and_shards"
         ]
     );
     assert!(strs("expected_from").iter().all(|s| !s.is_empty()));
@@ -4272,7 +4273,7 @@ fn verify_passes_its_known_answer_cases_and_names_the_build() {
     assert!(strs("commit").iter().all(|c| *c == commit), "{commit} vs {t}");
     let page = std::fs::read_to_string(out.join("verification.html")).unwrap();
     assert!(page.contains(&format!("<td>{commit}</td>")) && page.contains("vector form"), "{page}");
-    assert_eq!(page.matches("<td>pass</td>").count(), 5, "{page}");
+    assert_eq!(page.matches("<td>pass</td>").count(), 6, "{page}");
 }
 
 #[test]

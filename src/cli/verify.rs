@@ -85,23 +85,50 @@ fn at_deck_thresholds(dir: &Path, column: &str) -> Result<[f64; 3], CliError> {
     Ok([column.to_string(), format!("{column}_lo"), format!("{column}_hi")].map(|c| t.f64s(&c)[row]))
 }
 
-/// Runs `deck_text` (written to `out/decks/NAME.toml`) with this executable into `out/runs/NAME`.
-fn run_deck(out: &Path, name: &str, deck_text: &str) -> Result<PathBuf, CliError> {
+/// Runs this executable with `args`, as a user would.
+fn fdimc(args: &[&str]) -> Result<(), CliError> {
+    let exe = std::env::current_exe().map_err(|e| CliError::Internal(format!("this executable: {e}")))?;
+    // Its answer is in the files read back; what it prints would bury verify's own lines.
+    let status = (std::process::Command::new(exe).args(args).stdout(std::process::Stdio::null()).status())
+        .map_err(|e| CliError::Internal(format!("fdimc {}: {e}", args.join(" "))))?;
+    if !status.success() {
+        return Err(CliError::Internal(format!("fdimc {} failed ({status})", args.join(" "))));
+    }
+    Ok(())
+}
+
+/// Writes `deck_text` to `out/decks/NAME.toml` and runs it with `extra` options into `out/runs/RUN`.
+fn run_deck(out: &Path, name: &str, deck_text: &str, run: &str, extra: &[&str]) -> Result<PathBuf, CliError> {
     let io = |e: std::io::Error| CliError::Internal(format!("{}: {e}", out.display()));
     let decks = out.join("decks");
     std::fs::create_dir_all(&decks).map_err(io)?;
     let deck = decks.join(format!("{name}.toml"));
     std::fs::write(&deck, deck_text).map_err(io)?;
-    let dir = out.join("runs").join(name);
-    let exe = std::env::current_exe().map_err(io)?;
-    let status = std::process::Command::new(exe)
-        .args(["run", &deck.to_string_lossy(), "--quiet", "--force", "--out", &dir.to_string_lossy()])
-        .status()
-        .map_err(io)?;
-    if !status.success() {
-        return Err(CliError::Internal(format!("fdimc run {} failed ({status})", deck.display())));
-    }
+    let dir = out.join("runs").join(run);
+    let (deck_s, dir_s) = (deck.to_string_lossy(), dir.to_string_lossy());
+    fdimc(&[&["run", &deck_s, "--quiet", "--force", "--out", &dir_s][..], extra].concat())?;
     Ok(dir)
+}
+
+/// A run's records (`trials.parquet`).
+fn records(dir: &Path) -> Result<DataFrame, CliError> {
+    let path = dir.join("trials.parquet");
+    read_summary(&path).map_err(|e| CliError::Internal(format!("{}: {e}", path.display())))
+}
+
+/// The white residual's records on one thread, on two, and in two shards merged: 1 when all three are
+/// identical, else 0.
+fn records_identical(out: &Path) -> Result<f64, CliError> {
+    let one = run_deck(out, "white_residual", WHITE_RESIDUAL, "threads_1", &["--threads", "1"])?;
+    let two = run_deck(out, "white_residual", WHITE_RESIDUAL, "threads_2", &["--threads", "2"])?;
+    let first_half = run_deck(out, "white_residual", WHITE_RESIDUAL, "shard_0_of_2", &["--shard", "0/2"])?;
+    let second_half = run_deck(out, "white_residual", WHITE_RESIDUAL, "shard_1_of_2", &["--shard", "1/2"])?;
+    let merged = out.join("runs").join("merged");
+    let parts = [first_half, second_half].map(|p| p.to_string_lossy().to_string());
+    fdimc(&["merge", &parts[0], &parts[1], "--force", "--out", &merged.to_string_lossy()])?;
+    let first = records(&one)?;
+    let same = first.equals_missing(&records(&two)?) && first.equals_missing(&records(&merged)?);
+    Ok(if same { 1.0 } else { 0.0 })
 }
 
 /// The quick form's cases, each run here.
@@ -137,7 +164,7 @@ fn quick_cases(out: &Path) -> Result<Vec<Case>, CliError> {
     // faulty half over the 100 before the onset.
     let sample = two_sided(3.5);
     let pfa = 0.5 * -(200.0 * (-sample).ln_1p()).exp_m1() + 0.5 * -(100.0 * (-sample).ln_1p()).exp_m1();
-    let dir = run_deck(out, "white_residual", WHITE_RESIDUAL)?;
+    let dir = run_deck(out, "white_residual", WHITE_RESIDUAL, "white_residual", &[])?;
     let [measured, lo, hi] = at_deck_thresholds(&dir, "pfa")?;
     cases.push(Case {
         name: "white_residual_pfa",
@@ -148,7 +175,7 @@ fn quick_cases(out: &Path) -> Result<Vec<Case>, CliError> {
         lo,
         hi,
     });
-    let dir = run_deck(out, "slow_mode_miss", &(slow_mode_deck(4.0, "0.1", "2.0") + HAZARD))?;
+    let dir = run_deck(out, "slow_mode_miss", &(slow_mode_deck(4.0, "0.1", "2.0") + HAZARD), "slow_mode_miss", &[])?;
     let [measured, lo, hi] = at_deck_thresholds(&dir, "p_miss_before_hazard")?;
     cases.push(Case {
         name: "slow_mode_miss_before_hazard",
@@ -159,7 +186,7 @@ fn quick_cases(out: &Path) -> Result<Vec<Case>, CliError> {
         lo,
         hi,
     });
-    let dir = run_deck(out, "cusum_miss", &(cusum_deck("4.0", "1.0") + HAZARD))?;
+    let dir = run_deck(out, "cusum_miss", &(cusum_deck("4.0", "1.0") + HAZARD), "cusum_miss", &[])?;
     let [measured, lo, hi] = at_deck_thresholds(&dir, "p_miss_before_hazard")?;
     cases.push(Case {
         name: "cusum_miss_before_hazard",
@@ -169,6 +196,17 @@ fn quick_cases(out: &Path) -> Result<Vec<Case>, CliError> {
         measured,
         lo,
         hi,
+    });
+    let identical = records_identical(out)?;
+    cases.push(Case {
+        name: "records_identical_across_threads_and_shards",
+        checks: "the white residual's trials.parquet on 1 thread, on 2, and in 2 shards merged: 1 when identical"
+            .into(),
+        expected_from: "fdimc's rule: the same deck and seed give the same records for any thread count or shard",
+        expected: 1.0,
+        measured: identical,
+        lo: identical,
+        hi: identical,
     });
     Ok(cases)
 }
