@@ -293,7 +293,7 @@ Times are seconds from the first sample, as a deck's [log] evaluate_s and train_
     /// Run known-answer cases on this build and machine (closed forms and the exact laws the tests use,
     /// each against a run's 95 % interval) and write verification.csv and verification.html with the
     /// build's version and commit, the CPU and the lane path's vector form; exit 1 when a case fails.
-    /// For a safety case's tool qualification (docs/verification.md); about half a minute.
+    /// For a safety case's tool qualification (docs/verification.md); a few seconds.
     #[command(after_help = "Example: fdimc verify --out results/verify && open results/verify/verification.html")]
     Verify {
         /// Results folder (default: results/verify).

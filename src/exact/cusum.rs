@@ -1,6 +1,6 @@
 //! The exact law of Page's CUSUM on a white Gaussian residual, for checking fdimc's miss-before-the-hazard
-//! figures where the statistic has memory (issue 82, item 1). Written for the tests and sharing nothing
-//! with fdimc's code (statrs' `erfc` only).
+//! figures where the statistic has memory (issue 82, item 1). Written for the tests and `fdimc verify`,
+//! sharing nothing with fdimc's code (statrs' `erfc` only).
 //!
 //! The statistic is `g(k) = max(0, g(k-1) + |r(k)| - d)` from `g = 0`, the residual `r(k)` white N(0, 1)
 //! before the fault's onset and N(b, 1) from it, as fdimc's `kind = "cusum"` computes it on a gain-0
@@ -11,7 +11,7 @@
 //! falls as `w^2` (checked: it quarters as `w` halves), so two widths and Richardson's step give the
 //! answer to well below a Monte Carlo interval's width.
 
-use super::normal_cdf as phi;
+use super::{normal_cdf as phi, normal_pdf};
 
 /// `P(|Z + b| - d <= x)`, `Z ~ N(0, 1)`.
 fn increment_cdf(x: f64, drift: f64, bias: f64) -> f64 {
@@ -22,7 +22,7 @@ fn increment_cdf(x: f64, drift: f64, bias: f64) -> f64 {
 /// `int_{-inf}^{x} increment_cdf`: with `u = x + d` and `psi(t) = t Phi(t) + phi(t)` (`psi' = Phi`), it is
 /// `psi(u - b) + psi(-u - b) - 2 psi(-b)`.
 fn increment_cdf_integral(x: f64, drift: f64, bias: f64) -> f64 {
-    let psi = |t: f64| t * phi(t) + (-0.5 * t * t).exp() / (2.0 * std::f64::consts::PI).sqrt();
+    let psi = |t: f64| t * phi(t) + normal_pdf(t, 0.0, 1.0);
     let u = x + drift;
     if u < 0.0 { 0.0 } else { psi(u - bias) + psi(-u - bias) - 2.0 * psi(-bias) }
 }

@@ -22,6 +22,8 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use super::normal_cdf;
+
 /// A probability known to lie in `[lower, upper]`.
 #[derive(Debug, Clone, Copy)]
 pub struct Bounds {
@@ -203,7 +205,7 @@ pub fn extremal_index(flight: Bounds, segment: Bounds, segments_per_flight: f64)
 
 /// `P(|Z| > z)`.
 pub fn two_sided(z: f64) -> f64 {
-    statrs::function::erf::erfc(z / std::f64::consts::SQRT_2)
+    2.0 * normal_cdf(-z)
 }
 
 /// `P(|X| > a, |Y| > b)` for standard normals of correlation `rho`.
@@ -219,7 +221,7 @@ fn upper_both(a: f64, b: f64, rho: f64) -> f64 {
 }
 
 fn upper_both_by(a: f64, b: f64, rho: f64, rule: &Rule) -> f64 {
-    let q = |z: f64| 0.5 * statrs::function::erf::erfc(z / std::f64::consts::SQRT_2);
+    let q = |z: f64| normal_cdf(-z);
     let end = rho.clamp(-1.0, 1.0).asin();
     let f = |t: f64| (-(a * a + b * b - 2.0 * a * b * t.sin()) / (2.0 * t.cos().powi(2))).exp();
     let (nodes, weights) = &**rule;

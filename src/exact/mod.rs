@@ -13,7 +13,13 @@ pub mod cusum;
 pub mod false_alarms;
 pub mod slow_mode;
 
-/// `Phi(x)`, the standard normal's distribution function.
+/// `Phi(x)`, the standard normal's distribution function (for `x` well below 0 it keeps the tail's digits).
 fn normal_cdf(x: f64) -> f64 {
     0.5 * statrs::function::erf::erfc(-x / std::f64::consts::SQRT_2)
+}
+
+/// The normal density at `x` of mean `mean` and standard deviation `sd`.
+fn normal_pdf(x: f64, mean: f64, sd: f64) -> f64 {
+    let z = (x - mean) / sd;
+    (-0.5 * z * z).exp() / (sd * (2.0 * std::f64::consts::PI).sqrt())
 }

@@ -1,6 +1,6 @@
 //! The exact miss before the hazard of a residual whose filter leaves a slow mode (issue 82, item 1),
-//! for checking fdimc's figure where the residual itself has memory. Written for the tests and `fdimc verify`,
-//! sharing nothing with fdimc's code (statrs' `erfc` only).
+//! for checking fdimc's figure where the residual itself has memory. Written for the tests and `fdimc
+//! verify`, sharing nothing with fdimc's code (statrs' `erfc` only).
 //!
 //! The residual is `r(k) = e(k) + v(k)`, plus the bias `b` from the onset sample `k0`, `v` white
 //! N(0, `sensor_sigma^2`), and `e` the state error of a gain-0 filter on a one-state plant with process
@@ -12,10 +12,7 @@
 //! rule converges faster than any power of the step). Checked against its one-sample closed form, its
 //! own convergence and `scripts/reference/slow_mode_miss_numpy.py` by its own test.
 
-fn normal_pdf(x: f64, mean: f64, sd: f64) -> f64 {
-    let z = (x - mean) / sd;
-    (-0.5 * z * z).exp() / (sd * (2.0 * std::f64::consts::PI).sqrt())
-}
+use super::{normal_cdf, normal_pdf};
 
 /// A bias fault's window on a residual with one slow mode.
 pub struct SlowModeWindow {
@@ -84,7 +81,7 @@ impl SlowModeWindow {
     /// `P(|e + v + b| > c)` given `e`, from the two tails: `1 - Phi(c - b - e) + Phi(-c - b - e)` would
     /// lose the tail's digits where alarms are rare (1e-9 a sample at threshold 6).
     fn alarm(&self, e: f64, bias: f64) -> f64 {
-        let tail = |z: f64| 0.5 * statrs::function::erf::erfc(z / (std::f64::consts::SQRT_2 * self.sensor_sigma));
+        let tail = |z: f64| normal_cdf(-z / self.sensor_sigma);
         tail(self.threshold - bias - e) + tail(self.threshold + bias + e)
     }
 
@@ -120,7 +117,7 @@ impl SlowModeWindow {
     /// `ln` P(no alarm) of the fault-free residual through its first `samples` samples from `e(0) = 0`
     /// (the onset, window and bias not used): the first sample alarms by `|v| > c` alone, `e(1)` is
     /// N(0, q), and the density is carried on as in [`Self::miss_sizes`] (an hour's samples by the
-    /// settled decay, as `log_survival` carries it).
+    /// settled hazard, as `log_survival` carries it).
     pub fn fault_free_log_no_alarm(&self, samples: usize, points: usize) -> f64 {
         let first = (-self.alarm(0.0, 0.0)).ln_1p();
         if samples == 1 {
@@ -170,7 +167,6 @@ pub fn slow_mode_window() -> SlowModeWindow {
 
 #[cfg(test)]
 mod tests {
-    use super::super::normal_cdf as phi;
     use super::*;
 
     /// The grid against a case it must get exactly (one sample: `e + v` is N(0, 1 + P), so the miss is
@@ -183,7 +179,7 @@ mod tests {
     fn the_slow_mode_window_meets_its_closed_form_and_numpy() {
         let one = SlowModeWindow { window: 1, ..slow_mode_window() };
         let sd = (1.0 + one.onset_variance()).sqrt();
-        let closed = phi((4.0 - 2.0) / sd) - phi((-4.0 - 2.0) / sd);
+        let closed = normal_cdf((4.0 - 2.0) / sd) - normal_cdf((-4.0 - 2.0) / sd);
         assert!((one.miss(2.0, 801) - closed).abs() < 1e-11, "{} {closed}", one.miss(2.0, 801));
         let window = slow_mode_window();
         let (coarse, fine) = (window.miss(2.0, 401), window.miss(2.0, 801));
@@ -199,7 +195,7 @@ mod tests {
         // Two samples: the first alarms by |v| > c, the second by |e(1) + v| > c with e(1) N(0, q). A sum of
         // the grid's survival (not of each sample's hazard) was 7.6e-6 off here: the trapezoid's Gaussian
         // weighs 1 - 3.6e-14 in doubles, a lost mass it counted as alarms.
-        let q = |z: f64| 0.5 * statrs::function::erf::erfc(z / std::f64::consts::SQRT_2);
+        let q = |z: f64| normal_cdf(-z);
         let two = -((-2.0 * q(6.0)).ln_1p() + (-2.0 * q(6.0 / (1.0 + fault_free.q).sqrt())).ln_1p()).exp_m1();
         assert!((fault_free.fault_free_alarm(2, 801) / two - 1.0).abs() < 1e-12, "{two}");
         let rare = SlowModeWindow { threshold: 8.0, ..slow_mode_window() };
