@@ -12,10 +12,13 @@ use polars::prelude::{Column, DataFrame};
 
 use super::CliError;
 use crate::engine::results::tables::{Table, read_summary};
+use crate::engine::scenario::deck::FromDeck;
 use crate::exact::cusum::CusumWindow;
 use crate::exact::false_alarms::two_sided;
 use crate::exact::slow_mode::slow_mode_window;
 use crate::methods::detection_filter::kernel::Vectors;
+use crate::methods::detection_filter::study::LtiStudy;
+use crate::methods::detection_filter::trials::lane_path_against_one_trial;
 
 /// A white N(0, 1) residual (closed form): `tests/data/white_residual.toml`.
 const WHITE_RESIDUAL: &str = include_str!("../../tests/data/white_residual.toml");
@@ -130,6 +133,31 @@ fn records_identical(out: &Path, every_core: &Path) -> Result<f64, CliError> {
     Ok(if same { 1.0 } else { 0.0 })
 }
 
+/// The bundled decks the lane path is checked on: a fixed design, the bench's and one with per-trial
+/// designs (model errors), with their trials drawn as in a run.
+const LANE_DECKS: [(&str, &str); 3] = [
+    ("studies/ci_seed000.toml", include_str!("../../studies/ci_seed000.toml")),
+    ("studies/bench_seed000.toml", include_str!("../../studies/bench_seed000.toml")),
+    ("studies/seed000_robustness.toml", include_str!("../../studies/seed000_robustness.toml")),
+];
+
+/// The lane path against the one-trial path: 40 trials of each of [`LANE_DECKS`] in every vector form
+/// this CPU runs; the outcomes compared and the first difference (`None`: none).
+fn lane_paths() -> Result<(u64, Option<String>), CliError> {
+    let mut compared = 0;
+    for (path, text) in LANE_DECKS {
+        let study = LtiStudy::from_toml(text, Path::new(path)).map_err(|e| CliError::Internal(e.to_string()))?;
+        for &form in Vectors::available() {
+            let (n, differs) = lane_path_against_one_trial(&study, 40, form);
+            compared += n;
+            if let Some(d) = differs {
+                return Ok((compared, Some(format!("{path}, {form:?}: {d}"))));
+            }
+        }
+    }
+    Ok((compared, None))
+}
+
 /// The quick form's cases, each run here.
 fn quick_cases(out: &Path) -> Result<Vec<Case>, CliError> {
     let mut cases = Vec::new();
@@ -207,6 +235,24 @@ fn quick_cases(out: &Path) -> Result<Vec<Case>, CliError> {
         measured: identical,
         lo: identical,
         hi: identical,
+    });
+    let (compared, differs) = lane_paths()?;
+    let (forms, differing) = (Vectors::available(), if differs.is_some() { 1.0 } else { 0.0 });
+    cases.push(Case {
+        name: "lane_path_equals_one_trial_path",
+        checks: match &differs {
+            None => format!(
+                "the outcomes of 40 trials of {} in the vector forms {forms:?}, each trial's run on the lane path \
+                 against its run alone ({compared} compared): the number that differ",
+                LANE_DECKS.map(|d| d.0).join(", ")
+            ),
+            Some(d) => format!("the lane path against the one-trial path: they differ at {d}"),
+        },
+        expected_from: "fdimc's rule: the lane path is only a faster way to the one-trial path's records",
+        expected: 0.0,
+        measured: differing,
+        lo: differing,
+        hi: differing,
     });
     Ok(cases)
 }

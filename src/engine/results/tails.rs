@@ -4,7 +4,8 @@
 //! `r > s`). From it: the false-alarm probability at the set's thresholds (`s = 1`), and for the
 //! calibrated set the thresholds for the per-flight-hour targets of a safety assessment (or per trial,
 //! without a trial duration) with 95 % intervals; the upper end of a threshold's interval is a threshold
-//! whose Pfa is at most the target with 97.5 % confidence, if the fitted law holds.
+//! whose Pfa is at most the target with 97.5 % confidence, if the fitted law holds (where the fitted
+//! shape is negative, the upper ends trust no shape below 0: `TailFit::survival_interval_conservative`).
 //!
 //! Tables: `tail.csv` (the figures, a row per statistic's threshold; where the kind knows the residual's
 //! exact law, `hour_over_conversion`: how many times an hour flown through alarms as often as the
@@ -191,14 +192,14 @@ fn tail_of(
                 (pfa < fit.zeta()).then(|| Target {
                     pfa,
                     per_hour,
-                    scale: fit.quantile_interval(pfa),
+                    scale: fit.quantile_interval_conservative(pfa),
                     hour: None,
                     doubt: None,
                 })
             })
             .collect()
     };
-    let at_set = || (1.0 > fit.u).then(|| fit.survival_interval(1.0));
+    let at_set = || (1.0 > fit.u).then(|| fit.survival_interval_conservative(1.0));
     let ((stable, at_set), targets) =
         rayon::join(|| rayon::join(|| stability(values, n, &stability_ks(k, values.len())), at_set), targets);
     (tail.stability, tail.at_set, tail.targets) = (stable, at_set, targets);

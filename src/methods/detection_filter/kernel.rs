@@ -44,6 +44,37 @@ impl Vectors {
         }
         Vectors::Scalar
     }
+
+    /// The form the lane loops and the lane draws run in on this thread: the CPU's widest, or the one
+    /// [`with_form`] chose.
+    pub fn current() -> Self {
+        FORM.with(|f| f.get()).unwrap_or_else(Self::detect)
+    }
+
+    /// The forms this CPU runs: its widest and every narrower one (all give the same numbers).
+    pub fn available() -> &'static [Vectors] {
+        const ALL: [Vectors; 3] = [Vectors::Avx512, Vectors::Avx2, Vectors::Scalar];
+        let widest = ALL.iter().position(|&v| v == Self::detect()).unwrap_or(ALL.len() - 1);
+        &ALL[widest..]
+    }
+}
+
+thread_local! {
+    /// A form narrower than the CPU's, chosen by [`with_form`].
+    static FORM: std::cell::Cell<Option<Vectors>> = const { std::cell::Cell::new(None) };
+}
+
+/// Runs `f` with this thread's lane loops and lane draws in `form`, one of [`Vectors::available`]: the
+/// lane path is checked in every form the CPU has (`fdimc verify`, the tests).
+///
+/// # Panics
+/// When the CPU lacks `form` (its instructions would be undefined behaviour).
+pub fn with_form<T>(form: Vectors, f: impl FnOnce() -> T) -> T {
+    assert!(Vectors::available().contains(&form), "this CPU does not run the {form:?} form");
+    let before = FORM.with(|c| c.replace(Some(form)));
+    let out = f();
+    FORM.with(|c| c.set(before));
+    out
 }
 
 /// Which entries of an `nrows x ncols` matrix a product visits, row-major.

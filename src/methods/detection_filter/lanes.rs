@@ -45,7 +45,7 @@ pub(super) fn run_lanes(
 ) -> Vec<Vec<Option<DetectorOutcome>>> {
     assert!((1..=LANES).contains(&specs.len()), "a lane group holds 1 to {LANES} trials");
     #[cfg(target_arch = "x86_64")]
-    match form() {
+    match Vectors::current() {
         // SAFETY: `detect` names a form only when the CPU has its features.
         Vectors::Avx512 => return unsafe { run_avx512(study, plant, specs, detectors) },
         // SAFETY: as above.
@@ -53,21 +53,6 @@ pub(super) fn run_lanes(
         Vectors::Scalar => {}
     }
     run_lanes_in(study, plant, specs, detectors)
-}
-
-#[cfg(test)]
-thread_local! {
-    /// The tests' choice of a form narrower than the CPU's (each is checked where the CPU has it).
-    pub(super) static FORM: std::cell::Cell<Option<Vectors>> = const { std::cell::Cell::new(None) };
-}
-
-/// The form the lane loops run in: the CPU's widest (in tests, one chosen by [`FORM`]).
-fn form() -> Vectors {
-    #[cfg(test)]
-    if let Some(form) = FORM.with(|f| f.get()) {
-        return form;
-    }
-    Vectors::detect()
 }
 
 /// The lane loops with 512-bit vectors: a lane group's quantity in two registers instead of four.

@@ -29,7 +29,7 @@ impl LaneNormals {
         let states = rngs.map(|r| r.state());
         LaneNormals {
             state: std::array::from_fn(|w| std::array::from_fn(|l| states[l][w])),
-            vectors: Vectors::detect(),
+            vectors: Vectors::current(),
         }
     }
 

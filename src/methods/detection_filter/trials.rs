@@ -14,7 +14,9 @@ use crate::methods::detection_filter::scenario::{ScenarioSampler, TrialSpec};
 use crate::methods::detection_filter::study::{LtiStudy, Perturbs};
 
 use crate::engine::run::output::Trace;
-use crate::methods::detection_filter::kernel::{FilterPatterns, LANES, LaneFilter, LanePlant, PlantPatterns};
+use crate::methods::detection_filter::kernel::{
+    FilterPatterns, LANES, LaneFilter, LanePlant, PlantPatterns, Vectors, with_form,
+};
 use crate::methods::detection_filter::kernel::{FilterStep, PlantStep};
 use crate::methods::detection_filter::lanes::{LaneDetector, run_lanes};
 use crate::methods::detection_filter::trial::{DetectorOutcome, FmuFailure, run_trial};
@@ -338,6 +340,67 @@ impl<'a> Engine<'a> {
     }
 }
 
+/// Where the lane path and the one-trial path part, with the lanes in vector form `form` (one of
+/// [`Vectors::available`]): `fdimc verify`'s check and the tests' that the lanes are only a faster way
+/// to the same records. Trials `0..trials` of `study`'s detectors that run on lanes, in lane groups (a
+/// ragged group of 3 first, so idle lanes too, then groups of [`LANES`]), against each trial run alone.
+/// Returns the outcomes compared and the first that differs, described (`None`: all equal, field by
+/// field; the specs as text, where NaN sizes compare).
+pub fn lane_path_against_one_trial(study: &LtiStudy, trials: u64, form: Vectors) -> (u64, Option<String>) {
+    let mut s = study.clone();
+    s.monte_carlo.common.trials = trials;
+    // The lanes run the built-in tests only (run_group sends the others one trial at a time).
+    s.detectors.retain(|d| d.params.runs_on_lanes());
+    let e = Engine::new(&s);
+    let lanes = with_form(form, || {
+        let mut lanes = Vec::new();
+        let mut first = 0;
+        while first < trials {
+            let end = (first + if first == 0 { 3 } else { LANES as u64 }).min(trials);
+            lanes.extend(e.run_lanes(first, end));
+            first = end;
+        }
+        lanes
+    });
+    let mut compared = 0;
+    for (t, lane) in (0..trials).zip(&lanes) {
+        let one = e.run(t);
+        if format!("{:?}", lane.spec) != format!("{:?}", one.spec) {
+            return (
+                compared,
+                Some(format!("trial {t}: the specs differ:\nlanes    {:?}\none trial {:?}", lane.spec, one.spec)),
+            );
+        }
+        for (d, (a, b)) in lane.detectors.iter().zip(&one.detectors).enumerate() {
+            compared += 1;
+            let (a, b) = match (a, b) {
+                (Ok(a), Ok(b)) => (a, b),
+                (Err(_), Err(_)) => continue,
+                _ => return (compared, Some(format!("trial {t} detector {d}: a design failed on one path only"))),
+            };
+            if a != b {
+                let brief = |o: &DetectorOutcome| {
+                    let profile: Vec<_> = o.profile_value.iter().map(|p| (p.len(), p.last().copied())).collect();
+                    format!(
+                        "pre {:?}\nprofile (points, last) {profile:?}\nfa {:?} det {:?} iso {:?}/{:?} div {:?}",
+                        o.pre_onset_max_abs_residual,
+                        o.false_alarm,
+                        o.detection,
+                        o.isolated_by_max,
+                        o.isolated_by_direction,
+                        o.diverged_at_s
+                    )
+                };
+                return (
+                    compared,
+                    Some(format!("trial {t} detector {d} ({form:?}):\nlanes    {}\none trial {}", brief(a), brief(b))),
+                );
+            }
+        }
+    }
+    (compared, None)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -467,59 +530,24 @@ mod tests {
     }
 
     /// Every trial of `deck` (plus `extra` deck lines), on both paths: identical results.
-    fn assert_paths_agree(deck: &str, extra: &str, trials: u64) {
-        let mut s = LtiStudy::from_toml(&format!("{deck}\n{extra}"), Path::new("deck.toml")).unwrap();
-        s.monte_carlo.common.trials = trials;
-        // The lanes run the built-in tests only (run_group sends the others one trial at a time).
-        s.detectors.retain(|d| d.params.runs_on_lanes());
-        let e = Engine::new(&s);
-        // Groups of 8, then a ragged group of 3 (idle lanes).
-        let mut lanes = Vec::new();
-        let mut first = 0;
-        while first < trials {
-            let end = (first + if first == 0 { 3 } else { LANES as u64 }).min(trials);
-            lanes.extend(e.run_lanes(first, end));
-            first = end;
-        }
-        for (t, lane) in (0..trials).zip(&lanes) {
-            let one = e.run(t);
-            assert_eq!(format!("{:?}", lane.spec), format!("{:?}", one.spec), "trial {t} (NaN sizes: compare as text)");
-            for (d, (a, b)) in lane.detectors.iter().zip(&one.detectors).enumerate() {
-                let (Ok(a), Ok(b)) = (a, b) else {
-                    assert_eq!(a.is_ok(), b.is_ok(), "trial {t} detector {d}");
-                    continue;
-                };
-                let brief = |o: &DetectorOutcome| {
-                    let profile: Vec<_> = o.profile_value.iter().map(|p| (p.len(), p.last().copied())).collect();
-                    format!(
-                        "pre {:?}\nprofile (points, last) {profile:?}\nfa {:?} det {:?} iso {:?}/{:?} div {:?}",
-                        o.pre_onset_max_abs_residual,
-                        o.false_alarm,
-                        o.detection,
-                        o.isolated_by_max,
-                        o.isolated_by_direction,
-                        o.diverged_at_s
-                    )
-                };
-                assert!(a == b, "trial {t} detector {d}:\nlanes    {}\none trial {}", brief(a), brief(b));
-            }
-        }
+    fn assert_paths_agree(deck: &str, extra: &str, trials: u64, form: Vectors) {
+        let s = LtiStudy::from_toml(&format!("{deck}\n{extra}"), Path::new("deck.toml")).unwrap();
+        let lane_detectors = s.detectors.iter().filter(|d| d.params.runs_on_lanes()).count() as u64;
+        let (compared, differs) = lane_path_against_one_trial(&s, trials, form);
+        assert_eq!(differs, None);
+        assert_eq!(compared, trials * lane_detectors);
     }
 
     /// In each vector form this CPU runs (its widest and every narrower one), printed: a form the
     /// machine lacks is not checked here, and the line says which were.
     #[test]
     fn lane_path_gives_the_one_trial_results_on_the_bench_and_ci_decks() {
-        use super::super::kernel::Vectors;
-        let forms = [Vectors::Avx512, Vectors::Avx2, Vectors::Scalar];
-        let cpu = forms.iter().position(|&v| v == Vectors::detect()).expect("one of them");
-        for &form in &forms[cpu..] {
-            super::super::lanes::FORM.with(|f| f.set(Some(form)));
-            assert_paths_agree(include_str!("../../../studies/bench_seed000.toml"), "", 40);
-            assert_paths_agree(include_str!("../../../studies/ci_seed000.toml"), "", 40);
+        let forms = Vectors::available();
+        for &form in forms {
+            assert_paths_agree(include_str!("../../../studies/bench_seed000.toml"), "", 40, form);
+            assert_paths_agree(include_str!("../../../studies/ci_seed000.toml"), "", 40, form);
         }
-        super::super::lanes::FORM.with(|f| f.set(None));
-        println!("lane loops checked in the forms {:?} (this CPU's widest: {:?})", &forms[cpu..], forms[cpu]);
+        println!("lane loops checked in the forms {forms:?} (this CPU's widest: {:?})", forms[0]);
     }
 
     #[test]
@@ -547,7 +575,7 @@ mod tests {
         let diverged =
             (0..48).filter(|&t| Engine::new(&s).run(t).detectors[0].as_ref().unwrap().diverged_at_s.is_some());
         assert!((5..40).contains(&diverged.count()), "some trials diverge, not all");
-        assert_paths_agree(&deck, extra, 48);
+        assert_paths_agree(&deck, extra, 48, Vectors::detect());
     }
 
     /// Student-t sensor noise on two channels: the lanes draw each lane's scales as the one-trial path
@@ -561,7 +589,7 @@ mod tests {
                     { log = \"studies/logs/sample_log_small.ulg\", field = \"gyro_rad[0]\" }, \"gaussian\", \"gaussian\"]";
         let deck = ci.replace("[noise]\n", &format!("[noise]\n{laws}\n"));
         assert!(deck.contains("student_t(3)"));
-        assert_paths_agree(&deck, "", 24);
+        assert_paths_agree(&deck, "", 24, Vectors::detect());
         let tailed = LtiStudy::from_toml(&deck, Path::new("t.toml")).unwrap();
         let gaussian = LtiStudy::from_toml(ci, Path::new("g.toml")).unwrap();
         let pre =
