@@ -8,7 +8,9 @@ mod fmpy;
 use std::path::{Path, PathBuf};
 
 use fdimc::cli::verify::slow_mode_deck;
-use fdimc::exact::{cusum as exact_cusum, false_alarms as exact_false_alarms, slow_mode as exact_slow_mode};
+use fdimc::exact::{
+    cusum as exact_cusum, false_alarms as exact_false_alarms, fewest_covered, slow_mode as exact_slow_mode,
+};
 use std::process::{Command, Output};
 
 const DECK: &str = "studies/seed000_pitch_rate.toml";
@@ -3804,18 +3806,6 @@ fn calibrated_miss_row(run: &Path) -> (f64, f64, f64, f64) {
     (threshold, g("value_lo"), g("value_hi"), g("value_upper_95"))
 }
 
-/// The fewest of `seeds` seeds whose 95 % intervals must hold a known value: 95 % coverage falls below
-/// it with probability under 0.005.
-fn fewest_covered(seeds: u64) -> u64 {
-    let pmf =
-        |k: u64| (0..k).fold(0.95f64.powi(seeds as i32), |p, i| p * (seeds - i) as f64 / (i + 1) as f64 * 0.05 / 0.95);
-    let mut allowed = 0;
-    while (allowed + 1..=seeds).map(pmf).sum::<f64>() >= 0.005 {
-        allowed += 1;
-    }
-    seeds - allowed
-}
-
 /// The miss before the hazard where the residual itself has memory (issue 82, item 1): a one-state
 /// plant with a slow mode (a = -1 /s, process noise 0.141067 per step) under a gain-0 filter (its
 /// eigenvalue the plant's own), so the residual is an AR(1) state error (time constant 1 s) plus white
@@ -4241,42 +4231,69 @@ fn the_tail_fits_per_hour_row_meets_an_hour_flown_through_on_a_slow_mode() {
     assert!(covered >= fewest_covered(seeds), "held on {covered} of {seeds} seeds");
 }
 
-/// `fdimc verify` (issue 86, item 2): its seven known-answer cases pass on this build, `verification.csv`
-/// has one row each with the expected value's source, and the CSV and the page name this build's commit
-/// (`git rev-parse`, independent of the build script's reading) and the lane path's vector form.
+/// `fdimc verify` (issue 86, item 2): its seven known-answer cases, their coverage over 8 seeds
+/// (`--seeds 8`: each run case's intervals hold the answer on at least 5) and, where `FDIMC_PYTHON`
+/// names a Python with NumPy, SciPy and polars (`.ci/run` sets it), the second implementation's
+/// agreement pass on this build; `verification.csv` has one row each with the expected value's source,
+/// and the CSV and the page name this build's commit (`git rev-parse`, independent of the build
+/// script's reading) and the lane path's vector form. Without that Python the case is left out and
+/// the console and the page say so.
 #[test]
 fn verify_passes_its_known_answer_cases_and_names_the_build() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("verify");
-    let printed = ok(&fdimc(&["verify", "--out", out.to_str().unwrap()]));
-    assert!(printed.contains("7 of 7 cases passed"), "{printed}");
+    let python = std::env::var("FDIMC_PYTHON").ok();
+    let mut args = vec!["verify", "--out", out.to_str().unwrap(), "--seeds", "8"];
+    // Without FDIMC_PYTHON, a Python that is not there: the case must be left out, not fail.
+    args.extend(["--python", python.as_deref().unwrap_or("/nonexistent/python3")]);
+    let printed = ok(&fdimc(&args));
+    let cases = if python.is_some() { 11 } else { 10 };
+    assert!(printed.contains(&format!("{cases} of {cases} cases passed")), "{printed}");
     let t = csv_frame(&out.join("verification.csv"));
-    assert_eq!(t.height(), 7, "{t}");
+    assert_eq!(t.height(), cases, "{t}");
     let strs = |name: &str| -> Vec<String> {
         let c = t.column(name).unwrap().str().unwrap().clone();
         (0..t.height()).map(|i| c.get(i).unwrap().to_string()).collect()
     };
     let pass = t.column("pass").unwrap().bool().unwrap().clone();
     assert!((0..t.height()).all(|i| pass.get(i) == Some(true)), "{t}");
-    assert_eq!(
-        strs("case"),
-        [
-            "exact_slow_mode_law",
-            "exact_cusum_chain",
-            "white_residual_pfa",
-            "slow_mode_miss_before_hazard",
-            "cusum_miss_before_hazard",
-            "records_identical_across_threads_and_shards",
-            "lane_path_equals_one_trial_path"
-        ]
-    );
+    let mut names = vec![
+        "exact_slow_mode_law",
+        "exact_cusum_chain",
+        "white_residual_pfa",
+        "slow_mode_miss_before_hazard",
+        "cusum_miss_before_hazard",
+        "records_identical_across_threads_and_shards",
+        "lane_path_equals_one_trial_path",
+        "white_residual_pfa_coverage",
+        "slow_mode_miss_before_hazard_coverage",
+        "cusum_miss_before_hazard_coverage",
+    ];
+    if python.is_some() {
+        names.push("second_implementation_agrees");
+        let compared = csv_frame(&out.join("second_implementation.csv"));
+        assert!(compared.height() >= 44, "{compared}");
+    } else {
+        assert!(printed.contains("the second implementation was not run"), "{printed}");
+    }
+    assert_eq!(strs("case"), names);
+    // The coverage rows: 8 seeds, at least 5 asked.
+    let (expected, measured) =
+        (t.column("expected").unwrap().f64().unwrap(), t.column("measured").unwrap().f64().unwrap());
+    for i in 7..10 {
+        assert_eq!(expected.get(i), Some(5.0));
+        assert!((5.0..=8.0).contains(&measured.get(i).unwrap()), "{t}");
+    }
     assert!(strs("expected_from").iter().all(|s| !s.is_empty()));
     let head = Command::new("git").args(["rev-parse", "--short=12", "HEAD"]).output().unwrap();
     let commit = String::from_utf8_lossy(&head.stdout).trim().to_string();
     assert!(strs("commit").iter().all(|c| *c == commit), "{commit} vs {t}");
     let page = std::fs::read_to_string(out.join("verification.html")).unwrap();
     assert!(page.contains(&format!("<td>{commit}</td>")) && page.contains("vector form"), "{page}");
-    assert_eq!(page.matches("<td>pass</td>").count(), 7, "{page}");
+    assert_eq!(page.matches("<td>pass</td>").count(), cases, "{page}");
+    let few = fdimc(&["verify", "--out", out.to_str().unwrap(), "--seeds", "3"]);
+    assert_eq!(few.status.code(), Some(2));
+    assert!(text(&few.stderr).contains("--seeds 3: at least 8"), "{}", text(&few.stderr));
 }
 
 #[test]

@@ -293,12 +293,23 @@ Times are seconds from the first sample, as a deck's [log] evaluate_s and train_
     /// Run known-answer cases on this build and machine (closed forms and the exact laws the tests use,
     /// each against a run's 95 % interval) and write verification.csv and verification.html with the
     /// build's version and commit, the CPU and the lane path's vector form; exit 1 when a case fails.
-    /// For a safety case's tool qualification (docs/verification.md); a few seconds.
+    /// For a safety case's tool qualification (docs/verification.md); a few seconds (--full: half a minute).
     #[command(after_help = "Example: fdimc verify --out results/verify && open results/verify/verification.html")]
     Verify {
         /// Results folder (default: results/verify).
         #[arg(long, default_value = "results/verify")]
         out: PathBuf,
+        /// The full form: each run case over 20 seeds (its 95 % intervals' coverage) and the second
+        /// implementation at 20,000 trials; about 30 s on 2 cores.
+        #[arg(long)]
+        full: bool,
+        /// Seeds each run case's coverage is counted over, at least 8 (default: none; 20 with --full).
+        #[arg(long)]
+        seeds: Option<u64>,
+        /// Python with NumPy, SciPy and polars, for the second implementation (default: $FDIMC_PYTHON,
+        /// else python3); without them that case is not run, and verify says so.
+        #[arg(long)]
+        python: Option<PathBuf>,
     },
     /// Statistical regression check against a baseline summary; exit 1 on regression.
     #[command(after_help = "Make a baseline: cp results/<study>/summary.csv results/baselines/<study>.csv")]
@@ -646,7 +657,16 @@ pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
             deck: deck.as_deref(),
         }),
         Command::Fmu { file, locals } => fmu::exec_fmu(&file, locals),
-        Command::Verify { out } => match verify::exec_verify(&out) {
+        Command::Verify { out, full, seeds, python } => match verify::exec_verify(
+            &out,
+            &verify::VerifyOptions {
+                seeds: seeds.unwrap_or(if full { 20 } else { 0 }),
+                second_trials: if full { 20_000 } else { 3_000 },
+                python: python
+                    .or_else(|| std::env::var_os("FDIMC_PYTHON").map(PathBuf::from))
+                    .unwrap_or_else(|| PathBuf::from("python3")),
+            },
+        ) {
             Ok(true) => Ok(()),
             Ok(false) => return ExitCode::from(exit::CASE_FAILED),
             Err(e) => Err(e),
