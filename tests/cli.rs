@@ -4231,7 +4231,7 @@ fn the_tail_fits_per_hour_row_meets_an_hour_flown_through_on_a_slow_mode() {
     assert!(covered >= fewest_covered(seeds), "held on {covered} of {seeds} seeds");
 }
 
-/// `fdimc verify` (issue 86, item 2): its seven known-answer cases, their coverage over 8 seeds
+/// `fdimc verify` (issue 86, item 2): its eight known-answer cases, their coverage over 8 seeds
 /// (`--seeds 8`: each run case's intervals hold the answer on at least 5) and, where `FDIMC_PYTHON`
 /// names a Python with NumPy, SciPy and polars (`.ci/run` sets it), the second implementation's
 /// agreement pass on this build; `verification.csv` has one row each with the expected value's source,
@@ -4247,7 +4247,7 @@ fn verify_passes_its_known_answer_cases_and_names_the_build() {
     // Without FDIMC_PYTHON, a Python that is not there: the case must be left out, not fail.
     args.extend(["--python", python.as_deref().unwrap_or("/nonexistent/python3")]);
     let printed = ok(&fdimc(&args));
-    let cases = if python.is_some() { 11 } else { 10 };
+    let cases = if python.is_some() { 12 } else { 11 };
     assert!(printed.contains(&format!("{cases} of {cases} cases passed")), "{printed}");
     let t = csv_frame(&out.join("verification.csv"));
     assert_eq!(t.height(), cases, "{t}");
@@ -4264,6 +4264,7 @@ fn verify_passes_its_known_answer_cases_and_names_the_build() {
         "slow_mode_miss_before_hazard",
         "cusum_miss_before_hazard",
         "records_identical_across_threads_and_shards",
+        "records_identical_after_a_resume",
         "lane_path_equals_one_trial_path",
         "white_residual_pfa_coverage",
         "slow_mode_miss_before_hazard_coverage",
@@ -4280,7 +4281,7 @@ fn verify_passes_its_known_answer_cases_and_names_the_build() {
     // The coverage rows: 8 seeds, at least 5 asked.
     let (expected, measured) =
         (t.column("expected").unwrap().f64().unwrap(), t.column("measured").unwrap().f64().unwrap());
-    for i in 7..10 {
+    for i in 8..11 {
         assert_eq!(expected.get(i), Some(5.0));
         assert!((5.0..=8.0).contains(&measured.get(i).unwrap()), "{t}");
     }

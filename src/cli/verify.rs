@@ -247,6 +247,28 @@ fn run_cases() -> [RunCase; 3] {
     ]
 }
 
+/// The white residual at 10,000 trials (three part files) run through, and stopped after its first part
+/// file then resumed (`--stop-after 1`, then `--resume`): 1 when the records are identical, else 0 (and
+/// 0 when the stopped run had not stopped: the resume would check nothing).
+fn records_identical_after_resume(out: &Path) -> Result<f64, CliError> {
+    let trials = ["--trials", "10000"];
+    let through = run_deck(out, "white_residual", WHITE_RESIDUAL, "through_10000", &trials)?;
+    let stopped = run_deck(
+        out,
+        "white_residual",
+        WHITE_RESIDUAL,
+        "resumed_10000",
+        &[&trials[..], &["--stop-after", "1"]].concat(),
+    )?;
+    let before = stopped.join("trials.parquet").exists().then(|| records(&stopped)).transpose()?;
+    if before.is_some_and(|r| r.height() >= 10_000) {
+        return Ok(0.0);
+    }
+    let (deck, dir) = (out.join("decks").join("white_residual.toml"), stopped.to_string_lossy().to_string());
+    fdimc(&[&["run", &deck.to_string_lossy(), "--quiet", "--resume", "--out", &dir][..], &trials].concat())?;
+    Ok(if records(&through)?.equals_missing(&records(&stopped)?) { 1.0 } else { 0.0 })
+}
+
 /// The quick form's cases, each run here.
 fn quick_cases(out: &Path) -> Result<Vec<Case>, CliError> {
     let mut cases = Vec::new();
@@ -305,6 +327,19 @@ fn quick_cases(out: &Path) -> Result<Vec<Case>, CliError> {
         measured: identical,
         lo: identical,
         hi: identical,
+        rule: Rule::Holds,
+    });
+    let resumed = records_identical_after_resume(out)?;
+    cases.push(Case {
+        name: "records_identical_after_a_resume",
+        checks: "the white residual's trials.parquet at 10,000 trials (three part files) run through, and stopped \
+                 after its first part file (--stop-after 1) then resumed (--resume): 1 when identical"
+            .into(),
+        expected_from: "fdimc's rule: the same deck and seed give the same records after any resume".into(),
+        expected: 1.0,
+        measured: resumed,
+        lo: resumed,
+        hi: resumed,
         rule: Rule::Holds,
     });
     let (compared, differs) = lane_paths()?;
