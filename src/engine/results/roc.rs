@@ -25,9 +25,9 @@ use std::path::Path;
 use polars::prelude::*;
 
 use crate::engine::results::schema::col;
-use crate::engine::results::tables::{bool_col, f64_col, slices, str_col};
+use crate::engine::results::tables::{bool_col, f64_col, str_col};
 use crate::engine::results::thresholds::{
-    DetectorThresholds, RecordedStatistics, SLICE_ROWS, for_each_slice, let_through, unit_ratio,
+    DetectorThresholds, RecordedStatistics, for_each_slice, let_through, unit_ratio,
 };
 use crate::engine::run::output::write_table;
 use crate::engine::run::runner::{Manifest, RunError, pol};
@@ -88,100 +88,121 @@ fn scales(mut ratios: Vec<f64>, calibrated: f64) -> Vec<f64> {
     s
 }
 
-/// The ROC points of every detector of the run in `path` at `thresholds` (their whole-detector
-/// thresholds scaled), over `statistics`.
-pub fn roc(
-    path: &Path,
-    manifest: &Manifest,
-    statistics: &[String],
-    thresholds: &[DetectorThresholds],
-) -> Result<Vec<RocPoint>, RunError> {
-    let nd = manifest.detectors.len();
-    let ns = statistics.len();
-    let mut select: Vec<String> =
-        [col::DETECTOR, col::FAULT_FREE, col::FAILURE, col::ONSET_S].iter().map(|s| s.to_string()).collect();
-    select.extend(RecordedStatistics::columns(statistics));
-    let whole: Vec<&[f64]> = (0..nd)
-        .map(|d| {
-            thresholds.iter().find(|t| t.detector == manifest.detectors[d]).map_or(&[][..], |t| t.whole.as_slice())
-        })
-        .collect();
-    // What the points scale, and the scale of the calibrated thresholds (module docs).
-    let (base, calibrated_scale): (Vec<Vec<f64>>, Vec<f64>) = (0..nd)
-        .map(|d| match whole[d] {
-            [t] if *t == 0.0 => {
-                let deck = manifest.deck_thresholds.get(d).and_then(|t| t.first()).copied().unwrap_or(0.0);
-                (vec![if deck > 0.0 { deck } else { 1.0 }], 0.0)
-            }
-            w => (w.to_vec(), 1.0),
-        })
-        .unzip();
-    let on_fault_free = thresholds.first().is_some_and(|t| t.on_fault_free_trials);
-    // Which rows calibrate: flown, and fault-free where there are fault-free trials (as thresholds.rs).
-    let calibrates = |fault_free: Option<bool>, failed: bool| !failed && (!on_fault_free || fault_free == Some(true));
+/// The ROC points of every detector of a run at its thresholds, counted slice by slice: made from the
+/// calibration columns (passes 1 and 1b of the module docs, the pre-onset maxima only), then fed the
+/// slices the summary reads anyway ([`Roc::add_slice`]), so the first-passage profiles are decoded once
+/// for both.
+pub struct Roc {
+    detectors: Vec<String>,
+    /// Per detector: its whole-detector thresholds' length is the statistics' count (else no points).
+    scored: Vec<bool>,
+    on_fault_free: bool,
+    points: Vec<Vec<RocPoint>>,
+    /// `scaled[d][k]`: detector d's thresholds at point k.
+    scaled: Vec<Vec<Vec<f64>>>,
+}
 
-    // Each calibration unit of a detector with thresholds, with its pre-onset maxima: the calibration's
-    // own reader, so the ROC calibrates on the same units.
-    let for_each_calibration_unit = |visit: &mut dyn FnMut(usize, &dyn Fn(usize) -> f64)| {
-        for_each_slice(path, manifest.rows, manifest, statistics, on_fault_free, |rows| {
-            for (i, d) in rows.detector.iter().enumerate() {
-                if let Some(d) = *d
-                    && whole[d].len() == ns
-                {
-                    visit(d, &|j| rows.pre[j][i]);
+impl Roc {
+    /// The points of every detector of the run in `path` at `thresholds` (their whole-detector
+    /// thresholds scaled), over `statistics`; their counts are empty until the slices are added.
+    pub fn new(
+        path: &Path,
+        manifest: &Manifest,
+        statistics: &[String],
+        thresholds: &[DetectorThresholds],
+    ) -> Result<Self, RunError> {
+        let nd = manifest.detectors.len();
+        let ns = statistics.len();
+        let whole: Vec<&[f64]> = (0..nd)
+            .map(|d| {
+                (thresholds.iter().find(|t| t.detector == manifest.detectors[d]))
+                    .map_or(&[][..], |t| t.whole.as_slice())
+            })
+            .collect();
+        // What the points scale, and the scale of the calibrated thresholds (module docs).
+        let (base, calibrated_scale): (Vec<Vec<f64>>, Vec<f64>) = (0..nd)
+            .map(|d| match whole[d] {
+                [t] if *t == 0.0 => {
+                    let deck = manifest.deck_thresholds.get(d).and_then(|t| t.first()).copied().unwrap_or(0.0);
+                    (vec![if deck > 0.0 { deck } else { 1.0 }], 0.0)
                 }
-            }
-        })
-    };
-    // Pass 1: each calibration unit's largest ratio to its detector's thresholds.
-    let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); nd];
-    for_each_calibration_unit(&mut |d, value| ratios[d].push(unit_ratio(value, &base[d])))?;
-    let mut points: Vec<Vec<RocPoint>> = (0..nd)
-        .map(|d| {
-            scales(std::mem::take(&mut ratios[d]), calibrated_scale[d])
-                .into_iter()
-                .map(|scale| RocPoint {
-                    detector: manifest.detectors[d].clone(),
-                    scale,
-                    calibrated: scale == calibrated_scale[d],
-                    calibration_units: 0,
-                    false_alarms: 0,
-                    faulty_units: 0,
-                    detected: 0,
-                    delays_s: Quantiles::default(),
-                })
-                .collect()
-        })
-        .collect();
-    let mut scaled: Vec<Vec<Vec<f64>>> =
-        (0..nd).map(|d| points[d].iter().map(|p| base[d].iter().map(|t| t * p.scale).collect()).collect()).collect();
-    // Pass 1b: as the calibration itself, each point's thresholds let through the units its scale does.
-    for_each_calibration_unit(&mut |d, value| {
-        for (thr, p) in scaled[d].iter_mut().zip(&points[d]) {
-            let_through(thr, value, &base[d], p.scale);
-        }
-    })?;
+                w => (w.to_vec(), 1.0),
+            })
+            .unzip();
+        let on_fault_free = thresholds.first().is_some_and(|t| t.on_fault_free_trials);
 
-    // Pass 2: at each point, the alarms of the calibration units and the detections of the faulty ones.
-    for df in slices(path, manifest.rows as usize, SLICE_ROWS, &select) {
-        let df = df?;
+        // Each calibration unit of a detector with thresholds, with its pre-onset maxima: the calibration's
+        // own reader, so the ROC calibrates on the same units.
+        let for_each_calibration_unit = |visit: &mut dyn FnMut(usize, &dyn Fn(usize) -> f64)| {
+            for_each_slice(path, manifest.rows, manifest, statistics, on_fault_free, |rows| {
+                for (i, d) in rows.detector.iter().enumerate() {
+                    if let Some(d) = *d
+                        && whole[d].len() == ns
+                    {
+                        visit(d, &|j| rows.pre[j][i]);
+                    }
+                }
+            })
+        };
+        // Pass 1: each calibration unit's largest ratio to its detector's thresholds.
+        let mut ratios: Vec<Vec<f64>> = vec![Vec::new(); nd];
+        for_each_calibration_unit(&mut |d, value| ratios[d].push(unit_ratio(value, &base[d])))?;
+        let points: Vec<Vec<RocPoint>> = (0..nd)
+            .map(|d| {
+                scales(std::mem::take(&mut ratios[d]), calibrated_scale[d])
+                    .into_iter()
+                    .map(|scale| RocPoint {
+                        detector: manifest.detectors[d].clone(),
+                        scale,
+                        calibrated: scale == calibrated_scale[d],
+                        calibration_units: 0,
+                        false_alarms: 0,
+                        faulty_units: 0,
+                        detected: 0,
+                        delays_s: Quantiles::default(),
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut scaled: Vec<Vec<Vec<f64>>> = (0..nd)
+            .map(|d| points[d].iter().map(|p| base[d].iter().map(|t| t * p.scale).collect()).collect())
+            .collect();
+        // Pass 1b: as the calibration itself, each point's thresholds let through the units its scale does.
+        for_each_calibration_unit(&mut |d, value| {
+            for (thr, p) in scaled[d].iter_mut().zip(&points[d]) {
+                let_through(thr, value, &base[d], p.scale);
+            }
+        })?;
+        let scored = whole.iter().map(|w| w.len() == ns).collect();
+        Ok(Roc { detectors: manifest.detectors.clone(), scored, on_fault_free, points, scaled })
+    }
+
+    /// The columns [`Self::add_slice`] reads besides the statistics' ([`RecordedStatistics::columns`]).
+    pub const COLUMNS: [&str; 4] = [col::DETECTOR, col::FAULT_FREE, col::FAILURE, col::ONSET_S];
+
+    /// Pass 2: at each point, the alarms of the calibration units and the detections of the faulty ones
+    /// in the slice `df` (read from `path`) whose statistics are `recorded`.
+    pub fn add_slice(&mut self, df: &DataFrame, recorded: &RecordedStatistics, path: &Path) -> Result<(), RunError> {
         let (det, fault_free, failure, onset) = (
-            str_col(&df, col::DETECTOR, path)?,
-            bool_col(&df, col::FAULT_FREE, path)?,
-            str_col(&df, col::FAILURE, path)?,
-            f64_col(&df, col::ONSET_S, path)?,
+            str_col(df, col::DETECTOR, path)?,
+            bool_col(df, col::FAULT_FREE, path)?,
+            str_col(df, col::FAILURE, path)?,
+            f64_col(df, col::ONSET_S, path)?,
         );
-        let recorded = RecordedStatistics::read(&df, statistics, manifest.detection_window_s, path)?;
+        // Which rows calibrate: flown, and fault-free where there are fault-free trials (as thresholds.rs).
+        let on_fault_free = self.on_fault_free;
+        let calibrates =
+            |fault_free: Option<bool>, failed: bool| !failed && (!on_fault_free || fault_free == Some(true));
         for i in 0..df.height() {
-            let Some(d) = det.get(i).and_then(|n| manifest.detectors.iter().position(|x| x == n)) else { continue };
-            if whole[d].len() != ns {
+            let Some(d) = det.get(i).and_then(|n| self.detectors.iter().position(|x| x == n)) else { continue };
+            if !self.scored[d] {
                 continue;
             }
             let failed = failure.get(i).is_some();
             // By `fault_free`, as the summary: a classifier's fault-free class has a name (`normal`).
             let faulty = !failed && fault_free.get(i) != Some(true);
             let calibration = calibrates(fault_free.get(i), failed);
-            for (p, thr) in points[d].iter_mut().zip(&scaled[d]) {
+            for (p, thr) in self.points[d].iter_mut().zip(&self.scaled[d]) {
                 let (false_alarm, first) = recorded.alarms_at(i, thr, faulty);
                 if calibration {
                     p.calibration_units += 1;
@@ -196,8 +217,13 @@ pub fn roc(
                 }
             }
         }
+        Ok(())
     }
-    Ok(points.into_iter().flatten().collect())
+
+    /// Every detector's points, in the run's detector order, scales descending.
+    pub fn points(self) -> Vec<RocPoint> {
+        self.points.into_iter().flatten().collect()
+    }
 }
 
 /// Writes `roc.csv`: one row per detector and point, scales descending (Pfa ascending); `fresh` says the

@@ -231,8 +231,6 @@ pub(super) struct Aggregates<'s> {
     /// The current trial and how many units each detector has had in it.
     pub(super) trial: Option<u64>,
     pub(super) units_seen: Vec<usize>,
-    /// The run's `monte_carlo.detection_window_s` (none: to the end of the trial).
-    pub(super) detection_window_s: Option<f64>,
     /// Each varied parameter error's bins, and per (set, detector, fault or none, parameter, its bin)
     /// the units: `parameter_errors.csv`, which derivative drives the misses.
     pub(super) parameters: Vec<ParameterBins>,
@@ -270,12 +268,7 @@ impl ParameterBins {
 }
 
 impl<'s> Aggregates<'s> {
-    pub(super) fn new(
-        spec: &'s SummarySpec,
-        sets: Vec<&'static str>,
-        detectors: &[String],
-        detection_window_s: Option<f64>,
-    ) -> Self {
+    pub(super) fn new(spec: &'s SummarySpec, sets: Vec<&'static str>, detectors: &[String]) -> Self {
         let nd = detectors.len();
         let n_extras = spec.extras.len();
         let isolation_on_all = spec.isolates == Isolates::Kind;
@@ -290,7 +283,6 @@ impl<'s> Aggregates<'s> {
             confusion: HashMap::new(),
             trial: None,
             units_seen: vec![0; nd],
-            detection_window_s,
             parameters: Vec::new(),
             by_parameter: HashMap::new(),
             hazard_times: Default::default(),
@@ -298,12 +290,12 @@ impl<'s> Aggregates<'s> {
     }
 
     /// Adds the rows of one slice; `calibrated`: the whole-detector thresholds per detector and the
-    /// statistics' names, for kinds that record statistics.
+    /// slice's recorded statistics, for kinds that record statistics.
     pub(super) fn add_slice(
         &mut self,
         df: &DataFrame,
         file: &Path,
-        calibrated: Option<(&[DetectorThresholds], &[String])>,
+        calibrated: Option<(&[DetectorThresholds], &RecordedStatistics)>,
     ) -> Result<(), RunError> {
         let spec = self.spec;
         let trial = u64_col(df, col::TRIAL, file)?;
@@ -333,10 +325,6 @@ impl<'s> Aggregates<'s> {
         let extras = Extras::read(df, spec, file)?;
         let paired_medians =
             spec.paired_medians.iter().map(|c| numbers(df, c, file)).collect::<Result<Vec<Vec<f64>>, RunError>>()?;
-        let profiles = match calibrated {
-            Some((_, statistics)) => Some(RecordedStatistics::read(df, statistics, self.detection_window_s, file)?),
-            None => None,
-        };
 
         let parameter_values =
             (self.parameters.iter().map(|p| f64_col(df, &p.column, file))).collect::<Result<Vec<_>, RunError>>()?;
@@ -391,8 +379,7 @@ impl<'s> Aggregates<'s> {
                         correct: correct.get(i),
                     }
                 } else {
-                    let (thresholds, _) = calibrated.expect("a calibrated set has thresholds");
-                    let profiles = profiles.as_ref().expect("a calibrated set has profiles");
+                    let (thresholds, profiles) = calibrated.expect("a calibrated set has thresholds");
                     let (fa, alarm) = profiles.alarms_at(i, &thresholds[d].whole, faulty);
                     Unit {
                         flown,

@@ -47,12 +47,13 @@ use std::path::Path;
 
 use polars::prelude::*;
 
+use crate::engine::results::roc::Roc;
 use crate::engine::results::schema::col;
 use crate::engine::results::summary_spec::{Extra, SummarySpec};
 use crate::engine::results::tables::{column_names, complete_run, slices};
 use crate::engine::results::text::significant;
 use crate::engine::results::thresholds::{
-    Calibration, DECK, DetectorThresholds, HourConversion, SLICE_ROWS, thresholds, write_thresholds,
+    Calibration, DECK, DetectorThresholds, HourConversion, RecordedStatistics, SLICE_ROWS, thresholds, write_thresholds,
 };
 use crate::engine::run::output::write_table;
 use crate::engine::run::runner::{RunError, pol, write_parquet};
@@ -153,13 +154,26 @@ pub fn summarize(
     if columns.iter().any(|c| c == col::TRUTH_DIVERGED) {
         select.push(col::TRUTH_DIVERGED.to_string());
     }
-    let mut agg = Aggregates::new(spec, sets.clone(), &manifest.detectors, manifest.detection_window_s);
+    let mut agg = Aggregates::new(spec, sets.clone(), &manifest.detectors);
     agg.parameters = parameter_bins(&path, &manifest, &columns)?;
     agg.hazard_times = manifest.time_to_hazard_s.clone();
     select.extend(agg.parameters.iter().map(|p| p.column.clone()));
-    let calibrated = thresholds.as_ref().map(|(t, _)| (t.as_slice(), statistics.as_slice()));
+    // The ROC's counts come from the same slices: the first-passage profiles are decoded once.
+    let mut roc = match &thresholds {
+        Some((t, _)) => Some(Roc::new(&path, &manifest, &statistics, t)?),
+        None => None,
+    };
     for df in slices(&path, manifest.rows as usize, SLICE_ROWS, &select) {
-        agg.add_slice(&df?, &path, calibrated)?;
+        let df = df?;
+        let recorded = match &thresholds {
+            Some(_) => Some(RecordedStatistics::read(&df, &statistics, manifest.detection_window_s, &path)?),
+            None => None,
+        };
+        let calibrated = thresholds.as_ref().zip(recorded.as_ref()).map(|((t, _), r)| (t.as_slice(), r));
+        agg.add_slice(&df, &path, calibrated)?;
+        if let (Some(roc), Some(recorded)) = (roc.as_mut(), &recorded) {
+            roc.add_slice(&df, recorded, &path)?;
+        }
     }
 
     let mut key_names: Vec<String> =
@@ -303,7 +317,7 @@ pub fn summarize(
         }
         crate::engine::results::tails::write_tail_tables(&dir_out, &tails, &statistics)?;
         files.extend(["tail.csv", "tail_diagnostics.csv"]);
-        let points = crate::engine::results::roc::roc(&path, &manifest, &statistics, t)?;
+        let points = roc.take().map(Roc::points).unwrap_or_default();
         crate::engine::results::roc::write_roc(&dir_out, &points, target_pfa, confidence, validating)?;
         files.push("roc.csv");
     }

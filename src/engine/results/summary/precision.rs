@@ -101,7 +101,7 @@ impl PrecisionMonitor {
 
 impl crate::engine::run::runner::StopRule for PrecisionMonitor {
     fn start(&mut self, manifest: &crate::engine::run::runner::Manifest) -> Result<(), RunError> {
-        self.agg = Some(Aggregates::new(self.spec, vec![DECK], &manifest.detectors, manifest.detection_window_s));
+        self.agg = Some(Aggregates::new(self.spec, vec![DECK], &manifest.detectors));
         Ok(())
     }
 
