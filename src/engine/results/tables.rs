@@ -60,6 +60,30 @@ pub fn slices<'a>(
     (0..rows).step_by(step).map(move |offset| read_slice(path, offset, step, Some(columns.to_vec())))
 }
 
+/// [`slices`] handed to `visit` one by one, each read (decoded on polars' threads) while `visit` works
+/// on the one before: a summary's pass costs the larger of the two, not their sum.
+pub fn for_each_slice_read_ahead(
+    path: &Path,
+    rows: usize,
+    step: usize,
+    columns: &[String],
+    mut visit: impl FnMut(DataFrame) -> Result<(), RunError>,
+) -> Result<(), RunError> {
+    std::thread::scope(|scope| {
+        let (send, receive) = std::sync::mpsc::sync_channel(1);
+        scope.spawn(move || {
+            for slice in slices(path, rows, step, columns) {
+                // The receiver is gone when `visit` failed: stop reading.
+                if send.send(slice).is_err() {
+                    break;
+                }
+            }
+        });
+        // Dropping the receiver on an error stops the reader, whose scope then ends.
+        receive.into_iter().try_for_each(|slice| visit(slice?))
+    })
+}
+
 /// The first `failure` of a run's records and how many rows have one, read a slice at a time: why a run
 /// whose trials mostly failed did (a kind without the column has none).
 pub fn failures(path: &Path, rows: usize) -> Result<(u64, Option<String>), RunError> {

@@ -50,7 +50,7 @@ use polars::prelude::*;
 use crate::engine::results::roc::Roc;
 use crate::engine::results::schema::col;
 use crate::engine::results::summary_spec::{Extra, SummarySpec};
-use crate::engine::results::tables::{column_names, complete_run, slices};
+use crate::engine::results::tables::{column_names, complete_run, for_each_slice_read_ahead, slices};
 use crate::engine::results::text::significant;
 use crate::engine::results::thresholds::{
     Calibration, DECK, DetectorThresholds, HourConversion, RecordedStatistics, SLICE_ROWS, thresholds, write_thresholds,
@@ -163,18 +163,32 @@ pub fn summarize(
         Some((t, _)) => Some(Roc::new(&path, &manifest, &statistics, t)?),
         None => None,
     };
-    for df in slices(&path, manifest.rows as usize, SLICE_ROWS, &select) {
-        let df = df?;
-        let recorded = match &thresholds {
-            Some(_) => Some(RecordedStatistics::read(&df, &statistics, manifest.detection_window_s, &path)?),
-            None => None,
-        };
-        let calibrated = thresholds.as_ref().zip(recorded.as_ref()).map(|((t, _), r)| (t.as_slice(), r));
-        agg.add_slice(&df, &path, calibrated)?;
-        if let (Some(roc), Some(recorded)) = (roc.as_mut(), &recorded) {
-            roc.add_slice(&df, recorded, &path)?;
-        }
-    }
+    let mut main_pass = || {
+        for_each_slice_read_ahead(&path, manifest.rows as usize, SLICE_ROWS, &select, |df| {
+            let recorded = match &thresholds {
+                Some(_) => Some(RecordedStatistics::read(&df, &statistics, manifest.detection_window_s, &path)?),
+                None => None,
+            };
+            let calibrated = thresholds.as_ref().zip(recorded.as_ref()).map(|((t, _), r)| (t.as_slice(), r));
+            agg.add_slice(&df, &path, calibrated)?;
+            if let (Some(roc), Some(recorded)) = (roc.as_mut(), &recorded) {
+                roc.add_slice(&df, recorded, &path)?;
+            }
+            Ok(())
+        })
+    };
+    // The tail fits need only the thresholds: they run beside the pass over the records.
+    let fit_tails = || match (&thresholds, set) {
+        (Some((t, _)), Some(set)) => crate::engine::results::tails::tails(&path, &manifest, &statistics, t, set),
+        _ => Ok(Vec::new()),
+    };
+    let (fitted_tails, pass) = std::thread::scope(|scope| {
+        let fits = scope.spawn(fit_tails);
+        let pass = main_pass();
+        (fits.join(), pass)
+    });
+    pass?;
+    let mut tails = fitted_tails.map_err(|_| RunError::Internal("the tail fits' thread panicked".into()))??;
 
     let mut key_names: Vec<String> =
         ["thresholds", col::DETECTOR, col::KIND, col::TARGET, col::SIZE_BIN, col::NOISE_BIN, col::PARAM_ERROR_BIN]
@@ -244,12 +258,10 @@ pub fn summarize(
 
     let out = |f: &str| dir_out.join(f);
     let mut files = Vec::new();
-    let mut tails = Vec::new();
     let mut conversions = Vec::new();
     if let (Some((t, source)), Some(set)) = (&thresholds, set) {
         write_thresholds(&dir_out, t, &statistics, source)?;
         files.push("thresholds.csv");
-        tails = crate::engine::results::tails::tails(&path, &manifest, &statistics, t, set)?;
         let hour_at = |detector: &str, values: &[f64]| hour_at(law, &manifest, &statistics, detector, values);
         for tail in &mut tails {
             tail.hour = hour_at(&tail.detector, &tail.base);
