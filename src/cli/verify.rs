@@ -49,6 +49,12 @@ pub fn cusum_deck(threshold: &str, bias: &str) -> String {
     ])
 }
 
+/// The exact law of the run cases' CUSUM (`cusum_deck("4.0", "1.0")` with its hazard window): drift 1,
+/// threshold 4, a bias of 1 sigma, 100 samples before the onset and 20 to the hazard.
+fn cusum_window() -> CusumWindow {
+    CusumWindow { drift: 1.0, threshold: 4.0, bias: 1.0, before: 100, window: 20 }
+}
+
 /// The white-residual deck with each `(from, to)` replaced; every `from` must be there.
 fn edited(edits: &[(&str, String)]) -> String {
     edits.iter().fold(WHITE_RESIDUAL.to_string(), |text, (from, to)| {
@@ -215,7 +221,6 @@ fn run_cases() -> [RunCase; 3] {
     // faulty half over the 100 before the onset.
     let sample = two_sided(3.5);
     let pfa = 0.5 * -(200.0 * (-sample).ln_1p()).exp_m1() + 0.5 * -(100.0 * (-sample).ln_1p()).exp_m1();
-    let cusum = CusumWindow { drift: 1.0, threshold: 4.0, bias: 1.0, before: 100, window: 20 };
     [
         RunCase {
             name: "white_residual_pfa",
@@ -242,7 +247,7 @@ fn run_cases() -> [RunCase; 3] {
             expected_from: "exact law (fdimc::exact::cusum, Brook and Evans' chain)",
             deck: cusum_deck("4.0", "1.0") + HAZARD,
             column: "p_miss_before_hazard",
-            expected: cusum.miss(0.04, 30.0),
+            expected: cusum_window().miss(0.04, 30.0),
         },
     ]
 }
@@ -273,8 +278,7 @@ fn records_identical_after_resume(out: &Path) -> Result<f64, CliError> {
 fn quick_cases(out: &Path) -> Result<Vec<Case>, CliError> {
     let mut cases = Vec::new();
     // The exact laws against the reference scripts' numbers (computed here, on this machine).
-    let slow = slow_mode_window();
-    let grid = slow.miss(2.0, 801);
+    let grid = slow_mode_window().miss(2.0, 801);
     cases.push(Case {
         name: "exact_slow_mode_law",
         checks: "the slow-mode residual's miss (b = 2, threshold 4, 20 samples) on this machine".into(),
@@ -285,9 +289,8 @@ fn quick_cases(out: &Path) -> Result<Vec<Case>, CliError> {
         hi: grid + 1e-10,
         rule: Rule::Holds,
     });
-    let cusum = CusumWindow { drift: 1.0, threshold: 4.0, bias: 1.0, before: 100, window: 20 };
     // The script's range (h + 8), extrapolated from bins of 0.01 and 0.02.
-    let (scripts_range, _) = cusum.extrapolated(0.01, 8.0);
+    let (scripts_range, _) = cusum_window().extrapolated(0.01, 8.0);
     cases.push(Case {
         name: "exact_cusum_chain",
         checks: "Brook and Evans' chain of a CUSUM (drift 1, threshold 4, b = 1, 100 + 20 samples) on this machine"
