@@ -1454,9 +1454,21 @@ fn small_surface_deck(dir: &Path) -> PathBuf {
     )
 }
 
+/// Runs `deck` once with `--trials trials`, 1 thread and `--verbose` into `dir/one`: a kind's own test
+/// reads its tables and console (the kind's records are identical for any threads, shards and resume by
+/// [`shared_checks`], on its starter deck). Returns the folder and its stdout.
+fn one_run(deck: &str, dir: &Path, trials: u64) -> (PathBuf, String) {
+    let one = dir.join("one");
+    let n = trials.to_string();
+    let stdout =
+        ok(&fdimc(&["run", deck, "--trials", &n, "--threads", "1", "--verbose", "--out", one.to_str().unwrap()]));
+    assert!(stdout.contains(&format!("trials 0..{trials} of {trials} ({trials} run, 0 resumed)")), "{stdout}");
+    (one, stdout)
+}
+
 /// Runs `deck` with 1 and 2 threads, as two merged shards, and stopped after its first part file of
-/// `chunk` trials (a half-written part left behind) then resumed: every trials.parquet and `tables`
-/// identical. Returns the 1-thread run's folder and its stdout.
+/// `chunk` trials (a half-written part left behind) then resumed: every trials.parquet and every CSV
+/// table identical (`tables` among them). Returns the 1-thread run's folder and its stdout.
 fn assert_identical_runs(deck: &str, dir: &Path, trials: u64, chunk: u64, tables: &[&str]) -> (PathBuf, String) {
     assert_identical_runs_of(Path::new(env!("CARGO_BIN_EXE_fdimc")), deck, dir, trials, chunk, tables)
 }
@@ -1507,18 +1519,34 @@ fn assert_identical_runs_of(
         let df = read_frame(&path(other).join("trials.parquet"));
         assert!(reference.equals_missing(&df), "{other} differs from the 1-thread run");
     }
-    for table in tables {
+    // Every table of the run, not only those the caller names (which must be among them).
+    let written = csv_tables(&path("one"));
+    assert!(tables.iter().all(|t| written.iter().any(|w| w == t)), "{tables:?} among {written:?}");
+    assert_eq!(written, csv_tables(&path("merged")), "the merged run's tables");
+    for table in &written {
         let a = std::fs::read_to_string(path("one").join(table)).unwrap();
         assert_eq!(a, std::fs::read_to_string(path("merged").join(table)).unwrap(), "{table}");
     }
     (path("one"), one)
 }
 
+/// The names of the CSV tables directly in `dir`, sorted.
+fn csv_tables(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().to_string())
+        .filter(|n| n.ends_with(".csv"))
+        .collect();
+    names.sort();
+    names
+}
+
 /// The checks every kind passes, generated from the registry so that a kind is covered by adding it
 /// there (a kind added from outside the crate runs them through its own binary): its CI deck (the
 /// starter `fdimc new` writes) passes its committed baseline `results/baselines/<deck>.csv`, and its
-/// records are identical at 1 and 2 threads, as two merged shards, and stopped after its first part
-/// file then resumed, over a part file and a quarter.
+/// records and every table are identical at 1 and 2 threads, as two merged shards, and stopped after
+/// its first part file then resumed, over a part file and a quarter.
 fn shared_checks(bin: &Path, deck: &str, baseline: &str, dir: &Path) {
     let check = ok(&run_binary(bin, &["check", deck, "--baseline", baseline, "--threads", "2"]));
     assert!(check.contains(": 0 regression(s)") && !check.contains("REGRESSION"), "{deck}: {check}");
@@ -1682,15 +1710,16 @@ fn a_kind_added_from_outside_the_crate_runs_every_command() {
     shared_checks(&bin, deck, "examples/random_walk_baseline.csv", &tmp.path().join("shared"));
 }
 
+/// A surface study (a small copy of the Monte Carlo deck): a row per trial and bank, `simulate --trial`,
+/// the regression check, the report and a recalibration at another Pfa.
 #[test]
-fn surface_records_are_identical_for_any_threads_shards_and_resume() {
+fn a_surface_study_records_each_bank_replays_a_trial_and_recalibrates_apart() {
     let tmp = tempfile::tempdir().unwrap();
     let deck = small_surface_deck(tmp.path());
     let deck = deck.to_str().unwrap();
     let dir = |n: &str| tmp.path().join(n);
     let s = |p: PathBuf| p.to_str().unwrap().to_string();
-    let tables = ["summary.csv", "detectors.csv", "comparison.csv"];
-    let (one_dir, one) = assert_identical_runs(deck, tmp.path(), 130, 64, &tables);
+    let (one_dir, one) = one_run(deck, tmp.path(), 130);
     assert!(one.contains("x 4 detector(s)"), "{one}");
     for bank in ["emmae", "ekf_fast", "stmmae", "improved_stmmae"] {
         assert_eq!(one.lines().filter(|l| l.starts_with(&format!("    deck       {bank} "))).count(), 1, "{one}");
@@ -1721,7 +1750,7 @@ fn surface_records_are_identical_for_any_threads_shards_and_resume() {
     assert!(sim.contains(&format!(" {delay:.2} ")), "trial {trial}, delay {delay}: {sim}");
 
     // The regression check reads surface summaries; report refuses them by name.
-    let check = ok(&fdimc(&["check", &s(dir("two")), "--baseline", &s(dir("one").join("summary.csv"))]));
+    let check = ok(&fdimc(&["check", &s(dir("one")), "--baseline", &s(dir("one").join("summary.csv"))]));
     assert!(check.contains(": 0 regression(s)"), "{check}");
     // The report of a surface study: the shared plots, and the trial re-flown with the banks' probabilities.
     assert_report(
@@ -2036,8 +2065,10 @@ fn baseline_with_detected(baseline: &str, group: (&str, &str, &str, &str, f64), 
     file
 }
 
+/// An air-data study (a small copy of the bundled deck): size bins with their edges, `simulate --trial`,
+/// the check and the report.
 #[test]
-fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
+fn an_air_data_study_bins_fault_sizes_replays_a_trial_and_reports() {
     let tmp = tempfile::tempdir().unwrap();
     // The bundled deck cut to 30 s flights and 300 trials (part files of 256: 256 + 44).
     let deck_path = edited_deck(
@@ -2052,8 +2083,7 @@ fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
     );
     let deck = deck_path.to_str().unwrap();
     let s = |p: PathBuf| p.to_str().unwrap().to_string();
-    let tables = ["summary.csv", "detectors.csv", "comparison.csv"];
-    let (one, stdout) = assert_identical_runs(deck, tmp.path(), 300, 256, &tables);
+    let (one, stdout) = one_run(deck, tmp.path(), 300);
     // Size bins carry their edges: the deck's 2-20 sigma in 3 bins of 6.
     let summary = csv_frame(&one.join("summary.csv"));
     let f = |name: &str| summary.column(name).unwrap().f64().unwrap().clone();
@@ -2117,8 +2147,10 @@ fn air_data_records_are_identical_for_any_threads_shards_and_resume() {
     );
 }
 
+/// A launch study (a small copy of the thrust-loss deck): calibrated thresholds, `simulate --trial`, a
+/// recalibration written apart and the report.
 #[test]
-fn launch_records_are_identical_for_any_threads_shards_and_resume() {
+fn a_launch_study_calibrates_replays_a_trial_and_recalibrates_apart() {
     let tmp = tempfile::tempdir().unwrap();
     // The bundled deck cut to 30 s flights and 150 trials (part files of 128: 128 + 22).
     let deck_path = edited_deck(
@@ -2138,8 +2170,7 @@ fn launch_records_are_identical_for_any_threads_shards_and_resume() {
     );
     let deck = deck_path.to_str().unwrap();
     let s = |p: PathBuf| p.to_str().unwrap().to_string();
-    let tables = ["thresholds.csv", "summary.csv", "detectors.csv", "confusion.csv"];
-    let (one, stdout) = assert_identical_runs(deck, tmp.path(), 150, 128, &tables);
+    let (one, stdout) = one_run(deck, tmp.path(), 150);
     assert!(stdout.contains("    seed: calibrated [fhat ") && stdout.contains("(deck [fhat 1.300e-5])"), "{stdout}");
     let reference = read_frame(&one.join("trials.parquet"));
     assert_eq!(reference.height(), 300, "one row per trial and detector");
@@ -2219,7 +2250,7 @@ fn launch_records_are_identical_for_any_threads_shards_and_resume() {
 }
 
 #[test]
-fn accelerometer_classifiers_train_save_load_and_runs_are_identical() {
+fn accelerometer_classifiers_train_save_and_load_to_the_same_records() {
     let tmp = tempfile::tempdir().unwrap();
     // The CI deck cut to 600 trials (part files of 512: 512 + 88) and 40 training trials per class.
     let deck_path = edited_deck(
@@ -2230,9 +2261,9 @@ fn accelerometer_classifiers_train_save_load_and_runs_are_identical() {
     );
     let deck = deck_path.to_str().unwrap();
     let s = |p: PathBuf| p.to_str().unwrap().to_string();
-    // Every run below trains in its own process: identical records say the training is deterministic.
-    let tables = ["confusion.csv", "summary.csv", "detectors.csv", "comparison.csv"];
-    let (one, stdout) = assert_identical_runs(deck, tmp.path(), 600, 512, &tables);
+    // The shared checks' runs each train in their own process: identical records there say the
+    // training is deterministic.
+    let (one, stdout) = one_run(deck, tmp.path(), 600);
     for name in ["tree", "flat"] {
         assert_eq!(stdout.lines().filter(|l| l.starts_with(&format!("    {name}  Pfa "))).count(), 1, "{stdout}");
         assert!(stdout.contains(&format!("  confusion ({name}): rows the true class")), "{stdout}");
