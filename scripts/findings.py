@@ -17,11 +17,13 @@ so the deck must not name files relative to itself).
     python3 scripts/findings.py --all        # every table, the slow decks included (on demand)
     python3 scripts/findings.py --runs DIR   # keep or reuse the runs in DIR/<deck stem> (fdimc run --out ...)
     python3 scripts/findings.py --list       # the tables, their decks and how long each takes
+    python3 scripts/findings.py --jobs 1     # one run at a time (default 2: runs overlap their serial phases)
 
 Needs polars (`pip install polars`) and an fdimc binary: $FDIMC, else the release build under
 cargo's target directory (CARGO_TARGET_DIR, or ./target). CI runs `--check` on the fast decks (.ci/run).
 """
 import argparse
+import concurrent.futures
 import decimal
 import difflib
 import json
@@ -1262,18 +1264,24 @@ def edited_deck(path, edits, runs):
     return copy
 
 
+def build_fmus_for(decks):
+    """The test FMUs are built from source, not committed (`cargo run --release --example build_fmus`):
+    built once, before any of `decks` that flies them runs."""
+    wanted = any("fmu" in pathlib.Path(deck_and_edits(d)[0]).stem for d in decks)
+    if wanted and not any((ROOT / "studies" / "fmus").glob("*.fmu")):
+        built = subprocess.run(["cargo", "run", "--release", "--locked", "--example", "build_fmus"], cwd=ROOT,
+                               capture_output=True, text=True)
+        if built.returncode != 0:
+            raise SystemExit(f"cargo run --example build_fmus failed:\n{built.stderr}")
+
+
 def run_deck(deck, runs):
     path, edits = deck_and_edits(deck)
     deck_file = edited_deck(path, edits, runs) if edits else ROOT / path
     out = runs / deck_file.stem
     if (out / "trials.parquet").exists():
         return out
-    if "fmu" in pathlib.Path(path).stem and not any((ROOT / "studies" / "fmus").glob("*.fmu")):
-        # The test FMUs are built from source, not committed (`cargo run --release --example build_fmus`).
-        built = subprocess.run(["cargo", "run", "--release", "--locked", "--example", "build_fmus"], cwd=ROOT,
-                               capture_output=True, text=True)
-        if built.returncode != 0:
-            raise SystemExit(f"cargo run --example build_fmus failed:\n{built.stderr}")
+    build_fmus_for([deck])
     cmd = [fdimc_binary(), "run", str(deck_file), "--quiet", "--force", "--out", str(out)]
     done = subprocess.run(cmd, capture_output=True, text=True)
     if done.returncode != 0:
@@ -1300,6 +1308,7 @@ def main():
     ap.add_argument("--all", action="store_true", help="every table, the slow decks included")
     ap.add_argument("--runs", type=pathlib.Path, help="keep or reuse the runs in this folder")
     ap.add_argument("--list", action="store_true", help="list the tables and stop")
+    ap.add_argument("--jobs", type=int, default=2, help="runs at a time (default 2)")
     ap.add_argument("names", nargs="*", help="only these tables")
     args = ap.parse_args()
     if args.list:
@@ -1316,6 +1325,12 @@ def main():
         scratch = tempfile.TemporaryDirectory(prefix="fdimc-findings-")
         runs = pathlib.Path(scratch.name)
     runs.mkdir(parents=True, exist_ok=True)
+    # Every deck first, `--jobs` at a time: a run's serial phases (the design, the training, the
+    # summary) leave a core idle that another run's trials fill; the records do not depend on it.
+    decks = list(dict.fromkeys(d for name in chosen for d in TABLES[name][1]))
+    build_fmus_for(decks)
+    with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+        list(pool.map(lambda d: run_deck(d, runs), decks))
     pages = {}
     for name in chosen:
         page, decks, _, _, render = TABLES[name]
