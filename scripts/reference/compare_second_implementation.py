@@ -7,8 +7,8 @@
 
 Runs `fdimc run DECK --trials N --out TMP --quiet` (its own seed, the deck's unless --fdimc-seed) and
 second_implementation.py (beside this file) at the same trial count on its own seed (numpy
-default_rng(--seed)), then compares, per detector both implement (kalman_chi2 and fmu detectors are
-left out):
+default_rng(--seed)), then compares, per detector both implement (detection_filter, cusum and
+kalman_chi2; fmu detectors are left out):
 
   * Pfa: the fault-free trials' false-alarm share; Fisher's exact test, two-sided;
   * Pd per fault kind x target x size bin (the deck's values or bin centres; --pool-targets pools the
@@ -16,7 +16,12 @@ left out):
   * detection delay per kind x target x size bin: median and p90 with distribution-free 95 % intervals
     (binomial order statistics), tested by the two-sided Mann-Whitney U test (both sides >= 5 delays);
   * the fault-free trials' largest detection statistic per output (`pre_max_<output>`, the whole
-    trial): the two-sample Kolmogorov-Smirnov test (a sharp test of the residual's law);
+    trial): the two-sample Kolmogorov-Smirnov test (a sharp test of the residual's law). A kalman_chi2
+    detector records its one window statistic under every output (K5 in second_implementation.py), so
+    it has one such test, on its first output's column, and a check that fdimc's columns are equal;
+  * kalman_chi2 only: the fault-free trials' first false-alarm time (`false_alarm_s`), Mann-Whitney
+    (both sides >= 5 alarms): the test of K4's reading of the window's start, where the statistic is a
+    sum of fewer samples (its deck alarms within the first window under design-model error);
 
 With --calibrated, also at the thresholds each side calibrates on its own fault-free trials at the
 deck's target_pfa (the second implementation's calibration, D13-D15 and C9-C10 in its header, is written
@@ -33,7 +38,8 @@ Added, per detector:
       detected and delay_s (R1 below), and at its calibrated thresholds the `calibrated` rows of its
       summary.csv (detected and flown units per kind x target x size bin, summed over the other bins);
     - the second implementation's own calibration lets through exactly its m alarms;
-  * per output, the per-statistic threshold: fdimc's against the second's, the second's with the
+  * per output (one for a kalman_chi2 detector, its outputs' columns being one statistic), the
+    per-statistic threshold: fdimc's against the second's, the second's with the
     distribution-free 95 % interval of the (1 - P) quantile from its order statistics (binomial ranks).
     Test (exact, distribution-free; T1): fdimc's threshold is the (m1+1)-th largest of its n1 values;
     if both sides' values have one continuous law, the number X of the second's n2 values above it has
@@ -203,6 +209,14 @@ def fmt_q(t):
 
 
 # ---------------------------------------------------------------- calibrated thresholds (--calibrated)
+def tested_outputs(deck, det):
+    """(index, output) pairs whose statistic is tested: every output, but a kalman_chi2 detector's one
+    statistic (K5: the same under every output) once, under its first output."""
+    kind = next(d["kind"] for d in deck.detectors if d["name"] == det)
+    pairs = list(enumerate(deck.outputs))
+    return pairs[:1] if kind == "kalman_chi2" else pairs
+
+
 def placement_pmf(m, n1, n2):
     """T1: law of X, the number of n2 values above the (m+1)-th largest of n1 others, all exchangeable."""
     x = np.arange(n2 + 1)
@@ -317,7 +331,7 @@ def calibrated_rows(a, deck, f, s, fx, cal2, rows, checks):
         rng = np.random.default_rng(1)
         boot = np.array([second.calibrate(X2[rng.integers(0, n2, n2)], P, C)["detector"] for _ in range(1000)])
         blo, bhi = np.percentile(boot, [2.5, 97.5], axis=0)
-        for j, o in enumerate(outputs):
+        for j, o in tested_outputs(deck, det):
             lo, hi = order_ci(X2[:, j], 1.0 - P)
             x = int((X2[:, j] > h1[j]).sum())
             p = placement_p(m1, n1, n2, x)
@@ -325,7 +339,7 @@ def calibrated_rows(a, deck, f, s, fx, cal2, rows, checks):
                              fdimc=f"{h1[j]:.6g} ({m1} of {n1} above)",
                              second=f"{c2['per_statistic'][j]:.6g} [{lo:.6g}, {hi:.6g}] ({x} of {n2} above fdimc's)",
                              test="placement (exact, T1)", p=p))
-        for j, o in enumerate(outputs):
+        for j, o in tested_outputs(deck, det):
             rows.append(dict(quantity=f"cal threshold detector {det} {o}", fdimc=f"{T1[j]:.6g}",
                              second=f"{c2['detector'][j]:.6g} [{blo[j]:.6g}, {bhi[j]:.6g}] (bootstrap)",
                              test="(the Pfa rows)", p=float("nan"), check="see Pfa rows"))
@@ -502,22 +516,43 @@ def main(argv=None):
                              second=fmt_q(quantile_ci(l2, 0.5)), test=f"Mann-Whitney ({len(l1)} v {len(l2)})", p=p))
             rows.append(dict(quantity=f"delay p90 {label} (s)", fdimc=fmt_q(quantile_ci(l1, 0.9)),
                              second=fmt_q(quantile_ci(l2, 0.9)), test="(the same test)", p=float("nan")))
-    # fault-free largest statistic per output
+    # fault-free largest statistic per output (a kalman_chi2 detector's one statistic once, K5)
+    checks = []
+    kinds = {d["name"]: d["kind"] for d in deck.detectors}
     for det in names:
-        for o in deck.outputs:
+        fff = f.filter((pl.col("detector") == det) & pl.col("fault_free"))
+        sff = s.filter((pl.col("detector") == det) & pl.col("fault_free"))
+        if kinds[det] == "kalman_chi2":
+            X1 = np.column_stack([fff[f"pre_max_{o}"].to_numpy() for o in deck.outputs])
+            same = bool(np.all(X1 == X1[:, :1]))
+            checks.append(dict(quantity=f"K5 {det}: fdimc's pre_max_<output> the same in every column",
+                               fdimc=f"{len(X1)} fault-free trials x {len(deck.outputs)} columns",
+                               second="equal" if same else "columns differ", test="check", p=float("nan"),
+                               check="check ok" if same else "CHECK FAILS"))
+        for _, o in tested_outputs(deck, det):
             col = f"pre_max_{o}"
-            v1 = f.filter((pl.col("detector") == det) & pl.col("fault_free"))[col].to_numpy()
-            v2 = s.filter((pl.col("detector") == det) & pl.col("fault_free"))[col].to_numpy()
+            v1, v2 = fff[col].to_numpy(), sff[col].to_numpy()
             if len(v1) < 5 or len(v2) < 5:
                 continue
             p = ks_2samp(v1, v2).pvalue
-            rows.append(dict(quantity=f"fault-free max stat {det} {o}", fdimc=fmt_q(quantile_ci(v1, 0.5)),
+            label = f"{det} {o}" if kinds[det] != "kalman_chi2" else f"{det} (window sum, every output)"
+            rows.append(dict(quantity=f"fault-free max stat {label}", fdimc=fmt_q(quantile_ci(v1, 0.5)),
                              second=fmt_q(quantile_ci(v2, 0.5)), test=f"KS ({len(v1)} v {len(v2)}), shown: median", p=p))
+        if kinds[det] == "kalman_chi2":
+            # K4's start: the first false alarm's time in the fault-free trials
+            t1 = fff["false_alarm_s"].drop_nulls().to_numpy().astype(float)
+            t2 = sff["false_alarm_s"].drop_nulls().to_numpy().astype(float)
+            t1, t2 = t1[np.isfinite(t1)], t2[np.isfinite(t2)]
+            if len(t1) >= a.min_delays and len(t2) >= a.min_delays:
+                p = mannwhitneyu(t1, t2, alternative="two-sided").pvalue
+                rows.append(dict(quantity=f"fault-free first false alarm {det} (s)",
+                                 fdimc=fmt_q(quantile_ci(t1, 0.5)) + f" ({len(t1)} of {len(fff)})",
+                                 second=fmt_q(quantile_ci(t2, 0.5)) + f" ({len(t2)} of {len(sff)})",
+                                 test=f"Mann-Whitney ({len(t1)} v {len(t2)}), shown: median", p=p))
 
-    checks = []
     if a.calibrated:
         calibrated_rows(a, deck, f, s, fx, cal2, rows, checks)
-        rows.extend(checks)
+    rows.extend(checks)
 
     tested = [i for i, r in enumerate(rows) if not math.isnan(r["p"])]
     if len(tested) < max(a.min_tests, 1):
@@ -552,7 +587,7 @@ def main(argv=None):
         print(f"{r['quantity']:<{w[0]}}  {r['fdimc']:<{w[1]}}  {r['second']:<{w[2]}}  {r['test']:<{w[3]}}  "
               f"{ps:>9}  {ph:>9}  {r['verdict']}")
     ncheck = sum(r["test"].startswith("check") for r in rows)
-    extra = f"; {ncheck} checks, {failed_checks} failed" if a.calibrated else ""
+    extra = f"; {ncheck} checks, {failed_checks} failed" if (a.calibrated or ncheck) else ""
     print(f"\n{len(tested)} tests, Holm at family-wise {a.alpha}: {reject} rejected{extra}. Table: {out}")
     return 1 if (reject or failed_checks) else 0
 

@@ -11,7 +11,8 @@ and nothing fdimc computes (gains, thresholds, records) is used here: only the d
 
 writes one row per trial x detector: trial, detector, fault_free, kind, target, size, size_unit,
 size_bin, onset_s, noise_scale, noise_bin, false_alarm, false_alarm_s, detected, delay_s,
-pre_max_<output> (largest detection statistic before the onset; the whole trial when fault-free).
+pre_max_<output> (largest detection statistic before the onset; the whole trial when fault-free; the
+Kalman test's one statistic under every output, K5).
 `--analytic` also prints, per detector, the fault-free residual's standard deviation at the trial's end
 from the covariance recursion (the discrete Lyapunov equation from e(0) = 0) against this simulation's,
 and the per-trial false-alarm probability of the |r| test from that exact Gaussian law (Sidak's product
@@ -29,7 +30,8 @@ script), in the venv $HOME/.cache/fdimc-ref:
 Supported: [plant] a, b, c, d, initial_state; [design_model] a, b; [controller] output_feedback;
 [[excitation]] square, sine, step (start_s); [noise] sensor_sigma, sensor_law "gaussian" or
 "student_t(N)", process_sigma_per_step; [[detector]] kinds "detection_filter" and "cusum"
-(eigenvalues_per_s, fault_directions, thresholds, drift); other detector kinds (kalman_chi2, fmu) are
+(eigenvalues_per_s, fault_directions, thresholds, drift) and "kalman_chi2" (window,
+false_alarm_probability, design_process_sigma_per_step; K1-K5, its isolation not); the fmu kind is
 skipped with a note; [monte_carlo] trials, fault_free_fraction, outputs, onset_s, noise_scale,
 detection_window_s; [[monte_carlo.fault]] sensor kinds bias, gain, stuck, total_failure, drift,
 oscillation with size / size_sigma (numbers, ranges with bins, values); [[monte_carlo.parameter_error]]
@@ -66,14 +68,41 @@ D11 (deck.md) a range factor with k bins labels each trial by its bin's centre; 
    errors change the model the filter is designed on and runs, "plant" ones the truth flown.
 D12 (deck.md) student_t(N) noise is scaled so that its standard deviation is sensor_sigma.
 
+The Kalman chi-square baseline (deck.md "The detector kinds", `kalman_chi2` and its fields `window`,
+`false_alarm_probability`, `design_process_sigma_per_step`):
+K1 (deck.md) "A steady-state Kalman filter of the design model, designed for [noise].sensor_sigma and
+   design_process_sigma_per_step": the sampled design model (Ad, Bd) of D3 with the trial's design-model
+   errors (D11); R = diag(sensor_sigma^2), the deck's sigma (not times noise_scale); Q =
+   diag(design_process_sigma_per_step^2), noise added per state and step as D2's process noise; P the
+   a-priori covariance, the stabilising solution of P = Ad P Ad' - Ad P C' (C P C' + R)^-1 C P Ad' + Q
+   (scipy.linalg.solve_discrete_are); S = C P C' + R, the innovation covariance the design expects.
+K2 (architecture.md D3's discrete filter; reading) The predictor form, run as D3 runs the detection
+   filter: gamma(k) = y(k) - C xhat(k) - D u(k), xhat(k+1) = Ad xhat(k) + Bd u(k) + K gamma(k),
+   K = Ad P C' S^-1, xhat(0) = x(0) (D4). The filter form (update with P C' S^-1, then predict) has the
+   same innovation gamma, so both readings give the same statistic.
+K3 (deck.md "the normalised innovation squared") nis(k) = gamma(k)' S^-1 gamma(k) with the whole S
+   (chi-square(p) per sample where the model holds), not sum_j gamma_j^2 / S_jj.
+K4 (deck.md "summed over `window` samples ... exceeds the chi-square(window x p) quantile at
+   `false_alarm_probability`"; reading) A sliding sum, tested at every sample: the statistic at sample k
+   is nis(k - window + 1) + ... + nis(k), the samples before k = 0 counting 0 (during the first
+   window - 1 samples, the sum of those so far). Its threshold h = chi2.isf(false_alarm_probability,
+   window x p), p the number of outputs (88.379 for 10 x 6 at 0.01); an alarm is the statistic strictly
+   above h (D5). The other readings (no statistic until a window is full; disjoint windows, each tested
+   at its last sample) are the `KALMAN_WINDOW` values "full" and "block", for trying them.
+K5 (deck.md, the fmu kind "recorded under every output as the Kalman test's is"; outputs.md "Every kind
+   records a detection statistic") The one window statistic is recorded under every output:
+   pre_max_<output> is its largest value before the onset, the same in every column, and h is every
+   output's threshold; the calibration (D13, D14) then sees p equal columns and gives one threshold.
+
 Calibrated thresholds (the `--calibrate` option; statistics.md "Thresholds: calibration, validation,
 per flight hour", outputs.md "thresholds.csv", the threshold set `calibrated`, deck.md `target_pfa`,
 `confidence`):
 D13 (deck.md, outputs.md) Calibration uses the detector's fault-free trials (all of them, whatever
    their noise scale or parameter errors; failed ones are in no calibration), at monte_carlo.target_pfa
    (default 0.01); the statistic per output is the one whose largest value before the onset is recorded
-   as pre_max_<output> (|gamma_j| for the detection filter, the CUSUM g_j), over the whole fault-free
-   trial; an alarm is the statistic strictly above the threshold (D5).
+   as pre_max_<output> (|gamma_j| for the detection filter, the CUSUM g_j, the Kalman test's window
+   sum under every output, K5), over the whole fault-free trial; an alarm is the statistic strictly
+   above the threshold (D5).
 D14 (statistics.md) Counting rule: of n fault-free trials a calibration lets through m = floor(P n)
    alarms (with `confidence` C: the largest m with P(Binomial(n, P) <= m) <= 1 - C, Wilks), exactly m
    unless trials tie. Per statistic (`per_statistic_threshold`, "the statistic alone at the target
@@ -125,8 +154,8 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
-from scipy.linalg import expm, solve_discrete_lyapunov
-from scipy.stats import norm
+from scipy.linalg import expm, solve_discrete_are, solve_discrete_lyapunov
+from scipy.stats import chi2, norm
 
 KINDS = ("bias", "gain", "stuck", "total_failure", "drift", "oscillation")
 KIND_CODE = {k: i + 1 for i, k in enumerate(KINDS)}
@@ -190,6 +219,22 @@ def design_gain(a, b, c, eigenvalues, directions, dt):
     return ad, bd, kd
 
 
+def kalman_design(a, b, c, sensor_sigma, q_sigma, dt):
+    """Sampled design model and its steady-state Kalman filter (K1, K2): the predictor gain
+    K = Ad P C' S^-1 with P the a-priori covariance of the discrete Riccati equation for
+    Q = diag(q_sigma^2), R = diag(sensor_sigma^2), S = C P C' + R; and W = L^-1 (S = L L', Cholesky),
+    so that the normalised innovation squared gamma' S^-1 gamma = |W gamma|^2 (K3)."""
+    ad, bd = zoh(a, b, dt)
+    q = np.diag(np.asarray(q_sigma, dtype=float) ** 2)
+    r = np.diag(np.asarray(sensor_sigma, dtype=float) ** 2)
+    pp = solve_discrete_are(ad.T, c.T, q, r)
+    pp = 0.5 * (pp + pp.T)
+    s = c @ pp @ c.T + r
+    kd = ad @ pp @ c.T @ np.linalg.inv(s)
+    w = np.linalg.inv(np.linalg.cholesky(s))
+    return ad, bd, kd, w
+
+
 class Deck:
     def __init__(self, path):
         self.path = Path(path)
@@ -242,6 +287,18 @@ class Deck:
         self.detectors, self.skipped = [], []
         for det in d.get("detector", []):
             kind = det["kind"]
+            if kind == "kalman_chi2":
+                w, pf = int(det["window"]), float(det["false_alarm_probability"])
+                if not (1 <= w <= 10000 and 0.0 < pf < 1.0):
+                    raise ValueError(f"detector {det['name']}: window 1 to 10000, 0 < false_alarm_probability < 1")
+                qd = np.array(det["design_process_sigma_per_step"], dtype=float)
+                if qd.shape != (n,) or np.any(qd < 0):
+                    raise ValueError(f"detector {det['name']}: design_process_sigma_per_step needs {n} numbers >= 0")
+                # K1, K4: one threshold, the chi-square(window x p) quantile, under every output (K5).
+                h = float(chi2.isf(pf, w * p))
+                self.detectors.append(dict(name=det["name"], kind=kind, window=w, pfa_window=pf, q_sigma=qd,
+                                           thr=np.full(p, h)))
+                continue
             if kind not in ("detection_filter", "cusum"):
                 self.skipped.append((det["name"], kind))
                 continue
@@ -382,6 +439,23 @@ def draw_scenarios(deck, trials, rng):
     return sc
 
 
+KALMAN_WINDOW = "sliding"   # K4's reading; "full" and "block" are the other readings tried (K4)
+
+
+def kalman_statistic(dd, gam, k):
+    """K3, K4: this sample's normalised innovation squared into the window; the statistic."""
+    w = dd["window"]
+    wg = mv(dd["w"], gam)
+    dd["nis"][:, k % w] = np.einsum("ti,ti->t", wg, wg)
+    if KALMAN_WINDOW == "sliding":          # the last `window` samples, fewer (zeros) before k = window - 1
+        return dd["nis"].sum(axis=1)
+    if KALMAN_WINDOW == "full":             # none (0) until a whole window is in
+        return dd["nis"].sum(axis=1) if k >= w - 1 else np.zeros(len(gam))
+    if KALMAN_WINDOW == "block":            # disjoint windows, each tested at its last sample
+        return dd["nis"].sum(axis=1) if k % w == w - 1 else np.zeros(len(gam))
+    raise ValueError(KALMAN_WINDOW)
+
+
 def simulate(deck: Deck, trials: int, seed: int, keep_residual_var=False, extra_sets=None):
     """extra_sets: {detector name: {label: thresholds (p,)}}: alarms also looked for at those sets (C10)."""
     extra_sets = extra_sets or {}
@@ -397,9 +471,15 @@ def simulate(deck: Deck, trials: int, seed: int, keep_residual_var=False, extra_
     for det in deck.detectors:
         def build(k, det=det):
             a, b = deck.perturbed("design", k if k else [0.0] * len(deck.perrs))
+            if det["kind"] == "kalman_chi2":
+                return kalman_design(a, b, deck.c, deck.sigma, det["q_sigma"], dt)
             return design_gain(a, b, deck.c, det["eig"], det["f"], dt)
-        dad, dbd, kd = per_trial(design_keys, build)
-        dets.append(dict(det, ad=dad, bd=dbd, kd=kd, xhat=np.tile(deck.x0, (T, 1)), g=np.zeros((T, p)),
+        built = per_trial(design_keys, build)
+        dad, dbd, kd = built[:3]
+        kal = {}
+        if det["kind"] == "kalman_chi2":   # K3, K4: the whitening and the last `window` NIS values
+            kal = dict(w=built[3], nis=np.zeros((T, det["window"])))
+        dets.append(dict(det, **kal, ad=dad, bd=dbd, kd=kd, xhat=np.tile(deck.x0, (T, 1)), g=np.zeros((T, p)),
                          pre_alarm_s=np.full(T, np.nan), post_alarm_s=np.full(T, np.nan),
                          pre_max=np.zeros((T, p)), r_sum=np.zeros(p), r_sq=np.zeros(p),
                          extra={lab: dict(thr=np.asarray(v, dtype=float), pre=np.full(T, np.nan),
@@ -448,6 +528,8 @@ def simulate(deck: Deck, trials: int, seed: int, keep_residual_var=False, extra_
             if dd["kind"] == "cusum":
                 dd["g"] = np.maximum(0.0, dd["g"] + np.abs(gam) - dd["drift"])
                 stat = dd["g"]
+            elif dd["kind"] == "kalman_chi2":
+                stat = np.repeat(kalman_statistic(dd, gam, k)[:, None], p, axis=1)   # K5: under every output
             else:
                 stat = np.abs(gam)
             alarm = (stat > dd["thr"]).any(axis=1)
@@ -589,7 +671,13 @@ def analytic(deck: Deck, rows):
     r = np.diag(deck.sigma ** 2)
     qw = np.diag(deck.process_sigma ** 2)
     for det, row in zip(deck.detectors, rows):
-        _, _, kd = design_gain(deck.design_a, deck.design_b, deck.c, det["eig"], det["f"], dt)
+        if det["kind"] == "kalman_chi2":
+            _, _, kd, wk = kalman_design(deck.design_a, deck.design_b, deck.c, deck.sigma, det["q_sigma"], dt)
+            sk = np.linalg.inv(wk.T @ wk)
+            print(f"detector {det['name']}: the innovation sd the Kalman design expects (sqrt diag S): "
+                  + ", ".join(f"{v:.5e}" for v in np.sqrt(np.diag(sk))))
+        else:
+            _, _, kd = design_gain(deck.design_a, deck.design_b, deck.c, det["eig"], det["f"], dt)
         phi = ad - kd @ deck.c
         print(f"detector {det['name']} ({det['kind']}): |eig(Ad - Kd C)| = "
               + ", ".join(f"{v:.9f}" for v in sorted(np.abs(np.linalg.eigvals(phi)), reverse=True)))
