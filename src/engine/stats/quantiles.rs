@@ -5,8 +5,6 @@
 //! (1 + a) / (1 - a)`, and answers with `2 gamma^i / (gamma + 1)`). Summaries of 10^8 trials therefore
 //! need as much memory for their delay percentiles as summaries of 10^4.
 
-use std::collections::BTreeMap;
-
 /// Values a group keeps exactly before it switches to the sketch.
 pub const EXACT_VALUES: usize = 4096;
 /// Relative accuracy of the sketch.
@@ -20,9 +18,47 @@ pub struct Quantiles {
 
 #[derive(Debug, Clone, Default)]
 struct Sketch {
-    positive: BTreeMap<i32, u64>,
-    negative: BTreeMap<i32, u64>,
+    positive: Buckets,
+    negative: Buckets,
     zeros: u64,
+}
+
+/// One side's bucket counts, held densely from below the lowest bucket seen to the highest: adding a
+/// value is an index into a vector (a group's values span few buckets: 1 ms to 100 s is 1,152), where a
+/// map's search took a fifth of a large summary's time. At most about 141,000 buckets (8 bytes each)
+/// span every normal double.
+#[derive(Debug, Clone, Default)]
+struct Buckets {
+    /// The bucket index of `counts[0]`.
+    lowest: i32,
+    counts: Vec<u64>,
+}
+
+impl Buckets {
+    fn add(&mut self, index: i32, count: u64) {
+        if self.counts.is_empty() {
+            self.lowest = index;
+        } else if index < self.lowest {
+            // Room below for as many again, so that a descending stream grows the vector in O(1) per value.
+            let grow = ((self.lowest - index) as usize).max(self.counts.len());
+            self.counts.splice(0..0, std::iter::repeat_n(0, grow));
+            self.lowest -= grow as i32;
+        }
+        let at = (index - self.lowest) as usize;
+        if at >= self.counts.len() {
+            self.counts.resize(at + 1, 0);
+        }
+        self.counts[at] += count;
+    }
+
+    /// The buckets that hold values, `(index, count)`, ascending.
+    fn iter(&self) -> impl DoubleEndedIterator<Item = (i32, u64)> + '_ {
+        (self.counts.iter().enumerate()).filter(|(_, c)| **c > 0).map(|(k, c)| (self.lowest + k as i32, *c))
+    }
+
+    fn total(&self) -> u64 {
+        self.counts.iter().sum()
+    }
 }
 
 fn gamma() -> f64 {
@@ -38,20 +74,20 @@ impl Sketch {
         }
         let index = (magnitude.ln() / gamma().ln()).ceil() as i32;
         let side = if v > 0.0 { &mut self.positive } else { &mut self.negative };
-        *side.entry(index).or_insert(0) += count;
+        side.add(index, count);
     }
 
     fn merge(&mut self, other: &Sketch) {
         for (side, theirs) in [(&mut self.positive, &other.positive), (&mut self.negative, &other.negative)] {
-            for (i, c) in theirs {
-                *side.entry(*i).or_insert(0) += c;
+            for (i, c) in theirs.iter() {
+                side.add(i, c);
             }
         }
         self.zeros += other.zeros;
     }
 
     fn count(&self) -> u64 {
-        self.zeros + self.positive.values().sum::<u64>() + self.negative.values().sum::<u64>()
+        self.zeros + self.positive.total() + self.negative.total()
     }
 
     /// The value at 0-based rank `rank` in ascending order.
@@ -63,20 +99,20 @@ impl Sketch {
         for (i, c) in self.negative.iter().rev() {
             seen += c;
             if rank < seen {
-                return -value(*i);
+                return -value(i);
             }
         }
         seen += self.zeros;
         if rank < seen {
             return 0.0;
         }
-        for (i, c) in &self.positive {
+        for (i, c) in self.positive.iter() {
             seen += c;
             if rank < seen {
-                return value(*i);
+                return value(i);
             }
         }
-        self.positive.keys().next_back().map_or(0.0, |i| value(*i))
+        self.positive.iter().next_back().map_or(0.0, |(i, _)| value(i))
     }
 }
 
@@ -233,5 +269,42 @@ mod tests {
         }
         assert_eq!(whole.count(), 100_000);
         assert_eq!(a.count(), 100_000);
+    }
+
+    /// The sketch answers with the bucket of the true order statistic, `sign 2 gamma^i / (gamma + 1)`
+    /// with `i = ceil(ln|x| / ln gamma)` (the closed form of the module docs), at every rank tried: for
+    /// values arriving in descending order over 1e-200 to 1e200 on both signs (each new value below the
+    /// lowest bucket so far), with zeros, and after merging a stream that extends the range both ways.
+    #[test]
+    fn the_sketch_gives_the_bucket_of_the_true_order_statistic_over_any_range() {
+        let g = (1.0 + RELATIVE_ACCURACY) / (1.0 - RELATIVE_ACCURACY);
+        let bucket = |x: f64| {
+            if x.abs() < f64::MIN_POSITIVE {
+                0.0
+            } else {
+                x.signum() * 2.0 * g.powi((x.abs().ln() / g.ln()).ceil() as i32) / (g + 1.0)
+            }
+        };
+        let magnitudes: Vec<f64> = (0..6000).map(|k| 10f64.powf(200.0 - k as f64 / 15.0)).collect();
+        let mut values: Vec<f64> = magnitudes.iter().flat_map(|&m| [m, -1.0 / m]).collect();
+        values.extend([0.0; 7]);
+        let (mut q, mut other) = (Quantiles::default(), Quantiles::default());
+        values.iter().for_each(|&v| q.push(v));
+        let wider = [1e250, -1e250, 1e-250, -1e-250, 3.0];
+        wider.iter().for_each(|&v| other.push(v));
+        for (stream, merged) in [(&q, false), (&q.clone(), true)] {
+            let mut stream = stream.clone();
+            let mut all = values.clone();
+            if merged {
+                stream.merge(&other);
+                all.extend(wider);
+            }
+            all.sort_by(f64::total_cmp);
+            assert_eq!(stream.count(), all.len() as u64);
+            for p in [0.0, 1e-4, 0.01, 0.25, 0.4999, 0.5, 0.5001, 0.75, 0.99, 1.0] {
+                let truth = all[((all.len() - 1) as f64 * p).round() as usize];
+                assert_eq!(stream.quantile(p), Some(bucket(truth)), "p {p}, merged {merged}: truth {truth}");
+            }
+        }
     }
 }

@@ -164,17 +164,36 @@ pub fn summarize(
         None => None,
     };
     let mut main_pass = || {
-        for_each_slice_read_ahead(&path, manifest.rows as usize, SLICE_ROWS, &select, |df| {
-            let recorded = match &thresholds {
-                Some(_) => Some(RecordedStatistics::read(&df, &statistics, manifest.detection_window_s, &path)?),
-                None => None,
+        std::thread::scope(|scope| {
+            // The ROC counts each slice on a thread of its own while the summary counts it: the same
+            // slices in the same order, so the same counts, in about half the time on two cores.
+            let (to_roc, roc_slices) =
+                std::sync::mpsc::sync_channel::<std::sync::Arc<(DataFrame, RecordedStatistics)>>(1);
+            let path = &path;
+            let roc_thread = roc.as_mut().map(|roc| {
+                scope.spawn(move || roc_slices.into_iter().try_for_each(|s| roc.add_slice(&s.0, &s.1, path)))
+            });
+            let read = for_each_slice_read_ahead(path, manifest.rows as usize, SLICE_ROWS, &select, |df| {
+                let recorded = match &thresholds {
+                    Some(_) => Some(RecordedStatistics::read(&df, &statistics, manifest.detection_window_s, path)?),
+                    None => None,
+                };
+                let calibrated = thresholds.as_ref().zip(recorded.as_ref()).map(|((t, _), r)| (t.as_slice(), r));
+                agg.add_slice(&df, path, calibrated)?;
+                if let (Some(_), Some(recorded)) = (&roc_thread, recorded)
+                    && to_roc.send(std::sync::Arc::new((df, recorded))).is_err()
+                {
+                    // The ROC's thread stopped on an error, which its join returns: stop reading.
+                    return Err(RunError::Internal("the ROC's thread stopped".into()));
+                }
+                Ok(())
+            });
+            drop(to_roc);
+            let counted = match roc_thread {
+                Some(t) => t.join().map_err(|_| RunError::Internal("the ROC's thread panicked".into()))?,
+                None => Ok(()),
             };
-            let calibrated = thresholds.as_ref().zip(recorded.as_ref()).map(|((t, _), r)| (t.as_slice(), r));
-            agg.add_slice(&df, &path, calibrated)?;
-            if let (Some(roc), Some(recorded)) = (roc.as_mut(), &recorded) {
-                roc.add_slice(&df, recorded, &path)?;
-            }
-            Ok(())
+            counted.and(read)
         })
     };
     // The tail fits need only the thresholds: they run beside the pass over the records.
