@@ -293,14 +293,15 @@ Times are seconds from the first sample, as a deck's [log] evaluate_s and train_
     /// Run known-answer cases on this build and machine (closed forms and the exact laws the tests use,
     /// each against a run's 95 % interval) and write verification.csv and verification.html with the
     /// build's version and commit, the CPU and the lane path's vector form; exit 1 when a case fails.
-    /// For a safety case's tool qualification (docs/verification.md); a few seconds (--full: half a minute).
+    /// For a safety case's tool qualification (docs/verification.md); a few seconds (--full: about a minute).
     #[command(after_help = "Example: fdimc verify --out results/verify && open results/verify/verification.html")]
     Verify {
         /// Results folder (default: results/verify).
         #[arg(long, default_value = "results/verify")]
         out: PathBuf,
-        /// The full form: each run case over 20 seeds (its 95 % intervals' coverage) and the second
-        /// implementation at 20,000 trials; about 30 s on 2 cores.
+        /// The full form: each run case over 20 seeds (its 95 % intervals' coverage), the second
+        /// implementation at 20,000 trials and on the robustness deck (parameter errors, the CUSUM and
+        /// Kalman chi-square baselines); about a minute on 2 cores.
         #[arg(long)]
         full: bool,
         /// Seeds each run case's coverage is counted over, at least 8 (default: none; 20 with --full).
@@ -662,6 +663,7 @@ pub fn run(cli: Cli, kinds: &'static [&'static Method]) -> ExitCode {
             &verify::VerifyOptions {
                 seeds: seeds.unwrap_or(if full { 20 } else { 0 }),
                 second_trials: if full { 20_000 } else { 3_000 },
+                second_with_parameter_errors: full,
                 python: python
                     .or_else(|| std::env::var_os("FDIMC_PYTHON").map(PathBuf::from))
                     .unwrap_or_else(|| PathBuf::from("python3")),

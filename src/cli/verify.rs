@@ -113,8 +113,11 @@ impl Case {
 pub struct VerifyOptions {
     /// Seeds each run case is repeated over for its intervals' coverage (0: once, at the deck's seed).
     pub seeds: u64,
-    /// The second implementation's trials.
+    /// The second implementation's trials on the CI deck.
     pub second_trials: u64,
+    /// The second implementation on the robustness deck too (parameter errors, the CUSUM and Kalman
+    /// chi-square baselines), at 3,000 trials.
+    pub second_with_parameter_errors: bool,
     /// Python with NumPy, SciPy and polars for the second implementation.
     pub python: PathBuf,
 }
@@ -405,21 +408,33 @@ fn coverage_cases(out: &Path, seeds: u64) -> Result<Vec<Case>, CliError> {
 /// runs them where fdimc runs.
 const SECOND_IMPLEMENTATION: &str = include_str!("../../scripts/reference/second_implementation.py");
 const COMPARE_SECOND_IMPLEMENTATION: &str = include_str!("../../scripts/reference/compare_second_implementation.py");
-/// The tests the comparison makes on the CI deck at 3,000 trials and more: fewer means it compared less.
-const SECOND_IMPLEMENTATION_TESTS: u64 = 44;
+/// A deck the second implementation is compared on: its case's name, the deck (path, text), and the
+/// tests the comparison makes on it at 3,000 trials and more (fewer means it compared less).
+struct SecondDeck {
+    case: &'static str,
+    deck: (&'static str, &'static str),
+    min_tests: u64,
+}
 
-/// The second implementation (NumPy, SciPy) of the CI deck against this build's run of it, where
-/// `python` has NumPy, SciPy and polars; `Ok(None)` when it has not (verify says so).
-fn second_implementation(out: &Path, python: &Path, trials: u64) -> Result<Option<Case>, CliError> {
-    let has = std::process::Command::new(python)
+/// The CI deck: the detection filter and its fault kinds.
+const SECOND_CI: SecondDeck = SecondDeck { case: "second_implementation_agrees", deck: LANE_DECKS[0], min_tests: 44 };
+/// The robustness deck: parameter errors, the CUSUM and the Kalman chi-square baselines (`--full`).
+const SECOND_ROBUSTNESS: SecondDeck =
+    SecondDeck { case: "second_implementation_agrees_under_parameter_errors", deck: LANE_DECKS[2], min_tests: 552 };
+
+/// Whether `python` has NumPy, SciPy and polars, which the second implementation needs.
+fn has_second_implementation(python: &Path) -> bool {
+    std::process::Command::new(python)
         .args(["-c", "import numpy, scipy, polars, tomllib"])
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .status()
-        .is_ok_and(|s| s.success());
-    if !has {
-        return Ok(None);
-    }
+        .is_ok_and(|s| s.success())
+}
+
+/// The second implementation (NumPy, SciPy) of `second`'s deck against this build's run of it, with
+/// `python` (which has what it needs: [`has_second_implementation`]).
+fn second_implementation(out: &Path, python: &Path, second: &SecondDeck, trials: u64) -> Result<Case, CliError> {
     let io = |e: std::io::Error| CliError::Internal(format!("{}: {e}", out.display()));
     let scripts = out.join("reference");
     std::fs::create_dir_all(&scripts).map_err(io)?;
@@ -428,14 +443,20 @@ fn second_implementation(out: &Path, python: &Path, trials: u64) -> Result<Optio
     std::fs::write(&compare, COMPARE_SECOND_IMPLEMENTATION).map_err(io)?;
     let decks = out.join("decks");
     std::fs::create_dir_all(&decks).map_err(io)?;
-    let deck = decks.join("ci_seed000.toml");
-    std::fs::write(&deck, LANE_DECKS[0].1).map_err(io)?;
-    let table = out.join("second_implementation.csv");
+    let (deck_path, deck_text) = second.deck;
+    let stem = Path::new(deck_path).file_stem().and_then(|s| s.to_str()).unwrap_or("deck");
+    let deck = decks.join(format!("{stem}.toml"));
+    std::fs::write(&deck, deck_text).map_err(io)?;
+    // The CI deck's table keeps its name of earlier pages; another deck's names its deck.
+    let table = match second.case {
+        "second_implementation_agrees" => out.join("second_implementation.csv"),
+        _ => out.join(format!("second_implementation_{stem}.csv")),
+    };
     let exe = std::env::current_exe().map_err(|e| CliError::Internal(format!("this executable: {e}")))?;
     let done = std::process::Command::new(python)
         .arg(&compare)
         .arg(&deck)
-        .args(["--trials", &trials.to_string(), "--min-tests", &SECOND_IMPLEMENTATION_TESTS.to_string()])
+        .args(["--trials", &trials.to_string(), "--min-tests", &second.min_tests.to_string()])
         .arg("--fdimc")
         .arg(&exe)
         .arg("--out")
@@ -454,13 +475,14 @@ fn second_implementation(out: &Path, python: &Path, trials: u64) -> Result<Optio
     let verdicts = Table(&df).strs("verdict");
     let tested = verdicts.iter().filter(|v| *v == "agree" || *v == "REJECT").count();
     let rejected = verdicts.iter().filter(|v| *v == "REJECT").count() as f64;
-    Ok(Some(Case {
-        name: "second_implementation_agrees",
+    Ok(Case {
+        name: second.case,
         checks: format!(
-            "studies/ci_seed000.toml at {trials} trials, fdimc against a NumPy/SciPy simulation written from the \
-             deck and the docs alone: {tested} tests of the Pfa, Pd and delays per fault kind, output and size \
-             and the fault-free statistic's law (Fisher, Mann-Whitney, KS; Holm at family-wise 0.01), the number \
-             rejected (second_implementation.csv)"
+            "{deck_path} at {trials} trials, fdimc against a NumPy/SciPy simulation written from the deck and \
+             the docs alone: {tested} tests of the Pfa, Pd and delays per fault kind, output and size and the \
+             fault-free statistic's law (Fisher, Mann-Whitney, KS; Holm at family-wise 0.01), the number \
+             rejected ({})",
+            table.file_name().and_then(|n| n.to_str()).unwrap_or_default()
         ),
         expected_from: "scripts/reference/second_implementation.py (its own draws, fault injection and alarm rule)"
             .into(),
@@ -469,7 +491,7 @@ fn second_implementation(out: &Path, python: &Path, trials: u64) -> Result<Optio
         lo: rejected,
         hi: rejected,
         rule: Rule::Holds,
-    }))
+    })
 }
 
 /// Where and what ran: fdimc's version and commit, the CPU, the vector forms the lane path uses here.
@@ -510,15 +532,19 @@ pub fn exec_verify(out: &Path, options: &VerifyOptions) -> Result<bool, CliError
         cases.extend(coverage_cases(out, options.seeds)?);
     }
     let mut about = build_and_machine();
-    match second_implementation(out, &options.python, options.second_trials)? {
-        Some(case) => cases.push(case),
-        None => about.push((
+    if has_second_implementation(&options.python) {
+        cases.push(second_implementation(out, &options.python, &SECOND_CI, options.second_trials)?);
+        if options.second_with_parameter_errors {
+            cases.push(second_implementation(out, &options.python, &SECOND_ROBUSTNESS, 3_000)?);
+        }
+    } else {
+        about.push((
             "second implementation",
             format!(
                 "not run: {} lacks NumPy, SciPy or polars (give one that has them with --python)",
                 options.python.display()
             ),
-        )),
+        ));
     }
     let mut df = DataFrame::new_infer_height(vec![
         Column::new("case".into(), cases.iter().map(|c| c.name).collect::<Vec<_>>()),
