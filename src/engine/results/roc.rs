@@ -27,7 +27,7 @@ use polars::prelude::*;
 use crate::engine::results::schema::col;
 use crate::engine::results::tables::{bool_col, f64_col, str_col};
 use crate::engine::results::thresholds::{
-    DetectorThresholds, RecordedStatistics, for_each_slice, let_through, unit_ratio,
+    DetectorThresholds, RecordedStatistics, descending, for_each_slice, let_through, unit_ratio,
 };
 use crate::engine::run::output::write_table;
 use crate::engine::run::runner::{Manifest, RunError, pol};
@@ -100,6 +100,11 @@ pub struct Roc {
     points: Vec<Vec<RocPoint>>,
     /// `scaled[d][k]`: detector d's thresholds at point k.
     scaled: Vec<Vec<Vec<f64>>>,
+    /// Per detector: its points' thresholds descend ([`descending`]), so a row's first alarms at every
+    /// point come from one walk down each profile.
+    descending: Vec<bool>,
+    /// A row's first alarm at each point (scratch).
+    first: Vec<Option<f64>>,
 }
 
 impl Roc {
@@ -174,7 +179,9 @@ impl Roc {
             }
         })?;
         let scored = whole.iter().map(|w| w.len() == ns).collect();
-        Ok(Roc { detectors: manifest.detectors.clone(), scored, on_fault_free, points, scaled })
+        let descending = scaled.iter().map(|s| descending(s)).collect();
+        let first = vec![None; points.iter().map(Vec::len).max().unwrap_or(0)];
+        Ok(Roc { detectors: manifest.detectors.clone(), scored, on_fault_free, points, scaled, descending, first })
     }
 
     /// The columns [`Self::add_slice`] reads besides the statistics' ([`RecordedStatistics::columns`]).
@@ -202,8 +209,16 @@ impl Roc {
             // By `fault_free`, as the summary: a classifier's fault-free class has a name (`normal`).
             let faulty = !failed && fault_free.get(i) != Some(true);
             let calibration = calibrates(fault_free.get(i), failed);
-            for (p, thr) in self.points[d].iter_mut().zip(&self.scaled[d]) {
-                let (false_alarm, first) = recorded.alarms_at(i, thr, faulty);
+            let walked = faulty && self.descending[d];
+            if walked {
+                recorded.first_alarms_descending(i, &self.scaled[d], &mut self.first);
+            }
+            for (k, (p, thr)) in self.points[d].iter_mut().zip(&self.scaled[d]).enumerate() {
+                let (false_alarm, first) = if walked {
+                    (recorded.alarms_at(i, thr, false).0, self.first[k])
+                } else {
+                    recorded.alarms_at(i, thr, faulty)
+                };
                 if calibration {
                     p.calibration_units += 1;
                     p.false_alarms += false_alarm as u64;

@@ -258,6 +258,42 @@ impl RecordedStatistics {
         self.first_alarm_any_time(i, thr).filter(|&t| self.late(i, t))
     }
 
+    /// Row `i`'s first post-onset alarm within the detection window ([`Self::first_alarm`]) at each of
+    /// the threshold sets `sets`, into `first` (one per set), where the sets descend statistic by
+    /// statistic (`sets[k][j] <= sets[k - 1][j]`, or NaN in every set: [`descending`]). A profile whose
+    /// values do not decrease (a running maximum's, as recorded) is walked down once for all the sets,
+    /// where each set would search it; any other is searched per set. The ROC asks this of its ~41
+    /// points per row.
+    pub fn first_alarms_descending(&self, i: usize, sets: &[Vec<f64>], first: &mut [Option<f64>]) {
+        let first = &mut first[..sets.len()];
+        first.fill(None);
+        let mut earliest = |k: usize, t: f64| first[k] = Some(first[k].map_or(t, |f: f64| f.min(t)));
+        for j in 0..sets.first().map_or(0, Vec::len) {
+            let (t, v) = (&self.fp_t[j][i], &self.fp_v[j][i]);
+            if v.windows(2).all(|w| w[0] <= w[1]) {
+                // The values above a threshold are a suffix `p..`; a lower threshold only lengthens it.
+                let mut p = v.len();
+                for (k, thr) in sets.iter().enumerate() {
+                    while p > 0 && v[p - 1] > thr[j] {
+                        p -= 1;
+                    }
+                    if p < v.len() {
+                        earliest(k, t[p]);
+                    }
+                }
+            } else {
+                for (k, thr) in sets.iter().enumerate() {
+                    if let Some((t, _)) = t.iter().zip(v).find(|(_, v)| **v > thr[j]) {
+                        earliest(k, *t);
+                    }
+                }
+            }
+        }
+        for f in first.iter_mut() {
+            *f = f.filter(|&t| !self.late(i, t));
+        }
+    }
+
     fn first_alarm_any_time(&self, i: usize, thr: &[f64]) -> Option<f64> {
         (0..thr.len())
             .filter_map(|j| {
@@ -271,6 +307,14 @@ impl RecordedStatistics {
     fn late(&self, i: usize, t_s: f64) -> bool {
         is_late(t_s - self.onset_s[i], self.detection_window_s)
     }
+}
+
+/// Whether the threshold sets `sets` descend statistic by statistic, as
+/// [`RecordedStatistics::first_alarms_descending`] needs: each `sets[k][j] <= sets[k - 1][j]`, or NaN
+/// in every set.
+pub fn descending(sets: &[Vec<f64>]) -> bool {
+    sets.windows(2)
+        .all(|w| w[0].len() == w[1].len() && w[0].iter().zip(&w[1]).all(|(a, b)| b <= a || (a.is_nan() && b.is_nan())))
 }
 
 /// A unit's largest ratio of its statistics (`value(j)`) to the thresholds `base` (NaN values and
@@ -978,5 +1022,63 @@ mod tests {
         assert_eq!((windowed.first_alarm(0, &[2.0, 1.0]), windowed.late_alarm(0, &[2.0, 1.0])), (Some(2.5), None));
         assert_eq!((windowed.first_alarm(0, &[2.0]), windowed.late_alarm(0, &[2.0])), (None, Some(3.0)));
         assert_eq!(windowed.alarms_at(0, &[2.0], true), (false, None), "late: a miss");
+    }
+
+    /// The walk down each profile for descending threshold sets gives, set by set, what
+    /// `first_alarm` gives: on 2,000 random rows of three statistics (running maxima on a grid, ties,
+    /// empty profiles, a profile that decreases, onsets whose window cuts the profile) at 41 sets
+    /// scaled down from random thresholds, one statistic's NaN in every set.
+    #[test]
+    fn the_descending_walk_gives_each_sets_first_alarm() {
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut uniform = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let rows = 2000;
+        let (mut fp_t, mut fp_v) = (vec![Vec::new(); 3], vec![Vec::new(); 3]);
+        let mut onset_s = Vec::new();
+        for i in 0..rows {
+            let onset = 1.0 + uniform();
+            onset_s.push(onset);
+            for j in 0..3 {
+                let n = (uniform() * 12.0) as usize;
+                let (mut t, mut v) = (Vec::new(), Vec::new());
+                let (mut time, mut value) = (onset, uniform() * 2.0 - 0.5);
+                for _ in 0..n {
+                    time += 0.01 + uniform();
+                    // A grid of 0.25 makes ties; every 97th row of statistic 1 decreases once.
+                    value += (uniform() * 8.0).floor() * 0.25;
+                    t.push(time);
+                    v.push(value);
+                }
+                if j == 1 && i % 97 == 0 && n > 2 {
+                    v[1] = v[0] - 1.0;
+                }
+                fp_t[j].push(t);
+                fp_v[j].push(v);
+            }
+        }
+        let pre = vec![vec![0.0; rows]; 3];
+        let recorded = RecordedStatistics { pre, fp_t, fp_v, onset_s, detection_window_s: 4.0 };
+        let base = [5.0, 4.0, f64::NAN];
+        let sets: Vec<Vec<f64>> =
+            (0..41).map(|k| base.iter().map(|b| b * (2.0 - k as f64 * 0.049)).collect()).collect();
+        assert!(descending(&sets));
+        assert!(!descending(&[vec![1.0, 2.0], vec![1.5, 1.0]]) && !descending(&[vec![f64::NAN], vec![1.0]]));
+        let mut first = vec![None; 41];
+        let (mut alarms, mut decreasing) = (0, 0);
+        for i in 0..rows {
+            recorded.first_alarms_descending(i, &sets, &mut first);
+            for (k, set) in sets.iter().enumerate() {
+                assert_eq!(first[k], recorded.first_alarm(i, set), "row {i}, set {k}");
+                alarms += first[k].is_some() as usize;
+            }
+            decreasing += recorded.fp_v[1][i].windows(2).any(|w| w[1] < w[0]) as usize;
+        }
+        // Of the 82,000 row-sets, many alarm and many do not.
+        assert!(alarms > 16_000 && alarms < 66_000 && decreasing > 10, "{alarms} alarms, {decreasing} decreasing");
     }
 }
