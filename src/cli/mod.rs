@@ -293,7 +293,7 @@ Times are seconds from the first sample, as a deck's [log] evaluate_s and train_
     /// Run known-answer cases on this build and machine (closed forms and the exact laws the tests use,
     /// each against a run's 95 % interval) and write verification.csv and verification.html with the
     /// build's version and commit, the CPU and the lane path's vector form; exit 1 when a case fails.
-    /// For a safety case's tool qualification (docs/verification.md); a few seconds (--full: about a minute).
+    /// For a safety case's tool qualification (docs/verification.md); a few seconds (--full: minutes).
     #[command(after_help = "Example: fdimc verify --out results/verify && open results/verify/verification.html")]
     Verify {
         /// Results folder (default: results/verify).
@@ -301,7 +301,7 @@ Times are seconds from the first sample, as a deck's [log] evaluate_s and train_
         out: PathBuf,
         /// The full form: each run case over 20 seeds (its 95 % intervals' coverage), the second
         /// implementation at 20,000 trials and on the robustness deck (parameter errors, the CUSUM and
-        /// Kalman chi-square baselines); about a minute on 2 cores.
+        /// Kalman chi-square baselines); 1.5 to 3 minutes on 2 cores.
         #[arg(long)]
         full: bool,
         /// Seeds each run case's coverage is counted over, at least 8 (default: none; 20 with --full).

@@ -413,14 +413,25 @@ const COMPARE_SECOND_IMPLEMENTATION: &str = include_str!("../../scripts/referenc
 struct SecondDeck {
     case: &'static str,
     deck: (&'static str, &'static str),
+    /// Its table of tests in verify's folder.
+    table: &'static str,
     min_tests: u64,
 }
 
 /// The CI deck: the detection filter and its fault kinds.
-const SECOND_CI: SecondDeck = SecondDeck { case: "second_implementation_agrees", deck: LANE_DECKS[0], min_tests: 44 };
+const SECOND_CI: SecondDeck = SecondDeck {
+    case: "second_implementation_agrees",
+    deck: LANE_DECKS[0],
+    table: "second_implementation.csv",
+    min_tests: 44,
+};
 /// The robustness deck: parameter errors, the CUSUM and the Kalman chi-square baselines (`--full`).
-const SECOND_ROBUSTNESS: SecondDeck =
-    SecondDeck { case: "second_implementation_agrees_under_parameter_errors", deck: LANE_DECKS[2], min_tests: 552 };
+const SECOND_ROBUSTNESS: SecondDeck = SecondDeck {
+    case: "second_implementation_agrees_under_parameter_errors",
+    deck: LANE_DECKS[2],
+    table: "second_implementation_seed000_robustness.csv",
+    min_tests: 552,
+};
 
 /// Whether `python` has NumPy, SciPy and polars, which the second implementation needs.
 fn has_second_implementation(python: &Path) -> bool {
@@ -447,11 +458,7 @@ fn second_implementation(out: &Path, python: &Path, second: &SecondDeck, trials:
     let stem = Path::new(deck_path).file_stem().and_then(|s| s.to_str()).unwrap_or("deck");
     let deck = decks.join(format!("{stem}.toml"));
     std::fs::write(&deck, deck_text).map_err(io)?;
-    // The CI deck's table keeps its name of earlier pages; another deck's names its deck.
-    let table = match second.case {
-        "second_implementation_agrees" => out.join("second_implementation.csv"),
-        _ => out.join(format!("second_implementation_{stem}.csv")),
-    };
+    let table = out.join(second.table);
     let exe = std::env::current_exe().map_err(|e| CliError::Internal(format!("this executable: {e}")))?;
     let done = std::process::Command::new(python)
         .arg(&compare)
@@ -482,7 +489,7 @@ fn second_implementation(out: &Path, python: &Path, second: &SecondDeck, trials:
              the docs alone: {tested} tests of the Pfa, Pd and delays per fault kind, output and size and the \
              fault-free statistic's law (Fisher, Mann-Whitney, KS; Holm at family-wise 0.01), the number \
              rejected ({})",
-            table.file_name().and_then(|n| n.to_str()).unwrap_or_default()
+            second.table
         ),
         expected_from: "scripts/reference/second_implementation.py (its own draws, fault injection and alarm rule)"
             .into(),

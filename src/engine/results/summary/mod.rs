@@ -166,7 +166,7 @@ pub fn summarize(
     let mut main_pass = || {
         std::thread::scope(|scope| {
             // The ROC counts each slice on a thread of its own while the summary counts it: the same
-            // slices in the same order, so the same counts, in about half the time on two cores.
+            // slices in the same order, so the same counts.
             let (to_roc, roc_slices) =
                 std::sync::mpsc::sync_channel::<std::sync::Arc<(DataFrame, RecordedStatistics)>>(1);
             let path = &path;
